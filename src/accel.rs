@@ -1,0 +1,261 @@
+//! Ray-cast acceleration: an obvhs CWBVH over the scene's input polygons, answering
+//! "is the segment a→b blocked?" (any-hit, `ray_traverse_miss`) and "what is the first patch hit?".
+//!
+//! ## How it works
+//! - The BVH is `f32`. To keep precision for scenes far from the origin (translated by 1e6) or at
+//!   extreme scales (1e-4, 1e4), every point is first mapped into a **local frame**: centred on the
+//!   scene's bounds and scaled so the bounds' diagonal is 1. Results do not depend on the frame.
+//! - Primitives are whole convex polygons (not triangle pairs), tested by plane intersection and
+//!   inside-all-edges with a small outward tolerance: a ray through the shared edge of two patches
+//!   hits one of them (no leaks through shared edges).
+//! - The caller names up to two patches to ignore (the sender and receiver of a form factor), so an
+//!   element never shadows itself.
+//! - Built once with `BvhBuildParams::very_slow_build()`: on closed rooms `medium_build` trees
+//!   traverse several times more nodes per ray, and the build is cheap next to the rays.
+//!
+//! `primitive_indices` is hidden: the polygon list is reordered into BVH order once at build.
+
+use crate::math::DVec3;
+use crate::scene::Scene;
+use glam::Vec3A;
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::CwBvh;
+use obvhs::ray::Ray;
+use obvhs::{Boundable, BvhBuildParams};
+use std::time::Duration;
+
+/// Relative tolerance (in local units, scene diagonal = 1) by which polygon edges are widened.
+const EDGE_EPS: f32 = 1e-6;
+/// Segment ends are pulled in by this much (local units) so the endpoints' own surfaces never count.
+const END_EPS: f32 = 2e-6;
+
+#[derive(Clone, Copy, Debug)]
+struct Poly {
+    /// Patch index in the scene.
+    patch: u32,
+    n_edges: u32,
+    normal: Vec3A,
+    d: f32,
+    /// Inward edge normals (in the polygon plane) and offsets: inside if `e·p >= o` for all edges.
+    edge_n: [Vec3A; 4],
+    edge_o: [f32; 4],
+    aabb: Aabb,
+}
+
+impl Boundable for Poly {
+    fn aabb(&self) -> Aabb {
+        self.aabb
+    }
+}
+
+/// The BVH over a scene's patches.
+pub struct Accel {
+    bvh: CwBvh,
+    /// Polygons in BVH primitive order.
+    polys: Vec<Poly>,
+    origin: DVec3,
+    inv_scale: f64,
+}
+
+impl Accel {
+    /// Build the BVH over every patch of the scene.
+    #[must_use]
+    pub fn build(scene: &Scene) -> Accel {
+        let b = scene.bounds();
+        let origin = b.center();
+        let diag = b.diagonal();
+        let inv_scale = if diag > 0.0 && diag.is_finite() { 1.0 / diag } else { 1.0 };
+        let to_local = |p: DVec3| -> Vec3A {
+            let q = (p - origin) * inv_scale;
+            Vec3A::new(q.x as f32, q.y as f32, q.z as f32)
+        };
+        let polys: Vec<Poly> = scene
+            .patches
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let v: Vec<Vec3A> = p.vertices.iter().map(|&v| to_local(v)).collect();
+                let n64 = p.normal;
+                let normal = Vec3A::new(n64.x as f32, n64.y as f32, n64.z as f32);
+                let c = to_local(p.centroid);
+                let d = normal.dot(c);
+                let mut edge_n = [Vec3A::ZERO; 4];
+                let mut edge_o = [0.0f32; 4];
+                for k in 0..v.len() {
+                    let a = v[k];
+                    let e = v[(k + 1) % v.len()] - a;
+                    let en = normal.cross(e).normalize_or_zero(); // points inward for CCW
+                    edge_n[k] = en;
+                    edge_o[k] = en.dot(a) - EDGE_EPS;
+                }
+                let mut mn = v[0];
+                let mut mx = v[0];
+                for &q in &v[1..] {
+                    mn = mn.min(q);
+                    mx = mx.max(q);
+                }
+                let pad = Vec3A::splat(EDGE_EPS * 4.0);
+                Poly {
+                    patch: i as u32,
+                    n_edges: v.len() as u32,
+                    normal,
+                    d,
+                    edge_n,
+                    edge_o,
+                    aabb: Aabb::new(mn - pad, mx + pad),
+                }
+            })
+            .collect();
+        let mut t = Duration::ZERO;
+        let bvh = obvhs::cwbvh::builder::build_cwbvh(&polys, BvhBuildParams::very_slow_build(), &mut t);
+        let ordered = bvh.primitive_indices.iter().map(|&i| polys[i as usize]).collect();
+        Accel { bvh, polys: ordered, origin, inv_scale }
+    }
+
+    fn to_local(&self, p: DVec3) -> Vec3A {
+        let q = (p - self.origin) * self.inv_scale;
+        Vec3A::new(q.x as f32, q.y as f32, q.z as f32)
+    }
+
+    /// Number of polygons in the BVH.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.polys.len()
+    }
+
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.polys.is_empty()
+    }
+
+    /// Is the open segment a→b blocked by any patch other than `ignore[0]`, `ignore[1]`?
+    #[must_use]
+    pub fn occluded(&self, a: DVec3, b: DVec3, ignore: [u32; 2]) -> bool {
+        let la = self.to_local(a);
+        let lb = self.to_local(b);
+        let delta = lb - la;
+        let len = delta.length();
+        if !(len > 2.0 * END_EPS) {
+            return false;
+        }
+        let dir = delta / len;
+        let ray = Ray::new(la, dir, END_EPS, len - END_EPS);
+        !self.bvh.ray_traverse_miss(ray, |r, id| {
+            let p = &self.polys[id];
+            if p.patch == ignore[0] || p.patch == ignore[1] {
+                return f32::INFINITY;
+            }
+            intersect(p, r)
+        })
+    }
+
+    /// First patch hit along the ray from `origin` in direction `dir` (any length), ignoring
+    /// `ignore`. Returns `(patch, distance)` in scene units.
+    #[must_use]
+    pub fn first_hit(&self, origin: DVec3, dir: DVec3, ignore: u32) -> Option<(u32, f64)> {
+        let lo = self.to_local(origin);
+        let d = dir.normalize();
+        let ld = Vec3A::new(d.x as f32, d.y as f32, d.z as f32);
+        let ray = Ray::new(lo, ld, END_EPS, f32::INFINITY);
+        let mut hit = obvhs::ray::RayHit::none();
+        if self.bvh.ray_traverse(ray, &mut hit, |r, id| {
+            let p = &self.polys[id];
+            if p.patch == ignore { f32::INFINITY } else { intersect(p, r) }
+        }) {
+            let p = self.polys[hit.primitive_id as usize].patch;
+            Some((p, f64::from(hit.t) / self.inv_scale))
+        } else {
+            None
+        }
+    }
+}
+
+#[inline]
+fn intersect(p: &Poly, r: &Ray) -> f32 {
+    let denom = p.normal.dot(r.direction);
+    if denom.abs() < 1e-12 {
+        return f32::INFINITY;
+    }
+    let t = (p.d - p.normal.dot(r.origin)) / denom;
+    if !(t > r.tmin && t < r.tmax) {
+        return f32::INFINITY;
+    }
+    let q = r.origin + r.direction * t;
+    for k in 0..p.n_edges as usize {
+        if p.edge_n[k].dot(q) < p.edge_o[k] {
+            return f32::INFINITY;
+        }
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Rgb;
+    use crate::scene::Patch;
+
+    fn quad(v: [[f64; 3]; 4], name: &str) -> Patch {
+        Patch::new(
+            v.iter().map(|a| DVec3::from_array(*a)).collect(),
+            Rgb::splat(0.5),
+            Rgb::ZERO,
+            name,
+            0,
+            name,
+            "m",
+        )
+        .unwrap()
+    }
+
+    fn two_squares_and_blocker(offset: DVec3, scale: f64) -> Scene {
+        let t = |p: [f64; 3]| {
+            let q = DVec3::from_array(p) * scale + offset;
+            q.to_array()
+        };
+        Scene::new(
+            "t",
+            "t",
+            vec![
+                quad([t([0., 0., 0.]), t([1., 0., 0.]), t([1., 1., 0.]), t([0., 1., 0.])], "floor"),
+                quad([t([0., 0., 2.]), t([0., 1., 2.]), t([1., 1., 2.]), t([1., 0., 2.])], "ceil"),
+                // blocker covering x in [0, 0.5] at z = 1, split in two quads sharing the edge x = 0.25
+                quad([t([0., 0., 1.]), t([0.25, 0., 1.]), t([0.25, 1., 1.]), t([0., 1., 1.])], "b1"),
+                quad([t([0.25, 0., 1.]), t([0.5, 0., 1.]), t([0.5, 1., 1.]), t([0.25, 1., 1.])], "b2"),
+            ],
+        )
+    }
+
+    #[test]
+    fn blocks_and_passes_at_any_offset_and_scale() {
+        for (off, s) in
+            [(DVec3::ZERO, 1.0), (DVec3::splat(1e6), 1.0), (DVec3::ZERO, 1e-4), (DVec3::splat(-3.0), 1e4)]
+        {
+            let sc = two_squares_and_blocker(off, s);
+            let acc = Accel::build(&sc);
+            let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z) * s + off;
+            assert!(acc.occluded(p(0.1, 0.5, 0.0), p(0.1, 0.5, 2.0), [0, 1]), "offset {off} scale {s}");
+            assert!(!acc.occluded(p(0.9, 0.5, 0.0), p(0.9, 0.5, 2.0), [0, 1]), "offset {off} scale {s}");
+            // Exactly through the shared edge x = 0.25: must not leak.
+            assert!(acc.occluded(p(0.25, 0.5, 0.0), p(0.25, 0.5, 2.0), [0, 1]), "edge leak at {off} {s}");
+        }
+    }
+
+    #[test]
+    fn endpoints_on_surfaces_do_not_self_occlude() {
+        let sc = two_squares_and_blocker(DVec3::ZERO, 1.0);
+        let acc = Accel::build(&sc);
+        // From the blocker's top to the ceiling, ignoring nothing: the blocker itself is at t=0.
+        assert!(!acc.occluded(DVec3::new(0.1, 0.5, 1.0), DVec3::new(0.1, 0.5, 2.0), [u32::MAX, u32::MAX]));
+    }
+
+    #[test]
+    fn first_hit_finds_nearest() {
+        let sc = two_squares_and_blocker(DVec3::ZERO, 1.0);
+        let acc = Accel::build(&sc);
+        let (p, t) = acc.first_hit(DVec3::new(0.1, 0.5, 0.0), DVec3::Z, 0).unwrap();
+        assert_eq!(p, 2);
+        assert!((t - 1.0).abs() < 1e-5);
+        assert!(acc.first_hit(DVec3::new(0.9, 0.5, 0.0), -DVec3::Z, 0).is_none());
+    }
+}

@@ -1,0 +1,8 @@
+//! `radlab bench` (being written).
+
+#[derive(clap::Args, Debug)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`bench` is not written yet")
+}

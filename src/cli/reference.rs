@@ -1,0 +1,8 @@
+//! `radlab reference` (being written).
+
+#[derive(clap::Args, Debug)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`reference` is not written yet")
+}

@@ -1,0 +1,8 @@
+//! `radlab scenes` (being written).
+
+#[derive(clap::Args, Debug)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`scenes` is not written yet")
+}

@@ -1,0 +1,8 @@
+//! `radlab solve` (being written).
+
+#[derive(clap::Args, Debug)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`solve` is not written yet")
+}

@@ -1,0 +1,48 @@
+//! # radlab — a lab for hierarchical radiosity
+//!
+//! A solver for diffuse global illumination that is fast and honest about its error, and an
+//! interactive tool that shows how radiosity works and where it goes wrong.
+//!
+//! The radiosity equation for a diffuse scene of patches i, RGB per channel:
+//!
+//! ```text
+//! B_i = E_i + ρ_i Σ_j F_ij V_ij B_j          [Goral et al. 1984; Cohen & Wallace 1993, ch. 2]
+//! ```
+//!
+//! solved here by classical methods (a uniform mesh with Gauss–Seidel, progressive refinement)
+//! and by hierarchical radiosity [Hanrahan, Salzman, Aupperle 1991, "A Rapid Hierarchical
+//! Radiosity Algorithm", SIGGRAPH '91] — quadtree elements, `Refine` with Feps/Aeps or a BF
+//! oracle, links, recursive `Gather`, push-pull — which needs O(n) interactions instead of n².
+//!
+//! ## Module map (dependencies point one way; see ARCHITECTURE.md)
+//! - [`math`]: `Rgb`, polygon area/normal/centroid, seeded RNG.
+//! - [`scene`]: patches, materials, glTF import, built-in scenes, validation.
+//! - [`form_factor`]: pure kernels — point→polygon (Lambert), disk, quadrature, Monte Carlo.
+//! - [`accel`]: obvhs BVH over the input polygons; `occluded(a, b)`.
+//! - [`visibility`]: visible fraction between two elements with seeded jittered rays.
+//! - [`hierarchy`]: element arena (`ElementId`), quad/triangle 1→4 split.
+//! - [`link`]: compact link store.
+//! - [`solver`]: parameters, uniform / progressive / hierarchical solvers, statistics.
+//! - [`reference`]: an independent Monte Carlo estimator that shares no kernel with `solver`.
+//! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
+//! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
+//! - [`overlay`]: CPU-side line/colour lists for quadtree, links and error overlays.
+//! - `render`, `viewer` (feature `gui`): wgpu pipelines and the eframe app.
+
+pub mod accel;
+pub mod form_factor;
+pub mod hierarchy;
+pub mod image;
+pub mod link;
+pub mod math;
+pub mod metrics;
+pub mod overlay;
+pub mod reference;
+pub mod scene;
+pub mod solver;
+pub mod visibility;
+
+#[cfg(feature = "gui")]
+pub mod render;
+#[cfg(feature = "gui")]
+pub mod viewer;

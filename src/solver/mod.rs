@@ -1,0 +1,118 @@
+//! Radiosity solvers and what they all return.
+//!
+//! ```text
+//! B_i = E_i + ρ_i Σ_j F_ij V_ij B_j        [Cohen & Wallace 1993, eq. 2.3]
+//! ```
+//!
+//! - [`uniform`]: every patch meshed to a target element size, full form-factor matrix
+//!   (quadrature + visibility, reciprocity), Gauss–Seidel.
+//! - [`progressive`]: Southwell shooting of unshot power [Cohen et al. 1988], ambient term for display.
+//! - [`hierarchical`]: HSA91 — quadtree, Refine (Feps/Aeps or BF oracle), Gather, push-pull.
+//!
+//! Every solver returns a [`Solution`]: leaf elements with geometry and radiosity, per-patch
+//! area-weighted radiosity, the energy balance and statistics. The CLI's JSON, the PNG renderer,
+//! the error metrics and the viewer read only this type.
+
+pub mod hierarchical;
+pub mod params;
+pub mod progressive;
+pub mod uniform;
+
+use crate::math::{DVec3, Rgb};
+use serde::Serialize;
+
+/// One leaf element of a solution.
+#[derive(Clone, Debug, Serialize)]
+pub struct SolvedElement {
+    /// Index of the input patch this element lies on.
+    pub patch: usize,
+    /// 3 or 4 vertices, same orientation as the patch.
+    pub vertices: Vec<DVec3>,
+    pub area: f64,
+    /// Radiosity B (emitted + reflected exitance).
+    pub radiosity: Rgb,
+}
+
+/// Power balance of a solution, per channel: at convergence `emitted = absorbed + escaped`.
+/// `absorbed` = Σ A (1−ρ) H (H the gathered irradiance); `escaped` = Σ A B (1 − Σ_j F V),
+/// the part of the leaving power that hits no surface. Both are computed from the solver's own
+/// quantities, so the balance is a real check, not an identity.
+#[derive(Copy, Clone, Debug, Default, Serialize)]
+pub struct EnergyBalance {
+    pub emitted: Rgb,
+    pub absorbed: Rgb,
+    pub escaped: Rgb,
+}
+
+impl EnergyBalance {
+    /// |emitted − absorbed − escaped| / emitted, worst channel (0 for a dark scene).
+    #[must_use]
+    pub fn relative_residual(&self) -> f64 {
+        (0..3)
+            .map(|c| {
+                let e = self.emitted.0[c];
+                if e > 0.0 { (e - self.absorbed.0[c] - self.escaped.0[c]).abs() / e } else { 0.0 }
+            })
+            .fold(0.0, f64::max)
+    }
+}
+
+/// Wall time per phase, seconds.
+#[derive(Copy, Clone, Debug, Default, Serialize)]
+pub struct PhaseTimes {
+    pub load: f64,
+    pub bvh: f64,
+    pub form_factors: f64,
+    pub solve: f64,
+    pub total: f64,
+}
+
+/// Statistics common to every solver (the hierarchical solver adds its own in `extra`).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct SolveStats {
+    pub patches: usize,
+    pub elements: usize,
+    /// Form-factor matrix entries (uniform), shots (progressive) or links (hierarchical).
+    pub links: usize,
+    pub iterations: usize,
+    pub rays: u64,
+    pub time_s: PhaseTimes,
+    /// Solver-specific statistics (hierarchical: leaves, depth histogram, links by visibility…).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub extra: Option<serde_json::Value>,
+}
+
+/// What every solver returns.
+#[derive(Clone, Debug, Serialize)]
+pub struct Solution {
+    pub method: String,
+    pub elements: Vec<SolvedElement>,
+    /// Area-weighted average radiosity of each input patch's elements, in patch order.
+    pub patch_radiosity: Vec<Rgb>,
+    pub energy: EnergyBalance,
+    pub stats: SolveStats,
+}
+
+impl Solution {
+    /// Area-weighted per-patch averages of the elements' radiosity.
+    #[must_use]
+    pub fn patch_averages(n_patches: usize, elements: &[SolvedElement]) -> Vec<Rgb> {
+        let mut sum = vec![Rgb::ZERO; n_patches];
+        let mut area = vec![0.0; n_patches];
+        for e in elements {
+            sum[e.patch] += e.radiosity * e.area;
+            area[e.patch] += e.area;
+        }
+        sum.iter().zip(&area).map(|(s, a)| if *a > 0.0 { *s / *a } else { Rgb::ZERO }).collect()
+    }
+
+    /// True if every radiosity value is finite and non-negative.
+    #[must_use]
+    pub fn is_physical(&self) -> bool {
+        self.elements.iter().all(|e| e.radiosity.is_finite() && e.radiosity.min_channel() >= 0.0)
+    }
+}
+
+/// Progress reporting for long work: `(done, total)` in solver-defined units. The CLI turns it
+/// into an indicatif bar; the viewer into a progress bar; tests pass `&mut |_, _| {}`.
+pub type Progress<'a> = &'a mut (dyn FnMut(u64, u64) + Send);

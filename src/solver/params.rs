@@ -1,0 +1,201 @@
+//! Solver settings as data: `Copy` structs with named `const fn` presets.
+//!
+//! Parameters, mutable solver state and statistics are three separate types; nothing is global.
+
+use serde::Serialize;
+
+/// Which test decides that a link is accurate enough (HSA91 §4; SPLASH-2 `radiosity`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Oracle {
+    /// Link when both form-factor estimates F_pq, F_qp are below `feps` (the lecture's Refine).
+    Feps,
+    /// Link when B_source · F · (error bound) is below `bf_eps` (error-driven; re-applied after
+    /// each gather so the mesh follows the light).
+    Bf,
+}
+
+/// Minimum element area: absolute (scene units²) or a fraction of the scene's total area.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "lowercase", tag = "kind", content = "value")]
+pub enum AreaEps {
+    Absolute(f64),
+    Relative(f64),
+}
+
+impl AreaEps {
+    /// The absolute floor for a scene of total area `scene_area`.
+    #[must_use]
+    pub fn resolve(self, scene_area: f64) -> f64 {
+        match self {
+            AreaEps::Absolute(a) => a,
+            AreaEps::Relative(r) => r * scene_area,
+        }
+    }
+}
+
+/// Settings of the hierarchical solver.
+///
+/// | field | speed | error |
+/// |---|---|---|
+/// | `feps` ↓ | more links, slower | smaller form-factor error per link |
+/// | `aeps` ↓ | deeper trees where light changes | sharper shadows, Mach bands shrink |
+/// | `bf_eps` ↓ | more refinement where B·F is large | smaller energy error per link |
+/// | `rays` ↑ | linear in link cost | smoother penumbrae, better V estimates |
+/// | `max_depth` | caps the tree | a hard floor on resolution |
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct HierarchicalParams {
+    pub oracle: Oracle,
+    /// Form-factor threshold of the lecture's Refine (used by the `feps` oracle, and by the `bf`
+    /// oracle as a cap: links with both F estimates below `feps` never refine).
+    pub feps: f64,
+    /// Elements of area at or below this are never subdivided.
+    pub aeps: AreaEps,
+    /// Threshold of the BF oracle (in units of B, i.e. radiosity × form factor).
+    pub bf_eps: f64,
+    /// Shadow rays per link for the visible fraction.
+    pub rays: u32,
+    /// Maximum quadtree depth below an input patch.
+    pub max_depth: u8,
+    /// Convergence: stop iterating when the largest change of any element's radiosity, relative
+    /// to the largest radiosity in the scene, is below this.
+    pub tolerance: f64,
+    /// Safety cap on gather iterations per solve.
+    pub max_iterations: u32,
+    /// Safety cap on refine→gather rounds (the HSA91 outer loop).
+    pub max_rounds: u32,
+    /// Gauss–Seidel (use new radiosities as soon as a patch is gathered) instead of Jacobi.
+    pub gauss_seidel: bool,
+    /// Seed of the visibility jitter.
+    pub seed: u64,
+}
+
+impl HierarchicalParams {
+    /// Fast enough to drag sliders: coarse floor, few rays.
+    #[must_use]
+    pub const fn interactive() -> Self {
+        HierarchicalParams {
+            oracle: Oracle::Bf,
+            feps: 0.05,
+            aeps: AreaEps::Relative(1e-4),
+            bf_eps: 0.02,
+            rays: 4,
+            max_depth: 12,
+            tolerance: 1e-3,
+            max_iterations: 100,
+            max_rounds: 8,
+            gauss_seidel: false,
+            seed: 0,
+        }
+    }
+
+    /// Balanced default for the CLI.
+    #[must_use]
+    pub const fn quality() -> Self {
+        HierarchicalParams {
+            oracle: Oracle::Bf,
+            feps: 0.02,
+            aeps: AreaEps::Relative(2e-5),
+            bf_eps: 0.005,
+            rays: 16,
+            max_depth: 14,
+            tolerance: 1e-4,
+            max_iterations: 200,
+            max_rounds: 12,
+            gauss_seidel: false,
+            seed: 0,
+        }
+    }
+
+    /// The lecture's Refine: the form-factor oracle alone.
+    #[must_use]
+    pub const fn lecture() -> Self {
+        HierarchicalParams {
+            oracle: Oracle::Feps,
+            feps: 0.02,
+            aeps: AreaEps::Relative(1e-4),
+            bf_eps: 0.0,
+            rays: 8,
+            max_depth: 12,
+            tolerance: 1e-4,
+            max_iterations: 200,
+            max_rounds: 1,
+            gauss_seidel: false,
+            seed: 0,
+        }
+    }
+
+    /// Equivalent of the SPLASH-2 `radiosity` defaults on its room scene: minimum element area
+    /// 2000 (scene units), BF epsilon 0.015, energy tolerance 0.005.
+    #[must_use]
+    pub const fn splash2() -> Self {
+        HierarchicalParams {
+            oracle: Oracle::Bf,
+            feps: 0.5,
+            aeps: AreaEps::Absolute(2000.0),
+            bf_eps: 0.015,
+            rays: 4,
+            max_depth: 16,
+            tolerance: 0.005,
+            max_iterations: 100,
+            max_rounds: 16,
+            gauss_seidel: false,
+            seed: 0,
+        }
+    }
+
+    /// Look up a preset by name (`interactive`, `quality`, `lecture`, `splash2`).
+    #[must_use]
+    pub fn preset(name: &str) -> Option<Self> {
+        Some(match name {
+            "interactive" => Self::interactive(),
+            "quality" => Self::quality(),
+            "lecture" => Self::lecture(),
+            "splash2" => Self::splash2(),
+            _ => return None,
+        })
+    }
+
+    pub const PRESETS: [&'static str; 4] = ["interactive", "quality", "lecture", "splash2"];
+
+    /// Reject absurd values with a message naming the parameter.
+    pub fn validate(&self) -> Result<(), String> {
+        let pos = |name: &str, v: f64| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(format!("{name} must be a finite number >= 0 (got {v})"))
+            }
+        };
+        pos("feps", self.feps)?;
+        pos("bf-eps", self.bf_eps)?;
+        match self.aeps {
+            AreaEps::Absolute(a) => pos("aeps", a)?,
+            AreaEps::Relative(a) => {
+                pos("aeps-rel", a)?;
+                if a > 1.0 {
+                    return Err(format!("aeps-rel is a fraction of the scene's area, at most 1 (got {a})"));
+                }
+            }
+        }
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return Err(format!("tolerance must be > 0 (got {})", self.tolerance));
+        }
+        if self.rays == 0 || self.rays > 4096 {
+            return Err(format!("rays must be in 1..=4096 (got {})", self.rays));
+        }
+        if self.max_depth > 30 {
+            return Err(format!("max-depth must be at most 30 (got {})", self.max_depth));
+        }
+        if self.max_iterations == 0 {
+            return Err("max-iterations must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+impl Default for HierarchicalParams {
+    fn default() -> Self {
+        Self::quality()
+    }
+}
