@@ -25,12 +25,16 @@
 //! - [`solver`]: parameters, uniform / progressive / hierarchical solvers, statistics.
 //! - [`reference`]: an independent Monte Carlo estimator that shares no kernel with `solver`.
 //! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
+//! - [`bench`]: the speed-against-error sweep behind `radlab bench`.
+//! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
 //! - [`overlay`]: CPU-side line/colour lists for quadtree, links and error overlays.
 //! - `render`, `viewer` (feature `gui`): wgpu pipelines and the eframe app.
 
 pub mod accel;
+pub mod bench;
 pub mod form_factor;
+pub mod hard_cases;
 pub mod hierarchy;
 pub mod image;
 pub mod link;

@@ -172,13 +172,25 @@ pub struct Scene {
     pub patches: Vec<Patch>,
     /// Non-fatal notes from loading (clamped ρ, skipped primitives, no emitter, …).
     pub warnings: Vec<String>,
+    /// The scene's own viewpoint (a glTF camera node), if it has one.
+    pub camera: Option<Viewpoint>,
+}
+
+/// A camera placement: where from, where to, which way is up, vertical field of view.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct Viewpoint {
+    pub eye: DVec3,
+    pub target: DVec3,
+    pub up: DVec3,
+    pub fov_y_deg: f64,
 }
 
 impl Scene {
     /// A scene from patches, with the "no emitter" warning filled in.
     #[must_use]
     pub fn new(name: impl Into<String>, source: impl Into<String>, patches: Vec<Patch>) -> Scene {
-        let mut s = Scene { name: name.into(), source: source.into(), patches, warnings: Vec::new() };
+        let mut s =
+            Scene { name: name.into(), source: source.into(), patches, warnings: Vec::new(), camera: None };
         if !s.patches.iter().any(Patch::is_emitter) {
             s.warnings.push("no patch emits light: the solution will be black".into());
         }

@@ -31,6 +31,10 @@ pub struct SolvedElement {
     pub area: f64,
     /// Radiosity B (emitted + reflected exitance).
     pub radiosity: Rgb,
+    /// The solver's own a-posteriori estimate of this element's error in B (same unit as B,
+    /// scalar over channels), where the solver has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_estimate: Option<f64>,
 }
 
 /// Power balance of a solution, per channel: at convergence `emitted = absorbed + escaped`.
