@@ -368,12 +368,10 @@ fn integrate_adaptive(
             }
         }
     }
-    let totals = |heap: &BinaryHeap<Region>| {
-        // Sum in a fixed order (sorted) so the result does not depend on the heap's layout.
-        let mut regions: Vec<&Region> = heap.iter().collect();
-        regions.sort_unstable_by(|a, b| b.cmp(a));
-        regions.iter().fold((0.0, 0.0), |(s, e), r| (s + r.value, e + r.error))
-    };
+    // Exact sums (the heap's layout follows from the same sequence of operations every time,
+    // so the summation order, and the result, are deterministic).
+    let totals =
+        |heap: &BinaryHeap<Region>| heap.iter().fold((0.0, 0.0), |(s, e), r| (s + r.value, e + r.error));
     let (mut value, mut error) = totals(&heap);
     let mut since_resum = 0u32;
     let converged = loop {
