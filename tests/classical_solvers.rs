@@ -305,6 +305,19 @@ fn meshes_respect_size_orientation_and_area() {
 }
 
 #[test]
+fn element_size_for_hits_the_target_count() {
+    let scene = open_box_with_occluder();
+    let count = |size: f64| scene.patches.iter().map(|p| uniform::element_count(p, size)).sum::<f64>();
+    for target in [100usize, 1000, 5000] {
+        let size = uniform::element_size_for(&scene, target);
+        assert!(count(size) <= target as f64, "{target}: {} elements at {size}", count(size));
+        // 0.1 % finer exceeds the target: the size is the largest that fits (to 0.1 %).
+        assert!(count(size / 1.001) > target as f64, "{target}: not the largest size");
+    }
+    assert_eq!(uniform::element_size_for(&scene, 3), f64::INFINITY);
+}
+
+#[test]
 fn bad_parameters_and_oversized_meshes_are_refused() {
     let scene = open_box_with_occluder();
     let accel = Accel::build(&scene);

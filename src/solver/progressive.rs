@@ -233,7 +233,7 @@ pub fn solve(
     let converged = fraction <= params.tolerance;
 
     // Ambient term for display.
-    let total_area: f64 = elems.iter().map(|e| e.area).sum();
+    let total_area: f64 = elems.iter().map(|e| e.area).sum::<f64>().max(f64::MIN_POSITIVE);
     let rho_avg: Rgb = rho.iter().zip(&elems).map(|(r, e)| *r * e.area).sum::<Rgb>() / total_area;
     let unshot_avg: Rgb = unshot.iter().zip(&elems).map(|(d, e)| *d * e.area).sum::<Rgb>() / total_area;
     // ρ ≤ RHO_MAX in a valid scene; the floor keeps a hand-built ρ = 1 scene finite.

@@ -180,6 +180,31 @@ pub fn mesh_patch(patch: &Patch, element_size: f64) -> Vec<Vec<DVec3>> {
     tris.into_iter().map(|t| t.to_vec()).collect()
 }
 
+/// The largest element size (to 0.1 %) at which the scene meshes into at most
+/// `target_elements` elements — a scene-independent way to pick `element_size`.
+/// `f64::INFINITY` (one element per patch, the coarsest mesh there is) when the scene has at
+/// least `target_elements` patches.
+#[must_use]
+pub fn element_size_for(scene: &Scene, target_elements: usize) -> f64 {
+    let count = |size: f64| scene.patches.iter().map(|p| element_count(p, size)).sum::<f64>();
+    let target = target_elements as f64;
+    let diam = scene.bounds().diagonal();
+    if scene.patches.is_empty() || !(diam > 0.0) || count(diam) >= target {
+        return f64::INFINITY;
+    }
+    // count(size) is non-increasing in size: bisect in log space between a size that is too
+    // fine and the scene's diagonal (one element per patch).
+    let (mut lo, mut hi) = (diam * 1e-6, diam);
+    if count(lo) <= target {
+        return lo;
+    }
+    while hi / lo > 1.001 {
+        let mid = (lo * hi).sqrt();
+        if count(mid) <= target { hi = mid } else { lo = mid }
+    }
+    hi
+}
+
 /// One element of a classical solver's mesh.
 #[derive(Clone, Debug)]
 pub struct Element {
