@@ -189,7 +189,7 @@ pub fn element_size_for(scene: &Scene, target_elements: usize) -> f64 {
     let count = |size: f64| scene.patches.iter().map(|p| element_count(p, size)).sum::<f64>();
     let target = target_elements as f64;
     let diam = scene.bounds().diagonal();
-    if scene.patches.is_empty() || !(diam > 0.0) || count(diam) >= target {
+    if scene.patches.is_empty() || diam.is_nan() || diam <= 0.0 || count(diam) >= target {
         return f64::INFINITY;
     }
     // count(size) is non-increasing in size: bisect in log space between a size that is too
