@@ -18,7 +18,9 @@
 //!   kernel (Genz–Malik degree-7 rule with a degree-5 error estimate, bisection along the axis
 //!   of largest fourth difference [Genz & Malik 1980; Berntsen, Espelid, Genz 1991]). Near a
 //!   shared edge or contact the kernel's derivative is log-singular; the adaptive split
-//!   concentrates work there.
+//!   concentrates work there. The receiver is first clipped to the half-space in front of the
+//!   source (behind it the one-sided kernel is 0), so the kernel never jumps inside the domain
+//!   (a wall standing on a floor at an angle would otherwise need millions of evaluations).
 //! - [`polygon_to_polygon_fixed`]: cheap fixed n×n Gauss–Legendre rule of the same kernel.
 //! - [`polygon_to_polygon_mc`] / [`point_to_polygon_mc`]: Monte Carlo estimates with their
 //!   standard error.
@@ -230,13 +232,61 @@ fn pieces(verts: &[DVec3]) -> Vec<Piece> {
     }
 }
 
-/// True when `to` cannot receive anything from `from` or the reverse: every vertex of one is on
-/// or behind the other's plane.
-fn facing_away(from: &[DVec3], n_from: DVec3, to: &[DVec3], n_to: DVec3) -> bool {
+/// The receiver, its unit normal and area, and the source's unit normal, with the receiver
+/// clipped to the half-space in front of the source: behind it the one-sided kernel is 0, and
+/// the jump along the cut (the foot of a wall standing on a floor, at any angle) would
+/// otherwise cost the cubature a staircase of tiny regions. `None` when nothing can be
+/// exchanged (degenerate input, facing away, coplanar).
+struct Prepared {
+    front: Vec<DVec3>,
+    normal_from: DVec3,
+    normal_to: DVec3,
+    area: f64,
+}
+
+fn prepare(from: &[DVec3], to: &[DVec3]) -> Option<Prepared> {
+    if from.len() < 3 || to.len() < 3 || from.iter().chain(to).any(|v| !v.is_finite()) {
+        return None;
+    }
+    let (nf, nt) = (newell_normal(from), newell_normal(to));
+    let area = 0.5 * nf.length();
+    let (nf, nt) = (nf.normalize_or_zero(), nt.normalize_or_zero());
+    if !(area > 0.0 && area.is_finite()) || nf == DVec3::ZERO || nt == DVec3::ZERO {
+        return None;
+    }
     let scale = from.iter().chain(to).map(|v| (*v - from[0]).length()).fold(0.0, f64::max);
     let eps = IN_PLANE_REL * scale;
+    // Every vertex of one on or behind the other's plane: nothing is exchanged.
     let behind = |pts: &[DVec3], origin: DVec3, n: DVec3| pts.iter().all(|v| n.dot(*v - origin) <= eps);
-    behind(to, from[0], n_from) || behind(from, to[0], n_to)
+    if behind(to, from[0], nf) || behind(from, to[0], nt) {
+        return None;
+    }
+    let origin = to[0];
+    let height = |v: DVec3| {
+        let h = nt.dot(v - origin);
+        if h.abs() <= eps { 0.0 } else { h }
+    };
+    let mut front = Vec::with_capacity(from.len() + 1);
+    for i in 0..from.len() {
+        let (a, b) = (from[i], from[(i + 1) % from.len()]);
+        let (ha, hb) = (height(a), height(b));
+        if ha >= 0.0 {
+            front.push(a);
+        }
+        if (ha > 0.0 && hb < 0.0) || (ha < 0.0 && hb > 0.0) {
+            front.push(a + (b - a) * (ha / (ha - hb)));
+        }
+    }
+    front.dedup();
+    if front.len() > 1 && front.first() == front.last() {
+        front.pop();
+    }
+    (front.len() >= 3 && polygon_area(&front) > 0.0).then_some(Prepared {
+        front,
+        normal_from: nf,
+        normal_to: nt,
+        area,
+    })
 }
 
 /// Result of an adaptive integration.
@@ -415,22 +465,17 @@ fn integrate_adaptive(
 /// error estimate and cost. Stops at `max(rel_tol·F, abs_tol)` estimated absolute error.
 #[must_use]
 pub fn polygon_to_polygon_adaptive(from: &[DVec3], to: &[DVec3], rel_tol: f64, abs_tol: f64) -> Quadrature {
-    let zero = Quadrature { value: 0.0, error: 0.0, evaluations: 0, converged: true };
-    if from.len() < 3 || to.len() < 3 {
-        return zero;
-    }
-    let (nf, nt) = (newell_normal(from), newell_normal(to));
-    let area = 0.5 * nf.length();
-    let (nf, nt) = (nf.normalize_or_zero(), nt.normalize_or_zero());
-    if !(area > 0.0 && area.is_finite()) || nt == DVec3::ZERO || facing_away(from, nf, to, nt) {
-        return zero;
-    }
+    let Some(p) = prepare(from, to) else {
+        return Quadrature { value: 0.0, error: 0.0, evaluations: 0, converged: true };
+    };
     let rel_tol = if rel_tol.is_finite() { rel_tol.max(1e-14) } else { 1e-6 };
     let abs_tol = if abs_tol.is_finite() { abs_tol.max(0.0) } else { 0.0 };
+    let (nf, nt) = (p.normal_from, p.normal_to);
     // The integral is F·A: scale the absolute tolerance by the area.
-    let q =
-        integrate_adaptive(from, nf, rel_tol, abs_tol * area, &mut |x| point_to_polygon_unit(x, nf, to, nt));
-    Quadrature { value: q.value / area, error: q.error / area, ..q }
+    let q = integrate_adaptive(&p.front, nf, rel_tol, abs_tol * p.area, &mut |x| {
+        point_to_polygon_unit(x, nf, to, nt)
+    });
+    Quadrature { value: q.value / p.area, error: q.error / p.area, ..q }
 }
 
 /// Form factor F from→to (`from` the receiver i, `to` the source j, both convex, CCW seen from
@@ -480,28 +525,21 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 /// apart compared with their size, not near contact (use [`polygon_to_polygon`] there).
 #[must_use]
 pub fn polygon_to_polygon_fixed(from: &[DVec3], to: &[DVec3], n: usize) -> f64 {
-    if from.len() < 3 || to.len() < 3 {
-        return 0.0;
-    }
-    let (nf, nt) = (newell_normal(from), newell_normal(to));
-    let area = 0.5 * nf.length();
-    let (nf, nt) = (nf.normalize_or_zero(), nt.normalize_or_zero());
-    if !(area > 0.0 && area.is_finite()) || nt == DVec3::ZERO || facing_away(from, nf, to, nt) {
-        return 0.0;
-    }
+    let Some(p) = prepare(from, to) else { return 0.0 };
     let rule = gauss_legendre(n);
     let mut sum = 0.0;
-    for pc in pieces(from) {
+    for pc in pieces(&p.front) {
         for &(u, wu) in &rule {
             for &(v, wv) in &rule {
-                let j = pc.jacobian(u, v, nf);
+                let j = pc.jacobian(u, v, p.normal_from);
                 if j > 0.0 {
-                    sum += wu * wv * j * point_to_polygon_unit(pc.point(u, v), nf, to, nt);
+                    sum +=
+                        wu * wv * j * point_to_polygon_unit(pc.point(u, v), p.normal_from, to, p.normal_to);
                 }
             }
         }
     }
-    (sum / area).clamp(0.0, 1.0)
+    (sum / p.area).clamp(0.0, 1.0)
 }
 
 /// Uniformly distributed point on a convex polygon (fan triangles chosen by area, then the
@@ -541,21 +579,23 @@ fn mean_and_error(sum: f64, sum_sq: f64, n: u32) -> (f64, f64) {
 /// estimator). `samples = 0` gives (0, ∞).
 #[must_use]
 pub fn polygon_to_polygon_mc(from: &[DVec3], to: &[DVec3], samples: u32, seed: u64) -> (f64, f64) {
-    if samples == 0 || from.len() < 3 || to.len() < 3 {
-        return (0.0, if samples == 0 { f64::INFINITY } else { 0.0 });
+    if samples == 0 {
+        return (0.0, f64::INFINITY);
     }
-    let nf = newell_normal(from).normalize_or_zero();
-    let nt = newell_normal(to).normalize_or_zero();
-    let cumulative = fan_cumulative(from);
+    let Some(p) = prepare(from, to) else { return (0.0, 0.0) };
+    // Sample the front part only; the rest scores 0, which the area ratio accounts for.
+    let cumulative = fan_cumulative(&p.front);
+    let ratio = cumulative.last().copied().unwrap_or(0.0) / p.area;
     let mut rng = Pcg32::keyed(seed, 0x0f0f_f0f0);
     let (mut s, mut s2) = (0.0, 0.0);
     for _ in 0..samples {
-        let x = sample_polygon(from, &cumulative, &mut rng);
-        let f = point_to_polygon_unit(x, nf, to, nt);
+        let x = sample_polygon(&p.front, &cumulative, &mut rng);
+        let f = point_to_polygon_unit(x, p.normal_from, to, p.normal_to);
         s += f;
         s2 += f * f;
     }
-    mean_and_error(s, s2, samples)
+    let (mean, se) = mean_and_error(s, s2, samples);
+    (mean * ratio, se * ratio)
 }
 
 /// Monte Carlo estimate of the point-to-polygon form factor and its standard error: `samples`

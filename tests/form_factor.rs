@@ -265,3 +265,31 @@ fn monte_carlo_is_within_four_standard_errors() {
     let (f, se) = point_to_polygon_mc(DVec3::ZERO, DVec3::Z, &rect, 20_000, 7);
     assert!((f - exact).abs() < MC_SIGMAS * se, "{f} ± {se} vs {exact}");
 }
+
+/// A wall standing on the middle of a floor (a T-junction: the wall's foot crosses the floor's
+/// interior). Part of the floor is behind the wall's plane, where the one-sided kernel jumps to
+/// 0; the receiver must be clipped to the front part before integrating, or an oblique jump
+/// costs the cubature a staircase of millions of evaluations.
+#[test]
+fn wall_standing_inside_a_floor() {
+    // Aligned with the floor's edges: Howell C-14 with l = 2 on the front 2/3.4 of the floor.
+    let floor = vec![v(-0.7, -1., 0.), v(1., -1., 0.), v(1., 1., 0.), v(-0.7, 1., 0.)];
+    let wall = vec![v(0., -1., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., -1., 1.)]; // faces +x
+    let (exact, front) = (perpendicular_closed_form(2.0, 1.0, 1.0), 2.0 / 3.4);
+    let q = polygon_to_polygon_adaptive(&floor, &wall, QUAD_ASK, 0.0);
+    assert!(rel(q.value, front * exact) < QUAD_TARGET, "{} vs {}", q.value, front * exact);
+    assert!(rel(polygon_to_polygon(&wall, &floor, QUAD_ASK), exact) < QUAD_TARGET);
+    // Oblique (rotated 0.5 rad): integrating over the floor (clipped) must agree with
+    // integrating over the wall (no jump there) through reciprocity, at a bounded cost.
+    let d = v(-0.5f64.sin(), 0.5f64.cos(), 0.0);
+    let wall = vec![d * -0.8, d * 0.8, d * 0.8 + DVec3::Z, d * -0.8 + DVec3::Z];
+    let q = polygon_to_polygon_adaptive(&floor, &wall, QUAD_ASK, 0.0);
+    assert!(q.converged && q.evaluations < 200_000, "{q:?}: the jump was not clipped away");
+    let back = polygon_to_polygon(&wall, &floor, QUAD_ASK);
+    let (af, aw) = (polygon_area(&floor), polygon_area(&wall));
+    assert!(rel(af * q.value, aw * back) < QUAD_TARGET, "{} vs {}", af * q.value, aw * back);
+    let (f, se) = polygon_to_polygon_mc(&floor, &wall, 4000, 3);
+    assert!((f - q.value).abs() < MC_SIGMAS * se, "{f} ± {se} vs {}", q.value);
+    let fixed = polygon_to_polygon_fixed(&floor, &wall, 8);
+    assert!(rel(fixed, q.value) < 1e-2, "fixed 8×8 on the clipped floor: {fixed} vs {}", q.value);
+}
