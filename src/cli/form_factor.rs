@@ -6,11 +6,13 @@
 //! the scene's BVH, as the solvers do).
 
 use anyhow::{Context, bail};
+use indicatif::{ProgressBar, ProgressStyle};
 use radlab::accel::Accel;
 use radlab::form_factor;
 use radlab::math::{DVec3, Pcg32};
 use radlab::scene::Scene;
 use radlab::visibility::{point_on_polygon, stratified, visible_fraction};
+use rayon::prelude::*;
 
 /// Which kernel computes F.
 #[derive(clap::ValueEnum, Copy, Clone, Debug, PartialEq, Eq)]
@@ -173,13 +175,22 @@ fn pair(scene: &Scene, i: usize, j: usize, s: &Settings) -> (f64, f64) {
     }
 }
 
-/// Area-weighted group form factor F_GH with its standard error.
-fn group(scene: &Scene, accel: Option<&Accel>, from: &[usize], to: &[usize], s: &Settings) -> Estimate {
+/// Area-weighted group form factor F_GH with its standard error. Pairs run in parallel and
+/// are summed in order, so the result does not depend on the thread count.
+fn group(
+    scene: &Scene,
+    accel: Option<&Accel>,
+    from: &[usize],
+    to: &[usize],
+    s: &Settings,
+    bar: &ProgressBar,
+) -> Estimate {
     let area: f64 = from.iter().map(|&i| scene.patches[i].area).sum();
-    let (mut sum, mut var) = (0.0, 0.0);
-    for &i in from {
-        let w = scene.patches[i].area / area;
-        for &j in to {
+    let pairs: Vec<(usize, usize)> = from.iter().flat_map(|&i| to.iter().map(move |&j| (i, j))).collect();
+    let terms: Vec<(f64, f64)> = pairs
+        .par_iter()
+        .map(|&(i, j)| {
+            let w = scene.patches[i].area / area;
             let (mut f, mut v) = pair(scene, i, j, s);
             if let Some(accel) = accel
                 && f > 0.0
@@ -198,10 +209,11 @@ fn group(scene: &Scene, accel: Option<&Accel>, from: &[usize], to: &[usize], s: 
                 f *= vis;
                 v *= vis * vis;
             }
-            sum += w * f;
-            var += w * w * v;
-        }
-    }
+            bar.inc(1);
+            (w * f, w * w * v)
+        })
+        .collect();
+    let (sum, var) = terms.iter().fold((0.0, 0.0), |(a, b), (f, v)| (a + f, b + v));
     Estimate { value: sum, std_error: (s.method == Method::MonteCarlo).then(|| var.sqrt()) }
 }
 
@@ -292,8 +304,17 @@ pub fn compute(scene: &Scene, args: &Args) -> anyhow::Result<Output> {
         bail!("give --from SEL or --from-point x,y,z --from-normal x,y,z")
     };
     let from = select(scene, from_sel, "from")?;
-    let from_to = group(scene, accel.as_ref(), &from, &to, &s);
-    let to_from = group(scene, accel.as_ref(), &to, &from, &s);
+    // A bar on stderr for many pairs (indicatif hides it when stderr is not a terminal).
+    let pairs = 2 * (from.len() * to.len()) as u64;
+    let bar = if pairs >= 64 { ProgressBar::new(pairs) } else { ProgressBar::hidden() };
+    bar.set_style(
+        ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} pairs {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_message("form factors");
+    let from_to = group(scene, accel.as_ref(), &from, &to, &s, &bar);
+    let to_from = group(scene, accel.as_ref(), &to, &from, &s, &bar);
+    bar.finish_and_clear();
     Ok(Output {
         from: from_sel.clone(),
         to: args.to.clone(),
