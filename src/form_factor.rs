@@ -17,8 +17,9 @@
 //! - [`polygon_to_polygon`]: the outer integral by globally adaptive cubature of the exact
 //!   kernel (Genz–Malik degree-7 rule with a degree-5 error estimate, bisection along the axis
 //!   of largest fourth difference [Genz & Malik 1980; Berntsen, Espelid, Genz 1991]). Near a
-//!   shared edge or contact the kernel's derivative is log-singular; the adaptive split
-//!   concentrates work there. The receiver is first clipped to the half-space in front of the
+//!   shared edge or contact the kernel's derivative is log-singular and the embedded estimate
+//!   fails (50× optimistic in tests), so regions near the source are estimated against their
+//!   two halves instead; the adaptive split concentrates work there. The receiver is first clipped to the half-space in front of the
 //!   source (behind it the one-sided kernel is 0), so the kernel never jumps inside the domain
 //!   (a wall standing on a floor at an angle would otherwise need millions of evaluations).
 //! - [`polygon_to_polygon_fixed`]: cheap fixed n×n Gauss–Legendre rule of the same kernel.
@@ -302,15 +303,40 @@ pub struct Quadrature {
     pub converged: bool,
 }
 
-/// A region [u0,u1]×[v0,v1] of one piece with its integral, error estimate and split axis.
+/// One Genz–Malik evaluation of a rectangle [u0,u1]×[v0,v1] of a piece.
+#[derive(Copy, Clone, Debug)]
+struct Eval {
+    u: [f64; 2],
+    v: [f64; 2],
+    /// Degree-7 value.
+    value: f64,
+    /// |degree 7 − degree 5|.
+    gm_error: f64,
+    /// Split along u (else v) when refining.
+    split_u: bool,
+}
+
+impl Eval {
+    fn halves(&self) -> [([f64; 2], [f64; 2]); 2] {
+        if self.split_u {
+            let m = 0.5 * (self.u[0] + self.u[1]);
+            [([self.u[0], m], self.v), ([m, self.u[1]], self.v)]
+        } else {
+            let m = 0.5 * (self.v[0] + self.v[1]);
+            [(self.u, [self.v[0], m]), (self.u, [m, self.v[1]])]
+        }
+    }
+}
+
+/// A region of the adaptive integration: its value and error estimate, and, for a region near
+/// the source, the evaluated halves that gave its estimate (they become its children).
 #[derive(Copy, Clone, Debug)]
 struct Region {
     piece: u32,
-    u: [f64; 2],
-    v: [f64; 2],
+    whole: Eval,
     value: f64,
     error: f64,
-    split_u: bool,
+    halves: Option<[Eval; 2]>,
 }
 
 impl PartialEq for Region {
@@ -330,9 +356,38 @@ impl Ord for Region {
         self.error
             .total_cmp(&o.error)
             .then(o.piece.cmp(&self.piece))
-            .then(o.u[0].total_cmp(&self.u[0]))
-            .then(o.v[0].total_cmp(&self.v[0]))
+            .then(o.whole.u[0].total_cmp(&self.whole.u[0]))
+            .then(o.whole.v[0].total_cmp(&self.whole.v[0]))
     }
+}
+
+/// A region whose centre is closer to the source than this many region diameters is "near":
+/// the kernel may be singular within reach (shared edge, contact), where the Genz–Malik
+/// estimate is unreliable (it under-estimated a shared-edge error 50× in tests), so its error
+/// is estimated by comparison with its two evaluated halves instead.
+const NEAR_DIAMETERS: f64 = 1.5;
+
+/// Distance from `p` to a convex polygon with unit normal `n`.
+fn distance_to_polygon(p: DVec3, verts: &[DVec3], n: DVec3) -> f64 {
+    let h = n.dot(p - verts[0]);
+    let q = p - n * h;
+    let k = verts.len();
+    let inside = (0..k).all(|i| (verts[(i + 1) % k] - verts[i]).cross(q - verts[i]).dot(n) >= 0.0);
+    if inside {
+        return h.abs();
+    }
+    (0..k)
+        .map(|i| {
+            let (a, b) = (verts[i], verts[(i + 1) % k]);
+            let e = b - a;
+            let t = if e.length_squared() > 0.0 {
+                ((p - a).dot(e) / e.length_squared()).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (p - (a + e * t)).length()
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 // Genz–Malik degree-7 rule on [-1,1]², with its embedded degree-5 rule (n = 2 dimensions).
@@ -381,29 +436,60 @@ fn genz_malik(g: &mut impl FnMut(f64, f64) -> f64, u: [f64; 2], v: [f64; 2]) -> 
 /// Number of Genz–Malik evaluations per region.
 const GM_POINTS: u64 = 17;
 
-/// Globally adaptive integration of `kernel(x) dA` over the polygon `verts` (unit normal `normal`):
-/// returns (∫, error estimate, evaluations, converged). Stops when the summed error estimate is
-/// at most `max(rel_tol·|∫|, abs_tol)`.
+/// Globally adaptive integration of `kernel(x) dA` over the polygon `verts` (unit normal
+/// `normal`), the kernel's singular set being the polygon `source` (unit normal `source_n`).
+/// Stops when the summed error estimate is at most `max(rel_tol·|∫|, abs_tol)`.
+///
+/// Far from the source a region's error is the Genz–Malik estimate |deg 7 − deg 5|; near it
+/// (see [`NEAR_DIAMETERS`]) the region is evaluated again as two halves, its value is their sum
+/// and its error the difference with the whole — a conservative estimate (it is the coarser
+/// rule's error), and the halves are reused as children when the region is refined.
 fn integrate_adaptive(
     verts: &[DVec3],
     normal: DVec3,
+    source: &[DVec3],
+    source_n: DVec3,
     rel_tol: f64,
     abs_tol: f64,
     kernel: &mut impl FnMut(DVec3) -> f64,
 ) -> Quadrature {
     let pcs = pieces(verts);
-    let mut heap = BinaryHeap::new();
-    let mut evaluations = 0u64;
-    let mut eval = |piece: u32, u: [f64; 2], v: [f64; 2], evaluations: &mut u64| {
+    let evaluations = std::cell::Cell::new(0u64);
+    let mut eval = |piece: u32, u: [f64; 2], v: [f64; 2]| {
         let pc = pcs[piece as usize];
         let mut g = |s: f64, t: f64| {
             let j = pc.jacobian(s, t, normal);
             if j > 0.0 { kernel(pc.point(s, t)) * j } else { 0.0 }
         };
-        *evaluations += GM_POINTS;
-        let (value, error, split_u) = genz_malik(&mut g, u, v);
-        Region { piece, u, v, value, error, split_u }
+        evaluations.set(evaluations.get() + GM_POINTS);
+        let (value, gm_error, split_u) = genz_malik(&mut g, u, v);
+        Eval { u, v, value, gm_error, split_u }
     };
+    let near = |piece: u32, e: &Eval| {
+        let pc = &pcs[piece as usize];
+        let (c00, c11) = (pc.point(e.u[0], e.v[0]), pc.point(e.u[1], e.v[1]));
+        let (c10, c01) = (pc.point(e.u[1], e.v[0]), pc.point(e.u[0], e.v[1]));
+        let diameter = (c11 - c00).length().max((c01 - c10).length());
+        let centre = pc.point(0.5 * (e.u[0] + e.u[1]), 0.5 * (e.v[0] + e.v[1]));
+        distance_to_polygon(centre, source, source_n) < NEAR_DIAMETERS * diameter
+    };
+    fn finish(
+        piece: u32,
+        whole: Eval,
+        eval: &mut impl FnMut(u32, [f64; 2], [f64; 2]) -> Eval,
+        near: &impl Fn(u32, &Eval) -> bool,
+    ) -> Region {
+        if near(piece, &whole) {
+            let [(u1, v1), (u2, v2)] = whole.halves();
+            let halves = [eval(piece, u1, v1), eval(piece, u2, v2)];
+            let value = halves[0].value + halves[1].value;
+            let error = (whole.value - value).abs().max(halves[0].gm_error + halves[1].gm_error);
+            Region { piece, whole, value, error, halves: Some(halves) }
+        } else {
+            Region { piece, whole, value: whole.value, error: whole.gm_error, halves: None }
+        }
+    }
+    let mut heap = BinaryHeap::new();
     // Start from a grid that makes regions roughly square in space (slivers start split).
     for (ip, pc) in pcs.iter().enumerate() {
         let (lu, lv) = pc.lengths();
@@ -414,7 +500,8 @@ fn integrate_adaptive(
             for j in 0..nv {
                 let u = [f64::from(i) / f64::from(nu), f64::from(i + 1) / f64::from(nu)];
                 let v = [f64::from(j) / f64::from(nv), f64::from(j + 1) / f64::from(nv)];
-                heap.push(eval(ip as u32, u, v, &mut evaluations));
+                let whole = eval(ip as u32, u, v);
+                heap.push(finish(ip as u32, whole, &mut eval, &near));
             }
         }
     }
@@ -432,21 +519,21 @@ fn integrate_adaptive(
                 break true;
             }
         }
-        if evaluations + 2 * GM_POINTS > MAX_EVALUATIONS {
+        if evaluations.get() + 6 * GM_POINTS > MAX_EVALUATIONS {
             break false;
         }
         let Some(r) = heap.pop() else { break true };
-        let halves = if r.split_u {
-            let m = 0.5 * (r.u[0] + r.u[1]);
-            [([r.u[0], m], r.v), ([m, r.u[1]], r.v)]
-        } else {
-            let m = 0.5 * (r.v[0] + r.v[1]);
-            [(r.u, [r.v[0], m]), (r.u, [m, r.v[1]])]
+        let children = match r.halves {
+            Some(h) => h,
+            None => {
+                let [(u1, v1), (u2, v2)] = r.whole.halves();
+                [eval(r.piece, u1, v1), eval(r.piece, u2, v2)]
+            }
         };
         value -= r.value;
         error -= r.error;
-        for (u, v) in halves {
-            let c = eval(r.piece, u, v, &mut evaluations);
+        for c in children {
+            let c = finish(r.piece, c, &mut eval, &near);
             value += c.value;
             error += c.error;
             heap.push(c);
@@ -458,7 +545,7 @@ fn integrate_adaptive(
         }
     };
     let (value, error) = totals(&heap);
-    Quadrature { value, error, evaluations, converged }
+    Quadrature { value, error, evaluations: evaluations.get(), converged }
 }
 
 /// Form factor F from→to by adaptive quadrature of the exact point kernel over `from`, with the
@@ -472,7 +559,7 @@ pub fn polygon_to_polygon_adaptive(from: &[DVec3], to: &[DVec3], rel_tol: f64, a
     let abs_tol = if abs_tol.is_finite() { abs_tol.max(0.0) } else { 0.0 };
     let (nf, nt) = (p.normal_from, p.normal_to);
     // The integral is F·A: scale the absolute tolerance by the area.
-    let q = integrate_adaptive(&p.front, nf, rel_tol, abs_tol * p.area, &mut |x| {
+    let q = integrate_adaptive(&p.front, nf, to, nt, rel_tol, abs_tol * p.area, &mut |x| {
         point_to_polygon_unit(x, nf, to, nt)
     });
     Quadrature { value: q.value / p.area, error: q.error / p.area, ..q }

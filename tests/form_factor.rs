@@ -14,6 +14,9 @@ const QUAD_TARGET: f64 = 1e-6;
 /// Tolerance asked of the adaptive quadrature: two orders below the target, since its error
 /// estimate is the target's guard.
 const QUAD_ASK: f64 = 1e-8;
+/// The error estimate is an estimate: at coarse tolerances the true error of shared-edge pairs
+/// reached 1.5× the tolerance in a sweep (parallel and perpendicular catalog cases).
+const TOL_SLACK: f64 = 2.0;
 /// The target for the exact point kernel (relative).
 const POINT_TARGET: f64 = 1e-9;
 /// Monte Carlo estimates must fall within this many standard errors (≈ 6e-5 two-sided chance
@@ -101,6 +104,12 @@ fn perpendicular_rectangles_with_common_edge_match_closed_form() {
         let exact = perpendicular_closed_form(l, w, h);
         let f = polygon_to_polygon(&from, &to, QUAD_ASK);
         assert!(rel(f, exact) < QUAD_TARGET, "l={l} w={w} h={h}: {f} vs {exact}");
+        // Coarse tolerances (what the solvers ask) are honoured too, despite the log-singular
+        // kernel at the shared edge.
+        for tol in [1e-3, 1e-4, 1e-5] {
+            let f = polygon_to_polygon(&from, &to, tol);
+            assert!(rel(f, exact) < TOL_SLACK * tol, "l={l} w={w} h={h} tol {tol}: {f} vs {exact}");
+        }
     }
 }
 
