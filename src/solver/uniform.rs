@@ -313,6 +313,20 @@ impl<'a> SharedProgress<'a> {
     }
 }
 
+/// One row of the form-factor matrix: the non-zero F_ij V_ij, by increasing j.
+#[derive(Default)]
+struct Row {
+    index: Vec<u32>,
+    value: Vec<f64>,
+}
+
+impl Row {
+    fn push(&mut self, j: u32, f: f64) {
+        self.index.push(j);
+        self.value.push(f);
+    }
+}
+
 /// Pairs (i, j > i) of one row: (j, F_ij V, F_ji V), with the rays and kernel evaluations spent.
 type UpperRow = (Vec<(u32, f64, f64)>, u64, u64);
 
@@ -356,20 +370,20 @@ pub fn solve(
         })
         .collect();
     shared.finish();
-    let mut rows: Vec<Vec<(u32, f64)>> = vec![Vec::new(); n];
+    // Full rows as index and value arrays (12 bytes per entry). Row r receives its entries
+    // j < r while rows j are consumed in order, then its own j > r: already sorted by j.
+    let mut rows: Vec<Row> = (0..n).map(|_| Row::default()).collect();
     let (mut rays, mut evaluations) = (0u64, 0u64);
-    for (i, (row, r, e)) in upper.iter().enumerate() {
+    for (i, (row, r, e)) in upper.into_iter().enumerate() {
         rays += r;
         evaluations += e;
-        for &(j, fij, fji) in row {
-            rows[i].push((j, fij));
-            rows[j as usize].push((i as u32, fji));
+        for (j, fij, fji) in row {
+            rows[i].push(j, fij);
+            rows[j as usize].push(i as u32, fji);
         }
     }
-    for r in &mut rows {
-        r.sort_unstable_by_key(|e| e.0);
-    }
-    let links: usize = rows.iter().map(Vec::len).sum();
+    debug_assert!(rows.iter().all(|r| r.index.windows(2).all(|w| w[0] < w[1])), "rows sorted");
+    let links: usize = rows.iter().map(|r| r.index.len()).sum();
     let t_ff = t_start.elapsed().as_secs_f64();
 
     // Gauss–Seidel.
@@ -377,7 +391,9 @@ pub fn solve(
     let rho: Vec<Rgb> = elems.iter().map(|e| scene.patches[e.patch].reflectance).collect();
     let emis: Vec<Rgb> = elems.iter().map(|e| scene.patches[e.patch].emission).collect();
     let mut b = emis.clone();
-    let gather = |b: &[Rgb], row: &[(u32, f64)]| row.iter().map(|&(j, f)| b[j as usize] * f).sum::<Rgb>();
+    let gather = |b: &[Rgb], row: &Row| {
+        row.index.iter().zip(&row.value).map(|(&j, &f)| b[j as usize] * f).sum::<Rgb>()
+    };
     let (mut iterations, mut converged, mut last_change) = (0usize, false, f64::INFINITY);
     for _ in 0..params.max_iterations {
         iterations += 1;
@@ -399,7 +415,7 @@ pub fn solve(
     let mut energy = EnergyBalance::default();
     for (i, e) in elems.iter().enumerate() {
         let h = gather(&b, &rows[i]);
-        let row_sum: f64 = rows[i].iter().map(|x| x.1).sum();
+        let row_sum: f64 = rows[i].value.iter().sum();
         energy.emitted += emis[i] * e.area;
         energy.absorbed += (Rgb::ONE - rho[i]).mul_rgb(h) * e.area;
         energy.escaped += b[i] * (e.area * (1.0 - row_sum));
