@@ -67,7 +67,7 @@ impl Default for UniformParams {
         UniformParams {
             element_size: f64::INFINITY,
             rays: 16,
-            tolerance: 1e-8,
+            tolerance: 1e-10,
             max_iterations: 1000,
             seed: 0,
             ff_tolerance: 1e-4,
