@@ -77,7 +77,7 @@ fn point_to_polygon_unit(p: DVec3, n: DVec3, verts: &[DVec3], src_n: DVec3) -> f
     if src_n == DVec3::ZERO {
         return 0.0;
     }
-    let scale = verts.iter().map(|v| (*v - p).length()).fold(0.0, f64::max);
+    let scale = verts.iter().map(|v| (*v - p).length_squared()).fold(0.0, f64::max).sqrt();
     if !(scale > 0.0 && scale.is_finite()) {
         return 0.0;
     }
@@ -91,14 +91,14 @@ fn point_to_polygon_unit(p: DVec3, n: DVec3, verts: &[DVec3], src_n: DVec3) -> f
     let p = if in_plane { p - src_n * dist } else { p };
 
     // Clip against the receiver's tangent plane: keep n·(v − p) ≥ 0. A convex polygon clipped
-    // by one plane gains at most one vertex.
+    // by one plane gains at most one vertex; room for 2k keeps a non-convex input from panicking.
     let k = verts.len();
-    let mut small = [DVec3::ZERO; 8];
+    let mut small = [DVec3::ZERO; 16];
     let mut large = Vec::new();
-    let clipped: &mut [DVec3] = if k < 8 {
+    let clipped: &mut [DVec3] = if k <= 8 {
         &mut small
     } else {
-        large.resize(k + 1, DVec3::ZERO);
+        large.resize(2 * k, DVec3::ZERO);
         &mut large
     };
     // A vertex on the tangent plane: off the plane it is still on it; in the plane, the limit

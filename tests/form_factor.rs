@@ -218,6 +218,11 @@ fn point_on_shared_edge_gives_the_limit_not_nan() {
     }
     // Contact: a receiver facing the source from inside it sees all of it.
     assert!((point_to_polygon(v(0., 0.5, 0.5), -DVec3::X, &wall) - 1.0).abs() < 1e-12);
+    // A tilted receiver touching the source inside it sees the half in front of its tangent plane.
+    assert!((point_to_polygon(v(0., 0.5, 0.5), DVec3::Z, &wall) - 0.5).abs() < 1e-12);
+    // Non-convex (bow-tie) input must not panic.
+    let bowtie = [v(0., 0., 1.), v(1., 1., 1.), v(1., 0., 1.), v(0., 1., 1.), v(0.5, 2., 1.), v(2., 0.5, 1.)];
+    assert!(point_to_polygon(v(0.5, 0.5, 0.0), DVec3::X, &bowtie).is_finite());
     // Garbage in, zero out.
     assert_eq!(point_to_polygon(v(f64::NAN, 0., 0.), DVec3::Z, &wall), 0.0);
     assert_eq!(
