@@ -138,8 +138,8 @@ impl Loader<'_> {
 
     fn run(mut self, bytes: &[u8]) -> Result<Scene, SceneError> {
         let (json, blob) = if bytes.starts_with(b"glTF") { self.split_glb(bytes)? } else { (bytes, None) };
-        let gltf = gltf::Gltf::from_slice(json).map_err(|e| self.invalid(e.to_string()))?;
-        let doc = &gltf.document;
+        let document = self.parse(json)?;
+        let doc = &document;
 
         for image in doc.images() {
             if let gltf::image::Source::Uri { uri, .. } = image.source() {
@@ -233,27 +233,53 @@ impl Loader<'_> {
         Ok(scene)
     }
 
+    /// Parse and validate the JSON. Every index must be in range (the `gltf` crate's iterators
+    /// rely on it); the accessor `min`/`max` the spec requires for POSITION are not needed here
+    /// and many exporters omit them, so their absence is tolerated.
+    fn parse(&self, json: &[u8]) -> Result<gltf::Document, SceneError> {
+        use gltf::json::validation::{Error as VError, Validate};
+        let root: gltf::json::Root =
+            gltf::json::deserialize::from_slice(json).map_err(|e| self.invalid(e.to_string()))?;
+        let mut errors = Vec::new();
+        root.validate(&root, gltf::json::Path::new, &mut |path, error| {
+            let path = path();
+            let min_max = path.as_str().ends_with(".min") || path.as_str().ends_with(".max");
+            if !(min_max && error == VError::Missing) {
+                errors.push(format!("{path}: {error}"));
+            }
+        });
+        if let Some(first) = errors.first() {
+            let more =
+                if errors.len() > 1 { format!(" (and {} more)", errors.len() - 1) } else { String::new() };
+            return Err(self.invalid(format!("{first}{more}")));
+        }
+        Ok(gltf::Document::from_json_without_validation(root))
+    }
+
     /// Split a GLB container into its JSON chunk and optional BIN chunk [glTF 2.0 §4.4].
     fn split_glb<'b>(&self, bytes: &'b [u8]) -> Result<(&'b [u8], Option<&'b [u8]>), SceneError> {
-        let u32_at = |at: usize| -> Option<u32> {
-            bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        };
+        fn u32_at(bytes: &[u8], at: usize) -> Option<u32> {
+            bytes.get(at..at.checked_add(4)?).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        }
         let truncated = |what: &str| self.invalid(format!("truncated GLB: {what}"));
-        let version = u32_at(4).ok_or_else(|| truncated("header"))?;
+        let version = u32_at(bytes, 4).ok_or_else(|| truncated("header"))?;
         if version != 2 {
             return Err(self.invalid(format!("GLB version {version} (only 2 is supported)")));
         }
-        let total = u32_at(8).ok_or_else(|| truncated("header"))? as usize;
+        let total = u32_at(bytes, 8).ok_or_else(|| truncated("header"))? as usize;
         if total > bytes.len() {
             return Err(truncated(&format!("header says {total} bytes, file has {}", bytes.len())));
         }
+        if total < 12 {
+            return Err(self.invalid(format!("GLB header says {total} bytes, less than the header itself")));
+        }
         let bytes = &bytes[..total];
         let chunk = |at: usize| -> Result<Option<(&'b [u8], u32)>, SceneError> {
-            if at == bytes.len() {
+            if at >= bytes.len() {
                 return Ok(None);
             }
-            let len = u32_at(at).ok_or_else(|| truncated("chunk header"))? as usize;
-            let ty = u32_at(at + 4).ok_or_else(|| truncated("chunk header"))?;
+            let len = u32_at(bytes, at).ok_or_else(|| truncated("chunk header"))? as usize;
+            let ty = u32_at(bytes, at + 4).ok_or_else(|| truncated("chunk header"))?;
             let data = at
                 .checked_add(8)
                 .and_then(|s| s.checked_add(len).map(|e| (s, e)))
@@ -268,7 +294,7 @@ impl Loader<'_> {
             return Err(self.invalid("GLB's first chunk is not JSON"));
         }
         let next = 12 + 8 + json.len().next_multiple_of(4);
-        let bin = match chunk(next.min(bytes.len()))? {
+        let bin = match chunk(next)? {
             Some((data, BIN)) => Some(data),
             _ => None,
         };
