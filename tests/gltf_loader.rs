@@ -15,13 +15,28 @@ const F32_TOL: f64 = 1e-6;
 
 static COUNTER: AtomicUsize = AtomicUsize::new(0);
 
-/// A fresh, empty folder under the system temp dir.
-fn tmpdir(tag: &str) -> PathBuf {
+/// A fresh, empty folder under the system temp dir, removed when dropped.
+struct TmpDir(PathBuf);
+
+impl Drop for TmpDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+impl std::ops::Deref for TmpDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+fn tmpdir(tag: &str) -> TmpDir {
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     let d = std::env::temp_dir().join(format!("radlab-gltf-{tag}-{}-{n}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    TmpDir(d)
 }
 
 fn bytes_of(positions: &[[f32; 3]], indices: &[u32]) -> Vec<u8> {
@@ -87,9 +102,23 @@ fn write(dir: &Path, name: &str, text: &[u8]) -> PathBuf {
     p
 }
 
-fn write_doc(tag: &str, d: &Value) -> PathBuf {
+/// A file in its own temporary folder (both removed when dropped).
+struct TmpFile {
+    _dir: TmpDir,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for TmpFile {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
+}
+
+fn write_doc(tag: &str, d: &Value) -> TmpFile {
     let dir = tmpdir(tag);
-    write(&dir, &format!("{tag}.gltf"), serde_json::to_string(d).unwrap().as_bytes())
+    let path = write(&dir, &format!("{tag}.gltf"), serde_json::to_string(d).unwrap().as_bytes());
+    TmpFile { _dir: dir, path }
 }
 
 fn load_ok(path: &Path) -> Scene {
@@ -569,4 +598,50 @@ fn unreadable_file_is_an_io_error() {
     let dir = tmpdir("io");
     let e = load_err(&dir.join("does_not_exist.gltf"));
     assert!(matches!(e, SceneError::Io { .. }), "{e}");
+}
+
+// ------------------------------------------------------------------ writer
+
+#[test]
+fn write_gltf_round_trips_patches_materials_and_camera() {
+    use radlab::math::Rgb;
+    use radlab::scene::gltf::write_gltf;
+    use radlab::scene::{Patch, Viewpoint};
+    let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let quad = vec![v(0., 0., 0.), v(2., 0., 0.), v(2., 1., 0.), v(0., 1., 0.)];
+    let tri = vec![v(0., 0., 1.), v(0., 1., 1.), v(1., 0., 1.)];
+    let far = vec![v(5., 0., 0.), v(6., 0., 0.), v(6., 0., -1.), v(5., 0., -1.)];
+    let patch = |verts: Vec<DVec3>, rho: f64, e: Rgb, mesh: &str| {
+        Patch::new(verts, Rgb::splat(rho), e, mesh, 0, mesh, format!("{mesh}-mat")).unwrap()
+    };
+    let mut scene = Scene::new(
+        "w",
+        "test:w",
+        vec![
+            patch(quad, 0.25, Rgb::ZERO, "a"),
+            patch(tri, 0.5, Rgb::new(40.0, 20.0, 10.0), "b"),
+            patch(far, 0.75, Rgb::ZERO, "a"),
+        ],
+    );
+    scene.camera =
+        Some(Viewpoint { eye: v(1., 2., 8.), target: v(1., 0.5, 0.), up: DVec3::Y, fov_y_deg: 50.0 });
+    let dir = tmpdir("writer");
+    let path = dir.join("w.gltf");
+    write_gltf(&scene, &path).unwrap();
+    let back = load_ok(&path);
+    assert_eq!(back.patches.len(), 3);
+    for (a, b) in scene.patches.iter().zip(&back.patches) {
+        assert_eq!(a.vertices.len(), b.vertices.len());
+        for (p, q) in a.vertices.iter().zip(&b.vertices) {
+            assert!(p.distance(*q) < F32_TOL, "{p} vs {q}");
+        }
+        assert_eq!(a.mesh, b.mesh);
+        assert_eq!(a.material, b.material);
+        assert!(a.reflectance.abs_diff_max(b.reflectance) < F32_TOL);
+        assert!(a.emission.abs_diff_max(b.emission) < F32_TOL * a.emission.max_channel().max(1.0));
+    }
+    let (a, b) = (scene.camera.unwrap(), back.camera.unwrap());
+    assert!(a.eye.distance(b.eye) < F32_TOL * 10.0);
+    assert!((a.target - a.eye).normalize().dot((b.target - b.eye).normalize()) > 1.0 - F32_TOL);
+    assert!((a.fov_y_deg - b.fov_y_deg).abs() < 1e-4);
 }

@@ -197,6 +197,12 @@ impl Loader<'_> {
                     None => &default_mat,
                 };
                 let positions = self.read_positions(&pos_acc, &buffers, &mesh_name, prim.index())?;
+                if prim.indices().is_some_and(|a| a.count() % 3 != 0) {
+                    self.warnings.push(format!(
+                        "mesh {mesh_name:?} primitive {}: index count is not a multiple of 3 (the rest is ignored)",
+                        prim.index()
+                    ));
+                }
                 let indices = match prim.indices() {
                     Some(acc) => self.read_indices(&acc, &buffers, positions.len())?,
                     None => (0..positions.len() as u32).collect(),
@@ -715,6 +721,8 @@ impl Loader<'_> {
         Ok((out, dropped))
     }
 
+    /// The camera node's placement: eye = node origin, looking down its −z, up = its +y
+    /// [glTF 2.0 §3.10]. glTF has no target; it is put at the distance of the scene's centre.
     fn viewpoint(
         &mut self,
         doc: &gltf::Document,
