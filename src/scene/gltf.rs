@@ -149,9 +149,10 @@ impl Loader<'_> {
 
         // Walk the graph first: instances, camera, and the triangle count before reading geometry.
         let (instances, camera_node) = self.walk(doc)?;
+        let meshes: Vec<gltf::Mesh> = doc.meshes().collect();
         let mut triangles: usize = 0;
         for inst in &instances {
-            let mesh = doc.meshes().nth(inst.mesh).ok_or_else(|| self.invalid("mesh index out of range"))?;
+            let mesh = meshes.get(inst.mesh).ok_or_else(|| self.invalid("mesh index out of range"))?;
             for prim in mesh.primitives() {
                 if prim.mode() != gltf::mesh::Mode::Triangles {
                     continue;
@@ -181,7 +182,7 @@ impl Loader<'_> {
         let mut dropped = 0usize;
         let mut missing_positions = 0usize;
         for inst in &instances {
-            let mesh = doc.meshes().nth(inst.mesh).ok_or_else(|| self.invalid("mesh index out of range"))?;
+            let mesh = meshes.get(inst.mesh).ok_or_else(|| self.invalid("mesh index out of range"))?;
             let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
             for prim in mesh.primitives() {
                 if prim.mode() != gltf::mesh::Mode::Triangles {
