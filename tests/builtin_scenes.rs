@@ -3,7 +3,9 @@
 //! face inward.
 //!
 //! Regenerate the assets after changing `src/scene/builtin.rs` or the writer:
-//! `RADLAB_WRITE_ASSETS=1 cargo test --no-default-features --test builtin_scenes`.
+//! `RADLAB_WRITE_ASSETS=1 cargo test --no-default-features --test builtin_scenes`, then once more
+//! without the variable (the assets are embedded with `include_bytes!`, so the first run's other
+//! tests still load the old copies).
 
 use radlab::math::DVec3;
 use radlab::scene::builtin::{BUILTINS, build, load};

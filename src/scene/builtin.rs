@@ -13,8 +13,9 @@
 //!   one plane by millimetres), so it is two triangles. Reflectances are the widely used RGB fits
 //!   of the measured spectra from Benedikt Bitterli's "Rendering resources" Cornell box
 //!   (white 0.725 0.71 0.68, red 0.63 0.065 0.05, green 0.14 0.45 0.091); the light's
-//!   exitance is π × its radiance there (17, 12, 4), i.e. E = (53.4, 37.7, 12.6), which puts wall
-//!   radiosities at O(1), the light's ρ is the published 0.78.
+//!   exitance is 10 × π × its radiance there (17, 12, 4) — π turns the radiance of a Lambertian
+//!   emitter into exitance, 10 puts the walls' radiosity at O(1..10) — i.e. E = (534, 377, 126);
+//!   the light's ρ is the published 0.78.
 //! - `perpendicular`: two unit squares sharing an edge at 90° (the lecture's example); the
 //!   vertical one emits E = 1; both ρ = 0.5.
 //! - `parallel`: two directly opposed unit squares at distance 1; the top one emits E = 1; both ρ = 0.5.
@@ -30,8 +31,9 @@
 //!
 //! ## Regenerating the assets
 //! `RADLAB_WRITE_ASSETS=1 cargo test --no-default-features --test builtin_scenes` rewrites
-//! `assets/scenes/NAME.gltf` from [`build`]; without the variable that test checks that every
-//! asset equals what the writer produces now.
+//! `assets/scenes/NAME.gltf` from [`build`] (run it once more without the variable: the first
+//! run's other tests still see the previously embedded copies); without the variable that test
+//! checks that every asset equals what the writer produces now.
 
 use super::gltf::{LoadOptions, load_slice};
 use super::{Patch, Scene, SceneError, Viewpoint};
@@ -191,7 +193,7 @@ fn cornell(b: &mut Builder) -> Option<Viewpoint> {
     let green = Mat { name: "green", rho: Rgb::new(0.14, 0.45, 0.091), emission: Rgb::ZERO };
     let pi = std::f64::consts::PI;
     let light =
-        Mat { name: "light", rho: Rgb::splat(0.78), emission: Rgb::new(17.0 * pi, 12.0 * pi, 4.0 * pi) };
+        Mat { name: "light", rho: Rgb::splat(0.78), emission: Rgb::new(170.0 * pi, 120.0 * pi, 40.0 * pi) };
     let inside = v(278.0, 274.4, 279.6);
 
     b.mesh(
