@@ -627,31 +627,37 @@ mod tests {
             .collect()
     }
 
-    /// Split every quad patch into 2×2 elements (bilinear), triangles kept whole.
-    fn split_elements(scene: &Scene) -> Vec<SolvedElement> {
+    /// Split every quad patch into n×n bilinear elements and every triangle 1→4 at its edge
+    /// midpoints; element k gets B = k.
+    fn split_elements(scene: &Scene, n: usize) -> Vec<SolvedElement> {
         let mut out = Vec::new();
+        let mut push = |patch: usize, verts: Vec<DVec3>| {
+            let k = out.len();
+            out.push(SolvedElement {
+                patch,
+                area: crate::math::polygon_area(&verts),
+                vertices: verts,
+                radiosity: Rgb::splat(k as f64),
+                error_estimate: None,
+            });
+        };
         for (i, p) in scene.patches.iter().enumerate() {
-            if p.vertices.len() != 4 {
-                out.push(SolvedElement {
-                    patch: i,
-                    vertices: p.vertices.clone(),
-                    area: p.area,
-                    radiosity: Rgb::ONE,
-                    error_estimate: None,
-                });
+            let v = &p.vertices;
+            if v.len() == 3 {
+                let m = [0, 1, 2].map(|k| v[k].lerp(v[(k + 1) % 3], 0.5));
+                push(i, vec![v[0], m[0], m[2]]);
+                push(i, vec![m[0], v[1], m[1]]);
+                push(i, vec![m[2], m[1], v[2]]);
+                push(i, vec![m[0], m[1], m[2]]);
                 continue;
             }
-            let v = &p.vertices;
             let at = |s: f64, t: f64| v[0].lerp(v[1], s).lerp(v[3].lerp(v[2], s), t);
-            for (k, (s, t)) in [(0.0, 0.0), (0.5, 0.0), (0.5, 0.5), (0.0, 0.5)].into_iter().enumerate() {
-                let verts = vec![at(s, t), at(s + 0.5, t), at(s + 0.5, t + 0.5), at(s, t + 0.5)];
-                out.push(SolvedElement {
-                    patch: i,
-                    area: crate::math::polygon_area(&verts),
-                    vertices: verts,
-                    radiosity: Rgb::splat(k as f64),
-                    error_estimate: None,
-                });
+            let h = 1.0 / n as f64;
+            for a in 0..n {
+                for b in 0..n {
+                    let (s, t) = (a as f64 * h, b as f64 * h);
+                    push(i, vec![at(s, t), at(s + h, t), at(s + h, t + h), at(s, t + h)]);
+                }
             }
         }
         out
@@ -675,7 +681,7 @@ mod tests {
     fn every_pixel_of_a_closed_room_sees_a_front_face_element() {
         let scene = builtin::build("furnace").unwrap();
         let accel = Accel::build(&scene);
-        let elements = split_elements(&scene);
+        let elements = split_elements(&scene, 2);
         let hits = render_hits(&scene, &accel, &elements, &Camera::for_scene(&scene), 40, 30);
         assert!(hits.iter().all(|h| matches!(h, PixelHit::Element(_))), "{hits:?}");
         // The located element contains the hit point: its patch is the hit patch, and all four
@@ -693,10 +699,14 @@ mod tests {
     fn element_lookup_matches_brute_force() {
         let scene = builtin::build("cornell").unwrap();
         let accel = Accel::build(&scene);
-        let elements = split_elements(&scene);
+        // 16×16 elements per quad (grids of 16×16 cells), triangles split 1→4.
+        let elements = split_elements(&scene, 16);
         let cam = Camera::for_scene(&scene);
-        let (w, h) = (32, 32);
+        // Hit points come from an f32 BVH in a frame where the scene's diagonal is 1.
+        let hit_tol = 1e-5 * scene.bounds().diagonal();
+        let (w, h) = (64, 64);
         let hits = render_hits(&scene, &accel, &elements, &cam, w, h);
+        let mut checked = 0;
         for y in 0..h {
             for x in 0..w {
                 let PixelHit::Element(e) = hits[y * w + x] else { continue };
@@ -707,13 +717,17 @@ mod tests {
                 let el = &elements[e];
                 let n = scene.patches[el.patch].normal;
                 let k = el.vertices.len();
-                let inside = (0..k).all(|i| {
-                    let (a, b) = (el.vertices[i], el.vertices[(i + 1) % k]);
-                    (b - a).cross(p - a).dot(n) >= -1e-6 * el.area
-                });
-                assert!(inside, "pixel ({x}, {y}): element {e} does not contain the hit point");
+                let outside = (0..k)
+                    .map(|i| {
+                        let (a, b) = (el.vertices[i], el.vertices[(i + 1) % k]);
+                        -(b - a).cross(p - a).dot(n) / (b - a).length()
+                    })
+                    .fold(f64::NEG_INFINITY, f64::max);
+                assert!(outside <= hit_tol, "pixel ({x}, {y}): hit point {outside} outside element {e}");
+                checked += 1;
             }
         }
+        assert!(checked > w * h / 2, "only {checked} pixels see an element");
     }
 
     #[test]
@@ -761,7 +775,7 @@ mod tests {
     fn rendering_is_identical_for_any_thread_count() {
         let scene = builtin::build("cornell").unwrap();
         let accel = Accel::build(&scene);
-        let elements = split_elements(&scene);
+        let elements = split_elements(&scene, 2);
         let cam = Camera::for_scene(&scene);
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let three = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
