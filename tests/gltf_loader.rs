@@ -645,3 +645,79 @@ fn write_gltf_round_trips_patches_materials_and_camera() {
     assert!((a.target - a.eye).normalize().dot((b.target - b.eye).normalize()) > 1.0 - F32_TOL);
     assert!((a.fov_y_deg - b.fov_y_deg).abs() < 1e-4);
 }
+
+// ------------------------------------------------------------------ robustness
+
+/// Seeded random corruption of a valid .glb and .gltf: every result is `Ok` or a one-line error
+/// naming the file, never a panic.
+#[test]
+fn corrupted_files_never_panic() {
+    use radlab::math::Pcg32;
+    let glb_bytes = glb_square();
+    let mut d = lit_square();
+    d["nodes"] = json!([{"mesh": 0, "children": [1]}, {"mesh": 0, "scale": [-1.0, 2.0, 1.0]}]);
+    let gltf_bytes = serde_json::to_vec(&d).unwrap();
+    let opts = LoadOptions::default();
+    let label = Path::new("fuzz.glb");
+    for (k, base) in [&glb_bytes, &gltf_bytes].into_iter().enumerate() {
+        let mut rng = Pcg32::keyed(7, k as u64);
+        for round in 0..1500 {
+            let mut bytes = base.clone();
+            let edits = 1 + (rng.next_u32() % 4) as usize;
+            for _ in 0..edits {
+                let at = rng.next_u32() as usize % bytes.len();
+                match rng.next_u32() % 3 {
+                    0 => bytes[at] = rng.next_u32() as u8,
+                    1 => bytes.truncate(at.max(1)),
+                    _ => bytes[at] = b"0123456789-.,:[]{}\"e"[rng.next_u32() as usize % 20],
+                }
+            }
+            check_no_panic(&bytes, label, &opts, round);
+        }
+    }
+    // Structural: replace numbers in the JSON (indices, counts, offsets, strides, factors) with
+    // hostile values, so the corruption reaches the accessor, node and material checks.
+    let text = String::from_utf8(gltf_bytes).unwrap();
+    let data_start = text.find("data:").unwrap();
+    let numbers: Vec<(usize, usize)> = {
+        let b = text.as_bytes();
+        let mut v = Vec::new();
+        let mut i = 0;
+        while i < b.len() {
+            let in_data = i >= data_start && i < data_start + text[data_start..].find('"').unwrap();
+            if b[i].is_ascii_digit() && !in_data {
+                let j = (i..b.len()).find(|&j| !(b[j].is_ascii_digit() || b[j] == b'.')).unwrap_or(b.len());
+                v.push((i, j));
+                i = j;
+            } else {
+                i += 1;
+            }
+        }
+        v
+    };
+    let hostile =
+        ["0", "1", "2", "3", "4", "7", "12", "255", "65536", "2147483648", "4294967301", "1e30", "0.5", "-1"];
+    let mut rng = Pcg32::keyed(7, 99);
+    for round in 0..3000 {
+        let mut picks: Vec<usize> =
+            (0..1 + rng.next_u32() % 3).map(|_| rng.next_u32() as usize % numbers.len()).collect();
+        picks.sort_unstable();
+        picks.dedup();
+        let mut out = text.clone();
+        for &k in picks.iter().rev() {
+            let (a, b) = numbers[k];
+            out.replace_range(a..b, hostile[rng.next_u32() as usize % hostile.len()]);
+        }
+        check_no_panic(out.as_bytes(), label, &opts, round);
+    }
+}
+
+fn check_no_panic(bytes: &[u8], label: &Path, opts: &LoadOptions, round: usize) {
+    match load_slice(bytes, None, label, opts) {
+        Ok(s) => assert!(!s.patches.is_empty(), "round {round}"),
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(msg.contains("fuzz.glb") && !msg.contains('\n'), "round {round}: {msg}");
+        }
+    }
+}

@@ -247,6 +247,18 @@ impl Loader<'_> {
         use gltf::json::validation::{Error as VError, Validate};
         let root: gltf::json::Root =
             gltf::json::deserialize::from_slice(json).map_err(|e| self.invalid(e.to_string()))?;
+        // gltf-json's own validation indexes `accessors[POSITION]` unchecked (it panics on a
+        // dangling index), so attribute indices are checked first.
+        for (m, mesh) in root.meshes.iter().enumerate() {
+            for (p, prim) in mesh.primitives.iter().enumerate() {
+                if let Some(bad) = prim.attributes.values().find(|i| i.value() >= root.accessors.len()) {
+                    return Err(self.invalid(format!(
+                        "meshes[{m}].primitives[{p}].attributes: accessor {} does not exist",
+                        bad.value()
+                    )));
+                }
+            }
+        }
         let mut errors = Vec::new();
         root.validate(&root, gltf::json::Path::new, &mut |path, error| {
             let path = path();
