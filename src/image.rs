@@ -37,6 +37,8 @@ pub const NO_VALUE: [f32; 3] = [0.35, 0.35, 0.35];
 
 /// Relative tolerance (of the element's size) for a point on an element's edge to count as inside.
 const INSIDE_REL: f64 = 1e-9;
+/// How much more a back face seen by a default open-scene camera counts than a front face.
+pub const BACK_FACE_PENALTY: f64 = 2.0;
 /// The percentile of visible-pixel luminance that maps to white in [`radiosity_image`].
 const EXPOSURE_PERCENTILE: f64 = 0.99;
 
@@ -62,9 +64,10 @@ impl Camera {
     /// - **Closed scenes** (rays from the bounds' centre in 14 directions all hit a patch from its
     ///   front — a room seen from inside): from inside, near the upper (+x, +z) corner at 3/4 of
     ///   the height, looking at the opposite lower part of the room, 70° field of view.
-    /// - **Open scenes**: from outside, along the area-weighted mean normal of the patches (so the
-    ///   camera sees their fronts) tilted towards a fixed oblique direction, far enough that the
-    ///   bounding sphere fits a 45° field of view.
+    /// - **Open scenes**: from outside, far enough that the bounding sphere fits a 45° field of
+    ///   view, from the direction (an oblique default or one of the 26 directions of a cube's faces,
+    ///   edges and corners) where Σ area × cos(patch normal, to eye) is largest, back faces
+    ///   weighted [`BACK_FACE_PENALTY`]× (occlusion ignored): the view that sees most fronts.
     #[must_use]
     pub fn for_scene(scene: &Scene) -> Camera {
         if let Some(v) = scene.camera {
@@ -83,12 +86,40 @@ impl Camera {
                 fov_y_deg: 70.0,
             };
         }
-        let mean_n: DVec3 = scene.patches.iter().map(|p| p.normal * p.area).sum::<DVec3>();
-        let mean_n = mean_n.normalize_or_zero();
-        let dir =
-            (mean_n + DVec3::new(0.35, 0.45, 0.8)).normalize_or(DVec3::new(0.35, 0.45, 0.8).normalize());
         let fov: f64 = 45.0;
         let dist = radius / (0.5 * fov.to_radians()).sin();
+        // Candidates: an oblique default, then the 26 directions of a cube's faces, edges and
+        // corners; the best sees the most front-facing area (back faces count against it).
+        let mut candidates = vec![DVec3::new(0.35, 0.45, 0.8).normalize()];
+        for x in [-1.0, 0.0, 1.0] {
+            for y in [-1.0, 0.0, 1.0] {
+                for z in [-1.0, 0.0, 1.0] {
+                    if (x, y, z) != (0.0, 0.0, 0.0) {
+                        candidates.push(DVec3::new(x, y, z).normalize());
+                    }
+                }
+            }
+        }
+        let score = |dir: DVec3| -> f64 {
+            let eye = c + dir * dist;
+            scene
+                .patches
+                .iter()
+                .map(|p| {
+                    let cos = p.normal.dot((eye - p.centroid).normalize_or_zero());
+                    p.area * if cos >= 0.0 { cos } else { BACK_FACE_PENALTY * cos }
+                })
+                .sum()
+        };
+        let mut dir = candidates[0];
+        let mut best = score(dir);
+        for &d in &candidates[1..] {
+            let s = score(d);
+            if s > best * (1.0 + 1e-9) + 1e-300 {
+                best = s;
+                dir = d;
+            }
+        }
         let up = if dir.cross(DVec3::Y).length() < 1e-3 { DVec3::Z } else { DVec3::Y };
         Camera { eye: c + dir * dist, target: c, up, fov_y_deg: fov }
     }
@@ -675,6 +706,15 @@ mod tests {
         assert!(!(cam.eye.cmpgt(b.min).all() && cam.eye.cmplt(b.max).all()), "outside: {}", cam.eye);
         let cornell = builtin::build("cornell").unwrap();
         assert_eq!(Camera::for_scene(&cornell), Camera::from(cornell.camera.unwrap()));
+        // Open scenes are framed so that the fronts of both squares show and no back face does.
+        for name in ["parallel", "perpendicular"] {
+            let scene = builtin::build(name).unwrap();
+            let accel = Accel::build(&scene);
+            let elements = emission_elements(&scene);
+            let hits = render_hits(&scene, &accel, &elements, &Camera::for_scene(&scene), 40, 30);
+            assert!(!hits.contains(&PixelHit::BackFace), "{name}: back face in the default view");
+            assert!(hits.contains(&PixelHit::Element(0)) && hits.contains(&PixelHit::Element(1)), "{name}");
+        }
     }
 
     #[test]
