@@ -450,6 +450,19 @@ mod tests {
     }
 
     #[test]
+    fn builtin_scenes_through_the_loader() {
+        /// Perpendicular unit squares sharing an edge [Howell C-14, W = H = 1].
+        const F_ADJACENT: f64 = 0.200_043_776_075;
+        let sc = Scene::load("builtin:perpendicular").unwrap();
+        let o = compute(&sc, &parse("x --from 0 --to 1")).unwrap();
+        assert!((o.from_to.value - F_ADJACENT).abs() < QUOTED, "{o:?}");
+        assert!((o.to_from.unwrap().value - F_ADJACENT).abs() < QUOTED, "{o:?}");
+        let sc = Scene::load("builtin:parallel").unwrap();
+        let o = compute(&sc, &parse("x --from 0 --to 1 --visibility --rays 16")).unwrap();
+        assert!((o.from_to.value - F_OPPOSITE).abs() < QUOTED, "{o:?}");
+    }
+
+    #[test]
     fn every_method_is_close_to_exact() {
         let sc = scene();
         for (m, tol) in [("disk", 0.05), ("quadrature", 1e-4), ("monte-carlo", 0.01)] {
