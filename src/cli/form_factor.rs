@@ -195,13 +195,14 @@ fn group(
             if let Some(accel) = accel
                 && f > 0.0
             {
+                // V_ij = V_ji: always sampled from the lower index's side, keyed by the pair.
                 let (lo, hi) = (i.min(j), i.max(j));
                 let vis = visible_fraction(
                     accel,
-                    &scene.patches[i].vertices,
-                    i as u32,
-                    &scene.patches[j].vertices,
-                    j as u32,
+                    &scene.patches[lo].vertices,
+                    lo as u32,
+                    &scene.patches[hi].vertices,
+                    hi as u32,
                     s.rays,
                     s.seed,
                     ((lo as u64) << 32) | hi as u64,
@@ -383,7 +384,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("scene {} ({} patches); method: {how}{vis}", scene.source, scene.patches.len());
     println!("F({from} → {to}) = {}", fmt_estimate(out.from_to));
     match out.to_from {
-        Some(e) => println!("F({to} → {from}) = {}", fmt_estimate(e)),
+        Some(e) => {
+            println!("F({to} → {from}) = {}", fmt_estimate(e));
+            let area = |sel: &str| -> anyhow::Result<f64> {
+                Ok(select(&scene, sel, "from")?.iter().map(|&i| scene.patches[i].area).sum())
+            };
+            let (a_from, a_to) = (area(&out.from)?, area(&out.to)?);
+            println!(
+                "reciprocity: A_from·F = {:.9e}, A_to·F' = {:.9e} (areas {a_from:.6e}, {a_to:.6e})",
+                a_from * out.from_to.value,
+                a_to * e.value
+            );
+        }
         None => println!("F({to} → {from}) is undefined for a differential element"),
     }
     Ok(())
@@ -457,6 +469,14 @@ mod tests {
         let o = compute(&sc, &parse("x --from 0 --to 1")).unwrap();
         assert!((o.from_to.value - F_ADJACENT).abs() < QUOTED, "{o:?}");
         assert!((o.to_from.unwrap().value - F_ADJACENT).abs() < QUOTED, "{o:?}");
+        // With visibility (the Cornell blocks shadow the floor), both directions use the same V.
+        let sc = Scene::load("builtin:cornell").unwrap();
+        let o = compute(&sc, &parse("x --from mesh:floor --to mesh:light --visibility --rays 16")).unwrap();
+        let area =
+            |sel: &str| select(&sc, sel, "x").unwrap().iter().map(|&i| sc.patches[i].area).sum::<f64>();
+        let (fwd, back) =
+            (area("mesh:floor") * o.from_to.value, area("mesh:light") * o.to_from.unwrap().value);
+        assert!(fwd > 0.0 && (fwd - back).abs() < 1e-8 * fwd, "reciprocity {fwd} vs {back}");
         let sc = Scene::load("builtin:parallel").unwrap();
         let o = compute(&sc, &parse("x --from 0 --to 1 --visibility --rays 16")).unwrap();
         assert!((o.from_to.value - F_OPPOSITE).abs() < QUOTED, "{o:?}");
