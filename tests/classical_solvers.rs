@@ -309,6 +309,24 @@ fn identical_for_any_thread_count() {
 }
 
 #[test]
+fn progress_is_reported_to_completion() {
+    let scene = open_box_with_occluder();
+    let accel = Accel::build(&scene);
+    let mut calls: Vec<(u64, u64)> = Vec::new();
+    let p = UniformParams { element_size: 0.34, rays: 4, ..UniformParams::default() };
+    uniform::solve(&scene, &accel, &p, &mut |d, t| calls.push((d, t))).unwrap();
+    let (&last, n) = (calls.last().unwrap(), calls.len());
+    assert!(n >= 2 && last.0 == last.1 && last.1 > 0, "{calls:?}");
+    assert!(calls.windows(2).all(|w| w[0].0 <= w[1].0), "monotone: {calls:?}");
+    let mut calls: Vec<(u64, u64)> = Vec::new();
+    let q = ProgressiveParams { element_size: 0.34, rays: 4, ..ProgressiveParams::default() };
+    progressive::solve(&scene, &accel, &q, &mut |d, t| calls.push((d, t))).unwrap();
+    assert!(calls.windows(2).all(|w| w[0].0 <= w[1].0), "monotone: {calls:?}");
+    let last = calls.last().unwrap();
+    assert_eq!(last.0, last.1);
+}
+
+#[test]
 fn meshes_respect_size_orientation_and_area() {
     let quad = patch(
         vec![v(0., 0., 0.), v(2., 0., 0.), v(2.5, 1., 0.), v(0., 1., 0.)],
