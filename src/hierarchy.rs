@@ -88,10 +88,15 @@ pub struct Element {
     pub radiosity: Rgb,
     /// Irradiance gathered over this element's own links, Σ F·V·B_source (before push).
     pub gathered: Rgb,
+    /// The part of `gathered` that comes through fully visible links (V = 1); only this part is
+    /// normalised when pushed down to leaves.
+    pub gathered_full: Rgb,
     /// Σ F·V over this element's own links (for the escaped-energy balance).
     pub fv_sum: f64,
-    /// Σ F over this element's own links, unoccluded (for the per-leaf normalisation).
+    /// Σ F over this element's fully visible own links (for the per-leaf normalisation).
     pub f_sum: f64,
+    /// Σ F·V over this element's own links that are not fully visible.
+    pub fv_partial: f64,
     /// Per-leaf form-factor normalisation factor (1 for interior elements); see `solver::hierarchical`.
     pub norm: f64,
 }
@@ -163,8 +168,10 @@ impl Hierarchy {
                     emission: p.emission,
                     radiosity: p.emission,
                     gathered: Rgb::ZERO,
+                    gathered_full: Rgb::ZERO,
                     fv_sum: 0.0,
                     f_sum: 0.0,
+                    fv_partial: 0.0,
                     norm: 1.0,
                 }
             })
@@ -223,8 +230,10 @@ impl Hierarchy {
                 area: polygon_area(verts),
                 centroid: polygon_centroid(verts),
                 gathered: Rgb::ZERO,
+                gathered_full: Rgb::ZERO,
                 fv_sum: 0.0,
                 f_sum: 0.0,
+                fv_partial: 0.0,
                 norm: 1.0,
                 ..parent.clone()
             });
