@@ -80,8 +80,12 @@ pub struct Element {
     pub stop: StopReason,
     pub verts: [DVec3; 4],
     pub area: f64,
+    /// Largest vertex-to-vertex distance (cached: the oracle asks for it per link).
+    pub diam: f64,
     pub centroid: DVec3,
     pub normal: DVec3,
+    /// Links of this element or an ancestor changed since its normalisation was computed.
+    pub dirty: bool,
     pub reflectance: Rgb,
     pub emission: Rgb,
     /// Radiosity: leaves E + ρ·H; interior elements the area average of their children (pull).
@@ -121,18 +125,21 @@ impl Element {
     pub fn parent(&self) -> Option<u32> {
         (self.parent != NONE).then_some(self.parent)
     }
-    /// Largest distance between two vertices.
+    /// Largest distance between two vertices (cached at creation).
     #[must_use]
     pub fn diameter(&self) -> f64 {
-        let v = self.vertices();
-        let mut d: f64 = 0.0;
-        for i in 0..v.len() {
-            for j in i + 1..v.len() {
-                d = d.max(v[i].distance(v[j]));
-            }
-        }
-        d
+        self.diam
     }
+}
+
+fn max_pairwise_distance(v: &[DVec3]) -> f64 {
+    let mut d: f64 = 0.0;
+    for i in 0..v.len() {
+        for j in i + 1..v.len() {
+            d = d.max(v[i].distance(v[j]));
+        }
+    }
+    d
 }
 
 /// The arena. Element `i < patches` is the root of patch `i`.
@@ -162,6 +169,8 @@ impl Hierarchy {
                     stop: StopReason::Unrefined,
                     verts,
                     area: p.area,
+                    diam: max_pairwise_distance(&p.vertices),
+                    dirty: true,
                     centroid: p.centroid,
                     normal: p.normal,
                     reflectance: p.reflectance,
@@ -228,6 +237,8 @@ impl Hierarchy {
                 stop: StopReason::Unrefined,
                 verts: k,
                 area: polygon_area(verts),
+                diam: max_pairwise_distance(verts),
+                dirty: true,
                 centroid: polygon_centroid(verts),
                 gathered: Rgb::ZERO,
                 gathered_full: Rgb::ZERO,

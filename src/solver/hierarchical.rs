@@ -397,10 +397,12 @@ impl HierarchicalSolver {
                 new_links += created;
                 total_links = total_links + own.len() + kids.len() - self.links.by_receiver[r as usize].len();
                 self.links.by_receiver[r as usize] = own;
+                self.hier.elements[r as usize].dirty = true;
                 pushed_down.extend(kids);
             }
             for (c, l) in pushed_down {
                 self.links.by_receiver[c as usize].push(l);
+                self.hier.elements[c as usize].dirty = true;
                 next.push(c);
             }
             next.sort_unstable();
@@ -627,8 +629,17 @@ impl HierarchicalSolver {
         total
     }
 
-    /// Recompute Σ F and Σ F·V per element and every leaf's normalisation factor S_x / T_x.
+    /// Recompute Σ F and Σ F·V per element and the normalisation factor S_x / T_x of every leaf
+    /// whose inherited links changed (an ancestor's list changed, or the leaf is new).
     fn update_sums_and_normalisation(&mut self) {
+        // Propagate "dirty" down: parents have smaller ids than their children.
+        for i in 0..self.hier.len() {
+            if let Some(p) = self.hier.elements[i].parent() {
+                if self.hier.elements[p as usize].dirty {
+                    self.hier.elements[i].dirty = true;
+                }
+            }
+        }
         for (i, e) in self.hier.elements.iter_mut().enumerate() {
             let ls = &self.links.by_receiver[i];
             e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
@@ -640,7 +651,7 @@ impl HierarchicalSolver {
         let normalize = self.params.normalize;
         let norms: Vec<(u32, f64)> = (0..hier.len() as u32)
             .into_par_iter()
-            .filter(|&i| hier.get(i).is_leaf())
+            .filter(|&i| hier.get(i).is_leaf() && hier.get(i).dirty)
             .map(|x| {
                 let leaf = hier.get(x);
                 let mut t = 0.0;
@@ -661,6 +672,9 @@ impl HierarchicalSolver {
             .collect();
         for (x, n) in norms {
             self.hier.elements[x as usize].norm = n;
+        }
+        for e in &mut self.hier.elements {
+            e.dirty = false;
         }
     }
 
