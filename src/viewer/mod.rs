@@ -1,1 +1,1 @@
-//! (being written)
+//! The interactive viewer (being written).
