@@ -28,7 +28,12 @@ fn rgb(c: Rgb) -> [f32; 3] {
 
 /// Triangle list of the leaves (quads as two triangles 0-1-2, 0-2-3).
 #[must_use]
-pub fn mesh(elements: &[ElementView], leaves: &[u32], colors: MeshColors<'_>, origin: DVec3) -> Vec<MeshVertex> {
+pub fn mesh(
+    elements: &[ElementView],
+    leaves: &[u32],
+    colors: MeshColors<'_>,
+    origin: DVec3,
+) -> Vec<MeshVertex> {
     let smooth = matches!(colors, MeshColors::Smooth).then(|| vertex_radiosity(elements, leaves));
     let mut out = Vec::with_capacity(leaves.len() * 6);
     for (k, &l) in leaves.iter().enumerate() {
@@ -43,7 +48,11 @@ pub fn mesh(elements: &[ElementView], leaves: &[u32], colors: MeshColors<'_>, or
         let tris: &[[usize; 3]] = if e.n_vertices == 4 { &[[0, 1, 2], [0, 2, 3]] } else { &[[0, 1, 2]] };
         for t in tris {
             for &i in t {
-                out.push(MeshVertex { position: local(e.vertices[i], origin), element: e.id, color: corner(i) });
+                out.push(MeshVertex {
+                    position: local(e.vertices[i], origin),
+                    element: e.id,
+                    color: corner(i),
+                });
             }
         }
     }
@@ -53,7 +62,11 @@ pub fn mesh(elements: &[ElementView], leaves: &[u32], colors: MeshColors<'_>, or
 /// Line vertices of a [`LineList`].
 #[must_use]
 pub fn lines(list: &LineList, origin: DVec3) -> Vec<LineVertex> {
-    list.points.iter().zip(&list.colors).map(|(p, c)| LineVertex { position: local(*p, origin), color: *c }).collect()
+    list.points
+        .iter()
+        .zip(&list.colors)
+        .map(|(p, c)| LineVertex { position: local(*p, origin), color: *c })
+        .collect()
 }
 
 #[cfg(test)]
@@ -67,7 +80,12 @@ mod tests {
             parent: None,
             depth: 0,
             leaf: true,
-            vertices: [DVec3::new(10.0, 0.0, 0.0), DVec3::new(11.0, 0.0, 0.0), DVec3::new(10.0, 1.0, 0.0), DVec3::ZERO],
+            vertices: [
+                DVec3::new(10.0, 0.0, 0.0),
+                DVec3::new(11.0, 0.0, 0.0),
+                DVec3::new(10.0, 1.0, 0.0),
+                DVec3::ZERO,
+            ],
             n_vertices: 3,
             area: 0.5,
             reflectance: Rgb::splat(0.5),

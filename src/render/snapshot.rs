@@ -63,7 +63,10 @@ pub fn check(dir: &Path, name: &str, image: &RgbaImage, limits: Thresholds) -> R
         Ok(w) => w,
         Err(e) => {
             image.save_png(&actual)?;
-            return Err(format!("{e} (no golden image; wrote {}; run with UPDATE_SNAPSHOTS=1)", actual.display()));
+            return Err(format!(
+                "{e} (no golden image; wrote {}; run with UPDATE_SNAPSHOTS=1)",
+                actual.display()
+            ));
         }
     };
     let Some((stats, d)) = diff(image, &want) else {

@@ -32,7 +32,8 @@ impl OrbitCamera {
     #[must_use]
     pub fn frame_all(bounds: &Bounds) -> OrbitCamera {
         let fov_y_deg = 45.0;
-        let diag = if bounds.diagonal().is_finite() && bounds.diagonal() > 0.0 { bounds.diagonal() } else { 1.0 };
+        let diag =
+            if bounds.diagonal().is_finite() && bounds.diagonal() > 0.0 { bounds.diagonal() } else { 1.0 };
         let half = (0.5 * fov_y_deg as f64).to_radians();
         OrbitCamera {
             target: bounds.center(),
@@ -67,7 +68,11 @@ impl OrbitCamera {
     pub fn eye(&self) -> DVec3 {
         self.target
             + self.distance
-                * DVec3::new(self.pitch.cos() * self.yaw.sin(), self.pitch.sin(), self.pitch.cos() * self.yaw.cos())
+                * DVec3::new(
+                    self.pitch.cos() * self.yaw.sin(),
+                    self.pitch.sin(),
+                    self.pitch.cos() * self.yaw.cos(),
+                )
     }
 
     /// Rotate by screen-space deltas (radians).
@@ -164,7 +169,12 @@ mod tests {
 
     #[test]
     fn viewpoint_round_trip_and_controls() {
-        let v = Viewpoint { eye: DVec3::new(0.0, 1.0, 5.0), target: DVec3::new(0.0, 1.0, 0.0), up: DVec3::Y, fov_y_deg: 40.0 };
+        let v = Viewpoint {
+            eye: DVec3::new(0.0, 1.0, 5.0),
+            target: DVec3::new(0.0, 1.0, 0.0),
+            up: DVec3::Y,
+            fov_y_deg: 40.0,
+        };
         let c = OrbitCamera::from_viewpoint(&v, &unit_bounds());
         assert!((c.eye() - v.eye).length() < TIGHT);
         let mut z = c;
