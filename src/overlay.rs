@@ -166,6 +166,13 @@ impl Palette {
     }
 }
 
+/// Percentiles bounding the error heatmap's colour scale (see [`LogScale::robust`]).
+const ROBUST_LO_PERCENTILE: usize = 10;
+const ROBUST_HI_PERCENTILE: usize = 99;
+/// The heatmap spans at most this many decades: errors 10⁴ below the largest are "none" to
+/// the eye, and a round-off-sized 2nd percentile (1e-15) would flatten every other colour.
+const ROBUST_MAX_DECADES: i32 = 4;
+
 /// A logarithmic scale from `lo` to `hi` (both > 0), for colour bars.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct LogScale {
@@ -191,6 +198,22 @@ impl LogScale {
         if hi / lo < 10.0 {
             lo = hi / 10.0;
         }
+        Some(LogScale { lo, hi })
+    }
+    /// A scale over the bulk of the positive finite values: from the 10th to the 99th
+    /// percentile (values outside clamp to the ends), so one outlier or a few near-zero values
+    /// do not squash every colour to one end. At least one decade wide, at most
+    /// `ROBUST_MAX_DECADES`.
+    #[must_use]
+    pub fn robust(values: impl IntoIterator<Item = f64>) -> Option<LogScale> {
+        let mut v: Vec<f64> = values.into_iter().filter(|x| *x > 0.0 && x.is_finite()).collect();
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        let at = |q: usize| v[((v.len() - 1) * q) / 100];
+        let hi = at(ROBUST_HI_PERCENTILE);
+        let lo = at(ROBUST_LO_PERCENTILE).max(hi * 10f64.powi(-ROBUST_MAX_DECADES)).min(hi / 10.0);
         Some(LogScale { lo, hi })
     }
     /// Position of `v` on the scale, in [0, 1] (values ≤ lo give 0).
@@ -345,6 +368,10 @@ pub fn quadtree_lines(elements: &[ElementView], leaves: &[u32], lift: f64) -> Li
     out
 }
 
+/// Default decimation of the links overlay: beyond a few thousand lines a room is a solid
+/// fan of lines; the largest F stay readable.
+pub const DEFAULT_MAX_LINKS: usize = 3000;
+
 /// Which links to draw.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct LinkFilter {
@@ -361,7 +388,14 @@ pub struct LinkFilter {
 
 impl Default for LinkFilter {
     fn default() -> Self {
-        LinkFilter { element: None, min_ff: 0.0, full: true, partial: true, none: false, max_lines: 20_000 }
+        LinkFilter {
+            element: None,
+            min_ff: 0.0,
+            full: true,
+            partial: true,
+            none: false,
+            max_lines: DEFAULT_MAX_LINKS,
+        }
     }
 }
 
@@ -436,11 +470,11 @@ pub fn link_lines(
     LinkLines { shown: kept.len(), lines, matched, scale }
 }
 
-/// Heatmap colours of per-element error values (indexed like `values`) on a log scale over
-/// the positive values; zero or negative error gets the scale's bottom colour.
+/// Heatmap colours of per-element error values (indexed like `values`) on a robust log scale
+/// ([`LogScale::robust`]); zero or negative error gets the scale's bottom colour.
 #[must_use]
 pub fn heatmap_colors(values: &[f64]) -> (Vec<[f32; 3]>, Option<LogScale>) {
-    let scale = LogScale::spanning(values.iter().copied());
+    let scale = LogScale::robust(values.iter().copied());
     let colors = values.iter().map(|&v| Palette::Heat.at(scale.map_or(0.0, |s| s.t(v)))).collect();
     (colors, scale)
 }
@@ -626,6 +660,13 @@ mod tests {
         assert_eq!(c[0], Palette::Heat.at(0.0));
         assert_eq!(c[2], Palette::Heat.at(1.0));
         assert!(s.is_some());
+        // One tiny and one huge outlier among 100 values do not set the ends of the scale.
+        let mut v: Vec<f64> = (1..=98).map(|i| f64::from(i) * 1e-3).collect();
+        v.extend([1e-16, 1e3]);
+        let r = LogScale::robust(v).unwrap();
+        assert!(r.lo >= 1e-3 && r.hi <= 0.1, "{r:?}");
+        let r = LogScale::robust((0..100).map(|i| if i < 50 { 1e-15 } else { 1.0 })).unwrap();
+        assert!((r.lo - 1e-4).abs() < 1e-12, "at most four decades: {r:?}");
         assert_eq!(Palette::Viridis.at(f64::NAN), Palette::Viridis.at(0.0));
     }
 

@@ -36,7 +36,7 @@ pub enum OverlayChoice {
 /// How the viewer starts.
 #[derive(Clone, Debug)]
 pub struct ViewerOptions {
-    /// `builtin:NAME` or a path.
+    /// `builtin:NAME` or a path; empty: start without a scene (tests call `set_scene`).
     pub scene: String,
     pub preset: String,
     pub overlay: OverlayChoice,
@@ -103,7 +103,7 @@ impl Default for Display {
             link_filter: LinkFilter::default(),
             selected_links_only: false,
             links_xray: false,
-            link_alpha: 0.6,
+            link_alpha: 0.35,
         }
     }
 }
@@ -268,7 +268,9 @@ impl RadlabApp {
             app.script = Script::Solving;
         }
         let spec = app.scene_spec.clone();
-        app.load_spec(&spec);
+        if !spec.is_empty() {
+            app.load_spec(&spec);
+        }
         app
     }
 
@@ -941,6 +943,18 @@ impl RadlabApp {
         let _ = response;
     }
 
+    /// Where the viewport was drawn in the last frame (points).
+    #[must_use]
+    pub fn viewport_rect(&self) -> Rect {
+        self.viewport_rect
+    }
+
+    /// The solver parameters in use.
+    #[must_use]
+    pub fn params(&self) -> HierarchicalParams {
+        self.params
+    }
+
     /// Frame the whole scene, keeping the view direction.
     pub fn frame_all(&mut self) {
         if let Some(s) = &self.scene {
@@ -1025,7 +1039,7 @@ impl RadlabApp {
             colour_bar(
                 painter,
                 Pos2::new(x, y),
-                &format!("error: {what}"),
+                &format!("error: {what} (log scale, ends at the 10th / 99th percentile)"),
                 self.error_scale,
                 Palette::Heat,
                 " (units of B)",
@@ -1207,7 +1221,12 @@ fn log_slider(ui: &mut egui::Ui, label: &str, v: &mut f64, lo: f64, hi: f64, tip
     ui.horizontal(|ui| {
         ui.add(egui::Slider::new(v, lo..=hi).logarithmic(true).show_value(false).text(label))
             .on_hover_text(tip);
-        ui.add(egui::DragValue::new(v).speed(0.0).range(lo..=hi).custom_formatter(|x, _| format!("{x:.2e}")));
+        let typed = ui.add(
+            egui::DragValue::new(v).speed(0.0).range(lo..=hi).custom_formatter(|x, _| format!("{x:.2e}")),
+        );
+        // The typed field's accessible name (screen readers, UI tests).
+        let name = format!("{label} value");
+        ui.ctx().accesskit_node_builder(typed.id, |b| b.set_label(name));
     });
 }
 
@@ -1221,10 +1240,11 @@ fn colour_bar(
     unit: &str,
 ) -> f32 {
     let w = 200.0;
-    let box_r = Rect::from_min_size(at, Vec2::new(w + 8.0, 50.0));
-    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
     let font = egui::FontId::proportional(11.0);
-    painter.text(at + Vec2::new(4.0, 2.0), egui::Align2::LEFT_TOP, title, font.clone(), Color32::WHITE);
+    let galley = painter.layout_no_wrap(title.to_owned(), font.clone(), Color32::WHITE);
+    let box_r = Rect::from_min_size(at, Vec2::new(galley.size().x.max(w) + 8.0, 50.0));
+    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+    painter.galley(at + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
     let bar_y = at.y + 18.0;
     let n = 64;
     for i in 0..n {
