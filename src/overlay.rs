@@ -219,7 +219,7 @@ impl LogScale {
     /// Position of `v` on the scale, in [0, 1] (values ≤ lo give 0).
     #[must_use]
     pub fn t(&self, v: f64) -> f64 {
-        if !(v > self.lo) {
+        if v.is_nan() || v <= self.lo {
             return 0.0;
         }
         ((v.log10() - self.lo.log10()) / (self.hi.log10() - self.lo.log10())).clamp(0.0, 1.0)
@@ -499,7 +499,7 @@ pub fn pick(elements: &[ElementView], leaves: &[u32], origin: DVec3, dir: DVec3)
             continue;
         }
         let t = n.dot(v[0] - origin) / denom;
-        if !(t > 0.0) || best.is_some_and(|(_, bt)| t >= bt) {
+        if t.is_nan() || t <= 0.0 || best.is_some_and(|(_, bt)| t >= bt) {
             continue;
         }
         let p = origin + dir * t;

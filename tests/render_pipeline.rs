@@ -224,7 +224,7 @@ fn lines_are_depth_tested_unless_xray() {
     assert!(row_max(&hidden) < 5, "link behind the wall is hidden");
     assert!(row_max(&shown) > 100, "x-ray link is drawn (viridis top is bright)");
     // Quadtree edges lifted off their own element pass the depth test.
-    let q = geometry::lines(&overlay::quadtree_lines(&[wall.clone()], &[0], 1e-3), DVec3::ZERO);
+    let q = geometry::lines(&overlay::quadtree_lines(std::slice::from_ref(&wall), &[0], 1e-3), DVec3::ZERO);
     let mesh = geometry::mesh(&[wall], &[0], MeshColors::Flat, DVec3::ZERO);
     let img = draw(&Geometry { mesh, lines: q, ..Geometry::default() }, uniforms(false, 0, NO_SELECTION));
     assert!(img.pixels.chunks_exact(4).any(|p| p[0] > 200 && p[1] > 200), "white depth-0 edges visible");

@@ -367,10 +367,10 @@ impl RadlabApp {
             return;
         }
         self.params = p;
-        if self.busy() {
-            if let Some(w) = &self.worker {
-                w.cancel();
-            }
+        if self.busy()
+            && let Some(w) = &self.worker
+        {
+            w.cancel();
         }
         self.send(Command::SetParams(p), "restarting");
         if self.auto_run {
@@ -725,10 +725,8 @@ impl RadlabApp {
                 ui.end_row();
             };
             row(ui, "element", format!("{} (patch {})", e.id, e.patch));
-            if let Some(s) = &self.scene {
-                if let Some(p) = s.patches.get(e.patch as usize) {
-                    row(ui, "patch name", p.name.clone());
-                }
+            if let Some(p) = self.scene.as_ref().and_then(|s| s.patches.get(e.patch as usize)) {
+                row(ui, "patch name", p.name.clone());
             }
             row(ui, "depth", e.depth.to_string());
             row(ui, "area", format!("{:.4e}", e.area));
@@ -908,10 +906,10 @@ impl RadlabApp {
                 }
             });
         }
-        if response.clicked() {
-            if let Some(pos) = response.interact_pointer_pos() {
-                self.pick_at(pos, rect);
-            }
+        if response.clicked()
+            && let Some(pos) = response.interact_pointer_pos()
+        {
+            self.pick_at(pos, rect);
         }
 
         self.rebuild_geometry();
@@ -988,7 +986,8 @@ impl RadlabApp {
         if self.display.quadtree {
             let max_depth = self.view.stats.depth_histogram.len().max(1);
             let shown = max_depth.min(12);
-            let box_r = Rect::from_min_size(Pos2::new(x, y), Vec2::new(60.0 + 18.0 * shown as f32, 36.0));
+            let box_r =
+                Rect::from_min_size(Pos2::new(x, y), Vec2::new((8.0 + 18.0 * shown as f32).max(100.0), 36.0));
             painter.rect_filled(box_r, 4.0, bg);
             painter.text(
                 Pos2::new(x + 4.0, y + 2.0),
@@ -1045,8 +1044,13 @@ impl RadlabApp {
                 " (units of B)",
             );
         }
-        if self.view.elements.is_empty() && self.busy() {
-            painter.text(rect.center(), egui::Align2::CENTER_CENTER, "loading…", font, Color32::WHITE);
+        if self.view.elements.is_empty() {
+            let msg = if self.busy() {
+                "loading…"
+            } else {
+                "No scene. Open… a .gltf/.glb, drop one here, or type builtin:NAME above and press Load."
+            };
+            painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, font, Color32::LIGHT_GRAY);
         }
     }
 
@@ -1149,11 +1153,16 @@ impl eframe::App for RadlabApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
         self.poll_worker();
-        if let Some(rx) = &self.open_rx {
-            if let Ok(res) = rx.try_recv() {
-                self.open_rx = None;
-                if let Some(path) = res {
-                    self.load_spec(&path.to_string_lossy());
+        if let Some(rx) = &self.open_rx
+            && let Ok(res) = rx.try_recv()
+        {
+            self.open_rx = None;
+            match res {
+                Some(path) => self.load_spec(&path.to_string_lossy()),
+                None => {
+                    self.status = "no file chosen (without a desktop file-dialog portal, drop a file on \
+                                   the window or type its path)"
+                        .into();
                 }
             }
         }
@@ -1200,10 +1209,10 @@ impl eframe::App for RadlabApp {
         if self.busy() {
             ctx.request_repaint_after(std::time::Duration::from_millis(100));
         }
-        if let Some(code) = self.exit_code {
-            if self.script == Script::Done || code != 0 {
-                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
-            }
+        if let Some(code) = self.exit_code
+            && (self.script == Script::Done || code != 0)
+        {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
         }
     }
 }

@@ -31,10 +31,10 @@ impl OrbitCamera {
     /// A camera that sees all of `bounds` from the front (+Z side), slightly from above.
     #[must_use]
     pub fn frame_all(bounds: &Bounds) -> OrbitCamera {
-        let fov_y_deg = 45.0;
+        let fov_y_deg: f64 = 45.0;
         let diag =
             if bounds.diagonal().is_finite() && bounds.diagonal() > 0.0 { bounds.diagonal() } else { 1.0 };
-        let half = (0.5 * fov_y_deg as f64).to_radians();
+        let half = (0.5 * fov_y_deg).to_radians();
         OrbitCamera {
             target: bounds.center(),
             yaw: 0.0,

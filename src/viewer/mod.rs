@@ -77,10 +77,10 @@ struct ExitReporter {
 impl eframe::App for ExitReporter {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.app.ui(ui, frame);
-        if let Some(c) = self.app.exit_code {
-            if let Ok(mut g) = self.exit.lock() {
-                *g = Some(c);
-            }
+        if let Some(c) = self.app.exit_code
+            && let Ok(mut g) = self.exit.lock()
+        {
+            *g = Some(c);
         }
     }
 }
