@@ -185,6 +185,15 @@ fn drive_the_viewer() {
     h.get_by_label("Solve").click();
     settle(&mut h);
     assert!(h.state().view().stats.links > 0);
+    assert!(!h.state().view().residuals.is_empty());
+    assert!(h.state().solver_time_s() > 0.0);
+    // Plots: residual per gather, links against elements.
+    h.get_by_label("Plots").click();
+    settle(&mut h);
+    assert!(h.query_by_label_contains("Residual per gather").is_some());
+    check(&mut h, "gui_plots");
+    h.get_by_label("Plots").click();
+    settle(&mut h);
     h.get_by_label("Reset").click();
     settle(&mut h);
     assert_eq!(h.state().view().leaves.len(), n_patches);

@@ -165,6 +165,10 @@ pub struct RadlabApp {
     pub display: Display,
     /// Per-element true error (against a reference); replaces the solver's estimate when set.
     true_error: Option<Vec<f64>>,
+    /// Solver time since the last restart (sum of the steps' times), seconds.
+    solver_time_s: f64,
+    /// (solver time, error against the reference) after steps, for the error-vs-time plot.
+    error_samples: Vec<[f64; 2]>,
     geometry: Arc<Geometry>,
     generation: u64,
     geometry_key: Option<GeometryKey>,
@@ -236,6 +240,8 @@ impl RadlabApp {
             origin: DVec3::ZERO,
             display: Display::default(),
             true_error: None,
+            solver_time_s: 0.0,
+            error_samples: Vec::new(),
             geometry: Arc::new(Geometry::default()),
             generation: 0,
             geometry_key: None,
@@ -345,6 +351,20 @@ impl RadlabApp {
         self.true_error = err;
     }
 
+    /// Solver time since the last restart (load, reset, parameter change), seconds.
+    #[must_use]
+    pub fn solver_time_s(&self) -> f64 {
+        self.solver_time_s
+    }
+
+    /// Record the error against a reference of the current state (any scalar norm, e.g. the
+    /// relative L1 error), plotted against [`RadlabApp::solver_time_s`].
+    pub fn push_error_sample(&mut self, error: f64) {
+        if error.is_finite() {
+            self.error_samples.push([self.solver_time_s, error]);
+        }
+    }
+
     /// Run a solver step (as the buttons do).
     pub fn step(&mut self, kind: StepKind) {
         let label = match kind {
@@ -410,11 +430,20 @@ impl RadlabApp {
             Reply::Loaded { view, .. } => {
                 self.view = view;
                 self.progress = None;
+                self.solver_time_s = 0.0;
+                self.error_samples.clear();
             }
             Reply::Done { report, view } => {
                 self.view = view;
                 self.progress = None;
+                if report.is_none() {
+                    // SetParams / Reset restart the solver: element ids start over.
+                    self.solver_time_s = 0.0;
+                    self.error_samples.clear();
+                    self.selected = None;
+                }
                 if let Some(rep) = report {
+                    self.solver_time_s += rep.time_s;
                     self.last_report = Some(rep);
                     if rep.kind == StepKind::Solve && !rep.cancelled {
                         self.runs.push(RunPoint {
@@ -810,8 +839,20 @@ impl RadlabApp {
                 p.line(Line::new("n", PlotPoints::from(vec![[lo, lo], [hi, hi]])));
                 p.line(Line::new("n²", PlotPoints::from(vec![[lo, 2.0 * lo], [hi, 2.0 * hi]])));
             });
-        if self.true_error.is_none() {
+        if self.error_samples.is_empty() {
             ui.weak("Error against time appears when a reference solution is loaded.");
+        } else {
+            ui.label("Error against the reference vs solver time");
+            let pts: Vec<[f64; 2]> =
+                self.error_samples.iter().filter(|p| p[1] > 0.0).map(|p| [p[0], p[1].log10()]).collect();
+            Plot::new("error_vs_time")
+                .height(150.0)
+                .x_axis_label("solver time (s)")
+                .y_axis_label("log₁₀ error")
+                .show(ui, |p| {
+                    p.line(Line::new("error", PlotPoints::from(pts.clone())));
+                    p.points(Points::new("steps", PlotPoints::from(pts)).radius(3.0));
+                });
         }
     }
 
@@ -1197,7 +1238,7 @@ impl eframe::App for RadlabApp {
                 self.inspector(ui);
                 if self.show_plots {
                     ui.separator();
-                    ui.heading("Plots");
+                    ui.heading("Convergence plots");
                     self.plots(ui);
                 }
             });
