@@ -369,8 +369,17 @@ pub fn quadtree_lines(elements: &[ElementView], leaves: &[u32], lift: f64) -> Li
 }
 
 /// Default decimation of the links overlay: beyond a few thousand lines a room is a solid
-/// fan of lines; the largest F stay readable.
+/// fan of lines.
 pub const DEFAULT_MAX_LINKS: usize = 3000;
+
+/// How the links overlay thins out when more links pass the filter than `max_lines`.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Decimation {
+    /// Every k-th link in receiver order: a representative sample of the whole hierarchy.
+    Strided,
+    /// The largest form factors (often the tiny elements along shared corners).
+    LargestF,
+}
 
 /// Which links to draw.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -382,8 +391,9 @@ pub struct LinkFilter {
     pub full: bool,
     pub partial: bool,
     pub none: bool,
-    /// Decimation: at most this many lines, the largest F first.
+    /// Decimation: at most this many lines, chosen by `decimation`.
     pub max_lines: usize,
+    pub decimation: Decimation,
 }
 
 impl Default for LinkFilter {
@@ -395,6 +405,7 @@ impl Default for LinkFilter {
             partial: true,
             none: false,
             max_lines: DEFAULT_MAX_LINKS,
+            decimation: Decimation::Strided,
         }
     }
 }
@@ -452,10 +463,18 @@ pub fn link_lines(
     let matched = kept.len();
     let scale = LogScale::spanning(kept.iter().map(|l| f64::from(l.ff)));
     if kept.len() > filter.max_lines {
-        kept.sort_by(|a, b| {
-            b.ff.total_cmp(&a.ff).then(a.receiver.cmp(&b.receiver)).then(a.source.cmp(&b.source))
-        });
-        kept.truncate(filter.max_lines);
+        match filter.decimation {
+            Decimation::LargestF => {
+                kept.sort_by(|a, b| {
+                    b.ff.total_cmp(&a.ff).then(a.receiver.cmp(&b.receiver)).then(a.source.cmp(&b.source))
+                });
+                kept.truncate(filter.max_lines);
+            }
+            Decimation::Strided => {
+                let stride = kept.len().div_ceil(filter.max_lines.max(1));
+                kept = kept.into_iter().step_by(stride).collect();
+            }
+        }
     }
     let mut lines = LineList::default();
     for l in &kept {
@@ -627,11 +646,20 @@ mod tests {
         assert_eq!(link_lines(&els, &links(), &f, 1.0).matched, 2);
         let f = LinkFilter { element: Some(2), none: true, ..LinkFilter::default() };
         assert_eq!(link_lines(&els, &links(), &f, 1.0).matched, 1);
-        // Decimation keeps the strongest.
-        let f = LinkFilter { max_lines: 1, none: true, ..LinkFilter::default() };
+        // Decimation: the strongest, or every k-th.
+        let f = LinkFilter {
+            max_lines: 1,
+            none: true,
+            decimation: Decimation::LargestF,
+            ..LinkFilter::default()
+        };
         let r = link_lines(&els, &links(), &f, 1.0);
         assert_eq!((r.matched, r.shown), (3, 1));
         assert!((r.lines.points[0].x - 0.5).abs() < EXACT, "the F=0.2 link starts at element 0's centre");
+        let f = LinkFilter { max_lines: 2, none: true, ..LinkFilter::default() };
+        let r = link_lines(&els, &links(), &f, 1.0);
+        assert_eq!((r.matched, r.shown), (3, 2), "stride 2 keeps links 0 and 2");
+        assert!((r.lines.points[2].x - 2.5).abs() < EXACT, "the second kept link starts at element 2");
     }
 
     #[test]

@@ -3,8 +3,9 @@
 //!
 //! Snapshots (tests/snapshots/gui_*.png) are compared with mean / 95th-percentile thresholds on
 //! the per-pixel max-channel difference (see `radlab::render::snapshot`). The status bar (wall
-//! times) is cropped off before comparing. Thresholds set on llvmpipe (Mesa 22.3.6, GL via EGL);
-//! text and the 3-D view rasterise identically on lavapipe.
+//! times) is cropped off before comparing. Golden images and thresholds set on lavapipe (Mesa
+//! 22.3.6, Vulkan, device type Cpu); the tests also pass against them on llvmpipe
+//! (`WGPU_BACKEND=gl`, Mesa 22.3.6 GL via EGL).
 #![cfg(feature = "gui")]
 
 use eframe::egui;

@@ -267,8 +267,8 @@ fn golden_box() {
         .to_cols_array_2d()
         .map(|c| c.map(|x| x as f32));
     let img = draw(&g, u);
-    // Thresholds set on lavapipe (Mesa 22.3.6, Vulkan, device type Cpu) and llvmpipe (GL): both
-    // rasterise identically here; the limits allow edge pixels to move by one position.
+    // Golden image set on lavapipe (Mesa 22.3.6, Vulkan, device type Cpu); passes on llvmpipe
+    // (WGPU_BACKEND=gl) too. The limits allow edge pixels to move by one position.
     let limits = Thresholds { mean: 2.0, p95: 1.0 };
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/snapshots");
     if let Err(e) = snapshot::check(&dir, "render_golden_box", &img, limits) {

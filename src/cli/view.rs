@@ -32,9 +32,13 @@ pub struct Args {
     /// Benchmark: solve, draw N frames, print the median frame time and exit.
     #[arg(long, value_name = "N")]
     pub bench_frames: Option<usize>,
-    /// Select this element id once solved (for scripted screenshots of the inspector).
-    #[arg(long, value_name = "ID")]
-    pub pick: Option<u32>,
+    /// Once solved, pick the element under this viewport point (fractions, y down: "0.5,0.8")
+    /// and show its links.
+    #[arg(long, value_name = "X,Y", value_parser = parse_point)]
+    pub pick: Option<[f32; 2]>,
+    /// --screenshot captures the whole window (panels, inspector, plots), not only the viewport.
+    #[arg(long)]
+    pub window: bool,
     /// Open the plots panel.
     #[arg(long)]
     pub plots: bool,
@@ -53,10 +57,20 @@ impl Args {
             preset: "interactive".into(),
             bench_frames: None,
             pick: None,
+            window: false,
             plots: false,
             solve: false,
         }
     }
+}
+
+fn parse_point(s: &str) -> Result<[f32; 2], String> {
+    let (x, y) = s.split_once(',').ok_or("expected X,Y (fractions of the viewport)")?;
+    let f = |t: &str| -> Result<f32, String> {
+        let v: f32 = t.trim().parse().map_err(|e| format!("{t:?}: {e}"))?;
+        if (0.0..=1.0).contains(&v) { Ok(v) } else { Err(format!("{v} is outside 0..1")) }
+    };
+    Ok([f(x)?, f(y)?])
 }
 
 #[cfg(feature = "gui")]
@@ -86,6 +100,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         screenshot: args.screenshot,
         bench_frames: args.bench_frames,
         pick: args.pick,
+        screenshot_window: args.window,
         show_plots: args.plots,
     })?;
     Ok(())

@@ -8,7 +8,7 @@
 use super::camera::OrbitCamera;
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::math::DVec3;
-use crate::overlay::{self, LinkFilter, LogScale, Palette};
+use crate::overlay::{self, Decimation, LinkFilter, LogScale, Palette};
 use crate::render::geometry::{self, MeshColors};
 use crate::render::{
     FrameParams, Geometry, NO_SELECTION, RgbaImage, SceneRenderer, Uniforms, ViewportCallback,
@@ -46,8 +46,11 @@ pub struct ViewerOptions {
     pub screenshot: Option<PathBuf>,
     /// Benchmark: after solving, draw this many frames, print the median frame time, close.
     pub bench_frames: Option<usize>,
-    /// Pick this element (by id) once solved (scripted screenshots of the inspector).
-    pub pick: Option<u32>,
+    /// Pick the element under this viewport point once solved (fractions of the viewport,
+    /// y down), and show its links (scripted screenshots of the inspector).
+    pub pick: Option<[f32; 2]>,
+    /// Scripted screenshots capture the whole window instead of the viewport.
+    pub screenshot_window: bool,
     /// Show the plots window open.
     pub show_plots: bool,
 }
@@ -62,6 +65,7 @@ impl Default for ViewerOptions {
             screenshot: None,
             bench_frames: None,
             pick: None,
+            screenshot_window: false,
             show_plots: false,
         }
     }
@@ -80,6 +84,8 @@ pub struct Display {
     pub shading: Shading,
     /// Exposure in stops: radiosity × 2^EV before tone mapping.
     pub exposure_ev: f32,
+    /// Set the exposure from the solution after every step (see [`auto_exposure`]).
+    pub auto_exposure: bool,
     pub srgb: bool,
     pub quadtree: bool,
     pub links: bool,
@@ -96,6 +102,7 @@ impl Default for Display {
         Display {
             shading: Shading::Smooth,
             exposure_ev: 0.0,
+            auto_exposure: true,
             srgb: true,
             quadtree: false,
             links: false,
@@ -296,6 +303,11 @@ impl RadlabApp {
 
     /// Show a scene (replaces the current one; the camera is framed on it).
     pub fn set_scene(&mut self, scene: Arc<Scene>) {
+        // Stop work on the previous scene.
+        if let Some(w) = &self.worker {
+            w.cancel();
+        }
+        self.resolve_pending = false;
         let b = scene.bounds();
         self.origin = b.center();
         self.home = scene
@@ -456,12 +468,9 @@ impl RadlabApp {
                     self.selected = None;
                 }
                 if self.script == Script::Solving && !self.busy() {
-                    if let Some(id) = self.opts.pick {
-                        self.selected = self.view.elements.get(id as usize).map(|e| e.id);
-                    }
                     self.script = match self.opts.bench_frames {
                         Some(n) => Script::Bench { left: n, times: Vec::with_capacity(n), last: None },
-                        None => Script::Settle(3),
+                        None => Script::Settle(4),
                     };
                 }
             }
@@ -486,6 +495,12 @@ impl RadlabApp {
     }
 
     fn rebuild_geometry(&mut self) {
+        if self.display.auto_exposure
+            && self.geometry_key.as_ref().is_none_or(|k| k.view != Arc::as_ptr(&self.view) as usize)
+            && let Some(ev) = auto_exposure(&self.view)
+        {
+            self.display.exposure_ev = ev;
+        }
         let key = GeometryKey {
             view: Arc::as_ptr(&self.view) as usize,
             display: self.display,
@@ -700,7 +715,13 @@ impl RadlabApp {
                 "Gouraud from vertex averages; T-vertices take their big neighbour's edge value",
             );
         });
-        ui.add(egui::Slider::new(&mut d.exposure_ev, -8.0..=8.0).step_by(0.1).text("exposure (EV)"));
+        let ev =
+            ui.add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"));
+        if ev.changed() {
+            d.auto_exposure = false;
+        }
+        ui.checkbox(&mut d.auto_exposure, "auto exposure")
+            .on_hover_text("Map the 95th percentile of the lit surfaces' radiosity to 80 % white");
         ui.horizontal(|ui| {
             ui.label("tone map");
             ui.selectable_value(&mut d.srgb, true, "sRGB");
@@ -728,7 +749,12 @@ impl RadlabApp {
                         .logarithmic(true)
                         .text("max lines"),
                 )
-                .on_hover_text("Decimation: beyond this, only the largest F are drawn");
+                .on_hover_text("Decimation: beyond this many, a sample is drawn");
+                ui.horizontal(|ui| {
+                    ui.label("sample");
+                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::Strided, "every k-th");
+                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::LargestF, "largest F");
+                });
                 ui.add(egui::Slider::new(&mut d.link_alpha, 0.05..=1.0).text("opacity"));
                 ui.checkbox(&mut d.links_xray, "x-ray (no depth test)");
             });
@@ -1058,7 +1084,11 @@ impl RadlabApp {
                 "links: F (log), {} of {} shown{}",
                 self.link_stats.0,
                 self.link_stats.1,
-                if self.link_stats.0 < self.link_stats.1 { " (largest F)" } else { "" }
+                match (self.link_stats.0 < self.link_stats.1, self.display.link_filter.decimation) {
+                    (false, _) => "",
+                    (true, Decimation::Strided) => " (every k-th)",
+                    (true, Decimation::LargestF) => " (largest F)",
+                }
             );
             y = colour_bar(painter, Pos2::new(x, y), &title, self.link_scale, Palette::Viridis, "") + 6.0;
             painter.text(
@@ -1117,7 +1147,11 @@ impl RadlabApp {
             height: img.size[1] as u32,
             pixels: img.pixels.iter().flat_map(|c| c.to_array()).collect(),
         };
-        let r = self.viewport_rect;
+        let r = if self.opts.screenshot_window && self.script == Script::WaitingShot {
+            Rect::from_min_size(Pos2::ZERO, Vec2::new(full.width as f32, full.height as f32) / ppp)
+        } else {
+            self.viewport_rect
+        };
         let shot = full.crop(
             (r.left() * ppp).round() as u32,
             (r.top() * ppp).round() as u32,
@@ -1149,11 +1183,18 @@ impl RadlabApp {
             Script::None | Script::Done | Script::WaitingShot => {}
             Script::Solving => {}
             Script::Settle(n) => {
-                if *n == 0 {
+                let n = *n;
+                if n == 1
+                    && let Some([x, y]) = self.opts.pick
+                {
+                    self.pick_relative(x, y);
+                    self.display.selected_links_only = true;
+                }
+                if n == 0 {
                     self.script = Script::WaitingShot;
                     self.request_screenshot(ctx);
                 } else {
-                    *n -= 1;
+                    self.script = Script::Settle(n - 1);
                 }
                 ctx.request_repaint();
             }
@@ -1256,6 +1297,31 @@ impl eframe::App for RadlabApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
         }
     }
+}
+
+/// Target display value of the 95th-percentile radiosity under auto exposure.
+const AUTO_EXPOSURE_TARGET: f64 = 0.8;
+
+/// Exposure (EV) that maps the 95th percentile of the non-emitting leaves' luminance to
+/// `AUTO_EXPOSURE_TARGET`; `None` while everything is dark (before the first gather).
+#[must_use]
+pub fn auto_exposure(view: &ViewData) -> Option<f32> {
+    let mut lum: Vec<f64> = view
+        .leaves
+        .iter()
+        .map(|&l| &view.elements[l as usize])
+        .filter(|e| e.emission.is_zero())
+        .map(|e| e.radiosity.luminance())
+        .filter(|l| *l > 0.0 && l.is_finite())
+        .collect();
+    if lum.is_empty() {
+        return None;
+    }
+    lum.sort_by(f64::total_cmp);
+    let p95 = lum[(lum.len() - 1) * 95 / 100];
+    // Rounded to the exposure slider's 0.1 EV step, so the slider does not see a change.
+    let ev = ((AUTO_EXPOSURE_TARGET / p95).log2() * 10.0).round() / 10.0;
+    Some((ev as f32).clamp(-12.0, 12.0))
 }
 
 fn rgb32(c: [f32; 3]) -> Color32 {

@@ -115,9 +115,6 @@ impl Worker {
     }
 
     pub fn send(&mut self, cmd: Command) {
-        if let Some(c) = &self.cancel {
-            c.store(false, Ordering::Relaxed);
-        }
         if self.tx.send(cmd).is_ok() {
             self.in_flight += 1;
         }
@@ -202,6 +199,10 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
         ok
     };
     while let Ok(cmd) = rx.recv() {
+        // A cancel applies to the command that was running when it was pressed.
+        if let Some(s) = &solver {
+            s.cancel_handle().store(false, Ordering::Relaxed);
+        }
         let reply = match cmd {
             Command::Load { scene, params } => match HierarchicalSolver::new(scene, params) {
                 Ok(s) => {
@@ -256,5 +257,82 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
         if !send(reply) {
             break;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(w: &mut Worker, spec: &str, params: HierarchicalParams) -> Arc<ViewData> {
+        w.send(Command::Load { scene: Arc::new(Scene::load(spec).unwrap()), params });
+        let mut view = None;
+        w.wait_idle(|r| {
+            if let Reply::Loaded { view: v, .. } = r {
+                view = Some(v);
+            }
+        });
+        view.expect("loaded")
+    }
+
+    #[test]
+    fn steps_run_on_the_named_thread_and_report_back() {
+        let (tx, rx) = channel::<String>();
+        let tx = std::sync::Mutex::new(tx);
+        let mut w = Worker::spawn(move || {
+            let name = std::thread::current().name().unwrap_or("").to_owned();
+            let _ = tx.lock().map(|t| t.send(name));
+        })
+        .unwrap();
+        let v = load(&mut w, "builtin:cube-one-light", HierarchicalParams::interactive());
+        assert_eq!(v.leaves.len(), 6);
+        assert!(v.links.is_empty());
+        assert_eq!(rx.recv().unwrap(), "radlab-solver");
+        w.send(Command::Step(StepKind::Iterate));
+        let mut report = None;
+        let mut view = None;
+        w.wait_idle(|r| {
+            if let Reply::Done { report: r, view: v } = r {
+                report = r;
+                view = Some(v);
+            }
+        });
+        let (report, view) = (report.unwrap(), view.unwrap());
+        assert_eq!(report.kind, StepKind::Iterate);
+        assert!(!view.links.is_empty());
+        assert!(!w.busy());
+        // Commands without a scene fail with a message, they do not panic the thread.
+        let mut w2 = Worker::spawn(|| {}).unwrap();
+        w2.send(Command::Reset);
+        let mut failed = false;
+        w2.wait_idle(|r| failed |= matches!(r, Reply::Failed(_)));
+        assert!(failed);
+    }
+
+    #[test]
+    fn a_running_solve_can_be_cancelled() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        load(&mut w, "builtin:splash_room", HierarchicalParams::quality());
+        w.send(Command::Step(StepKind::Solve));
+        // Wait until the solve reports its first round, then cancel it. The solver clears its
+        // flag when each sub-step starts, so one press can land in the gap between two
+        // sub-steps; keep pressing until the answer comes (as a user would).
+        loop {
+            if let Reply::Progress { .. } = w.rx.recv().unwrap() {
+                break;
+            }
+        }
+        let report = loop {
+            w.cancel();
+            match w.poll() {
+                Some(Reply::Done { report, .. }) => break report,
+                Some(Reply::Failed(e)) => panic!("{e}"),
+                _ => std::thread::sleep(std::time::Duration::from_millis(20)),
+            }
+        };
+        assert!(
+            report.expect("the solve answers").cancelled,
+            "the quality solve of splash_room stopped early"
+        );
     }
 }
