@@ -143,6 +143,7 @@ enum Script {
         left: usize,
         times: Vec<f64>,
         last: Option<Instant>,
+        ui_times: Vec<f64>,
     },
     Done,
 }
@@ -190,6 +191,9 @@ pub struct RadlabApp {
     open_rx: Option<Receiver<Option<PathBuf>>>,
     status: String,
     show_plots: bool,
+    /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
+    last_ui_s: f64,
+    rebuild_s: f64,
     /// Set when the window should close (scripted runs); read by the runner.
     pub exit_code: Option<i32>,
 }
@@ -264,6 +268,8 @@ impl RadlabApp {
             status: String::new(),
             show_plots: opts.show_plots,
             exit_code: None,
+            last_ui_s: 0.0,
+            rebuild_s: 0.0,
             opts,
         };
         match worker {
@@ -469,7 +475,12 @@ impl RadlabApp {
                 }
                 if self.script == Script::Solving && !self.busy() {
                     self.script = match self.opts.bench_frames {
-                        Some(n) => Script::Bench { left: n, times: Vec::with_capacity(n), last: None },
+                        Some(n) => Script::Bench {
+                            left: n,
+                            times: Vec::with_capacity(n),
+                            last: None,
+                            ui_times: Vec::new(),
+                        },
                         None => Script::Settle(4),
                     };
                 }
@@ -510,6 +521,7 @@ impl RadlabApp {
         if self.geometry_key.as_ref() == Some(&key) {
             return;
         }
+        let started = Instant::now();
         let v = &self.view;
         let lift = self.camera.scale * LINE_LIFT;
         let (errors, _) = self.error_values();
@@ -556,6 +568,7 @@ impl RadlabApp {
         self.geometry = Arc::new(Geometry { mesh, lines, links, links_xray: self.display.links_xray });
         self.generation += 1;
         self.geometry_key = Some(key);
+        self.rebuild_s = started.elapsed().as_secs_f64();
     }
 
     fn uniforms(&self, aspect: f64) -> Uniforms {
@@ -1198,7 +1211,10 @@ impl RadlabApp {
                 }
                 ctx.request_repaint();
             }
-            Script::Bench { left, times, last } => {
+            Script::Bench { left, times, last, ui_times } => {
+                if last.is_some() {
+                    ui_times.push(self.last_ui_s);
+                }
                 let now = Instant::now();
                 if let Some(t) = last {
                     times.push(now.duration_since(*t).as_secs_f64());
@@ -1212,15 +1228,20 @@ impl RadlabApp {
                     t.sort_by(f64::total_cmp);
                     let med = t.get(t.len() / 2).copied().unwrap_or(0.0);
                     let p90 = t.get(t.len() * 9 / 10).copied().unwrap_or(0.0);
+                    let mut u = ui_times.clone();
+                    u.sort_by(f64::total_cmp);
+                    let ui_med = u.get(u.len() / 2).copied().unwrap_or(0.0);
                     println!(
-                        "radlab: {} frames, {} leaves, {} links drawn, {} overlay lines; frame time median {:.2} ms, p90 {:.2} ms ({:.1} fps)",
+                        "radlab: {} frames, {} leaves, {} links drawn, {} overlay lines; frame time median {:.2} ms, p90 {:.2} ms ({:.1} fps); UI code (egui + app, CPU) median {:.2} ms; last display rebuild {:.1} ms",
                         t.len(),
                         self.view.leaves.len(),
                         self.link_stats.0,
                         self.geometry.lines.len() / 2,
                         med * 1e3,
                         p90 * 1e3,
-                        if med > 0.0 { 1.0 / med } else { 0.0 }
+                        if med > 0.0 { 1.0 / med } else { 0.0 },
+                        ui_med * 1e3,
+                        self.rebuild_s * 1e3
                     );
                     self.script = Script::Done;
                     self.exit_code.get_or_insert(0);
@@ -1233,6 +1254,7 @@ impl RadlabApp {
 
 impl eframe::App for RadlabApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let started = Instant::now();
         let ctx = ui.ctx().clone();
         self.poll_worker();
         if let Some(rx) = &self.open_rx
@@ -1296,6 +1318,7 @@ impl eframe::App for RadlabApp {
         {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
         }
+        self.last_ui_s = started.elapsed().as_secs_f64();
     }
 }
 
