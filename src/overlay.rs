@@ -352,17 +352,36 @@ fn anchor(quant: &Quantizer, value: &mut HashMap<Key, Rgb>, patch: u32, a: DVec3
 // Overlays
 
 /// Edges of every leaf, coloured by the leaf's depth, lifted by `lift` along the element normal
-/// so they sit just in front of the surface (depth-tested against it).
+/// so they sit just in front of the surface (depth-tested against it). An edge shared by two
+/// leaves of the same patch is drawn once, in the colour of the deeper one (halves the lines).
 #[must_use]
 pub fn quadtree_lines(elements: &[ElementView], leaves: &[u32], lift: f64) -> LineList {
+    let quant = Quantizer::new(elements);
     let mut out = LineList::default();
+    // Segment (sorted endpoint keys) → (index of its first point in `out`, depth drawn).
+    let mut seen: HashMap<(Key, Key), (usize, u8)> = HashMap::new();
     for &l in leaves {
         let e = &elements[l as usize];
         let [r, g, b] = depth_color(e.depth);
         let off = e.normal() * lift;
         let v = e.verts();
         for i in 0..v.len() {
-            out.push(v[i] + off, v[(i + 1) % v.len()] + off, [r, g, b, 1.0]);
+            let (a, c) = (v[i], v[(i + 1) % v.len()]);
+            let (ka, kc) = (quant.key(e.patch, a), quant.key(e.patch, c));
+            let key = if ka <= kc { (ka, kc) } else { (kc, ka) };
+            match seen.get_mut(&key) {
+                Some((at, depth)) => {
+                    if e.depth > *depth {
+                        *depth = e.depth;
+                        out.colors[*at] = [r, g, b, 1.0];
+                        out.colors[*at + 1] = [r, g, b, 1.0];
+                    }
+                }
+                None => {
+                    seen.insert(key, (out.points.len(), e.depth));
+                    out.push(a + off, c + off, [r, g, b, 1.0]);
+                }
+            }
         }
     }
     out
@@ -606,10 +625,23 @@ mod tests {
     }
 
     #[test]
+    fn shared_edges_are_drawn_once_in_the_finer_colour() {
+        let mut b = quad(1, 2, 1.0, 0.0, 1.0, 1.0);
+        b.patch = 0;
+        let els = vec![quad(0, 1, 0.0, 0.0, 1.0, 1.0), b];
+        let l = quadtree_lines(&els, &[0, 1], 0.0);
+        assert_eq!(l.segments(), 7, "two squares sharing one edge");
+        // The shared edge (x = 1) takes depth 2's colour.
+        let shared =
+            (0..l.segments()).find(|&s| l.points[2 * s].x == 1.0 && l.points[2 * s + 1].x == 1.0).unwrap();
+        assert_eq!(l.colors[2 * shared][..3], depth_color(2));
+    }
+
+    #[test]
     fn quadtree_lines_colour_by_depth() {
         let els = vec![quad(0, 0, 0.0, 0.0, 1.0, 1.0), quad(1, 3, 1.0, 0.0, 1.0, 1.0)];
         let l = quadtree_lines(&els, &[0, 1], 0.01);
-        assert_eq!(l.segments(), 8);
+        assert_eq!(l.segments(), 7, "the shared edge once");
         assert_eq!(l.colors[0][..3], depth_color(0));
         assert_eq!(l.colors[8][..3], depth_color(3));
         assert_ne!(depth_color(0), depth_color(3));

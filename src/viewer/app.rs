@@ -316,10 +316,11 @@ impl RadlabApp {
         self.resolve_pending = false;
         let b = scene.bounds();
         self.origin = b.center();
-        self.home = scene
-            .camera
-            .as_ref()
-            .map_or_else(|| OrbitCamera::frame_all(&b), |v| OrbitCamera::from_viewpoint(v, &b));
+        // The scene's own camera, else the CPU renderer's default (inside closed rooms, the
+        // most front-facing direction outside open scenes).
+        let c = crate::image::Camera::for_scene(&scene);
+        let v = crate::scene::Viewpoint { eye: c.eye, target: c.target, up: c.up, fov_y_deg: c.fov_y_deg };
+        self.home = OrbitCamera::from_viewpoint(&v, &b);
         self.camera = self.home;
         self.scene_spec.clone_from(&scene.source);
         self.selected = None;
