@@ -307,6 +307,10 @@ impl HierarchicalSolver {
     /// patches; then apply the oracle to every link until nothing splits.
     pub fn refine_step(&mut self) -> StepReport {
         self.cancel.store(false, Ordering::Relaxed);
+        self.refine_inner()
+    }
+
+    fn refine_inner(&mut self) -> StepReport {
         let t = Instant::now();
         let mut new_links = 0;
         if !self.linked {
@@ -653,6 +657,10 @@ impl HierarchicalSolver {
     /// patch instead, each patch using the newest values (then push-pull is already done).
     pub fn gather_step(&mut self) -> StepReport {
         self.cancel.store(false, Ordering::Relaxed);
+        self.gather_inner()
+    }
+
+    fn gather_inner(&mut self) -> StepReport {
         let t = Instant::now();
         if self.params.gauss_seidel {
             let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
@@ -775,12 +783,13 @@ impl HierarchicalSolver {
 
     /// Refine, gather, push-pull.
     pub fn iterate(&mut self) -> StepReport {
+        self.cancel.store(false, Ordering::Relaxed);
         let t = Instant::now();
-        let r = self.refine_step();
+        let r = self.refine_inner();
         if r.cancelled {
             return self.report(StepKind::Iterate, t, r.refined, r.new_links);
         }
-        self.gather_step();
+        self.gather_inner();
         if !self.params.gauss_seidel {
             self.push_pull_step();
         }
@@ -791,13 +800,14 @@ impl HierarchicalSolver {
     /// oracle on the new radiosities → … until nothing refines and the solution has converged,
     /// or the caps (`max_rounds`, `max_iterations`) are reached.
     pub fn solve(&mut self, progress: Progress) -> StepReport {
+        self.cancel.store(false, Ordering::Relaxed);
         let t = Instant::now();
         let mut refined_total = 0;
         let mut links_total = 0;
         let rounds = self.params.max_rounds.max(1);
         for round in 0..rounds {
             progress(u64::from(round), u64::from(rounds));
-            let r = self.refine_step();
+            let r = self.refine_inner();
             refined_total += r.refined;
             links_total += r.new_links;
             if r.cancelled {
@@ -808,7 +818,7 @@ impl HierarchicalSolver {
             }
             let mut iters = 0;
             loop {
-                self.gather_step();
+                self.gather_inner();
                 if !self.params.gauss_seidel {
                     self.push_pull_step();
                 }
