@@ -219,6 +219,13 @@ impl AreaMap {
     }
 }
 
+/// A point of a triangle or convex quad from (u, v) ∈ [0,1)², uniform in area (the map the
+/// reference samples elements with; metrics reuse it to evaluate solutions at the same kind of points).
+#[must_use]
+pub fn area_point(verts: &[DVec3], u: f64, v: f64) -> DVec3 {
+    AreaMap::new(verts).point(u, v)
+}
+
 /// Cosine-distributed direction about `n`: Malley's method (uniform disk, lifted).
 fn cosine_direction(n: DVec3, u: f64, v: f64) -> DVec3 {
     let r = u.sqrt();
