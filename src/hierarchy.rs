@@ -1,1 +1,319 @@
-//! (being written)
+//! The element hierarchy: an arena of elements with newtype ids, quads and triangles split 1→4.
+//!
+//! Roots are the input patches (element id = patch index). A quad splits at its edge midpoints and
+//! its bilinear centre into four quads; a triangle into four triangles (three corners and the
+//! centre one). Children are stored contiguously: `first_child .. first_child + 4`.
+//!
+//! ```text
+//!   quad v0..v3 (counter-clockwise)         triangle v0 v1 v2
+//!   v3 ── m23 ── v2                          v2
+//!   │  nw │  ne  │    children, in order:    │ ╲
+//!   m30 ── c ── m12   0 sw [v0 m01 c m30]    m20─m12     0 [v0 m01 m20]
+//!   │  sw │  se  │    1 se [m01 v1 m12 c]    │ ╲ │ ╲     1 [m01 v1 m12]
+//!   v0 ── m01 ── v1   2 ne [c m12 v2 m23]    v0─m01─v1   2 [m20 m12 v2]
+//!                     3 nw [m30 c m23 v3]                3 [m12 m20 m01] (centre)
+//! ```
+//! [Hanrahan, Salzman, Aupperle 1991, §3: "quadtree" subdivision of input polygons]
+
+use crate::math::{DVec3, Rgb, polygon_area, polygon_centroid};
+use crate::scene::Scene;
+use serde::Serialize;
+
+/// Index of an element in the arena.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct ElementId(pub u32);
+
+/// "No element" in the compact `u32` fields.
+pub const NONE: u32 = u32::MAX;
+
+/// Why an element was not refined further (for the viewer's inspector).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum StopReason {
+    /// Refinement has not looked at this element as a receiver yet.
+    #[default]
+    Unrefined,
+    /// It has children.
+    Subdivided,
+    /// Every link it receives has both form-factor estimates below Feps.
+    BelowFeps,
+    /// Every link it receives has B·F below BFeps.
+    BelowBfEps,
+    /// A link wanted it subdivided, but its area is at the Aeps floor.
+    AepsFloor,
+    /// A link wanted it subdivided, but it is at the maximum depth.
+    MaxDepth,
+}
+
+impl StopReason {
+    #[must_use]
+    pub fn label(self) -> &'static str {
+        match self {
+            StopReason::Unrefined => "not refined yet",
+            StopReason::Subdivided => "subdivided",
+            StopReason::BelowFeps => "all links below Feps",
+            StopReason::BelowBfEps => "all links below BFeps",
+            StopReason::AepsFloor => "at the Aeps floor (area too small to split)",
+            StopReason::MaxDepth => "at the maximum depth",
+        }
+    }
+    /// Severity order used when several links disagree: a floor beats "below eps".
+    pub(crate) fn rank(self) -> u8 {
+        match self {
+            StopReason::Unrefined => 0,
+            StopReason::BelowFeps | StopReason::BelowBfEps => 1,
+            StopReason::AepsFloor => 2,
+            StopReason::MaxDepth => 3,
+            StopReason::Subdivided => 4,
+        }
+    }
+}
+
+/// One element of the hierarchy.
+#[derive(Clone, Debug)]
+pub struct Element {
+    pub patch: u32,
+    pub parent: u32,
+    pub first_child: u32,
+    pub depth: u8,
+    pub n_verts: u8,
+    pub stop: StopReason,
+    pub verts: [DVec3; 4],
+    pub area: f64,
+    pub centroid: DVec3,
+    pub normal: DVec3,
+    pub reflectance: Rgb,
+    pub emission: Rgb,
+    /// Radiosity: leaves E + ρ·H; interior elements the area average of their children (pull).
+    pub radiosity: Rgb,
+    /// Irradiance gathered over this element's own links, Σ F·V·B_source (before push).
+    pub gathered: Rgb,
+    /// Σ F·V over this element's own links (for the escaped-energy balance).
+    pub fv_sum: f64,
+    /// Σ F over this element's own links, unoccluded (for the per-leaf normalisation).
+    pub f_sum: f64,
+    /// Per-leaf form-factor normalisation factor (1 for interior elements); see `solver::hierarchical`.
+    pub norm: f64,
+}
+
+impl Element {
+    #[must_use]
+    pub fn vertices(&self) -> &[DVec3] {
+        &self.verts[..self.n_verts as usize]
+    }
+    #[must_use]
+    pub fn is_leaf(&self) -> bool {
+        self.first_child == NONE
+    }
+    #[must_use]
+    pub fn children(&self) -> Option<[u32; 4]> {
+        (self.first_child != NONE).then(|| {
+            let c = self.first_child;
+            [c, c + 1, c + 2, c + 3]
+        })
+    }
+    #[must_use]
+    pub fn parent(&self) -> Option<u32> {
+        (self.parent != NONE).then_some(self.parent)
+    }
+    /// Largest distance between two vertices.
+    #[must_use]
+    pub fn diameter(&self) -> f64 {
+        let v = self.vertices();
+        let mut d: f64 = 0.0;
+        for i in 0..v.len() {
+            for j in i + 1..v.len() {
+                d = d.max(v[i].distance(v[j]));
+            }
+        }
+        d
+    }
+}
+
+/// The arena. Element `i < patches` is the root of patch `i`.
+#[derive(Clone, Debug, Default)]
+pub struct Hierarchy {
+    pub elements: Vec<Element>,
+    pub roots: usize,
+}
+
+impl Hierarchy {
+    /// One root element per input patch, radiosity = emission.
+    #[must_use]
+    pub fn from_scene(scene: &Scene) -> Hierarchy {
+        let elements = scene
+            .patches
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let mut verts = [DVec3::ZERO; 4];
+                verts[..p.vertices.len()].copy_from_slice(&p.vertices);
+                Element {
+                    patch: i as u32,
+                    parent: NONE,
+                    first_child: NONE,
+                    depth: 0,
+                    n_verts: p.vertices.len() as u8,
+                    stop: StopReason::Unrefined,
+                    verts,
+                    area: p.area,
+                    centroid: p.centroid,
+                    normal: p.normal,
+                    reflectance: p.reflectance,
+                    emission: p.emission,
+                    radiosity: p.emission,
+                    gathered: Rgb::ZERO,
+                    fv_sum: 0.0,
+                    f_sum: 0.0,
+                    norm: 1.0,
+                }
+            })
+            .collect();
+        Hierarchy { elements, roots: scene.patches.len() }
+    }
+
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.elements.len()
+    }
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.elements.is_empty()
+    }
+
+    #[must_use]
+    pub fn get(&self, id: u32) -> &Element {
+        &self.elements[id as usize]
+    }
+
+    /// Split element `id` into four children (no-op if it already has them). Returns the first
+    /// child's id. Children inherit the parent's radiosity.
+    pub fn split(&mut self, id: u32) -> u32 {
+        let e = &self.elements[id as usize];
+        if e.first_child != NONE {
+            return e.first_child;
+        }
+        let parent = e.clone();
+        let first = self.elements.len() as u32;
+        let v = parent.verts;
+        let kids: [[DVec3; 4]; 4];
+        let n = parent.n_verts;
+        if n == 4 {
+            let m01 = 0.5 * (v[0] + v[1]);
+            let m12 = 0.5 * (v[1] + v[2]);
+            let m23 = 0.5 * (v[2] + v[3]);
+            let m30 = 0.5 * (v[3] + v[0]);
+            let c = 0.25 * (v[0] + v[1] + v[2] + v[3]);
+            kids = [[v[0], m01, c, m30], [m01, v[1], m12, c], [c, m12, v[2], m23], [m30, c, m23, v[3]]];
+        } else {
+            let m01 = 0.5 * (v[0] + v[1]);
+            let m12 = 0.5 * (v[1] + v[2]);
+            let m20 = 0.5 * (v[2] + v[0]);
+            let z = DVec3::ZERO;
+            kids = [[v[0], m01, m20, z], [m01, v[1], m12, z], [m20, m12, v[2], z], [m12, m20, m01, z]];
+        }
+        for k in kids {
+            let verts = &k[..n as usize];
+            self.elements.push(Element {
+                parent: id,
+                first_child: NONE,
+                depth: parent.depth + 1,
+                stop: StopReason::Unrefined,
+                verts: k,
+                area: polygon_area(verts),
+                centroid: polygon_centroid(verts),
+                gathered: Rgb::ZERO,
+                fv_sum: 0.0,
+                f_sum: 0.0,
+                norm: 1.0,
+                ..parent.clone()
+            });
+        }
+        let p = &mut self.elements[id as usize];
+        p.first_child = first;
+        p.stop = StopReason::Subdivided;
+        first
+    }
+
+    /// Ids of the leaves, in id order.
+    #[must_use]
+    pub fn leaves(&self) -> Vec<u32> {
+        (0..self.elements.len() as u32).filter(|&i| self.elements[i as usize].is_leaf()).collect()
+    }
+
+    /// The chain from `id` up to its root, `id` first.
+    pub fn ancestors(&self, id: u32) -> impl Iterator<Item = u32> + '_ {
+        let mut cur = id;
+        std::iter::from_fn(move || {
+            if cur == NONE {
+                None
+            } else {
+                let r = cur;
+                cur = self.elements[cur as usize].parent;
+                Some(r)
+            }
+        })
+    }
+
+    /// Element counts per depth.
+    #[must_use]
+    pub fn depth_histogram(&self) -> Vec<usize> {
+        let mut h = Vec::new();
+        for e in &self.elements {
+            let d = e.depth as usize;
+            if h.len() <= d {
+                h.resize(d + 1, 0);
+            }
+            h[d] += 1;
+        }
+        h
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Patch, Scene};
+
+    fn scene_with(verts: Vec<DVec3>) -> Scene {
+        Scene::new("t", "t", vec![Patch::new(verts, Rgb::splat(0.5), Rgb::ONE, "m", 0, "p", "m").unwrap()])
+    }
+
+    #[test]
+    fn quad_split_preserves_area_orientation_and_links_parents() {
+        let sc = scene_with(vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(2.5, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ]);
+        let mut h = Hierarchy::from_scene(&sc);
+        let c = h.split(0);
+        assert_eq!(h.split(0), c, "split is idempotent");
+        let kids = h.get(0).children().unwrap();
+        let total: f64 = kids.iter().map(|&k| h.get(k).area).sum();
+        assert!((total - h.get(0).area).abs() < 1e-12);
+        for k in kids {
+            let e = h.get(k);
+            assert_eq!(e.parent(), Some(0));
+            assert_eq!(e.depth, 1);
+            assert!(crate::math::polygon_normal(e.vertices()).dot(DVec3::Z) > 0.999);
+        }
+        h.split(kids[2]);
+        assert_eq!(h.ancestors(h.len() as u32 - 1).collect::<Vec<_>>(), vec![h.len() as u32 - 1, kids[2], 0]);
+        assert_eq!(h.depth_histogram(), vec![1, 4, 4]);
+        assert_eq!(h.leaves().len(), 7);
+    }
+
+    #[test]
+    fn triangle_split_into_four_equal_triangles() {
+        let sc = scene_with(vec![DVec3::ZERO, DVec3::X, DVec3::Y]);
+        let mut h = Hierarchy::from_scene(&sc);
+        h.split(0);
+        for k in h.get(0).children().unwrap() {
+            let e = h.get(k);
+            assert!((e.area - 0.125).abs() < 1e-15);
+            assert!(crate::math::polygon_normal(e.vertices()).dot(DVec3::Z) > 0.999);
+        }
+    }
+}

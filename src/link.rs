@@ -1,1 +1,81 @@
-//! (being written)
+//! Links: "receiver gathers from source" interactions of hierarchical radiosity.
+//!
+//! A link records the form factor F (receiver ← source), the visible fraction V and the oracle's
+//! estimate of the link's error [Hanrahan, Salzman, Aupperle 1991, §4]. Links are stored per
+//! receiver (`Vec<Link>` indexed by element id), so the receiver id is implicit and a link takes
+//! 16 bytes: gather runs in parallel over receivers without locks.
+//! In the lecture's notation the receiver is p and the source is q.
+
+use serde::Serialize;
+
+/// One link, stored in its receiver's list.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct Link {
+    /// Element the receiver gathers from.
+    pub source: u32,
+    /// Form factor receiver → source (fraction of the receiver's hemisphere covered by the source).
+    pub ff: f32,
+    /// Visible fraction in [0, 1].
+    pub vis: f32,
+    /// The oracle's estimate of the error this link carries (units of B for the BF oracle,
+    /// a form factor for the Feps oracle).
+    pub err: f32,
+}
+
+const _: () = assert!(std::mem::size_of::<Link>() == 16);
+
+/// Visibility class of a link.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum VisClass {
+    Full,
+    Partial,
+    None,
+}
+
+impl Link {
+    #[must_use]
+    pub fn class(&self) -> VisClass {
+        if self.vis >= 1.0 {
+            VisClass::Full
+        } else if self.vis > 0.0 {
+            VisClass::Partial
+        } else {
+            VisClass::None
+        }
+    }
+}
+
+/// All links, grouped by receiver.
+#[derive(Clone, Debug, Default)]
+pub struct LinkStore {
+    pub by_receiver: Vec<Vec<Link>>,
+}
+
+impl LinkStore {
+    /// An empty store for `n` elements.
+    #[must_use]
+    pub fn new(n: usize) -> LinkStore {
+        LinkStore { by_receiver: vec![Vec::new(); n] }
+    }
+    /// Make room for elements up to `n`.
+    pub fn grow(&mut self, n: usize) {
+        if self.by_receiver.len() < n {
+            self.by_receiver.resize_with(n, Vec::new);
+        }
+    }
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.by_receiver.iter().map(Vec::len).sum()
+    }
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.by_receiver.iter().all(Vec::is_empty)
+    }
+    /// Bytes held (link payload plus per-receiver vector headers and spare capacity).
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        self.by_receiver.iter().map(|v| v.capacity() * std::mem::size_of::<Link>()).sum::<usize>()
+            + self.by_receiver.capacity() * std::mem::size_of::<Vec<Link>>()
+    }
+}

@@ -1,1 +1,1018 @@
-//! (being written)
+//! Hierarchical radiosity [Hanrahan, Salzman, Aupperle 1991 (HSA91), "A Rapid Hierarchical
+//! Radiosity Algorithm", SIGGRAPH '91]: quadtree elements, `Refine` with Feps/Aeps or a BF oracle,
+//! links, recursive `Gather`, push-pull — O(n) interactions instead of n².
+//!
+//! ```text
+//! B_p = E_p + ρ_p Σ_{links p←q on p and its ancestors} F_pq V_pq B_q
+//! ```
+//!
+//! ## How it works
+//! ```text
+//!  refine_step ──► gather_step ──► push_pull_step ──► (BF oracle: refine again) ──► …
+//!   │                │                 │
+//!   │                │                 └ push: H_leaf = Σ_ancestors gathered; B_leaf = E + ρ·norm·H
+//!   │                │                   pull: B_parent = Σ (A_child/A) B_child
+//!   │                └ per receiver (parallel): gathered = Σ_links F·V·B_source   (Jacobi)
+//!   └ passes until nothing splits; each pass:
+//!       A (parallel, read-only)  decide per link: keep / split source / split receiver
+//!       B (serial, sorted ids)   split the chosen elements → deterministic element ids
+//!       C (parallel)             form factors + visibility of the replacement links
+//!       D (serial, receiver order) install the links
+//! ```
+//! - **Refine** (the lecture's `Refine(p, q, Feps, Aeps)`): estimate F_pq and F_qp with the disk
+//!   formula; if the oracle is satisfied, keep the link; else split the element with the larger
+//!   estimate (F_pq > F_qp → split the source q), falling back to the other one, unless it is at
+//!   the Aeps floor or the maximum depth.
+//! - **Oracles**: `Feps` (both estimates below Feps), and `Bf` (B_source · max(F_pq, F_qp) below
+//!   BFeps, the SPLASH-2 criterion; partially visible links use BFeps/4, so shadow boundaries
+//!   refine first). Pairs whose planes cut each other ("straddling") always refine while possible.
+//! - **Link form factor**: the exact point-to-polygon kernel at the receiver's centroid
+//!   (`form_factor::point_to_polygon`); visibility from `visibility::visible_fraction`.
+//! - **Per-leaf normalisation** (radlab's addition, documented here because it changes results):
+//!   each leaf x gathers through the links of its whole ancestor chain, each evaluated at that
+//!   ancestor's centroid. Their sum T_x = Σ F is then not exactly the form factor that the same
+//!   sources subtend at x. radlab computes S_x = Σ F(x → source) with the exact kernel at x's own
+//!   centroid (once per refinement) and scales x's gathered irradiance by S_x / T_x. This removes
+//!   the first-order error of the piecewise-constant link form factors; in an enclosure it makes
+//!   the white furnace exact (S_x = 1 by the contour integral's additivity).
+//! - **Parallel and deterministic**: element ids are assigned serially in sorted order, visibility
+//!   jitter is keyed by the (receiver, source) ids, and parallel results are collected in order,
+//!   so every count and value is identical for any thread count.
+//!
+//! Restarting with new parameters (`set_params`) reuses the BVH and, when `rays` and `seed` are
+//! unchanged, the visibility of the initial patch pairs; elements and links are rebuilt.
+
+use super::params::{HierarchicalParams, Oracle};
+use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
+use crate::accel::Accel;
+use crate::form_factor;
+use crate::hierarchy::{Element, Hierarchy, StopReason};
+use crate::link::{Link, LinkStore, VisClass};
+use crate::math::{DVec3, Rgb};
+use crate::scene::Scene;
+use crate::visibility;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+pub use crate::hierarchy::StopReason as ElementStopReason;
+
+/// Rays used to confirm that an input patch pair is fully occluded before it is left unlinked.
+const ROOT_CONFIRM_RAYS: u32 = 32;
+/// Partially visible links refine at this fraction of BFeps (shadow boundaries first).
+const PARTIAL_BF_FACTOR: f64 = 0.25;
+
+/// Which step a report describes.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StepKind {
+    Refine,
+    Gather,
+    PushPull,
+    Iterate,
+    Solve,
+}
+
+/// What one step did.
+#[derive(Copy, Clone, Debug, Serialize)]
+pub struct StepReport {
+    pub kind: StepKind,
+    pub time_s: f64,
+    /// Elements split.
+    pub refined: usize,
+    /// Links created.
+    pub new_links: usize,
+    /// Largest change of a leaf's radiosity in the last gather, relative to the largest
+    /// reflected radiosity (0 before any gather).
+    pub residual: f64,
+    pub converged: bool,
+    pub cancelled: bool,
+}
+
+/// Statistics of the hierarchy.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct HierarchicalStats {
+    pub elements: usize,
+    pub leaves: usize,
+    pub links: usize,
+    pub links_full: usize,
+    pub links_partial: usize,
+    pub links_none: usize,
+    /// Input patch pairs left unlinked because they face away or are fully occluded.
+    pub pairs_skipped: usize,
+    pub depth_histogram: Vec<usize>,
+    pub rays: u64,
+    pub refine_s: f64,
+    pub gather_s: f64,
+    pub push_pull_s: f64,
+    pub iterations: usize,
+    pub rounds: usize,
+    pub bytes_per_link: usize,
+    pub bytes_per_element: usize,
+    pub memory_bytes: usize,
+    pub links_per_element: f64,
+}
+
+/// Read-only view of one element.
+#[derive(Clone, Debug, Serialize)]
+pub struct ElementInfo {
+    pub id: u32,
+    pub patch: u32,
+    pub parent: Option<u32>,
+    pub children: Option<[u32; 4]>,
+    pub depth: u8,
+    pub vertices: [DVec3; 4],
+    pub n_vertices: u8,
+    pub area: f64,
+    pub reflectance: Rgb,
+    pub emission: Rgb,
+    pub radiosity: Rgb,
+    pub gathered: Rgb,
+    pub error_estimate: f64,
+    pub stop: StopReason,
+}
+
+/// Read-only view of one link.
+#[derive(Copy, Clone, Debug, Serialize)]
+pub struct LinkInfo {
+    pub receiver: u32,
+    pub source: u32,
+    pub ff: f32,
+    pub vis: f32,
+    pub err: f32,
+}
+
+/// A copy of the solver's state after a step.
+#[derive(Clone, Debug, Serialize)]
+pub struct Snapshot {
+    pub elements: Vec<ElementInfo>,
+    pub links: Vec<LinkInfo>,
+    pub stats: HierarchicalStats,
+    /// Residual after each gather, in order.
+    pub residuals: Vec<f64>,
+}
+
+/// Receiver, its new own links, links for its children, rays cast, own list changed, links created.
+type ReplaceResult = (u32, Vec<Link>, Vec<(u32, Link)>, u64, bool, usize);
+
+#[derive(Copy, Clone, Debug)]
+enum Decision {
+    Keep(StopReason, f32),
+    SplitSource(f32),
+    SplitReceiver(f32),
+}
+
+/// The HSA91 solver with a step API.
+pub struct HierarchicalSolver {
+    scene: Arc<Scene>,
+    accel: Arc<Accel>,
+    params: HierarchicalParams,
+    aeps: f64,
+    hier: Hierarchy,
+    links: LinkStore,
+    linked: bool,
+    /// Initial links of the input patch pairs, reusable while `rays` and `seed` are unchanged.
+    initial_cache: Option<(u32, u64, Vec<Vec<Link>>, usize)>,
+    stats: HierarchicalStats,
+    residuals: Vec<f64>,
+    converged: bool,
+    cancel: Arc<AtomicBool>,
+    bvh_s: f64,
+    energy: EnergyBalance,
+    gathered_once: bool,
+}
+
+impl HierarchicalSolver {
+    /// Build the BVH and one root element per input patch (no links yet, B = E).
+    pub fn new(scene: Arc<Scene>, params: HierarchicalParams) -> Result<Self, String> {
+        params.validate()?;
+        if scene.patches.is_empty() {
+            return Err("the scene has no patches".into());
+        }
+        let t = Instant::now();
+        let accel = Arc::new(Accel::build(&scene));
+        let bvh_s = t.elapsed().as_secs_f64();
+        Ok(Self::with_accel(scene, accel, params, bvh_s))
+    }
+
+    /// Like `new`, sharing an already built BVH.
+    #[must_use]
+    pub fn with_accel(scene: Arc<Scene>, accel: Arc<Accel>, params: HierarchicalParams, bvh_s: f64) -> Self {
+        let hier = Hierarchy::from_scene(&scene);
+        let links = LinkStore::new(hier.len());
+        let aeps = params.aeps.resolve(scene.total_area());
+        let mut s = HierarchicalSolver {
+            scene,
+            accel,
+            params,
+            aeps,
+            hier,
+            links,
+            linked: false,
+            initial_cache: None,
+            stats: HierarchicalStats::default(),
+            residuals: Vec::new(),
+            converged: false,
+            cancel: Arc::new(AtomicBool::new(false)),
+            bvh_s,
+            energy: EnergyBalance::default(),
+            gathered_once: false,
+        };
+        s.energy.emitted = s.scene.emitted_power();
+        s
+    }
+
+    #[must_use]
+    pub fn scene(&self) -> &Arc<Scene> {
+        &self.scene
+    }
+    #[must_use]
+    pub fn params(&self) -> HierarchicalParams {
+        self.params
+    }
+    #[must_use]
+    pub fn hierarchy(&self) -> &Hierarchy {
+        &self.hier
+    }
+    #[must_use]
+    pub fn links(&self) -> &LinkStore {
+        &self.links
+    }
+    #[must_use]
+    pub fn accel(&self) -> &Arc<Accel> {
+        &self.accel
+    }
+
+    /// Restart with new parameters. Reuses the BVH, and the initial patch-pair links when `rays`
+    /// and `seed` did not change.
+    pub fn set_params(&mut self, p: HierarchicalParams) -> Result<(), String> {
+        p.validate()?;
+        self.params = p;
+        self.aeps = p.aeps.resolve(self.scene.total_area());
+        self.reset();
+        Ok(())
+    }
+
+    /// Back to one element per patch, no links, B = E.
+    pub fn reset(&mut self) {
+        self.hier = Hierarchy::from_scene(&self.scene);
+        self.links = LinkStore::new(self.hier.len());
+        self.linked = false;
+        self.stats = HierarchicalStats::default();
+        self.residuals.clear();
+        self.converged = false;
+        self.gathered_once = false;
+        self.energy = EnergyBalance { emitted: self.scene.emitted_power(), ..Default::default() };
+        self.cancel.store(false, Ordering::Relaxed);
+    }
+
+    /// Set the returned flag to make a running step return early (`StepReport::cancelled`).
+    /// The state stays consistent: refinement stops between passes, gathering between iterations.
+    #[must_use]
+    pub fn cancel_handle(&self) -> Arc<AtomicBool> {
+        Arc::clone(&self.cancel)
+    }
+
+    fn cancelled(&self) -> bool {
+        self.cancel.load(Ordering::Relaxed)
+    }
+
+    #[must_use]
+    pub fn is_converged(&self) -> bool {
+        self.converged
+    }
+
+    fn report(&self, kind: StepKind, t: Instant, refined: usize, new_links: usize) -> StepReport {
+        StepReport {
+            kind,
+            time_s: t.elapsed().as_secs_f64(),
+            refined,
+            new_links,
+            residual: self.residuals.last().copied().unwrap_or(0.0),
+            converged: self.converged,
+            cancelled: self.cancelled(),
+        }
+    }
+
+    // ------------------------------------------------------------------------------------------
+    // Refinement
+    // ------------------------------------------------------------------------------------------
+
+    /// One refinement pass: on the first call, link every mutually visible pair of input
+    /// patches; then apply the oracle to every link until nothing splits.
+    pub fn refine_step(&mut self) -> StepReport {
+        self.cancel.store(false, Ordering::Relaxed);
+        let t = Instant::now();
+        let mut new_links = 0;
+        if !self.linked {
+            new_links += self.initial_linking();
+            self.linked = true;
+        }
+        let mut refined = 0;
+        let mut active: Vec<u32> =
+            (0..self.hier.len() as u32).filter(|&r| !self.links.by_receiver[r as usize].is_empty()).collect();
+        while !active.is_empty() && !self.cancelled() {
+            // A: decide, in parallel, read-only.
+            let decisions: Vec<(u32, Vec<Decision>)> =
+                active.par_iter().map(|&r| (r, self.decide_receiver(r))).collect();
+            // Stop reasons and error estimates of kept links.
+            let mut to_split = Vec::new();
+            for (r, ds) in &decisions {
+                let mut reason = StopReason::Unrefined;
+                for (i, d) in ds.iter().enumerate() {
+                    let link = &mut self.links.by_receiver[*r as usize][i];
+                    match *d {
+                        Decision::Keep(why, err) => {
+                            link.err = err;
+                            if why.rank() > reason.rank() {
+                                reason = why;
+                            }
+                        }
+                        Decision::SplitSource(err) => {
+                            link.err = err;
+                            to_split.push(link.source);
+                        }
+                        Decision::SplitReceiver(err) => {
+                            link.err = err;
+                            to_split.push(*r);
+                        }
+                    }
+                }
+                let e = &mut self.hier.elements[*r as usize];
+                if e.is_leaf() && reason != StopReason::Unrefined {
+                    e.stop = reason;
+                }
+            }
+            if to_split.is_empty() {
+                break;
+            }
+            // B: split, serially, in id order.
+            to_split.sort_unstable();
+            to_split.dedup();
+            for id in to_split {
+                if self.hier.get(id).is_leaf() {
+                    self.hier.split(id);
+                    refined += 1;
+                }
+            }
+            self.links.grow(self.hier.len());
+            // C: replacement links, in parallel.
+            let work: Vec<(u32, Vec<Decision>)> = decisions
+                .into_iter()
+                .filter(|(_, ds)| ds.iter().any(|d| !matches!(d, Decision::Keep(..))))
+                .collect();
+            let results: Vec<ReplaceResult> =
+                work.par_iter().map(|(r, ds)| self.replace_links(*r, ds)).collect();
+            // D: install, in receiver order: every receiver's own list first, then the links
+            // pushed down to children (a child may itself have been a receiver in this pass).
+            let mut next = Vec::new();
+            let mut pushed_down = Vec::new();
+            for (r, own, kids, rays, own_changed, created) in results {
+                self.stats.rays += rays;
+                if own_changed {
+                    next.push(r);
+                }
+                new_links += created;
+                self.links.by_receiver[r as usize] = own;
+                pushed_down.extend(kids);
+            }
+            for (c, l) in pushed_down {
+                self.links.by_receiver[c as usize].push(l);
+                next.push(c);
+            }
+            next.sort_unstable();
+            next.dedup();
+            active = next;
+        }
+        self.update_sums_and_normalisation();
+        self.converged = false;
+        self.stats.refine_s += t.elapsed().as_secs_f64();
+        self.report(StepKind::Refine, t, refined, new_links)
+    }
+
+    fn can_split(&self, e: &Element) -> Result<(), StopReason> {
+        if e.depth >= self.params.max_depth {
+            Err(StopReason::MaxDepth)
+        } else if e.area <= self.aeps || e.area / 4.0 <= 0.0 {
+            Err(StopReason::AepsFloor)
+        } else {
+            Ok(())
+        }
+    }
+
+    fn decide_receiver(&self, r: u32) -> Vec<Decision> {
+        let p = self.hier.get(r);
+        self.links.by_receiver[r as usize]
+            .iter()
+            .map(|l| {
+                let q = self.hier.get(l.source);
+                self.decide(p, q, l)
+            })
+            .collect()
+    }
+
+    fn decide(&self, p: &Element, q: &Element, link: &Link) -> Decision {
+        let fpq = form_factor::disk(p.centroid, p.normal, q.centroid, q.normal, q.area);
+        let fqp = form_factor::disk(q.centroid, q.normal, p.centroid, p.normal, p.area);
+        let fmax = fpq.max(fqp);
+        let straddle = straddles(p, q) || straddles(q, p);
+        let (want, err, below) = match self.params.oracle {
+            Oracle::Feps => (straddle || fmax >= self.params.feps, fmax, StopReason::BelowFeps),
+            Oracle::Bf => {
+                let b = q.radiosity.max_channel();
+                let err = fmax * b;
+                let live = b > 0.0 && p.reflectance.max_channel() > 0.0;
+                let thr = if link.class() == VisClass::Partial {
+                    self.params.bf_eps * PARTIAL_BF_FACTOR
+                } else {
+                    self.params.bf_eps
+                };
+                (live && (straddle || err > thr), err, StopReason::BelowBfEps)
+            }
+        };
+        let err = err as f32;
+        if !want || link.vis <= 0.0 {
+            return Decision::Keep(below, err);
+        }
+        let source_first = fpq > fqp;
+        let (first, second) = if source_first { (q, p) } else { (p, q) };
+        let split = |is_source: bool| {
+            if is_source { Decision::SplitSource(err) } else { Decision::SplitReceiver(err) }
+        };
+        match self.can_split(first) {
+            Ok(()) => split(source_first),
+            Err(why_first) => match self.can_split(second) {
+                Ok(()) => split(!source_first),
+                // The receiver's own limit is what the inspector reports.
+                Err(why_second) => Decision::Keep(if source_first { why_second } else { why_first }, err),
+            },
+        }
+    }
+
+    /// New links replacing the split ones of receiver `r`: (own list, links for r's children, rays).
+    fn replace_links(&self, r: u32, ds: &[Decision]) -> ReplaceResult {
+        let old = &self.links.by_receiver[r as usize];
+        let mut own = Vec::with_capacity(old.len() + 3);
+        let mut kids = Vec::new();
+        let mut rays = 0u64;
+        let mut own_changed = false;
+        let mut created = 0;
+        for (l, d) in old.iter().zip(ds) {
+            match d {
+                Decision::Keep(..) => own.push(*l),
+                Decision::SplitSource(_) => {
+                    own_changed = true;
+                    for c in self.hier.get(l.source).children().expect("split in phase B") {
+                        let (nl, nr) = self.make_link(r, c);
+                        rays += nr;
+                        created += usize::from(nl.is_some());
+                        own.extend(nl);
+                    }
+                }
+                Decision::SplitReceiver(_) => {
+                    for c in self.hier.get(r).children().expect("split in phase B") {
+                        let (nl, nr) = self.make_link(c, l.source);
+                        rays += nr;
+                        created += usize::from(nl.is_some());
+                        kids.extend(nl.map(|l| (c, l)));
+                    }
+                }
+            }
+        }
+        (r, own, kids, rays, own_changed, created)
+    }
+
+    /// A link receiver ← source, or None when the source contributes nothing geometrically.
+    fn make_link(&self, receiver: u32, source: u32) -> (Option<Link>, u64) {
+        let p = self.hier.get(receiver);
+        let q = self.hier.get(source);
+        if p.patch == q.patch || !faces(p, q) || !faces(q, p) {
+            return (None, 0);
+        }
+        let ff = form_factor::point_to_polygon(p.centroid, p.normal, q.vertices());
+        if ff <= 0.0 && !(straddles(p, q) || straddles(q, p)) {
+            return (None, 0);
+        }
+        let rays = self.params.rays;
+        let vis = visibility::visible_fraction(
+            &self.accel,
+            p.vertices(),
+            p.patch,
+            q.vertices(),
+            q.patch,
+            rays,
+            self.params.seed,
+            pair_key(receiver, source),
+        );
+        (Some(Link { source, ff: ff as f32, vis: vis as f32, err: 0.0 }), u64::from(rays))
+    }
+
+    /// Link every pair of input patches that face each other and are not fully occluded.
+    fn initial_linking(&mut self) -> usize {
+        let key = (self.params.rays, self.params.seed);
+        if let Some((r, s, cached, skipped)) = &self.initial_cache {
+            if (*r, *s) == key {
+                let n = cached.iter().map(Vec::len).sum();
+                for (i, l) in cached.iter().enumerate() {
+                    self.links.by_receiver[i] = l.clone();
+                }
+                self.stats.pairs_skipped = *skipped;
+                return n;
+            }
+        }
+        let n = self.hier.roots as u32;
+        let rays = self.params.rays;
+        let seed = self.params.seed;
+        // For each p, pairs (p, q > p): visibility once per unordered pair, used both ways.
+        let rows: Vec<(Vec<(u32, Link, Link)>, usize, u64)> = (0..n)
+            .into_par_iter()
+            .map(|pi| {
+                let p = self.hier.get(pi);
+                let mut out = Vec::new();
+                let mut skipped = 0;
+                let mut cast = 0u64;
+                for qi in pi + 1..n {
+                    let q = self.hier.get(qi);
+                    if !faces(p, q) || !faces(q, p) {
+                        skipped += 1;
+                        continue;
+                    }
+                    let fpq = form_factor::point_to_polygon(p.centroid, p.normal, q.vertices());
+                    let fqp = form_factor::point_to_polygon(q.centroid, q.normal, p.vertices());
+                    let straddle = straddles(p, q) || straddles(q, p);
+                    if fpq <= 0.0 && fqp <= 0.0 && !straddle {
+                        skipped += 1;
+                        continue;
+                    }
+                    let vis = |n_rays: u32, salt: u64| {
+                        visibility::visible_fraction(
+                            &self.accel,
+                            p.vertices(),
+                            pi,
+                            q.vertices(),
+                            qi,
+                            n_rays,
+                            seed ^ salt,
+                            pair_key(pi, qi),
+                        )
+                    };
+                    let mut v = vis(rays, 0);
+                    cast += u64::from(rays);
+                    if v == 0.0 {
+                        // Confirm full occlusion with more rays before dropping the pair.
+                        cast += u64::from(ROOT_CONFIRM_RAYS);
+                        if vis(ROOT_CONFIRM_RAYS, 0x5EED) == 0.0 {
+                            skipped += 1;
+                            continue;
+                        }
+                        v = 1.0 / f64::from(ROOT_CONFIRM_RAYS + rays);
+                    }
+                    let v = v as f32;
+                    out.push((
+                        qi,
+                        Link { source: qi, ff: fpq as f32, vis: v, err: 0.0 },
+                        Link { source: pi, ff: fqp as f32, vis: v, err: 0.0 },
+                    ));
+                }
+                (out, skipped, cast)
+            })
+            .collect();
+        let mut lists: Vec<Vec<Link>> = vec![Vec::new(); n as usize];
+        let mut skipped = 0;
+        for (pi, (row, sk, cast)) in rows.into_iter().enumerate() {
+            skipped += sk;
+            self.stats.rays += cast;
+            for (qi, pq, qp) in row {
+                lists[pi].push(pq);
+                lists[qi as usize].push(qp);
+            }
+        }
+        // Receiver lists in source order, whatever order the pairs were visited in.
+        for l in &mut lists {
+            l.sort_by_key(|l| l.source);
+        }
+        let total = lists.iter().map(Vec::len).sum();
+        for (i, l) in lists.iter().enumerate() {
+            self.links.by_receiver[i] = l.clone();
+        }
+        self.stats.pairs_skipped = skipped;
+        self.initial_cache = Some((rays, seed, lists, skipped));
+        total
+    }
+
+    /// Recompute Σ F and Σ F·V per element and every leaf's normalisation factor S_x / T_x.
+    fn update_sums_and_normalisation(&mut self) {
+        for (i, e) in self.hier.elements.iter_mut().enumerate() {
+            let ls = &self.links.by_receiver[i];
+            e.f_sum = ls.iter().map(|l| f64::from(l.ff)).sum();
+            e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
+        }
+        let hier = &self.hier;
+        let links = &self.links;
+        let norms: Vec<(u32, f64)> = (0..hier.len() as u32)
+            .into_par_iter()
+            .filter(|&i| hier.get(i).is_leaf())
+            .map(|x| {
+                let leaf = hier.get(x);
+                let mut t = 0.0;
+                let mut s = 0.0;
+                for a in hier.ancestors(x) {
+                    t += hier.get(a).f_sum;
+                    for l in &links.by_receiver[a as usize] {
+                        if l.ff > 0.0 {
+                            let src = hier.get(l.source);
+                            s += form_factor::point_to_polygon(leaf.centroid, leaf.normal, src.vertices());
+                        }
+                    }
+                }
+                let norm = if t > 1e-12 && s.is_finite() { s / t } else { 1.0 };
+                (x, norm)
+            })
+            .collect();
+        for (x, n) in norms {
+            self.hier.elements[x as usize].norm = n;
+        }
+    }
+
+    // ------------------------------------------------------------------------------------------
+    // Gather and push-pull
+    // ------------------------------------------------------------------------------------------
+
+    /// One gather over every link (the lecture's `Gather`), Jacobi: every receiver reads the
+    /// radiosities of the previous iteration. With `gauss_seidel`, gathers and pushes patch by
+    /// patch instead, each patch using the newest values (then push-pull is already done).
+    pub fn gather_step(&mut self) -> StepReport {
+        self.cancel.store(false, Ordering::Relaxed);
+        let t = Instant::now();
+        if self.params.gauss_seidel {
+            let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
+            for root in 0..self.hier.roots as u32 {
+                let ids = self.subtree(root);
+                let g: Vec<Rgb> = ids.iter().map(|&r| self.gather_one(r)).collect();
+                for (&r, g) in ids.iter().zip(g) {
+                    self.hier.elements[r as usize].gathered = g;
+                }
+                self.push_pull_root(root);
+            }
+            self.finish_push_pull(&before);
+            self.stats.gather_s += t.elapsed().as_secs_f64();
+        } else {
+            let g: Vec<Rgb> =
+                (0..self.hier.len() as u32).into_par_iter().map(|r| self.gather_one(r)).collect();
+            for (e, g) in self.hier.elements.iter_mut().zip(g) {
+                e.gathered = g;
+            }
+            self.stats.gather_s += t.elapsed().as_secs_f64();
+        }
+        self.gathered_once = true;
+        self.stats.iterations += 1;
+        self.report(StepKind::Gather, t, 0, 0)
+    }
+
+    fn gather_one(&self, r: u32) -> Rgb {
+        let mut g = Rgb::ZERO;
+        for l in &self.links.by_receiver[r as usize] {
+            let w = f64::from(l.ff) * f64::from(l.vis);
+            if w > 0.0 {
+                g += self.hier.get(l.source).radiosity * w;
+            }
+        }
+        g
+    }
+
+    fn subtree(&self, root: u32) -> Vec<u32> {
+        let mut out = Vec::new();
+        let mut stack = vec![root];
+        while let Some(id) = stack.pop() {
+            out.push(id);
+            if let Some(c) = self.hier.get(id).children() {
+                stack.extend(c.iter().rev());
+            }
+        }
+        out
+    }
+
+    /// Push gathered irradiance down to the leaves (B = E + ρ·norm·H), pull area averages up.
+    pub fn push_pull_step(&mut self) -> StepReport {
+        let t = Instant::now();
+        let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
+        for root in 0..self.hier.roots as u32 {
+            self.push_pull_root(root);
+        }
+        self.finish_push_pull(&before);
+        self.stats.push_pull_s += t.elapsed().as_secs_f64();
+        self.report(StepKind::PushPull, t, 0, 0)
+    }
+
+    fn push_pull_root(&mut self, root: u32) {
+        self.push_pull_rec(root, Rgb::ZERO);
+    }
+
+    fn push_pull_rec(&mut self, id: u32, h_down: Rgb) -> Rgb {
+        let e = &self.hier.elements[id as usize];
+        let h = h_down + e.gathered;
+        if let Some(kids) = e.children() {
+            let area = e.area;
+            let mut b = Rgb::ZERO;
+            for c in kids {
+                let bc = self.push_pull_rec(c, h);
+                b += bc * (self.hier.elements[c as usize].area / area);
+            }
+            self.hier.elements[id as usize].radiosity = b;
+            b
+        } else {
+            let b = e.emission + e.reflectance.mul_rgb(h * e.norm);
+            self.hier.elements[id as usize].radiosity = b;
+            b
+        }
+    }
+
+    /// Residual and energy balance after a push-pull.
+    fn finish_push_pull(&mut self, before: &[Rgb]) {
+        let mut max_change: f64 = 0.0;
+        let mut max_reflected: f64 = 0.0;
+        let mut absorbed = Rgb::ZERO;
+        let mut escaped = Rgb::ZERO;
+        // Leaf energy terms need the chain sums of gathered irradiance and F·V.
+        let n = self.hier.len();
+        let mut h_chain = vec![Rgb::ZERO; n];
+        let mut fv_chain = vec![0.0; n];
+        for i in 0..n {
+            // Parents have smaller ids than their children, so one forward sweep suffices.
+            let e = &self.hier.elements[i];
+            let (hp, fp) = match e.parent() {
+                Some(p) => (h_chain[p as usize], fv_chain[p as usize]),
+                None => (Rgb::ZERO, 0.0),
+            };
+            h_chain[i] = hp + e.gathered;
+            fv_chain[i] = fp + e.fv_sum;
+            if e.is_leaf() {
+                let b = e.radiosity;
+                let old = before.get(i).copied().unwrap_or(b);
+                max_change = max_change.max(b.abs_diff_max(old));
+                max_reflected = max_reflected.max((b - e.emission).max_channel());
+                let h = h_chain[i] * e.norm;
+                absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
+                escaped += b * (e.area * (1.0 - e.norm * fv_chain[i]));
+            }
+        }
+        let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
+        self.residuals.push(residual);
+        self.converged = residual < self.params.tolerance;
+        self.energy.absorbed = absorbed;
+        self.energy.escaped = escaped;
+    }
+
+    /// Refine, gather, push-pull.
+    pub fn iterate(&mut self) -> StepReport {
+        let t = Instant::now();
+        let r = self.refine_step();
+        if r.cancelled {
+            return self.report(StepKind::Iterate, t, r.refined, r.new_links);
+        }
+        self.gather_step();
+        if !self.params.gauss_seidel {
+            self.push_pull_step();
+        }
+        self.report(StepKind::Iterate, t, r.refined, r.new_links)
+    }
+
+    /// The HSA91 loop: refine → gather/push-pull until converged → refine again with the
+    /// oracle on the new radiosities → … until nothing refines and the solution has converged,
+    /// or the caps (`max_rounds`, `max_iterations`) are reached.
+    pub fn solve(&mut self, progress: Progress) -> StepReport {
+        let t = Instant::now();
+        let mut refined_total = 0;
+        let mut links_total = 0;
+        let rounds = self.params.max_rounds.max(1);
+        for round in 0..rounds {
+            progress(u64::from(round), u64::from(rounds));
+            let r = self.refine_step();
+            refined_total += r.refined;
+            links_total += r.new_links;
+            if r.cancelled {
+                break;
+            }
+            if round > 0 && r.refined == 0 && self.converged {
+                break;
+            }
+            let mut iters = 0;
+            loop {
+                self.gather_step();
+                if !self.params.gauss_seidel {
+                    self.push_pull_step();
+                }
+                iters += 1;
+                if self.converged || iters >= self.params.max_iterations || self.cancelled() {
+                    break;
+                }
+            }
+            self.stats.rounds = round as usize + 1;
+            if self.cancelled() || (self.params.oracle == Oracle::Feps && self.converged) {
+                break;
+            }
+        }
+        progress(u64::from(rounds), u64::from(rounds));
+        self.report(StepKind::Solve, t, refined_total, links_total)
+    }
+
+    // ------------------------------------------------------------------------------------------
+    // Read-only views
+    // ------------------------------------------------------------------------------------------
+
+    /// Statistics of the current state.
+    #[must_use]
+    pub fn stats(&self) -> HierarchicalStats {
+        let mut s = self.stats.clone();
+        s.elements = self.hier.len();
+        s.leaves = self.hier.elements.iter().filter(|e| e.is_leaf()).count();
+        s.links = self.links.len();
+        s.links_full = 0;
+        s.links_partial = 0;
+        s.links_none = 0;
+        for l in self.links.by_receiver.iter().flatten() {
+            match l.class() {
+                VisClass::Full => s.links_full += 1,
+                VisClass::Partial => s.links_partial += 1,
+                VisClass::None => s.links_none += 1,
+            }
+        }
+        s.depth_histogram = self.hier.depth_histogram();
+        s.bytes_per_link = std::mem::size_of::<Link>();
+        s.bytes_per_element = std::mem::size_of::<Element>() + std::mem::size_of::<Vec<Link>>();
+        s.memory_bytes =
+            self.hier.elements.capacity() * std::mem::size_of::<Element>() + self.links.memory_bytes();
+        s.links_per_element = if s.elements > 0 { s.links as f64 / s.elements as f64 } else { 0.0 };
+        s
+    }
+
+    /// The solver's own a-posteriori error estimate of every leaf's radiosity (units of B),
+    /// without a reference: for each link on the leaf's ancestor chain, ρ · B_source · F · (g + u)
+    /// with g = receiver diameter / distance (how much F varies across the receiver, capped at 1)
+    /// and u = √(V(1−V)/rays) (the visibility estimate's standard error); plus half the leaf's
+    /// difference from its parent (radiosity variation among siblings that a finer mesh would
+    /// resolve). Indexed by element id; interior elements get the area average of their leaves.
+    #[must_use]
+    pub fn error_estimates(&self) -> Vec<f64> {
+        let hier = &self.hier;
+        let rays = f64::from(self.params.rays.max(1));
+        let mut est: Vec<f64> = (0..hier.len() as u32)
+            .into_par_iter()
+            .map(|x| {
+                let leaf = hier.get(x);
+                if !leaf.is_leaf() {
+                    return 0.0;
+                }
+                let rho = leaf.reflectance.max_channel();
+                let mut e = 0.0;
+                for a in hier.ancestors(x) {
+                    let recv = hier.get(a);
+                    let diam = recv.diameter();
+                    for l in &self.links.by_receiver[a as usize] {
+                        let src = hier.get(l.source);
+                        let dist = recv.centroid.distance(src.centroid).max(1e-300);
+                        let g = (diam / dist).min(1.0);
+                        let v = f64::from(l.vis);
+                        let u = (v * (1.0 - v) / rays).sqrt();
+                        e += src.radiosity.max_channel() * f64::from(l.ff) * leaf.norm * (g + u);
+                    }
+                }
+                let var =
+                    leaf.parent().map_or(0.0, |p| 0.5 * leaf.radiosity.abs_diff_max(hier.get(p).radiosity));
+                rho * e + var
+            })
+            .collect();
+        // Interior elements: area-weighted average of their children (children have larger ids).
+        for i in (0..hier.len()).rev() {
+            if let Some(kids) = hier.elements[i].children() {
+                let a = hier.elements[i].area;
+                est[i] = kids.iter().map(|&c| est[c as usize] * hier.get(c).area / a).sum();
+            }
+        }
+        est
+    }
+
+    /// A copy of the elements, links and statistics.
+    #[must_use]
+    pub fn snapshot(&self) -> Snapshot {
+        let est = self.error_estimates();
+        let elements = self
+            .hier
+            .elements
+            .iter()
+            .enumerate()
+            .map(|(i, e)| ElementInfo {
+                id: i as u32,
+                patch: e.patch,
+                parent: e.parent(),
+                children: e.children(),
+                depth: e.depth,
+                vertices: e.verts,
+                n_vertices: e.n_verts,
+                area: e.area,
+                reflectance: e.reflectance,
+                emission: e.emission,
+                radiosity: e.radiosity,
+                gathered: e.gathered,
+                error_estimate: est[i],
+                stop: e.stop,
+            })
+            .collect();
+        let links = self
+            .links
+            .by_receiver
+            .iter()
+            .enumerate()
+            .flat_map(|(r, ls)| {
+                ls.iter().map(move |l| LinkInfo {
+                    receiver: r as u32,
+                    source: l.source,
+                    ff: l.ff,
+                    vis: l.vis,
+                    err: l.err,
+                })
+            })
+            .collect();
+        Snapshot { elements, links, stats: self.stats(), residuals: self.residuals.clone() }
+    }
+
+    /// The leaves as a [`Solution`] (with the solver's own error estimates).
+    #[must_use]
+    pub fn solution(&self) -> Solution {
+        let est = self.error_estimates();
+        let elements: Vec<SolvedElement> = self
+            .hier
+            .elements
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| e.is_leaf())
+            .map(|(i, e)| SolvedElement {
+                patch: e.patch as usize,
+                vertices: e.vertices().to_vec(),
+                area: e.area,
+                radiosity: e.radiosity,
+                error_estimate: Some(est[i]),
+            })
+            .collect();
+        let patch_radiosity = Solution::patch_averages(self.scene.patches.len(), &elements);
+        let st = self.stats();
+        let mut energy = self.energy;
+        if !self.gathered_once {
+            // Nothing gathered yet: all emitted power is still "in flight", nothing absorbed.
+            energy.absorbed = Rgb::ZERO;
+            energy.escaped = Rgb::ZERO;
+        }
+        Solution {
+            method: "hierarchical".into(),
+            patch_radiosity,
+            energy,
+            stats: SolveStats {
+                patches: self.scene.patches.len(),
+                elements: elements.len(),
+                links: st.links,
+                iterations: st.iterations,
+                rays: st.rays,
+                time_s: PhaseTimes {
+                    load: 0.0,
+                    bvh: self.bvh_s,
+                    form_factors: st.refine_s,
+                    solve: st.gather_s + st.push_pull_s,
+                    total: self.bvh_s + st.refine_s + st.gather_s + st.push_pull_s,
+                },
+                extra: serde_json::to_value(&st).ok(),
+            },
+            elements,
+        }
+    }
+}
+
+/// Stable key of an ordered (receiver, source) pair for the visibility jitter.
+fn pair_key(receiver: u32, source: u32) -> u64 {
+    (u64::from(receiver) << 32) | u64::from(source)
+}
+
+/// Signed distances of `q`'s vertices from `p`'s plane, relative to their size.
+fn plane_sides(p: &Element, q: &Element) -> (bool, bool) {
+    let tol = 1e-9 * (p.diameter() + q.diameter());
+    let mut front = false;
+    let mut back = false;
+    for v in q.vertices() {
+        let d = p.normal.dot(*v - p.centroid);
+        front |= d > tol;
+        back |= d < -tol;
+    }
+    (front, back)
+}
+
+/// Some part of `q` lies strictly in front of `p`'s plane.
+fn faces(p: &Element, q: &Element) -> bool {
+    plane_sides(p, q).0
+}
+
+/// `q` has vertices strictly on both sides of `p`'s plane.
+fn straddles(p: &Element, q: &Element) -> bool {
+    let (f, b) = plane_sides(p, q);
+    f && b
+}
