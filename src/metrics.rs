@@ -205,8 +205,8 @@ pub fn compare_resampled(
 /// Points per side of the grid at which [`resample`] evaluates a solution inside each region.
 pub const RESAMPLE_GRID: u32 = 6;
 
-/// Average of a solution's piecewise-constant radiosity over each region: the mean over a
-/// RESAMPLE_GRID² grid of area-uniform points (cell centres). A point that falls in no element
+/// Average of a solution's piecewise-constant radiosity over each region: the area-weighted mean
+/// over a RESAMPLE_GRID² grid of points (see `grid_point`). A point that falls in no element
 /// (a gap of rounding size along an edge) takes the nearest element's value on the same patch.
 pub fn resample(
     scene: &Scene,
@@ -239,17 +239,33 @@ pub fn resample(
                 };
             };
             let mut sum = Rgb::ZERO;
+            let mut wsum = 0.0;
             for j in 0..g {
                 for i in 0..g {
                     let u = (f64::from(i) + 0.5) / f64::from(g);
                     let v = (f64::from(j) + 0.5) / f64::from(g);
-                    let x = area_point(&r.vertices, u, v);
-                    sum += elements[loc.locate(x, elements)].radiosity;
+                    let (x, w) = grid_point(&r.vertices, u, v);
+                    sum += elements[loc.locate(x, elements)].radiosity * w;
+                    wsum += w;
                 }
             }
-            Ok(sum / f64::from(g * g))
+            Ok(if wsum > 0.0 { sum / wsum } else { Rgb::ZERO })
         })
         .collect()
+}
+
+/// A quadrature point of a region and its weight: bilinear on quads (weight = the map's Jacobian,
+/// so a grid of cell centres is the midpoint rule and splits evenly into sub-quads), the
+/// area-uniform map on triangles (weight 1).
+fn grid_point(verts: &[DVec3], u: f64, v: f64) -> (DVec3, f64) {
+    if verts.len() == 4 {
+        let x = verts[0].lerp(verts[1], u).lerp(verts[3].lerp(verts[2], u), v);
+        let du = (verts[1] - verts[0]).lerp(verts[2] - verts[3], v);
+        let dv = (verts[3] - verts[0]).lerp(verts[2] - verts[1], u);
+        (x, du.cross(dv).length())
+    } else {
+        (area_point(verts, u, v), 1.0)
+    }
 }
 
 /// Point location among the elements of one patch: a uniform 2-D bucket grid in the patch plane.
