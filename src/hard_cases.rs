@@ -448,6 +448,27 @@ pub fn all() -> Vec<HardCase> {
     ]
 }
 
+/// A hard case by its name (the file stem under assets/scenes/hard/).
+#[must_use]
+pub fn by_name(name: &str) -> Option<HardCase> {
+    all().into_iter().find(|c| c.name == name)
+}
+
+/// Load `hard:NAME` (a generated hard case), or anything [`Scene::load`] reads.
+pub fn load_scene(spec: &str) -> Result<Scene, crate::scene::SceneError> {
+    match spec.strip_prefix("hard:") {
+        Some(name) => {
+            by_name(name).map(|c| c.scene).ok_or_else(|| crate::scene::SceneError::UnknownBuiltin {
+                name: format!(
+                    "hard:{name} (hard cases: {})",
+                    all().iter().map(|c| c.name).collect::<Vec<_>>().join(", ")
+                ),
+            })
+        }
+        None => Scene::load(spec),
+    }
+}
+
 /// The scene moved by `offset` and scaled by `scale` about the origin (x ↦ scale·x + offset).
 /// Radiosity is invariant: form factors are scale-free and E, B are per unit area.
 #[must_use]

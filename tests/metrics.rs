@@ -12,6 +12,8 @@ use radlab::solver::params::HierarchicalParams;
 use radlab::solver::{EnergyBalance, Solution, SolveStats, SolvedElement};
 use std::sync::Arc;
 
+mod common;
+
 /// Sums of a few hundred terms: rounding stays far below this.
 const EXACT: f64 = 1e-12;
 
@@ -168,8 +170,10 @@ fn estimate_correlation(scene: Scene) -> (f64, usize, f64) {
 
 #[test]
 fn hierarchical_error_estimate_ranks_the_true_error() {
-    for (name, scene, floor) in [("boxes_on_floor", hard_cases::boxes_on_floor().scene, SPEARMAN_FLOOR_BOXES)]
-    {
+    for (name, scene, floor) in [
+        ("boxes_on_floor", hard_cases::boxes_on_floor().scene, SPEARMAN_FLOOR_BOXES),
+        ("table-room", common::table_room(), SPEARMAN_FLOOR_TABLE_ROOM),
+    ] {
         let (rho, n, l2) = estimate_correlation(scene);
         eprintln!("{name}: Spearman(error_estimate, |ΔB|) = {rho:.3} over {n} leaves (rel L2 {l2:.3})");
         assert!(rho > floor, "{name}: Spearman {rho} ≤ floor {floor} ({n} leaves)");
@@ -179,6 +183,11 @@ fn hierarchical_error_estimate_ranks_the_true_error() {
 /// Measured 0.18 (interactive preset, 128-path reference per leaf); the floor leaves room for
 /// reference noise and keeps the claim "positively correlated".
 const SPEARMAN_FLOOR_BOXES: f64 = 0.1;
+/// KNOWN WEAKNESS, not a target: on the unit table room the estimate does not rank the error.
+/// Measured 0.001 (128-path reference per leaf) and −0.105 (1024 paths); the mean estimate is 0.092
+/// against a mean true |ΔB| of 0.012. This floor only guards against it getting worse; raise it
+/// above 0 when the solver's estimate is fixed.
+const SPEARMAN_FLOOR_TABLE_ROOM: f64 = -0.25;
 
 #[test]
 fn resampled_comparison_of_a_real_solve_is_consistent() {
