@@ -1,8 +1,391 @@
-//! `radlab solve` (being written).
+//! `radlab solve SCENE`: solve a scene, print statistics and the energy balance, optionally write
+//! JSON (`--json`), an image (`--png`) and the whole hierarchy (`--dump-hierarchy`).
+
+use anyhow::{Context as _, bail};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use radlab::accel::Accel;
+use radlab::solver::hierarchical::HierarchicalSolver;
+use radlab::solver::params::{AreaEps, HierarchicalParams, Oracle};
+use radlab::solver::progressive::{self, ProgressiveParams};
+use radlab::solver::uniform::{self, UniformParams};
+use radlab::solver::{PhaseTimes, Solution};
+use serde_json::json;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Every patch meshed to --element-size, full form-factor matrix, Gauss–Seidel.
+    Uniform,
+    /// Southwell shooting of unshot power (progressive refinement).
+    Progressive,
+    /// Hanrahan–Salzman–Aupperle hierarchical radiosity.
+    Hierarchical,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OracleArg {
+    Feps,
+    Bf,
+}
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Scene: a .gltf/.glb path or builtin:NAME (see `radlab scenes`).
+    pub scene: String,
+    #[arg(long, value_enum, default_value = "hierarchical")]
+    pub method: Method,
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`solve` is not written yet")
+    /// Hierarchical preset the flags below modify: interactive, quality, lecture, splash2.
+    #[arg(long, default_value = "quality")]
+    pub preset: String,
+    /// Refinement oracle (hierarchical).
+    #[arg(long, value_enum)]
+    pub oracle: Option<OracleArg>,
+    /// Form-factor threshold of Refine (hierarchical).
+    #[arg(long)]
+    pub feps: Option<f64>,
+    /// Minimum element area, scene units² (hierarchical).
+    #[arg(long, conflicts_with = "aeps_rel")]
+    pub aeps: Option<f64>,
+    /// Minimum element area as a fraction of the scene's total area (hierarchical).
+    #[arg(long)]
+    pub aeps_rel: Option<f64>,
+    /// BF oracle threshold, units of B (hierarchical).
+    #[arg(long)]
+    pub bf_eps: Option<f64>,
+    /// Maximum subdivision depth below an input patch (hierarchical).
+    #[arg(long)]
+    pub max_depth: Option<u8>,
+    /// Turn off the per-leaf form-factor normalisation (hierarchical).
+    #[arg(long)]
+    pub no_normalize: bool,
+    /// Gauss–Seidel instead of Jacobi gathering (hierarchical).
+    #[arg(long)]
+    pub gauss_seidel: bool,
+
+    /// Target element size, scene units (uniform, progressive); default: 1/8 of the scene's
+    /// bounding-box diagonal.
+    #[arg(long)]
+    pub element_size: Option<f64>,
+    /// Largest number of shots (progressive).
+    #[arg(long)]
+    pub max_shots: Option<u32>,
+
+    /// Shadow rays per link / element pair.
+    #[arg(long)]
+    pub rays: Option<u32>,
+    /// Convergence tolerance (relative change of radiosity; progressive: unshot/emitted power).
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Seed of the visibility jitter.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Worker threads (default: all cores). Results are identical for any count.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Refuse scenes with more triangles than this.
+    #[arg(long, default_value_t = 5_000_000)]
+    pub max_triangles: usize,
+
+    /// Write the JSON result to PATH (`-` for stdout).
+    #[arg(long)]
+    pub json: Option<String>,
+    /// Write an image of the solution from the scene's default camera.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Image size for --png.
+    #[arg(long, default_value_t = 640)]
+    pub width: usize,
+    #[arg(long, default_value_t = 480)]
+    pub height: usize,
+    /// Write every element (vertices, radiosity) and link (receiver, source, F, visibility) as JSON.
+    #[arg(long)]
+    pub dump_hierarchy: Option<PathBuf>,
+    /// No progress bar, no summary (errors still go to stderr).
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// Load a scene spec with a triangle cap, with the file named in any error.
+pub fn load_scene(spec: &str, max_triangles: usize) -> anyhow::Result<radlab::scene::Scene> {
+    let scene = if let Some(name) = spec.strip_prefix("builtin:") {
+        radlab::scene::builtin::load(name)?
+    } else {
+        let opts = radlab::scene::gltf::LoadOptions { max_triangles, ..Default::default() };
+        radlab::scene::gltf::load(std::path::Path::new(spec), &opts)?
+    };
+    Ok(scene)
+}
+
+/// Configure the global rayon pool once.
+pub fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(t) = threads {
+        if t == 0 {
+            bail!("--threads must be at least 1");
+        }
+        rayon::ThreadPoolBuilder::new().num_threads(t).build_global().context("configuring the thread pool")?;
+    }
+    Ok(())
+}
+
+/// A progress bar on stderr that appears only once work has taken more than a second.
+pub struct LazyBar {
+    bar: ProgressBar,
+    start: Instant,
+    shown: bool,
+    quiet: bool,
+}
+
+impl LazyBar {
+    pub fn new(msg: &str, quiet: bool) -> LazyBar {
+        let bar = ProgressBar::with_draw_target(Some(1), ProgressDrawTarget::hidden());
+        bar.set_style(
+            ProgressStyle::with_template("{msg:12} [{elapsed_precise}] {bar:40} {pos}/{len}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar.set_message(msg.to_string());
+        LazyBar { bar, start: Instant::now(), shown: false, quiet }
+    }
+    pub fn update(&mut self, done: u64, total: u64) {
+        if !self.shown && !self.quiet && self.start.elapsed() > Duration::from_secs(1) {
+            self.bar.set_draw_target(ProgressDrawTarget::stderr());
+            self.shown = true;
+        }
+        self.bar.set_length(total.max(1));
+        self.bar.set_position(done);
+    }
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
+    let mut p = HierarchicalParams::preset(&args.preset).with_context(|| {
+        format!("unknown preset {:?} (one of {})", args.preset, HierarchicalParams::PRESETS.join(", "))
+    })?;
+    if let Some(o) = args.oracle {
+        p.oracle = match o {
+            OracleArg::Feps => Oracle::Feps,
+            OracleArg::Bf => Oracle::Bf,
+        };
+    }
+    if let Some(v) = args.feps {
+        p.feps = v;
+    }
+    if let Some(v) = args.aeps {
+        p.aeps = AreaEps::Absolute(v);
+    }
+    if let Some(v) = args.aeps_rel {
+        p.aeps = AreaEps::Relative(v);
+    }
+    if let Some(v) = args.bf_eps {
+        p.bf_eps = v;
+    }
+    if let Some(v) = args.max_depth {
+        p.max_depth = v;
+    }
+    if let Some(v) = args.rays {
+        p.rays = v;
+    }
+    if let Some(v) = args.tolerance {
+        p.tolerance = v;
+    }
+    p.normalize = !args.no_normalize;
+    p.gauss_seidel = args.gauss_seidel;
+    p.seed = args.seed;
+    p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
+    Ok(p)
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    set_threads(args.threads)?;
+    let t_total = Instant::now();
+    let t = Instant::now();
+    let scene = Arc::new(load_scene(&args.scene, args.max_triangles)?);
+    let load_s = t.elapsed().as_secs_f64();
+    if !args.quiet {
+        for w in &scene.warnings {
+            eprintln!("radlab: warning: {}: {w}", args.scene);
+        }
+    }
+    let t = Instant::now();
+    let accel = Arc::new(Accel::build(&scene));
+    let bvh_s = t.elapsed().as_secs_f64();
+    let default_size = scene.bounds().diagonal() / 8.0;
+
+    let mut bar = LazyBar::new(&format!("{:?}", args.method).to_lowercase(), args.quiet);
+    let mut hier: Option<HierarchicalSolver> = None;
+    let (mut solution, params_json) = match args.method {
+        Method::Hierarchical => {
+            let p = hierarchical_params(&args)?;
+            let mut s = HierarchicalSolver::with_accel(Arc::clone(&scene), Arc::clone(&accel), p, bvh_s);
+            s.solve(&mut |d, n| bar.update(d, n));
+            let sol = s.solution();
+            hier = Some(s);
+            (sol, serde_json::to_value(p)?)
+        }
+        Method::Uniform => {
+            let mut p = UniformParams { seed: args.seed, element_size: default_size, ..UniformParams::default() };
+            if let Some(v) = args.element_size {
+                p.element_size = v;
+            }
+            if let Some(v) = args.rays {
+                p.rays = v;
+            }
+            if let Some(v) = args.tolerance {
+                p.tolerance = v;
+            }
+            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
+            let sol = uniform::solve(&scene, &accel, &p, &mut |d, n| bar.update(d, n))
+                .map_err(anyhow::Error::msg)
+                .with_context(|| format!("solving {}", args.scene))?;
+            (sol, serde_json::to_value(p)?)
+        }
+        Method::Progressive => {
+            let mut p = ProgressiveParams { seed: args.seed, element_size: default_size, ..ProgressiveParams::default() };
+            if let Some(v) = args.element_size {
+                p.element_size = v;
+            }
+            if let Some(v) = args.rays {
+                p.rays = v;
+            }
+            if let Some(v) = args.tolerance {
+                p.tolerance = v;
+            }
+            if let Some(v) = args.max_shots {
+                p.max_shots = v;
+            }
+            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
+            let sol = progressive::solve(&scene, &accel, &p, &mut |d, n| bar.update(d, n))
+                .map_err(anyhow::Error::msg)
+                .with_context(|| format!("solving {}", args.scene))?;
+            (sol, serde_json::to_value(p)?)
+        }
+    };
+    bar.finish();
+    solution.stats.time_s = PhaseTimes {
+        load: load_s,
+        bvh: bvh_s,
+        total: t_total.elapsed().as_secs_f64(),
+        ..solution.stats.time_s
+    };
+
+    if let Some(path) = &args.dump_hierarchy {
+        let Some(s) = &hier else { bail!("--dump-hierarchy needs --method hierarchical") };
+        let snap = s.snapshot();
+        let f = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        serde_json::to_writer(std::io::BufWriter::new(f), &json!({
+            "scene": args.scene,
+            "elements": snap.elements.iter().map(|e| json!({
+                "id": e.id, "patch": e.patch, "parent": e.parent, "children": e.children, "depth": e.depth,
+                "vertices": &e.vertices[..e.n_vertices as usize], "area": e.area, "radiosity": e.radiosity,
+                "error_estimate": e.error_estimate, "stop": e.stop,
+            })).collect::<Vec<_>>(),
+            "links": snap.links,
+        }))
+        .with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(path) = &args.png {
+        let cam = radlab::image::Camera::for_scene(&scene);
+        let img = radlab::image::radiosity_image(&scene, &accel, &solution.elements, &cam, args.width, args.height);
+        img.write_png(path).with_context(|| format!("writing {}", path.display()))?;
+    }
+    let doc = solution_json(&args.scene, &scene, &solution, params_json);
+    match args.json.as_deref() {
+        Some("-") => println!("{}", serde_json::to_string_pretty(&doc)?),
+        Some(path) => std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")
+            .with_context(|| format!("writing {path}"))?,
+        None => {}
+    }
+    if !args.quiet && args.json.as_deref() != Some("-") {
+        print_summary(&args.scene, &solution);
+    }
+    Ok(())
+}
+
+/// The stable JSON document of `radlab solve`.
+pub fn solution_json(spec: &str, scene: &radlab::scene::Scene, sol: &Solution, params: serde_json::Value) -> serde_json::Value {
+    let mut stats = json!({
+        "patches": sol.stats.patches,
+        "elements": sol.stats.elements,
+        "links": sol.stats.links,
+        "iterations": sol.stats.iterations,
+        "rays": sol.stats.rays,
+        "time_s": sol.stats.time_s,
+    });
+    if let (Some(extra), Some(obj)) = (&sol.stats.extra, stats.as_object_mut()) {
+        if let Some(e) = extra.as_object() {
+            for (k, v) in e {
+                obj.entry(k.clone()).or_insert_with(|| v.clone());
+            }
+        }
+    }
+    json!({
+        "scene": spec,
+        "method": sol.method,
+        "params": params,
+        "stats": stats,
+        "energy": {
+            "emitted": sol.energy.emitted,
+            "absorbed": sol.energy.absorbed,
+            "escaped": sol.energy.escaped,
+            "relative_residual": sol.energy.relative_residual(),
+        },
+        "patches": scene.patches.iter().enumerate().map(|(i, p)| json!({
+            "index": i,
+            "mesh": p.mesh,
+            "primitive": p.primitive,
+            "name": p.name,
+            "vertices": p.vertices,
+            "area": p.area,
+            "normal": p.normal,
+            "reflectance": p.reflectance,
+            "emission": p.emission,
+            "radiosity": sol.patch_radiosity[i],
+        })).collect::<Vec<_>>(),
+    })
+}
+
+fn print_summary(spec: &str, sol: &Solution) {
+    let s = &sol.stats;
+    let t = &s.time_s;
+    println!("{spec}: {} solution", sol.method);
+    println!(
+        "  patches {}  elements {}  links {}  iterations {}  rays {}",
+        s.patches, s.elements, s.links, s.iterations, s.rays
+    );
+    if let Some(x) = &s.extra {
+        let g = |k: &str| x.get(k).cloned().unwrap_or_default();
+        if x.get("links_full").is_some() {
+            println!(
+                "  links full/partial/none {}/{}/{}  links per element {:.2}  leaves {}  depth histogram {}",
+                g("links_full"),
+                g("links_partial"),
+                g("links_none"),
+                g("links_per_element").as_f64().unwrap_or(0.0),
+                g("leaves"),
+                g("depth_histogram"),
+            );
+            println!(
+                "  memory {:.1} MB ({} B/link, {} B/element)",
+                g("memory_bytes").as_f64().unwrap_or(0.0) / 1e6,
+                g("bytes_per_link"),
+                g("bytes_per_element"),
+            );
+        }
+    }
+    println!(
+        "  time: load {:.3}s  bvh {:.3}s  form factors/refine {:.3}s  solve {:.3}s  total {:.3}s",
+        t.load, t.bvh, t.form_factors, t.solve, t.total
+    );
+    let e = &sol.energy;
+    println!(
+        "  energy: emitted {:.4}  absorbed {:.4}  escaped {:.4}  residual {:.2e}",
+        e.emitted.mean(),
+        e.absorbed.mean(),
+        e.escaped.mean(),
+        e.relative_residual()
+    );
 }

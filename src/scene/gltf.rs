@@ -1,21 +1,1127 @@
-//! glTF 2.0 import (being written).
-use super::{Scene, SceneError};
-use std::path::Path;
+//! glTF 2.0 import and export of radiosity scenes.
+//!
+//! A glTF file [Khronos glTF 2.0 specification, §3.7 (meshes), §3.9 (materials)] becomes a list
+//! of planar convex patches:
+//!
+//! - **Geometry**: every `TRIANGLES` primitive of every mesh instance, with the node's world
+//!   transform applied (`M = M_root · … · M_node`, f64). A transform with det(M) < 0 mirrors the
+//!   geometry, so each triangle's winding is reversed to keep its front side where it was.
+//! - **Material**: `baseColorFactor.rgb` → ρ (linear RGB), `emissiveFactor ×
+//!   KHR_materials_emissive_strength` → E (radiant exitance, the unit of B). No material → ρ = 0.5,
+//!   E = 0. `doubleSided` → two back-to-back patches (the back one right after the front one).
+//!   ρ ∈ [`RHO_MAX`], 1] is clamped to `RHO_MAX` with a warning (the SPLASH-2 lamps have ρ = 1.0,
+//!   which would make an enclosure's system singular); ρ < 0, ρ > 1, or E < 0 / non-finite are
+//!   errors.
+//! - **Quads**: two triangles of one primitive that share an edge (same positions, opposite
+//!   directions) and form a planar, strictly convex quadrilateral are merged into one quad patch,
+//!   so a quadtree can subdivide imported quads.
+//!
+//! ## Patch numbering (used by the CLI and tests)
+//! Scene nodes depth-first in document order; each mesh's primitives in order; triangles in index
+//! order. A merged quad takes its first triangle's place; the partner is the earliest later
+//! triangle that qualifies. Zero-area triangles are dropped (and counted in a warning).
+//!
+//! ```text
+//!   tri i = (p0 p1 p2), shared edge p2→p0, tri j = (p0 p2 q)      p2 ──── q
+//!   quad  = (p0 p1 p2 q)   (starts at p0, keeps i's orientation)   │ i   ╱ │
+//!                                                                  │   ╱ j │
+//!                                                                  p1 ── p0
+//! ```
+//!
+//! ## Untrusted input
+//! Buffers are read by this module, not by the `gltf` crate: only `data:` URIs (base64) and
+//! relative file paths that stay inside the scene's folder are accepted
+//! ([`SceneError::UriOutsideScene`] otherwise, for image URIs too). GLB containers are parsed
+//! here as well. Every buffer, buffer view and accessor range is checked with overflow-safe
+//! arithmetic before any byte is read, and the triangle count is checked against
+//! [`LoadOptions::max_triangles`] before any geometry is read, so a hostile file can neither panic
+//! the loader nor make it allocate without bound.
+//!
+//! The writer ([`write_gltf`]) produces the inverse: one data-URI buffer, one mesh per run of
+//! patches with the same mesh name, one material per distinct (ρ, E), quads as two triangles
+//! `(0 1 2)(0 2 3)` that the loader merges back, and the scene camera as a camera node.
+
+use super::{PLANARITY_TOL, Patch, RHO_MAX, Scene, SceneError, Viewpoint, is_convex};
+use crate::math::{DVec3, Rgb};
+use base64::Engine as _;
+use glam::{DMat3, DMat4, DQuat, DVec4};
+use gltf::accessor::{DataType, Dimensions};
+use serde::Serialize;
+use std::collections::HashMap;
+use std::io::Read;
+use std::path::{Component, Path, PathBuf};
 
 /// Options for loading a glTF file.
 #[derive(Clone, Debug)]
 pub struct LoadOptions {
-    /// Refuse files with more triangles than this (default 5 M).
+    /// Refuse files with more triangles than this (counted over all mesh instances before any
+    /// geometry is read). Default 5 M.
     pub max_triangles: usize,
+    /// Refuse a .gltf/.glb file or an external buffer file larger than this many bytes.
+    /// Default 4 GiB.
+    pub max_file_bytes: u64,
 }
 
 impl Default for LoadOptions {
     fn default() -> Self {
-        LoadOptions { max_triangles: 5_000_000 }
+        LoadOptions { max_triangles: 5_000_000, max_file_bytes: 4 << 30 }
     }
 }
 
-/// Load a .gltf or .glb file.
-pub fn load(path: &Path, _opts: &LoadOptions) -> Result<Scene, SceneError> {
-    Err(SceneError::InvalidGltf { file: path.to_path_buf(), cause: "loader not written yet".into() })
+/// A triangle with area below this fraction of its longest edge squared is numerically
+/// collinear (f32 input carries ~1e-7 relative noise; its square bounds honest slivers far above).
+const DEGENERATE_REL_AREA: f64 = 1e-14;
+
+/// Two triangles merge into a quad only if every corner turns by more than this (relative
+/// to the quad's size squared): a quad with a ~straight corner is really a triangle.
+const MERGE_CONVEX_REL: f64 = 1e-9;
+
+/// Upper bound on node visits while walking the scene graph: a DAG of nodes that reuse each other
+/// can otherwise describe an exponential number of instances.
+const MAX_NODE_VISITS: usize = 1_000_000;
+
+/// Load a .gltf or .glb file. Relative buffer URIs are resolved in the file's folder.
+pub fn load(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> {
+    let io_err = |source| SceneError::Io { file: path.to_path_buf(), source };
+    let meta = std::fs::metadata(path).map_err(io_err)?;
+    if meta.len() > opts.max_file_bytes {
+        return Err(SceneError::InvalidGltf {
+            file: path.to_path_buf(),
+            cause: format!("file has {} bytes, more than the {} byte limit", meta.len(), opts.max_file_bytes),
+        });
+    }
+    let bytes = std::fs::read(path).map_err(io_err)?;
+    let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
+    let mut scene = load_slice(&bytes, base, path, opts)?;
+    scene.source = path.display().to_string();
+    Ok(scene)
+}
+
+/// Load glTF from memory. `base_dir` is the folder relative buffer URIs are resolved in (`None`:
+/// only `data:` URIs and the GLB binary chunk are available); `file_label` names the file in
+/// errors and gives the scene its name (file stem).
+pub fn load_slice(
+    bytes: &[u8],
+    base_dir: Option<&Path>,
+    file_label: &Path,
+    opts: &LoadOptions,
+) -> Result<Scene, SceneError> {
+    Loader { file: file_label.to_path_buf(), base_dir, opts, warnings: Vec::new() }.run(bytes)
+}
+
+struct Loader<'a> {
+    file: PathBuf,
+    base_dir: Option<&'a Path>,
+    opts: &'a LoadOptions,
+    warnings: Vec<String>,
+}
+
+/// One mesh instance found while walking the node graph.
+struct Instance {
+    mesh: usize,
+    world: DMat4,
+}
+
+/// A material as the solver sees it.
+#[derive(Clone)]
+struct Mat {
+    name: String,
+    rho: Rgb,
+    emission: Rgb,
+    double_sided: bool,
+}
+
+impl Loader<'_> {
+    fn invalid(&self, cause: impl Into<String>) -> SceneError {
+        SceneError::InvalidGltf { file: self.file.clone(), cause: cause.into() }
+    }
+
+    fn run(mut self, bytes: &[u8]) -> Result<Scene, SceneError> {
+        let (json, blob) = if bytes.starts_with(b"glTF") { self.split_glb(bytes)? } else { (bytes, None) };
+        let document = self.parse(json)?;
+        let doc = &document;
+
+        for image in doc.images() {
+            if let gltf::image::Source::Uri { uri, .. } = image.source() {
+                self.check_uri(uri)?;
+            }
+        }
+
+        // Walk the graph first: instances, camera, and the triangle count before reading geometry.
+        let (instances, camera_node) = self.walk(doc)?;
+        let meshes: Vec<gltf::Mesh> = doc.meshes().collect();
+        let mut triangles: usize = 0;
+        for inst in &instances {
+            let mesh = meshes.get(inst.mesh).ok_or_else(|| self.invalid("mesh index out of range"))?;
+            for prim in mesh.primitives() {
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    continue;
+                }
+                let n = match (prim.indices(), prim.get(&gltf::Semantic::Positions)) {
+                    (Some(ix), _) => ix.count() / 3,
+                    (None, Some(pos)) => pos.count() / 3,
+                    (None, None) => 0,
+                };
+                triangles = triangles.saturating_add(n);
+                if triangles > self.opts.max_triangles {
+                    return Err(SceneError::TooLarge {
+                        file: self.file.clone(),
+                        cap: self.opts.max_triangles,
+                    });
+                }
+            }
+        }
+
+        let buffers = self.read_buffers(doc, blob)?;
+        let materials = self.materials(doc)?;
+        let default_mat =
+            Mat { name: "default".into(), rho: Rgb::splat(0.5), emission: Rgb::ZERO, double_sided: false };
+
+        let mut patches = Vec::new();
+        let mut skipped_modes = 0usize;
+        let mut dropped = 0usize;
+        let mut missing_positions = 0usize;
+        for inst in &instances {
+            let mesh = meshes.get(inst.mesh).ok_or_else(|| self.invalid("mesh index out of range"))?;
+            let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+            for prim in mesh.primitives() {
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    skipped_modes += 1;
+                    continue;
+                }
+                let Some(pos_acc) = prim.get(&gltf::Semantic::Positions) else {
+                    missing_positions += 1;
+                    continue;
+                };
+                let mat = match prim.material().index() {
+                    Some(i) => &materials[i],
+                    None => &default_mat,
+                };
+                let positions = self.read_positions(&pos_acc, &buffers, &mesh_name, prim.index())?;
+                if prim.indices().is_some_and(|a| a.count() % 3 != 0) {
+                    self.warnings.push(format!(
+                        "mesh {mesh_name:?} primitive {}: index count is not a multiple of 3 (the rest is ignored)",
+                        prim.index()
+                    ));
+                }
+                let indices = match prim.indices() {
+                    Some(acc) => self.read_indices(&acc, &buffers, positions.len())?,
+                    None => (0..positions.len() as u32).collect(),
+                };
+                let (prim_patches, d) =
+                    self.primitive_patches(&positions, &indices, inst, mat, &mesh_name, prim.index())?;
+                dropped += d;
+                patches.extend(prim_patches);
+            }
+        }
+        if skipped_modes > 0 {
+            self.warnings.push(format!(
+                "{skipped_modes} primitive(s) with a non-triangle mode (points, lines, strips, fans) skipped"
+            ));
+        }
+        if missing_positions > 0 {
+            self.warnings.push(format!("{missing_positions} primitive(s) without POSITION skipped"));
+        }
+        if dropped > 0 {
+            self.warnings.push(format!("{dropped} zero-area triangle(s) dropped"));
+        }
+        if patches.is_empty() {
+            return Err(SceneError::Empty { file: self.file.clone() });
+        }
+
+        let name = self.file.file_stem().map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
+        let mut scene = Scene::new(name, self.file.display().to_string(), patches);
+        if let Some((node, world)) = camera_node {
+            scene.camera = self.viewpoint(doc, node, world, &scene);
+        }
+        let mut warnings = self.warnings;
+        warnings.append(&mut scene.warnings);
+        scene.warnings = warnings;
+        Ok(scene)
+    }
+
+    /// Parse and validate the JSON. Every index must be in range (the `gltf` crate's iterators
+    /// rely on it); the accessor `min`/`max` the spec requires for POSITION are not needed here
+    /// and many exporters omit them, so their absence is tolerated.
+    fn parse(&self, json: &[u8]) -> Result<gltf::Document, SceneError> {
+        use gltf::json::validation::{Error as VError, Validate};
+        let root: gltf::json::Root =
+            gltf::json::deserialize::from_slice(json).map_err(|e| self.invalid(e.to_string()))?;
+        // gltf-json's own validation indexes `accessors[POSITION]` unchecked (it panics on a
+        // dangling index), so attribute indices are checked first.
+        for (m, mesh) in root.meshes.iter().enumerate() {
+            for (p, prim) in mesh.primitives.iter().enumerate() {
+                if let Some(bad) = prim.attributes.values().find(|i| i.value() >= root.accessors.len()) {
+                    return Err(self.invalid(format!(
+                        "meshes[{m}].primitives[{p}].attributes: accessor {} does not exist",
+                        bad.value()
+                    )));
+                }
+            }
+        }
+        let mut errors = Vec::new();
+        root.validate(&root, gltf::json::Path::new, &mut |path, error| {
+            let path = path();
+            let min_max = path.as_str().ends_with(".min") || path.as_str().ends_with(".max");
+            if !(min_max && error == VError::Missing) {
+                errors.push(format!("{path}: {error}"));
+            }
+        });
+        if let Some(first) = errors.first() {
+            let more =
+                if errors.len() > 1 { format!(" (and {} more)", errors.len() - 1) } else { String::new() };
+            return Err(self.invalid(format!("{first}{more}")));
+        }
+        Ok(gltf::Document::from_json_without_validation(root))
+    }
+
+    /// Split a GLB container into its JSON chunk and optional BIN chunk [glTF 2.0 §4.4].
+    fn split_glb<'b>(&self, bytes: &'b [u8]) -> Result<(&'b [u8], Option<&'b [u8]>), SceneError> {
+        fn u32_at(bytes: &[u8], at: usize) -> Option<u32> {
+            bytes.get(at..at.checked_add(4)?).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        }
+        let truncated = |what: &str| self.invalid(format!("truncated GLB: {what}"));
+        let version = u32_at(bytes, 4).ok_or_else(|| truncated("header"))?;
+        if version != 2 {
+            return Err(self.invalid(format!("GLB version {version} (only 2 is supported)")));
+        }
+        let total = u32_at(bytes, 8).ok_or_else(|| truncated("header"))? as usize;
+        if total > bytes.len() {
+            return Err(truncated(&format!("header says {total} bytes, file has {}", bytes.len())));
+        }
+        if total < 12 {
+            return Err(self.invalid(format!("GLB header says {total} bytes, less than the header itself")));
+        }
+        let bytes = &bytes[..total];
+        let chunk = |at: usize| -> Result<Option<(&'b [u8], u32)>, SceneError> {
+            if at >= bytes.len() {
+                return Ok(None);
+            }
+            let len = u32_at(bytes, at).ok_or_else(|| truncated("chunk header"))? as usize;
+            let ty = u32_at(bytes, at + 4).ok_or_else(|| truncated("chunk header"))?;
+            let data = at
+                .checked_add(8)
+                .and_then(|s| s.checked_add(len).map(|e| (s, e)))
+                .and_then(|(s, e)| bytes.get(s..e))
+                .ok_or_else(|| truncated(&format!("chunk at byte {at} claims {len} bytes")))?;
+            Ok(Some((data, ty)))
+        };
+        const JSON: u32 = 0x4E4F_534A;
+        const BIN: u32 = 0x004E_4942;
+        let (json, ty) = chunk(12)?.ok_or_else(|| truncated("no JSON chunk"))?;
+        if ty != JSON {
+            return Err(self.invalid("GLB's first chunk is not JSON"));
+        }
+        let next = 12 + 8 + json.len().next_multiple_of(4);
+        let bin = match chunk(next)? {
+            Some((data, BIN)) => Some(data),
+            _ => None,
+        };
+        Ok((json, bin))
+    }
+
+    /// Resolve a URI to a file inside the scene's folder, or reject it.
+    fn check_uri(&self, uri: &str) -> Result<Option<PathBuf>, SceneError> {
+        let reject = || SceneError::UriOutsideScene { file: self.file.clone(), uri: uri.to_string() };
+        if uri.starts_with("data:") {
+            return Ok(None);
+        }
+        let decoded = percent_decode(uri).ok_or_else(reject)?;
+        // A scheme (`http:`, `file:`, a drive letter `C:`) appears before the first separator.
+        let first_sep = decoded.find(['/', '\\']).unwrap_or(decoded.len());
+        if decoded[..first_sep].contains(':') || decoded.contains('\0') {
+            return Err(reject());
+        }
+        let rel = Path::new(&decoded);
+        let mut depth = 0usize;
+        for comp in decoded.split(['/', '\\']) {
+            match comp {
+                "" if depth == 0 && decoded.starts_with(['/', '\\']) => return Err(reject()),
+                "" | "." => {}
+                ".." => depth = depth.checked_sub(1).ok_or_else(reject)?,
+                _ => depth += 1,
+            }
+        }
+        if rel.is_absolute()
+            || rel.components().any(|c| matches!(c, Component::Prefix(_) | Component::RootDir))
+        {
+            return Err(reject());
+        }
+        Ok(Some(PathBuf::from(decoded.replace('\\', "/"))))
+    }
+
+    /// Read every buffer: data URIs, relative files, or the GLB binary chunk.
+    fn read_buffers(&self, doc: &gltf::Document, blob: Option<&[u8]>) -> Result<Vec<Vec<u8>>, SceneError> {
+        let mut out = Vec::new();
+        for buf in doc.buffers() {
+            let index = buf.index();
+            let err = |cause: String| SceneError::Buffer { file: self.file.clone(), index, cause };
+            let want = buf.length();
+            let data = match buf.source() {
+                gltf::buffer::Source::Bin => {
+                    blob.ok_or_else(|| err("no GLB binary chunk and no uri".into()))?.to_vec()
+                }
+                gltf::buffer::Source::Uri(uri) => match self.check_uri(uri)? {
+                    None => decode_data_uri(uri).map_err(err)?,
+                    Some(rel) => self.read_relative(&rel, uri, want).map_err(err)?,
+                },
+            };
+            if data.len() < want {
+                return Err(err(format!("has {} bytes, byteLength says {want}", data.len())));
+            }
+            out.push(data);
+        }
+        Ok(out)
+    }
+
+    fn read_relative(&self, rel: &Path, uri: &str, want: usize) -> Result<Vec<u8>, String> {
+        let base = self.base_dir.ok_or_else(|| format!("{uri:?}: no folder to resolve a relative URI in"))?;
+        let path = base.join(rel);
+        // Symbolic links must not lead out of the scene's folder either.
+        let canon_base = base.canonicalize().map_err(|e| format!("{}: {e}", base.display()))?;
+        let canon = path.canonicalize().map_err(|e| format!("{}: {e}", path.display()))?;
+        if !canon.starts_with(&canon_base) {
+            return Err(format!("{uri:?} resolves outside the scene's folder"));
+        }
+        let file = std::fs::File::open(&canon).map_err(|e| format!("{}: {e}", path.display()))?;
+        let len = file.metadata().map_err(|e| format!("{}: {e}", path.display()))?.len();
+        if len > self.opts.max_file_bytes {
+            return Err(format!(
+                "{} has {len} bytes, more than the {} byte limit",
+                path.display(),
+                self.opts.max_file_bytes
+            ));
+        }
+        // Read at most byteLength bytes: the allocation is bounded by the real file size.
+        let mut data = Vec::with_capacity((len as usize).min(want));
+        file.take(want as u64).read_to_end(&mut data).map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(data)
+    }
+
+    fn materials(&mut self, doc: &gltf::Document) -> Result<Vec<Mat>, SceneError> {
+        let mut out = Vec::new();
+        for m in doc.materials() {
+            let index = m.index().unwrap_or(0);
+            let name = m.name().map_or_else(|| format!("material{index}"), str::to_string);
+            let pbr = m.pbr_metallic_roughness();
+            let base = pbr.base_color_factor();
+            let mut rho = Rgb::new(f64::from(base[0]), f64::from(base[1]), f64::from(base[2]));
+            for c in rho.0 {
+                if !(0.0..=1.0).contains(&c) {
+                    return Err(SceneError::ReflectanceOutOfRange {
+                        file: self.file.clone(),
+                        material: name,
+                        value: c,
+                    });
+                }
+            }
+            if rho.max_channel() > RHO_MAX {
+                self.warnings.push(format!(
+                    "material {name:?}: reflectance {:?} clamped to {RHO_MAX} (ρ = 1 absorbs nothing: the system would be singular)",
+                    rho.0
+                ));
+                rho = rho.map(|c| c.min(RHO_MAX));
+            }
+            if pbr.base_color_texture().is_some() {
+                self.warnings.push(format!("material {name:?}: base colour texture ignored (factor used)"));
+            }
+            let strength = f64::from(m.emissive_strength().unwrap_or(1.0));
+            let ef = m.emissive_factor();
+            let emission = Rgb::new(f64::from(ef[0]), f64::from(ef[1]), f64::from(ef[2])) * strength;
+            for c in emission.0 {
+                if !(c >= 0.0 && c.is_finite()) {
+                    return Err(SceneError::BadEmission {
+                        file: self.file.clone(),
+                        material: name,
+                        value: c,
+                    });
+                }
+            }
+            out.push(Mat { name, rho, emission, double_sided: m.double_sided() });
+        }
+        Ok(out)
+    }
+
+    /// Depth-first walk of the default scene (or, without scenes, of every root node), in document
+    /// order. Returns the mesh instances and the first perspective camera node.
+    #[allow(clippy::type_complexity)]
+    fn walk(&self, doc: &gltf::Document) -> Result<(Vec<Instance>, Option<(usize, DMat4)>), SceneError> {
+        let roots: Vec<usize> = if let Some(s) = doc.default_scene().or_else(|| doc.scenes().next()) {
+            s.nodes().map(|n| n.index()).collect()
+        } else {
+            let mut is_child = vec![false; doc.nodes().len()];
+            for n in doc.nodes() {
+                for c in n.children() {
+                    is_child[c.index()] = true;
+                }
+            }
+            (0..is_child.len()).filter(|&i| !is_child[i]).collect()
+        };
+        let nodes: Vec<gltf::Node> = doc.nodes().collect();
+        let mut instances = Vec::new();
+        let mut camera = None;
+        let mut visits = 0usize;
+        let mut on_path = vec![false; nodes.len()];
+        // Explicit stack: (node, parent world matrix, leaving?) so deep graphs cannot overflow.
+        let mut stack: Vec<(usize, DMat4, bool)> =
+            roots.iter().rev().map(|&r| (r, DMat4::IDENTITY, false)).collect();
+        while let Some((i, parent, leaving)) = stack.pop() {
+            if leaving {
+                on_path[i] = false;
+                continue;
+            }
+            let node = nodes.get(i).ok_or_else(|| self.invalid(format!("node {i} does not exist")))?;
+            if on_path[i] {
+                return Err(self.invalid(format!("node {i} is its own ancestor (cycle in the node graph)")));
+            }
+            visits += 1;
+            if visits > MAX_NODE_VISITS {
+                return Err(self.invalid(format!("more than {MAX_NODE_VISITS} node instances")));
+            }
+            let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
+            if !local.is_finite() {
+                return Err(self.invalid(format!("node {i}: non-finite transform")));
+            }
+            let world = parent * local;
+            if let Some(m) = node.mesh() {
+                instances.push(Instance { mesh: m.index(), world });
+            }
+            if camera.is_none() && node.camera().is_some() {
+                camera = Some((i, world));
+            }
+            on_path[i] = true;
+            stack.push((i, parent, true));
+            let children: Vec<usize> = node.children().map(|c| c.index()).collect();
+            for &c in children.iter().rev() {
+                stack.push((c, world, false));
+            }
+        }
+        Ok((instances, camera))
+    }
+
+    /// Check an accessor's range against its view and buffer; return (bytes, offset, stride).
+    fn accessor_bytes<'b>(
+        &self,
+        acc: &gltf::Accessor,
+        buffers: &'b [Vec<u8>],
+        elem: usize,
+    ) -> Result<(&'b [u8], usize), SceneError> {
+        let ai = acc.index();
+        if acc.sparse().is_some() {
+            return Err(self.invalid(format!("accessor {ai}: sparse accessors are not supported")));
+        }
+        let view = acc.view().ok_or_else(|| self.invalid(format!("accessor {ai} has no bufferView")))?;
+        let buf = buffers
+            .get(view.buffer().index())
+            .ok_or_else(|| self.invalid(format!("accessor {ai}: bad buffer")))?;
+        let declared = view.buffer().length();
+        let view_end = view.offset().checked_add(view.length());
+        let Some(view_end) = view_end.filter(|&e| e <= declared && e <= buf.len()) else {
+            return Err(SceneError::Buffer {
+                file: self.file.clone(),
+                index: view.buffer().index(),
+                cause: format!(
+                    "bufferView {} (offset {}, length {}) runs past the buffer's {} bytes",
+                    view.index(),
+                    view.offset(),
+                    view.length(),
+                    buf.len().min(declared)
+                ),
+            });
+        };
+        let view_bytes = &buf[view.offset()..view_end];
+        let stride = view.stride().unwrap_or(elem);
+        if stride < elem {
+            return Err(
+                self.invalid(format!("bufferView {}: stride {stride} < element size {elem}", view.index()))
+            );
+        }
+        let count = acc.count();
+        let end = count
+            .checked_sub(1)
+            .and_then(|n| n.checked_mul(stride))
+            .and_then(|x| x.checked_add(acc.offset()))
+            .and_then(|x| x.checked_add(elem));
+        match end {
+            Some(end) if end <= view_bytes.len() => Ok((&view_bytes[acc.offset()..end], stride)),
+            _ if count == 0 => Ok((&view_bytes[..0], stride)),
+            _ => Err(SceneError::Buffer {
+                file: self.file.clone(),
+                index: view.buffer().index(),
+                cause: format!(
+                    "accessor {ai} ({count} elements, stride {stride}, offset {}) runs past bufferView {}'s {} bytes",
+                    acc.offset(),
+                    view.index(),
+                    view_bytes.len()
+                ),
+            }),
+        }
+    }
+
+    fn read_positions(
+        &self,
+        acc: &gltf::Accessor,
+        buffers: &[Vec<u8>],
+        mesh: &str,
+        primitive: usize,
+    ) -> Result<Vec<[f32; 3]>, SceneError> {
+        if acc.data_type() != DataType::F32 || acc.dimensions() != Dimensions::Vec3 {
+            return Err(self.invalid(format!("accessor {}: POSITION must be float VEC3", acc.index())));
+        }
+        let (bytes, stride) = self.accessor_bytes(acc, buffers, 12)?;
+        let f = |b: &[u8], k: usize| f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]]);
+        let mut out = Vec::with_capacity(acc.count());
+        for i in 0..acc.count() {
+            let e = &bytes[i * stride..i * stride + 12];
+            let p = [f(e, 0), f(e, 1), f(e, 2)];
+            if !p.iter().all(|c| c.is_finite()) {
+                return Err(SceneError::NonFinitePosition {
+                    file: self.file.clone(),
+                    mesh: mesh.into(),
+                    primitive,
+                });
+            }
+            out.push(p);
+        }
+        Ok(out)
+    }
+
+    fn read_indices(
+        &self,
+        acc: &gltf::Accessor,
+        buffers: &[Vec<u8>],
+        n_vertices: usize,
+    ) -> Result<Vec<u32>, SceneError> {
+        let size = match acc.data_type() {
+            DataType::U8 => 1,
+            DataType::U16 => 2,
+            DataType::U32 => 4,
+            t => return Err(self.invalid(format!("accessor {}: index type {t:?}", acc.index()))),
+        };
+        if acc.dimensions() != Dimensions::Scalar {
+            return Err(self.invalid(format!("accessor {}: indices must be SCALAR", acc.index())));
+        }
+        let (bytes, stride) = self.accessor_bytes(acc, buffers, size)?;
+        let mut out = Vec::with_capacity(acc.count());
+        for i in 0..acc.count() {
+            let e = &bytes[i * stride..i * stride + size];
+            let v = match size {
+                1 => u32::from(e[0]),
+                2 => u32::from(u16::from_le_bytes([e[0], e[1]])),
+                _ => u32::from_le_bytes([e[0], e[1], e[2], e[3]]),
+            };
+            if v as usize >= n_vertices {
+                return Err(
+                    self.invalid(format!("accessor {}: index {v} ≥ vertex count {n_vertices}", acc.index()))
+                );
+            }
+            out.push(v);
+        }
+        Ok(out)
+    }
+
+    /// Triangles of one primitive instance → patches (merged quads, double-sided copies).
+    /// Returns the patches and the number of zero-area triangles dropped.
+    fn primitive_patches(
+        &self,
+        positions: &[[f32; 3]],
+        indices: &[u32],
+        inst: &Instance,
+        mat: &Mat,
+        mesh: &str,
+        primitive: usize,
+    ) -> Result<(Vec<Patch>, usize), SceneError> {
+        let flip = DMat3::from_mat4(inst.world).determinant() < 0.0;
+        // Canonical vertex ids by exact position, so unindexed duplicates still share edges.
+        let mut canon: HashMap<[u32; 3], u32> = HashMap::new();
+        let ids: Vec<u32> = positions
+            .iter()
+            .map(|p| {
+                let next = canon.len() as u32;
+                *canon.entry(p.map(f32::to_bits)).or_insert(next)
+            })
+            .collect();
+        let world: Vec<DVec3> = positions
+            .iter()
+            .map(|p| {
+                inst.world.transform_point3(DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
+            })
+            .collect();
+        if world.iter().any(|v| !v.is_finite()) {
+            return Err(SceneError::NonFinitePosition {
+                file: self.file.clone(),
+                mesh: mesh.into(),
+                primitive,
+            });
+        }
+
+        // Valid triangles: (index-order number, vertex indices in front-facing order).
+        let mut tris: Vec<(usize, [u32; 3])> = Vec::new();
+        let mut dropped = 0;
+        for (t, c) in indices.chunks_exact(3).enumerate() {
+            let v = if flip { [c[0], c[2], c[1]] } else { [c[0], c[1], c[2]] };
+            let [a, b, cc] = v.map(|i| world[i as usize]);
+            let longest =
+                (b - a).length_squared().max((cc - b).length_squared()).max((a - cc).length_squared());
+            let area2 = (b - a).cross(cc - a).length();
+            let has_area = area2 > DEGENERATE_REL_AREA * longest; // false for NaN too
+            if !has_area {
+                dropped += 1;
+                continue;
+            }
+            tris.push((t, v));
+        }
+        // Directed edges (canonical ids) → triangles having them, in order.
+        let mut edges: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+        for (k, (_, v)) in tris.iter().enumerate() {
+            for e in 0..3 {
+                edges.entry((ids[v[e] as usize], ids[v[(e + 1) % 3] as usize])).or_default().push(k);
+            }
+        }
+        let mut used = vec![false; tris.len()];
+        let mut out = Vec::new();
+        for k in 0..tris.len() {
+            if used[k] {
+                continue;
+            }
+            used[k] = true;
+            let (t, v) = tris[k];
+            let p = v.map(|i| world[i as usize]);
+            let mut best: Option<(usize, Vec<DVec3>)> = None;
+            for e in 0..3 {
+                let key = (ids[v[(e + 1) % 3] as usize], ids[v[e] as usize]);
+                for &j in edges.get(&key).map_or(&[][..], Vec::as_slice) {
+                    if j <= k || used[j] || best.as_ref().is_some_and(|(b, _)| *b <= j) {
+                        continue;
+                    }
+                    let w = tris[j].1;
+                    let shared = [ids[v[e] as usize], ids[v[(e + 1) % 3] as usize]];
+                    let Some(q) = w.iter().find(|&&i| !shared.contains(&ids[i as usize])) else { continue };
+                    let q = world[*q as usize];
+                    let quad = match e {
+                        0 => vec![p[0], q, p[1], p[2]],
+                        1 => vec![p[0], p[1], q, p[2]],
+                        _ => vec![p[0], p[1], p[2], q],
+                    };
+                    if mergeable(&quad) {
+                        best = Some((j, quad));
+                    }
+                }
+            }
+            let verts = match best {
+                Some((j, quad)) => {
+                    used[j] = true;
+                    quad
+                }
+                None => p.to_vec(),
+            };
+            let name = format!("{mesh}/{primitive}/{t}");
+            let mut push = |verts: Vec<DVec3>, name: String| -> Result<(), SceneError> {
+                let index = out.len();
+                let patch = Patch::new(verts, mat.rho, mat.emission, mesh, primitive, name, mat.name.clone())
+                    .map_err(|cause| SceneError::BadPatch { file: self.file.clone(), index, cause })?;
+                out.push(patch);
+                Ok(())
+            };
+            if mat.double_sided {
+                let back: Vec<DVec3> = verts.iter().rev().copied().collect();
+                push(verts, name.clone())?;
+                push(back, format!("{name}/back"))?;
+            } else {
+                push(verts, name)?;
+            }
+        }
+        Ok((out, dropped))
+    }
+
+    /// The camera node's placement: eye = node origin, looking down its −z, up = its +y
+    /// [glTF 2.0 §3.10]. glTF has no target; it is put at the distance of the scene's centre.
+    fn viewpoint(
+        &mut self,
+        doc: &gltf::Document,
+        node: usize,
+        world: DMat4,
+        scene: &Scene,
+    ) -> Option<Viewpoint> {
+        let cam = doc.nodes().nth(node)?.camera()?;
+        let gltf::camera::Projection::Perspective(p) = cam.projection() else {
+            self.warnings.push("orthographic camera ignored (a default view is used)".into());
+            return None;
+        };
+        let eye = world.transform_point3(DVec3::ZERO);
+        let forward = world.transform_vector3(-DVec3::Z).normalize_or_zero();
+        let up = world.transform_vector3(DVec3::Y).normalize_or_zero();
+        let fov = f64::from(p.yfov()).to_degrees();
+        if forward == DVec3::ZERO || up == DVec3::ZERO || !(fov > 0.0 && fov < 180.0) {
+            self.warnings.push("degenerate camera ignored (a default view is used)".into());
+            return None;
+        }
+        let b = scene.bounds();
+        let dist = (b.center() - eye).length();
+        let dist = if dist > 0.0 { dist } else { 0.5 * b.diagonal().max(1.0) };
+        Some(Viewpoint { eye, target: eye + forward * dist, up, fov_y_deg: fov })
+    }
+}
+
+/// Is this quad (from two triangles) planar and strictly convex, as `Scene::validate` requires?
+fn mergeable(quad: &[DVec3]) -> bool {
+    let Ok(p) = Patch::new(quad.to_vec(), Rgb::ZERO, Rgb::ZERO, "", 0, "", "") else { return false };
+    let diam = p.diameter();
+    if quad.iter().any(|v| (p.normal.dot(*v) - p.plane_d()).abs() > PLANARITY_TOL * diam) {
+        return false;
+    }
+    if !is_convex(quad, p.normal) {
+        return false;
+    }
+    (0..4).all(|i| {
+        let (a, b, c) = (quad[i], quad[(i + 1) % 4], quad[(i + 2) % 4]);
+        (b - a).cross(c - b).dot(p.normal) > MERGE_CONVEX_REL * diam * diam
+    })
+}
+
+/// Decode `%XX` escapes; `None` on a malformed escape or invalid UTF-8.
+fn percent_decode(s: &str) -> Option<String> {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' {
+            let hex = std::str::from_utf8(b.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(b[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
+}
+
+/// Decode `data:[<mime>];base64,<payload>`.
+fn decode_data_uri(uri: &str) -> Result<Vec<u8>, String> {
+    let rest = &uri["data:".len()..];
+    let (header, payload) = rest.split_once(',').ok_or("data: URI without a comma")?;
+    if !header.ends_with(";base64") {
+        return Err("data: URI is not base64".into());
+    }
+    base64::engine::general_purpose::STANDARD
+        .decode(payload.trim())
+        .map_err(|e| format!("bad base64 in data: URI: {e}"))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writer
+// ---------------------------------------------------------------------------------------------
+
+#[derive(Serialize)]
+struct OutRoot {
+    asset: OutAsset,
+    #[serde(rename = "extensionsUsed", skip_serializing_if = "Vec::is_empty")]
+    extensions_used: Vec<&'static str>,
+    scene: usize,
+    scenes: Vec<OutScene>,
+    nodes: Vec<OutNode>,
+    meshes: Vec<OutMesh>,
+    materials: Vec<OutMaterial>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    cameras: Vec<OutCamera>,
+    accessors: Vec<OutAccessor>,
+    #[serde(rename = "bufferViews")]
+    buffer_views: Vec<OutView>,
+    buffers: Vec<OutBuffer>,
+}
+#[derive(Serialize)]
+struct OutAsset {
+    version: &'static str,
+    generator: &'static str,
+}
+#[derive(Serialize)]
+struct OutScene {
+    nodes: Vec<usize>,
+}
+#[derive(Serialize)]
+struct OutNode {
+    name: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mesh: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    camera: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    translation: Option<[f32; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rotation: Option<[f32; 4]>,
+}
+#[derive(Serialize)]
+struct OutMesh {
+    name: String,
+    primitives: Vec<OutPrimitive>,
+}
+#[derive(Serialize)]
+struct OutPrimitive {
+    attributes: OutAttributes,
+    indices: usize,
+    material: usize,
+    mode: u32,
+}
+#[derive(Serialize)]
+struct OutAttributes {
+    #[serde(rename = "POSITION")]
+    position: usize,
+}
+#[derive(Serialize)]
+struct OutMaterial {
+    name: String,
+    #[serde(rename = "pbrMetallicRoughness")]
+    pbr: OutPbr,
+    #[serde(rename = "emissiveFactor")]
+    emissive_factor: [f32; 3],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    extensions: Option<OutMatExt>,
+}
+#[derive(Serialize)]
+struct OutPbr {
+    #[serde(rename = "baseColorFactor")]
+    base_color_factor: [f32; 4],
+    #[serde(rename = "metallicFactor")]
+    metallic_factor: f32,
+    #[serde(rename = "roughnessFactor")]
+    roughness_factor: f32,
+}
+#[derive(Serialize)]
+struct OutMatExt {
+    #[serde(rename = "KHR_materials_emissive_strength")]
+    strength: OutStrength,
+}
+#[derive(Serialize)]
+struct OutStrength {
+    #[serde(rename = "emissiveStrength")]
+    emissive_strength: f32,
+}
+#[derive(Serialize)]
+struct OutCamera {
+    #[serde(rename = "type")]
+    kind: &'static str,
+    perspective: OutPerspective,
+}
+#[derive(Serialize)]
+struct OutPerspective {
+    yfov: f32,
+    znear: f32,
+}
+#[derive(Serialize)]
+struct OutAccessor {
+    #[serde(rename = "bufferView")]
+    buffer_view: usize,
+    #[serde(rename = "componentType")]
+    component_type: u32,
+    count: usize,
+    #[serde(rename = "type")]
+    kind: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    min: Option<[f32; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    max: Option<[f32; 3]>,
+}
+#[derive(Serialize)]
+struct OutView {
+    buffer: usize,
+    #[serde(rename = "byteOffset")]
+    byte_offset: usize,
+    #[serde(rename = "byteLength")]
+    byte_length: usize,
+    target: u32,
+}
+#[derive(Serialize)]
+struct OutBuffer {
+    #[serde(rename = "byteLength")]
+    byte_length: usize,
+    uri: String,
+}
+
+const GL_FLOAT: u32 = 5126;
+const GL_UNSIGNED_INT: u32 = 5125;
+const GL_ARRAY_BUFFER: u32 = 34962;
+const GL_ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const GL_TRIANGLES: u32 = 4;
+
+/// The glTF JSON text for a scene (see [`write_gltf`]); deterministic.
+pub fn gltf_string(scene: &Scene) -> Result<String, SceneError> {
+    let bad = |cause: String| SceneError::InvalidGltf { file: PathBuf::from(&scene.source), cause };
+    let mut root = OutRoot {
+        asset: OutAsset { version: "2.0", generator: "radlab" },
+        extensions_used: Vec::new(),
+        scene: 0,
+        scenes: vec![OutScene { nodes: Vec::new() }],
+        nodes: Vec::new(),
+        meshes: Vec::new(),
+        materials: Vec::new(),
+        cameras: Vec::new(),
+        accessors: Vec::new(),
+        buffer_views: Vec::new(),
+        buffers: Vec::new(),
+    };
+    let mut bin: Vec<u8> = Vec::new();
+    let mut mat_of: Vec<([u64; 3], [u64; 3])> = Vec::new();
+
+    let mut i = 0;
+    while i < scene.patches.len() {
+        // A run of patches with one mesh name → one mesh; sub-runs of (primitive, material) → primitives.
+        let mesh_name = &scene.patches[i].mesh;
+        let mut mesh = OutMesh { name: mesh_name.clone(), primitives: Vec::new() };
+        while i < scene.patches.len() && &scene.patches[i].mesh == mesh_name {
+            let first = &scene.patches[i];
+            let key = (first.reflectance.0.map(f64::to_bits), first.emission.0.map(f64::to_bits));
+            let material = match mat_of.iter().position(|k| *k == key) {
+                Some(m) => m,
+                None => {
+                    if !first.reflectance.is_finite() || !first.emission.is_finite() {
+                        return Err(bad(format!("patch {i}: non-finite material")));
+                    }
+                    let e = first.emission;
+                    let strength = e.max_channel().max(1.0);
+                    let ext = (strength > 1.0).then_some(OutMatExt {
+                        strength: OutStrength { emissive_strength: strength as f32 },
+                    });
+                    if ext.is_some() && root.extensions_used.is_empty() {
+                        root.extensions_used.push("KHR_materials_emissive_strength");
+                    }
+                    let r = first.reflectance;
+                    root.materials.push(OutMaterial {
+                        name: first.material.clone(),
+                        pbr: OutPbr {
+                            base_color_factor: [r.0[0] as f32, r.0[1] as f32, r.0[2] as f32, 1.0],
+                            metallic_factor: 0.0,
+                            roughness_factor: 1.0,
+                        },
+                        emissive_factor: (e / strength).0.map(|c| c as f32),
+                        extensions: ext,
+                    });
+                    mat_of.push(key);
+                    mat_of.len() - 1
+                }
+            };
+            let mut positions: Vec<[f32; 3]> = Vec::new();
+            let mut indices: Vec<u32> = Vec::new();
+            let prim = first.primitive;
+            while i < scene.patches.len() {
+                let p = &scene.patches[i];
+                let k = (p.reflectance.0.map(f64::to_bits), p.emission.0.map(f64::to_bits));
+                if &p.mesh != mesh_name || p.primitive != prim || k != key {
+                    break;
+                }
+                let base = positions.len() as u32;
+                positions.extend(p.vertices.iter().map(|v| v.to_array().map(|c| c as f32)));
+                indices.extend([base, base + 1, base + 2]);
+                if p.vertices.len() == 4 {
+                    indices.extend([base, base + 2, base + 3]);
+                }
+                i += 1;
+            }
+            let mut mn = [f32::INFINITY; 3];
+            let mut mx = [f32::NEG_INFINITY; 3];
+            for p in &positions {
+                for c in 0..3 {
+                    mn[c] = mn[c].min(p[c]);
+                    mx[c] = mx[c].max(p[c]);
+                }
+            }
+            let pos_view = push_view(
+                &mut root,
+                &mut bin,
+                positions.iter().flatten().flat_map(|f| f.to_le_bytes()),
+                GL_ARRAY_BUFFER,
+            );
+            root.accessors.push(OutAccessor {
+                buffer_view: pos_view,
+                component_type: GL_FLOAT,
+                count: positions.len(),
+                kind: "VEC3",
+                min: Some(mn),
+                max: Some(mx),
+            });
+            let idx_view = push_view(
+                &mut root,
+                &mut bin,
+                indices.iter().flat_map(|i| i.to_le_bytes()),
+                GL_ELEMENT_ARRAY_BUFFER,
+            );
+            root.accessors.push(OutAccessor {
+                buffer_view: idx_view,
+                component_type: GL_UNSIGNED_INT,
+                count: indices.len(),
+                kind: "SCALAR",
+                min: None,
+                max: None,
+            });
+            mesh.primitives.push(OutPrimitive {
+                attributes: OutAttributes { position: root.accessors.len() - 2 },
+                indices: root.accessors.len() - 1,
+                material,
+                mode: GL_TRIANGLES,
+            });
+        }
+        root.scenes[0].nodes.push(root.nodes.len());
+        root.nodes.push(OutNode {
+            name: mesh.name.clone(),
+            mesh: Some(root.meshes.len()),
+            camera: None,
+            translation: None,
+            rotation: None,
+        });
+        root.meshes.push(mesh);
+    }
+
+    if let Some(cam) = scene.camera {
+        let forward = (cam.target - cam.eye).normalize_or_zero();
+        let right = forward.cross(cam.up).normalize_or_zero();
+        if right == DVec3::ZERO {
+            return Err(bad("camera: up is parallel to the view direction".into()));
+        }
+        let up = right.cross(forward);
+        let rot = DQuat::from_mat3(&DMat3::from_cols(right, up, -forward)).normalize();
+        let diag = scene.bounds().diagonal();
+        root.scenes[0].nodes.push(root.nodes.len());
+        root.nodes.push(OutNode {
+            name: "camera".into(),
+            mesh: None,
+            camera: Some(0),
+            translation: Some(cam.eye.to_array().map(|c| c as f32)),
+            rotation: Some(DVec4::from(rot).to_array().map(|c| c as f32)),
+        });
+        root.cameras.push(OutCamera {
+            kind: "perspective",
+            perspective: OutPerspective {
+                yfov: cam.fov_y_deg.to_radians() as f32,
+                znear: (1e-3 * diag) as f32,
+            },
+        });
+    }
+
+    root.buffers.push(OutBuffer {
+        byte_length: bin.len(),
+        uri: format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&bin)
+        ),
+    });
+    let mut s = serde_json::to_string_pretty(&root).map_err(|e| bad(e.to_string()))?;
+    s.push('\n');
+    Ok(s)
+}
+
+fn push_view(root: &mut OutRoot, bin: &mut Vec<u8>, bytes: impl Iterator<Item = u8>, target: u32) -> usize {
+    let start = bin.len();
+    bin.extend(bytes);
+    root.buffer_views.push(OutView { buffer: 0, byte_offset: start, byte_length: bin.len() - start, target });
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    root.buffer_views.len() - 1
+}
+
+/// Write a scene as a self-contained .gltf (one data-URI buffer). Loading the file gives back the
+/// same patches in the same order (f32 precision), quads included.
+pub fn write_gltf(scene: &Scene, path: &Path) -> Result<(), SceneError> {
+    let text = gltf_string(scene)?;
+    std::fs::write(path, text).map_err(|source| SceneError::Io { file: path.to_path_buf(), source })
 }

@@ -66,6 +66,10 @@ pub struct HierarchicalParams {
     pub max_rounds: u32,
     /// Gauss–Seidel (use new radiosities as soon as a patch is gathered) instead of Jacobi.
     pub gauss_seidel: bool,
+    /// Scale each leaf's gathered irradiance so its total form factor equals the exact point
+    /// value at the leaf (see `solver::hierarchical`): exact white furnace, first-order
+    /// correction of piecewise-constant link form factors, at some cost in energy balance.
+    pub normalize: bool,
     /// Seed of the visibility jitter.
     pub seed: u64,
 }
@@ -85,6 +89,7 @@ impl HierarchicalParams {
             max_iterations: 100,
             max_rounds: 8,
             gauss_seidel: false,
+            normalize: true,
             seed: 0,
         }
     }
@@ -103,6 +108,7 @@ impl HierarchicalParams {
             max_iterations: 200,
             max_rounds: 12,
             gauss_seidel: false,
+            normalize: true,
             seed: 0,
         }
     }
@@ -121,6 +127,7 @@ impl HierarchicalParams {
             max_iterations: 200,
             max_rounds: 1,
             gauss_seidel: false,
+            normalize: true,
             seed: 0,
         }
     }
@@ -140,6 +147,7 @@ impl HierarchicalParams {
             max_iterations: 100,
             max_rounds: 16,
             gauss_seidel: false,
+            normalize: true,
             seed: 0,
         }
     }
