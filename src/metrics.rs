@@ -50,6 +50,10 @@ pub struct Norms {
     pub linf: f64,
     /// √(Σ a σ²) / denominator: the L2 error a perfect solver would show against this reference.
     pub reference_noise: f64,
+    /// The smallest L2 error this comparison resolves: 2 × the standard deviation of the
+    /// debiased squared error, ≈ 2 · noise · (2/N)^¼ for N regions of similar area and noise
+    /// (the debiased Σ a(ΔB² − σ²) still fluctuates by ≈ noise² √(2/N)). Below it, read "< resolution".
+    pub resolution: f64,
     /// Area these norms cover.
     pub area: f64,
 }
@@ -106,7 +110,7 @@ impl Sums {
     fn rms(&self) -> f64 {
         if self.area > 0.0 { (self.ref_sq / (3.0 * self.area)).sqrt() } else { 0.0 }
     }
-    fn norms(&self) -> Norms {
+    fn norms(&self, regions: usize) -> Norms {
         let div = |n: f64, d: f64| {
             if d > 0.0 {
                 n / d
@@ -122,6 +126,7 @@ impl Sums {
             l2_debiased: div((self.sq - self.noise).max(0.0), self.ref_sq).sqrt(),
             linf: div(self.max_abs, self.rms()),
             reference_noise: div(self.noise, self.ref_sq).sqrt(),
+            resolution: 2.0 * div(self.noise, self.ref_sq).sqrt() * (2.0 / regions.max(1) as f64).powf(0.25),
             area: self.area,
         }
     }
@@ -142,6 +147,7 @@ pub fn compare_regions(
     let np = scene.patches.len();
     let mut scene_sums = Sums::default();
     let mut patch_sums = vec![Sums::default(); np];
+    let mut patch_n = vec![0usize; np];
     let mut patch_b = vec![(Rgb::ZERO, Rgb::ZERO); np];
     for (index, (&(patch, area), (b, r))) in regions.iter().zip(values.iter().zip(reference)).enumerate() {
         if patch >= np {
@@ -150,6 +156,7 @@ pub fn compare_regions(
         let e = scene.patches[patch].emission;
         scene_sums.add(area, *b, r, e);
         patch_sums[patch].add(area, *b, r, e);
+        patch_n[patch] += 1;
         patch_b[patch].0 += *b * area;
         patch_b[patch].1 += r.radiosity * area;
     }
@@ -169,12 +176,12 @@ pub fn compare_regions(
         .map(|(i, s)| PatchError {
             patch: i,
             name: scene.patches[i].name.clone(),
-            norms: s.norms(),
+            norms: s.norms(patch_n[i]),
             solution: patch_b[i].0 / s.area,
             reference: patch_b[i].1 / s.area,
         })
         .collect();
-    Ok(ErrorReport { scene: scene_sums.norms(), per_patch, per_element, energy_residual })
+    Ok(ErrorReport { scene: scene_sums.norms(regions.len()), per_patch, per_element, energy_residual })
 }
 
 /// Compare a solution with a reference computed on its own elements (same order).
