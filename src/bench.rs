@@ -588,7 +588,7 @@ pub fn markdown(report: &BenchReport) -> String {
         ));
     }
     s.push_str(
-        "\n| scene | reference noise | method | time to 5 % | time to 1 % |\n|---|---:|---|---:|---:|\n",
+        "\n| scene | reference resolution | method | time to 5 % | time to 1 % |\n|---|---:|---|---:|---:|\n",
     );
     for sc in &report.scenes {
         for m in ["uniform", "progressive", "hierarchical"] {

@@ -23,7 +23,7 @@
 //!
 //! Also: the energy-balance residual (`EnergyBalance::relative_residual`), Spearman's rank
 //! correlation [Spearman 1904] (how well the solver's own error estimate ranks the true error),
-//! and a PNG of the per-element error (see [`write_error_image`]).
+//! and an image of the per-element error (see [`error_image`]).
 
 use crate::math::{DVec3, Rgb, orthonormal_basis};
 use crate::reference::{Estimate, RefElement, area_point};
@@ -362,6 +362,41 @@ impl Locator {
         };
         *candidates.iter().min_by(|&&a, &&b| dist(a).total_cmp(&dist(b))).expect("a locator has elements")
     }
+}
+
+/// Error image: each region coloured by its entry of `errors` (e.g. [`ErrorReport::per_element`],
+/// the error relative to the scene's RMS reflected radiosity) through the viridis map, with a
+/// colour bar, from `camera` — to sit next to the solution's own image.
+#[must_use]
+pub fn error_image(
+    scene: &Scene,
+    accel: &crate::accel::Accel,
+    regions: &[RefElement],
+    errors: &[f64],
+    camera: &crate::image::Camera,
+    width: usize,
+    height: usize,
+) -> crate::image::Image {
+    let elements: Vec<SolvedElement> = regions
+        .iter()
+        .map(|r| SolvedElement {
+            patch: r.patch,
+            vertices: r.vertices.clone(),
+            area: crate::math::polygon_area(&r.vertices),
+            radiosity: Rgb::ZERO,
+            error_estimate: None,
+        })
+        .collect();
+    crate::image::value_image(
+        scene,
+        accel,
+        &elements,
+        camera,
+        width,
+        height,
+        errors,
+        crate::image::Colormap::Viridis,
+    )
 }
 
 /// Ranks with ties averaged (1-based), for Spearman's correlation.

@@ -28,6 +28,20 @@ pub struct Args {
     /// Cache folder (default: $RADLAB_CACHE, else .radlab-cache/ in the current directory).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
+    /// Also solve the scene with this method (`hierarchical`, `uniform`, `progressive`) and print
+    /// its error against the reference per patch and for the scene.
+    #[arg(long)]
+    pub compare: Option<String>,
+    /// Hierarchical preset for --compare (interactive, quality, lecture, splash2).
+    #[arg(long, default_value = "interactive")]
+    pub preset: String,
+    /// Element size of --compare uniform/progressive (default: scene diagonal / 16).
+    #[arg(long)]
+    pub solve_element_size: Option<f64>,
+    /// With --compare: write PREFIX_solution.png and PREFIX_error.png (per-element relative error,
+    /// colour bar) from the scene's default camera.
+    #[arg(long)]
+    pub images: Option<PathBuf>,
 }
 
 /// Per-patch summary printed and written to JSON.
@@ -45,7 +59,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let size = args.element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
     let mesh = reference_mesh(&scene, size)?;
     let params = ReferenceParams { samples: args.samples, seed: args.seed, ..ReferenceParams::standard() };
-    let cache = args.cache_dir.map_or_else(Cache::default_location, Cache::at);
+    let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
     let accel = Accel::build(&scene);
     let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     let mut log: Box<dyn Write> =
@@ -118,6 +132,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mean = rel.iter().sum::<f64>() / rel.len() as f64;
         writeln!(log, "mean relative standard error per element: {:.2} %", 100.0 * mean)?;
     }
+    if let Some(method) = &args.compare {
+        compare(&args, method, &scene, &accel, &mesh, &entry.estimates, &mut log)?;
+    } else if args.images.is_some() {
+        anyhow::bail!("--images needs --compare METHOD");
+    }
     if let Some(path) = &args.json {
         let doc = serde_json::json!({
             "scene": scene.source,
@@ -138,6 +157,85 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
             writeln!(log, "wrote {}", path.display())?;
         }
+    }
+    Ok(())
+}
+
+fn compare(
+    args: &Args,
+    method: &str,
+    scene: &radlab::scene::Scene,
+    accel: &Accel,
+    mesh: &[radlab::reference::RefElement],
+    estimates: &[radlab::reference::Estimate],
+    log: &mut Box<dyn Write>,
+) -> anyhow::Result<()> {
+    use radlab::solver::params::HierarchicalParams;
+    use radlab::solver::{hierarchical::HierarchicalSolver, progressive, uniform};
+    let h = args.solve_element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
+    let t0 = std::time::Instant::now();
+    let sol = match method {
+        "hierarchical" => {
+            let p = HierarchicalParams::preset(&args.preset).with_context(|| {
+                format!("--preset {}: one of {:?}", args.preset, HierarchicalParams::PRESETS)
+            })?;
+            let mut s =
+                HierarchicalSolver::new(std::sync::Arc::new(scene.clone()), p).map_err(anyhow::Error::msg)?;
+            s.solve(&mut |_, _| {});
+            s.solution()
+        }
+        "uniform" => {
+            let p = uniform::UniformParams { element_size: h, ..uniform::UniformParams::default() };
+            uniform::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?
+        }
+        "progressive" => {
+            let p = progressive::ProgressiveParams {
+                element_size: h,
+                ..progressive::ProgressiveParams::default()
+            };
+            progressive::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?
+        }
+        other => anyhow::bail!("--compare {other}: expected hierarchical, uniform or progressive"),
+    };
+    let secs = t0.elapsed().as_secs_f64();
+    let rep = radlab::metrics::compare_resampled(scene, &sol, mesh, estimates)?;
+    writeln!(log, "\n{method}: {} elements, {} links, {secs:.3} s", sol.elements.len(), sol.stats.links)?;
+    writeln!(log, "{:>5}  {:<28} {:>9} {:>9} {:>9}", "patch", "name", "rel L1", "rel L2", "rel L∞")?;
+    for p in &rep.per_patch {
+        writeln!(
+            log,
+            "{:>5}  {:<28} {:>8.2}% {:>8.2}% {:>8.2}%",
+            p.patch,
+            p.name,
+            100.0 * p.norms.l1,
+            100.0 * p.norms.l2_debiased,
+            100.0 * p.norms.linf
+        )?;
+    }
+    let n = &rep.scene;
+    writeln!(
+        log,
+        "scene: rel L1 {:.2} %, rel L2 {:.2} % (debiased; raw {:.2} %, reference noise {:.2} %, resolution {:.2} %), rel L∞ {:.2} %, energy residual {:.2e}",
+        100.0 * n.l1,
+        100.0 * n.l2_debiased,
+        100.0 * n.l2,
+        100.0 * n.reference_noise,
+        100.0 * n.resolution,
+        100.0 * n.linf,
+        rep.energy_residual
+    )?;
+    if let Some(prefix) = &args.images {
+        let camera = radlab::image::Camera::for_scene(scene);
+        let (w, h) = (640, 480);
+        let sol_path = PathBuf::from(format!("{}_solution.png", prefix.display()));
+        let err_path = PathBuf::from(format!("{}_error.png", prefix.display()));
+        radlab::image::radiosity_image(scene, accel, &sol.elements, &camera, w, h)
+            .write_png(&sol_path)
+            .with_context(|| format!("writing {}", sol_path.display()))?;
+        radlab::metrics::error_image(scene, accel, mesh, &rep.per_element, &camera, w, h)
+            .write_png(&err_path)
+            .with_context(|| format!("writing {}", err_path.display()))?;
+        writeln!(log, "wrote {} and {}", sol_path.display(), err_path.display())?;
     }
     Ok(())
 }
