@@ -213,3 +213,39 @@ fn resampled_comparison_of_a_real_solve_is_consistent() {
     assert!(r.scene.l2_debiased <= r.scene.l2 && r.scene.reference_noise < r.scene.l2);
     assert!((r.energy_residual - sol.energy.relative_residual()).abs() < EXACT);
 }
+
+#[test]
+fn quick_bench_runs_every_method_and_writes_table_json_and_plot() {
+    use radlab::bench::{self, BenchConfig, Mode};
+    let dir = std::env::temp_dir().join(format!("radlab-bench-test-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut config = BenchConfig::new(Mode::Quick);
+    config.scenes = vec!["hard:shared_edge_perpendicular".into(), "hard:open_scene".into()];
+    config.cache = radlab::reference::Cache::at(dir.join("cache"));
+    let mut lines = 0;
+    let report = bench::run(&config, &mut |_| lines += 1).unwrap();
+    assert!(lines > 0);
+    for scene in &config.scenes {
+        for method in ["uniform", "progressive", "hierarchical"] {
+            let rows: Vec<_> =
+                report.rows.iter().filter(|r| &r.scene == scene && r.method == method).collect();
+            assert!(rows.len() >= 2, "{scene} {method}: {} rows", rows.len());
+            for r in rows.iter().filter(|r| r.status == "ok") {
+                assert!(r.time_s > 0.0 && r.rel_l2.is_finite() && r.elements > 0, "{r:?}");
+            }
+        }
+    }
+    assert_eq!(report.scenes.len(), 2);
+    let md = bench::markdown(&report);
+    assert!(
+        md.contains("| shared_edge_perpendicular") || md.contains("| hard:shared_edge_perpendicular"),
+        "{md}"
+    );
+    let png = dir.join("plot.png");
+    bench::plot_png(&report, &png).unwrap();
+    let bytes = std::fs::read(&png).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000, "{} bytes", bytes.len());
+    let json = serde_json::to_string(&report).unwrap();
+    assert!(json.contains("\"rows\""));
+    let _ = std::fs::remove_dir_all(&dir);
+}
