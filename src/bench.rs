@@ -1,1 +1,794 @@
-//! (being written)
+//! Speed against error: sweep every solver over its settings on a few scenes, time each run
+//! (median of repeats), measure its error against the cached independent reference, and
+//! summarise when each method first reaches 1 % and 5 % relative L2 error.
+//!
+//! ```text
+//! for scene:   reference R on a uniform reference mesh (crate::reference, cached on disk)
+//!   for method ∈ {uniform(h), progressive(shots), hierarchical(Feps/Aeps, BFeps, rays)}:
+//!     t   = median wall time of `repeats` solves (BVH built once, outside the timing)
+//!     err = metrics::compare_resampled(solution, R)      rel L1/L2/L∞, energy residual
+//!   curve(method) = lower envelope of (t, err) — the least error reached by time t
+//!   t(1 %), t(5 %) = log-log interpolation on the curve; ratio = t_hier / min t_other
+//! ```
+//!
+//! The reported error is the **debiased** L2 (the reference's own noise Σaσ² taken out of the
+//! squared error, see [`crate::metrics`]); the raw L2 and the noise are in the table too. A
+//! figure below ~3× `reference_noise` measures the reference, not the solver.
+//!
+//! Every run has a wall-clock budget: a hierarchical run is cancelled through its cancel handle
+//! when it exceeds it and is reported as `over budget`; the classical solvers are bounded by
+//! their element caps and shot counts.
+
+use crate::accel::Accel;
+use crate::hard_cases;
+use crate::math::polygon_area;
+use crate::metrics::{self, ErrorReport};
+use crate::reference::{Cache, CacheStatus, Estimate, RefElement, ReferenceParams, reference_mesh};
+use crate::scene::Scene;
+use crate::solver::Solution;
+use crate::solver::hierarchical::HierarchicalSolver;
+use crate::solver::params::{AreaEps, HierarchicalParams};
+use crate::solver::progressive::{self, ProgressiveParams};
+use crate::solver::uniform::{self, UniformParams};
+use serde::Serialize;
+use std::path::Path;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, mpsc};
+use std::time::{Duration, Instant};
+
+/// The scenes `radlab bench` runs by default.
+pub const DEFAULT_SCENES: [&str; 4] =
+    ["builtin:cornell", "builtin:table-room", "builtin:perpendicular", "builtin:splash_room"];
+
+/// Error targets of the summary (relative L2).
+pub const TARGETS: [f64; 2] = [0.01, 0.05];
+
+/// Errors of the bench.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error("bench: scene {spec}: {source}")]
+    Scene {
+        spec: String,
+        #[source]
+        source: crate::scene::SceneError,
+    },
+    #[error("bench: scene {spec}: reference: {source}")]
+    Reference {
+        spec: String,
+        #[source]
+        source: crate::reference::ReferenceError,
+    },
+    #[error("bench: scene {spec}: metrics: {source}")]
+    Metrics {
+        spec: String,
+        #[source]
+        source: crate::metrics::MetricsError,
+    },
+    #[error("bench: {0}")]
+    Output(String),
+}
+
+/// How much to sweep.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// One or two settings per method, one repeat, a rough reference: a CI smoke run.
+    Quick,
+    Standard,
+    /// Finer sweeps, more repeats, a better reference.
+    Full,
+}
+
+/// Settings of a bench run.
+#[derive(Clone, Debug)]
+pub struct BenchConfig {
+    pub scenes: Vec<String>,
+    pub mode: Mode,
+    /// Repeats per setting (the median time is reported).
+    pub repeats: usize,
+    pub reference: ReferenceParams,
+    /// Reference mesh element size as a fraction of the scene's bounding-box diagonal.
+    pub reference_size: f64,
+    /// Wall-clock budget of one solve, seconds.
+    pub budget_s: f64,
+    pub cache: Cache,
+}
+
+impl BenchConfig {
+    #[must_use]
+    pub fn new(mode: Mode) -> Self {
+        let (repeats, samples, reference_size, budget_s) = match mode {
+            Mode::Quick => (1, 64, 1.0 / 6.0, 5.0),
+            Mode::Standard => (3, 1024, 1.0 / 16.0, 60.0),
+            Mode::Full => (5, 4096, 1.0 / 24.0, 300.0),
+        };
+        BenchConfig {
+            scenes: DEFAULT_SCENES.iter().map(|s| (*s).to_string()).collect(),
+            mode,
+            repeats,
+            reference: ReferenceParams { samples, ..ReferenceParams::standard() },
+            reference_size,
+            budget_s,
+            cache: Cache::default_location(),
+        }
+    }
+}
+
+/// One solver configuration.
+#[derive(Clone, Debug)]
+pub enum Method {
+    Uniform(UniformParams),
+    Progressive(ProgressiveParams),
+    Hierarchical(HierarchicalParams),
+}
+
+impl Method {
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Uniform(_) => "uniform",
+            Method::Progressive(_) => "progressive",
+            Method::Hierarchical(_) => "hierarchical",
+        }
+    }
+
+    /// The settings that vary in the sweep, as `key=value` words.
+    #[must_use]
+    pub fn settings(&self) -> String {
+        match self {
+            Method::Uniform(p) => format!("h={} rays={}", g3(p.element_size), p.rays),
+            Method::Progressive(p) => {
+                format!("h={} shots={} rays={}", g3(p.element_size), p.max_shots, p.rays)
+            }
+            Method::Hierarchical(p) => {
+                let aeps = match p.aeps {
+                    AreaEps::Absolute(a) => g3(a),
+                    AreaEps::Relative(r) => format!("{r:.0e}A"),
+                };
+                format!("{:?} feps={} aeps={aeps} bfeps={} rays={}", p.oracle, p.feps, p.bf_eps, p.rays)
+                    .to_lowercase()
+            }
+        }
+    }
+
+    /// Solve, cancelling a hierarchical run after `budget`. `Ok(None)` when over budget.
+    fn run(
+        &self,
+        scene: &Arc<Scene>,
+        accel: &Arc<Accel>,
+        budget: Duration,
+    ) -> Result<Option<Solution>, String> {
+        match self {
+            Method::Uniform(p) => uniform::solve(scene, accel, p, &mut |_, _| {}).map(Some),
+            Method::Progressive(p) => progressive::solve(scene, accel, p, &mut |_, _| {}).map(Some),
+            Method::Hierarchical(p) => {
+                p.validate()?;
+                let mut s = HierarchicalSolver::with_accel(scene.clone(), accel.clone(), *p, 0.0);
+                let cancel = s.cancel_handle();
+                let (done_tx, done_rx) = mpsc::channel::<()>();
+                let watchdog = std::thread::spawn(move || {
+                    if done_rx.recv_timeout(budget) == Err(mpsc::RecvTimeoutError::Timeout) {
+                        cancel.store(true, Ordering::Relaxed);
+                    }
+                });
+                let report = s.solve(&mut |_, _| {});
+                let _ = done_tx.send(());
+                let _ = watchdog.join();
+                Ok((!report.cancelled).then(|| s.solution()))
+            }
+        }
+    }
+}
+
+/// Three significant digits, without trailing zeros.
+fn g3(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let digits = (2 - x.abs().log10().floor() as i32).max(0) as usize;
+    let s = format!("{x:.digits$}");
+    if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
+}
+
+/// The sweep of one scene for a mode, sizes relative to the scene's diagonal.
+#[must_use]
+pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
+    let d = scene.bounds().diagonal();
+    let mut out = Vec::new();
+    let uniform_div: &[f64] = match mode {
+        Mode::Quick => &[4.0, 8.0],
+        Mode::Standard => &[4.0, 8.0, 12.0, 16.0, 24.0],
+        Mode::Full => &[4.0, 8.0, 12.0, 16.0, 24.0, 32.0],
+    };
+    for &k in uniform_div {
+        out.push(Method::Uniform(UniformParams {
+            element_size: d / k,
+            rays: 16,
+            ..UniformParams::default()
+        }));
+    }
+    let shots: &[u32] = match mode {
+        Mode::Quick => &[100, 1000],
+        Mode::Standard => &[30, 100, 300, 1000, 3000, 10_000],
+        Mode::Full => &[30, 100, 300, 1000, 3000, 10_000, 30_000],
+    };
+    let prog_h = match mode {
+        Mode::Quick => d / 8.0,
+        Mode::Standard => d / 16.0,
+        Mode::Full => d / 24.0,
+    };
+    for &n in shots {
+        out.push(Method::Progressive(ProgressiveParams {
+            element_size: prog_h,
+            max_shots: n,
+            tolerance: 1e-9,
+            rays: 16,
+            ..ProgressiveParams::default()
+        }));
+    }
+    let base = HierarchicalParams::interactive();
+    let hier: Vec<HierarchicalParams> = match mode {
+        Mode::Quick => vec![HierarchicalParams { aeps: AreaEps::Relative(1e-3), ..base }, base],
+        Mode::Standard | Mode::Full => {
+            let mut v = Vec::new();
+            // BF oracle: BFeps × Aeps, at 4 and 16 rays per link.
+            for (bf, a) in [(0.08, 1e-3), (0.04, 3e-4), (0.02, 1e-4), (0.01, 5e-5), (0.005, 2e-5)] {
+                v.push(HierarchicalParams { bf_eps: bf, aeps: AreaEps::Relative(a), ..base });
+            }
+            for (bf, a) in [(0.02, 1e-4), (0.005, 2e-5)] {
+                v.push(HierarchicalParams { bf_eps: bf, aeps: AreaEps::Relative(a), rays: 16, ..base });
+            }
+            // The lecture's Feps oracle.
+            for (f, a) in [(0.1, 1e-3), (0.05, 3e-4), (0.02, 1e-4)] {
+                v.push(HierarchicalParams {
+                    feps: f,
+                    aeps: AreaEps::Relative(a),
+                    ..HierarchicalParams::lecture()
+                });
+            }
+            if mode == Mode::Full {
+                v.push(HierarchicalParams::quality());
+                v.push(HierarchicalParams { bf_eps: 0.002, aeps: AreaEps::Relative(1e-5), rays: 16, ..base });
+            }
+            v
+        }
+    };
+    out.extend(hier.into_iter().map(Method::Hierarchical));
+    out
+}
+
+/// One measured (scene, method, settings) point.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub scene: String,
+    pub method: String,
+    pub settings: String,
+    /// `ok`, `over budget`, or the solver's error.
+    pub status: String,
+    pub elements: usize,
+    pub links: usize,
+    pub rays: u64,
+    /// Median wall time of the repeats, seconds.
+    pub time_s: f64,
+    pub times_s: Vec<f64>,
+    pub rel_l1: f64,
+    pub rel_l2: f64,
+    pub rel_l2_debiased: f64,
+    pub rel_linf: f64,
+    pub energy_residual: f64,
+    /// Smallest L2 error the reference resolves (see `metrics::Norms::resolution`).
+    pub resolution: f64,
+}
+
+impl Row {
+    /// The error used for curves and crossings: the debiased L2, but never below the resolution
+    /// (a smaller figure would be a measurement of the reference's noise).
+    #[must_use]
+    pub fn error(&self) -> f64 {
+        self.rel_l2_debiased.max(self.resolution)
+    }
+}
+
+/// Time a method needs to reach an error target, interpolated on its curve.
+#[derive(Clone, Debug, Serialize)]
+pub struct Crossing {
+    pub method: String,
+    pub target: f64,
+    /// `None`: not reached by any setting of the sweep.
+    pub time_s: Option<f64>,
+}
+
+/// The per-scene summary.
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneSummary {
+    pub scene: String,
+    pub patches: usize,
+    pub reference_elements: usize,
+    pub reference_samples: u32,
+    /// Relative L2 a perfect solver would show against this reference.
+    pub reference_noise: f64,
+    /// Smallest relative L2 the reference resolves: targets below it read "unresolved".
+    pub resolution: f64,
+    pub reference_cache: String,
+    pub crossings: Vec<Crossing>,
+    /// Per target: t(hierarchical) / min t(other methods), when both reached it.
+    pub ratios: Vec<(f64, Option<f64>)>,
+}
+
+/// Everything a bench run measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    pub mode: Mode,
+    pub repeats: usize,
+    pub threads: usize,
+    pub rows: Vec<Row>,
+    pub scenes: Vec<SceneSummary>,
+}
+
+fn median(xs: &mut [f64]) -> f64 {
+    xs.sort_by(f64::total_cmp);
+    let n = xs.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        xs[n / 2]
+    } else {
+        0.5 * (xs[n / 2 - 1] + xs[n / 2])
+    }
+}
+
+/// The lower envelope of (time, error) points: sorted by time, each point kept only if its error
+/// is below every earlier one. These are also the Pareto-optimal points.
+#[must_use]
+pub fn pareto(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut p: Vec<(f64, f64)> =
+        points.iter().copied().filter(|(t, e)| t.is_finite() && e.is_finite()).collect();
+    p.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for q in p {
+        if out.last().is_none_or(|l| q.1 < l.1) {
+            out.push(q);
+        }
+    }
+    out
+}
+
+/// Time at which the lower envelope of `points` first reaches `target` error, interpolated
+/// linearly in log t – log err between the bracketing points. `None` if never reached.
+#[must_use]
+pub fn time_to_reach(points: &[(f64, f64)], target: f64) -> Option<f64> {
+    let env = pareto(points);
+    let first = *env.first()?;
+    if first.1 <= target {
+        return Some(first.0);
+    }
+    for w in env.windows(2) {
+        let ((t0, e0), (t1, e1)) = (w[0], w[1]);
+        if e1 <= target {
+            if !(t0 > 0.0 && e0 > 0.0 && e1 > 0.0) {
+                return Some(t1);
+            }
+            let s = (target.ln() - e0.ln()) / (e1.ln() - e0.ln());
+            return Some((t0.ln() + s * (t1.ln() - t0.ln())).exp());
+        }
+    }
+    None
+}
+
+/// Load `builtin:NAME`, `hard:NAME` or a path.
+fn load(spec: &str) -> Result<Scene, BenchError> {
+    hard_cases::load_scene(spec).map_err(|source| BenchError::Scene { spec: spec.into(), source })
+}
+
+/// Run the bench. `log` receives one line per step (scene, reference, each measured point).
+pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchReport, BenchError> {
+    let mut rows = Vec::new();
+    let mut scenes = Vec::new();
+    for spec in &config.scenes {
+        let scene = Arc::new(load(spec)?);
+        let accel = Arc::new(Accel::build(&scene));
+        let size = scene.bounds().diagonal() * config.reference_size;
+        let mesh: Vec<RefElement> = reference_mesh(&scene, size)
+            .map_err(|source| BenchError::Reference { spec: spec.clone(), source })?;
+        log(&format!(
+            "{spec}: {} patches; reference on {} elements × {} paths",
+            scene.patches.len(),
+            mesh.len(),
+            config.reference.samples
+        ));
+        let (entry, status) = config
+            .cache
+            .get_or_compute(&scene, &accel, &mesh, &config.reference)
+            .map_err(|source| BenchError::Reference { spec: spec.clone(), source })?;
+        let cache_file = match &status {
+            CacheStatus::Hit(f) => {
+                log(&format!("  reference: cached {}", f.display()));
+                f.clone()
+            }
+            CacheStatus::Computed(f) => {
+                log(&format!("  reference: computed in {:.1} s → {}", entry.compute_s, f.display()));
+                f.clone()
+            }
+            CacheStatus::Recomputed { file, why } => {
+                log(&format!("  reference: cache entry invalid ({why}); recomputed → {}", file.display()));
+                file.clone()
+            }
+        };
+        let reference: &[Estimate] = &entry.estimates;
+        let mut noise = f64::NAN;
+        let mut resolution = f64::NAN;
+        let mut scene_rows: Vec<Row> = Vec::new();
+        for method in sweep(&scene, config.mode) {
+            let row = measure(config, spec, &scene, &accel, &method, &mesh, reference)?;
+            if let Some((n, res)) = row.1 {
+                noise = n;
+                resolution = res;
+            }
+            let r = row.0;
+            log(&format!(
+                "  {:<12} {:<46} {:>7} el {:>9} links {:>8.3} s  L2 {:>7.3} %  {}",
+                r.method,
+                r.settings,
+                r.elements,
+                r.links,
+                r.time_s,
+                100.0 * r.error(),
+                r.status
+            ));
+            scene_rows.push(r);
+        }
+        let mut crossings = Vec::new();
+        let mut ratios = Vec::new();
+        for &target in &TARGETS {
+            let mut hier = None;
+            let mut best_other: Option<f64> = None;
+            for m in ["uniform", "progressive", "hierarchical"] {
+                let pts: Vec<(f64, f64)> = scene_rows
+                    .iter()
+                    .filter(|r| r.method == m && r.status == "ok")
+                    .map(|r| (r.time_s, r.error()))
+                    .collect();
+                let t = time_to_reach(&pts, target);
+                if m == "hierarchical" {
+                    hier = t;
+                } else if let Some(t) = t {
+                    best_other = Some(best_other.map_or(t, |b: f64| b.min(t)));
+                }
+                crossings.push(Crossing { method: m.into(), target, time_s: t });
+            }
+            ratios.push((
+                target,
+                hier.zip(best_other)
+                    .map(|(h, o)| h / o)
+                    .filter(|_| resolution.is_nan() || resolution <= target),
+            ));
+        }
+        scenes.push(SceneSummary {
+            scene: spec.clone(),
+            patches: scene.patches.len(),
+            reference_elements: mesh.len(),
+            reference_samples: config.reference.samples,
+            reference_noise: noise,
+            resolution,
+            reference_cache: cache_file.display().to_string(),
+            crossings,
+            ratios,
+        });
+        rows.extend(scene_rows);
+    }
+    Ok(BenchReport {
+        mode: config.mode,
+        repeats: config.repeats,
+        threads: rayon::current_num_threads(),
+        rows,
+        scenes,
+    })
+}
+
+/// Measure one setting: the row and the reference noise level.
+fn measure(
+    config: &BenchConfig,
+    spec: &str,
+    scene: &Arc<Scene>,
+    accel: &Arc<Accel>,
+    method: &Method,
+    mesh: &[RefElement],
+    reference: &[Estimate],
+) -> Result<(Row, Option<(f64, f64)>), BenchError> {
+    let budget = Duration::from_secs_f64(config.budget_s);
+    let mut times = Vec::new();
+    let mut last: Option<Solution> = None;
+    let mut status = "ok".to_string();
+    for _ in 0..config.repeats.max(1) {
+        let t0 = Instant::now();
+        match method.run(scene, accel, budget) {
+            Ok(Some(sol)) => {
+                times.push(t0.elapsed().as_secs_f64());
+                last = Some(sol);
+            }
+            Ok(None) => {
+                status = "over budget".into();
+                break;
+            }
+            Err(e) => {
+                status = e;
+                break;
+            }
+        }
+    }
+    let mut row = Row {
+        scene: spec.into(),
+        method: method.name().into(),
+        settings: method.settings(),
+        status,
+        elements: 0,
+        links: 0,
+        rays: 0,
+        time_s: f64::NAN,
+        times_s: times.clone(),
+        rel_l1: f64::NAN,
+        rel_l2: f64::NAN,
+        rel_l2_debiased: f64::NAN,
+        rel_linf: f64::NAN,
+        energy_residual: f64::NAN,
+        resolution: f64::NAN,
+    };
+    let Some(sol) = last.filter(|_| row.status == "ok") else { return Ok((row, None)) };
+    let rep: ErrorReport = metrics::compare_resampled(scene, &sol, mesh, reference)
+        .map_err(|source| BenchError::Metrics { spec: spec.into(), source })?;
+    row.elements = sol.elements.len();
+    row.links = sol.stats.links;
+    row.rays = sol.stats.rays;
+    row.time_s = median(&mut times);
+    row.rel_l1 = rep.scene.l1;
+    row.rel_l2 = rep.scene.l2;
+    row.rel_l2_debiased = rep.scene.l2_debiased;
+    row.rel_linf = rep.scene.linf;
+    row.energy_residual = rep.energy_residual;
+    row.resolution = rep.scene.resolution;
+    Ok((row, Some((rep.scene.reference_noise, rep.scene.resolution))))
+}
+
+fn pct(x: f64) -> String {
+    if x.is_finite() { format!("{:.2} %", 100.0 * x) } else { "–".into() }
+}
+
+fn secs(t: Option<f64>) -> String {
+    t.map_or_else(|| "not reached".into(), |t| format!("{t:.3} s"))
+}
+
+/// The report as Markdown: the full table, then per scene the time to 1 % and 5 % and the ratio.
+#[must_use]
+pub fn markdown(report: &BenchReport) -> String {
+    let mut s = String::new();
+    s.push_str(&format!(
+        "Mode `{:?}`, median of {} run(s), {} thread(s). Errors: relative L2 (debiased; \"< x\" where below what the reference resolves) and L∞ (not debiased: it includes the reference's noise) of the reflected radiosity against the independent reference; see `radlab::metrics`.\n\n",
+        report.mode, report.repeats, report.threads
+    ));
+    s.push_str("| scene | method | settings | elements | links | rays | time | rel L2 | rel L∞ | energy residual |\n");
+    s.push_str("|---|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    for r in &report.rows {
+        let time = if r.status == "ok" { format!("{:.3} s", r.time_s) } else { r.status.clone() };
+        s.push_str(&format!(
+            "| {} | {} | `{}` | {} | {} | {} | {} | {} | {} | {:.1e} |\n",
+            r.scene.trim_start_matches("builtin:"),
+            r.method,
+            r.settings,
+            r.elements,
+            r.links,
+            r.rays,
+            time,
+            if r.rel_l2_debiased < r.resolution {
+                format!("< {}", pct(r.resolution))
+            } else {
+                pct(r.rel_l2_debiased)
+            },
+            pct(r.rel_linf),
+            r.energy_residual
+        ));
+    }
+    s.push_str(
+        "\n| scene | reference resolution | method | time to 5 % | time to 1 % |\n|---|---:|---|---:|---:|\n",
+    );
+    for sc in &report.scenes {
+        for m in ["uniform", "progressive", "hierarchical"] {
+            let t = |target: f64| {
+                sc.crossings
+                    .iter()
+                    .find(|c| c.method == m && (c.target - target).abs() < 1e-12)
+                    .and_then(|c| c.time_s)
+            };
+            let cell = |target: f64| {
+                if sc.resolution > target { "unresolved".to_string() } else { secs(t(target)) }
+            };
+            s.push_str(&format!(
+                "| {} | {} | {m} | {} | {} |\n",
+                sc.scene.trim_start_matches("builtin:"),
+                pct(sc.resolution),
+                cell(0.05),
+                cell(0.01)
+            ));
+        }
+        let ratio = |target: f64| {
+            sc.ratios
+                .iter()
+                .find(|(t, _)| (t - target).abs() < 1e-12)
+                .and_then(|(_, r)| *r)
+                .map_or_else(|| "n/a".into(), |r| format!("{r:.2}×"))
+        };
+        s.push_str(&format!(
+            "| {} | | **hierarchical / best other** | {} | {} |\n",
+            sc.scene.trim_start_matches("builtin:"),
+            ratio(0.05),
+            ratio(0.01)
+        ));
+    }
+    s
+}
+
+/// Area of every reference element (for callers that weight per-element results).
+#[must_use]
+pub fn element_areas(mesh: &[RefElement]) -> Vec<f64> {
+    mesh.iter().map(|e| polygon_area(&e.vertices)).collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// The plot
+
+/// DejaVu Sans (Bitstream Vera licence, assets/fonts/LICENSE-DejaVu.txt), registered with plotters.
+static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // Registering fails only for a malformed font, and this one is shipped with the crate.
+        let _ = plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, FONT);
+    });
+}
+
+/// Log-log PNG: time on x, relative L2 error on y, one panel per scene, one curve (colour) per
+/// method, Pareto-optimal points of each method joined by a line, the 1 % and 5 % levels dashed.
+pub fn plot_png(report: &BenchReport, path: &Path) -> Result<(), BenchError> {
+    use plotters::prelude::*;
+    register_font();
+    let n = report.scenes.len().max(1);
+    let cols = n.min(2);
+    let rows_n = n.div_ceil(cols);
+    let (pw, ph) = (640u32, 460u32);
+    let (w, h) = (pw * cols as u32, ph * rows_n as u32);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    let err = |e: &dyn std::fmt::Display| BenchError::Output(format!("plot {}: {e}", path.display()));
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let panels = root.split_evenly((rows_n, cols));
+        let colours = [
+            ("uniform", RGBColor(31, 119, 180)),
+            ("progressive", RGBColor(255, 127, 14)),
+            ("hierarchical", RGBColor(44, 160, 44)),
+        ];
+        for (sc, area) in report.scenes.iter().zip(panels) {
+            let pts: Vec<&Row> = report
+                .rows
+                .iter()
+                .filter(|r| r.scene == sc.scene && r.status == "ok" && r.rel_l2_debiased > 0.0)
+                .collect();
+            let (mut t0, mut t1, mut e0, mut e1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+            for r in &pts {
+                t0 = t0.min(r.time_s);
+                t1 = t1.max(r.time_s);
+                e0 = e0.min(r.error());
+                e1 = e1.max(r.error());
+            }
+            if pts.is_empty() {
+                (t0, t1, e0, e1) = (1e-3, 1.0, 1e-3, 1.0);
+            }
+            let (t0, t1) = (t0.max(1e-6) / 1.5, t1.max(1e-6) * 1.5);
+            let (e0, e1) = ((e0.min(0.01) / 1.5).max(1e-6), (e1.max(0.05) * 1.5).min(100.0));
+            let mut chart = ChartBuilder::on(&area)
+                .caption(sc.scene.trim_start_matches("builtin:"), ("sans-serif", 22))
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(60)
+                .build_cartesian_2d((t0..t1).log_scale(), (e0..e1).log_scale())
+                .map_err(|e| err(&e))?;
+            chart
+                .configure_mesh()
+                .x_desc("time (s)")
+                .y_desc("relative L2 error")
+                .light_line_style(WHITE.mix(0.0))
+                .y_label_formatter(&|y| format!("{:.2}%", 100.0 * y))
+                .x_label_formatter(&|x| format!("{x:.2}"))
+                .label_style(("sans-serif", 13))
+                .draw()
+                .map_err(|e| err(&e))?;
+            if sc.resolution.is_finite() && sc.resolution > e0 {
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(t0, e0), (t1, sc.resolution)],
+                        BLACK.mix(0.08).filled(),
+                    )))
+                    .map_err(|e| err(&e))?
+                    .label("below reference resolution")
+                    .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], BLACK.mix(0.15).filled()));
+            }
+            for target in TARGETS {
+                chart
+                    .draw_series(DashedLineSeries::new(
+                        [(t0, target), (t1, target)],
+                        6,
+                        4,
+                        BLACK.mix(0.4).stroke_width(1),
+                    ))
+                    .map_err(|e| err(&e))?;
+            }
+            for (m, col) in colours {
+                let mine: Vec<(f64, f64)> =
+                    pts.iter().filter(|r| r.method == m).map(|r| (r.time_s, r.error())).collect();
+                if mine.is_empty() {
+                    continue;
+                }
+                chart
+                    .draw_series(mine.iter().map(|&p| Circle::new(p, 4, col.mix(0.5).filled())))
+                    .map_err(|e| err(&e))?
+                    .label(m)
+                    .legend(move |(x, y)| Circle::new((x + 10, y), 4, col.filled()));
+                let front = pareto(&mine);
+                chart
+                    .draw_series(LineSeries::new(front.clone(), col.stroke_width(2)))
+                    .map_err(|e| err(&e))?;
+                chart
+                    .draw_series(front.iter().map(|&p| Circle::new(p, 5, col.stroke_width(2))))
+                    .map_err(|e| err(&e))?;
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK.mix(0.3))
+                .label_font(("sans-serif", 14))
+                .position(SeriesLabelPosition::UpperRight)
+                .draw()
+                .map_err(|e| err(&e))?;
+        }
+        root.present().map_err(|e| err(&e))?;
+    }
+    write_png_rgb(path, w, h, &buf)
+}
+
+fn write_png_rgb(path: &Path, w: u32, h: u32, rgb: &[u8]) -> Result<(), BenchError> {
+    let err = |e: &dyn std::fmt::Display| BenchError::Output(format!("{}: {e}", path.display()));
+    let file = std::fs::File::create(path).map_err(|e| err(&e))?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut wr = enc.write_header().map_err(|e| err(&e))?;
+    wr.write_image_data(rgb).map_err(|e| err(&e))?;
+    wr.finish().map_err(|e| err(&e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pareto_keeps_only_improving_points() {
+        let p = pareto(&[(1.0, 0.5), (2.0, 0.6), (3.0, 0.1), (0.5, 0.9), (4.0, f64::NAN)]);
+        assert_eq!(p, vec![(0.5, 0.9), (1.0, 0.5), (3.0, 0.1)]);
+    }
+
+    #[test]
+    fn crossing_time_is_log_log_interpolated() {
+        // err = 1/t: reaching 0.1 happens at t = 10, between samples at 1 and 100.
+        let pts = [(1.0, 1.0), (100.0, 0.01)];
+        let t = time_to_reach(&pts, 0.1).unwrap();
+        assert!((t - 10.0).abs() < 1e-9, "{t}");
+        assert_eq!(time_to_reach(&pts, 0.001), None);
+        assert_eq!(time_to_reach(&[(2.0, 0.001)], 0.01), Some(2.0));
+    }
+
+    #[test]
+    fn median_of_even_and_odd() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
+    }
+}

@@ -1,8 +1,98 @@
-//! `radlab bench` (being written).
+//! `radlab bench`: speed against error over methods and settings (see [`radlab::bench`]).
+
+use anyhow::Context;
+use radlab::bench::{self, BenchConfig, Mode};
+use radlab::reference::Cache;
+use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Comma-separated scenes (`builtin:NAME`, `hard:NAME` or paths; a bare NAME means builtin:NAME).
+    /// Default: cornell, table-room, perpendicular, splash_room.
+    #[arg(long, value_delimiter = ',')]
+    pub scenes: Vec<String>,
+    /// A smoke run: two settings per method, one repeat, a rough reference (under a minute).
+    #[arg(long, conflicts_with = "full")]
+    pub quick: bool,
+    /// Finer sweeps, five repeats, a better reference.
+    #[arg(long)]
+    pub full: bool,
+    /// Repeats per setting (default: 1 quick, 3 standard, 5 full); the median time is reported.
+    #[arg(long)]
+    pub repeats: Option<usize>,
+    /// Paths per reference element (default: 64 quick, 1024 standard, 4096 full).
+    #[arg(long)]
+    pub reference_samples: Option<u32>,
+    /// Wall-clock budget of one solve in seconds (default: 5 quick, 60 standard, 300 full).
+    #[arg(long)]
+    pub budget: Option<f64>,
+    /// Write the full result as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the log-log speed-vs-error plot (PNG).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Write the Markdown table (for the README).
+    #[arg(long)]
+    pub table: Option<PathBuf>,
+    /// Reference cache folder (default: $RADLAB_CACHE, else .radlab-cache/).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`bench` is not written yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mode = if args.quick {
+        Mode::Quick
+    } else if args.full {
+        Mode::Full
+    } else {
+        Mode::Standard
+    };
+    let mut config = BenchConfig::new(mode);
+    if !args.scenes.is_empty() {
+        config.scenes = args
+            .scenes
+            .iter()
+            .map(|s| {
+                if s.contains(':') || s.contains('.') || s.contains('/') {
+                    s.clone()
+                } else {
+                    format!("builtin:{s}")
+                }
+            })
+            .collect();
+    }
+    if let Some(r) = args.repeats {
+        anyhow::ensure!(r >= 1, "--repeats must be at least 1");
+        config.repeats = r;
+    }
+    if let Some(n) = args.reference_samples {
+        anyhow::ensure!(n >= 1, "--reference-samples must be at least 1");
+        config.reference.samples = n;
+    }
+    if let Some(b) = args.budget {
+        anyhow::ensure!(b.is_finite() && b > 0.0, "--budget must be a number of seconds > 0 (got {b})");
+        config.budget_s = b;
+    }
+    if let Some(dir) = args.cache_dir {
+        config.cache = Cache::at(dir);
+    }
+    println!("reference cache: {}", config.cache.dir.display());
+    let report = bench::run(&config, &mut |line| println!("{line}"))?;
+    let table = bench::markdown(&report);
+    println!("\n{table}");
+    if let Some(p) = &args.json {
+        std::fs::write(p, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("writing {}", p.display()))?;
+        println!("wrote {}", p.display());
+    }
+    if let Some(p) = &args.table {
+        std::fs::write(p, &table).with_context(|| format!("writing {}", p.display()))?;
+        println!("wrote {}", p.display());
+    }
+    if let Some(p) = &args.plot {
+        bench::plot_png(&report, p)?;
+        println!("wrote {}", p.display());
+    }
+    Ok(())
 }

@@ -1,8 +1,241 @@
-//! `radlab reference` (being written).
+//! `radlab reference SCENE`: the independent Monte Carlo reference on a uniform reference mesh,
+//! cached on disk (see [`radlab::reference`]).
+
+use anyhow::Context;
+use radlab::accel::Accel;
+use radlab::hard_cases;
+use radlab::math::{Rgb, polygon_area};
+use radlab::reference::{Cache, CacheStatus, ReferenceParams, reference_mesh};
+use std::io::Write;
+use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Scene: `builtin:NAME`, `hard:NAME` (a generated hard case) or a .gltf/.glb path.
+    pub scene: String,
+    /// Paths (stratified points) per element.
+    #[arg(long, default_value_t = ReferenceParams::standard().samples)]
+    pub samples: u32,
+    /// Largest element side of the reference mesh, in scene units (default: scene diagonal / 16).
+    #[arg(long)]
+    pub element_size: Option<f64>,
+    /// Seed of the sampling.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Write the estimates as JSON to this file (`-` for standard output).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Cache folder (default: $RADLAB_CACHE, else .radlab-cache/ in the current directory).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// Also solve the scene with this method (`hierarchical`, `uniform`, `progressive`) and print
+    /// its error against the reference per patch and for the scene.
+    #[arg(long)]
+    pub compare: Option<String>,
+    /// Hierarchical preset for --compare (interactive, quality, lecture, splash2).
+    #[arg(long, default_value = "interactive")]
+    pub preset: String,
+    /// Element size of --compare uniform/progressive (default: scene diagonal / 16).
+    #[arg(long)]
+    pub solve_element_size: Option<f64>,
+    /// With --compare: write PREFIX_solution.png and PREFIX_error.png (per-element relative error,
+    /// colour bar) from the scene's default camera.
+    #[arg(long)]
+    pub images: Option<PathBuf>,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`reference` is not written yet")
+/// Per-patch summary printed and written to JSON.
+#[derive(serde::Serialize)]
+struct PatchSummary<'a> {
+    patch: usize,
+    name: &'a str,
+    elements: usize,
+    radiosity: Rgb,
+    std_error: Rgb,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
+    let size = args.element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
+    let mesh = reference_mesh(&scene, size)?;
+    let params = ReferenceParams { samples: args.samples, seed: args.seed, ..ReferenceParams::standard() };
+    let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
+    let accel = Accel::build(&scene);
+    let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    let mut log: Box<dyn Write> =
+        if to_stdout { Box::new(std::io::stderr()) } else { Box::new(std::io::stdout()) };
+    writeln!(
+        log,
+        "reference for {} ({} patches): {} elements of size ≤ {size:.4}, {} paths each",
+        scene.source,
+        scene.patches.len(),
+        mesh.len(),
+        params.samples
+    )?;
+    let (entry, status) = cache.get_or_compute(&scene, &accel, &mesh, &params)?;
+    match &status {
+        CacheStatus::Hit(f) => writeln!(log, "cache: read {}", f.display())?,
+        CacheStatus::Computed(f) => {
+            writeln!(log, "cache: computed in {:.2} s, wrote {}", entry.compute_s, f.display())?
+        }
+        CacheStatus::Recomputed { file, why } => {
+            writeln!(log, "cache: entry {} was invalid ({why}); recomputed and rewrote it", file.display())?;
+        }
+    }
+    // Per-patch area-weighted averages; standard errors combine as √(Σ a² σ²)/Σ a.
+    let mut sums = vec![(0usize, 0.0, Rgb::ZERO, Rgb::ZERO); scene.patches.len()];
+    for (m, e) in mesh.iter().zip(&entry.estimates) {
+        let a = polygon_area(&m.vertices);
+        let s = &mut sums[m.patch];
+        s.0 += 1;
+        s.1 += a;
+        s.2 += e.radiosity * a;
+        s.3 += e.std_error.mul_rgb(e.std_error) * (a * a);
+    }
+    let patches: Vec<PatchSummary> = sums
+        .iter()
+        .enumerate()
+        .map(|(i, (n, a, b, v))| PatchSummary {
+            patch: i,
+            name: &scene.patches[i].name,
+            elements: *n,
+            radiosity: *b / *a,
+            std_error: v.map(f64::sqrt) / *a,
+        })
+        .collect();
+    writeln!(
+        log,
+        "{:>5}  {:<28} {:>6}  {:>30}  {:>10}",
+        "patch", "name", "elems", "radiosity (r, g, b)", "std err"
+    )?;
+    for p in &patches {
+        let b = p.radiosity.0;
+        writeln!(
+            log,
+            "{:>5}  {:<28} {:>6}  {:>9.4e} {:>9.4e} {:>9.4e}  {:>10.3e}",
+            p.patch,
+            p.name,
+            p.elements,
+            b[0],
+            b[1],
+            b[2],
+            p.std_error.max_channel()
+        )?;
+    }
+    let rel: Vec<f64> = entry
+        .estimates
+        .iter()
+        .filter(|e| e.radiosity.mean() > 0.0)
+        .map(|e| e.std_error.mean() / e.radiosity.mean())
+        .collect();
+    if !rel.is_empty() {
+        let mean = rel.iter().sum::<f64>() / rel.len() as f64;
+        writeln!(log, "mean relative standard error per element: {:.2} %", 100.0 * mean)?;
+    }
+    if let Some(method) = &args.compare {
+        compare(&args, method, &scene, &accel, &mesh, &entry.estimates, &mut log)?;
+    } else if args.images.is_some() {
+        anyhow::bail!("--images needs --compare METHOD");
+    }
+    if let Some(path) = &args.json {
+        let doc = serde_json::json!({
+            "scene": scene.source,
+            "element_size": size,
+            "cache_file": match &status {
+                CacheStatus::Hit(f) | CacheStatus::Computed(f) | CacheStatus::Recomputed { file: f, .. } => f.display().to_string(),
+            },
+            "params": entry.params,
+            "patches": patches,
+            "elements": entry.elements.iter().zip(&entry.estimates).map(|(m, e)| serde_json::json!({
+                "patch": m.patch, "vertices": m.vertices, "radiosity": e.radiosity, "std_error": e.std_error,
+            })).collect::<Vec<_>>(),
+        });
+        let text = serde_json::to_string_pretty(&doc)?;
+        if to_stdout {
+            println!("{text}");
+        } else {
+            std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+            writeln!(log, "wrote {}", path.display())?;
+        }
+    }
+    Ok(())
+}
+
+fn compare(
+    args: &Args,
+    method: &str,
+    scene: &radlab::scene::Scene,
+    accel: &Accel,
+    mesh: &[radlab::reference::RefElement],
+    estimates: &[radlab::reference::Estimate],
+    log: &mut Box<dyn Write>,
+) -> anyhow::Result<()> {
+    use radlab::solver::params::HierarchicalParams;
+    use radlab::solver::{hierarchical::HierarchicalSolver, progressive, uniform};
+    let h = args.solve_element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
+    let t0 = std::time::Instant::now();
+    let sol = match method {
+        "hierarchical" => {
+            let p = HierarchicalParams::preset(&args.preset).with_context(|| {
+                format!("--preset {}: one of {:?}", args.preset, HierarchicalParams::PRESETS)
+            })?;
+            let mut s =
+                HierarchicalSolver::new(std::sync::Arc::new(scene.clone()), p).map_err(anyhow::Error::msg)?;
+            s.solve(&mut |_, _| {});
+            s.solution()
+        }
+        "uniform" => {
+            let p = uniform::UniformParams { element_size: h, ..uniform::UniformParams::default() };
+            uniform::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?
+        }
+        "progressive" => {
+            let p = progressive::ProgressiveParams {
+                element_size: h,
+                ..progressive::ProgressiveParams::default()
+            };
+            progressive::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?
+        }
+        other => anyhow::bail!("--compare {other}: expected hierarchical, uniform or progressive"),
+    };
+    let secs = t0.elapsed().as_secs_f64();
+    let rep = radlab::metrics::compare_resampled(scene, &sol, mesh, estimates)?;
+    writeln!(log, "\n{method}: {} elements, {} links, {secs:.3} s", sol.elements.len(), sol.stats.links)?;
+    writeln!(log, "{:>5}  {:<28} {:>9} {:>9} {:>9}", "patch", "name", "rel L1", "rel L2", "rel L∞")?;
+    for p in &rep.per_patch {
+        writeln!(
+            log,
+            "{:>5}  {:<28} {:>8.2}% {:>8.2}% {:>8.2}%",
+            p.patch,
+            p.name,
+            100.0 * p.norms.l1,
+            100.0 * p.norms.l2_debiased,
+            100.0 * p.norms.linf
+        )?;
+    }
+    let n = &rep.scene;
+    writeln!(
+        log,
+        "scene: rel L1 {:.2} %, rel L2 {:.2} % (debiased; raw {:.2} %, reference noise {:.2} %, resolution {:.2} %), rel L∞ {:.2} %, energy residual {:.2e}",
+        100.0 * n.l1,
+        100.0 * n.l2_debiased,
+        100.0 * n.l2,
+        100.0 * n.reference_noise,
+        100.0 * n.resolution,
+        100.0 * n.linf,
+        rep.energy_residual
+    )?;
+    if let Some(prefix) = &args.images {
+        let camera = radlab::image::Camera::for_scene(scene);
+        let (w, h) = (640, 480);
+        let sol_path = PathBuf::from(format!("{}_solution.png", prefix.display()));
+        let err_path = PathBuf::from(format!("{}_error.png", prefix.display()));
+        radlab::image::radiosity_image(scene, accel, &sol.elements, &camera, w, h)
+            .write_png(&sol_path)
+            .with_context(|| format!("writing {}", sol_path.display()))?;
+        radlab::metrics::error_image(scene, accel, mesh, &rep.per_element, &camera, w, h)
+            .write_png(&err_path)
+            .with_context(|| format!("writing {}", err_path.display()))?;
+        writeln!(log, "wrote {} and {}", sol_path.display(), err_path.display())?;
+    }
+    Ok(())
 }

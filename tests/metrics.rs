@@ -1,0 +1,251 @@
+//! Error metrics: exact values on constructed solutions, resampling, and how well the
+//! hierarchical solver's own error estimate ranks its true error (Spearman) on rooms.
+
+use radlab::accel::Accel;
+use radlab::hard_cases;
+use radlab::math::{Rgb, polygon_area, polygon_centroid};
+use radlab::metrics::{self, compare_resampled, compare_solution, resample};
+use radlab::reference::{Estimate, RefElement, ReferenceParams, estimate_elements, reference_mesh};
+use radlab::scene::Scene;
+use radlab::solver::hierarchical::HierarchicalSolver;
+use radlab::solver::params::{AreaEps, HierarchicalParams};
+use radlab::solver::{EnergyBalance, Solution, SolveStats, SolvedElement};
+use std::sync::Arc;
+
+/// Sums of a few hundred terms: rounding stays far below this.
+const EXACT: f64 = 1e-12;
+
+fn solution_on(scene: &Scene, mesh: &[RefElement], values: &[Rgb]) -> Solution {
+    let elements: Vec<SolvedElement> = mesh
+        .iter()
+        .zip(values)
+        .map(|(e, b)| SolvedElement {
+            patch: e.patch,
+            vertices: e.vertices.clone(),
+            area: polygon_area(&e.vertices),
+            radiosity: *b,
+            error_estimate: None,
+        })
+        .collect();
+    Solution {
+        method: "test".into(),
+        patch_radiosity: Solution::patch_averages(scene.patches.len(), &elements),
+        elements,
+        energy: EnergyBalance::default(),
+        stats: SolveStats::default(),
+    }
+}
+
+/// A synthetic reference: smooth radiosity over the box-room, with a noise level.
+fn synthetic(scene: &Scene, mesh: &[RefElement]) -> Vec<Estimate> {
+    mesh.iter()
+        .map(|e| {
+            let c = polygon_centroid(&e.vertices);
+            let p = &scene.patches[e.patch];
+            let refl = Rgb::new(0.2 + 0.1 * c.x, 0.3 + 0.05 * c.y, 0.1 + 0.02 * c.z);
+            Estimate {
+                radiosity: p.emission + refl.mul_rgb(p.reflectance) * 2.0,
+                std_error: Rgb::splat(0.001),
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn a_solution_equal_to_the_reference_has_zero_error_and_reports_the_noise() {
+    let scene = hard_cases::boxes_on_floor().scene;
+    let mesh = reference_mesh(&scene, 0.5).unwrap();
+    let reference = synthetic(&scene, &mesh);
+    let values: Vec<Rgb> = reference.iter().map(|e| e.radiosity).collect();
+    let r = compare_solution(&scene, &solution_on(&scene, &mesh, &values), &reference).unwrap();
+    assert!(r.scene.l1 == 0.0 && r.scene.l2 == 0.0 && r.scene.linf == 0.0 && r.scene.l2_debiased == 0.0);
+    assert!(r.scene.reference_noise > 0.0);
+    assert!(r.per_element.iter().all(|&e| e == 0.0));
+    assert_eq!(r.per_patch.len(), scene.patches.len());
+}
+
+#[test]
+fn a_ten_percent_error_of_the_reflected_part_reads_as_ten_percent() {
+    let scene = hard_cases::boxes_on_floor().scene;
+    let mesh = reference_mesh(&scene, 0.5).unwrap();
+    let mut reference = synthetic(&scene, &mesh);
+    for r in &mut reference {
+        r.std_error = Rgb::ZERO;
+    }
+    let values: Vec<Rgb> = mesh
+        .iter()
+        .zip(&reference)
+        .map(|(m, r)| {
+            let e = scene.patches[m.patch].emission;
+            e + (r.radiosity - e) * 1.1
+        })
+        .collect();
+    let r = compare_solution(&scene, &solution_on(&scene, &mesh, &values), &reference).unwrap();
+    assert!((r.scene.l1 - 0.1).abs() < EXACT && (r.scene.l2 - 0.1).abs() < EXACT, "{:?}", r.scene);
+    assert!((r.scene.l2_debiased - 0.1).abs() < EXACT);
+    for p in &r.per_patch {
+        if scene.patches[p.patch].reflectance.max_channel() > 0.0 {
+            assert!((p.norms.l2 - 0.1).abs() < EXACT, "{}: {:?}", p.name, p.norms);
+        }
+    }
+    // L∞ = 0.1 · max |B̂ − E| / RMS(B̂ − E) ≥ 0.1 (max ≥ RMS).
+    assert!(r.scene.linf >= 0.1 - EXACT);
+    // Lamp (black) elements have zero error.
+    let lamp = scene.patches.iter().position(|p| p.name == "lamp").unwrap();
+    for (m, e) in mesh.iter().zip(&r.per_element) {
+        if m.patch == lamp {
+            assert_eq!(*e, 0.0);
+        }
+    }
+}
+
+#[test]
+fn mismatched_inputs_are_errors() {
+    let scene = hard_cases::open_scene().scene;
+    let mesh = reference_mesh(&scene, 0.5).unwrap();
+    let reference = synthetic(&scene, &mesh);
+    let sol = solution_on(&scene, &mesh[1..], &vec![Rgb::ZERO; mesh.len() - 1]);
+    assert!(compare_solution(&scene, &sol, &reference).is_err());
+    let mut bad = mesh.clone();
+    bad[0].patch = 99;
+    assert!(resample(&scene, &sol.elements, &bad).is_err());
+}
+
+#[test]
+fn resampling_a_finer_mesh_gives_area_averages() {
+    let scene = hard_cases::boxes_on_floor().scene;
+    // Coarse cells of 1.0 contain 2×2 fine cells of 0.5 on every side of length 1, 2, 3, 4
+    // (the boxes' sides 0.9, 1.3, 1.8 split unevenly, so look only at the room and lamp).
+    let fine = reference_mesh(&scene, 0.5).unwrap();
+    let coarse = reference_mesh(&scene, 1.0).unwrap();
+    let f = |e: &RefElement| {
+        let c = polygon_centroid(&e.vertices);
+        Rgb::new(c.x, c.y + 2.0 * c.z, 1.0)
+    };
+    let values: Vec<Rgb> = fine.iter().map(f).collect();
+    let sol = solution_on(&scene, &fine, &values);
+    let got = resample(&scene, &sol.elements, &coarse).unwrap();
+    let mut checked = 0;
+    for (c, g) in coarse.iter().zip(&got) {
+        if !scene.patches[c.patch].name.starts_with("room") {
+            continue;
+        }
+        // A linear field's piecewise-constant samples average to its value at the centroid.
+        let want = f(c);
+        // 6×6 points split 3×3 into each of the 2×2 children: the average is exact up to rounding.
+        const RESAMPLE_EXACT: f64 = 1e-9;
+        assert!(g.abs_diff_max(want) < RESAMPLE_EXACT, "patch {}: {g:?} vs {want:?}", c.patch);
+        checked += 1;
+    }
+    assert!(checked > 40);
+}
+
+#[test]
+fn spearman_detects_rank_agreement() {
+    let x = [0.1, 0.5, 0.2, 0.9, 0.7];
+    let y = [1.0, 3.0, 2.0, 7.0, 4.0];
+    assert!((metrics::spearman(&x, &y) - 1.0).abs() < EXACT);
+    let y2 = [1.0, 3.0, 2.0, 4.0, 7.0]; // one swap of neighbours: 1 − 6·2/(5·24) = 0.9
+    assert!((metrics::spearman(&x, &y2) - 0.9).abs() < EXACT);
+}
+
+/// How well the hierarchical solver's own error estimate ranks its true error, on rooms lit by a
+/// lamp (`interactive` preset; the reference on the solution's own leaves).
+fn estimate_correlation(scene: Scene) -> (f64, usize, f64) {
+    let scene = Arc::new(scene);
+    // Aeps 1e-3 of the scene's area keeps the leaf count (and the per-leaf reference) small.
+    let p = HierarchicalParams { aeps: AreaEps::Relative(1e-3), ..HierarchicalParams::interactive() };
+    let mut s = HierarchicalSolver::new(scene.clone(), p).unwrap();
+    s.solve(&mut |_, _| {});
+    let sol = s.solution();
+    let acc = Accel::build(&scene);
+    let els: Vec<RefElement> = sol.elements.iter().map(RefElement::from).collect();
+    let est =
+        estimate_elements(&scene, &acc, &els, &ReferenceParams { samples: 512, ..ReferenceParams::quick() })
+            .unwrap();
+    let rho = metrics::estimate_rank_correlation(&sol, &est).unwrap();
+    let l2 = compare_solution(&scene, &sol, &est).unwrap().scene.l2;
+    (rho, sol.elements.len(), l2)
+}
+
+#[test]
+fn hierarchical_error_estimate_ranks_the_true_error() {
+    for (name, scene, floor) in [
+        ("builtin:cornell", Scene::load("builtin:cornell").unwrap(), SPEARMAN_FLOOR_CORNELL),
+        ("builtin:table-room", Scene::load("builtin:table-room").unwrap(), SPEARMAN_FLOOR_TABLE_ROOM),
+        ("hard:boxes_on_floor", hard_cases::boxes_on_floor().scene, SPEARMAN_FLOOR_BOXES),
+    ] {
+        let (rho, n, l2) = estimate_correlation(scene);
+        eprintln!("{name}: Spearman(error_estimate, |ΔB|) = {rho:.3} over {n} leaves (rel L2 {l2:.3})");
+        assert!(rho > floor, "{name}: Spearman {rho} ≤ floor {floor} ({n} leaves)");
+    }
+}
+
+// Floors below were measured with the interactive preset at Aeps 1e-3 and a 512-path reference
+// per leaf (main at 46e40ee). The reference's noise on each leaf lowers every figure a little.
+
+/// Cornell: measured 0.163 over 2183 leaves; the floor is half of it, still clearly positive.
+const SPEARMAN_FLOOR_CORNELL: f64 = 0.08;
+/// boxes_on_floor: measured 0.053 over 1376 leaves — weak; the floor only asserts "positive".
+const SPEARMAN_FLOOR_BOXES: f64 = 0.0;
+/// KNOWN WEAKNESS, not a target: on the table room the estimate does not rank the error.
+/// Measured 0.016 here (and −0.105 with the 1024-path reference at Aeps 1e-4 before 46e40ee);
+/// the mean estimate is ~7× the mean true |ΔB|. This floor only guards against it getting
+/// worse; raise it above 0 when the solver's estimate is fixed.
+const SPEARMAN_FLOOR_TABLE_ROOM: f64 = -0.1;
+
+#[test]
+fn resampled_comparison_of_a_real_solve_is_consistent() {
+    // The same solve measured on its own leaves and on a coarse reference mesh: the coarse mesh
+    // averages out error, so its L2 is the smaller, and both are finite and below 100 %.
+    let scene = hard_cases::boxes_on_floor().scene;
+    let scene = Arc::new(scene);
+    let mut s = HierarchicalSolver::new(scene.clone(), HierarchicalParams::interactive()).unwrap();
+    s.solve(&mut |_, _| {});
+    let sol = s.solution();
+    let acc = Accel::build(&scene);
+    let mesh = reference_mesh(&scene, 0.75).unwrap();
+    let est =
+        estimate_elements(&scene, &acc, &mesh, &ReferenceParams { samples: 256, ..ReferenceParams::quick() })
+            .unwrap();
+    let r = compare_resampled(&scene, &sol, &mesh, &est).unwrap();
+    assert!(r.scene.l2.is_finite() && r.scene.l2 < 1.0 && r.scene.l2 > 0.0, "{:?}", r.scene);
+    assert!(r.scene.l2_debiased <= r.scene.l2 && r.scene.reference_noise < r.scene.l2);
+    assert!((r.energy_residual - sol.energy.relative_residual()).abs() < EXACT);
+}
+
+#[test]
+fn quick_bench_runs_every_method_and_writes_table_json_and_plot() {
+    use radlab::bench::{self, BenchConfig, Mode};
+    let dir = std::env::temp_dir().join(format!("radlab-bench-test-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut config = BenchConfig::new(Mode::Quick);
+    config.scenes = vec!["hard:shared_edge_perpendicular".into(), "hard:open_scene".into()];
+    config.cache = radlab::reference::Cache::at(dir.join("cache"));
+    let mut lines = 0;
+    let report = bench::run(&config, &mut |_| lines += 1).unwrap();
+    assert!(lines > 0);
+    for scene in &config.scenes {
+        for method in ["uniform", "progressive", "hierarchical"] {
+            let rows: Vec<_> =
+                report.rows.iter().filter(|r| &r.scene == scene && r.method == method).collect();
+            assert!(rows.len() >= 2, "{scene} {method}: {} rows", rows.len());
+            for r in rows.iter().filter(|r| r.status == "ok") {
+                assert!(r.time_s > 0.0 && r.rel_l2.is_finite() && r.elements > 0, "{r:?}");
+            }
+        }
+    }
+    assert_eq!(report.scenes.len(), 2);
+    let md = bench::markdown(&report);
+    assert!(
+        md.contains("| shared_edge_perpendicular") || md.contains("| hard:shared_edge_perpendicular"),
+        "{md}"
+    );
+    let png = dir.join("plot.png");
+    bench::plot_png(&report, &png).unwrap();
+    let bytes = std::fs::read(&png).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000, "{} bytes", bytes.len());
+    let json = serde_json::to_string(&report).unwrap();
+    assert!(json.contains("\"rows\""));
+    let _ = std::fs::remove_dir_all(&dir);
+}
