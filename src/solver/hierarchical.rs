@@ -63,6 +63,8 @@ use std::time::Instant;
 
 pub use crate::hierarchy::StopReason as ElementStopReason;
 
+/// Gauss–Legendre order per axis of the link form factor over the receiver.
+const LINK_FF_ORDER: usize = 2;
 /// Rays used to confirm that an input patch pair is fully occluded before it is left unlinked.
 const ROOT_CONFIRM_RAYS: u32 = 32;
 /// Partially visible links refine at this fraction of BFeps (shadow boundaries first).
@@ -518,7 +520,7 @@ impl HierarchicalSolver {
         if p.patch == q.patch || !faces(p, q) || !faces(q, p) {
             return (None, 0);
         }
-        let ff = form_factor::point_to_polygon(p.centroid, p.normal, q.vertices());
+        let ff = link_form_factor(p, q);
         if ff <= 0.0 && !(straddles(p, q) || straddles(q, p)) {
             return (None, 0);
         }
@@ -566,8 +568,8 @@ impl HierarchicalSolver {
                         skipped += 1;
                         continue;
                     }
-                    let fpq = form_factor::point_to_polygon(p.centroid, p.normal, q.vertices());
-                    let fqp = form_factor::point_to_polygon(q.centroid, q.normal, p.vertices());
+                    let fpq = link_form_factor(p, q);
+                    let fqp = link_form_factor(q, p);
                     let straddle = straddles(p, q) || straddles(q, p);
                     if fpq <= 0.0 && fqp <= 0.0 && !straddle {
                         skipped += 1;
@@ -1046,6 +1048,13 @@ impl HierarchicalSolver {
             elements,
         }
     }
+}
+
+/// Form factor of a link receiver ← source: the exact point-to-polygon kernel averaged over the
+/// receiver with a 2×2 Gauss–Legendre rule (on the part in front of the source). A centroid-only
+/// value has a first-order error on coarse receivers that showed as a 5–10 % darker Cornell box.
+fn link_form_factor(receiver: &Element, source: &Element) -> f64 {
+    form_factor::polygon_to_polygon_fixed(receiver.vertices(), source.vertices(), LINK_FF_ORDER)
 }
 
 /// BFeps in units of B.
