@@ -87,8 +87,8 @@ impl HierarchicalParams {
         HierarchicalParams {
             oracle: Oracle::Bf,
             feps: 0.05,
-            aeps: AreaEps::Relative(2e-4),
-            bf_eps: 5e-3,
+            aeps: AreaEps::Relative(1e-4),
+            bf_eps: 2e-3,
             bf_relative: true,
             rays: 4,
             max_depth: 12,
