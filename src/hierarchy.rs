@@ -212,22 +212,21 @@ impl Hierarchy {
         let parent = e.clone();
         let first = self.elements.len() as u32;
         let v = parent.verts;
-        let kids: [[DVec3; 4]; 4];
         let n = parent.n_verts;
-        if n == 4 {
+        let kids: [[DVec3; 4]; 4] = if n == 4 {
             let m01 = 0.5 * (v[0] + v[1]);
             let m12 = 0.5 * (v[1] + v[2]);
             let m23 = 0.5 * (v[2] + v[3]);
             let m30 = 0.5 * (v[3] + v[0]);
             let c = 0.25 * (v[0] + v[1] + v[2] + v[3]);
-            kids = [[v[0], m01, c, m30], [m01, v[1], m12, c], [c, m12, v[2], m23], [m30, c, m23, v[3]]];
+            [[v[0], m01, c, m30], [m01, v[1], m12, c], [c, m12, v[2], m23], [m30, c, m23, v[3]]]
         } else {
             let m01 = 0.5 * (v[0] + v[1]);
             let m12 = 0.5 * (v[1] + v[2]);
             let m20 = 0.5 * (v[2] + v[0]);
             let z = DVec3::ZERO;
-            kids = [[v[0], m01, m20, z], [m01, v[1], m12, z], [m20, m12, v[2], z], [m12, m20, m01, z]];
-        }
+            [[v[0], m01, m20, z], [m01, v[1], m12, z], [m20, m12, v[2], z], [m12, m20, m01, z]]
+        };
         for k in kids {
             let verts = &k[..n as usize];
             self.elements.push(Element {

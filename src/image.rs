@@ -471,6 +471,7 @@ pub enum Colormap {
     Diverging,
 }
 
+#[allow(clippy::approx_constant)] // 0.318 is a sample of the colour map, not 1/π
 const VIRIDIS: [[f32; 3]; 11] = [
     [0.267, 0.005, 0.329],
     [0.282, 0.141, 0.459],

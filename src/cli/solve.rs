@@ -343,11 +343,11 @@ pub fn solution_json(
         "rays": sol.stats.rays,
         "time_s": sol.stats.time_s,
     });
-    if let (Some(extra), Some(obj)) = (&sol.stats.extra, stats.as_object_mut()) {
-        if let Some(e) = extra.as_object() {
-            for (k, v) in e {
-                obj.entry(k.clone()).or_insert_with(|| v.clone());
-            }
+    if let (Some(e), Some(obj)) =
+        (sol.stats.extra.as_ref().and_then(|x| x.as_object()), stats.as_object_mut())
+    {
+        for (k, v) in e {
+            obj.entry(k.clone()).or_insert_with(|| v.clone());
         }
     }
     json!({

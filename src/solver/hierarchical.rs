@@ -160,6 +160,9 @@ pub struct Snapshot {
     pub residuals: Vec<f64>,
 }
 
+/// Initial linking of one patch p: (q, link p←q, link q←p) for q > p, pairs skipped, rays cast.
+type PairRow = (Vec<(u32, Link, Link)>, usize, u64);
+
 /// Receiver, its new own links, links for its children, rays cast, own list changed, links created.
 type ReplaceResult = (u32, Vec<Link>, Vec<(u32, Link)>, u64, bool, usize);
 
@@ -539,21 +542,21 @@ impl HierarchicalSolver {
     /// Link every pair of input patches that face each other and are not fully occluded.
     fn initial_linking(&mut self) -> usize {
         let key = (self.params.rays, self.params.seed);
-        if let Some((r, s, cached, skipped)) = &self.initial_cache {
-            if (*r, *s) == key {
-                let n = cached.iter().map(Vec::len).sum();
-                for (i, l) in cached.iter().enumerate() {
-                    self.links.by_receiver[i] = l.clone();
-                }
-                self.stats.pairs_skipped = *skipped;
-                return n;
+        if let Some((r, s, cached, skipped)) = &self.initial_cache
+            && (*r, *s) == key
+        {
+            let n = cached.iter().map(Vec::len).sum();
+            for (i, l) in cached.iter().enumerate() {
+                self.links.by_receiver[i] = l.clone();
             }
+            self.stats.pairs_skipped = *skipped;
+            return n;
         }
         let n = self.hier.roots as u32;
         let rays = self.params.rays;
         let seed = self.params.seed;
         // For each p, pairs (p, q > p): visibility once per unordered pair, used both ways.
-        let rows: Vec<(Vec<(u32, Link, Link)>, usize, u64)> = (0..n)
+        let rows: Vec<PairRow> = (0..n)
             .into_par_iter()
             .map(|pi| {
                 let p = self.hier.get(pi);
@@ -634,10 +637,10 @@ impl HierarchicalSolver {
     fn update_sums_and_normalisation(&mut self) {
         // Propagate "dirty" down: parents have smaller ids than their children.
         for i in 0..self.hier.len() {
-            if let Some(p) = self.hier.elements[i].parent() {
-                if self.hier.elements[p as usize].dirty {
-                    self.hier.elements[i].dirty = true;
-                }
+            if let Some(p) = self.hier.elements[i].parent()
+                && self.hier.elements[p as usize].dirty
+            {
+                self.hier.elements[i].dirty = true;
             }
         }
         for (i, e) in self.hier.elements.iter_mut().enumerate() {
