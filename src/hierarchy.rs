@@ -80,18 +80,27 @@ pub struct Element {
     pub stop: StopReason,
     pub verts: [DVec3; 4],
     pub area: f64,
+    /// Largest vertex-to-vertex distance (cached: the oracle asks for it per link).
+    pub diam: f64,
     pub centroid: DVec3,
     pub normal: DVec3,
+    /// Links of this element or an ancestor changed since its normalisation was computed.
+    pub dirty: bool,
     pub reflectance: Rgb,
     pub emission: Rgb,
     /// Radiosity: leaves E + ρ·H; interior elements the area average of their children (pull).
     pub radiosity: Rgb,
     /// Irradiance gathered over this element's own links, Σ F·V·B_source (before push).
     pub gathered: Rgb,
+    /// The part of `gathered` that comes through fully visible links (V = 1); only this part is
+    /// normalised when pushed down to leaves.
+    pub gathered_full: Rgb,
     /// Σ F·V over this element's own links (for the escaped-energy balance).
     pub fv_sum: f64,
-    /// Σ F over this element's own links, unoccluded (for the per-leaf normalisation).
+    /// Σ F over this element's fully visible own links (for the per-leaf normalisation).
     pub f_sum: f64,
+    /// Σ F·V over this element's own links that are not fully visible.
+    pub fv_partial: f64,
     /// Per-leaf form-factor normalisation factor (1 for interior elements); see `solver::hierarchical`.
     pub norm: f64,
 }
@@ -116,18 +125,21 @@ impl Element {
     pub fn parent(&self) -> Option<u32> {
         (self.parent != NONE).then_some(self.parent)
     }
-    /// Largest distance between two vertices.
+    /// Largest distance between two vertices (cached at creation).
     #[must_use]
     pub fn diameter(&self) -> f64 {
-        let v = self.vertices();
-        let mut d: f64 = 0.0;
-        for i in 0..v.len() {
-            for j in i + 1..v.len() {
-                d = d.max(v[i].distance(v[j]));
-            }
-        }
-        d
+        self.diam
     }
+}
+
+fn max_pairwise_distance(v: &[DVec3]) -> f64 {
+    let mut d: f64 = 0.0;
+    for i in 0..v.len() {
+        for j in i + 1..v.len() {
+            d = d.max(v[i].distance(v[j]));
+        }
+    }
+    d
 }
 
 /// The arena. Element `i < patches` is the root of patch `i`.
@@ -157,14 +169,18 @@ impl Hierarchy {
                     stop: StopReason::Unrefined,
                     verts,
                     area: p.area,
+                    diam: max_pairwise_distance(&p.vertices),
+                    dirty: true,
                     centroid: p.centroid,
                     normal: p.normal,
                     reflectance: p.reflectance,
                     emission: p.emission,
                     radiosity: p.emission,
                     gathered: Rgb::ZERO,
+                    gathered_full: Rgb::ZERO,
                     fv_sum: 0.0,
                     f_sum: 0.0,
+                    fv_partial: 0.0,
                     norm: 1.0,
                 }
             })
@@ -221,10 +237,14 @@ impl Hierarchy {
                 stop: StopReason::Unrefined,
                 verts: k,
                 area: polygon_area(verts),
+                diam: max_pairwise_distance(verts),
+                dirty: true,
                 centroid: polygon_centroid(verts),
                 gathered: Rgb::ZERO,
+                gathered_full: Rgb::ZERO,
                 fv_sum: 0.0,
                 f_sum: 0.0,
+                fv_partial: 0.0,
                 norm: 1.0,
                 ..parent.clone()
             });

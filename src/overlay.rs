@@ -1,1 +1,747 @@
-//! (being written)
+//! CPU-side display data for the viewer: shaded triangles, quadtree edges, links, the error
+//! heatmap, colour scales and picking. Plain vertex and colour lists — no wgpu here, so all of it
+//! is unit-tested headless; `render` only uploads what this module returns.
+//!
+//! ## What is drawn
+//! - **Radiosity**: each leaf element's B (flat), or Gouraud-interpolated vertex values
+//!   (smooth). Vertex values are the average of the leaves that share the vertex as a corner
+//!   ("nodal averaging", Cohen & Wallace 1993, §9.2.1); a vertex that lies in the middle of a
+//!   larger neighbour's edge (a *T-vertex* between elements of different depth) instead takes the
+//!   value interpolated along that edge, so the shading has no cracks:
+//!
+//!   ```text
+//!   A ────────── B        value(M) = ½ (value(A) + value(B)),
+//!   │  big       │        applied coarsest edge first, recursively on A–M and M–B,
+//!   ├────M───────┤        so a chain of T-vertices stays continuous.
+//!   │ s1 │  s2   │
+//!   ```
+//! - **Quadtree**: every leaf's edges, coloured by its depth below the input patch (the HSA91
+//!   quadtree, Hanrahan, Salzman & Aupperle 1991, §3).
+//! - **Links**: a line between the centroids of receiver and source for each link
+//!   (B_p gathers ρ_p F_pq V_pq B_q through it; lecture 17's p/q), coloured by log₁₀ F on a
+//!   perceptual scale. Filters: one element's links, a minimum F, visibility class.
+//! - **Error**: a per-element error value (the solver's own estimate, or the true error against a
+//!   reference when one exists) on a log colour scale.
+
+use crate::math::{DVec3, Rgb, polygon_centroid, polygon_normal};
+use std::collections::HashMap;
+
+/// One element as the viewer sees it (leaf or interior). `id` indexes the element list.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElementView {
+    pub id: u32,
+    /// Input patch index.
+    pub patch: u32,
+    pub parent: Option<u32>,
+    /// Depth below the input patch (0 = the patch itself).
+    pub depth: u8,
+    pub leaf: bool,
+    /// `n_vertices` (3 or 4) valid entries, counter-clockwise seen from the front.
+    pub vertices: [DVec3; 4],
+    pub n_vertices: u8,
+    pub area: f64,
+    pub reflectance: Rgb,
+    pub emission: Rgb,
+    pub radiosity: Rgb,
+    /// The solver's own error estimate for B (units of B); 0 where it has none.
+    pub error_estimate: f64,
+    /// Why refinement stopped at this element (a short label).
+    pub stop: &'static str,
+}
+
+impl ElementView {
+    #[must_use]
+    pub fn verts(&self) -> &[DVec3] {
+        &self.vertices[..usize::from(self.n_vertices)]
+    }
+    #[must_use]
+    pub fn centroid(&self) -> DVec3 {
+        polygon_centroid(self.verts())
+    }
+    #[must_use]
+    pub fn normal(&self) -> DVec3 {
+        polygon_normal(self.verts())
+    }
+}
+
+/// One link: the receiver gathers from the source (`ff` = F from receiver to source, `vis` ∈ [0,1]).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct LinkView {
+    pub receiver: u32,
+    pub source: u32,
+    pub ff: f32,
+    pub vis: f32,
+}
+
+/// Visibility at or above `1 - VIS_CLASS_EPS` counts as "full", at or below as "none": the
+/// visible fraction is a ray count ratio, so exact 0 and 1 are the natural classes.
+pub const VIS_CLASS_EPS: f32 = 1e-6;
+
+/// The visibility class of a link.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum VisClass {
+    Full,
+    Partial,
+    None,
+}
+
+impl LinkView {
+    #[must_use]
+    pub fn class(&self) -> VisClass {
+        if self.vis >= 1.0 - VIS_CLASS_EPS {
+            VisClass::Full
+        } else if self.vis <= VIS_CLASS_EPS {
+            VisClass::None
+        } else {
+            VisClass::Partial
+        }
+    }
+}
+
+/// A line segment list: vertices in pairs, each with an RGBA colour (linear 0..1, display space).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LineList {
+    pub points: Vec<DVec3>,
+    pub colors: Vec<[f32; 4]>,
+}
+
+impl LineList {
+    fn push(&mut self, a: DVec3, b: DVec3, color: [f32; 4]) {
+        self.points.extend([a, b]);
+        self.colors.extend([color, color]);
+    }
+    #[must_use]
+    pub fn segments(&self) -> usize {
+        self.points.len() / 2
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Colour scales
+
+/// Viridis (matplotlib), 9 stops: perceptually uniform and readable by colour-blind viewers.
+const VIRIDIS: [[f32; 3]; 9] = [
+    [0.267, 0.005, 0.329],
+    [0.283, 0.141, 0.458],
+    [0.254, 0.265, 0.530],
+    [0.207, 0.372, 0.553],
+    [0.164, 0.471, 0.558],
+    [0.128, 0.567, 0.551],
+    [0.135, 0.659, 0.518],
+    [0.267, 0.749, 0.441],
+    [0.993, 0.906, 0.144],
+];
+
+/// Inferno-like warm scale for the error heatmap (black → red → yellow → white).
+const HEAT: [[f32; 3]; 6] = [
+    [0.0, 0.0, 0.04],
+    [0.34, 0.06, 0.43],
+    [0.73, 0.21, 0.33],
+    [0.97, 0.55, 0.04],
+    [0.98, 0.85, 0.2],
+    [1.0, 1.0, 0.85],
+];
+
+/// Which colour scale a legend shows.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Palette {
+    Viridis,
+    Heat,
+}
+
+impl Palette {
+    /// Colour at t ∈ [0, 1] (clamped; NaN maps to 0).
+    #[must_use]
+    pub fn at(self, t: f64) -> [f32; 3] {
+        let table: &[[f32; 3]] = match self {
+            Palette::Viridis => &VIRIDIS,
+            Palette::Heat => &HEAT,
+        };
+        let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
+        let x = t * (table.len() - 1) as f64;
+        let i = (x.floor() as usize).min(table.len() - 2);
+        let f = (x - i as f64) as f32;
+        let (a, b) = (table[i], table[i + 1]);
+        [a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f, a[2] + (b[2] - a[2]) * f]
+    }
+}
+
+/// Percentiles bounding the error heatmap's colour scale (see [`LogScale::robust`]).
+const ROBUST_LO_PERCENTILE: usize = 10;
+const ROBUST_HI_PERCENTILE: usize = 99;
+/// The heatmap spans at most this many decades: errors 10⁴ below the largest are "none" to
+/// the eye, and a round-off-sized 2nd percentile (1e-15) would flatten every other colour.
+const ROBUST_MAX_DECADES: i32 = 4;
+
+/// A logarithmic scale from `lo` to `hi` (both > 0), for colour bars.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct LogScale {
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl LogScale {
+    /// The scale spanning the positive finite values, or `None` when there are none. A span of
+    /// less than one decade is widened to one decade so that colours stay meaningful.
+    #[must_use]
+    pub fn spanning(values: impl IntoIterator<Item = f64>) -> Option<LogScale> {
+        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+        for v in values {
+            if v > 0.0 && v.is_finite() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+        if hi <= 0.0 {
+            return None;
+        }
+        if hi / lo < 10.0 {
+            lo = hi / 10.0;
+        }
+        Some(LogScale { lo, hi })
+    }
+    /// A scale over the bulk of the positive finite values: from the 10th to the 99th
+    /// percentile (values outside clamp to the ends), so one outlier or a few near-zero values
+    /// do not squash every colour to one end. At least one decade wide, at most
+    /// `ROBUST_MAX_DECADES`.
+    #[must_use]
+    pub fn robust(values: impl IntoIterator<Item = f64>) -> Option<LogScale> {
+        let mut v: Vec<f64> = values.into_iter().filter(|x| *x > 0.0 && x.is_finite()).collect();
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        let at = |q: usize| v[((v.len() - 1) * q) / 100];
+        let hi = at(ROBUST_HI_PERCENTILE);
+        let lo = at(ROBUST_LO_PERCENTILE).max(hi * 10f64.powi(-ROBUST_MAX_DECADES)).min(hi / 10.0);
+        Some(LogScale { lo, hi })
+    }
+    /// Position of `v` on the scale, in [0, 1] (values ≤ lo give 0).
+    #[must_use]
+    pub fn t(&self, v: f64) -> f64 {
+        if v.is_nan() || v <= self.lo {
+            return 0.0;
+        }
+        ((v.log10() - self.lo.log10()) / (self.hi.log10() - self.lo.log10())).clamp(0.0, 1.0)
+    }
+    /// The value at position t (inverse of [`LogScale::t`]).
+    #[must_use]
+    pub fn value_at(&self, t: f64) -> f64 {
+        10f64.powf(self.lo.log10() + t * (self.hi.log10() - self.lo.log10()))
+    }
+}
+
+/// Colour of quadtree depth `d`: a categorical palette (12 distinct hues, then it repeats).
+#[must_use]
+pub fn depth_color(depth: u8) -> [f32; 3] {
+    const DEPTH: [[f32; 3]; 12] = [
+        [1.0, 1.0, 1.0],
+        [0.12, 0.47, 0.71],
+        [1.0, 0.5, 0.05],
+        [0.17, 0.63, 0.17],
+        [0.84, 0.15, 0.16],
+        [0.58, 0.4, 0.74],
+        [0.55, 0.34, 0.29],
+        [0.89, 0.47, 0.76],
+        [0.5, 0.5, 0.5],
+        [0.74, 0.74, 0.13],
+        [0.09, 0.75, 0.81],
+        [0.0, 0.0, 0.0],
+    ];
+    DEPTH[usize::from(depth) % DEPTH.len()]
+}
+
+// ---------------------------------------------------------------------------------------------
+// Smooth shading
+
+/// Positions are merged when they agree to this fraction of the scene's diagonal: elements are
+/// split at exact midpoints in f64, so shared corners agree to rounding (~1e-16 relative).
+pub const MERGE_REL: f64 = 1e-9;
+
+type Key = (u32, i64, i64, i64);
+
+struct Quantizer {
+    origin: DVec3,
+    inv: f64,
+}
+
+impl Quantizer {
+    fn new(elements: &[ElementView]) -> Quantizer {
+        let mut min = DVec3::splat(f64::INFINITY);
+        let mut max = DVec3::splat(f64::NEG_INFINITY);
+        for e in elements {
+            for v in e.verts() {
+                min = min.min(*v);
+                max = max.max(*v);
+            }
+        }
+        let diag = (max - min).length();
+        let quantum = if diag > 0.0 && diag.is_finite() { diag * MERGE_REL } else { 1.0 };
+        Quantizer { origin: if min.is_finite() { min } else { DVec3::ZERO }, inv: 1.0 / quantum }
+    }
+    fn key(&self, patch: u32, p: DVec3) -> Key {
+        let q = (p - self.origin) * self.inv;
+        (patch, q.x.round() as i64, q.y.round() as i64, q.z.round() as i64)
+    }
+}
+
+/// Deepest chain of T-vertices followed along one edge (the quadtree's depth cap is 30).
+const MAX_T_DEPTH: u32 = 32;
+
+/// Radiosity at each corner of each leaf in `leaves` (indices into `elements`), for Gouraud
+/// shading: nodal averages within each input patch, T-vertices anchored to the larger
+/// neighbour's edge (see the module docs). Entries past `n_vertices` are zero.
+#[must_use]
+pub fn vertex_radiosity(elements: &[ElementView], leaves: &[u32]) -> Vec<[Rgb; 4]> {
+    let quant = Quantizer::new(elements);
+    let mut sums: HashMap<Key, (Rgb, u32)> = HashMap::new();
+    for &l in leaves {
+        let e = &elements[l as usize];
+        for v in e.verts() {
+            let s = sums.entry(quant.key(e.patch, *v)).or_insert((Rgb::ZERO, 0));
+            s.0 += e.radiosity;
+            s.1 += 1;
+        }
+    }
+    let mut value: HashMap<Key, Rgb> = sums.into_iter().map(|(k, (s, n))| (k, s / f64::from(n))).collect();
+
+    // Coarsest edges first, so a T-vertex's endpoints already hold their final values.
+    let mut order: Vec<u32> = leaves.to_vec();
+    order.sort_by_key(|&l| (elements[l as usize].depth, l));
+    for &l in &order {
+        let e = &elements[l as usize];
+        let n = e.verts().len();
+        for i in 0..n {
+            anchor(&quant, &mut value, e.patch, e.vertices[i], e.vertices[(i + 1) % n], MAX_T_DEPTH);
+        }
+    }
+
+    leaves
+        .iter()
+        .map(|&l| {
+            let e = &elements[l as usize];
+            let mut out = [Rgb::ZERO; 4];
+            for (o, v) in out.iter_mut().zip(e.verts()) {
+                *o = value.get(&quant.key(e.patch, *v)).copied().unwrap_or(e.radiosity);
+            }
+            out
+        })
+        .collect()
+}
+
+fn anchor(quant: &Quantizer, value: &mut HashMap<Key, Rgb>, patch: u32, a: DVec3, b: DVec3, budget: u32) {
+    if budget == 0 {
+        return;
+    }
+    let m = 0.5 * (a + b);
+    let km = quant.key(patch, m);
+    if !value.contains_key(&km) {
+        return;
+    }
+    let (Some(va), Some(vb)) =
+        (value.get(&quant.key(patch, a)).copied(), value.get(&quant.key(patch, b)).copied())
+    else {
+        return;
+    };
+    value.insert(km, (va + vb) * 0.5);
+    anchor(quant, value, patch, a, m, budget - 1);
+    anchor(quant, value, patch, m, b, budget - 1);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Overlays
+
+/// Edges of every leaf, coloured by the leaf's depth, lifted by `lift` along the element normal
+/// so they sit just in front of the surface (depth-tested against it). An edge shared by two
+/// leaves of the same patch is drawn once, in the colour of the deeper one (halves the lines).
+#[must_use]
+pub fn quadtree_lines(elements: &[ElementView], leaves: &[u32], lift: f64) -> LineList {
+    let quant = Quantizer::new(elements);
+    let mut out = LineList::default();
+    // Segment (sorted endpoint keys) → (index of its first point in `out`, depth drawn).
+    let mut seen: HashMap<(Key, Key), (usize, u8)> = HashMap::new();
+    for &l in leaves {
+        let e = &elements[l as usize];
+        let [r, g, b] = depth_color(e.depth);
+        let off = e.normal() * lift;
+        let v = e.verts();
+        for i in 0..v.len() {
+            let (a, c) = (v[i], v[(i + 1) % v.len()]);
+            let (ka, kc) = (quant.key(e.patch, a), quant.key(e.patch, c));
+            let key = if ka <= kc { (ka, kc) } else { (kc, ka) };
+            match seen.get_mut(&key) {
+                Some((at, depth)) => {
+                    if e.depth > *depth {
+                        *depth = e.depth;
+                        out.colors[*at] = [r, g, b, 1.0];
+                        out.colors[*at + 1] = [r, g, b, 1.0];
+                    }
+                }
+                None => {
+                    seen.insert(key, (out.points.len(), e.depth));
+                    out.push(a + off, c + off, [r, g, b, 1.0]);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Default decimation of the links overlay: beyond a few thousand lines a room is a solid
+/// fan of lines.
+pub const DEFAULT_MAX_LINKS: usize = 3000;
+
+/// How the links overlay thins out when more links pass the filter than `max_lines`.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Decimation {
+    /// Every k-th link in receiver order: a representative sample of the whole hierarchy.
+    Strided,
+    /// The largest form factors (often the tiny elements along shared corners).
+    LargestF,
+}
+
+/// Which links to draw.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct LinkFilter {
+    /// Only links whose receiver or source is this element (or one of its ancestors: an element
+    /// also gathers through the links of the elements above it).
+    pub element: Option<u32>,
+    pub min_ff: f32,
+    pub full: bool,
+    pub partial: bool,
+    pub none: bool,
+    /// Decimation: at most this many lines, chosen by `decimation`.
+    pub max_lines: usize,
+    pub decimation: Decimation,
+}
+
+impl Default for LinkFilter {
+    fn default() -> Self {
+        LinkFilter {
+            element: None,
+            min_ff: 0.0,
+            full: true,
+            partial: true,
+            none: false,
+            max_lines: DEFAULT_MAX_LINKS,
+            decimation: Decimation::Strided,
+        }
+    }
+}
+
+/// Link lines and what was kept.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LinkLines {
+    pub lines: LineList,
+    /// Links passing the filter.
+    pub matched: usize,
+    /// Links drawn (after decimation).
+    pub shown: usize,
+    /// The colour scale of F over the matched links.
+    pub scale: Option<LogScale>,
+}
+
+/// The element and its ancestors (an element gathers through its own links and its ancestors').
+#[must_use]
+pub fn ancestors(elements: &[ElementView], id: u32) -> Vec<u32> {
+    let mut out = vec![id];
+    let mut cur = elements.get(id as usize).and_then(|e| e.parent);
+    while let Some(p) = cur {
+        if out.len() > 64 {
+            break; // a cycle would be a solver bug; never loop forever on display
+        }
+        out.push(p);
+        cur = elements.get(p as usize).and_then(|e| e.parent);
+    }
+    out
+}
+
+/// Lines between link endpoints' centroids, coloured by log₁₀ F (viridis), `alpha` each.
+#[must_use]
+pub fn link_lines(
+    elements: &[ElementView],
+    links: &[LinkView],
+    filter: &LinkFilter,
+    alpha: f32,
+) -> LinkLines {
+    let chain = filter.element.map(|id| ancestors(elements, id));
+    let mut kept: Vec<&LinkView> = links
+        .iter()
+        .filter(|l| {
+            (l.receiver as usize) < elements.len()
+                && (l.source as usize) < elements.len()
+                && l.ff >= filter.min_ff
+                && match l.class() {
+                    VisClass::Full => filter.full,
+                    VisClass::Partial => filter.partial,
+                    VisClass::None => filter.none,
+                }
+                && chain.as_ref().is_none_or(|c| c.contains(&l.receiver) || c.contains(&l.source))
+        })
+        .collect();
+    let matched = kept.len();
+    let scale = LogScale::spanning(kept.iter().map(|l| f64::from(l.ff)));
+    if kept.len() > filter.max_lines {
+        match filter.decimation {
+            Decimation::LargestF => {
+                kept.sort_by(|a, b| {
+                    b.ff.total_cmp(&a.ff).then(a.receiver.cmp(&b.receiver)).then(a.source.cmp(&b.source))
+                });
+                kept.truncate(filter.max_lines);
+            }
+            Decimation::Strided => {
+                let stride = kept.len().div_ceil(filter.max_lines.max(1));
+                kept = kept.into_iter().step_by(stride).collect();
+            }
+        }
+    }
+    let mut lines = LineList::default();
+    for l in &kept {
+        let t = scale.map_or(0.0, |s| s.t(f64::from(l.ff)));
+        let [r, g, b] = Palette::Viridis.at(t);
+        lines.push(
+            elements[l.receiver as usize].centroid(),
+            elements[l.source as usize].centroid(),
+            [r, g, b, alpha],
+        );
+    }
+    LinkLines { shown: kept.len(), lines, matched, scale }
+}
+
+/// Heatmap colours of per-element error values (indexed like `values`) on a robust log scale
+/// ([`LogScale::robust`]); zero or negative error gets the scale's bottom colour.
+#[must_use]
+pub fn heatmap_colors(values: &[f64]) -> (Vec<[f32; 3]>, Option<LogScale>) {
+    let scale = LogScale::robust(values.iter().copied());
+    let colors = values.iter().map(|&v| Palette::Heat.at(scale.map_or(0.0, |s| s.t(v)))).collect();
+    (colors, scale)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Picking
+
+/// Relative tolerance of the inside test (fraction of the element's edge length), so a ray
+/// through a shared edge hits one of the two elements.
+const PICK_EDGE_EPS: f64 = 1e-9;
+
+/// The nearest leaf hit by the ray `origin + t·dir` (t > 0), either side; `(id, t)`.
+#[must_use]
+pub fn pick(elements: &[ElementView], leaves: &[u32], origin: DVec3, dir: DVec3) -> Option<(u32, f64)> {
+    let mut best: Option<(u32, f64)> = None;
+    for &l in leaves {
+        let e = &elements[l as usize];
+        let v = e.verts();
+        let n = e.normal();
+        let denom = n.dot(dir);
+        if denom.abs() < 1e-300 {
+            continue;
+        }
+        let t = n.dot(v[0] - origin) / denom;
+        if t.is_nan() || t <= 0.0 || best.is_some_and(|(_, bt)| t >= bt) {
+            continue;
+        }
+        let p = origin + dir * t;
+        let inside = (0..v.len()).all(|i| {
+            let a = v[i];
+            let b = v[(i + 1) % v.len()];
+            let edge = b - a;
+            edge.cross(p - a).dot(n) >= -PICK_EDGE_EPS * edge.length_squared()
+        });
+        if inside {
+            best = Some((e.id, t));
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad(id: u32, depth: u8, x0: f64, y0: f64, s: f64, b: f64) -> ElementView {
+        ElementView {
+            id,
+            patch: 0,
+            parent: None,
+            depth,
+            leaf: true,
+            vertices: [
+                DVec3::new(x0, y0, 0.0),
+                DVec3::new(x0 + s, y0, 0.0),
+                DVec3::new(x0 + s, y0 + s, 0.0),
+                DVec3::new(x0, y0 + s, 0.0),
+            ],
+            n_vertices: 4,
+            area: s * s,
+            reflectance: Rgb::splat(0.5),
+            emission: Rgb::ZERO,
+            radiosity: Rgb::splat(b),
+            error_estimate: 0.0,
+            stop: "",
+        }
+    }
+
+    /// Exact for values that are sums of a few halves; only rounding remains.
+    const EXACT: f64 = 1e-12;
+
+    #[test]
+    fn nodal_average_of_a_regular_grid() {
+        // Two unit squares side by side: the shared edge's corners average both.
+        let els = vec![quad(0, 0, 0.0, 0.0, 1.0, 1.0), quad(1, 0, 1.0, 0.0, 1.0, 3.0)];
+        let v = vertex_radiosity(&els, &[0, 1]);
+        assert!((v[0][0].r() - 1.0).abs() < EXACT); // outer corner: only element 0
+        assert!((v[0][1].r() - 2.0).abs() < EXACT); // shared corner (1,0): mean of 1 and 3
+        assert!((v[1][0].r() - 2.0).abs() < EXACT);
+        assert!((v[1][1].r() - 3.0).abs() < EXACT);
+    }
+
+    #[test]
+    fn t_vertex_takes_the_big_edge_interpolation() {
+        // A big 2×2 square on the left; on the right two 1×1 squares stacked: the point (2,1) is a
+        // T-vertex on the big square's right edge.
+        let els = vec![
+            quad(0, 1, 0.0, 0.0, 2.0, 10.0),
+            quad(1, 2, 2.0, 0.0, 1.0, 0.0),
+            quad(2, 2, 2.0, 1.0, 1.0, 4.0),
+        ];
+        let v = vertex_radiosity(&els, &[0, 1, 2]);
+        // Corners of the big edge: (2,0) = mean(10, 0) = 5; (2,2) = mean(10, 4) = 7.
+        assert!((v[0][1].r() - 5.0).abs() < EXACT);
+        assert!((v[0][2].r() - 7.0).abs() < EXACT);
+        // The T-vertex (2,1) is corner 3 of element 1 and corner 0 of element 2: it must be the
+        // midpoint of 5 and 7 (not the nodal mean of 0 and 4), so the shading has no crack.
+        assert!((v[1][3].r() - 6.0).abs() < EXACT, "got {}", v[1][3].r());
+        assert!((v[2][0].r() - 6.0).abs() < EXACT);
+    }
+
+    #[test]
+    fn patches_do_not_share_vertices() {
+        let mut b = quad(1, 0, 1.0, 0.0, 1.0, 3.0);
+        b.patch = 1;
+        let els = vec![quad(0, 0, 0.0, 0.0, 1.0, 1.0), b];
+        let v = vertex_radiosity(&els, &[0, 1]);
+        assert!((v[0][1].r() - 1.0).abs() < EXACT);
+        assert!((v[1][0].r() - 3.0).abs() < EXACT);
+    }
+
+    #[test]
+    fn shared_edges_are_drawn_once_in_the_finer_colour() {
+        let mut b = quad(1, 2, 1.0, 0.0, 1.0, 1.0);
+        b.patch = 0;
+        let els = vec![quad(0, 1, 0.0, 0.0, 1.0, 1.0), b];
+        let l = quadtree_lines(&els, &[0, 1], 0.0);
+        assert_eq!(l.segments(), 7, "two squares sharing one edge");
+        // The shared edge (x = 1) takes depth 2's colour.
+        let shared =
+            (0..l.segments()).find(|&s| l.points[2 * s].x == 1.0 && l.points[2 * s + 1].x == 1.0).unwrap();
+        assert_eq!(l.colors[2 * shared][..3], depth_color(2));
+    }
+
+    #[test]
+    fn quadtree_lines_colour_by_depth() {
+        let els = vec![quad(0, 0, 0.0, 0.0, 1.0, 1.0), quad(1, 3, 1.0, 0.0, 1.0, 1.0)];
+        let l = quadtree_lines(&els, &[0, 1], 0.01);
+        assert_eq!(l.segments(), 7, "the shared edge once");
+        assert_eq!(l.colors[0][..3], depth_color(0));
+        assert_eq!(l.colors[8][..3], depth_color(3));
+        assert_ne!(depth_color(0), depth_color(3));
+        assert!((l.points[0].z - 0.01).abs() < EXACT, "lifted along +z normal");
+    }
+
+    fn links() -> Vec<LinkView> {
+        vec![
+            LinkView { receiver: 0, source: 1, ff: 0.2, vis: 1.0 },
+            LinkView { receiver: 1, source: 0, ff: 0.002, vis: 0.5 },
+            LinkView { receiver: 2, source: 1, ff: 0.02, vis: 0.0 },
+        ]
+    }
+
+    #[test]
+    fn link_filter_and_log_colours() {
+        let els = vec![
+            quad(0, 0, 0.0, 0.0, 1.0, 1.0),
+            quad(1, 0, 1.0, 0.0, 1.0, 1.0),
+            quad(2, 0, 2.0, 0.0, 1.0, 1.0),
+        ];
+        let all = LinkFilter { none: true, ..LinkFilter::default() };
+        let r = link_lines(&els, &links(), &all, 1.0);
+        assert_eq!((r.matched, r.shown), (3, 3));
+        let s = r.scale.unwrap();
+        assert!((s.lo - 0.002).abs() < 1e-9 && (s.hi - 0.2).abs() < 1e-7);
+        // Largest F gets the top colour, smallest the bottom one.
+        assert_eq!(r.lines.colors[0][..3], Palette::Viridis.at(1.0));
+        assert_eq!(r.lines.colors[2][..3], Palette::Viridis.at(0.0));
+        // Default filter hides invisible links.
+        assert_eq!(link_lines(&els, &links(), &LinkFilter::default(), 1.0).matched, 2);
+        // Minimum F and element filters.
+        let f = LinkFilter { min_ff: 0.01, none: true, ..LinkFilter::default() };
+        assert_eq!(link_lines(&els, &links(), &f, 1.0).matched, 2);
+        let f = LinkFilter { element: Some(2), none: true, ..LinkFilter::default() };
+        assert_eq!(link_lines(&els, &links(), &f, 1.0).matched, 1);
+        // Decimation: the strongest, or every k-th.
+        let f = LinkFilter {
+            max_lines: 1,
+            none: true,
+            decimation: Decimation::LargestF,
+            ..LinkFilter::default()
+        };
+        let r = link_lines(&els, &links(), &f, 1.0);
+        assert_eq!((r.matched, r.shown), (3, 1));
+        assert!((r.lines.points[0].x - 0.5).abs() < EXACT, "the F=0.2 link starts at element 0's centre");
+        let f = LinkFilter { max_lines: 2, none: true, ..LinkFilter::default() };
+        let r = link_lines(&els, &links(), &f, 1.0);
+        assert_eq!((r.matched, r.shown), (3, 2), "stride 2 keeps links 0 and 2");
+        assert!((r.lines.points[2].x - 2.5).abs() < EXACT, "the second kept link starts at element 2");
+    }
+
+    #[test]
+    fn element_filter_includes_ancestors_links() {
+        let mut els = vec![
+            quad(0, 0, 0.0, 0.0, 1.0, 1.0),
+            quad(1, 0, 1.0, 0.0, 1.0, 1.0),
+            quad(2, 0, 2.0, 0.0, 1.0, 1.0),
+        ];
+        els[2].parent = Some(0);
+        let f = LinkFilter { element: Some(2), none: true, ..LinkFilter::default() };
+        // Element 2's own link (receiver 2) plus its parent 0's two links.
+        assert_eq!(link_lines(&els, &links(), &f, 1.0).matched, 3);
+    }
+
+    #[test]
+    fn log_scale_and_heatmap() {
+        let s = LogScale { lo: 1e-3, hi: 1.0 };
+        assert!((s.t(1e-2) - 1.0 / 3.0).abs() < EXACT);
+        assert!((s.value_at(s.t(0.05)) - 0.05).abs() < EXACT);
+        assert_eq!(s.t(0.0), 0.0);
+        assert!(LogScale::spanning([0.0, -1.0, f64::NAN]).is_none());
+        let narrow = LogScale::spanning([0.5, 0.6]).unwrap();
+        assert!((narrow.hi / narrow.lo - 10.0).abs() < EXACT, "widened to one decade");
+        let (c, s) = heatmap_colors(&[0.0, 1e-4, 1e-2]);
+        assert_eq!(c[0], Palette::Heat.at(0.0));
+        assert_eq!(c[2], Palette::Heat.at(1.0));
+        assert!(s.is_some());
+        // One tiny and one huge outlier among 100 values do not set the ends of the scale.
+        let mut v: Vec<f64> = (1..=98).map(|i| f64::from(i) * 1e-3).collect();
+        v.extend([1e-16, 1e3]);
+        let r = LogScale::robust(v).unwrap();
+        assert!(r.lo >= 1e-3 && r.hi <= 0.1, "{r:?}");
+        let r = LogScale::robust((0..100).map(|i| if i < 50 { 1e-15 } else { 1.0 })).unwrap();
+        assert!((r.lo - 1e-4).abs() < 1e-12, "at most four decades: {r:?}");
+        assert_eq!(Palette::Viridis.at(f64::NAN), Palette::Viridis.at(0.0));
+    }
+
+    #[test]
+    fn pick_nearest_leaf_either_side() {
+        let mut far = quad(1, 0, 0.0, 0.0, 1.0, 1.0);
+        for v in &mut far.vertices {
+            v.z = -1.0;
+        }
+        let els = vec![quad(0, 0, 0.0, 0.0, 1.0, 1.0), far];
+        let down = DVec3::new(0.0, 0.0, -1.0);
+        assert_eq!(pick(&els, &[0, 1], DVec3::new(0.5, 0.5, 2.0), down).map(|h| h.0), Some(0));
+        assert_eq!(pick(&els, &[1], DVec3::new(0.5, 0.5, 2.0), down).map(|h| h.0), Some(1));
+        // From below the front faces of both still count; the nearest is element 1.
+        assert_eq!(pick(&els, &[0, 1], DVec3::new(0.5, 0.5, -3.0), -down).map(|h| h.0), Some(1));
+        assert_eq!(pick(&els, &[0, 1], DVec3::new(1.5, 0.5, 2.0), down), None);
+    }
+}

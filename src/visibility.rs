@@ -6,7 +6,10 @@
 //! ```
 //!
 //! Deterministic: the jitter comes from a PCG stream keyed by the caller (a link's element ids),
-//! so the estimate does not depend on thread scheduling. The receiver and source patches are
+//! so the estimate does not depend on thread scheduling. Only sample pairs that face each other
+//! (x in front of the source's plane and y in front of the receiver's) are counted: the form
+//! factor already clips the parts behind either plane, and counting rays through them would
+//! darken a receiver that sees only part of a large source (a box face standing on a floor). The receiver and source patches are
 //! ignored by the ray cast, so an element never shadows itself; sample points sit strictly
 //! inside the regions (strata centres jittered by at most 90 % of a stratum), so rays never
 //! graze a shared edge.
@@ -60,7 +63,10 @@ pub fn visible_fraction(
         return 1.0;
     }
     let mut rng = Pcg32::keyed(seed, key);
+    let n_r = crate::math::newell_normal(receiver);
+    let n_s = crate::math::newell_normal(source);
     let mut visible = 0u32;
+    let mut counted = 0u32;
     // Receiver strata in order, source strata in a co-prime stride so pairs decorrelate.
     let stride = 2 * rays / 3 + 1;
     for k in 0..rays {
@@ -68,11 +74,23 @@ pub fn visible_fraction(
         let (su, sv) = stratified(k, rays, stride, &mut rng);
         let x = point_on_polygon(receiver, ru, rv);
         let y = point_on_polygon(source, su, sv);
+        // Only pairs that face each other carry energy (both cosines positive); a pair behind
+        // either plane says nothing about the visibility that the form factor counts.
+        let d = y - x;
+        if n_r.dot(d) <= 0.0 || n_s.dot(d) >= 0.0 {
+            continue;
+        }
+        counted += 1;
         if !accel.occluded(x, y, [receiver_patch, source_patch]) {
             visible += 1;
         }
     }
-    f64::from(visible) / f64::from(rays)
+    if counted == 0 {
+        // No facing pair among the samples: the regions barely see each other; the form factor
+        // (which clips exactly) decides, so do not also attenuate.
+        return 1.0;
+    }
+    f64::from(visible) / f64::from(counted)
 }
 
 #[cfg(test)]

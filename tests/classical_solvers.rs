@@ -127,6 +127,31 @@ fn white_furnace_gives_e_over_one_minus_rho_on_any_mesh() {
     }
 }
 
+/// The furnace far from the origin and at extreme scales: kernels and visibility work in
+/// relative terms, and the quadrature never asks for more than the coordinates hold.
+#[test]
+fn furnace_far_from_origin_and_at_extreme_scales() {
+    let (rho, e) = (0.9, Rgb::new(1.0, 2.0, 0.5));
+    for (offset, scale) in [(1e6, 1.0), (0.0, 1e-4), (-3.0, 1e4), (1e6, 1e-2)] {
+        let patches = cube_faces()
+            .into_iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let moved = f.iter().map(|p| *p * scale + DVec3::splat(offset)).collect();
+                patch(moved, Rgb::splat(rho), e, &format!("face{i}"))
+            })
+            .collect();
+        let scene = Scene::new("furnace", "test", patches);
+        let (u, p) = solve_both(&scene, 0.5 * scale, 4);
+        for s in [&u, &p] {
+            for el in &s.elements {
+                let err = (el.radiosity.0[1] - e.0[1] / (1.0 - rho)).abs() / (e.0[1] / (1.0 - rho));
+                assert!(err < B_TARGET, "{} offset {offset} scale {scale}: {:?}", s.method, el.radiosity);
+            }
+        }
+    }
+}
+
 /// Solve (I − diag(ρ) F) B = E by Gaussian elimination with partial pivoting.
 #[allow(clippy::needless_range_loop)] // textbook index form reads best here
 fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
@@ -306,6 +331,24 @@ fn identical_for_any_thread_count() {
         })
     };
     assert_eq!(run(1), run(3));
+}
+
+#[test]
+fn progress_is_reported_to_completion() {
+    let scene = open_box_with_occluder();
+    let accel = Accel::build(&scene);
+    let mut calls: Vec<(u64, u64)> = Vec::new();
+    let p = UniformParams { element_size: 0.34, rays: 4, ..UniformParams::default() };
+    uniform::solve(&scene, &accel, &p, &mut |d, t| calls.push((d, t))).unwrap();
+    let (&last, n) = (calls.last().unwrap(), calls.len());
+    assert!(n >= 2 && last.0 == last.1 && last.1 > 0, "{calls:?}");
+    assert!(calls.windows(2).all(|w| w[0].0 <= w[1].0), "monotone: {calls:?}");
+    let mut calls: Vec<(u64, u64)> = Vec::new();
+    let q = ProgressiveParams { element_size: 0.34, rays: 4, ..ProgressiveParams::default() };
+    progressive::solve(&scene, &accel, &q, &mut |d, t| calls.push((d, t))).unwrap();
+    assert!(calls.windows(2).all(|w| w[0].0 <= w[1].0), "monotone: {calls:?}");
+    let last = calls.last().unwrap();
+    assert_eq!(last.0, last.1);
 }
 
 #[test]

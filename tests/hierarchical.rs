@@ -30,6 +30,7 @@ fn white_furnace_is_exact_at_any_feps_aeps() {
                 feps,
                 aeps: AreaEps::Absolute(aeps),
                 bf_eps: 0.05,
+                bf_relative: false,
                 tolerance: 1e-9,
                 max_iterations: 1000,
                 ..HierarchicalParams::interactive()
@@ -104,7 +105,8 @@ fn links_grow_linearly_with_elements_in_an_enclosure() {
     }
     let n = pts.len() as f64;
     let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
-    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / pts.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>();
+    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>()
+        / pts.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>();
     assert!(pts[3].0 - pts[0].0 > 1.5, "elements must span a decade: {pts:?}");
     assert!(slope < ENCLOSURE_SLOPE_MAX, "links ~ elements^{slope:.2} ({pts:?})");
 }
@@ -120,7 +122,12 @@ fn identical_results_for_one_and_two_threads() {
     let run = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| {
-            let p = HierarchicalParams { bf_eps: 0.05, aeps: AreaEps::Absolute(4e-4), ..HierarchicalParams::interactive() };
+            let p = HierarchicalParams {
+                bf_eps: 0.05,
+                bf_relative: false,
+                aeps: AreaEps::Absolute(4e-4),
+                ..HierarchicalParams::interactive()
+            };
             bits(&solve(common::table_room(), p))
         })
     };
@@ -145,7 +152,13 @@ const IN_FLIGHT_OVERSHOOT_TOL: f64 = 0.04;
 fn every_step_is_finite_and_keeps_energy_balance() {
     for scene in [common::cube_one_light(0.5), common::table_room()] {
         let name = scene.name.clone();
-        let p = HierarchicalParams { bf_eps: 0.05, aeps: AreaEps::Absolute(4e-4), rays: 16, ..HierarchicalParams::interactive() };
+        let p = HierarchicalParams {
+            bf_eps: 0.05,
+            bf_relative: false,
+            aeps: AreaEps::Absolute(4e-4),
+            rays: 16,
+            ..HierarchicalParams::interactive()
+        };
         let mut s = HierarchicalSolver::new(Arc::new(scene), p).unwrap();
         let check = |s: &HierarchicalSolver, step: &str| {
             let sol = s.solution();
@@ -153,7 +166,10 @@ fn every_step_is_finite_and_keeps_energy_balance() {
             assert!(s.snapshot().links.iter().all(|l| l.ff.is_finite() && (0.0..=1.0).contains(&l.vis)));
             let e = sol.energy;
             let out = e.absorbed.mean() + e.escaped.mean();
-            assert!(out.is_finite() && out <= e.emitted.mean() * (1.0 + IN_FLIGHT_OVERSHOOT_TOL), "{name} after {step}: {e:?}");
+            assert!(
+                out.is_finite() && out <= e.emitted.mean() * (1.0 + IN_FLIGHT_OVERSHOOT_TOL),
+                "{name} after {step}: {e:?}"
+            );
             e.relative_residual()
         };
         check(&s, "new");
@@ -181,7 +197,12 @@ fn every_step_is_finite_and_keeps_energy_balance() {
 fn every_preset_terminates_within_budget_on_every_test_scene() {
     const ELEMENT_BUDGET: usize = 200_000;
     for name in HierarchicalParams::PRESETS {
-        for scene in [common::furnace(0.5, 1.0), common::cube_one_light(0.5), common::perpendicular(), common::table_room()] {
+        for scene in [
+            common::furnace(0.5, 1.0),
+            common::cube_one_light(0.5),
+            common::perpendicular(),
+            common::table_room(),
+        ] {
             let sname = scene.name.clone();
             let mut p = HierarchicalParams::preset(name).unwrap();
             if let AreaEps::Absolute(_) = p.aeps {
@@ -198,8 +219,8 @@ fn every_preset_terminates_within_budget_on_every_test_scene() {
 
 #[test]
 fn restart_with_new_parameters_reuses_and_matches_a_fresh_solver() {
-    let p1 = HierarchicalParams { bf_eps: 0.1, ..HierarchicalParams::interactive() };
-    let p2 = HierarchicalParams { bf_eps: 0.05, ..HierarchicalParams::interactive() };
+    let p1 = HierarchicalParams { bf_eps: 0.1, bf_relative: false, ..HierarchicalParams::interactive() };
+    let p2 = HierarchicalParams { bf_eps: 0.05, bf_relative: false, ..HierarchicalParams::interactive() };
     let mut s = solve(common::table_room(), p1);
     s.set_params(p2).unwrap();
     s.solve(&mut |_, _| {});
@@ -210,7 +231,12 @@ fn restart_with_new_parameters_reuses_and_matches_a_fresh_solver() {
 
 #[test]
 fn cancel_stops_a_step_and_leaves_a_consistent_state() {
-    let p = HierarchicalParams { bf_eps: 0.01, aeps: AreaEps::Absolute(1e-4), ..HierarchicalParams::interactive() };
+    let p = HierarchicalParams {
+        bf_eps: 0.01,
+        bf_relative: false,
+        aeps: AreaEps::Absolute(1e-4),
+        ..HierarchicalParams::interactive()
+    };
     let mut s = HierarchicalSolver::new(Arc::new(common::table_room()), p).unwrap();
     let flag = s.cancel_handle();
     let mut calls = 0;

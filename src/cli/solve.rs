@@ -52,12 +52,18 @@ pub struct Args {
     /// Minimum element area as a fraction of the scene's total area (hierarchical).
     #[arg(long)]
     pub aeps_rel: Option<f64>,
-    /// BF oracle threshold, units of B (hierarchical).
-    #[arg(long)]
+    /// BF oracle threshold, absolute, units of B (hierarchical).
+    #[arg(long, conflicts_with = "bf_eps_rel")]
     pub bf_eps: Option<f64>,
+    /// BF oracle threshold as a fraction of the scene's largest emission (hierarchical).
+    #[arg(long)]
+    pub bf_eps_rel: Option<f64>,
     /// Maximum subdivision depth below an input patch (hierarchical).
     #[arg(long)]
     pub max_depth: Option<u8>,
+    /// Stop refining once this many links exist (hierarchical).
+    #[arg(long)]
+    pub max_links: Option<usize>,
     /// Turn off the per-leaf form-factor normalisation (hierarchical).
     #[arg(long)]
     pub no_normalize: bool,
@@ -125,7 +131,10 @@ pub fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
         if t == 0 {
             bail!("--threads must be at least 1");
         }
-        rayon::ThreadPoolBuilder::new().num_threads(t).build_global().context("configuring the thread pool")?;
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build_global()
+            .context("configuring the thread pool")?;
     }
     Ok(())
 }
@@ -182,9 +191,17 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
     }
     if let Some(v) = args.bf_eps {
         p.bf_eps = v;
+        p.bf_relative = false;
+    }
+    if let Some(v) = args.bf_eps_rel {
+        p.bf_eps = v;
+        p.bf_relative = true;
     }
     if let Some(v) = args.max_depth {
         p.max_depth = v;
+    }
+    if let Some(v) = args.max_links {
+        p.max_links = v;
     }
     if let Some(v) = args.rays {
         p.rays = v;
@@ -227,7 +244,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (sol, serde_json::to_value(p)?)
         }
         Method::Uniform => {
-            let mut p = UniformParams { seed: args.seed, element_size: default_size, ..UniformParams::default() };
+            let mut p =
+                UniformParams { seed: args.seed, element_size: default_size, ..UniformParams::default() };
             if let Some(v) = args.element_size {
                 p.element_size = v;
             }
@@ -244,7 +262,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (sol, serde_json::to_value(p)?)
         }
         Method::Progressive => {
-            let mut p = ProgressiveParams { seed: args.seed, element_size: default_size, ..ProgressiveParams::default() };
+            let mut p = ProgressiveParams {
+                seed: args.seed,
+                element_size: default_size,
+                ..ProgressiveParams::default()
+            };
             if let Some(v) = args.element_size {
                 p.element_size = v;
             }
@@ -289,7 +311,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.png {
         let cam = radlab::image::Camera::for_scene(&scene);
-        let img = radlab::image::radiosity_image(&scene, &accel, &solution.elements, &cam, args.width, args.height);
+        let img =
+            radlab::image::radiosity_image(&scene, &accel, &solution.elements, &cam, args.width, args.height);
         img.write_png(path).with_context(|| format!("writing {}", path.display()))?;
     }
     let doc = solution_json(&args.scene, &scene, &solution, params_json);
@@ -306,7 +329,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// The stable JSON document of `radlab solve`.
-pub fn solution_json(spec: &str, scene: &radlab::scene::Scene, sol: &Solution, params: serde_json::Value) -> serde_json::Value {
+pub fn solution_json(
+    spec: &str,
+    scene: &radlab::scene::Scene,
+    sol: &Solution,
+    params: serde_json::Value,
+) -> serde_json::Value {
     let mut stats = json!({
         "patches": sol.stats.patches,
         "elements": sol.stats.elements,

@@ -1,18 +1,113 @@
-//! `radlab view` (being written).
+//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error] [--preset NAME]
+//! [--bench-frames N]`: the interactive viewer (feature `gui`).
+//!
+//! Without the feature, or without a display, it fails with one line suggesting `radlab solve`.
+
+use std::path::PathBuf;
+
+/// Overlay drawn by a scripted screenshot.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Overlay {
+    #[default]
+    None,
+    Quadtree,
+    Links,
+    Error,
+}
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Scene: a .gltf/.glb path or builtin:NAME.
     #[arg(default_value = "builtin:cornell")]
     pub scene: String,
+    /// Solve with the preset, write the viewport to this PNG and exit.
+    #[arg(long, value_name = "PATH")]
+    pub screenshot: Option<PathBuf>,
+    /// Overlay to draw (with --screenshot, or at start).
+    #[arg(long, value_enum, default_value_t = Overlay::None)]
+    pub overlay: Overlay,
+    /// Solver preset: interactive, quality, lecture, splash2.
+    #[arg(long, default_value = "interactive")]
+    pub preset: String,
+    /// Benchmark: solve, draw N frames, print the median frame time and exit.
+    #[arg(long, value_name = "N")]
+    pub bench_frames: Option<usize>,
+    /// Once solved, pick the element under this viewport point (fractions, y down: "0.5,0.8")
+    /// and show its links.
+    #[arg(long, value_name = "X,Y", value_parser = parse_point)]
+    pub pick: Option<[f32; 2]>,
+    /// --screenshot captures the whole window (panels, inspector, plots), not only the viewport.
+    #[arg(long)]
+    pub window: bool,
+    /// Open the plots panel.
+    #[arg(long)]
+    pub plots: bool,
+    /// Solve as soon as the scene is loaded.
+    #[arg(long)]
+    pub solve: bool,
 }
 
 impl Args {
+    #[must_use]
     pub fn default_scene() -> Args {
-        Args { scene: "builtin:cornell".into() }
+        Args {
+            scene: "builtin:cornell".into(),
+            screenshot: None,
+            overlay: Overlay::None,
+            preset: "interactive".into(),
+            bench_frames: None,
+            pick: None,
+            window: false,
+            plots: false,
+            solve: false,
+        }
     }
 }
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("the viewer is not written yet; try `radlab solve`")
+fn parse_point(s: &str) -> Result<[f32; 2], String> {
+    let (x, y) = s.split_once(',').ok_or("expected X,Y (fractions of the viewport)")?;
+    let f = |t: &str| -> Result<f32, String> {
+        let v: f32 = t.trim().parse().map_err(|e| format!("{t:?}: {e}"))?;
+        if (0.0..=1.0).contains(&v) { Ok(v) } else { Err(format!("{v} is outside 0..1")) }
+    };
+    Ok([f(x)?, f(y)?])
+}
+
+#[cfg(feature = "gui")]
+pub fn run(args: Args) -> anyhow::Result<()> {
+    use radlab::viewer::{OverlayChoice, ViewerOptions};
+    if radlab::solver::params::HierarchicalParams::preset(&args.preset).is_none() {
+        anyhow::bail!(
+            "--preset {:?}: unknown preset (one of {})",
+            args.preset,
+            radlab::solver::params::HierarchicalParams::PRESETS.join(", ")
+        );
+    }
+    if args.bench_frames == Some(0) {
+        anyhow::bail!("--bench-frames must be at least 1");
+    }
+    let overlay = match args.overlay {
+        Overlay::None => OverlayChoice::None,
+        Overlay::Quadtree => OverlayChoice::Quadtree,
+        Overlay::Links => OverlayChoice::Links,
+        Overlay::Error => OverlayChoice::Error,
+    };
+    radlab::viewer::run(ViewerOptions {
+        scene: args.scene,
+        preset: args.preset,
+        overlay,
+        solve_on_start: args.solve,
+        screenshot: args.screenshot,
+        bench_frames: args.bench_frames,
+        pick: args.pick,
+        screenshot_window: args.window,
+        show_plots: args.plots,
+    })?;
+    Ok(())
+}
+
+#[cfg(not(feature = "gui"))]
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let _ = args;
+    anyhow::bail!("this radlab was built without the viewer (feature `gui`); use `radlab solve SCENE`")
 }

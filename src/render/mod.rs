@@ -1,1 +1,604 @@
-//! (being written)
+//! wgpu rendering of the viewport: the radiosity mesh and overlay lines, drawn into an offscreen
+//! colour + depth target, then shown in egui through an `egui_wgpu` paint callback.
+//!
+//! ## How it works
+//! ```text
+//!  UI thread (each frame)              egui_wgpu renderer
+//!  ─────────────────────              ──────────────────────────────────────────────
+//!  ViewportCallback { uniforms,  ──►  prepare(): upload Geometry if its generation changed,
+//!    Arc<Geometry>, generation }        write uniforms, render mesh + lines into the offscreen
+//!                                       Rgba8Unorm + Depth32Float target (own depth buffer)
+//!                                     paint():   blit the offscreen image into egui's pass
+//! ```
+//! Pipelines are built once and kept in egui's `CallbackResources` (the egui custom-3D pattern).
+//! Rendering into an own target gives the 3-D view a depth buffer whatever egui's pass has, and
+//! lets tests and the screenshot button read the exact viewport pixels back
+//! ([`SceneRenderer::read_pixels`]).
+//!
+//! Shaders: `shaders/mesh.wgsl` (radiosity, tone mapping, back faces, highlight),
+//! `shaders/lines.wgsl` (overlays), `shaders/blit.wgsl` (copy into egui's pass).
+
+pub mod geometry;
+pub mod gpu_data;
+pub mod snapshot;
+
+use eframe::egui_wgpu;
+use eframe::wgpu;
+use eframe::wgpu::util::DeviceExt;
+pub use gpu_data::{LineVertex, MeshVertex, NO_SELECTION, Uniforms};
+use std::sync::Arc;
+
+/// WGSL sources, one per pipeline (also parsed by the naga test).
+pub const SHADERS: [(&str, &str); 3] = [
+    ("mesh.wgsl", include_str!("../../shaders/mesh.wgsl")),
+    ("lines.wgsl", include_str!("../../shaders/lines.wgsl")),
+    ("blit.wgsl", include_str!("../../shaders/blit.wgsl")),
+];
+
+/// Format of the offscreen colour target (display-encoded values).
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// Format of the offscreen depth buffer.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Everything drawn in the viewport, in the scene's local frame.
+#[derive(Clone, Debug, Default)]
+pub struct Geometry {
+    /// Triangle list.
+    pub mesh: Vec<MeshVertex>,
+    /// Depth-tested lines (quadtree edges, highlight outlines).
+    pub lines: Vec<LineVertex>,
+    /// Link lines.
+    pub links: Vec<LineVertex>,
+    /// Draw links over everything (x-ray) instead of depth-testing them.
+    pub links_xray: bool,
+}
+
+/// Per-frame settings of one render.
+#[derive(Copy, Clone, Debug)]
+pub struct FrameParams {
+    pub uniforms: Uniforms,
+    /// Target size in pixels.
+    pub size: [u32; 2],
+    /// Background colour (display space).
+    pub clear: [f64; 4],
+}
+
+struct Target {
+    size: [u32; 2],
+    color: wgpu::Texture,
+    color_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    blit_group: wgpu::BindGroup,
+}
+
+struct GpuBuffer {
+    buffer: wgpu::Buffer,
+    count: u32,
+}
+
+/// The viewport's pipelines, buffers and offscreen target.
+pub struct SceneRenderer {
+    mesh_pipeline: wgpu::RenderPipeline,
+    lines_pipeline: wgpu::RenderPipeline,
+    xray_pipeline: wgpu::RenderPipeline,
+    blit_pipeline: wgpu::RenderPipeline,
+    uniform_buffer: wgpu::Buffer,
+    uniform_group: wgpu::BindGroup,
+    blit_layout: wgpu::BindGroupLayout,
+    sampler: wgpu::Sampler,
+    mesh: Option<GpuBuffer>,
+    lines: Option<GpuBuffer>,
+    links: Option<GpuBuffer>,
+    links_xray: bool,
+    target: Option<Target>,
+    /// Generation of the uploaded geometry (see [`ViewportCallback`]).
+    generation: u64,
+}
+
+fn shader(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
+    let src = SHADERS.iter().find(|(n, _)| *n == name).map_or("", |(_, s)| *s);
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(name),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
+    })
+}
+
+impl SceneRenderer {
+    /// Build the pipelines. `output_format` is the format of the pass the viewport is blitted into
+    /// (egui's target format).
+    #[must_use]
+    pub fn new(device: &wgpu::Device, output_format: wgpu::TextureFormat) -> SceneRenderer {
+        let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("radlab uniforms"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: wgpu::BufferSize::new(size_of::<Uniforms>() as u64),
+                },
+                count: None,
+            }],
+        });
+        let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("radlab uniforms"),
+            contents: bytemuck::bytes_of(&Uniforms::zeroed()),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let uniform_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("radlab uniforms"),
+            layout: &uniform_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform_buffer.as_entire_binding() }],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("radlab scene"),
+            bind_group_layouts: &[Some(&uniform_layout)],
+            immediate_size: 0,
+        });
+
+        let mesh_module = shader(device, "mesh.wgsl");
+        let mesh_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Float32x3];
+        let depth = |write: bool, compare: wgpu::CompareFunction| wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(write),
+            depth_compare: Some(compare),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        };
+        let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("radlab mesh"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &mesh_module,
+                entry_point: Some("vs_main"),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: size_of::<MeshVertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &mesh_attrs,
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: None, // back faces are drawn, distinctly (mesh.wgsl)
+                ..wgpu::PrimitiveState::default()
+            },
+            depth_stencil: Some(depth(true, wgpu::CompareFunction::Less)),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &mesh_module,
+                entry_point: Some("fs_main"),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: COLOR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+
+        let lines_module = shader(device, "lines.wgsl");
+        let line_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4];
+        let line_pipeline = |label: &str, compare: wgpu::CompareFunction| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &lines_module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: wgpu::PipelineCompilationOptions::default(),
+                    buffers: &[Some(wgpu::VertexBufferLayout {
+                        array_stride: size_of::<LineVertex>() as u64,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &line_attrs,
+                    })],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::LineList,
+                    ..wgpu::PrimitiveState::default()
+                },
+                depth_stencil: Some(depth(false, compare)),
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &lines_module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: wgpu::PipelineCompilationOptions::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: COLOR_FORMAT,
+                        blend: Some(wgpu::BlendState::ALPHA_BLENDING),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let lines_pipeline = line_pipeline("radlab lines", wgpu::CompareFunction::LessEqual);
+        let xray_pipeline = line_pipeline("radlab lines x-ray", wgpu::CompareFunction::Always);
+
+        let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("radlab blit"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let blit_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("radlab blit"),
+            bind_group_layouts: &[Some(&blit_layout)],
+            immediate_size: 0,
+        });
+        let blit_module = shader(device, "blit.wgsl");
+        let blit_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("radlab blit"),
+            layout: Some(&blit_pl),
+            vertex: wgpu::VertexState {
+                module: &blit_module,
+                entry_point: Some("vs_main"),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &blit_module,
+                entry_point: Some(if output_format.is_srgb() { "fs_decode" } else { "fs_copy" }),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: output_format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("radlab blit"),
+            mag_filter: wgpu::FilterMode::Nearest,
+            min_filter: wgpu::FilterMode::Nearest,
+            ..wgpu::SamplerDescriptor::default()
+        });
+        SceneRenderer {
+            mesh_pipeline,
+            lines_pipeline,
+            xray_pipeline,
+            blit_pipeline,
+            uniform_buffer,
+            uniform_group,
+            blit_layout,
+            sampler,
+            mesh: None,
+            lines: None,
+            links: None,
+            links_xray: false,
+            target: None,
+            generation: u64::MAX,
+        }
+    }
+
+    /// Upload new geometry (replaces the previous buffers).
+    pub fn set_geometry(&mut self, device: &wgpu::Device, geometry: &Geometry) {
+        fn upload<T: bytemuck::Pod>(device: &wgpu::Device, label: &str, data: &[T]) -> Option<GpuBuffer> {
+            (!data.is_empty()).then(|| GpuBuffer {
+                buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: bytemuck::cast_slice(data),
+                    usage: wgpu::BufferUsages::VERTEX,
+                }),
+                count: data.len() as u32,
+            })
+        }
+        self.mesh = upload(device, "radlab mesh", &geometry.mesh);
+        self.lines = upload(device, "radlab lines", &geometry.lines);
+        self.links = upload(device, "radlab links", &geometry.links);
+        self.links_xray = geometry.links_xray;
+    }
+
+    fn ensure_target(&mut self, device: &wgpu::Device, size: [u32; 2]) {
+        let size = [size[0].max(1), size[1].max(1)];
+        if self.target.as_ref().is_some_and(|t| t.size == size) {
+            return;
+        }
+        let extent = wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 };
+        let color = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("radlab viewport colour"),
+            size: extent,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: COLOR_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let depth = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("radlab viewport depth"),
+            size: extent,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        let color_view = color.create_view(&wgpu::TextureViewDescriptor::default());
+        let depth_view = depth.create_view(&wgpu::TextureViewDescriptor::default());
+        let blit_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("radlab blit"),
+            layout: &self.blit_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&color_view),
+                },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&self.sampler) },
+            ],
+        });
+        self.target = Some(Target { size, color, color_view, depth_view, blit_group });
+    }
+
+    /// Render the scene into the offscreen target (created or resized to `frame.size`).
+    pub fn render(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        frame: &FrameParams,
+    ) {
+        self.ensure_target(device, frame.size);
+        queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&frame.uniforms));
+        let Some(target) = &self.target else { return };
+        let [r, g, b, a] = frame.clear;
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("radlab viewport"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &target.color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &target.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_bind_group(0, &self.uniform_group, &[]);
+        if let Some(m) = &self.mesh {
+            pass.set_pipeline(&self.mesh_pipeline);
+            pass.set_vertex_buffer(0, m.buffer.slice(..));
+            pass.draw(0..m.count, 0..1);
+        }
+        if let Some(l) = &self.lines {
+            pass.set_pipeline(&self.lines_pipeline);
+            pass.set_vertex_buffer(0, l.buffer.slice(..));
+            pass.draw(0..l.count, 0..1);
+        }
+        if let Some(l) = &self.links {
+            pass.set_pipeline(if self.links_xray { &self.xray_pipeline } else { &self.lines_pipeline });
+            pass.set_vertex_buffer(0, l.buffer.slice(..));
+            pass.draw(0..l.count, 0..1);
+        }
+    }
+
+    /// Draw the offscreen image into egui's pass (its viewport already set to the callback rect).
+    pub fn blit(&self, pass: &mut wgpu::RenderPass<'_>) {
+        if let Some(t) = &self.target {
+            pass.set_pipeline(&self.blit_pipeline);
+            pass.set_bind_group(0, &t.blit_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+    }
+
+    /// Size of the current offscreen target.
+    #[must_use]
+    pub fn target_size(&self) -> Option<[u32; 2]> {
+        self.target.as_ref().map(|t| t.size)
+    }
+
+    /// Read the offscreen image back: `(width, height, RGBA8 rows)`. Blocks until the GPU is done.
+    pub fn read_pixels(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<RgbaImage, String> {
+        let t = self.target.as_ref().ok_or("nothing rendered yet")?;
+        let [w, h] = t.size;
+        let row = w * 4;
+        let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("radlab read-back"),
+            size: u64::from(padded) * u64::from(h),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read-back") });
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &t.color,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(h),
+                },
+            },
+            wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        );
+        let index = queue.submit([encoder.finish()]);
+        let slice = buffer.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::Wait { submission_index: Some(index), timeout: Some(READBACK_TIMEOUT) })
+            .map_err(|e| format!("GPU read-back: {e}"))?;
+        rx.recv().map_err(|e| e.to_string())?.map_err(|e| format!("GPU read-back: {e}"))?;
+        let data = slice.get_mapped_range().map_err(|e| format!("GPU read-back: {e:?}"))?;
+        let mut pixels = Vec::with_capacity((row * h) as usize);
+        for y in 0..h {
+            let start = (y * padded) as usize;
+            pixels.extend_from_slice(&data[start..start + row as usize]);
+        }
+        drop(data);
+        buffer.unmap();
+        Ok(RgbaImage { width: w, height: h, pixels })
+    }
+}
+
+/// Longest wait for a read-back (software rasterisers can be slow on big targets).
+const READBACK_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(30);
+
+use bytemuck::Zeroable;
+
+/// A plain RGBA8 image (row-major, no padding).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RgbaImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<u8>,
+}
+
+impl RgbaImage {
+    /// The RGBA value at (x, y).
+    #[must_use]
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        let i = ((y * self.width + x) * 4) as usize;
+        [self.pixels[i], self.pixels[i + 1], self.pixels[i + 2], self.pixels[i + 3]]
+    }
+
+    /// Write as PNG (8-bit RGBA).
+    pub fn save_png(&self, path: &std::path::Path) -> Result<(), String> {
+        let file = std::fs::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut enc = png::Encoder::new(std::io::BufWriter::new(file), self.width, self.height);
+        enc.set_color(png::ColorType::Rgba);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header().map_err(|e| format!("{}: {e}", path.display()))?;
+        w.write_image_data(&self.pixels).map_err(|e| format!("{}: {e}", path.display()))?;
+        w.finish().map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    /// Read an 8-bit RGB or RGBA PNG.
+    pub fn load_png(path: &std::path::Path) -> Result<RgbaImage, String> {
+        let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut dec = png::Decoder::new(std::io::BufReader::new(file));
+        dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+        let mut reader = dec.read_info().map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut buf = vec![0; reader.output_buffer_size().ok_or("PNG too large")?];
+        let info = reader.next_frame(&mut buf).map_err(|e| format!("{}: {e}", path.display()))?;
+        let data = &buf[..info.buffer_size()];
+        let pixels = match info.color_type {
+            png::ColorType::Rgba => data.to_vec(),
+            png::ColorType::Rgb => data.chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 255]).collect(),
+            png::ColorType::Grayscale => data.iter().flat_map(|&g| [g, g, g, 255]).collect(),
+            png::ColorType::GrayscaleAlpha => {
+                data.chunks_exact(2).flat_map(|c| [c[0], c[0], c[0], c[1]]).collect()
+            }
+            png::ColorType::Indexed => return Err(format!("{}: unexpanded palette PNG", path.display())),
+        };
+        Ok(RgbaImage { width: info.width, height: info.height, pixels })
+    }
+
+    /// A sub-rectangle (clamped to the image).
+    #[must_use]
+    pub fn crop(&self, x0: u32, y0: u32, w: u32, h: u32) -> RgbaImage {
+        let x0 = x0.min(self.width);
+        let y0 = y0.min(self.height);
+        let w = w.min(self.width - x0);
+        let h = h.min(self.height - y0);
+        let mut pixels = Vec::with_capacity((w * h * 4) as usize);
+        for y in y0..y0 + h {
+            let s = ((y * self.width + x0) * 4) as usize;
+            pixels.extend_from_slice(&self.pixels[s..s + (w * 4) as usize]);
+        }
+        RgbaImage { width: w, height: h, pixels }
+    }
+
+    /// Number of distinct RGB colours (a blank or failed render has very few).
+    #[must_use]
+    pub fn distinct_colors(&self) -> usize {
+        let mut set: std::collections::HashSet<[u8; 3]> = std::collections::HashSet::new();
+        for p in self.pixels.chunks_exact(4) {
+            set.insert([p[0], p[1], p[2]]);
+        }
+        set.len()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// egui integration
+
+/// The paint callback of the viewport: renders with the [`SceneRenderer`] stored in egui's
+/// `CallbackResources` (inserted by the viewer at start-up).
+pub struct ViewportCallback {
+    pub frame: FrameParams,
+    pub geometry: Arc<Geometry>,
+    /// Bumped by the viewer whenever `geometry` changes; uploads happen only then.
+    pub generation: u64,
+}
+
+impl egui_wgpu::CallbackTrait for ViewportCallback {
+    fn prepare(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        _screen: &egui_wgpu::ScreenDescriptor,
+        encoder: &mut wgpu::CommandEncoder,
+        resources: &mut egui_wgpu::CallbackResources,
+    ) -> Vec<wgpu::CommandBuffer> {
+        if let Some(r) = resources.get_mut::<SceneRenderer>() {
+            if r.generation != self.generation {
+                r.set_geometry(device, &self.geometry);
+                r.generation = self.generation;
+            }
+            r.render(device, queue, encoder, &self.frame);
+        }
+        Vec::new()
+    }
+
+    fn paint(
+        &self,
+        _info: egui::PaintCallbackInfo,
+        pass: &mut wgpu::RenderPass<'static>,
+        resources: &egui_wgpu::CallbackResources,
+    ) {
+        if let Some(r) = resources.get::<SceneRenderer>() {
+            r.blit(pass);
+        }
+    }
+}
+
+use eframe::egui;

@@ -29,15 +29,16 @@
 //! - **Link form factor**: the exact point-to-polygon kernel at the receiver's centroid
 //!   (`form_factor::point_to_polygon`); visibility from `visibility::visible_fraction`.
 //! - **Per-leaf normalisation** (radlab's addition, documented here because it changes results):
-//!   each leaf x gathers through the links of its whole ancestor chain, each evaluated at that
-//!   ancestor's centroid. Their sum T_x = Σ F is then not exactly the form factor that the same
-//!   sources subtend at x. radlab computes S_x = Σ F(x → source) with the exact kernel at x's own
-//!   centroid (once per refinement) and scales x's gathered irradiance by S_x / T_x. This removes
-//!   the first-order error of the piecewise-constant link form factors; in an enclosure it makes
-//!   the white furnace exact (S_x = 1 by the contour integral's additivity). The price: the
-//!   correction is spread over all of a leaf's links in proportion, so a bright source's transfer
-//!   absorbs part of a near-field link's error, and energy balance can get worse (table-room,
-//!   BF 0.05: 0.7 % without, 2 % with). `HierarchicalParams::normalize` turns it off.
+//!   a leaf x gathers through its own links (evaluated exactly at its centroid) and through the
+//!   links of its proper ancestors, each evaluated at that ancestor's centroid. The latter's sum
+//!   T_x = Σ F is not exactly the form factor the same sources subtend at x. radlab computes
+//!   S_x = Σ F(x → source) over those inherited links with the exact kernel at x's centroid (once
+//!   per refinement) and scales the inherited irradiance by S_x / T_x. This removes the
+//!   first-order error of piecewise-constant inherited form factors; in an enclosure it makes the
+//!   white furnace exact (own + inherited = 1 by the contour integral's additivity). Only the
+//!   inherited part is scaled, so a bright source refined down to the leaf keeps its exact
+//!   transfer (scaling everything darkened the Cornell floor by 30 %).
+//!   `HierarchicalParams::normalize` turns it off.
 //! - **Parallel and deterministic**: element ids are assigned serially in sorted order, visibility
 //!   jitter is keyed by the (receiver, source) ids, and parallel results are collected in order,
 //!   so every count and value is identical for any thread count.
@@ -116,6 +117,8 @@ pub struct HierarchicalStats {
     pub bytes_per_element: usize,
     pub memory_bytes: usize,
     pub links_per_element: f64,
+    /// Refinement stopped at `max_links`.
+    pub budget_hit: bool,
 }
 
 /// Read-only view of one element.
@@ -173,6 +176,8 @@ pub struct HierarchicalSolver {
     accel: Arc<Accel>,
     params: HierarchicalParams,
     aeps: f64,
+    /// BFeps in units of B (resolved from a relative setting).
+    bf_eps: f64,
     hier: Hierarchy,
     links: LinkStore,
     linked: bool,
@@ -206,11 +211,13 @@ impl HierarchicalSolver {
         let hier = Hierarchy::from_scene(&scene);
         let links = LinkStore::new(hier.len());
         let aeps = params.aeps.resolve(scene.total_area());
+        let bf_eps = resolve_bf_eps(&params, &scene);
         let mut s = HierarchicalSolver {
             scene,
             accel,
             params,
             aeps,
+            bf_eps,
             hier,
             links,
             linked: false,
@@ -254,6 +261,7 @@ impl HierarchicalSolver {
         p.validate()?;
         self.params = p;
         self.aeps = p.aeps.resolve(self.scene.total_area());
+        self.bf_eps = resolve_bf_eps(&p, &self.scene);
         self.reset();
         Ok(())
     }
@@ -320,7 +328,12 @@ impl HierarchicalSolver {
         let mut refined = 0;
         let mut active: Vec<u32> =
             (0..self.hier.len() as u32).filter(|&r| !self.links.by_receiver[r as usize].is_empty()).collect();
+        let mut total_links = self.links.len();
         while !active.is_empty() && !self.cancelled() {
+            if total_links >= self.params.max_links {
+                self.stats.budget_hit = true;
+                break;
+            }
             // A: decide, in parallel, read-only.
             let decisions: Vec<(u32, Vec<Decision>)> =
                 active.par_iter().map(|&r| (r, self.decide_receiver(r))).collect();
@@ -382,11 +395,14 @@ impl HierarchicalSolver {
                     next.push(r);
                 }
                 new_links += created;
+                total_links = total_links + own.len() + kids.len() - self.links.by_receiver[r as usize].len();
                 self.links.by_receiver[r as usize] = own;
+                self.hier.elements[r as usize].dirty = true;
                 pushed_down.extend(kids);
             }
             for (c, l) in pushed_down {
                 self.links.by_receiver[c as usize].push(l);
+                self.hier.elements[c as usize].dirty = true;
                 next.push(c);
             }
             next.sort_unstable();
@@ -436,9 +452,9 @@ impl HierarchicalSolver {
                 let err = fmax * b;
                 let live = b > 0.0;
                 let thr = if link.class() == VisClass::Partial {
-                    self.params.bf_eps * PARTIAL_BF_FACTOR
+                    self.bf_eps * PARTIAL_BF_FACTOR
                 } else {
-                    self.params.bf_eps
+                    self.bf_eps
                 };
                 (live && err > thr, err, StopReason::BelowBfEps)
             }
@@ -613,27 +629,38 @@ impl HierarchicalSolver {
         total
     }
 
-    /// Recompute Σ F and Σ F·V per element and every leaf's normalisation factor S_x / T_x.
+    /// Recompute Σ F and Σ F·V per element and the normalisation factor S_x / T_x of every leaf
+    /// whose inherited links changed (an ancestor's list changed, or the leaf is new).
     fn update_sums_and_normalisation(&mut self) {
+        // Propagate "dirty" down: parents have smaller ids than their children.
+        for i in 0..self.hier.len() {
+            if let Some(p) = self.hier.elements[i].parent() {
+                if self.hier.elements[p as usize].dirty {
+                    self.hier.elements[i].dirty = true;
+                }
+            }
+        }
         for (i, e) in self.hier.elements.iter_mut().enumerate() {
             let ls = &self.links.by_receiver[i];
-            e.f_sum = ls.iter().map(|l| f64::from(l.ff)).sum();
+            e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
             e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
+            e.fv_partial = e.fv_sum - e.f_sum;
         }
         let hier = &self.hier;
         let links = &self.links;
         let normalize = self.params.normalize;
         let norms: Vec<(u32, f64)> = (0..hier.len() as u32)
             .into_par_iter()
-            .filter(|&i| hier.get(i).is_leaf())
+            .filter(|&i| hier.get(i).is_leaf() && hier.get(i).dirty)
             .map(|x| {
                 let leaf = hier.get(x);
                 let mut t = 0.0;
                 let mut s = 0.0;
-                for a in hier.ancestors(x) {
+                // Proper ancestors only: the leaf's own links are already exact at its centroid.
+                for a in hier.ancestors(x).skip(1) {
                     t += hier.get(a).f_sum;
                     for l in &links.by_receiver[a as usize] {
-                        if l.ff > 0.0 {
+                        if l.ff > 0.0 && l.vis >= 1.0 {
                             let src = hier.get(l.source);
                             s += form_factor::point_to_polygon(leaf.centroid, leaf.normal, src.vertices());
                         }
@@ -645,6 +672,9 @@ impl HierarchicalSolver {
             .collect();
         for (x, n) in norms {
             self.hier.elements[x as usize].norm = n;
+        }
+        for e in &mut self.hier.elements {
+            e.dirty = false;
         }
     }
 
@@ -666,19 +696,21 @@ impl HierarchicalSolver {
             let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
             for root in 0..self.hier.roots as u32 {
                 let ids = self.subtree(root);
-                let g: Vec<Rgb> = ids.iter().map(|&r| self.gather_one(r)).collect();
-                for (&r, g) in ids.iter().zip(g) {
+                let g: Vec<(Rgb, Rgb)> = ids.iter().map(|&r| self.gather_one(r)).collect();
+                for (&r, (g, full)) in ids.iter().zip(g) {
                     self.hier.elements[r as usize].gathered = g;
+                    self.hier.elements[r as usize].gathered_full = full;
                 }
                 self.push_pull_root(root);
             }
             self.finish_push_pull(&before);
             self.stats.gather_s += t.elapsed().as_secs_f64();
         } else {
-            let g: Vec<Rgb> =
+            let g: Vec<(Rgb, Rgb)> =
                 (0..self.hier.len() as u32).into_par_iter().map(|r| self.gather_one(r)).collect();
-            for (e, g) in self.hier.elements.iter_mut().zip(g) {
+            for (e, (g, full)) in self.hier.elements.iter_mut().zip(g) {
                 e.gathered = g;
+                e.gathered_full = full;
             }
             self.stats.gather_s += t.elapsed().as_secs_f64();
         }
@@ -687,15 +719,21 @@ impl HierarchicalSolver {
         self.report(StepKind::Gather, t, 0, 0)
     }
 
-    fn gather_one(&self, r: u32) -> Rgb {
+    /// (Σ F·V·B over all links, the same over fully visible links).
+    fn gather_one(&self, r: u32) -> (Rgb, Rgb) {
         let mut g = Rgb::ZERO;
+        let mut full = Rgb::ZERO;
         for l in &self.links.by_receiver[r as usize] {
             let w = f64::from(l.ff) * f64::from(l.vis);
             if w > 0.0 {
-                g += self.hier.get(l.source).radiosity * w;
+                let t = self.hier.get(l.source).radiosity * w;
+                g += t;
+                if l.vis >= 1.0 {
+                    full += t;
+                }
             }
         }
-        g
+        (g, full)
     }
 
     fn subtree(&self, root: u32) -> Vec<u32> {
@@ -723,23 +761,25 @@ impl HierarchicalSolver {
     }
 
     fn push_pull_root(&mut self, root: u32) {
-        self.push_pull_rec(root, Rgb::ZERO);
+        self.push_pull_rec(root, Rgb::ZERO, Rgb::ZERO);
     }
 
-    fn push_pull_rec(&mut self, id: u32, h_down: Rgb) -> Rgb {
+    /// `full_down` / `rest_down`: inherited irradiance through fully visible links / the rest.
+    fn push_pull_rec(&mut self, id: u32, full_down: Rgb, rest_down: Rgb) -> Rgb {
         let e = &self.hier.elements[id as usize];
-        let h = h_down + e.gathered;
         if let Some(kids) = e.children() {
+            let full = full_down + e.gathered_full;
+            let rest = rest_down + (e.gathered - e.gathered_full);
             let area = e.area;
             let mut b = Rgb::ZERO;
             for c in kids {
-                let bc = self.push_pull_rec(c, h);
+                let bc = self.push_pull_rec(c, full, rest);
                 b += bc * (self.hier.elements[c as usize].area / area);
             }
             self.hier.elements[id as usize].radiosity = b;
             b
         } else {
-            let b = e.emission + e.reflectance.mul_rgb(h * e.norm);
+            let b = e.emission + e.reflectance.mul_rgb(full_down * e.norm + rest_down + e.gathered);
             self.hier.elements[id as usize].radiosity = b;
             b
         }
@@ -753,25 +793,27 @@ impl HierarchicalSolver {
         let mut escaped = Rgb::ZERO;
         // Leaf energy terms need the chain sums of gathered irradiance and F·V.
         let n = self.hier.len();
-        let mut h_chain = vec![Rgb::ZERO; n];
-        let mut fv_chain = vec![0.0; n];
+        // Per element: inherited-and-own sums (full-visibility irradiance, other irradiance,
+        // full-visibility F, other F·V). Parents have smaller ids than their children.
+        let mut chain = vec![(Rgb::ZERO, Rgb::ZERO, 0.0, 0.0); n];
         for i in 0..n {
-            // Parents have smaller ids than their children, so one forward sweep suffices.
             let e = &self.hier.elements[i];
-            let (hp, fp) = match e.parent() {
-                Some(p) => (h_chain[p as usize], fv_chain[p as usize]),
-                None => (Rgb::ZERO, 0.0),
-            };
-            h_chain[i] = hp + e.gathered;
-            fv_chain[i] = fp + e.fv_sum;
+            let up = e.parent().map_or((Rgb::ZERO, Rgb::ZERO, 0.0, 0.0), |p| chain[p as usize]);
+            chain[i] = (
+                up.0 + e.gathered_full,
+                up.1 + (e.gathered - e.gathered_full),
+                up.2 + e.f_sum,
+                up.3 + e.fv_partial,
+            );
             if e.is_leaf() {
                 let b = e.radiosity;
                 let old = before.get(i).copied().unwrap_or(b);
                 max_change = max_change.max(b.abs_diff_max(old));
                 max_reflected = max_reflected.max((b - e.emission).max_channel());
-                let h = h_chain[i] * e.norm;
+                let h = up.0 * e.norm + up.1 + e.gathered;
                 absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                escaped += b * (e.area * (1.0 - e.norm * fv_chain[i]));
+                let fv = up.2 * e.norm + up.3 + e.fv_sum;
+                escaped += b * (e.area * (1.0 - fv));
             }
         }
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
@@ -1003,6 +1045,16 @@ impl HierarchicalSolver {
             },
             elements,
         }
+    }
+}
+
+/// BFeps in units of B.
+fn resolve_bf_eps(p: &HierarchicalParams, scene: &Scene) -> f64 {
+    if p.bf_relative {
+        let e_max = scene.patches.iter().map(|q| q.emission.max_channel()).fold(0.0, f64::max);
+        p.bf_eps * e_max
+    } else {
+        p.bf_eps
     }
 }
 

@@ -46,13 +46,16 @@ impl AreaEps {
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct HierarchicalParams {
     pub oracle: Oracle,
-    /// Form-factor threshold of the lecture's Refine (used by the `feps` oracle, and by the `bf`
-    /// oracle as a cap: links with both F estimates below `feps` never refine).
+    /// Form-factor threshold of the lecture's Refine (the `feps` oracle).
     pub feps: f64,
     /// Elements of area at or below this are never subdivided.
     pub aeps: AreaEps,
-    /// Threshold of the BF oracle (in units of B, i.e. radiosity × form factor).
+    /// Threshold of the BF oracle, in units of B (radiosity × form factor) when
+    /// `bf_relative` is false, else as a fraction of the scene's largest emission E_max
+    /// (so one setting behaves the same whatever the scene's radiometric units).
     pub bf_eps: f64,
+    /// Interpret `bf_eps` relative to the scene's largest emission.
+    pub bf_relative: bool,
     /// Shadow rays per link for the visible fraction.
     pub rays: u32,
     /// Maximum quadtree depth below an input patch.
@@ -60,6 +63,9 @@ pub struct HierarchicalParams {
     /// Convergence: stop iterating when the largest change of any element's radiosity, relative
     /// to the largest radiosity in the scene, is below this.
     pub tolerance: f64,
+    /// Refinement stops splitting once this many links exist (a hard memory and time budget;
+    /// `stats.budget_hit` says when it bound).
+    pub max_links: usize,
     /// Safety cap on gather iterations per solve.
     pub max_iterations: u32,
     /// Safety cap on refine→gather rounds (the HSA91 outer loop).
@@ -81,10 +87,12 @@ impl HierarchicalParams {
         HierarchicalParams {
             oracle: Oracle::Bf,
             feps: 0.05,
-            aeps: AreaEps::Relative(1e-4),
-            bf_eps: 0.02,
+            aeps: AreaEps::Relative(2e-4),
+            bf_eps: 5e-3,
+            bf_relative: true,
             rays: 4,
             max_depth: 12,
+            max_links: 500_000,
             tolerance: 1e-3,
             max_iterations: 100,
             max_rounds: 8,
@@ -100,10 +108,12 @@ impl HierarchicalParams {
         HierarchicalParams {
             oracle: Oracle::Bf,
             feps: 0.02,
-            aeps: AreaEps::Relative(2e-5),
-            bf_eps: 0.005,
+            aeps: AreaEps::Relative(5e-5),
+            bf_eps: 2e-3,
+            bf_relative: true,
             rays: 16,
             max_depth: 14,
+            max_links: 4_000_000,
             tolerance: 1e-4,
             max_iterations: 200,
             max_rounds: 12,
@@ -121,8 +131,10 @@ impl HierarchicalParams {
             feps: 0.02,
             aeps: AreaEps::Relative(1e-4),
             bf_eps: 0.0,
+            bf_relative: true,
             rays: 8,
             max_depth: 12,
+            max_links: 4_000_000,
             tolerance: 1e-4,
             max_iterations: 200,
             max_rounds: 1,
@@ -141,8 +153,10 @@ impl HierarchicalParams {
             feps: 0.5,
             aeps: AreaEps::Absolute(2000.0),
             bf_eps: 0.015,
+            bf_relative: false,
             rays: 4,
             max_depth: 16,
+            max_links: 4_000_000,
             tolerance: 0.005,
             max_iterations: 100,
             max_rounds: 16,
@@ -194,6 +208,9 @@ impl HierarchicalParams {
         }
         if self.max_depth > 30 {
             return Err(format!("max-depth must be at most 30 (got {})", self.max_depth));
+        }
+        if self.max_links == 0 {
+            return Err("max-links must be at least 1".into());
         }
         if self.max_iterations == 0 {
             return Err("max-iterations must be at least 1".into());

@@ -295,26 +295,31 @@ pub fn pair_coupling(
     Some((fij * vis, fji * vis, u64::from(s.rays), q.evaluations))
 }
 
-/// Wrap a progress callback so rayon workers can report through it.
+/// Wrap a progress callback so rayon workers can report through it (monotone: a report never
+/// goes back, whatever order the workers reach the lock in).
 pub(crate) struct SharedProgress<'a> {
-    inner: Mutex<Progress<'a>>,
+    inner: Mutex<(Progress<'a>, u64)>,
     done: AtomicU64,
     total: u64,
 }
 
 impl<'a> SharedProgress<'a> {
     pub(crate) fn new(p: Progress<'a>, total: u64) -> Self {
-        SharedProgress { inner: Mutex::new(p), done: AtomicU64::new(0), total }
+        SharedProgress { inner: Mutex::new((p, 0)), done: AtomicU64::new(0), total }
     }
     /// Add `n` units of work done; reports unless another thread is reporting.
     pub(crate) fn add(&self, n: u64) {
         let done = self.done.fetch_add(n, Ordering::Relaxed) + n;
-        if let Ok(mut p) = self.inner.try_lock() {
-            (*p)(done, self.total);
+        if let Ok(mut guard) = self.inner.try_lock() {
+            let (p, last) = &mut *guard;
+            if done > *last {
+                *last = done;
+                (*p)(done, self.total);
+            }
         }
     }
     pub(crate) fn finish(self) {
-        let p = self.inner.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let (p, _) = self.inner.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
         (*p)(self.total, self.total);
     }
 }

@@ -1,1 +1,86 @@
-//! (being written)
+//! The interactive viewer (feature `gui`): an eframe/egui app with a wgpu viewport.
+//!
+//! - [`app`]: panels (solver controls, display, overlays, inspector, plots, status bar), picking,
+//!   screenshots, drag-and-drop and the scripted `--screenshot` / `--bench-frames` runs.
+//! - [`camera`]: orbit / pan / zoom camera.
+//! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
+//!
+//! Rendering is in [`crate::render`]; display lists in [`crate::overlay`].
+
+pub mod app;
+pub mod camera;
+pub mod worker;
+
+pub use app::{OverlayChoice, RadlabApp, ViewerOptions};
+use eframe::egui;
+use std::sync::{Arc, Mutex};
+
+/// Why the viewer could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewerError {
+    #[error("no display (neither DISPLAY nor WAYLAND_DISPLAY is set); use `radlab solve` for headless work")]
+    NoDisplay,
+    #[error("cannot open a window: {0}; use `radlab solve` for headless work")]
+    Window(String),
+    #[error("{0}")]
+    Script(String),
+}
+
+/// True if a window system is reachable (checked before creating the event loop, which would
+/// otherwise panic or fail with a long message).
+#[must_use]
+pub fn display_available() -> bool {
+    let set = |k: &str| std::env::var_os(k).is_some_and(|v| !v.is_empty());
+    set("DISPLAY") || set("WAYLAND_DISPLAY")
+}
+
+/// Open the window and run until it is closed (or a scripted run finishes).
+pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
+    if !display_available() {
+        return Err(ViewerError::NoDisplay);
+    }
+    let scripted = opts.screenshot.is_some() || opts.bench_frames.is_some();
+    let mut native = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title("radlab")
+            .with_inner_size([1280.0, 800.0])
+            .with_drag_and_drop(true),
+        ..eframe::NativeOptions::default()
+    };
+    if opts.bench_frames.is_some() {
+        // Measure drawing, not the display's refresh.
+        native.wgpu_options.surface.present_mode = eframe::wgpu::PresentMode::AutoNoVsync;
+    }
+    let exit = Arc::new(Mutex::new(None::<i32>));
+    let exit_app = Arc::clone(&exit);
+    let result = eframe::run_native(
+        "radlab",
+        native,
+        Box::new(move |cc| Ok(Box::new(ExitReporter { app: RadlabApp::new(cc, opts), exit: exit_app }))),
+    );
+    result.map_err(|e| ViewerError::Window(e.to_string()))?;
+    let code = exit.lock().map_or(None, |g| *g);
+    match code {
+        Some(c) if c != 0 && scripted => {
+            Err(ViewerError::Script("the scripted run failed (see above)".into()))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Passes the app's exit code out of eframe.
+struct ExitReporter {
+    app: RadlabApp,
+    exit: Arc<Mutex<Option<i32>>>,
+}
+
+impl eframe::App for ExitReporter {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.app.ui(ui, frame);
+        if let Some(c) = self.app.exit_code
+            && let Ok(mut g) = self.exit.lock()
+        {
+            *g = Some(c);
+        }
+    }
+}

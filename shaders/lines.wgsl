@@ -1,0 +1,36 @@
+// Overlay lines (quadtree edges, links, highlights): positions in the scene's local frame, RGBA
+// display colours, alpha-blended over the mesh.
+
+struct Uniforms {
+    view_proj: mat4x4<f32>,
+    exposure: f32,
+    tone: u32,
+    mode: u32,
+    selected: u32,
+    back_color: vec4<f32>,
+};
+
+@group(0) @binding(0) var<uniform> u: Uniforms;
+
+struct VsIn {
+    @location(0) position: vec3<f32>,
+    @location(1) color: vec4<f32>,
+};
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) color: vec4<f32>,
+};
+
+@vertex
+fn vs_main(v: VsIn) -> VsOut {
+    var o: VsOut;
+    o.clip = u.view_proj * vec4<f32>(v.position, 1.0);
+    o.color = v.color;
+    return o;
+}
+
+@fragment
+fn fs_main(i: VsOut) -> @location(0) vec4<f32> {
+    return i.color;
+}

@@ -1,0 +1,1410 @@
+//! The eframe application: panels, viewport, overlays, inspector, plots, files.
+//!
+//! State is split the way STYLE.md asks: solver settings ([`HierarchicalParams`]) are data sent
+//! to the worker; what is shown ([`Display`]) is a `Copy` struct; the solver's state arrives as
+//! an immutable `Arc<ViewData>` after each step; GPU geometry is rebuilt from those only when
+//! one of them changes.
+
+use super::camera::OrbitCamera;
+use super::worker::{Command, Reply, ViewData, Worker};
+use crate::math::DVec3;
+use crate::overlay::{self, Decimation, LinkFilter, LogScale, Palette};
+use crate::render::geometry::{self, MeshColors};
+use crate::render::{
+    FrameParams, Geometry, NO_SELECTION, RgbaImage, SceneRenderer, Uniforms, ViewportCallback,
+};
+use crate::scene::Scene;
+use crate::solver::hierarchical::{StepKind, StepReport};
+use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
+use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
+use eframe::egui_wgpu;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, channel};
+use std::time::Instant;
+
+/// Which overlay `--overlay` turns on.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub enum OverlayChoice {
+    #[default]
+    None,
+    Quadtree,
+    Links,
+    Error,
+}
+
+/// How the viewer starts.
+#[derive(Clone, Debug)]
+pub struct ViewerOptions {
+    /// `builtin:NAME` or a path; empty: start without a scene (tests call `set_scene`).
+    pub scene: String,
+    pub preset: String,
+    pub overlay: OverlayChoice,
+    /// Solve as soon as the scene is loaded.
+    pub solve_on_start: bool,
+    /// Scripted use: write the viewport to this PNG once solved, then close.
+    pub screenshot: Option<PathBuf>,
+    /// Benchmark: after solving, draw this many frames, print the median frame time, close.
+    pub bench_frames: Option<usize>,
+    /// Pick the element under this viewport point once solved (fractions of the viewport,
+    /// y down), and show its links (scripted screenshots of the inspector).
+    pub pick: Option<[f32; 2]>,
+    /// Scripted screenshots capture the whole window instead of the viewport.
+    pub screenshot_window: bool,
+    /// Show the plots window open.
+    pub show_plots: bool,
+}
+
+impl Default for ViewerOptions {
+    fn default() -> Self {
+        ViewerOptions {
+            scene: "builtin:cornell".into(),
+            preset: "interactive".into(),
+            overlay: OverlayChoice::None,
+            solve_on_start: false,
+            screenshot: None,
+            bench_frames: None,
+            pick: None,
+            screenshot_window: false,
+            show_plots: false,
+        }
+    }
+}
+
+/// Shading of the radiosity mesh.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Shading {
+    Flat,
+    Smooth,
+}
+
+/// What is shown (no solver state).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Display {
+    pub shading: Shading,
+    /// Exposure in stops: radiosity × 2^EV before tone mapping.
+    pub exposure_ev: f32,
+    /// Set the exposure from the solution after every step (see [`auto_exposure`]).
+    pub auto_exposure: bool,
+    pub srgb: bool,
+    pub quadtree: bool,
+    pub links: bool,
+    pub error: bool,
+    pub link_filter: LinkFilter,
+    /// Links of the picked element only.
+    pub selected_links_only: bool,
+    pub links_xray: bool,
+    pub link_alpha: f32,
+}
+
+impl Default for Display {
+    fn default() -> Self {
+        Display {
+            shading: Shading::Smooth,
+            exposure_ev: 0.0,
+            auto_exposure: true,
+            srgb: true,
+            quadtree: false,
+            links: false,
+            error: false,
+            link_filter: LinkFilter::default(),
+            selected_links_only: false,
+            links_xray: false,
+            link_alpha: 0.35,
+        }
+    }
+}
+
+/// Background of the viewport (display space).
+const BACKGROUND: [f64; 4] = [0.08, 0.08, 0.1, 1.0];
+/// Back faces: dull magenta, striped in the shader.
+const BACK_COLOR: [f32; 4] = [0.55, 0.1, 0.45, 1.0];
+/// Overlay lines are lifted off their surface by this fraction of the scene diagonal (so the
+/// depth test keeps them in front of their own element and behind everything else).
+const LINE_LIFT: f64 = 2e-4;
+
+/// One run made in this window, for the links-against-elements plot.
+#[derive(Copy, Clone, Debug)]
+struct RunPoint {
+    elements: usize,
+    links: usize,
+}
+
+/// What a scripted run (`--screenshot`, `--bench-frames`) is waiting for.
+#[derive(Clone, Debug, PartialEq)]
+enum Script {
+    None,
+    /// Waiting for the solve to finish.
+    Solving,
+    /// Frames left to draw before the screenshot (the geometry must reach the GPU first).
+    Settle(u32),
+    WaitingShot,
+    Bench {
+        left: usize,
+        times: Vec<f64>,
+        last: Option<Instant>,
+        ui_times: Vec<f64>,
+    },
+    Done,
+}
+
+/// The radlab viewer.
+pub struct RadlabApp {
+    opts: ViewerOptions,
+    scene: Option<Arc<Scene>>,
+    scene_spec: String,
+    spec_edit: String,
+    /// Errors shown in the UI (load failures, solver failures); never a crash.
+    errors: Vec<String>,
+    params: HierarchicalParams,
+    preset: String,
+    worker: Option<Worker>,
+    progress: Option<(u64, u64)>,
+    busy_label: String,
+    /// Re-solve once the running command finishes (auto-run after a parameter change).
+    resolve_pending: bool,
+    pub auto_run: bool,
+    view: Arc<ViewData>,
+    last_report: Option<StepReport>,
+    runs: Vec<RunPoint>,
+    camera: OrbitCamera,
+    home: OrbitCamera,
+    origin: DVec3,
+    pub display: Display,
+    /// Per-element true error (against a reference); replaces the solver's estimate when set.
+    true_error: Option<Vec<f64>>,
+    /// Solver time since the last restart (sum of the steps' times), seconds.
+    solver_time_s: f64,
+    /// (solver time, error against the reference) after steps, for the error-vs-time plot.
+    error_samples: Vec<[f64; 2]>,
+    geometry: Arc<Geometry>,
+    generation: u64,
+    geometry_key: Option<GeometryKey>,
+    link_stats: (usize, usize),
+    link_scale: Option<LogScale>,
+    error_scale: Option<LogScale>,
+    pub selected: Option<u32>,
+    has_wgpu: bool,
+    viewport_rect: Rect,
+    script: Script,
+    shot_rx: Option<Receiver<Arc<egui::ColorImage>>>,
+    open_rx: Option<Receiver<Option<PathBuf>>>,
+    status: String,
+    show_plots: bool,
+    /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
+    last_ui_s: f64,
+    rebuild_s: f64,
+    /// Set when the window should close (scripted runs); read by the runner.
+    pub exit_code: Option<i32>,
+}
+
+/// What the current geometry was built from.
+#[derive(Clone, Debug, PartialEq)]
+struct GeometryKey {
+    view: usize,
+    display: Display,
+    selected: Option<u32>,
+    has_true_error: bool,
+}
+
+impl RadlabApp {
+    /// Build the app: store the viewport renderer in egui's callback resources, start the
+    /// solver thread, load the scene.
+    pub fn new(cc: &eframe::CreationContext<'_>, opts: ViewerOptions) -> RadlabApp {
+        let has_wgpu = if let Some(rs) = &cc.wgpu_render_state {
+            let renderer = SceneRenderer::new(&rs.device, rs.target_format);
+            rs.renderer.write().callback_resources.insert(renderer);
+            true
+        } else {
+            false
+        };
+        let ctx = cc.egui_ctx.clone();
+        let worker = Worker::spawn(move || ctx.request_repaint());
+        let preset = if HierarchicalParams::preset(&opts.preset).is_some() {
+            opts.preset.clone()
+        } else {
+            "interactive".into()
+        };
+        let mut app = RadlabApp {
+            scene: None,
+            scene_spec: opts.scene.clone(),
+            spec_edit: opts.scene.clone(),
+            errors: Vec::new(),
+            params: HierarchicalParams::preset(&preset).unwrap_or_else(HierarchicalParams::interactive),
+            preset,
+            worker: None,
+            progress: None,
+            busy_label: String::new(),
+            resolve_pending: false,
+            auto_run: false,
+            view: Arc::new(ViewData::default()),
+            last_report: None,
+            runs: Vec::new(),
+            camera: OrbitCamera::frame_all(&crate::scene::Bounds {
+                min: DVec3::splat(-1.0),
+                max: DVec3::splat(1.0),
+            }),
+            home: OrbitCamera::frame_all(&crate::scene::Bounds {
+                min: DVec3::splat(-1.0),
+                max: DVec3::splat(1.0),
+            }),
+            origin: DVec3::ZERO,
+            display: Display::default(),
+            true_error: None,
+            solver_time_s: 0.0,
+            error_samples: Vec::new(),
+            geometry: Arc::new(Geometry::default()),
+            generation: 0,
+            geometry_key: None,
+            link_stats: (0, 0),
+            link_scale: None,
+            error_scale: None,
+            selected: None,
+            has_wgpu,
+            viewport_rect: Rect::NOTHING,
+            script: Script::None,
+            shot_rx: None,
+            open_rx: None,
+            status: String::new(),
+            show_plots: opts.show_plots,
+            exit_code: None,
+            last_ui_s: 0.0,
+            rebuild_s: 0.0,
+            opts,
+        };
+        match worker {
+            Ok(w) => app.worker = Some(w),
+            Err(e) => app.errors.push(e),
+        }
+        match app.opts.overlay {
+            OverlayChoice::None => {}
+            OverlayChoice::Quadtree => app.display.quadtree = true,
+            OverlayChoice::Links => app.display.links = true,
+            OverlayChoice::Error => app.display.error = true,
+        }
+        if app.opts.screenshot.is_some() || app.opts.bench_frames.is_some() {
+            app.opts.solve_on_start = true;
+            app.script = Script::Solving;
+        }
+        let spec = app.scene_spec.clone();
+        if !spec.is_empty() {
+            app.load_spec(&spec);
+        }
+        app
+    }
+
+    /// Load `builtin:NAME` or a path; errors are shown in the UI.
+    pub fn load_spec(&mut self, spec: &str) {
+        match Scene::load(spec) {
+            Ok(s) => self.set_scene(Arc::new(s)),
+            Err(e) => {
+                self.errors.push(format!("cannot open {spec}: {e}"));
+                if self.script != Script::None {
+                    eprintln!("radlab: error: cannot open {spec}: {e}");
+                    self.exit_code = Some(1);
+                }
+            }
+        }
+    }
+
+    /// Show a scene (replaces the current one; the camera is framed on it).
+    pub fn set_scene(&mut self, scene: Arc<Scene>) {
+        // Stop work on the previous scene.
+        if let Some(w) = &self.worker {
+            w.cancel();
+        }
+        self.resolve_pending = false;
+        let b = scene.bounds();
+        self.origin = b.center();
+        // The scene's own camera, else the CPU renderer's default (inside closed rooms, the
+        // most front-facing direction outside open scenes).
+        let c = crate::image::Camera::for_scene(&scene);
+        let v = crate::scene::Viewpoint { eye: c.eye, target: c.target, up: c.up, fov_y_deg: c.fov_y_deg };
+        self.home = OrbitCamera::from_viewpoint(&v, &b);
+        self.camera = self.home;
+        self.scene_spec.clone_from(&scene.source);
+        self.selected = None;
+        self.true_error = None;
+        self.last_report = None;
+        self.view = Arc::new(ViewData::default());
+        self.geometry_key = None;
+        for w in &scene.warnings {
+            self.status = format!("{}: {w}", scene.name);
+        }
+        self.scene = Some(Arc::clone(&scene));
+        let params = self.params;
+        self.send(Command::Load { scene, params }, "loading");
+        if self.opts.solve_on_start {
+            self.send(Command::Step(StepKind::Solve), "solving");
+        }
+    }
+
+    fn send(&mut self, cmd: Command, label: &str) {
+        if let Some(w) = &mut self.worker {
+            w.send(cmd);
+            label.clone_into(&mut self.busy_label);
+        }
+    }
+
+    /// True while the solver thread has work.
+    #[must_use]
+    pub fn busy(&self) -> bool {
+        self.worker.as_ref().is_some_and(Worker::busy)
+    }
+
+    /// The current solver state.
+    #[must_use]
+    pub fn view(&self) -> &Arc<ViewData> {
+        &self.view
+    }
+
+    /// Errors shown in the UI.
+    #[must_use]
+    pub fn errors(&self) -> &[String] {
+        &self.errors
+    }
+
+    /// Replace the error overlay's values with the true error against a reference (indexed by
+    /// element id, units of B), or go back to the solver's estimate with `None`.
+    pub fn set_true_error(&mut self, err: Option<Vec<f64>>) {
+        self.true_error = err;
+    }
+
+    /// Solver time since the last restart (load, reset, parameter change), seconds.
+    #[must_use]
+    pub fn solver_time_s(&self) -> f64 {
+        self.solver_time_s
+    }
+
+    /// Record the error against a reference of the current state (any scalar norm, e.g. the
+    /// relative L1 error), plotted against [`RadlabApp::solver_time_s`].
+    pub fn push_error_sample(&mut self, error: f64) {
+        if error.is_finite() {
+            self.error_samples.push([self.solver_time_s, error]);
+        }
+    }
+
+    /// Run a solver step (as the buttons do).
+    pub fn step(&mut self, kind: StepKind) {
+        let label = match kind {
+            StepKind::Refine => "refining",
+            StepKind::Gather => "gathering",
+            StepKind::PushPull => "push-pull",
+            StepKind::Iterate => "iterating",
+            StepKind::Solve => "solving",
+        };
+        self.send(Command::Step(kind), label);
+    }
+
+    /// Change the solver parameters: restart the solver with them (and re-solve with auto-run).
+    pub fn set_params(&mut self, p: HierarchicalParams) {
+        if p == self.params {
+            return;
+        }
+        if let Err(e) = p.validate() {
+            self.errors.push(e);
+            return;
+        }
+        self.params = p;
+        if self.busy()
+            && let Some(w) = &self.worker
+        {
+            w.cancel();
+        }
+        self.send(Command::SetParams(p), "restarting");
+        if self.auto_run {
+            self.resolve_pending = true;
+        }
+    }
+
+    /// Block until the solver thread is idle and apply its replies (tests, scripted runs).
+    pub fn wait_for_solver(&mut self) {
+        let mut replies = Vec::new();
+        if let Some(w) = &mut self.worker {
+            w.wait_idle(|r| replies.push(r));
+        }
+        for r in replies {
+            self.apply(r);
+        }
+    }
+
+    fn poll_worker(&mut self) {
+        let mut replies = Vec::new();
+        if let Some(w) = &mut self.worker {
+            while let Some(r) = w.poll() {
+                replies.push(r);
+            }
+        }
+        for r in replies {
+            self.apply(r);
+        }
+        if self.resolve_pending && !self.busy() {
+            self.resolve_pending = false;
+            self.step(StepKind::Solve);
+        }
+    }
+
+    fn apply(&mut self, r: Reply) {
+        match r {
+            Reply::Loaded { view, .. } => {
+                self.view = view;
+                self.progress = None;
+                self.solver_time_s = 0.0;
+                self.error_samples.clear();
+            }
+            Reply::Done { report, view } => {
+                self.view = view;
+                self.progress = None;
+                if report.is_none() {
+                    // SetParams / Reset restart the solver: element ids start over.
+                    self.solver_time_s = 0.0;
+                    self.error_samples.clear();
+                    self.selected = None;
+                }
+                if let Some(rep) = report {
+                    self.solver_time_s += rep.time_s;
+                    self.last_report = Some(rep);
+                    if rep.kind == StepKind::Solve && !rep.cancelled {
+                        self.runs.push(RunPoint {
+                            elements: self.view.stats.leaves,
+                            links: self.view.stats.links,
+                        });
+                    }
+                }
+                if self.selected.is_some_and(|s| s as usize >= self.view.elements.len()) {
+                    self.selected = None;
+                }
+                if self.script == Script::Solving && !self.busy() {
+                    self.script = match self.opts.bench_frames {
+                        Some(n) => Script::Bench {
+                            left: n,
+                            times: Vec::with_capacity(n),
+                            last: None,
+                            ui_times: Vec::new(),
+                        },
+                        None => Script::Settle(4),
+                    };
+                }
+            }
+            Reply::Progress { done, total } => self.progress = Some((done, total)),
+            Reply::Failed(e) => {
+                self.progress = None;
+                if self.script != Script::None {
+                    eprintln!("radlab: error: {e}");
+                    self.exit_code = Some(1);
+                }
+                self.errors.push(e);
+            }
+        }
+    }
+
+    /// Per-element error values shown by the heatmap, and what they are.
+    fn error_values(&self) -> (Vec<f64>, &'static str) {
+        match &self.true_error {
+            Some(e) if e.len() == self.view.elements.len() => (e.clone(), "true error |B − B_ref|"),
+            _ => (self.view.elements.iter().map(|e| e.error_estimate).collect(), "solver's error estimate"),
+        }
+    }
+
+    fn rebuild_geometry(&mut self) {
+        if self.display.auto_exposure
+            && self.geometry_key.as_ref().is_none_or(|k| k.view != Arc::as_ptr(&self.view) as usize)
+            && let Some(ev) = auto_exposure(&self.view)
+        {
+            self.display.exposure_ev = ev;
+        }
+        let key = GeometryKey {
+            view: Arc::as_ptr(&self.view) as usize,
+            display: self.display,
+            selected: self.selected,
+            has_true_error: self.true_error.is_some(),
+        };
+        if self.geometry_key.as_ref() == Some(&key) {
+            return;
+        }
+        let started = Instant::now();
+        let v = &self.view;
+        let lift = self.camera.scale * LINE_LIFT;
+        let (errors, _) = self.error_values();
+        let (heat, escale) = overlay::heatmap_colors(&errors);
+        self.error_scale = escale;
+        let colors = if self.display.error {
+            MeshColors::Display(&heat)
+        } else if self.display.shading == Shading::Smooth {
+            MeshColors::Smooth
+        } else {
+            MeshColors::Flat
+        };
+        let mesh = geometry::mesh(&v.elements, &v.leaves, colors, self.origin);
+        let mut lines = Vec::new();
+        if self.display.quadtree {
+            lines = geometry::lines(&overlay::quadtree_lines(&v.elements, &v.leaves, lift), self.origin);
+        }
+        if let Some(sel) = self.selected.and_then(|s| v.elements.get(s as usize)) {
+            // Outline the picked element in white, lifted a little more than the quadtree.
+            let mut outline = overlay::LineList::default();
+            let n = sel.normal() * lift * 2.0;
+            let p = sel.verts();
+            for i in 0..p.len() {
+                outline.points.extend([p[i] + n, p[(i + 1) % p.len()] + n]);
+                outline.colors.extend([[1.0, 1.0, 1.0, 1.0]; 2]);
+            }
+            lines.extend(geometry::lines(&outline, self.origin));
+        }
+        let mut links = Vec::new();
+        self.link_stats = (0, 0);
+        self.link_scale = None;
+        let show_links = self.display.links || (self.selected.is_some() && self.display.selected_links_only);
+        if show_links {
+            let mut filter = self.display.link_filter;
+            filter.element = if self.display.selected_links_only { self.selected } else { None };
+            if self.display.selected_links_only && self.selected.is_none() {
+                filter.element = Some(u32::MAX); // nothing picked: nothing to show
+            }
+            let ll = overlay::link_lines(&v.elements, &v.links, &filter, self.display.link_alpha);
+            self.link_stats = (ll.shown, ll.matched);
+            self.link_scale = ll.scale;
+            links = geometry::lines(&ll.lines, self.origin);
+        }
+        self.geometry = Arc::new(Geometry { mesh, lines, links, links_xray: self.display.links_xray });
+        self.generation += 1;
+        self.geometry_key = Some(key);
+        self.rebuild_s = started.elapsed().as_secs_f64();
+    }
+
+    fn uniforms(&self, aspect: f64) -> Uniforms {
+        let m = self.camera.view_proj(aspect, self.origin).to_cols_array_2d();
+        Uniforms {
+            view_proj: m.map(|c| c.map(|x| x as f32)),
+            exposure: 2f32.powf(self.display.exposure_ev),
+            tone: u32::from(self.display.srgb),
+            mode: u32::from(self.display.error),
+            selected: self.selected.unwrap_or(NO_SELECTION),
+            back_color: BACK_COLOR,
+        }
+    }
+
+    // ------------------------------------------------------------------------------------------
+    // Panels
+
+    fn top_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            if ui
+                .button("Open…")
+                .on_hover_text("Open a .gltf/.glb file (or drop one on the window)")
+                .clicked()
+            {
+                let (tx, rx) = channel();
+                let spawned = std::thread::Builder::new().name("radlab-open".into()).spawn(move || {
+                    let f = rfd::FileDialog::new().add_filter("glTF", &["gltf", "glb"]).pick_file();
+                    let _ = tx.send(f);
+                });
+                match spawned {
+                    Ok(_) => self.open_rx = Some(rx),
+                    Err(e) => self.errors.push(format!("cannot open the file dialog: {e}")),
+                }
+            }
+            let edit = ui.add(
+                egui::TextEdit::singleline(&mut self.spec_edit)
+                    .desired_width(160.0)
+                    .hint_text("builtin:NAME or path"),
+            );
+            let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+            if ui.button("Load").clicked() || enter {
+                let spec = self.spec_edit.trim().to_owned();
+                if !spec.is_empty() {
+                    self.load_spec(&spec);
+                }
+            }
+            if ui.button("Screenshot").on_hover_text("Save the viewport as a PNG").clicked() {
+                self.request_screenshot(ui.ctx());
+            }
+            ui.toggle_value(&mut self.show_plots, "Plots");
+            ui.separator();
+            let name = self.scene.as_ref().map_or("(no scene)".to_owned(), |s| s.name.clone());
+            ui.label(egui::RichText::new(name).strong());
+            ui.weak(&self.scene_spec);
+        });
+    }
+
+    fn controls(&mut self, ui: &mut egui::Ui) {
+        let busy = self.busy();
+        ui.heading("Solver");
+        let mut p = self.params;
+        egui::ComboBox::from_label("preset").selected_text(&self.preset).show_ui(ui, |ui| {
+            for name in HierarchicalParams::PRESETS {
+                if ui.selectable_label(self.preset == name, name).clicked() {
+                    self.preset = name.to_owned();
+                    if let Some(q) = HierarchicalParams::preset(name) {
+                        p = q;
+                    }
+                }
+            }
+        });
+        egui::ComboBox::from_label("oracle").selected_text(format!("{:?}", p.oracle)).show_ui(ui, |ui| {
+            ui.selectable_value(&mut p.oracle, Oracle::Feps, "Feps (form factor)");
+            ui.selectable_value(&mut p.oracle, Oracle::Bf, "BF (B × F)");
+        });
+        log_slider(
+            ui,
+            "Feps",
+            &mut p.feps,
+            1e-5,
+            1.0,
+            "Form-factor threshold of Refine: link when both F estimates are below it",
+        );
+        let mut aeps_rel = match p.aeps {
+            AreaEps::Relative(r) => r,
+            AreaEps::Absolute(a) => {
+                self.scene.as_ref().map_or(1e-4, |s| a / s.total_area().max(f64::MIN_POSITIVE))
+            }
+        };
+        let before = aeps_rel;
+        log_slider(
+            ui,
+            "Aeps",
+            &mut aeps_rel,
+            1e-8,
+            1e-1,
+            "Smallest element area, as a fraction of the scene's area",
+        );
+        if aeps_rel != before {
+            p.aeps = AreaEps::Relative(aeps_rel);
+        }
+        log_slider(ui, "BFeps", &mut p.bf_eps, 1e-6, 1.0, "Threshold of the BF oracle (units of B)");
+        ui.horizontal(|ui| {
+            ui.add(egui::Slider::new(&mut p.rays, 1..=256).logarithmic(true).text("rays"))
+                .on_hover_text("Shadow rays per link (visible fraction)");
+        });
+        ui.add(egui::Slider::new(&mut p.max_depth, 1..=20).text("max depth"));
+        if p != self.params {
+            self.set_params(p);
+        }
+
+        ui.separator();
+        ui.horizontal_wrapped(|ui| {
+            for (label, kind, tip) in [
+                ("Refine step", StepKind::Refine, "Initial linking, then the oracle over the existing links"),
+                ("Gather step", StepKind::Gather, "One Jacobi gather over all links"),
+                ("Push-pull", StepKind::PushPull, "Push gathered irradiance down, pull radiosity up"),
+                ("Iterate", StepKind::Iterate, "Refine + gather + push-pull"),
+                ("Solve", StepKind::Solve, "The HSA91 loop until converged"),
+            ] {
+                if ui.add_enabled(!busy, egui::Button::new(label)).on_hover_text(tip).clicked() {
+                    self.step(kind);
+                }
+            }
+            if ui
+                .add_enabled(!busy, egui::Button::new("Reset"))
+                .on_hover_text("Back to the input patches")
+                .clicked()
+            {
+                self.send(Command::Reset, "resetting");
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut self.auto_run, "auto-run")
+                .on_hover_text("Re-solve whenever a parameter changes");
+            if busy {
+                if ui.button("Cancel").clicked() {
+                    if let Some(w) = &self.worker {
+                        w.cancel();
+                    }
+                    self.resolve_pending = false;
+                }
+                ui.spinner();
+                ui.label(&self.busy_label);
+            }
+        });
+        if let Some((d, t)) = self.progress {
+            ui.add(egui::ProgressBar::new(d as f32 / t.max(1) as f32).text(format!("round {d}/{t}")));
+        }
+
+        ui.separator();
+        ui.heading("Display");
+        let d = &mut self.display;
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut d.shading, Shading::Flat, "flat");
+            ui.selectable_value(&mut d.shading, Shading::Smooth, "smooth").on_hover_text(
+                "Gouraud from vertex averages; T-vertices take their big neighbour's edge value",
+            );
+        });
+        let ev =
+            ui.add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"));
+        if ev.changed() {
+            d.auto_exposure = false;
+        }
+        ui.checkbox(&mut d.auto_exposure, "auto exposure")
+            .on_hover_text("Map the 95th percentile of the lit surfaces' radiosity to 80 % white");
+        ui.horizontal(|ui| {
+            ui.label("tone map");
+            ui.selectable_value(&mut d.srgb, true, "sRGB");
+            ui.selectable_value(&mut d.srgb, false, "linear");
+        });
+        ui.label(egui::RichText::new("back faces: striped magenta").small().weak());
+        ui.separator();
+        ui.heading("Overlays");
+        ui.checkbox(&mut d.quadtree, "quadtree").on_hover_text("Leaf edges coloured by depth; depth-tested");
+        ui.checkbox(&mut d.links, "links").on_hover_text("Element-centre lines coloured by log F");
+        if d.links || d.selected_links_only {
+            ui.indent("links", |ui| {
+                ui.checkbox(&mut d.selected_links_only, "picked element only");
+                let mut min_ff = f64::from(d.link_filter.min_ff).max(1e-9);
+                log_slider(ui, "min F", &mut min_ff, 1e-9, 1.0, "Hide links with a smaller form factor");
+                d.link_filter.min_ff = if min_ff <= 1e-9 { 0.0 } else { min_ff as f32 };
+                ui.horizontal(|ui| {
+                    ui.label("visibility");
+                    ui.checkbox(&mut d.link_filter.full, "full");
+                    ui.checkbox(&mut d.link_filter.partial, "partial");
+                    ui.checkbox(&mut d.link_filter.none, "none");
+                });
+                ui.add(
+                    egui::Slider::new(&mut d.link_filter.max_lines, 100..=200_000)
+                        .logarithmic(true)
+                        .text("max lines"),
+                )
+                .on_hover_text("Decimation: beyond this many, a sample is drawn");
+                ui.horizontal(|ui| {
+                    ui.label("sample");
+                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::Strided, "every k-th");
+                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::LargestF, "largest F");
+                });
+                ui.add(egui::Slider::new(&mut d.link_alpha, 0.05..=1.0).text("opacity"));
+                ui.checkbox(&mut d.links_xray, "x-ray (no depth test)");
+            });
+        }
+        ui.checkbox(&mut d.error, "error heatmap").on_hover_text("Per-element error on a log colour scale");
+    }
+
+    fn inspector(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Inspect");
+        let Some(id) = self.selected else {
+            ui.label("Click an element in the viewport.");
+            return;
+        };
+        let v = Arc::clone(&self.view);
+        let Some(e) = v.elements.get(id as usize) else {
+            return;
+        };
+        let (errors, err_label) = self.error_values();
+        egui::Grid::new("element").num_columns(2).striped(true).show(ui, |ui| {
+            let row = |ui: &mut egui::Ui, k: &str, val: String| {
+                ui.label(k);
+                ui.monospace(val);
+                ui.end_row();
+            };
+            row(ui, "element", format!("{} (patch {})", e.id, e.patch));
+            if let Some(p) = self.scene.as_ref().and_then(|s| s.patches.get(e.patch as usize)) {
+                row(ui, "patch name", p.name.clone());
+            }
+            row(ui, "depth", e.depth.to_string());
+            row(ui, "area", format!("{:.4e}", e.area));
+            row(ui, "E", rgb_text(e.emission));
+            row(ui, "ρ", rgb_text(e.reflectance));
+            row(ui, "B", rgb_text(e.radiosity));
+            row(
+                ui,
+                "error",
+                format!("{:.3e} ({err_label})", errors.get(id as usize).copied().unwrap_or(0.0)),
+            );
+            row(ui, "stopped", e.stop.to_owned());
+        });
+        ui.separator();
+        // Links through which this element gathers: its own and its ancestors'.
+        let chain = overlay::ancestors(&v.elements, id);
+        let mut rows: Vec<(u32, u32, f32, f32, f64)> = v
+            .links
+            .iter()
+            .filter(|l| chain.contains(&l.receiver))
+            .map(|l| {
+                let b = v.elements.get(l.source as usize).map_or(0.0, |s| s.radiosity.mean());
+                (l.receiver, l.source, l.ff, l.vis, b * f64::from(l.ff) * f64::from(l.vis))
+            })
+            .collect();
+        rows.sort_by(|a, b| b.4.total_cmp(&a.4).then(a.1.cmp(&b.1)));
+        ui.label(format!("{} links gathered through (own + ancestors'), by B·F·V:", rows.len()));
+        egui::ScrollArea::vertical().max_height(220.0).id_salt("links").show(ui, |ui| {
+            egui::Grid::new("links").num_columns(5).striped(true).show(ui, |ui| {
+                for h in ["at", "source", "F", "V", "B·F·V"] {
+                    ui.strong(h);
+                }
+                ui.end_row();
+                for (r, s, f, vis, c) in rows.iter().take(200) {
+                    ui.monospace(if *r == id { "self".to_owned() } else { format!("↑{r}") });
+                    ui.monospace(s.to_string());
+                    ui.monospace(format!("{f:.3e}"));
+                    ui.monospace(format!("{vis:.2}"));
+                    ui.monospace(format!("{c:.3e}"));
+                    ui.end_row();
+                }
+            });
+        });
+        ui.checkbox(&mut self.display.selected_links_only, "show these links in the viewport");
+    }
+
+    fn plots(&self, ui: &mut egui::Ui) {
+        use egui_plot::{Legend, Line, Plot, PlotPoints, Points};
+        ui.label("Residual per gather (log₁₀)");
+        let res: Vec<[f64; 2]> = self
+            .view
+            .residuals
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| **r > 0.0)
+            .map(|(i, r)| [i as f64 + 1.0, r.log10()])
+            .collect();
+        Plot::new("residual").height(150.0).x_axis_label("gather").y_axis_label("log₁₀ residual").show(
+            ui,
+            |p| {
+                p.line(Line::new("residual", PlotPoints::from(res)));
+            },
+        );
+        ui.label("Links against elements, runs in this window (log₁₀)");
+        let pts: Vec<[f64; 2]> = self
+            .runs
+            .iter()
+            .filter(|r| r.elements > 0 && r.links > 0)
+            .map(|r| [(r.elements as f64).log10(), (r.links as f64).log10()])
+            .collect();
+        let (lo, hi) =
+            pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[0]), b.max(p[0])));
+        let (lo, hi) = if lo.is_finite() { (lo - 0.5, hi + 0.5) } else { (1.0, 5.0) };
+        Plot::new("links_vs_elements")
+            .height(150.0)
+            .legend(Legend::default())
+            .x_axis_label("log₁₀ elements")
+            .y_axis_label("log₁₀ links")
+            .show(ui, |p| {
+                p.points(Points::new("runs", PlotPoints::from(pts)).radius(4.0));
+                p.line(Line::new("n", PlotPoints::from(vec![[lo, lo], [hi, hi]])));
+                p.line(Line::new("n²", PlotPoints::from(vec![[lo, 2.0 * lo], [hi, 2.0 * hi]])));
+            });
+        if self.error_samples.is_empty() {
+            ui.weak("Error against time appears when a reference solution is loaded.");
+        } else {
+            ui.label("Error against the reference vs solver time");
+            let pts: Vec<[f64; 2]> =
+                self.error_samples.iter().filter(|p| p[1] > 0.0).map(|p| [p[0], p[1].log10()]).collect();
+            Plot::new("error_vs_time")
+                .height(150.0)
+                .x_axis_label("solver time (s)")
+                .y_axis_label("log₁₀ error")
+                .show(ui, |p| {
+                    p.line(Line::new("error", PlotPoints::from(pts.clone())));
+                    p.points(Points::new("steps", PlotPoints::from(pts)).radius(3.0));
+                });
+        }
+    }
+
+    fn status_bar(&self, ui: &mut egui::Ui) {
+        let s = &self.view.stats;
+        ui.horizontal(|ui| {
+            ui.label(format!("{} elements ({} leaves)", s.elements, s.leaves));
+            ui.separator();
+            ui.label(format!(
+                "{} links (full {}, partial {}, none {})",
+                s.links, s.links_full, s.links_partial, s.links_none
+            ));
+            ui.separator();
+            ui.label(format!(
+                "refine {:.3}s · gather {:.3}s · push-pull {:.3}s",
+                s.refine_s, s.gather_s, s.push_pull_s
+            ));
+            ui.separator();
+            if let Some(r) = &self.last_report {
+                ui.label(format!(
+                    "last: {:?} {:.3}s, residual {:.2e}{}{}",
+                    r.kind,
+                    r.time_s,
+                    r.residual,
+                    if r.converged { ", converged" } else { "" },
+                    if r.cancelled { ", cancelled" } else { "" }
+                ));
+            }
+            if !self.status.is_empty() {
+                ui.separator();
+                ui.weak(&self.status);
+            }
+        });
+    }
+
+    // ------------------------------------------------------------------------------------------
+    // Viewport
+
+    fn viewport(&mut self, ui: &mut egui::Ui) {
+        let rect = ui.available_rect_before_wrap();
+        self.viewport_rect = rect;
+        let response = ui.allocate_rect(rect, Sense::click_and_drag());
+        let aspect = f64::from(rect.width() / rect.height().max(1.0));
+
+        // Camera: left-drag orbit, right/middle-drag or shift-drag pan, wheel zoom, keys.
+        let shift = ui.input(|i| i.modifiers.shift);
+        let d = response.drag_delta();
+        if response.dragged_by(egui::PointerButton::Primary) && !shift {
+            self.camera.orbit(f64::from(d.x) * 0.01, f64::from(d.y) * 0.01);
+        } else if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+            || (response.dragged_by(egui::PointerButton::Primary) && shift)
+        {
+            let h = f64::from(rect.height().max(1.0));
+            self.camera.pan(-f64::from(d.x) / h, f64::from(d.y) / h);
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                self.camera.zoom((-f64::from(scroll) * 0.002).exp());
+            }
+        }
+        if !ui.ctx().egui_wants_keyboard_input() {
+            ui.input(|i| {
+                let step = 0.05;
+                let pan = i.modifiers.shift;
+                for (key, dx, dy) in [
+                    (egui::Key::ArrowLeft, -1.0, 0.0),
+                    (egui::Key::ArrowRight, 1.0, 0.0),
+                    (egui::Key::ArrowUp, 0.0, -1.0),
+                    (egui::Key::ArrowDown, 0.0, 1.0),
+                ] {
+                    if i.key_down(key) {
+                        if pan {
+                            self.camera.pan(dx * step * 0.5, -dy * step * 0.5);
+                        } else {
+                            self.camera.orbit(dx * step, dy * step);
+                        }
+                    }
+                }
+                if i.key_pressed(egui::Key::Plus) || i.key_pressed(egui::Key::Equals) {
+                    self.camera.zoom(0.85);
+                }
+                if i.key_pressed(egui::Key::Minus) {
+                    self.camera.zoom(1.0 / 0.85);
+                }
+                if i.key_pressed(egui::Key::F) {
+                    self.frame_all();
+                }
+                if i.key_pressed(egui::Key::R) {
+                    self.camera = self.home;
+                }
+            });
+        }
+        if response.clicked()
+            && let Some(pos) = response.interact_pointer_pos()
+        {
+            self.pick_at(pos, rect);
+        }
+
+        self.rebuild_geometry();
+        let painter = ui.painter_at(rect);
+        if self.has_wgpu {
+            let ppp = ui.ctx().pixels_per_point();
+            let size =
+                [(rect.width() * ppp).round().max(1.0) as u32, (rect.height() * ppp).round().max(1.0) as u32];
+            painter.add(egui_wgpu::Callback::new_paint_callback(
+                rect,
+                ViewportCallback {
+                    frame: FrameParams { uniforms: self.uniforms(aspect), size, clear: BACKGROUND },
+                    geometry: Arc::clone(&self.geometry),
+                    generation: self.generation,
+                },
+            ));
+        } else {
+            painter.rect_filled(rect, 0.0, Color32::from_gray(20));
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "no wgpu renderer",
+                egui::FontId::proportional(16.0),
+                Color32::GRAY,
+            );
+        }
+        self.legends(&painter, rect);
+        ui.horizontal(|_| {});
+        let _ = response;
+    }
+
+    /// Where the viewport was drawn in the last frame (points).
+    #[must_use]
+    pub fn viewport_rect(&self) -> Rect {
+        self.viewport_rect
+    }
+
+    /// The solver parameters in use.
+    #[must_use]
+    pub fn params(&self) -> HierarchicalParams {
+        self.params
+    }
+
+    /// Frame the whole scene, keeping the view direction.
+    pub fn frame_all(&mut self) {
+        if let Some(s) = &self.scene {
+            let f = OrbitCamera::frame_all(&s.bounds());
+            self.camera.target = f.target;
+            self.camera.distance = f.distance;
+        }
+    }
+
+    fn pick_at(&mut self, pos: Pos2, rect: Rect) {
+        let aspect = f64::from(rect.width() / rect.height().max(1.0));
+        let nx = f64::from((pos.x - rect.left()) / rect.width()) * 2.0 - 1.0;
+        let ny = 1.0 - f64::from((pos.y - rect.top()) / rect.height()) * 2.0;
+        let (o, dir) = self.camera.ray(nx, ny, aspect);
+        self.selected = overlay::pick(&self.view.elements, &self.view.leaves, o, dir).map(|(id, _)| id);
+    }
+
+    /// Pick the element under a point given in viewport-relative coordinates (0..1, y down).
+    pub fn pick_relative(&mut self, x: f32, y: f32) {
+        let r = self.viewport_rect;
+        if r.is_positive() {
+            self.pick_at(Pos2::new(r.left() + x * r.width(), r.top() + y * r.height()), r);
+        }
+    }
+
+    fn legends(&self, painter: &egui::Painter, rect: Rect) {
+        let mut y = rect.top() + 8.0;
+        let x = rect.left() + 8.0;
+        let font = egui::FontId::proportional(12.0);
+        let bg = Color32::from_black_alpha(170);
+        if self.display.quadtree {
+            let max_depth = self.view.stats.depth_histogram.len().max(1);
+            let shown = max_depth.min(12);
+            let box_r =
+                Rect::from_min_size(Pos2::new(x, y), Vec2::new((8.0 + 18.0 * shown as f32).max(100.0), 36.0));
+            painter.rect_filled(box_r, 4.0, bg);
+            painter.text(
+                Pos2::new(x + 4.0, y + 2.0),
+                egui::Align2::LEFT_TOP,
+                "quadtree depth",
+                font.clone(),
+                Color32::WHITE,
+            );
+            for dpt in 0..shown {
+                let c = overlay::depth_color(dpt as u8);
+                let r =
+                    Rect::from_min_size(Pos2::new(x + 4.0 + 18.0 * dpt as f32, y + 18.0), Vec2::splat(14.0));
+                painter.rect_filled(r, 2.0, rgb32(c));
+                painter.text(
+                    r.center(),
+                    egui::Align2::CENTER_CENTER,
+                    dpt.to_string(),
+                    egui::FontId::proportional(9.0),
+                    if dpt == 0 { Color32::BLACK } else { Color32::WHITE },
+                );
+            }
+            y = box_r.bottom() + 6.0;
+        }
+        let show_links = self.display.links || (self.display.selected_links_only && self.selected.is_some());
+        if show_links {
+            let title = format!(
+                "links: F (log), {} of {} shown{}",
+                self.link_stats.0,
+                self.link_stats.1,
+                match (self.link_stats.0 < self.link_stats.1, self.display.link_filter.decimation) {
+                    (false, _) => "",
+                    (true, Decimation::Strided) => " (every k-th)",
+                    (true, Decimation::LargestF) => " (largest F)",
+                }
+            );
+            y = colour_bar(painter, Pos2::new(x, y), &title, self.link_scale, Palette::Viridis, "") + 6.0;
+            painter.text(
+                Pos2::new(x + 4.0, y),
+                egui::Align2::LEFT_TOP,
+                if self.display.links_xray {
+                    "x-ray: links drawn through surfaces"
+                } else {
+                    "depth-tested, alpha-blended"
+                },
+                egui::FontId::proportional(10.0),
+                Color32::LIGHT_GRAY,
+            );
+            y += 18.0;
+        }
+        if self.display.error {
+            let (_, what) = self.error_values();
+            colour_bar(
+                painter,
+                Pos2::new(x, y),
+                &format!("error: {what} (log scale, ends at the 10th / 99th percentile)"),
+                self.error_scale,
+                Palette::Heat,
+                " (units of B)",
+            );
+        }
+        if self.view.elements.is_empty() {
+            let msg = if self.busy() {
+                "loading…"
+            } else {
+                "No scene. Open… a .gltf/.glb, drop one here, or type builtin:NAME above and press Load."
+            };
+            painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, font, Color32::LIGHT_GRAY);
+        }
+    }
+
+    fn request_screenshot(&mut self, ctx: &egui::Context) {
+        let (tx, rx) = channel();
+        ctx.request_screenshot(move |img| {
+            let _ = tx.send(img);
+        });
+        self.shot_rx = Some(rx);
+        ctx.request_repaint();
+    }
+
+    fn handle_screenshot(&mut self, ctx: &egui::Context) {
+        let Some(rx) = &self.shot_rx else { return };
+        let Ok(img) = rx.try_recv() else {
+            ctx.request_repaint();
+            return;
+        };
+        self.shot_rx = None;
+        let ppp = ctx.pixels_per_point();
+        let full = RgbaImage {
+            width: img.size[0] as u32,
+            height: img.size[1] as u32,
+            pixels: img.pixels.iter().flat_map(|c| c.to_array()).collect(),
+        };
+        let r = if self.opts.screenshot_window && self.script == Script::WaitingShot {
+            Rect::from_min_size(Pos2::ZERO, Vec2::new(full.width as f32, full.height as f32) / ppp)
+        } else {
+            self.viewport_rect
+        };
+        let shot = full.crop(
+            (r.left() * ppp).round() as u32,
+            (r.top() * ppp).round() as u32,
+            (r.width() * ppp).round() as u32,
+            (r.height() * ppp).round() as u32,
+        );
+        let path = self.opts.screenshot.clone().unwrap_or_else(|| {
+            let name = self.scene.as_ref().map_or("radlab".to_owned(), |s| s.name.clone());
+            PathBuf::from(format!("{name}-{}.png", self.generation))
+        });
+        match shot.save_png(&path) {
+            Ok(()) => self.status = format!("saved {}", path.display()),
+            Err(e) => {
+                self.errors.push(format!("screenshot: {e}"));
+                if self.script != Script::None {
+                    self.exit_code = Some(1);
+                }
+            }
+        }
+        if self.script == Script::WaitingShot {
+            println!("radlab: wrote {}", path.display());
+            self.script = Script::Done;
+            self.exit_code.get_or_insert(0);
+        }
+    }
+
+    fn run_script(&mut self, ctx: &egui::Context) {
+        match &mut self.script {
+            Script::None | Script::Done | Script::WaitingShot => {}
+            Script::Solving => {}
+            Script::Settle(n) => {
+                let n = *n;
+                if n == 1
+                    && let Some([x, y]) = self.opts.pick
+                {
+                    self.pick_relative(x, y);
+                    self.display.selected_links_only = true;
+                }
+                if n == 0 {
+                    self.script = Script::WaitingShot;
+                    self.request_screenshot(ctx);
+                } else {
+                    self.script = Script::Settle(n - 1);
+                }
+                ctx.request_repaint();
+            }
+            Script::Bench { left, times, last, ui_times } => {
+                if last.is_some() {
+                    ui_times.push(self.last_ui_s);
+                }
+                let now = Instant::now();
+                if let Some(t) = last {
+                    times.push(now.duration_since(*t).as_secs_f64());
+                    *left = left.saturating_sub(1);
+                }
+                *last = Some(now);
+                // Spin the camera a little so every frame really redraws.
+                self.camera.orbit(0.002, 0.0);
+                if *left == 0 {
+                    let mut t = times.clone();
+                    t.sort_by(f64::total_cmp);
+                    let med = t.get(t.len() / 2).copied().unwrap_or(0.0);
+                    let p90 = t.get(t.len() * 9 / 10).copied().unwrap_or(0.0);
+                    let mut u = ui_times.clone();
+                    u.sort_by(f64::total_cmp);
+                    let ui_med = u.get(u.len() / 2).copied().unwrap_or(0.0);
+                    println!(
+                        "radlab: {} frames, {} leaves, {} links drawn, {} overlay lines; frame time median {:.2} ms, p90 {:.2} ms ({:.1} fps); UI code (egui + app, CPU) median {:.2} ms; last display rebuild {:.1} ms",
+                        t.len(),
+                        self.view.leaves.len(),
+                        self.link_stats.0,
+                        self.geometry.lines.len() / 2,
+                        med * 1e3,
+                        p90 * 1e3,
+                        if med > 0.0 { 1.0 / med } else { 0.0 },
+                        ui_med * 1e3,
+                        self.rebuild_s * 1e3
+                    );
+                    self.script = Script::Done;
+                    self.exit_code.get_or_insert(0);
+                }
+                ctx.request_repaint();
+            }
+        }
+    }
+}
+
+impl eframe::App for RadlabApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let started = Instant::now();
+        let ctx = ui.ctx().clone();
+        self.poll_worker();
+        if let Some(rx) = &self.open_rx
+            && let Ok(res) = rx.try_recv()
+        {
+            self.open_rx = None;
+            match res {
+                Some(path) => self.load_spec(&path.to_string_lossy()),
+                None => {
+                    self.status = "no file chosen (without a desktop file-dialog portal, drop a file on \
+                                   the window or type its path)"
+                        .into();
+                }
+            }
+        }
+        let dropped: Vec<PathBuf> =
+            ui.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).collect());
+        for path in dropped {
+            let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+            if matches!(ext.as_deref(), Some("gltf" | "glb")) {
+                self.load_spec(&path.to_string_lossy());
+            } else {
+                self.errors.push(format!("{}: not a .gltf/.glb file", path.display()));
+            }
+        }
+
+        egui::Panel::top("top").show(ui, |ui| self.top_bar(ui));
+        egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
+        egui::Panel::left("controls").resizable(true).default_size(270.0).show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+        });
+        egui::Panel::right("inspector").resizable(true).default_size(300.0).show(ui, |ui| {
+            egui::ScrollArea::vertical().id_salt("inspector_scroll").show(ui, |ui| {
+                if !self.errors.is_empty() {
+                    ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
+                    for e in self.errors.iter().rev().take(5) {
+                        ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
+                    }
+                    if ui.small_button("clear").clicked() {
+                        self.errors.clear();
+                    }
+                    ui.separator();
+                }
+                self.inspector(ui);
+                if self.show_plots {
+                    ui.separator();
+                    ui.heading("Convergence plots");
+                    self.plots(ui);
+                }
+            });
+        });
+        egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
+
+        self.handle_screenshot(&ctx);
+        self.run_script(&ctx);
+        if self.busy() {
+            ctx.request_repaint_after(std::time::Duration::from_millis(100));
+        }
+        if let Some(code) = self.exit_code
+            && (self.script == Script::Done || code != 0)
+        {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+        self.last_ui_s = started.elapsed().as_secs_f64();
+    }
+}
+
+/// Target display value of the 95th-percentile radiosity under auto exposure.
+const AUTO_EXPOSURE_TARGET: f64 = 0.8;
+
+/// Exposure (EV) that maps the 95th percentile of the non-emitting leaves' luminance to
+/// `AUTO_EXPOSURE_TARGET`; `None` while everything is dark (before the first gather).
+#[must_use]
+pub fn auto_exposure(view: &ViewData) -> Option<f32> {
+    let mut lum: Vec<f64> = view
+        .leaves
+        .iter()
+        .map(|&l| &view.elements[l as usize])
+        .filter(|e| e.emission.is_zero())
+        .map(|e| e.radiosity.luminance())
+        .filter(|l| *l > 0.0 && l.is_finite())
+        .collect();
+    if lum.is_empty() {
+        return None;
+    }
+    lum.sort_by(f64::total_cmp);
+    let p95 = lum[(lum.len() - 1) * 95 / 100];
+    // Rounded to the exposure slider's 0.1 EV step, so the slider does not see a change.
+    let ev = ((AUTO_EXPOSURE_TARGET / p95).log2() * 10.0).round() / 10.0;
+    Some((ev as f32).clamp(-12.0, 12.0))
+}
+
+fn rgb32(c: [f32; 3]) -> Color32 {
+    Color32::from_rgb((c[0] * 255.0) as u8, (c[1] * 255.0) as u8, (c[2] * 255.0) as u8)
+}
+
+fn rgb_text(c: crate::math::Rgb) -> String {
+    format!("{:.4} {:.4} {:.4}", c.r(), c.g(), c.b())
+}
+
+/// A log slider with a typed value next to it.
+fn log_slider(ui: &mut egui::Ui, label: &str, v: &mut f64, lo: f64, hi: f64, tip: &str) {
+    ui.horizontal(|ui| {
+        ui.add(egui::Slider::new(v, lo..=hi).logarithmic(true).show_value(false).text(label))
+            .on_hover_text(tip);
+        let typed = ui.add(
+            egui::DragValue::new(v).speed(0.0).range(lo..=hi).custom_formatter(|x, _| format!("{x:.2e}")),
+        );
+        // The typed field's accessible name (screen readers, UI tests).
+        let name = format!("{label} value");
+        ui.ctx().accesskit_node_builder(typed.id, |b| b.set_label(name));
+    });
+}
+
+/// Draw a horizontal colour bar with its end values; returns the bottom y.
+fn colour_bar(
+    painter: &egui::Painter,
+    at: Pos2,
+    title: &str,
+    scale: Option<LogScale>,
+    palette: Palette,
+    unit: &str,
+) -> f32 {
+    let w = 200.0;
+    let font = egui::FontId::proportional(11.0);
+    let galley = painter.layout_no_wrap(title.to_owned(), font.clone(), Color32::WHITE);
+    let box_r = Rect::from_min_size(at, Vec2::new(galley.size().x.max(w) + 8.0, 50.0));
+    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+    painter.galley(at + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
+    let bar_y = at.y + 18.0;
+    let n = 64;
+    for i in 0..n {
+        let t = i as f64 / f64::from(n - 1);
+        let r = Rect::from_min_size(
+            Pos2::new(at.x + 4.0 + w * i as f32 / n as f32, bar_y),
+            Vec2::new(w / n as f32 + 0.5, 12.0),
+        );
+        painter.rect_filled(r, 0.0, rgb32(palette.at(t)));
+    }
+    let (lo, hi) = scale.map_or(("–".to_owned(), "–".to_owned()), |s| {
+        (format!("{:.1e}", s.lo), format!("{:.1e}{unit}", s.hi))
+    });
+    painter.text(
+        Pos2::new(at.x + 4.0, bar_y + 14.0),
+        egui::Align2::LEFT_TOP,
+        lo,
+        font.clone(),
+        Color32::WHITE,
+    );
+    painter.text(Pos2::new(at.x + 4.0 + w, bar_y + 14.0), egui::Align2::RIGHT_TOP, hi, font, Color32::WHITE);
+    box_r.bottom()
+}

@@ -1,0 +1,338 @@
+//! The solver thread: owns the [`HierarchicalSolver`], runs one command at a time and sends back
+//! a read-only [`ViewData`] after each, so the UI thread never waits on the solver.
+//!
+//! ```text
+//!  UI ── Command (mpsc) ──► "radlab-solver" thread ── Reply (mpsc) + request_repaint ──► UI
+//!  UI ── cancel flag (Arc<AtomicBool>, the solver's own cancel_handle) ──► running step
+//! ```
+
+use crate::overlay::{ElementView, LinkView};
+use crate::scene::Scene;
+use crate::solver::hierarchical::{HierarchicalSolver, HierarchicalStats, Snapshot, StepKind, StepReport};
+use crate::solver::params::HierarchicalParams;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
+
+/// The solver's state as the viewer shows it.
+#[derive(Clone, Debug, Default)]
+pub struct ViewData {
+    /// All elements, `id` = index.
+    pub elements: Vec<ElementView>,
+    /// Ids of the leaves, ascending.
+    pub leaves: Vec<u32>,
+    pub links: Vec<LinkView>,
+    pub stats: HierarchicalStats,
+    /// Residual after each gather.
+    pub residuals: Vec<f64>,
+}
+
+impl ViewData {
+    /// Convert a solver snapshot.
+    #[must_use]
+    pub fn from_snapshot(s: Snapshot) -> ViewData {
+        let elements: Vec<ElementView> = s
+            .elements
+            .into_iter()
+            .map(|e| ElementView {
+                id: e.id,
+                patch: e.patch,
+                parent: e.parent,
+                depth: e.depth,
+                leaf: e.children.is_none(),
+                vertices: e.vertices,
+                n_vertices: e.n_vertices,
+                area: e.area,
+                reflectance: e.reflectance,
+                emission: e.emission,
+                radiosity: e.radiosity,
+                error_estimate: e.error_estimate,
+                stop: e.stop.label(),
+            })
+            .collect();
+        let leaves = elements.iter().filter(|e| e.leaf).map(|e| e.id).collect();
+        let links = s
+            .links
+            .into_iter()
+            .map(|l| LinkView { receiver: l.receiver, source: l.source, ff: l.ff, vis: l.vis })
+            .collect();
+        ViewData { elements, leaves, links, stats: s.stats, residuals: s.residuals }
+    }
+}
+
+/// What the UI asks of the solver thread.
+#[derive(Clone, Debug)]
+pub enum Command {
+    /// Replace the solver (new scene, or a scene reloaded).
+    Load {
+        scene: Arc<Scene>,
+        params: HierarchicalParams,
+    },
+    /// Restart with new parameters (keeps the BVH).
+    SetParams(HierarchicalParams),
+    Reset,
+    Step(StepKind),
+}
+
+/// What the solver thread answers.
+pub enum Reply {
+    /// A scene was loaded: its cancel flag and the initial state.
+    Loaded {
+        cancel: Arc<AtomicBool>,
+        view: Arc<ViewData>,
+    },
+    /// A command finished (`report` is `None` for `SetParams` / `Reset`).
+    Done {
+        report: Option<StepReport>,
+        view: Arc<ViewData>,
+    },
+    Progress {
+        done: u64,
+        total: u64,
+    },
+    Failed(String),
+}
+
+/// Handle of the solver thread (the thread ends when this is dropped).
+pub struct Worker {
+    tx: Sender<Command>,
+    rx: Receiver<Reply>,
+    cancel: Option<Arc<AtomicBool>>,
+    /// Commands sent but not answered yet.
+    in_flight: usize,
+}
+
+impl Worker {
+    /// Start the thread; `notify` is called after every reply (the UI's repaint request).
+    pub fn spawn(notify: impl Fn() + Send + 'static) -> Result<Worker, String> {
+        let (tx, cmd_rx) = channel::<Command>();
+        let (reply_tx, rx) = channel::<Reply>();
+        std::thread::Builder::new()
+            .name("radlab-solver".into())
+            .spawn(move || run(&cmd_rx, &reply_tx, &notify))
+            .map_err(|e| format!("cannot start the solver thread: {e}"))?;
+        Ok(Worker { tx, rx, cancel: None, in_flight: 0 })
+    }
+
+    pub fn send(&mut self, cmd: Command) {
+        if self.tx.send(cmd).is_ok() {
+            self.in_flight += 1;
+        }
+    }
+
+    /// True while a command is queued or running.
+    #[must_use]
+    pub fn busy(&self) -> bool {
+        self.in_flight > 0
+    }
+
+    /// Ask the running step to stop early.
+    pub fn cancel(&self) {
+        if let Some(c) = &self.cancel {
+            c.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// Next reply, if any (never blocks).
+    pub fn poll(&mut self) -> Option<Reply> {
+        match self.rx.try_recv() {
+            Ok(r) => {
+                match &r {
+                    Reply::Loaded { cancel, .. } => {
+                        self.cancel = Some(Arc::clone(cancel));
+                        self.in_flight = self.in_flight.saturating_sub(1);
+                    }
+                    Reply::Done { .. } | Reply::Failed(_) => {
+                        self.in_flight = self.in_flight.saturating_sub(1)
+                    }
+                    Reply::Progress { .. } => {}
+                }
+                Some(r)
+            }
+            Err(TryRecvError::Empty) => None,
+            Err(TryRecvError::Disconnected) => {
+                if self.in_flight > 0 {
+                    self.in_flight = 0;
+                    return Some(Reply::Failed("the solver thread stopped".into()));
+                }
+                None
+            }
+        }
+    }
+
+    /// Block until the queue is empty (tests and scripted runs only; never in `ui`).
+    pub fn wait_idle(&mut self, mut on_reply: impl FnMut(Reply)) {
+        while self.in_flight > 0 {
+            match self.rx.recv() {
+                Ok(r) => {
+                    match &r {
+                        Reply::Loaded { cancel, .. } => {
+                            self.cancel = Some(Arc::clone(cancel));
+                            self.in_flight -= 1;
+                        }
+                        Reply::Done { .. } | Reply::Failed(_) => self.in_flight -= 1,
+                        Reply::Progress { .. } => {}
+                    }
+                    on_reply(r);
+                }
+                Err(_) => {
+                    self.in_flight = 0;
+                    on_reply(Reply::Failed("the solver thread stopped".into()));
+                }
+            }
+        }
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        // Stop a running step; the thread ends when it sees the closed channel.
+        self.cancel();
+    }
+}
+
+fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) {
+    let mut solver: Option<HierarchicalSolver> = None;
+    let send = |r: Reply| {
+        let ok = tx.send(r).is_ok();
+        notify();
+        ok
+    };
+    while let Ok(cmd) = rx.recv() {
+        // A cancel applies to the command that was running when it was pressed.
+        if let Some(s) = &solver {
+            s.cancel_handle().store(false, Ordering::Relaxed);
+        }
+        let reply = match cmd {
+            Command::Load { scene, params } => match HierarchicalSolver::new(scene, params) {
+                Ok(s) => {
+                    let r = Reply::Loaded {
+                        cancel: s.cancel_handle(),
+                        view: Arc::new(ViewData::from_snapshot(s.snapshot())),
+                    };
+                    solver = Some(s);
+                    r
+                }
+                Err(e) => Reply::Failed(e),
+            },
+            Command::SetParams(p) => match solver.as_mut() {
+                None => Reply::Failed("no scene loaded".into()),
+                Some(s) => match s.set_params(p) {
+                    Ok(()) => {
+                        Reply::Done { report: None, view: Arc::new(ViewData::from_snapshot(s.snapshot())) }
+                    }
+                    Err(e) => Reply::Failed(e),
+                },
+            },
+            Command::Reset => match solver.as_mut() {
+                None => Reply::Failed("no scene loaded".into()),
+                Some(s) => {
+                    s.reset();
+                    Reply::Done { report: None, view: Arc::new(ViewData::from_snapshot(s.snapshot())) }
+                }
+            },
+            Command::Step(kind) => match solver.as_mut() {
+                None => Reply::Failed("no scene loaded".into()),
+                Some(s) => {
+                    let report = match kind {
+                        StepKind::Refine => s.refine_step(),
+                        StepKind::Gather => s.gather_step(),
+                        StepKind::PushPull => s.push_pull_step(),
+                        StepKind::Iterate => s.iterate(),
+                        StepKind::Solve => {
+                            let ptx = tx.clone();
+                            let mut progress = move |done: u64, total: u64| {
+                                let _ = ptx.send(Reply::Progress { done, total });
+                            };
+                            s.solve(&mut progress)
+                        }
+                    };
+                    Reply::Done {
+                        report: Some(report),
+                        view: Arc::new(ViewData::from_snapshot(s.snapshot())),
+                    }
+                }
+            },
+        };
+        if !send(reply) {
+            break;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(w: &mut Worker, spec: &str, params: HierarchicalParams) -> Arc<ViewData> {
+        w.send(Command::Load { scene: Arc::new(Scene::load(spec).unwrap()), params });
+        let mut view = None;
+        w.wait_idle(|r| {
+            if let Reply::Loaded { view: v, .. } = r {
+                view = Some(v);
+            }
+        });
+        view.expect("loaded")
+    }
+
+    #[test]
+    fn steps_run_on_the_named_thread_and_report_back() {
+        let (tx, rx) = channel::<String>();
+        let tx = std::sync::Mutex::new(tx);
+        let mut w = Worker::spawn(move || {
+            let name = std::thread::current().name().unwrap_or("").to_owned();
+            let _ = tx.lock().map(|t| t.send(name));
+        })
+        .unwrap();
+        let v = load(&mut w, "builtin:cube-one-light", HierarchicalParams::interactive());
+        assert_eq!(v.leaves.len(), 6);
+        assert!(v.links.is_empty());
+        assert_eq!(rx.recv().unwrap(), "radlab-solver");
+        w.send(Command::Step(StepKind::Iterate));
+        let mut report = None;
+        let mut view = None;
+        w.wait_idle(|r| {
+            if let Reply::Done { report: r, view: v } = r {
+                report = r;
+                view = Some(v);
+            }
+        });
+        let (report, view) = (report.unwrap(), view.unwrap());
+        assert_eq!(report.kind, StepKind::Iterate);
+        assert!(!view.links.is_empty());
+        assert!(!w.busy());
+        // Commands without a scene fail with a message, they do not panic the thread.
+        let mut w2 = Worker::spawn(|| {}).unwrap();
+        w2.send(Command::Reset);
+        let mut failed = false;
+        w2.wait_idle(|r| failed |= matches!(r, Reply::Failed(_)));
+        assert!(failed);
+    }
+
+    #[test]
+    fn a_running_solve_can_be_cancelled() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        load(&mut w, "builtin:splash_room", HierarchicalParams::quality());
+        w.send(Command::Step(StepKind::Solve));
+        // Wait until the solve reports its first round, then cancel it. The solver clears its
+        // flag when each sub-step starts, so one press can land in the gap between two
+        // sub-steps; keep pressing until the answer comes (as a user would).
+        loop {
+            if let Reply::Progress { .. } = w.rx.recv().unwrap() {
+                break;
+            }
+        }
+        let report = loop {
+            w.cancel();
+            match w.poll() {
+                Some(Reply::Done { report, .. }) => break report,
+                Some(Reply::Failed(e)) => panic!("{e}"),
+                _ => std::thread::sleep(std::time::Duration::from_millis(20)),
+            }
+        };
+        assert!(
+            report.expect("the solve answers").cancelled,
+            "the quality solve of splash_room stopped early"
+        );
+    }
+}

@@ -1,0 +1,216 @@
+//! egui_kittest tests that drive the whole viewer: load a scene, press Refine / Gather /
+//! Push-pull, move a slider, toggle overlays, pick an element — with PNG snapshot comparisons.
+//!
+//! Snapshots (tests/snapshots/gui_*.png) are compared with mean / 95th-percentile thresholds on
+//! the per-pixel max-channel difference (see `radlab::render::snapshot`). The status bar (wall
+//! times) is cropped off before comparing. Golden images and thresholds set on lavapipe (Mesa
+//! 22.3.6, Vulkan, device type Cpu); the tests also pass against them on llvmpipe
+//! (`WGPU_BACKEND=gl`, Mesa 22.3.6 GL via EGL).
+#![cfg(feature = "gui")]
+
+use eframe::egui;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use radlab::math::{DVec3, Rgb};
+use radlab::render::RgbaImage;
+use radlab::render::snapshot::{self, Thresholds};
+use radlab::scene::{Patch, Scene};
+use radlab::viewer::{RadlabApp, ViewerOptions};
+use std::sync::Arc;
+
+/// Whole-window snapshots: anti-aliased text and line ends may move by a pixel between
+/// rasterisers; anything larger (a panel missing, the mesh a different colour) is far above.
+const LIMITS: Thresholds = Thresholds { mean: 1.5, p95: 2.0 };
+/// Height of the status bar cropped off before comparing (it shows wall times).
+const STATUS_BAR_PX: u32 = 40;
+
+/// A Cornell-like box (1 × 1 × 1, open at +z), a ceiling light and a block: every face wound
+/// to face into the box.
+fn cornell() -> Scene {
+    let p = DVec3::new;
+    let mut patches = Vec::new();
+    let mut add = |name: &str, v: [DVec3; 4], rho: Rgb, e: Rgb, inward: DVec3| {
+        let mut v = v.to_vec();
+        if radlab::math::newell_normal(&v).dot(inward) < 0.0 {
+            v.reverse();
+        }
+        patches.push(Patch::new(v, rho, e, name, 0, name, name).unwrap());
+    };
+    let white = Rgb::splat(0.7);
+    let z = Rgb::ZERO;
+    add("floor", [p(0., 0., 0.), p(1., 0., 0.), p(1., 0., 1.), p(0., 0., 1.)], white, z, DVec3::Y);
+    add("ceiling", [p(0., 1., 0.), p(1., 1., 0.), p(1., 1., 1.), p(0., 1., 1.)], white, z, -DVec3::Y);
+    add("back", [p(0., 0., 0.), p(1., 0., 0.), p(1., 1., 0.), p(0., 1., 0.)], white, z, DVec3::Z);
+    add(
+        "left",
+        [p(0., 0., 0.), p(0., 1., 0.), p(0., 1., 1.), p(0., 0., 1.)],
+        Rgb::new(0.63, 0.06, 0.04),
+        z,
+        DVec3::X,
+    );
+    add(
+        "right",
+        [p(1., 0., 0.), p(1., 1., 0.), p(1., 1., 1.), p(1., 0., 1.)],
+        Rgb::new(0.14, 0.45, 0.09),
+        z,
+        -DVec3::X,
+    );
+    add(
+        "light",
+        [p(0.4, 0.999, 0.4), p(0.6, 0.999, 0.4), p(0.6, 0.999, 0.6), p(0.4, 0.999, 0.6)],
+        z,
+        Rgb::splat(20.0),
+        -DVec3::Y,
+    );
+    // A block: top and four sides.
+    let (a, b, h) = (0.25, 0.55, 0.35);
+    add("block top", [p(a, h, a), p(b, h, a), p(b, h, b), p(a, h, b)], white, z, DVec3::Y);
+    add("block front", [p(a, 0., b), p(b, 0., b), p(b, h, b), p(a, h, b)], white, z, DVec3::Z);
+    add("block back", [p(a, 0., a), p(b, 0., a), p(b, h, a), p(a, h, a)], white, z, -DVec3::Z);
+    add("block left", [p(a, 0., a), p(a, 0., b), p(a, h, b), p(a, h, a)], white, z, -DVec3::X);
+    add("block right", [p(b, 0., a), p(b, 0., b), p(b, h, b), p(b, h, a)], white, z, DVec3::X);
+    Scene::new("test-box", "test:box", patches)
+}
+
+fn opts() -> ViewerOptions {
+    ViewerOptions { scene: String::new(), ..ViewerOptions::default() }
+}
+
+fn harness(opts: ViewerOptions) -> Harness<'static, RadlabApp> {
+    Harness::builder()
+        .with_size(egui::Vec2::new(1200.0, 760.0))
+        .wgpu()
+        .build_eframe(move |cc| RadlabApp::new(cc, opts))
+}
+
+/// Let the app apply the solver's replies and draw.
+fn settle(h: &mut Harness<'static, RadlabApp>) {
+    h.run_steps(2);
+    h.state_mut().wait_for_solver();
+    h.run_steps(3);
+}
+
+fn check(h: &mut Harness<'static, RadlabApp>, name: &str) {
+    h.remove_cursor();
+    h.run_steps(2);
+    let img = h.render().expect("render");
+    let (w, hh) = (img.width(), img.height());
+    let img = RgbaImage { width: w, height: hh, pixels: img.into_raw() }.crop(0, 0, w, hh - STATUS_BAR_PX);
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/snapshots");
+    if let Err(e) = snapshot::check(&dir, name, &img, LIMITS) {
+        panic!("{e}");
+    }
+}
+
+#[test]
+fn drive_the_viewer() {
+    let mut h = harness(opts());
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let n_patches = 11;
+    assert_eq!(h.state().view().leaves.len(), n_patches);
+    assert!(h.state().view().links.is_empty());
+    check(&mut h, "gui_loaded");
+
+    // Refine step: initial linking + refinement.
+    h.get_by_label("Refine step").click();
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    assert!(v.leaves.len() > n_patches, "refinement split elements: {}", v.leaves.len());
+    assert!(!v.links.is_empty(), "links created");
+
+    // Gather + push-pull: light reaches the floor.
+    h.get_by_label("Gather step").click();
+    settle(&mut h);
+    h.get_by_label("Push-pull").click();
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    let floor_b =
+        v.elements.iter().filter(|e| e.leaf && e.patch == 0).map(|e| e.radiosity.mean()).fold(0.0, f64::max);
+    assert!(floor_b > 0.0, "the floor receives light after a gather");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    check(&mut h, "gui_gathered");
+
+    // Overlays.
+    h.get_by_label("quadtree").click();
+    settle(&mut h);
+    assert!(h.state().display.quadtree);
+    check(&mut h, "gui_quadtree");
+    h.get_by_label("quadtree").click();
+    h.run_steps(1);
+    h.get_by_label("links").click();
+    settle(&mut h);
+    assert!(h.state().display.links && !h.state().display.quadtree);
+    check(&mut h, "gui_links");
+    h.get_by_label("links").click();
+    h.run_steps(1); // the link options fold away: layout moves
+    h.get_by_label("error heatmap").click();
+    settle(&mut h);
+    assert!(h.state().display.error && !h.state().display.links);
+    check(&mut h, "gui_error");
+    h.get_by_label("error heatmap").click();
+    settle(&mut h);
+
+    // Pick the element under the centre of the viewport (the back wall).
+    let r = h.state().viewport_rect();
+    assert!(r.is_positive());
+    let at = r.center();
+    h.hover_at(at);
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton {
+            pos: at,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+    }
+    settle(&mut h);
+    let sel = h.state().selected.expect("an element is picked");
+    let v = Arc::clone(h.state().view());
+    assert!(v.elements[sel as usize].leaf);
+    assert_eq!(v.elements[sel as usize].patch, 2, "the back wall is in the middle of the view");
+    assert!(h.query_by_label("stopped").is_some(), "the inspector shows why refinement stopped");
+    h.get_by_label("show these links in the viewport").click();
+    settle(&mut h);
+    check(&mut h, "gui_picked");
+
+    // A slider: Feps restarts the solver with the new value.
+    let before = h.state().params().feps;
+    h.get_by_label("Feps").set_value_accesskit(0.2);
+    settle(&mut h);
+    let after = h.state().params().feps;
+    assert!((after - before).abs() > 1e-9, "Feps moved: {before} → {after}");
+    assert_eq!(h.state().view().links.len(), 0, "a parameter change restarts from the input patches");
+
+    // Solve, then Reset.
+    h.get_by_label("Solve").click();
+    settle(&mut h);
+    assert!(h.state().view().stats.links > 0);
+    assert!(!h.state().view().residuals.is_empty());
+    assert!(h.state().solver_time_s() > 0.0);
+    // Plots: residual per gather, links against elements.
+    h.get_by_label("Plots").click();
+    settle(&mut h);
+    assert!(h.query_by_label_contains("Residual per gather").is_some());
+    check(&mut h, "gui_plots");
+    h.get_by_label("Plots").click();
+    settle(&mut h);
+    h.get_by_label("Reset").click();
+    settle(&mut h);
+    assert_eq!(h.state().view().leaves.len(), n_patches);
+}
+
+#[test]
+fn load_errors_are_shown_not_fatal() {
+    // No wgpu here: the app must also run (without its 3-D view) when there is no renderer.
+    let mut h = Harness::builder().with_size(egui::Vec2::new(900.0, 600.0)).build_eframe(|cc| {
+        RadlabApp::new(cc, ViewerOptions { scene: "/no/such/scene.glb".into(), ..ViewerOptions::default() })
+    });
+    h.run_steps(3);
+    assert_eq!(h.state().errors().len(), 1);
+    assert!(h.state().errors()[0].contains("/no/such/scene.glb"), "{:?}", h.state().errors());
+    assert!(h.query_by_label_contains("cannot open /no/such/scene.glb").is_some());
+    h.state_mut().load_spec("builtin:no-such-builtin");
+    h.run_steps(2);
+    assert_eq!(h.state().errors().len(), 2);
+}
