@@ -1,4 +1,4 @@
-//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error] [--preset NAME]
+//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error,…] [--preset NAME]
 //! [--bench-frames N]`: the interactive viewer (feature `gui`).
 //!
 //! Without the feature, or without a display, it fails with one line suggesting `radlab solve`.
@@ -23,9 +23,10 @@ pub struct Args {
     /// Solve with the preset, write the viewport to this PNG and exit.
     #[arg(long, value_name = "PATH")]
     pub screenshot: Option<PathBuf>,
-    /// Overlay to draw (with --screenshot, or at start).
-    #[arg(long, value_enum, default_value_t = Overlay::None)]
-    pub overlay: Overlay,
+    /// Overlays to draw at start (with --screenshot or --bench-frames), comma-separated:
+    /// e.g. `--overlay quadtree,links`.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "none")]
+    pub overlay: Vec<Overlay>,
     /// Solver preset: interactive, quality, lecture, splash2.
     #[arg(long, default_value = "interactive")]
     pub preset: String,
@@ -53,7 +54,7 @@ impl Args {
         Args {
             scene: "builtin:cornell".into(),
             screenshot: None,
-            overlay: Overlay::None,
+            overlay: vec![Overlay::None],
             preset: "interactive".into(),
             bench_frames: None,
             pick: None,
@@ -86,12 +87,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.bench_frames == Some(0) {
         anyhow::bail!("--bench-frames must be at least 1");
     }
-    let overlay = match args.overlay {
-        Overlay::None => OverlayChoice::None,
-        Overlay::Quadtree => OverlayChoice::Quadtree,
-        Overlay::Links => OverlayChoice::Links,
-        Overlay::Error => OverlayChoice::Error,
-    };
+    let overlay = args
+        .overlay
+        .iter()
+        .map(|o| match o {
+            Overlay::None => OverlayChoice::None,
+            Overlay::Quadtree => OverlayChoice::Quadtree,
+            Overlay::Links => OverlayChoice::Links,
+            Overlay::Error => OverlayChoice::Error,
+        })
+        .collect();
     radlab::viewer::run(ViewerOptions {
         scene: args.scene,
         preset: args.preset,

@@ -518,7 +518,7 @@ impl HierarchicalSolver {
         if p.patch == q.patch || !faces(p, q) || !faces(q, p) {
             return (None, 0);
         }
-        let ff = form_factor::point_to_polygon(p.centroid, p.normal, q.vertices());
+        let ff = link_form_factor(p, q);
         if ff <= 0.0 && !(straddles(p, q) || straddles(q, p)) {
             return (None, 0);
         }
@@ -566,8 +566,8 @@ impl HierarchicalSolver {
                         skipped += 1;
                         continue;
                     }
-                    let fpq = form_factor::point_to_polygon(p.centroid, p.normal, q.vertices());
-                    let fqp = form_factor::point_to_polygon(q.centroid, q.normal, p.vertices());
+                    let fpq = link_form_factor(p, q);
+                    let fqp = link_form_factor(q, p);
                     let straddle = straddles(p, q) || straddles(q, p);
                     if fpq <= 0.0 && fqp <= 0.0 && !straddle {
                         skipped += 1;
@@ -1046,6 +1046,14 @@ impl HierarchicalSolver {
             elements,
         }
     }
+}
+
+/// Form factor of a link receiver ← source: the exact point-to-polygon kernel at the receiver's
+/// centroid (HSA91). Averaging it over the receiver (2×2 Gauss) was tried: Cornell's L1 error
+/// against a fine uniform solution improved only 7.7 % → 7.2 %, and own links stopped being exact
+/// at the leaf, which the per-leaf normalisation (and the exact furnace) relies on.
+fn link_form_factor(receiver: &Element, source: &Element) -> f64 {
+    form_factor::point_to_polygon(receiver.centroid, receiver.normal, source.vertices())
 }
 
 /// BFeps in units of B.

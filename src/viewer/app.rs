@@ -39,7 +39,8 @@ pub struct ViewerOptions {
     /// `builtin:NAME` or a path; empty: start without a scene (tests call `set_scene`).
     pub scene: String,
     pub preset: String,
-    pub overlay: OverlayChoice,
+    /// Overlays on at start.
+    pub overlay: Vec<OverlayChoice>,
     /// Solve as soon as the scene is loaded.
     pub solve_on_start: bool,
     /// Scripted use: write the viewport to this PNG once solved, then close.
@@ -60,7 +61,7 @@ impl Default for ViewerOptions {
         ViewerOptions {
             scene: "builtin:cornell".into(),
             preset: "interactive".into(),
-            overlay: OverlayChoice::None,
+            overlay: Vec::new(),
             solve_on_start: false,
             screenshot: None,
             bench_frames: None,
@@ -276,11 +277,13 @@ impl RadlabApp {
             Ok(w) => app.worker = Some(w),
             Err(e) => app.errors.push(e),
         }
-        match app.opts.overlay {
-            OverlayChoice::None => {}
-            OverlayChoice::Quadtree => app.display.quadtree = true,
-            OverlayChoice::Links => app.display.links = true,
-            OverlayChoice::Error => app.display.error = true,
+        for o in &app.opts.overlay {
+            match o {
+                OverlayChoice::None => {}
+                OverlayChoice::Quadtree => app.display.quadtree = true,
+                OverlayChoice::Links => app.display.links = true,
+                OverlayChoice::Error => app.display.error = true,
+            }
         }
         if app.opts.screenshot.is_some() || app.opts.bench_frames.is_some() {
             app.opts.solve_on_start = true;
