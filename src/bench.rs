@@ -231,11 +231,12 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
         Mode::Quick => vec![HierarchicalParams { aeps: AreaEps::Relative(1e-3), ..base }, base],
         Mode::Standard | Mode::Full => {
             let mut v = Vec::new();
-            // BF oracle: BFeps × Aeps, at 4 and 16 rays per link.
-            for (bf, a) in [(0.08, 1e-3), (0.04, 3e-4), (0.02, 1e-4), (0.01, 5e-5), (0.005, 2e-5)] {
+            // BF oracle: BFeps (relative to the brightest emission, as the presets use it) × Aeps,
+            // at 4 and 16 rays per link.
+            for (bf, a) in [(1e-2, 1e-3), (5e-3, 3e-4), (2e-3, 1e-4), (1e-3, 5e-5), (5e-4, 2e-5)] {
                 v.push(HierarchicalParams { bf_eps: bf, aeps: AreaEps::Relative(a), ..base });
             }
-            for (bf, a) in [(0.02, 1e-4), (0.005, 2e-5)] {
+            for (bf, a) in [(2e-3, 1e-4), (5e-4, 2e-5)] {
                 v.push(HierarchicalParams { bf_eps: bf, aeps: AreaEps::Relative(a), rays: 16, ..base });
             }
             // The lecture's Feps oracle.
@@ -248,7 +249,7 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
             }
             if mode == Mode::Full {
                 v.push(HierarchicalParams::quality());
-                v.push(HierarchicalParams { bf_eps: 0.002, aeps: AreaEps::Relative(1e-5), rays: 16, ..base });
+                v.push(HierarchicalParams { bf_eps: 2e-4, aeps: AreaEps::Relative(1e-5), rays: 16, ..base });
             }
             v
         }

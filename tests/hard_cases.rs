@@ -147,7 +147,7 @@ fn agreement(s: Solver, case: &str) -> f64 {
 /// Known solver failures found by this suite (case, solver, what is wrong). They are still run
 /// and printed; the test fails if one of them starts passing, so this list stays true. Remove an
 /// entry when its solver is fixed.
-const KNOWN_ISSUES: [(&str, &str, &str); 5] = [
+const KNOWN_ISSUES: [(&str, &str, &str); 4] = [
     ("tiny_emitter_near", "hierarchical/interactive", "floor B 1e-5 vs exact 0.5; energy residual 1.0"),
     ("tiny_emitter_near", "hierarchical/lecture", "floor B 1e-5 vs exact 0.5; energy residual 1.0"),
     (
@@ -159,11 +159,6 @@ const KNOWN_ISSUES: [(&str, &str, &str); 5] = [
         "emitter_touching_receiver",
         "hierarchical/lecture",
         "floor B 0.25 vs reference 0.032, energy residual 1.31 (since main 46e40ee; passed before)",
-    ),
-    (
-        "occluded_emitter",
-        "hierarchical/interactive",
-        "energy residual 0.0501 in a closed shell (the floor leak of 46e40ee is gone at 9140dda)",
     ),
 ];
 
