@@ -443,8 +443,7 @@ impl HierarchicalSolver {
         // Straddling pairs (one element's plane cuts the other) get the disk estimate with
         // |cos| instead of clamped cosines: the centroids may lie behind each other's planes
         // while parts of the elements still see each other.
-        let straddle = straddles(p, q) || straddles(q, p);
-        let est = if straddle { disk_abs } else { form_factor::disk };
+        let est = if pair_sides(p, q).straddle { disk_abs } else { form_factor::disk };
         let fpq = est(p.centroid, p.normal, q.centroid, q.normal, q.area);
         let fqp = est(q.centroid, q.normal, p.centroid, p.normal, p.area);
         let fmax = fpq.max(fqp);
@@ -518,11 +517,15 @@ impl HierarchicalSolver {
     fn make_link(&self, receiver: u32, source: u32) -> (Option<Link>, u64) {
         let p = self.hier.get(receiver);
         let q = self.hier.get(source);
-        if p.patch == q.patch || !faces(p, q) || !faces(q, p) {
+        if p.patch == q.patch {
+            return (None, 0);
+        }
+        let sides = pair_sides(p, q);
+        if !sides.facing {
             return (None, 0);
         }
         let ff = link_form_factor(p, q);
-        if ff <= 0.0 && !(straddles(p, q) || straddles(q, p)) {
+        if ff <= 0.0 && !sides.straddle {
             return (None, 0);
         }
         let rays = self.params.rays;
@@ -565,14 +568,14 @@ impl HierarchicalSolver {
                 let mut cast = 0u64;
                 for qi in pi + 1..n {
                     let q = self.hier.get(qi);
-                    if !faces(p, q) || !faces(q, p) {
+                    let sides = pair_sides(p, q);
+                    if !sides.facing {
                         skipped += 1;
                         continue;
                     }
                     let fpq = link_form_factor(p, q);
                     let fqp = link_form_factor(q, p);
-                    let straddle = straddles(p, q) || straddles(q, p);
-                    if fpq <= 0.0 && fqp <= 0.0 && !straddle {
+                    if fpq <= 0.0 && fqp <= 0.0 && !sides.straddle {
                         skipped += 1;
                         continue;
                     }
@@ -1098,13 +1101,16 @@ fn plane_sides(p: &Element, q: &Element) -> (bool, bool) {
     (front, back)
 }
 
-/// Some part of `q` lies strictly in front of `p`'s plane.
-fn faces(p: &Element, q: &Element) -> bool {
-    plane_sides(p, q).0
+/// How two elements sit relative to each other's planes (computed once per pair).
+struct PairSides {
+    /// Each has some part strictly in front of the other's plane.
+    facing: bool,
+    /// One has vertices strictly on both sides of the other's plane.
+    straddle: bool,
 }
 
-/// `q` has vertices strictly on both sides of `p`'s plane.
-fn straddles(p: &Element, q: &Element) -> bool {
-    let (f, b) = plane_sides(p, q);
-    f && b
+fn pair_sides(p: &Element, q: &Element) -> PairSides {
+    let (q_front, q_back) = plane_sides(p, q);
+    let (p_front, p_back) = plane_sides(q, p);
+    PairSides { facing: q_front && p_front, straddle: (q_front && q_back) || (p_front && p_back) }
 }
