@@ -13,6 +13,7 @@
 //! area-weighted radiosity, the energy balance and statistics. The CLI's JSON, the PNG renderer,
 //! the error metrics and the viewer read only this type.
 
+pub mod estimate;
 pub mod hierarchical;
 pub mod params;
 pub mod progressive;
