@@ -59,6 +59,7 @@ fn a_solution_equal_to_the_reference_has_zero_error_and_reports_the_noise() {
     let values: Vec<Rgb> = reference.iter().map(|e| e.radiosity).collect();
     let r = compare_solution(&scene, &solution_on(&scene, &mesh, &values), &reference).unwrap();
     assert!(r.scene.l1 == 0.0 && r.scene.l2 == 0.0 && r.scene.linf == 0.0 && r.scene.l2_debiased == 0.0);
+    assert!(r.scene.linf_debiased == 0.0 && r.scene.p95 == 0.0 && r.scene.p99 == 0.0);
     assert!(r.scene.reference_noise > 0.0);
     assert!(r.per_element.iter().all(|&e| e == 0.0));
     assert_eq!(r.per_patch.len(), scene.patches.len());
@@ -97,6 +98,38 @@ fn a_ten_percent_error_of_the_reflected_part_reads_as_ten_percent() {
             assert_eq!(*e, 0.0);
         }
     }
+}
+
+#[test]
+fn debiased_linf_ignores_errors_within_the_noise_and_percentiles_ignore_one_outlier() {
+    let scene = hard_cases::boxes_on_floor().scene;
+    let mesh = reference_mesh(&scene, 0.5).unwrap();
+    let reference = synthetic(&scene, &mesh); // σ = 0.001 on every channel
+    let sigma = 0.001;
+    // Every element off by 2σ (noise level): raw L∞ sees it, the debiased one does not.
+    let mut values: Vec<Rgb> = reference.iter().map(|e| e.radiosity + Rgb::splat(2.0 * sigma)).collect();
+    let r = compare_solution(&scene, &solution_on(&scene, &mesh, &values), &reference).unwrap();
+    assert!(r.scene.linf > 0.0 && r.scene.linf_debiased == 0.0, "{:?}", r.scene);
+    assert!((r.scene.p95 - r.scene.linf).abs() < EXACT && (r.scene.p99 - r.scene.linf).abs() < EXACT);
+    // One element off by 102σ: the debiased L∞ reads (102 − k)σ / R, the percentiles stay at 2σ / R
+    // (the element holds far less than 1 % of the area).
+    let outlier = mesh.iter().position(|m| scene.patches[m.patch].name.starts_with("room")).unwrap();
+    let share = polygon_area(&mesh[outlier].vertices) / scene.total_area();
+    assert!(share < 0.01, "outlier area share {share}");
+    values[outlier] += Rgb::splat(100.0 * sigma);
+    let r = compare_solution(&scene, &solution_on(&scene, &mesh, &values), &reference).unwrap();
+    let k = metrics::linf_sigmas(mesh.len());
+    assert!(k > 4.0 && k < 6.0, "k = {k} for {} regions", mesh.len());
+    let unit = r.scene.linf / 102.0; // σ / R
+    assert!((r.scene.linf_debiased - (102.0 - k) * unit).abs() < EXACT, "{:?}", r.scene);
+    assert!(
+        (r.scene.p95 - 2.0 * unit).abs() < EXACT && (r.scene.p99 - 2.0 * unit).abs() < EXACT,
+        "{:?}",
+        r.scene
+    );
+    // The outlier's patch carries it too, relative to that patch's own RMS reflected radiosity.
+    let pe = r.per_patch.iter().find(|p| p.patch == mesh[outlier].patch).unwrap();
+    assert!(pe.norms.linf_debiased > 0.0 && pe.norms.linf_debiased < pe.norms.linf);
 }
 
 #[test]

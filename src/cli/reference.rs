@@ -200,28 +200,37 @@ fn compare(
     let secs = t0.elapsed().as_secs_f64();
     let rep = radlab::metrics::compare_resampled(scene, &sol, mesh, estimates)?;
     writeln!(log, "\n{method}: {} elements, {} links, {secs:.3} s", sol.elements.len(), sol.stats.links)?;
-    writeln!(log, "{:>5}  {:<28} {:>9} {:>9} {:>9}", "patch", "name", "rel L1", "rel L2", "rel L∞")?;
+    writeln!(
+        log,
+        "{:>5}  {:<28} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "patch", "name", "rel L1", "rel L2", "L∞ raw", "L∞ deb.", "p99"
+    )?;
     for p in &rep.per_patch {
         writeln!(
             log,
-            "{:>5}  {:<28} {:>8.2}% {:>8.2}% {:>8.2}%",
+            "{:>5}  {:<28} {:>8.2}% {:>8.2}% {:>8.2}% {:>8.2}% {:>8.2}%",
             p.patch,
             p.name,
             100.0 * p.norms.l1,
             100.0 * p.norms.l2_debiased,
-            100.0 * p.norms.linf
+            100.0 * p.norms.linf,
+            100.0 * p.norms.linf_debiased,
+            100.0 * p.norms.p99
         )?;
     }
     let n = &rep.scene;
     writeln!(
         log,
-        "scene: rel L1 {:.2} %, rel L2 {:.2} % (debiased; raw {:.2} %, reference noise {:.2} %, resolution {:.2} %), rel L∞ {:.2} %, energy residual {:.2e}",
+        "scene: rel L1 {:.2} %, rel L2 {:.2} % (debiased; raw {:.2} %, reference noise {:.2} %, resolution {:.2} %), rel L∞ {:.2} % (debiased {:.2} %), p95 {:.2} %, p99 {:.2} %, energy residual {:.2e}",
         100.0 * n.l1,
         100.0 * n.l2_debiased,
         100.0 * n.l2,
         100.0 * n.reference_noise,
         100.0 * n.resolution,
         100.0 * n.linf,
+        100.0 * n.linf_debiased,
+        100.0 * n.p95,
+        100.0 * n.p99,
         rep.energy_residual
     )?;
     if let Some(prefix) = &args.images {
