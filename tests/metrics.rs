@@ -280,9 +280,15 @@ fn quick_bench_runs_every_method_and_writes_table_json_and_plot() {
     let mut config = BenchConfig::new(Mode::Quick);
     config.scenes = vec!["hard:shared_edge_perpendicular".into(), "hard:open_scene".into()];
     config.cache = radlab::reference::Cache::at(dir.join("cache"));
-    let mut lines = 0;
-    let report = bench::run(&config, &mut |_| lines += 1).unwrap();
-    assert!(lines > 0);
+    // An unreachable reference target: batches are added up to the cap.
+    config.reference_target = Some(1e-9);
+    config.reference_max_batches = 2;
+    let mut lines = Vec::new();
+    let report = bench::run(&config, &mut |l| lines.push(l.to_string())).unwrap();
+    assert!(lines.iter().filter(|l| l.contains("reference batch 2/2")).count() == 2, "{lines:#?}");
+    for sc in &report.scenes {
+        assert_eq!((sc.reference_batches, sc.reference_samples), (2, 2 * config.reference.samples));
+    }
     for scene in &config.scenes {
         for method in ["uniform", "progressive", "hierarchical"] {
             let rows: Vec<_> =

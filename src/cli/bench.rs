@@ -20,9 +20,16 @@ pub struct Args {
     /// Repeats per setting (default: 1 quick, 3 standard, 5 full); the median time is reported.
     #[arg(long)]
     pub repeats: Option<usize>,
-    /// Paths per reference element (default: 64 quick, 1024 standard, 4096 full).
+    /// Paths per reference element in each reference batch (default: 64 quick, 4096 standard and full).
     #[arg(long)]
     pub reference_samples: Option<u32>,
+    /// Add reference batches until the reference's noise and resolution are at most this relative
+    /// L2, e.g. 0.005 (default: 0.005 standard and full; quick: one batch). 0: one batch.
+    #[arg(long)]
+    pub reference_target: Option<f64>,
+    /// At most this many reference batches (default: 1 quick, 64 standard, 256 full).
+    #[arg(long)]
+    pub reference_batches: Option<u32>,
     /// Wall-clock budget of one solve in seconds (default: 5 quick, 60 standard, 300 full).
     #[arg(long)]
     pub budget: Option<f64>,
@@ -69,6 +76,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(n) = args.reference_samples {
         anyhow::ensure!(n >= 1, "--reference-samples must be at least 1");
         config.reference.samples = n;
+    }
+    if let Some(t) = args.reference_target {
+        anyhow::ensure!(t.is_finite() && t >= 0.0, "--reference-target must be a number >= 0 (got {t})");
+        config.reference_target = (t > 0.0).then_some(t);
+    }
+    if let Some(n) = args.reference_batches {
+        anyhow::ensure!(n >= 1, "--reference-batches must be at least 1");
+        config.reference_max_batches = n;
     }
     if let Some(b) = args.budget {
         anyhow::ensure!(b.is_finite() && b > 0.0, "--budget must be a number of seconds > 0 (got {b})");
