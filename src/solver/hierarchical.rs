@@ -28,17 +28,18 @@
 //!   refine first). Pairs whose planes cut each other ("straddling") are estimated with |cos|.
 //! - **Link form factor**: the exact point-to-polygon kernel at the receiver's centroid
 //!   (`form_factor::point_to_polygon`); visibility from `visibility::visible_fraction`.
-//! - **Per-leaf normalisation** (radlab's addition, documented here because it changes results):
-//!   a leaf x gathers through its own links (evaluated exactly at its centroid) and through the
-//!   links of its proper ancestors, each evaluated at that ancestor's centroid. The latter's sum
-//!   T_x = Σ F is not exactly the form factor the same sources subtend at x. radlab computes
-//!   S_x = Σ F(x → source) over those inherited links with the exact kernel at x's centroid (once
-//!   per refinement) and scales the inherited irradiance by S_x / T_x. This removes the
-//!   first-order error of piecewise-constant inherited form factors; in an enclosure it makes the
-//!   white furnace exact (own + inherited = 1 by the contour integral's additivity). Only the
-//!   inherited part is scaled, so a bright source refined down to the leaf keeps its exact
-//!   transfer (scaling everything darkened the Cornell floor by 30 %).
-//!   `HierarchicalParams::normalize` turns it off.
+//! - **Per-leaf normalisation** (optional, off in every preset): a leaf x gathers through its
+//!   own links (evaluated exactly at its centroid) and through the links of its proper ancestors,
+//!   each evaluated at that ancestor's centroid. With `HierarchicalParams::normalize`, radlab
+//!   computes S_x = Σ F(x → source) over those inherited fully visible links with the exact kernel
+//!   at x's centroid (once per refinement) and scales the inherited irradiance by S_x / T_x
+//!   (T_x = the same sum at the ancestors' centroids). That makes the white furnace exact (own +
+//!   inherited = 1 by the contour integral's additivity), but one scalar per leaf mixes sources of
+//!   different radiosity: on Cornell a floor leaf's ratio was set by a dark block face whose form
+//!   factor at the floor's centroid (0.20) was far from its value at the leaf (0.001), and it
+//!   scaled the light's contribution down by the same factor — the direct light on the floor came
+//!   out 15 % dark (tests/hierarchical.rs `direct_light_is_not_biased_by_inherited_links`). It also
+//!   cost 43 % of the refinement time on splash_room. Kept as an option for furnace-like scenes.
 //! - **Parallel and deterministic**: element ids are assigned serially in sorted order, visibility
 //!   jitter is keyed by the (receiver, source) ids, and parallel results are collected in order,
 //!   so every count and value is identical for any thread count.
@@ -451,7 +452,12 @@ impl HierarchicalSolver {
             Oracle::Feps => (fmax >= self.params.feps, fmax, StopReason::BelowFeps),
             Oracle::Bf => {
                 let b = q.radiosity.max_channel();
-                let err = fmax * b;
+                // The error bound of the link's transfer (the "· error bound" of the SPLASH-2
+                // oracle): a fully visible link's form factor varies across the pair by about
+                // (diam_p + diam_q) / distance of itself; a partially visible link's visibility can
+                // be off by all of it.
+                let delta = if link.class() == VisClass::Partial { 1.0 } else { geometric_variation(p, q) };
+                let err = fmax * b * delta;
                 let live = b > 0.0;
                 let thr = if link.class() == VisClass::Partial {
                     self.bf_eps * PARTIAL_BF_FACTOR
@@ -472,6 +478,10 @@ impl HierarchicalSolver {
         };
         match self.can_split(first) {
             Ok(()) => split(source_first),
+            Err(why_first) if !self.params.split_fallback => {
+                let _ = second;
+                Decision::Keep(why_first, err)
+            }
             Err(why_first) => match self.can_split(second) {
                 Ok(()) => split(!source_first),
                 // The receiver's own limit is what the inspector reports.
@@ -652,9 +662,22 @@ impl HierarchicalSolver {
             e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
             e.fv_partial = e.fv_sum - e.f_sum;
         }
+        if self.params.normalize {
+            self.normalise_dirty_leaves();
+        } else {
+            for e in &mut self.hier.elements {
+                e.norm = 1.0;
+            }
+        }
+        for e in &mut self.hier.elements {
+            e.dirty = false;
+        }
+    }
+
+    /// The per-leaf normalisation S_x / T_x of every dirty leaf (see the module docs).
+    fn normalise_dirty_leaves(&mut self) {
         let hier = &self.hier;
         let links = &self.links;
-        let normalize = self.params.normalize;
         let norms: Vec<(u32, f64)> = (0..hier.len() as u32)
             .into_par_iter()
             .filter(|&i| hier.get(i).is_leaf() && hier.get(i).dirty)
@@ -672,15 +695,12 @@ impl HierarchicalSolver {
                         }
                     }
                 }
-                let norm = if normalize && t > 1e-12 && s.is_finite() { s / t } else { 1.0 };
+                let norm = if t > 1e-12 && s.is_finite() { s / t } else { 1.0 };
                 (x, norm)
             })
             .collect();
         for (x, n) in norms {
             self.hier.elements[x as usize].norm = n;
-        }
-        for e in &mut self.hier.elements {
-            e.dirty = false;
         }
     }
 
@@ -1030,6 +1050,13 @@ fn resolve_bf_eps(p: &HierarchicalParams, scene: &Scene) -> f64 {
     } else {
         p.bf_eps
     }
+}
+
+/// Relative variation of the form factor across a pair of elements, (diam_p + diam_q) / distance,
+/// capped at 1: the error bound of a fully visible link in the BF oracle.
+fn geometric_variation(p: &Element, q: &Element) -> f64 {
+    let d = p.centroid.distance(q.centroid);
+    if d > 0.0 { ((p.diam + q.diam) / d).min(1.0) } else { 1.0 }
 }
 
 /// The disk estimate with absolute cosines (for straddling pairs).
