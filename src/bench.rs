@@ -73,9 +73,12 @@ pub const DEFAULT_SCENES: [&str; 4] =
 /// Error targets of the summary (relative L2).
 pub const TARGETS: [f64; 2] = [0.01, 0.05];
 
-/// The reference's noise and resolution must both be at most this (half the smallest target) for
-/// the standard and full runs (see the module docs for the rule).
-pub const REFERENCE_TARGET: f64 = 0.005;
+/// A reference resolves an error target when its noise and its resolution are both at most this
+/// fraction of the target (the rule in the module docs).
+pub const RESOLVE_FRACTION: f64 = 0.5;
+
+/// The standard and full runs add reference batches until it resolves the smallest target.
+pub const REFERENCE_TARGET: f64 = RESOLVE_FRACTION * TARGETS[0];
 
 /// Errors of the bench.
 #[derive(Debug, thiserror::Error)]
@@ -376,6 +379,9 @@ pub struct SceneSummary {
     /// Smallest relative L2 the reference resolves: targets below it read "unresolved".
     pub resolution: f64,
     pub reference_cache: String,
+    /// Per target: whether this reference resolves it (noise and resolution both at most
+    /// [`RESOLVE_FRACTION`] × the target); crossings of unresolved targets read "unresolved".
+    pub resolved: Vec<(f64, bool)>,
     pub crossings: Vec<Crossing>,
     /// Per target: t(hierarchical) / min t(other methods), when both reached it.
     pub ratios: Vec<(f64, Option<f64>)>,
@@ -469,16 +475,13 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
         ));
         let (estimates, cache_file, batches) = reference_batches(config, spec, &scene, &accel, &mesh, log)?;
         let reference: &[Estimate] = &estimates;
-        let mut noise = f64::NAN;
-        let mut resolution = f64::NAN;
+        let (noise, resolution) = reference_quality(&scene, &mesh, reference)
+            .map_err(|e| BenchError::Output(format!("{spec}: {e}")))?;
+        let resolves =
+            |target: f64| noise <= RESOLVE_FRACTION * target && resolution <= RESOLVE_FRACTION * target;
         let mut scene_rows: Vec<Row> = Vec::new();
         for method in sweep(&scene, config.mode) {
-            let row = measure(config, spec, &scene, &accel, &method, &mesh, reference)?;
-            if let Some((n, res)) = row.1 {
-                noise = n;
-                resolution = res;
-            }
-            let r = row.0;
+            let r = measure(config, spec, &scene, &accel, &method, &mesh, reference)?;
             log(&format!(
                 "  {:<12} {:<46} {:>7} el {:>9} links {:>8.3} s  L2 {:>7.3} %  {}",
                 r.method,
@@ -493,6 +496,7 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
         }
         let mut crossings = Vec::new();
         let mut ratios = Vec::new();
+        let mut resolved = Vec::new();
         for &target in &TARGETS {
             let mut hier = None;
             let mut best_other: Option<f64> = None;
@@ -510,12 +514,8 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
                 }
                 crossings.push(Crossing { method: m.into(), target, time_s: t });
             }
-            ratios.push((
-                target,
-                hier.zip(best_other)
-                    .map(|(h, o)| h / o)
-                    .filter(|_| resolution.is_nan() || resolution <= target),
-            ));
+            ratios.push((target, hier.zip(best_other).map(|(h, o)| h / o).filter(|_| resolves(target))));
+            resolved.push((target, resolves(target)));
         }
         scenes.push(SceneSummary {
             scene: spec.clone(),
@@ -526,6 +526,7 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
             reference_noise: noise,
             resolution,
             reference_cache: cache_file,
+            resolved,
             crossings,
             ratios,
         });
@@ -605,7 +606,7 @@ fn reference_batches(
     }
 }
 
-/// Measure one setting: the row and the reference noise level.
+/// Measure one setting.
 fn measure(
     config: &BenchConfig,
     spec: &str,
@@ -614,7 +615,7 @@ fn measure(
     method: &Method,
     mesh: &[RefElement],
     reference: &[Estimate],
-) -> Result<(Row, Option<(f64, f64)>), BenchError> {
+) -> Result<Row, BenchError> {
     let budget = Duration::from_secs_f64(config.budget_s);
     let mut times = Vec::new();
     let mut last: Option<Solution> = None;
@@ -654,7 +655,7 @@ fn measure(
         energy_residual: f64::NAN,
         resolution: f64::NAN,
     };
-    let Some(sol) = last.filter(|_| row.status == "ok") else { return Ok((row, None)) };
+    let Some(sol) = last.filter(|_| row.status == "ok") else { return Ok(row) };
     let rep: ErrorReport = metrics::compare_resampled(scene, &sol, mesh, reference)
         .map_err(|source| BenchError::Metrics { spec: spec.into(), source })?;
     row.elements = sol.elements.len();
@@ -669,7 +670,7 @@ fn measure(
     row.rel_p99 = rep.scene.p99;
     row.energy_residual = rep.energy_residual;
     row.resolution = rep.scene.resolution;
-    Ok((row, Some((rep.scene.reference_noise, rep.scene.resolution))))
+    Ok(row)
 }
 
 fn pct(x: f64) -> String {
@@ -714,7 +715,7 @@ pub fn markdown(report: &BenchReport) -> String {
         ));
     }
     s.push_str(
-        "\n| scene | reference resolution | method | time to 5 % | time to 1 % |\n|---|---:|---|---:|---:|\n",
+        "\n| scene | reference paths / noise / resolution | method | time to 5 % | time to 1 % |\n|---|---:|---|---:|---:|\n",
     );
     for sc in &report.scenes {
         for m in ["uniform", "progressive", "hierarchical"] {
@@ -725,11 +726,14 @@ pub fn markdown(report: &BenchReport) -> String {
                     .and_then(|c| c.time_s)
             };
             let cell = |target: f64| {
-                if sc.resolution > target { "unresolved".to_string() } else { secs(t(target)) }
+                let ok = sc.resolved.iter().any(|&(t, r)| (t - target).abs() < 1e-12 && r);
+                if ok { secs(t(target)) } else { "unresolved".to_string() }
             };
             s.push_str(&format!(
-                "| {} | {} | {m} | {} | {} |\n",
+                "| {} | {} / {} / {} | {m} | {} | {} |\n",
                 sc.scene.trim_start_matches("builtin:"),
+                sc.reference_samples,
+                pct(sc.reference_noise),
                 pct(sc.resolution),
                 cell(0.05),
                 cell(0.01)

@@ -289,6 +289,15 @@ fn quick_bench_runs_every_method_and_writes_table_json_and_plot() {
     assert!(lines.iter().filter(|l| l.contains("reference batch 2/2")).count() == 2, "{lines:#?}");
     for sc in &report.scenes {
         assert_eq!((sc.reference_batches, sc.reference_samples), (2, 2 * config.reference.samples));
+        // A target is resolved exactly when noise and resolution are both ≤ half of it.
+        for &(target, ok) in &sc.resolved {
+            let want = sc.reference_noise <= 0.5 * target && sc.resolution <= 0.5 * target;
+            assert_eq!(
+                ok, want,
+                "{}: target {target}, noise {}, resolution {}",
+                sc.scene, sc.reference_noise, sc.resolution
+            );
+        }
     }
     for scene in &config.scenes {
         for method in ["uniform", "progressive", "hierarchical"] {
