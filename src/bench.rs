@@ -715,7 +715,7 @@ pub fn markdown(report: &BenchReport) -> String {
         ));
     }
     s.push_str(
-        "\n| scene | reference paths / noise / resolution | method | time to 5 % | time to 1 % |\n|---|---:|---|---:|---:|\n",
+        "\n| scene | reference paths / noise / resolution | method | time to 5 % | time to 1 % | least error reached (time) |\n|---|---:|---|---:|---:|---:|\n",
     );
     for sc in &report.scenes {
         for m in ["uniform", "progressive", "hierarchical"] {
@@ -729,8 +729,14 @@ pub fn markdown(report: &BenchReport) -> String {
                 let ok = sc.resolved.iter().any(|&(t, r)| (t - target).abs() < 1e-12 && r);
                 if ok { secs(t(target)) } else { "unresolved".to_string() }
             };
+            let best = report
+                .rows
+                .iter()
+                .filter(|r| r.scene == sc.scene && r.method == m && r.status == "ok")
+                .min_by(|a, b| a.error().total_cmp(&b.error()))
+                .map_or_else(|| "–".into(), |r| format!("{} ({:.3} s)", pct(r.error()), r.time_s));
             s.push_str(&format!(
-                "| {} | {} / {} / {} | {m} | {} | {} |\n",
+                "| {} | {} / {} / {} | {m} | {} | {} | {best} |\n",
                 sc.scene.trim_start_matches("builtin:"),
                 sc.reference_samples,
                 pct(sc.reference_noise),
@@ -747,7 +753,7 @@ pub fn markdown(report: &BenchReport) -> String {
                 .map_or_else(|| "n/a".into(), |r| format!("{r:.2}×"))
         };
         s.push_str(&format!(
-            "| {} | | **hierarchical / best other** | {} | {} |\n",
+            "| {} | | **hierarchical / best other** | {} | {} | |\n",
             sc.scene.trim_start_matches("builtin:"),
             ratio(0.05),
             ratio(0.01)
