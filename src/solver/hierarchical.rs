@@ -113,6 +113,8 @@ pub struct HierarchicalStats {
     pub pairs_skipped: usize,
     pub depth_histogram: Vec<usize>,
     pub rays: u64,
+    /// Links created by refinement, including those later replaced by finer ones.
+    pub links_created: u64,
     pub refine_s: f64,
     pub gather_s: f64,
     pub push_pull_s: f64,
@@ -406,6 +408,7 @@ impl HierarchicalSolver {
         }
         self.update_sums_and_normalisation();
         self.converged = false;
+        self.stats.links_created += new_links as u64;
         self.stats.refine_s += t.elapsed().as_secs_f64();
         self.report(StepKind::Refine, t, refined, new_links)
     }
