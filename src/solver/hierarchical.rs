@@ -530,15 +530,32 @@ impl HierarchicalSolver {
             return (None, 0);
         }
         let rays = self.params.rays;
-        let vis = visibility::visible_fraction_oriented(
-            &self.accel,
-            (p.vertices(), p.patch, p.normal),
-            (q.vertices(), q.patch, q.normal),
-            rays,
-            self.params.seed,
-            pair_key(receiver, source),
-        );
-        (Some(new_link(p, q, source, ff, vis as f32, sides.straddle)), u64::from(rays))
+        let vis_with = |n: u32, salt: u64| {
+            visibility::visible_fraction_oriented(
+                &self.accel,
+                (p.vertices(), p.patch, p.normal),
+                (q.vertices(), q.patch, q.normal),
+                n,
+                self.params.seed ^ salt,
+                pair_key(receiver, source),
+            )
+        };
+        let vis = vis_with(rays, 0);
+        let mut link = new_link(p, q, source, ff, vis as f32, sides.straddle);
+        let mut cast = u64::from(rays);
+        if vis == 0.0 && self.params.zero_confirm > 0 {
+            // A zero estimate ends refinement for good; if the link would be refined were it
+            // partially visible, confirm with more rays first (a stopping rule on a noisy zero
+            // biases the solution dark).
+            let probe = Link { vis: 0.5, ..link };
+            if self.decide(p, &probe).is_ok() {
+                let more = self.params.zero_confirm.saturating_mul(rays);
+                let v2 = vis_with(more, 0x5EED);
+                cast += u64::from(more);
+                link.vis = (v2 * f64::from(more) / f64::from(more + rays)) as f32;
+            }
+        }
+        (Some(link), cast)
     }
 
     /// Link every pair of input patches that face each other and are not fully occluded.
