@@ -55,19 +55,20 @@
 //! the "ceiling" is the Spearman between |ΔB| against two independent references):
 //!
 //! ```text
-//!                                               main 3afb2b9 (no      main 7b02b38 (per-leaf
-//!                                               normalisation)        normalisation on)
+//!                                               main 783d698, 4096     main 7b02b38, 2048
+//!                                               paths per leaf         paths (normalisation on)
 //! scene           settings                      leaves  Spearman      leaves  Spearman  before
-//! cornell         interactive, Aeps 1e-3 A        659     0.60           974     0.69    0.35
-//! cornell         lecture (Feps), Aeps 1e-3 A    1745     0.70          1745     0.61
-//! table-room      interactive, Aeps 1e-3 A        572     0.80          1157     0.50   −0.13
-//! table-room      lecture (Feps), Aeps 1e-3 A    1637     0.93          1637     0.75
-//! boxes_on_floor  interactive, Aeps 1e-3 A       1016     0.53          1349     0.62    0.03
-//! boxes_on_floor  lecture (Feps), Aeps 1e-3 A    1772     0.84          1772     0.73
+//! cornell         interactive, Aeps 1e-3 A        761     0.68           974     0.69    0.35
+//! cornell         lecture (Feps), Aeps 1e-3 A    1745     0.79          1745     0.61
+//! table-room      interactive, Aeps 1e-3 A        572     0.50          1157     0.50   −0.13
+//! table-room      lecture (Feps), Aeps 1e-3 A    1637     0.94          1637     0.75
+//! boxes_on_floor  interactive, Aeps 1e-3 A       1046     0.60          1349     0.62    0.03
+//! boxes_on_floor  lecture (Feps), Aeps 1e-3 A    1772     0.85          1772     0.73
 //! ```
 //! ("before": the previous estimate, an ancestor-chain bound Σ ρ B F (diam/dist + √(V(1−V)/rays))
 //! plus half the difference to the parent.)
-//! (reference 2048 paths per leaf.) The reference's noise caps these:
+//! The reference's noise caps these, most where the solver is already accurate (table-room
+//! interactive: relative L2 5.5 %, |ΔB| ≈ 3σ of a leaf's reference):
 //! at 7b02b38 with 4096 paths per leaf the first rows read 0.71 / 0.56 against ceilings of 0.95 /
 //! 0.82 (the Spearman between |ΔB| measured against two independent references; at 3afb2b9 with
 //! 2048 paths the ceilings are 0.92 for all three scenes); the estimate is
