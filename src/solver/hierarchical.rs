@@ -1081,8 +1081,16 @@ fn resolve_bf_eps(p: &HierarchicalParams, scene: &Scene) -> f64 {
 /// larger estimate's: F_pq > F_qp → the source), and the error bound.
 fn new_link(p: &Element, q: &Element, source: u32, ff: f64, vis: f32, straddle: bool) -> Link {
     let est = if straddle { disk_abs } else { form_factor::disk };
-    let fpq = est(p.centroid, p.normal, q.centroid, q.normal, q.area);
-    let fqp = est(q.centroid, q.normal, p.centroid, p.normal, p.area);
+    let mut fpq = est(p.centroid, p.normal, q.centroid, q.normal, q.area);
+    let mut fqp = est(q.centroid, q.normal, p.centroid, p.normal, p.area);
+    if straddle {
+        // Centroid-to-centroid estimates can vanish for a pair whose planes cut each other
+        // (a lamp standing on a floor: the floor's centroid lies in the lamp's plane, where the
+        // kernel is singular and rounding decides the side) while parts of the pair see each
+        // other closely: take the largest exact point value at four interior points as well.
+        fpq = fpq.max(ff).max(straddle_estimate(p, q));
+        fqp = fqp.max(straddle_estimate(q, p));
+    }
     Link {
         source,
         ff: ff as f32,
@@ -1091,6 +1099,17 @@ fn new_link(p: &Element, q: &Element, source: u32, ff: f64, vis: f32, straddle: 
         bound: geometric_variation(p, q) as f32,
         split_source: fpq > fqp,
     }
+}
+
+/// The largest exact point-to-polygon form factor from four interior points of `p` (at
+/// parameters 1/4, 3/4) to `q`: an estimate for straddling pairs that no single point decides.
+fn straddle_estimate(p: &Element, q: &Element) -> f64 {
+    let mut best: f64 = 0.0;
+    for (u, v) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
+        let x = visibility::point_on_polygon(p.vertices(), u, v);
+        best = best.max(form_factor::point_to_polygon(x, p.normal, q.vertices()));
+    }
+    best.min(1.0)
 }
 
 /// Relative variation of the form factor across a pair of elements, (diam_p + diam_q) / distance,
