@@ -8,6 +8,7 @@
 use super::bench::FrameBench;
 use super::builder::{self, Builder, Built, Coloring};
 use super::camera::OrbitCamera;
+use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::math::DVec3;
 use crate::overlay::{self, Decimation, LinkFilter, LogScale, Palette};
@@ -56,6 +57,8 @@ pub struct ViewerOptions {
     pub screenshot_window: bool,
     /// Show the plots window open.
     pub show_plots: bool,
+    /// Where the reference solution comes from (settings and disk cache).
+    pub reference: RefSettings,
 }
 
 impl Default for ViewerOptions {
@@ -70,6 +73,7 @@ impl Default for ViewerOptions {
             pick: None,
             screenshot_window: false,
             show_plots: false,
+            reference: RefSettings::default(),
         }
     }
 }
@@ -195,6 +199,11 @@ pub struct RadlabApp {
     shown_seq: u64,
     /// The solver state whose auto exposure was applied last.
     exposure_view_seq: u64,
+    /// The reference thread and where the current scene's reference stands.
+    reference: Option<RefThread>,
+    pub ref_state: RefState,
+    /// The solver state last sent to the reference thread for scoring.
+    evaluated_seq: u64,
     /// Frame times while a scripted benchmark waits for its solve.
     solve_frames: FrameBench,
     /// Longest geometry upload seen (seconds; read from the renderer).
@@ -222,6 +231,28 @@ pub struct RadlabApp {
     /// panels costs ~25 ms of CPU per frame at 1280×800; the clear is nearly free. Off by default
     /// (egui_kittest clears to transparent).
     pub panels_from_clear: bool,
+}
+
+/// Where the reference solution of the current scene stands.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RefState {
+    /// No scene, or no reference thread.
+    None,
+    /// Looking in the disk cache.
+    Looking,
+    /// Not cached: the "Compute reference" button offers to compute it.
+    Missing,
+    Computing {
+        regions: usize,
+        samples: u32,
+        since: Instant,
+    },
+    Ready {
+        regions: usize,
+        samples: u32,
+        how: String,
+    },
+    Failed(String),
 }
 
 /// What a display build depends on.
@@ -295,6 +326,9 @@ impl RadlabApp {
             view_seq: 0,
             solve_frames: FrameBench::default(),
             max_upload_s: 0.0,
+            reference: None,
+            ref_state: RefState::None,
+            evaluated_seq: 0,
             link_stats: (0, 0),
             link_scale: None,
             error_scale: None,
@@ -318,6 +352,11 @@ impl RadlabApp {
         }
         // Without the display thread the geometry is built on the UI thread (slower, correct).
         app.builder = display_builder.ok();
+        let ctx = cc.egui_ctx.clone();
+        match RefThread::spawn(app.opts.reference.clone(), move || ctx.request_repaint()) {
+            Ok(t) => app.reference = Some(t),
+            Err(e) => app.errors.push(e),
+        }
         for o in &app.opts.overlay {
             match o {
                 OverlayChoice::None => {}
@@ -369,7 +408,12 @@ impl RadlabApp {
         self.scene_spec.clone_from(&scene.source);
         self.selected = None;
         self.true_error = None;
+        self.error_samples.clear();
         self.last_report = None;
+        if let Some(r) = &mut self.reference {
+            r.send(RefCommand::Load { scene: Arc::clone(&scene), compute: false });
+            self.ref_state = RefState::Looking;
+        }
         self.set_view(Arc::new(ViewData::default()));
         for w in &scene.warnings {
             self.status = format!("{}: {w}", scene.name);
@@ -460,7 +504,8 @@ impl RadlabApp {
         }
     }
 
-    /// Block until the solver thread is idle and apply its replies (tests, scripted runs).
+    /// Block until the solver thread is idle and apply its replies, then until the reference
+    /// thread has scored the result, then until the display is built (tests, scripted runs).
     pub fn wait_for_solver(&mut self) {
         let mut replies = Vec::new();
         if let Some(w) = &mut self.worker {
@@ -468,6 +513,17 @@ impl RadlabApp {
         }
         for r in replies {
             self.apply(r);
+        }
+        loop {
+            self.request_evaluation();
+            let mut replies = Vec::new();
+            match &mut self.reference {
+                Some(r) if r.busy() => r.wait_idle(|x| replies.push(x)),
+                _ => break,
+            }
+            for r in replies {
+                self.apply_ref(r);
+            }
         }
         self.request_geometry();
         if let Some(b) = self.builder.as_mut().and_then(Builder::wait) {
@@ -542,6 +598,131 @@ impl RadlabApp {
         }
     }
 
+    /// Compute the reference of the current scene on the reference thread (uses the disk
+    /// cache; the UI stays live and shows the elapsed time).
+    pub fn compute_reference(&mut self) {
+        if let (Some(r), Some(scene)) = (&mut self.reference, &self.scene) {
+            r.send(RefCommand::Load { scene: Arc::clone(scene), compute: true });
+            self.ref_state = RefState::Looking;
+        }
+    }
+
+    /// The (solver time, rel L2 error against the reference) points of the error plot.
+    #[must_use]
+    pub fn error_samples(&self) -> &[[f64; 2]] {
+        &self.error_samples
+    }
+
+    /// Send the current solver state to the reference thread for scoring, once.
+    fn request_evaluation(&mut self) {
+        if !matches!(self.ref_state, RefState::Ready { .. })
+            || self.evaluated_seq == self.view_seq
+            || self.view.elements.is_empty()
+        {
+            return;
+        }
+        if let Some(r) = &mut self.reference {
+            r.send(RefCommand::Evaluate {
+                view: Arc::clone(&self.view),
+                view_seq: self.view_seq,
+                solver_time_s: self.solver_time_s,
+            });
+            self.evaluated_seq = self.view_seq;
+        }
+    }
+
+    fn poll_reference(&mut self) {
+        let mut replies = Vec::new();
+        if let Some(r) = &mut self.reference {
+            while let Some(x) = r.poll() {
+                replies.push(x);
+            }
+        }
+        for r in replies {
+            self.apply_ref(r);
+        }
+        self.request_evaluation();
+    }
+
+    fn apply_ref(&mut self, r: RefReply) {
+        let current = |source: &str, s: &Self| s.scene.as_ref().is_some_and(|sc| sc.source == source);
+        match r {
+            RefReply::Computing { source, regions, samples } if current(&source, self) => {
+                self.ref_state = RefState::Computing { regions, samples, since: Instant::now() };
+            }
+            RefReply::Missing { source } if current(&source, self) => self.ref_state = RefState::Missing,
+            RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
+                self.ref_state = RefState::Ready { regions, samples, how };
+                self.evaluated_seq = 0; // score the current state
+            }
+            RefReply::Evaluated(e) => {
+                if e.view_seq == self.view_seq {
+                    self.true_error = Some(Arc::new(e.per_element));
+                }
+                if e.rel_l2.is_finite() {
+                    self.error_samples.push([e.solver_time_s, e.rel_l2]);
+                }
+            }
+            RefReply::Failed(e) => {
+                self.ref_state = RefState::Failed(e.clone());
+                self.errors.push(e);
+            }
+            // Answers about a scene no longer shown.
+            RefReply::Computing { .. } | RefReply::Missing { .. } | RefReply::Ready { .. } => {}
+        }
+    }
+
+    fn reference_panel(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Reference");
+        let compute_button = |ui: &mut egui::Ui| {
+            ui.button("Compute reference")
+                .on_hover_text(
+                    "Independent Monte Carlo reference (radlab reference), on a background thread; \
+                     saved in the disk cache",
+                )
+                .clicked()
+        };
+        match self.ref_state.clone() {
+            RefState::None => {
+                ui.weak("no scene");
+            }
+            RefState::Looking => {
+                ui.horizontal(|ui| {
+                    ui.spinner();
+                    ui.label("looking for a cached reference…");
+                });
+            }
+            RefState::Missing => {
+                ui.label("none cached for this scene");
+                if compute_button(ui) {
+                    self.compute_reference();
+                }
+            }
+            RefState::Computing { regions, samples, since } => {
+                ui.horizontal(|ui| {
+                    ui.spinner();
+                    ui.label(format!(
+                        "computing {regions} regions × {samples} paths… {:.0} s",
+                        since.elapsed().as_secs_f64()
+                    ));
+                });
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(500));
+            }
+            RefState::Ready { regions, samples, how } => {
+                ui.label(format!("{regions} regions × {samples} paths")).on_hover_text(how);
+                if let Some([t, e]) = self.error_samples.last() {
+                    ui.label(format!("rel L2 error {:.2} % (after {t:.2} s of solving)", e * 100.0));
+                }
+            }
+            RefState::Failed(e) => {
+                ui.colored_label(Color32::from_rgb(255, 150, 130), e);
+                if compute_button(ui) {
+                    self.compute_reference();
+                }
+            }
+        }
+    }
+
     fn set_view(&mut self, view: Arc<ViewData>) {
         self.view = view;
         self.view_seq += 1;
@@ -553,7 +734,8 @@ impl RadlabApp {
     }
 
     /// What the error heatmap shows.
-    fn error_label(&self) -> &'static str {
+    #[must_use]
+    pub fn error_label(&self) -> &'static str {
         if self.true_error().is_some() { "true error |B − B_ref|" } else { "solver's error estimate" }
     }
 
@@ -804,6 +986,9 @@ impl RadlabApp {
         }
 
         ui.separator();
+        self.reference_panel(ui);
+
+        ui.separator();
         ui.heading("Display");
         let d = &mut self.display;
         ui.horizontal(|ui| {
@@ -970,7 +1155,7 @@ impl RadlabApp {
         if self.error_samples.is_empty() {
             ui.weak("Error against time appears when a reference solution is loaded.");
         } else {
-            ui.label("Error against the reference vs solver time");
+            ui.label("Error against the reference (rel L2, log₁₀) vs solver time");
             let pts: Vec<[f64; 2]> =
                 self.error_samples.iter().filter(|p| p[1] > 0.0).map(|p| [p[0], p[1].log10()]).collect();
             Plot::new("error_vs_time")
@@ -1371,6 +1556,7 @@ impl eframe::App for RadlabApp {
         }
         let ctx = ui.ctx().clone();
         self.poll_worker();
+        self.poll_reference();
         if let Some(rx) = &self.open_rx
             && let Ok(res) = rx.try_recv()
         {

@@ -5,6 +5,7 @@
 //! - [`bench`]: frame-time statistics of `--bench-frames`.
 //! - [`builder`]: the `radlab-display` thread that builds GPU vertex arrays off the UI thread.
 //! - [`camera`]: orbit / pan / zoom camera.
+//! - [`reference`]: the `radlab-reference` thread: cached/computed reference, true error.
 //! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
 //!
 //! Rendering is in [`crate::render`]; display lists in [`crate::overlay`].
@@ -13,10 +14,12 @@ pub mod app;
 pub mod bench;
 pub mod builder;
 pub mod camera;
+pub mod reference;
 pub mod worker;
 
-pub use app::{OverlayChoice, RadlabApp, ViewerOptions};
+pub use app::{OverlayChoice, RadlabApp, RefState, ViewerOptions};
 use eframe::egui;
+pub use reference::RefSettings;
 use std::sync::{Arc, Mutex};
 
 /// Why the viewer could not run.
