@@ -3,7 +3,7 @@
 //! A link records the form factor F (receiver ← source), the visible fraction V and the oracle's
 //! estimate of the link's error [Hanrahan, Salzman, Aupperle 1991, §4]. Links are stored per
 //! receiver (`Vec<Link>` indexed by element id), so the receiver id is implicit and a link takes
-//! 16 bytes: gather runs in parallel over receivers without locks.
+//! 24 bytes: gather runs in parallel over receivers without locks.
 //! In the lecture's notation the receiver is p and the source is q.
 
 use serde::Serialize;
@@ -17,12 +17,26 @@ pub struct Link {
     pub ff: f32,
     /// Visible fraction in [0, 1].
     pub vis: f32,
-    /// The oracle's estimate of the error this link carries (units of B for the BF oracle,
-    /// a form factor for the Feps oracle).
-    pub err: f32,
+    /// The oracle's geometric estimate max(F_pq, F_qp) (disk formula), fixed for the link's life.
+    pub fmax: f32,
+    /// Relative error bound of the link's transfer when fully visible, (diam_p + diam_q) /
+    /// distance capped at 1 (a partially visible link's bound is 1).
+    pub bound: f32,
+    /// Refine splits the source (F_pq > F_qp), else the receiver.
+    pub split_source: bool,
 }
 
-const _: () = assert!(std::mem::size_of::<Link>() == 16);
+const _: () = assert!(std::mem::size_of::<Link>() == 24);
+
+impl Link {
+    /// The oracle's error estimate of this link for a source of radiosity `b_source` (units of
+    /// B): B_source · max(F_pq, F_qp) · error bound.
+    #[must_use]
+    pub fn bf_error(&self, b_source: f64) -> f64 {
+        let bound = if self.class() == VisClass::Partial { 1.0 } else { f64::from(self.bound) };
+        b_source * f64::from(self.fmax) * bound
+    }
+}
 
 /// Visibility class of a link.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]

@@ -35,13 +35,32 @@ pub fn point_on_polygon(verts: &[DVec3], u: f64, v: f64) -> DVec3 {
 /// `perm` shifts which stratum sample k lands in, so receiver and source strata pair differently.
 #[must_use]
 pub fn stratified(k: u32, n: u32, perm: u32, rng: &mut Pcg32) -> (f64, f64) {
-    let cols = (f64::from(n).sqrt().ceil() as u32).max(1);
-    let rows = n.div_ceil(cols);
-    let s = (k.wrapping_mul(perm | 1).wrapping_add(perm)) % (cols * rows);
-    let (i, j) = (s % cols, s / cols);
-    let ju = 0.05 + 0.9 * rng.next_f64();
-    let jv = 0.05 + 0.9 * rng.next_f64();
-    ((f64::from(i) + ju) / f64::from(cols), (f64::from(j) + jv) / f64::from(rows))
+    Strata::new(n).point(k, perm, rng)
+}
+
+/// The near-square grid of `n` strata (computed once per estimate).
+#[derive(Copy, Clone, Debug)]
+struct Strata {
+    cols: u32,
+    rows: u32,
+    inv_cols: f64,
+    inv_rows: f64,
+}
+
+impl Strata {
+    fn new(n: u32) -> Strata {
+        let cols = (f64::from(n).sqrt().ceil() as u32).max(1);
+        let rows = n.div_ceil(cols);
+        Strata { cols, rows, inv_cols: 1.0 / f64::from(cols), inv_rows: 1.0 / f64::from(rows) }
+    }
+
+    fn point(&self, k: u32, perm: u32, rng: &mut Pcg32) -> (f64, f64) {
+        let s = (k.wrapping_mul(perm | 1).wrapping_add(perm)) % (self.cols * self.rows);
+        let (i, j) = (s % self.cols, s / self.cols);
+        let ju = 0.05 + 0.9 * rng.next_f64();
+        let jv = 0.05 + 0.9 * rng.next_f64();
+        ((f64::from(i) + ju) * self.inv_cols, (f64::from(j) + jv) * self.inv_rows)
+    }
 }
 
 /// Estimate the visible fraction between a receiver region and a source region.
@@ -59,19 +78,41 @@ pub fn visible_fraction(
     seed: u64,
     key: u64,
 ) -> f64 {
+    let n_r = crate::math::newell_normal(receiver);
+    let n_s = crate::math::newell_normal(source);
+    visible_fraction_oriented(
+        accel,
+        (receiver, receiver_patch, n_r),
+        (source, source_patch, n_s),
+        rays,
+        seed,
+        key,
+    )
+}
+
+/// [`visible_fraction`] with the regions' normals given (any positive scale): `(vertices, patch,
+/// normal)` of the receiver and of the source.
+#[must_use]
+pub fn visible_fraction_oriented(
+    accel: &Accel,
+    (receiver, receiver_patch, n_r): (&[DVec3], u32, DVec3),
+    (source, source_patch, n_s): (&[DVec3], u32, DVec3),
+    rays: u32,
+    seed: u64,
+    key: u64,
+) -> f64 {
     if rays == 0 {
         return 1.0;
     }
     let mut rng = Pcg32::keyed(seed, key);
-    let n_r = crate::math::newell_normal(receiver);
-    let n_s = crate::math::newell_normal(source);
+    let strata = Strata::new(rays);
     let mut visible = 0u32;
     let mut counted = 0u32;
     // Receiver strata in order, source strata in a co-prime stride so pairs decorrelate.
     let stride = 2 * rays / 3 + 1;
     for k in 0..rays {
-        let (ru, rv) = stratified(k, rays, 0, &mut rng);
-        let (su, sv) = stratified(k, rays, stride, &mut rng);
+        let (ru, rv) = strata.point(k, 0, &mut rng);
+        let (su, sv) = strata.point(k, stride, &mut rng);
         let x = point_on_polygon(receiver, ru, rv);
         let y = point_on_polygon(source, su, sv);
         // Only pairs that face each other carry energy (both cosines positive); a pair behind

@@ -64,9 +64,10 @@ pub struct Args {
     /// Stop refining once this many links exist (hierarchical).
     #[arg(long)]
     pub max_links: Option<usize>,
-    /// Turn off the per-leaf form-factor normalisation (hierarchical).
+    /// Turn on the per-leaf form-factor normalisation (hierarchical; exact white furnace, biased
+    /// when inherited sources differ in radiosity).
     #[arg(long)]
-    pub no_normalize: bool,
+    pub normalize: bool,
     /// Gauss–Seidel instead of Jacobi gathering (hierarchical).
     #[arg(long)]
     pub gauss_seidel: bool,
@@ -209,7 +210,7 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
     if let Some(v) = args.tolerance {
         p.tolerance = v;
     }
-    p.normalize = !args.no_normalize;
+    p.normalize |= args.normalize;
     p.gauss_seidel = args.gauss_seidel;
     p.seed = args.seed;
     p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;

@@ -28,17 +28,18 @@
 //!   refine first). Pairs whose planes cut each other ("straddling") are estimated with |cos|.
 //! - **Link form factor**: the exact point-to-polygon kernel at the receiver's centroid
 //!   (`form_factor::point_to_polygon`); visibility from `visibility::visible_fraction`.
-//! - **Per-leaf normalisation** (radlab's addition, documented here because it changes results):
-//!   a leaf x gathers through its own links (evaluated exactly at its centroid) and through the
-//!   links of its proper ancestors, each evaluated at that ancestor's centroid. The latter's sum
-//!   T_x = Σ F is not exactly the form factor the same sources subtend at x. radlab computes
-//!   S_x = Σ F(x → source) over those inherited links with the exact kernel at x's centroid (once
-//!   per refinement) and scales the inherited irradiance by S_x / T_x. This removes the
-//!   first-order error of piecewise-constant inherited form factors; in an enclosure it makes the
-//!   white furnace exact (own + inherited = 1 by the contour integral's additivity). Only the
-//!   inherited part is scaled, so a bright source refined down to the leaf keeps its exact
-//!   transfer (scaling everything darkened the Cornell floor by 30 %).
-//!   `HierarchicalParams::normalize` turns it off.
+//! - **Per-leaf normalisation** (optional, off in every preset): a leaf x gathers through its
+//!   own links (evaluated exactly at its centroid) and through the links of its proper ancestors,
+//!   each evaluated at that ancestor's centroid. With `HierarchicalParams::normalize`, radlab
+//!   computes S_x = Σ F(x → source) over those inherited fully visible links with the exact kernel
+//!   at x's centroid (once per refinement) and scales the inherited irradiance by S_x / T_x
+//!   (T_x = the same sum at the ancestors' centroids). That makes the white furnace exact (own +
+//!   inherited = 1 by the contour integral's additivity), but one scalar per leaf mixes sources of
+//!   different radiosity: on Cornell a floor leaf's ratio was set by a dark block face whose form
+//!   factor at the floor's centroid (0.20) was far from its value at the leaf (0.001), and it
+//!   scaled the light's contribution down by the same factor — the direct light on the floor came
+//!   out 15 % dark (tests/hierarchical.rs `direct_light_is_not_biased_by_inherited_links`). It also
+//!   cost 43 % of the refinement time on splash_room. Kept as an option for furnace-like scenes.
 //! - **Parallel and deterministic**: element ids are assigned serially in sorted order, visibility
 //!   jitter is keyed by the (receiver, source) ids, and parallel results are collected in order,
 //!   so every count and value is identical for any thread count.
@@ -166,12 +167,16 @@ type PairRow = (Vec<(u32, Link, Link)>, usize, u64);
 /// Receiver, its new own links, links for its children, rays cast, own list changed, links created.
 type ReplaceResult = (u32, Vec<Link>, Vec<(u32, Link)>, u64, bool, usize);
 
-#[derive(Copy, Clone, Debug)]
-enum Decision {
-    Keep(StopReason, f32),
-    SplitSource(f32),
-    SplitReceiver(f32),
+/// What refinement does with one link.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+enum Split {
+    Source,
+    Receiver,
 }
+
+/// One receiver's verdict in pass A: why its kept links stopped (the strongest reason), and the
+/// links to split (index in its list, which side).
+type ReceiverDecision = (u32, StopReason, Vec<(u32, Split)>);
 
 /// The HSA91 solver with a step API.
 pub struct HierarchicalSolver {
@@ -337,35 +342,20 @@ impl HierarchicalSolver {
                 self.stats.budget_hit = true;
                 break;
             }
-            // A: decide, in parallel, read-only.
-            let decisions: Vec<(u32, Vec<Decision>)> =
-                active.par_iter().map(|&r| (r, self.decide_receiver(r))).collect();
-            // Stop reasons and error estimates of kept links.
+            // A: decide, in parallel, read-only (from each link's cached geometry).
+            let decisions: Vec<ReceiverDecision> =
+                active.par_iter().map(|&r| self.decide_receiver(r)).collect();
             let mut to_split = Vec::new();
-            for (r, ds) in &decisions {
-                let mut reason = StopReason::Unrefined;
-                for (i, d) in ds.iter().enumerate() {
-                    let link = &mut self.links.by_receiver[*r as usize][i];
-                    match *d {
-                        Decision::Keep(why, err) => {
-                            link.err = err;
-                            if why.rank() > reason.rank() {
-                                reason = why;
-                            }
-                        }
-                        Decision::SplitSource(err) => {
-                            link.err = err;
-                            to_split.push(link.source);
-                        }
-                        Decision::SplitReceiver(err) => {
-                            link.err = err;
-                            to_split.push(*r);
-                        }
-                    }
+            for (r, reason, splits) in &decisions {
+                for &(i, side) in splits {
+                    to_split.push(match side {
+                        Split::Source => self.links.by_receiver[*r as usize][i as usize].source,
+                        Split::Receiver => *r,
+                    });
                 }
                 let e = &mut self.hier.elements[*r as usize];
-                if e.is_leaf() && reason != StopReason::Unrefined {
-                    e.stop = reason;
+                if e.is_leaf() && *reason != StopReason::Unrefined {
+                    e.stop = *reason;
                 }
             }
             if to_split.is_empty() {
@@ -382,12 +372,10 @@ impl HierarchicalSolver {
             }
             self.links.grow(self.hier.len());
             // C: replacement links, in parallel.
-            let work: Vec<(u32, Vec<Decision>)> = decisions
-                .into_iter()
-                .filter(|(_, ds)| ds.iter().any(|d| !matches!(d, Decision::Keep(..))))
-                .collect();
+            let work: Vec<ReceiverDecision> =
+                decisions.into_iter().filter(|(_, _, sp)| !sp.is_empty()).collect();
             let results: Vec<ReplaceResult> =
-                work.par_iter().map(|(r, ds)| self.replace_links(*r, ds)).collect();
+                work.par_iter().map(|(r, _, splits)| self.replace_links(*r, splits)).collect();
             // D: install, in receiver order: every receiver's own list first, then the links
             // pushed down to children (a child may itself have been a receiver in this pass).
             let mut next = Vec::new();
@@ -428,70 +416,76 @@ impl HierarchicalSolver {
         }
     }
 
-    fn decide_receiver(&self, r: u32) -> Vec<Decision> {
+    fn decide_receiver(&self, r: u32) -> ReceiverDecision {
         let p = self.hier.get(r);
-        self.links.by_receiver[r as usize]
-            .iter()
-            .map(|l| {
-                let q = self.hier.get(l.source);
-                self.decide(p, q, l)
-            })
-            .collect()
+        let mut reason = StopReason::Unrefined;
+        let mut splits = Vec::new();
+        for (i, l) in self.links.by_receiver[r as usize].iter().enumerate() {
+            match self.decide(p, l) {
+                Ok(side) => splits.push((i as u32, side)),
+                Err(why) => {
+                    if why.rank() > reason.rank() {
+                        reason = why;
+                    }
+                }
+            }
+        }
+        (r, reason, splits)
     }
 
-    fn decide(&self, p: &Element, q: &Element, link: &Link) -> Decision {
-        // Straddling pairs (one element's plane cuts the other) get the disk estimate with
-        // |cos| instead of clamped cosines: the centroids may lie behind each other's planes
-        // while parts of the elements still see each other.
-        let est = if pair_sides(p, q).straddle { disk_abs } else { form_factor::disk };
-        let fpq = est(p.centroid, p.normal, q.centroid, q.normal, q.area);
-        let fqp = est(q.centroid, q.normal, p.centroid, p.normal, p.area);
-        let fmax = fpq.max(fqp);
-        let (want, err, below) = match self.params.oracle {
-            Oracle::Feps => (fmax >= self.params.feps, fmax, StopReason::BelowFeps),
+    /// The oracle on one link: `Ok(side to split)` or `Err(why it is kept)`.
+    fn decide(&self, p: &Element, link: &Link) -> Result<Split, StopReason> {
+        let (want, below) = match self.params.oracle {
+            Oracle::Feps => (f64::from(link.fmax) >= self.params.feps, StopReason::BelowFeps),
             Oracle::Bf => {
-                let b = q.radiosity.max_channel();
-                let err = fmax * b;
-                let live = b > 0.0;
+                let b = self.hier.get(link.source).radiosity.max_channel();
                 let thr = if link.class() == VisClass::Partial {
                     self.bf_eps * PARTIAL_BF_FACTOR
                 } else {
                     self.bf_eps
                 };
-                (live && err > thr, err, StopReason::BelowBfEps)
+                (b > 0.0 && link.bf_error(b) > thr, StopReason::BelowBfEps)
             }
         };
-        let err = err as f32;
         if !want || link.vis <= 0.0 {
-            return Decision::Keep(below, err);
+            return Err(below);
         }
-        let source_first = fpq > fqp;
-        let (first, second) = if source_first { (q, p) } else { (p, q) };
-        let split = |is_source: bool| {
-            if is_source { Decision::SplitSource(err) } else { Decision::SplitReceiver(err) }
-        };
+        let q = self.hier.get(link.source);
+        let (first, second) = if link.split_source { (q, p) } else { (p, q) };
+        let side = |source: bool| if source { Split::Source } else { Split::Receiver };
         match self.can_split(first) {
-            Ok(()) => split(source_first),
+            Ok(()) => Ok(side(link.split_source)),
+            Err(why_first) if !self.params.split_fallback => Err(why_first),
             Err(why_first) => match self.can_split(second) {
-                Ok(()) => split(!source_first),
+                Ok(()) => Ok(side(!link.split_source)),
                 // The receiver's own limit is what the inspector reports.
-                Err(why_second) => Decision::Keep(if source_first { why_second } else { why_first }, err),
+                Err(why_second) => Err(if link.split_source { why_second } else { why_first }),
             },
         }
     }
 
     /// New links replacing the split ones of receiver `r`: (own list, links for r's children, rays).
-    fn replace_links(&self, r: u32, ds: &[Decision]) -> ReplaceResult {
+    fn replace_links(&self, r: u32, splits: &[(u32, Split)]) -> ReplaceResult {
         let old = &self.links.by_receiver[r as usize];
-        let mut own = Vec::with_capacity(old.len() + 3);
+        let mut own = Vec::with_capacity(old.len() + 3 * splits.len());
         let mut kids = Vec::new();
         let mut rays = 0u64;
         let mut own_changed = false;
         let mut created = 0;
-        for (l, d) in old.iter().zip(ds) {
-            match d {
-                Decision::Keep(..) => own.push(*l),
-                Decision::SplitSource(_) => {
+        let mut next = splits.iter().peekable();
+        for (i, l) in old.iter().enumerate() {
+            let side = match next.peek() {
+                Some(&&(j, side)) if j as usize == i => {
+                    next.next();
+                    side
+                }
+                _ => {
+                    own.push(*l);
+                    continue;
+                }
+            };
+            match side {
+                Split::Source => {
                     own_changed = true;
                     for c in self.hier.get(l.source).children().expect("split in phase B") {
                         let (nl, nr) = self.make_link(r, c);
@@ -500,7 +494,7 @@ impl HierarchicalSolver {
                         own.extend(nl);
                     }
                 }
-                Decision::SplitReceiver(_) => {
+                Split::Receiver => {
                     for c in self.hier.get(r).children().expect("split in phase B") {
                         let (nl, nr) = self.make_link(c, l.source);
                         rays += nr;
@@ -529,17 +523,15 @@ impl HierarchicalSolver {
             return (None, 0);
         }
         let rays = self.params.rays;
-        let vis = visibility::visible_fraction(
+        let vis = visibility::visible_fraction_oriented(
             &self.accel,
-            p.vertices(),
-            p.patch,
-            q.vertices(),
-            q.patch,
+            (p.vertices(), p.patch, p.normal),
+            (q.vertices(), q.patch, q.normal),
             rays,
             self.params.seed,
             pair_key(receiver, source),
         );
-        (Some(Link { source, ff: ff as f32, vis: vis as f32, err: 0.0 }), u64::from(rays))
+        (Some(new_link(p, q, source, ff, vis as f32, sides.straddle)), u64::from(rays))
     }
 
     /// Link every pair of input patches that face each other and are not fully occluded.
@@ -605,8 +597,8 @@ impl HierarchicalSolver {
                     let v = v as f32;
                     out.push((
                         qi,
-                        Link { source: qi, ff: fpq as f32, vis: v, err: 0.0 },
-                        Link { source: pi, ff: fqp as f32, vis: v, err: 0.0 },
+                        new_link(p, q, qi, fpq, v, sides.straddle),
+                        new_link(q, p, pi, fqp, v, sides.straddle),
                     ));
                 }
                 (out, skipped, cast)
@@ -652,9 +644,22 @@ impl HierarchicalSolver {
             e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
             e.fv_partial = e.fv_sum - e.f_sum;
         }
+        if self.params.normalize {
+            self.normalise_dirty_leaves();
+        } else {
+            for e in &mut self.hier.elements {
+                e.norm = 1.0;
+            }
+        }
+        for e in &mut self.hier.elements {
+            e.dirty = false;
+        }
+    }
+
+    /// The per-leaf normalisation S_x / T_x of every dirty leaf (see the module docs).
+    fn normalise_dirty_leaves(&mut self) {
         let hier = &self.hier;
         let links = &self.links;
-        let normalize = self.params.normalize;
         let norms: Vec<(u32, f64)> = (0..hier.len() as u32)
             .into_par_iter()
             .filter(|&i| hier.get(i).is_leaf() && hier.get(i).dirty)
@@ -672,15 +677,12 @@ impl HierarchicalSolver {
                         }
                     }
                 }
-                let norm = if normalize && t > 1e-12 && s.is_finite() { s / t } else { 1.0 };
+                let norm = if t > 1e-12 && s.is_finite() { s / t } else { 1.0 };
                 (x, norm)
             })
             .collect();
         for (x, n) in norms {
             self.hier.elements[x as usize].norm = n;
-        }
-        for e in &mut self.hier.elements {
-            e.dirty = false;
         }
     }
 
@@ -855,13 +857,17 @@ impl HierarchicalSolver {
         let rounds = self.params.max_rounds.max(1);
         for round in 0..rounds {
             progress(u64::from(round), u64::from(rounds));
+            // Refinement marks the solution unconverged; remember whether the last gathers had.
+            let was_converged = self.converged;
             let r = self.refine_inner();
             refined_total += r.refined;
             links_total += r.new_links;
             if r.cancelled {
                 break;
             }
-            if round > 0 && r.refined == 0 && self.converged {
+            if round > 0 && r.new_links == 0 && was_converged {
+                // Nothing changed since the converged gather: the solution stands.
+                self.converged = true;
                 break;
             }
             let mut iters = 0;
@@ -946,6 +952,8 @@ impl HierarchicalSolver {
                 stop: e.stop,
             })
             .collect();
+        let oracle = self.params.oracle;
+        let hier = &self.hier;
         let links = self
             .links
             .by_receiver
@@ -957,7 +965,10 @@ impl HierarchicalSolver {
                     source: l.source,
                     ff: l.ff,
                     vis: l.vis,
-                    err: l.err,
+                    err: match oracle {
+                        Oracle::Feps => l.fmax,
+                        Oracle::Bf => l.bf_error(hier.get(l.source).radiosity.max_channel()) as f32,
+                    },
                 })
             })
             .collect();
@@ -1030,6 +1041,31 @@ fn resolve_bf_eps(p: &HierarchicalParams, scene: &Scene) -> f64 {
     } else {
         p.bf_eps
     }
+}
+
+/// A link receiver `p` ← source `q` (id `source`) with the oracle's geometry cached: the disk
+/// estimates F_pq, F_qp (with |cos| for straddling pairs, whose centroids may lie behind each
+/// other's planes while parts of the elements still see each other), which side to split (the
+/// larger estimate's: F_pq > F_qp → the source), and the error bound.
+fn new_link(p: &Element, q: &Element, source: u32, ff: f64, vis: f32, straddle: bool) -> Link {
+    let est = if straddle { disk_abs } else { form_factor::disk };
+    let fpq = est(p.centroid, p.normal, q.centroid, q.normal, q.area);
+    let fqp = est(q.centroid, q.normal, p.centroid, p.normal, p.area);
+    Link {
+        source,
+        ff: ff as f32,
+        vis,
+        fmax: fpq.max(fqp) as f32,
+        bound: geometric_variation(p, q) as f32,
+        split_source: fpq > fqp,
+    }
+}
+
+/// Relative variation of the form factor across a pair of elements, (diam_p + diam_q) / distance,
+/// capped at 1: the error bound of a fully visible link in the BF oracle.
+fn geometric_variation(p: &Element, q: &Element) -> f64 {
+    let d = p.centroid.distance(q.centroid);
+    if d > 0.0 { ((p.diam + q.diam) / d).min(1.0) } else { 1.0 }
 }
 
 /// The disk estimate with absolute cosines (for straddling pairs).

@@ -72,10 +72,13 @@ pub struct HierarchicalParams {
     pub max_rounds: u32,
     /// Gauss–Seidel (use new radiosities as soon as a patch is gathered) instead of Jacobi.
     pub gauss_seidel: bool,
-    /// Scale each leaf's gathered irradiance so its total form factor equals the exact point
-    /// value at the leaf (see `solver::hierarchical`): exact white furnace, first-order
-    /// correction of piecewise-constant link form factors, at some cost in energy balance.
+    /// Scale each leaf's inherited irradiance so its total form factor equals the exact point
+    /// value at the leaf (see `solver::hierarchical`): exact white furnace, but biased when the
+    /// inherited sources differ in radiosity, and costly. Off in every preset.
     pub normalize: bool,
+    /// When the element with the larger form-factor estimate is at the Aeps floor, split the other
+    /// one instead (off: the lecture's Refine links them).
+    pub split_fallback: bool,
     /// Seed of the visibility jitter.
     pub seed: u64,
 }
@@ -97,7 +100,8 @@ impl HierarchicalParams {
             max_iterations: 100,
             max_rounds: 8,
             gauss_seidel: false,
-            normalize: true,
+            normalize: false,
+            split_fallback: false,
             seed: 0,
         }
     }
@@ -118,7 +122,8 @@ impl HierarchicalParams {
             max_iterations: 200,
             max_rounds: 12,
             gauss_seidel: false,
-            normalize: true,
+            normalize: false,
+            split_fallback: false,
             seed: 0,
         }
     }
@@ -139,7 +144,8 @@ impl HierarchicalParams {
             max_iterations: 200,
             max_rounds: 1,
             gauss_seidel: false,
-            normalize: true,
+            normalize: false,
+            split_fallback: false,
             seed: 0,
         }
     }
@@ -161,7 +167,8 @@ impl HierarchicalParams {
             max_iterations: 100,
             max_rounds: 16,
             gauss_seidel: false,
-            normalize: true,
+            normalize: false,
+            split_fallback: false,
             seed: 0,
         }
     }
