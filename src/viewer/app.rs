@@ -686,10 +686,11 @@ impl RadlabApp {
             RefState::None => {
                 ui.weak("no scene");
             }
+            // Short lines: the panel widens to its widest line and keeps that width.
             RefState::Looking => {
                 ui.horizontal(|ui| {
                     ui.spinner();
-                    ui.label("looking for a cached reference…");
+                    ui.label("looking in the cache…");
                 });
             }
             RefState::Missing => {
@@ -701,17 +702,16 @@ impl RadlabApp {
             RefState::Computing { regions, samples, since } => {
                 ui.horizontal(|ui| {
                     ui.spinner();
-                    ui.label(format!(
-                        "computing {regions} regions × {samples} paths… {:.0} s",
-                        since.elapsed().as_secs_f64()
-                    ));
+                    ui.label(format!("computing… {:.0} s", since.elapsed().as_secs_f64()));
                 });
+                ui.label(format!("{regions} regions × {samples} paths"));
                 ui.ctx().request_repaint_after(std::time::Duration::from_millis(500));
             }
             RefState::Ready { regions, samples, how } => {
                 ui.label(format!("{regions} regions × {samples} paths")).on_hover_text(how);
-                if let Some([t, e]) = self.error_samples.last() {
-                    ui.label(format!("rel L2 error {:.2} % (after {t:.2} s of solving)", e * 100.0));
+                if let Some([_, e]) = self.error_samples.last() {
+                    ui.label(format!("rel L2 error {:.2} %", e * 100.0))
+                        .on_hover_text("of the current state; the plots show it against solver time");
                 }
             }
             RefState::Failed(e) => {
