@@ -1467,7 +1467,9 @@ impl RadlabApp {
     }
 
     fn run_script(&mut self, ctx: &egui::Context) {
-        let current = self.geometry_current();
+        // The display is final when the newest build is shown and the reference thread has
+        // nothing left to report (its look-up or a score changes the error overlay).
+        let current = self.geometry_current() && !self.reference.as_ref().is_some_and(RefThread::busy);
         match &mut self.script {
             Script::None | Script::Done | Script::WaitingShot => {}
             Script::Solving => {
