@@ -28,9 +28,9 @@ struct VsIn {
     @location(0) position: vec3<f32>,
     @location(1) element: u32,
     @location(2) color: vec3<f32>,
-    // Position in the leaf's parameter square: min component = 0 on the leaf's boundary.
-    @location(3) edge: vec4<f32>,
-    // Quadtree-depth colour of the leaf.
+    // Position in the leaf's parameter square (quads: unit square; triangles: u, v ≥ 0, u + v ≤ 1).
+    @location(3) uv: vec2<f32>,
+    // Quadtree-depth colour of the leaf; alpha 1 for a quad, 0 for a triangle.
     @location(4) line_color: vec4<f32>,
 };
 
@@ -38,7 +38,7 @@ struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) color: vec3<f32>,
     @location(1) @interpolate(flat) element: u32,
-    @location(2) edge: vec4<f32>,
+    @location(2) uv: vec2<f32>,
     @location(3) @interpolate(flat) line_color: vec4<f32>,
 };
 
@@ -48,7 +48,7 @@ fn vs_main(v: VsIn) -> VsOut {
     o.clip = u.view_proj * vec4<f32>(v.position, 1.0);
     o.color = v.color;
     o.element = v.element;
-    o.edge = v.edge;
+    o.uv = v.uv;
     o.line_color = v.line_color;
     return o;
 }
@@ -71,9 +71,13 @@ fn fs_main(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f3
     // on a uniform, so the derivatives stay in uniform control flow).
     var d = 1e6;
     if ((u.overlay & 3u) != 0u) {
-        let w = max(fwidth(i.edge), vec4<f32>(1e-6));
-        let d4 = i.edge / w;
-        d = min(min(d4.x, d4.y), min(d4.z, d4.w));
+        let w = max(fwidth(i.uv), vec2<f32>(1e-6));
+        // Distances to u = 0 and v = 0 (both shapes), u = 1 and v = 1 (quads), u + v = 1
+        // (triangles; fwidth(u + v) ≤ fwidth(u) + fwidth(v), so that edge is drawn a bit thinner).
+        let near = min(i.uv.x / w.x, i.uv.y / w.y);
+        let far = min((1.0 - i.uv.x) / w.x, (1.0 - i.uv.y) / w.y);
+        let diagonal = (1.0 - i.uv.x - i.uv.y) / (w.x + w.y);
+        d = min(near, select(diagonal, far, i.line_color.a > 0.5));
     }
     var c: vec3<f32>;
     if (u.mode == 0u) {

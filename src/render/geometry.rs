@@ -15,7 +15,7 @@
 //!  └──────────┴────┘        └──────────┴────┘
 //! ```
 //!
-//! Each vertex also carries its position in its leaf's parameter square (`edge`) and the leaf's
+//! Each vertex also carries its position in its leaf's parameter square (`uv`) and the leaf's
 //! quadtree-depth colour, from which `mesh.wgsl` draws the quadtree overlay and the picked
 //! element's outline without any line geometry.
 
@@ -58,20 +58,10 @@ fn rgb(c: Rgb) -> [f32; 3] {
     [c.0[0] as f32, c.0[1] as f32, c.0[2] as f32]
 }
 
-/// The four edge coordinates of a point with parameter `uv`: their minimum is 0 exactly on the
-/// leaf's boundary (quads: u, 1−u, v, 1−v; triangles: u, v, 1−u−v and a constant 1).
-fn edge_coords(uv: [f64; 2], quad: bool) -> [f32; 4] {
-    let [u, v] = uv;
-    if quad {
-        [u as f32, (1.0 - u) as f32, v as f32, (1.0 - v) as f32]
-    } else {
-        [u as f32, v as f32, (1.0 - u - v) as f32, 1.0]
-    }
-}
-
-fn rgba8(c: [f32; 3]) -> [u8; 4] {
+/// The depth colour as unorm8, alpha marking quads (255) and triangles (0) for the shader.
+fn line_rgba8(c: [f32; 3], quad: bool) -> [u8; 4] {
     let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
-    [q(c[0]), q(c[1]), q(c[2]), 255]
+    [q(c[0]), q(c[1]), q(c[2]), if quad { 255 } else { 0 }]
 }
 
 /// Conforming triangle mesh of the leaves (indices into `elements`).
@@ -90,14 +80,14 @@ pub fn mesh(elements: &[ElementView], leaves: &[u32], colors: MeshColors<'_>, or
             MeshColors::Flat | MeshColors::Smooth => rgb(e.radiosity),
             MeshColors::Display(c) => c.get(l as usize).copied().unwrap_or([0.0; 3]),
         };
-        let line_color = rgba8(depth_color(e.depth));
+        let line_color = line_rgba8(depth_color(e.depth), quad);
         let base = out.vertices.len() as u32;
         let mut push = |p: &BoundaryPoint| {
             out.vertices.push(MeshVertex {
                 position: local(p.position, origin),
                 element: e.id,
                 color: if matches!(colors, MeshColors::Smooth) { rgb(p.value) } else { element_color },
-                edge: edge_coords(p.uv, quad),
+                uv: [p.uv[0] as f32, p.uv[1] as f32],
                 line_color,
             });
         };
@@ -174,7 +164,8 @@ mod tests {
         assert_eq!((m.vertices.len(), m.indices.len()), (3, 3));
         assert_eq!(m.vertices[1].position, [1.0, 0.0, 0.0]);
         assert_eq!(m.vertices[0].color, [2.0, 0.0, 0.0]);
-        assert_eq!(m.vertices[2].edge, [0.0, 1.0, 0.0, 1.0], "third corner of a triangle");
+        assert_eq!(m.vertices[2].uv, [0.0, 1.0], "third corner of a triangle");
+        assert_eq!(m.vertices[2].line_color[3], 0, "marked as a triangle");
         let d = [[0.1, 0.2, 0.3]];
         assert_eq!(mesh(&els, &[0], MeshColors::Display(&d), DVec3::ZERO).vertices[2].color, d[0]);
     }
@@ -195,8 +186,8 @@ mod tests {
         assert!(m.indices.chunks(3).filter(|tri| tri.contains(&(t as u32))).count() >= 2);
         // The T-vertex takes the big edge's interpolated value in the big leaf too: (5 + 7) / 2.
         assert!((m.vertices[t].color[0] - 6.0).abs() < 1e-6, "{:?}", m.vertices[t].color);
-        // Its edge coordinates lie on the big leaf's boundary (u = 1).
-        assert_eq!(m.vertices[t].edge, [1.0, 0.0, 0.5, 0.5]);
-        assert_eq!(m.vertices[0].line_color, rgba8(depth_color(1)));
+        // Its parameter lies on the big leaf's boundary (u = 1).
+        assert_eq!(m.vertices[t].uv, [1.0, 0.5]);
+        assert_eq!(m.vertices[0].line_color, line_rgba8(depth_color(1), true));
     }
 }

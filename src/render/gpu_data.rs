@@ -46,14 +46,15 @@ pub struct MeshVertex {
     pub element: u32,
     /// Radiosity (mode 0) or display colour (mode 1).
     pub color: [f32; 3],
-    /// Edge coordinates: position in the leaf's parameter square, as four values whose minimum
-    /// is 0 on the leaf's boundary (quads u, 1−u, v, 1−v; triangles u, v, 1−u−v, 1). The shader
-    /// turns them into a distance to the boundary in pixels for the quadtree and the outline.
-    pub edge: [f32; 4],
-    /// Quadtree-depth colour of the leaf (RGBA8, unorm).
+    /// Position in the leaf's parameter square (quads: corners (0,0), (1,0), (1,1), (0,1);
+    /// triangles: (0,0), (1,0), (0,1)); the shader turns it into a distance to the leaf's
+    /// boundary in pixels for the quadtree and the outline.
+    pub uv: [f32; 2],
+    /// Quadtree-depth colour of the leaf (RGB, unorm8); alpha 255 for a quad, 0 for a triangle
+    /// (which edges bound the parameter domain).
     pub line_color: [u8; 4],
 }
-const _: () = assert!(size_of::<MeshVertex>() == 48);
+const _: () = assert!(size_of::<MeshVertex>() == 40);
 
 /// A line vertex (lines.wgsl `VsIn`).
 #[repr(C)]

@@ -142,7 +142,7 @@ impl SceneRenderer {
 
         let mesh_module = shader(device, "mesh.wgsl");
         let mesh_attrs = wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Uint32, 2 => Float32x3, 3 => Float32x4, 4 => Unorm8x4
+            0 => Float32x3, 1 => Uint32, 2 => Float32x3, 3 => Float32x2, 4 => Unorm8x4
         ];
         let depth = |write: bool, compare: wgpu::CompareFunction| wgpu::DepthStencilState {
             format: DEPTH_FORMAT,
