@@ -223,6 +223,8 @@ pub struct RadlabApp {
     show_plots: bool,
     /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
     last_ui_s: f64,
+    /// On-CPU time of the last `ui` call (benchmarks only).
+    last_ui_cpu_s: Option<f64>,
     rebuild_s: f64,
     /// Set when the window should close (scripted runs); read by the runner.
     pub exit_code: Option<i32>,
@@ -342,6 +344,7 @@ impl RadlabApp {
             show_plots: opts.show_plots,
             exit_code: None,
             last_ui_s: 0.0,
+            last_ui_cpu_s: None,
             rebuild_s: 0.0,
             panels_from_clear: false,
             opts,
@@ -1475,7 +1478,7 @@ impl RadlabApp {
             Script::Solving => {
                 if self.opts.bench_frames.is_some() {
                     // Keep drawing while the solver runs: the UI must not wait on it.
-                    self.solve_frames.tick(Instant::now(), self.last_ui_s);
+                    self.solve_frames.tick(Instant::now(), self.last_ui_s, self.last_ui_cpu_s);
                     self.camera.orbit(0.002, 0.0);
                     ctx.request_repaint();
                 }
@@ -1503,7 +1506,7 @@ impl RadlabApp {
                 if *warmup > 0 || !current {
                     *warmup -= usize::from(current && *warmup > 0);
                 } else {
-                    bench.tick(Instant::now(), self.last_ui_s);
+                    bench.tick(Instant::now(), self.last_ui_s, self.last_ui_cpu_s);
                 }
                 // Spin the camera a little so every frame really redraws.
                 self.camera.orbit(0.002, 0.0);
@@ -1551,6 +1554,7 @@ impl RadlabApp {
 impl eframe::App for RadlabApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let started = Instant::now();
+        let cpu_started = self.opts.bench_frames.and_then(|_| super::bench::thread_cpu_s());
         if let Some(rs) = frame.wgpu_render_state()
             && let Some(r) = rs.renderer.read().callback_resources.get::<SceneRenderer>()
         {
@@ -1625,6 +1629,7 @@ impl eframe::App for RadlabApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
         }
         self.last_ui_s = started.elapsed().as_secs_f64();
+        self.last_ui_cpu_s = cpu_started.and_then(|a| super::bench::thread_cpu_s().map(|b| b - a));
     }
 }
 

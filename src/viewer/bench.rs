@@ -13,8 +13,11 @@ use std::time::Instant;
 pub struct FrameBench {
     /// Wall seconds between consecutive frames.
     pub frame_s: Vec<f64>,
-    /// Seconds spent in the app's `ui` code per frame (CPU, UI thread).
+    /// Wall seconds spent in the app's `ui` code per frame (UI thread).
     pub ui_s: Vec<f64>,
+    /// On-CPU seconds of the UI thread in the app's `ui` code per frame (Linux; excludes time
+    /// the thread waited for a core, which on a loaded machine dominates the wall time).
+    pub ui_cpu_s: Vec<f64>,
     last: Option<Instant>,
     cpu_start_s: Option<f64>,
     cpu_end_s: Option<f64>,
@@ -44,10 +47,11 @@ pub fn quantile(sorted: &[f64], q: f64) -> f64 {
 
 impl FrameBench {
     /// Mark the start of a frame; `ui_s` is the UI code time of the previous frame.
-    pub fn tick(&mut self, now: Instant, prev_ui_s: f64) {
+    pub fn tick(&mut self, now: Instant, prev_ui_s: f64, prev_ui_cpu_s: Option<f64>) {
         if let Some(t) = self.last {
             self.frame_s.push(now.duration_since(t).as_secs_f64());
             self.ui_s.push(prev_ui_s);
+            self.ui_cpu_s.extend(prev_ui_cpu_s);
         } else {
             self.cpu_start_s = process_cpu_s();
         }
@@ -93,6 +97,13 @@ pub fn process_cpu_s() -> Option<f64> {
     Some(ticks / CLOCK_TICKS_PER_S)
 }
 
+/// Time this thread has run on a CPU, seconds (Linux `/proc/thread-self/schedstat`, in ns).
+#[must_use]
+pub fn thread_cpu_s() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    Some(s.split_whitespace().next()?.parse::<f64>().ok()? * 1e-9)
+}
+
 /// `sysconf(_SC_CLK_TCK)` on Linux (100 on every mainstream kernel configuration).
 const CLOCK_TICKS_PER_S: f64 = 100.0;
 
@@ -117,7 +128,7 @@ mod tests {
         let mut b = FrameBench::default();
         let t0 = Instant::now();
         for (i, ms) in [0u64, 10, 30, 40].iter().enumerate() {
-            b.tick(t0 + Duration::from_millis(*ms), i as f64 * 1e-3);
+            b.tick(t0 + Duration::from_millis(*ms), i as f64 * 1e-3, Some(0.0));
         }
         let s = b.summary();
         assert_eq!(s.frames, 3);
@@ -131,6 +142,7 @@ mod tests {
     fn cpu_time_is_read_on_linux() {
         if cfg!(target_os = "linux") {
             assert!(process_cpu_s().is_some_and(|s| s >= 0.0));
+            assert!(thread_cpu_s().is_some_and(|s| s > 0.0));
             assert!(load_average().is_some());
         }
     }
