@@ -229,10 +229,7 @@ fn lines_are_depth_tested_unless_xray() {
         &Geometry { mesh: mesh.clone(), links: line.clone(), ..Geometry::default() },
         uniforms(false, 0, NO_SELECTION),
     );
-    let shown = draw(
-        &Geometry { mesh, links: line, links_xray: true },
-        uniforms(false, 0, NO_SELECTION),
-    );
+    let shown = draw(&Geometry { mesh, links: line, links_xray: true }, uniforms(false, 0, NO_SELECTION));
     let row_max = |img: &RgbaImage| (0..img.height).map(|y| img.pixel(W / 2, y)[1]).max().unwrap();
     assert!(row_max(&hidden) < 5, "link behind the wall is hidden");
     assert!(row_max(&shown) > 100, "x-ray link is drawn (viridis top is bright)");
