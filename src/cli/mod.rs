@@ -5,6 +5,7 @@ pub mod form_factor;
 pub mod reference;
 pub mod scenes;
 pub mod solve;
+pub mod speed;
 pub mod view;
 
 use clap::{Parser, Subcommand};
@@ -33,6 +34,8 @@ pub enum Command {
     Reference(reference::Args),
     /// Speed-against-error report over methods and settings.
     Bench(bench::Args),
+    /// Hierarchical solver speed benchmark (default: the SPLASH-2 room at SPLASH-2 settings).
+    Speed(speed::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -44,5 +47,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Scenes(a)) => scenes::run(a),
         Some(Command::Reference(a)) => reference::run(a),
         Some(Command::Bench(a)) => bench::run(a),
+        Some(Command::Speed(a)) => speed::run(a),
     }
 }

@@ -86,6 +86,10 @@ pub struct Args {
     /// Convergence tolerance (relative change of radiosity; progressive: unshot/emitted power).
     #[arg(long)]
     pub tolerance: Option<f64>,
+    /// Re-test a zero visibility estimate that would stop refinement with this many times the
+    /// rays before accepting it; 0 never (hierarchical).
+    #[arg(long)]
+    pub zero_confirm: Option<u32>,
     /// Seed of the visibility jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -209,6 +213,9 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
     }
     if let Some(v) = args.tolerance {
         p.tolerance = v;
+    }
+    if let Some(v) = args.zero_confirm {
+        p.zero_confirm = v;
     }
     p.normalize |= args.normalize;
     p.gauss_seidel = args.gauss_seidel;

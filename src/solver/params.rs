@@ -79,6 +79,11 @@ pub struct HierarchicalParams {
     /// When the element with the larger form-factor estimate is at the Aeps floor, split the other
     /// one instead (off: the lecture's Refine links them).
     pub split_fallback: bool,
+    /// A new link whose visibility estimate is 0 but that the oracle would refine were it
+    /// partially visible is re-tested with `zero_confirm × rays` more rays before the zero is
+    /// accepted (0: never). A zero ends refinement for good, so a noisy zero biases the solution
+    /// dark: on Cornell's ceiling (one bounce from the floor) −5.7 % → −3.2 %, at +55 % rays.
+    pub zero_confirm: u32,
     /// Seed of the visibility jitter.
     pub seed: u64,
 }
@@ -102,6 +107,7 @@ impl HierarchicalParams {
             gauss_seidel: false,
             normalize: false,
             split_fallback: false,
+            zero_confirm: 4,
             seed: 0,
         }
     }
@@ -124,6 +130,7 @@ impl HierarchicalParams {
             gauss_seidel: false,
             normalize: false,
             split_fallback: false,
+            zero_confirm: 4,
             seed: 0,
         }
     }
@@ -146,6 +153,7 @@ impl HierarchicalParams {
             gauss_seidel: false,
             normalize: false,
             split_fallback: false,
+            zero_confirm: 4,
             seed: 0,
         }
     }
@@ -169,6 +177,7 @@ impl HierarchicalParams {
             gauss_seidel: false,
             normalize: false,
             split_fallback: false,
+            zero_confirm: 0,
             seed: 0,
         }
     }
@@ -212,6 +221,9 @@ impl HierarchicalParams {
         }
         if self.rays == 0 || self.rays > 4096 {
             return Err(format!("rays must be in 1..=4096 (got {})", self.rays));
+        }
+        if self.zero_confirm > 64 {
+            return Err(format!("zero-confirm must be in 0..=64 (got {})", self.zero_confirm));
         }
         if self.max_depth > 30 {
             return Err(format!("max-depth must be at most 30 (got {})", self.max_depth));

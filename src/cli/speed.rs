@@ -1,0 +1,161 @@
+//! `radlab speed [SCENE] [--preset P] [--rays 4,10] [--threads 1,2] [--repeats N] [--json PATH]`:
+//! the hierarchical solver's speed benchmark (issue: "faster than the classic implementation").
+//!
+//! Runs the full HSA91 solve (`HierarchicalSolver::solve`, BVH reused) for every rays × threads
+//! combination, `repeats` times after one untimed warm-up, and prints the median wall time per
+//! phase, the element and link counts, and the link-creation rate (links created by refinement,
+//! including replaced ones, per second of refinement). Defaults: the SPLASH-2 room at settings
+//! equivalent to the SPLASH-2 `radiosity` program's defaults (preset `splash2`: minimum element
+//! area 2000, BF epsilon 0.015, energy tolerance 0.005).
+
+use anyhow::{Context, bail};
+use radlab::accel::Accel;
+use radlab::solver::hierarchical::HierarchicalSolver;
+use radlab::solver::params::HierarchicalParams;
+use serde::Serialize;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The SPLASH-2 program's figures on this class of machine (from the issue text): one thread,
+/// 10 rays per link through a BSP tree.
+const SPLASH2_CPU_S: f64 = 0.83;
+const SPLASH2_ELEMENTS: usize = 17_112;
+const SPLASH2_LINKS: usize = 168_919;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene (.gltf/.glb or builtin:NAME)
+    #[arg(default_value = "builtin:splash_room")]
+    pub scene: String,
+    /// Hierarchical preset: interactive, quality, lecture, splash2
+    #[arg(long, default_value = "splash2")]
+    pub preset: String,
+    /// Rays per link, comma-separated
+    #[arg(long, value_delimiter = ',', default_value = "4,10")]
+    pub rays: Vec<u32>,
+    /// Thread counts, comma-separated
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    pub threads: Vec<usize>,
+    /// Timed runs per combination (the median is reported)
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
+    /// Write the rows as JSON to this file
+    #[arg(long)]
+    pub json: Option<std::path::PathBuf>,
+}
+
+/// One rays × threads combination (phase times from the run with the median total).
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub rays: u32,
+    pub threads: usize,
+    pub elements: usize,
+    pub leaves: usize,
+    pub links: usize,
+    pub links_created: u64,
+    pub rays_cast: u64,
+    pub refine_s: f64,
+    pub gather_s: f64,
+    pub push_pull_s: f64,
+    pub total_s: f64,
+    pub totals_s: Vec<f64>,
+    pub links_per_s: f64,
+    pub rays_per_s: f64,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.repeats == 0 || args.repeats > 1000 {
+        bail!("--repeats must be between 1 and 1000 (got {})", args.repeats);
+    }
+    if args.rays.iter().any(|&r| r == 0 || r > 4096) {
+        bail!("--rays must be between 1 and 4096");
+    }
+    if args.threads.iter().any(|&t| t == 0 || t > 1024) {
+        bail!("--threads must be between 1 and 1024");
+    }
+    let preset = HierarchicalParams::preset(&args.preset).with_context(|| {
+        format!("unknown preset {:?} (interactive, quality, lecture, splash2)", args.preset)
+    })?;
+    let scene = Arc::new(super::solve::load_scene(&args.scene, 5_000_000)?);
+    let accel = Arc::new(Accel::build(&scene));
+    println!(
+        "{}: {} patches, preset {}, {} timed run(s) per row after a warm-up",
+        args.scene,
+        scene.patches.len(),
+        args.preset,
+        args.repeats
+    );
+    println!(
+        "| rays | threads | elements (leaves) | links | links created | rays cast | refine | gather | push-pull | total (median) | links/s | rays/s |"
+    );
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let mut rows = Vec::new();
+    for &rays in &args.rays {
+        for &threads in &args.threads {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .context("building the thread pool")?;
+            let params = HierarchicalParams { rays, ..preset };
+            let mut runs = Vec::new();
+            for i in 0..=args.repeats {
+                let (total, stats) = pool.install(|| {
+                    let t = Instant::now();
+                    let mut s =
+                        HierarchicalSolver::with_accel(Arc::clone(&scene), Arc::clone(&accel), params, 0.0);
+                    s.solve(&mut |_, _| {});
+                    (t.elapsed().as_secs_f64(), s.stats())
+                });
+                if i > 0 {
+                    runs.push((total, stats));
+                }
+            }
+            runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let totals: Vec<f64> = runs.iter().map(|r| r.0).collect();
+            let (total, st) = runs[runs.len() / 2].clone();
+            let row = Row {
+                rays,
+                threads,
+                elements: st.elements,
+                leaves: st.leaves,
+                links: st.links,
+                links_created: st.links_created,
+                rays_cast: st.rays,
+                refine_s: st.refine_s,
+                gather_s: st.gather_s,
+                push_pull_s: st.push_pull_s,
+                total_s: total,
+                totals_s: totals,
+                links_per_s: st.links_created as f64 / st.refine_s.max(1e-9),
+                rays_per_s: st.rays as f64 / st.refine_s.max(1e-9),
+            };
+            println!(
+                "| {} | {} | {} ({}) | {} | {} | {} | {:.3} s | {:.3} s | {:.3} s | {:.3} s | {:.2} M | {:.2} M |",
+                row.rays,
+                row.threads,
+                row.elements,
+                row.leaves,
+                row.links,
+                row.links_created,
+                row.rays_cast,
+                row.refine_s,
+                row.gather_s,
+                row.push_pull_s,
+                row.total_s,
+                row.links_per_s / 1e6,
+                row.rays_per_s / 1e6
+            );
+            rows.push(row);
+        }
+    }
+    println!(
+        "SPLASH-2 radiosity on this class of machine (issue figure): {SPLASH2_CPU_S} s CPU on one thread, \
+         {SPLASH2_ELEMENTS} elements, {SPLASH2_LINKS} links, 10 rays per link."
+    );
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&rows).context("serialising the rows")?;
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
