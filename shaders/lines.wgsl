@@ -1,4 +1,4 @@
-// Overlay lines (quadtree edges, links, highlights): positions in the scene's local frame, RGBA
+// Overlay lines (links): positions in the scene's local frame, RGBA
 // display colours, alpha-blended over the mesh.
 
 struct Uniforms {
@@ -8,6 +8,10 @@ struct Uniforms {
     mode: u32,
     selected: u32,
     back_color: vec4<f32>,
+    overlay: u32,
+    line_px: f32,
+    pad0: u32,
+    pad1: u32,
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;

@@ -1,6 +1,8 @@
 // Radiosity mesh: one colour per vertex (flat: the element's B at every corner; smooth: Gouraud
 // from vertex averages), exposure and tone mapping, back faces drawn distinctly, picked element
-// highlighted. Output is display-encoded (sRGB or linear, per `tone`) into an Rgba8Unorm target.
+// highlighted and outlined, quadtree edges drawn from each fragment's distance to its leaf's
+// boundary (no line geometry: "single-pass wireframe", Bærentzen et al. 2006). Output is
+// display-encoded (sRGB or linear, per `tone`) into an Rgba8Unorm target.
 
 struct Uniforms {
     view_proj: mat4x4<f32>,
@@ -12,6 +14,12 @@ struct Uniforms {
     // Picked element id, 0xffffffff for none.
     selected: u32,
     back_color: vec4<f32>,
+    // Bit 0: quadtree edges; bit 1: something is picked (its outline needs the edge distance).
+    overlay: u32,
+    // Edge width in pixels, on each side of a shared edge.
+    line_px: f32,
+    pad0: u32,
+    pad1: u32,
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
@@ -20,12 +28,18 @@ struct VsIn {
     @location(0) position: vec3<f32>,
     @location(1) element: u32,
     @location(2) color: vec3<f32>,
+    // Position in the leaf's parameter square (quads: unit square; triangles: u, v ≥ 0, u + v ≤ 1).
+    @location(3) uv: vec2<f32>,
+    // Quadtree-depth colour of the leaf; alpha 1 for a quad, 0 for a triangle.
+    @location(4) line_color: vec4<f32>,
 };
 
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) color: vec3<f32>,
     @location(1) @interpolate(flat) element: u32,
+    @location(2) uv: vec2<f32>,
+    @location(3) @interpolate(flat) line_color: vec4<f32>,
 };
 
 @vertex
@@ -34,17 +48,37 @@ fn vs_main(v: VsIn) -> VsOut {
     o.clip = u.view_proj * vec4<f32>(v.position, 1.0);
     o.color = v.color;
     o.element = v.element;
+    o.uv = v.uv;
+    o.line_color = v.line_color;
     return o;
 }
 
+// The sRGB transfer curve with 1.055 c^(1/2.4) − 0.055 approximated from three square roots
+// (I. Taylor, "sRGB approximations for HLSL", 2010): within one 8-bit level of the exact curve
+// on [0, 1], and several times cheaper than pow() on a CPU rasteriser.
 fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
     let lo = c * 12.92;
-    let hi = 1.055 * pow(c, vec3<f32>(1.0 / 2.4)) - 0.055;
+    let s1 = sqrt(c);
+    let s2 = sqrt(s1);
+    let s3 = sqrt(s2);
+    let hi = 0.662002687 * s1 + 0.684122060 * s2 - 0.323583601 * s3 - 0.0225411470 * c;
     return select(hi, lo, c <= vec3<f32>(0.0031308));
 }
 
 @fragment
 fn fs_main(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    // Distance to the leaf's boundary in pixels, only when an overlay needs it (the branch is
+    // on a uniform, so the derivatives stay in uniform control flow).
+    var d = 1e6;
+    if ((u.overlay & 3u) != 0u) {
+        let w = max(fwidth(i.uv), vec2<f32>(1e-6));
+        // Distances to u = 0 and v = 0 (both shapes), u = 1 and v = 1 (quads), u + v = 1
+        // (triangles; fwidth(u + v) ≤ fwidth(u) + fwidth(v), so that edge is drawn a bit thinner).
+        let near = min(i.uv.x / w.x, i.uv.y / w.y);
+        let far = min((1.0 - i.uv.x) / w.x, (1.0 - i.uv.y) / w.y);
+        let diagonal = (1.0 - i.uv.x - i.uv.y) / (w.x + w.y);
+        d = min(near, select(diagonal, far, i.line_color.a > 0.5));
+    }
     var c: vec3<f32>;
     if (u.mode == 0u) {
         c = clamp(i.color * u.exposure, vec3<f32>(0.0), vec3<f32>(1.0));
@@ -59,8 +93,13 @@ fn fs_main(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f3
         let s = (u32(i.clip.x + i.clip.y) / 6u) % 2u;
         c = u.back_color.rgb * select(0.6, 1.0, s == 0u);
     }
+    if ((u.overlay & 1u) != 0u) {
+        c = mix(c, i.line_color.rgb, clamp(u.line_px + 0.5 - d, 0.0, 1.0));
+    }
     if (i.element == u.selected) {
         c = mix(c, vec3<f32>(1.0, 0.55, 0.0), 0.55);
+        // A white outline twice the quadtree's width.
+        c = mix(c, vec3<f32>(1.0), clamp(2.0 * u.line_px + 0.5 - d, 0.0, 1.0));
     }
     return vec4<f32>(c, 1.0);
 }

@@ -90,6 +90,9 @@ pub struct Element {
     pub emission: Rgb,
     /// Radiosity: leaves E + ρ·H; interior elements the area average of their children (pull).
     pub radiosity: Rgb,
+    /// Largest channel of any leaf's radiosity below (and including) this element, from the last
+    /// push-pull: the BF oracle's source term for partially visible links.
+    pub b_max: f64,
     /// Irradiance gathered over this element's own links, Σ F·V·B_source (before push).
     pub gathered: Rgb,
     /// The part of `gathered` that comes through fully visible links (V = 1); only this part is
@@ -176,6 +179,7 @@ impl Hierarchy {
                     reflectance: p.reflectance,
                     emission: p.emission,
                     radiosity: p.emission,
+                    b_max: p.emission.max_channel(),
                     gathered: Rgb::ZERO,
                     gathered_full: Rgb::ZERO,
                     fv_sum: 0.0,

@@ -15,8 +15,12 @@
 //!   ├────M───────┤        so a chain of T-vertices stays continuous.
 //!   │ s1 │  s2   │
 //!   ```
+//! - **Conforming mesh**: each leaf is triangulated with the T-vertices on its edges (corners
+//!   of finer neighbours, [`VertexField::boundary`]), so no cracks open along T-junctions.
 //! - **Quadtree**: every leaf's edges, coloured by its depth below the input patch (the HSA91
-//!   quadtree, Hanrahan, Salzman & Aupperle 1991, §3).
+//!   quadtree, Hanrahan, Salzman & Aupperle 1991, §3). Drawn by the mesh shader from each
+//!   vertex's position in its leaf's parameter square, so it costs no extra geometry; see
+//!   `crate::render`.
 //! - **Links**: a line between the centroids of receiver and source for each link
 //!   (B_p gathers ρ_p F_pq V_pq B_q through it; lecture 17's p/q), coloured by log₁₀ F on a
 //!   perceptual scale. Filters: one element's links, a minimum F, visibility class.
@@ -288,48 +292,131 @@ impl Quantizer {
 /// Deepest chain of T-vertices followed along one edge (the quadtree's depth cap is 30).
 const MAX_T_DEPTH: u32 = 32;
 
+/// The leaves' corners, merged per input patch: a canonical position for each (so that every
+/// leaf that shares a corner emits bit-identical coordinates) and the Gouraud value there
+/// (nodal average; T-vertices anchored to the larger neighbour's edge, see the module docs).
+pub struct VertexField {
+    quant: Quantizer,
+    /// Corner key → (canonical position, smooth radiosity).
+    corners: HashMap<Key, (DVec3, Rgb)>,
+}
+
+/// A point on a leaf's boundary: a corner or a T-vertex, with its position in the leaf's
+/// parameter square (quads: corners (0,0), (1,0), (1,1), (0,1); triangles: (0,0), (1,0), (0,1)).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct BoundaryPoint {
+    pub position: DVec3,
+    pub uv: [f64; 2],
+    /// Smooth-shading value at the point.
+    pub value: Rgb,
+}
+
+const QUAD_UV: [[f64; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+const TRI_UV: [[f64; 2]; 3] = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+
+impl VertexField {
+    /// Merge the corners of `leaves` (indices into `elements`) and compute their values.
+    #[must_use]
+    pub fn build(elements: &[ElementView], leaves: &[u32]) -> VertexField {
+        let quant = Quantizer::new(elements);
+        let mut sums: HashMap<Key, (DVec3, Rgb, u32)> = HashMap::with_capacity(leaves.len() * 2);
+        for &l in leaves {
+            let e = &elements[l as usize];
+            for v in e.verts() {
+                let s = sums.entry(quant.key(e.patch, *v)).or_insert((*v, Rgb::ZERO, 0));
+                s.1 += e.radiosity;
+                s.2 += 1;
+            }
+        }
+        let mut corners: HashMap<Key, (DVec3, Rgb)> =
+            sums.into_iter().map(|(k, (p, s, n))| (k, (p, s / f64::from(n)))).collect();
+
+        // Coarsest edges first, so a T-vertex's endpoints already hold their final values.
+        let mut order: Vec<u32> = leaves.to_vec();
+        order.sort_by_key(|&l| (elements[l as usize].depth, l));
+        for &l in &order {
+            let e = &elements[l as usize];
+            let n = e.verts().len();
+            for i in 0..n {
+                anchor(&quant, &mut corners, e.patch, e.vertices[i], e.vertices[(i + 1) % n], MAX_T_DEPTH);
+            }
+        }
+        VertexField { quant, corners }
+    }
+
+    /// Canonical position and smooth value of a corner of a leaf on `patch`.
+    #[must_use]
+    pub fn corner(&self, patch: u32, p: DVec3) -> Option<(DVec3, Rgb)> {
+        self.corners.get(&self.quant.key(patch, p)).copied()
+    }
+
+    /// The leaf's boundary, counter-clockwise like its vertices: each corner followed by the
+    /// T-vertices on the edge to the next corner (corners of finer leaves of the same patch that
+    /// lie on that edge, found by recursive midpoint look-up: elements split 1 → 4 at edge
+    /// midpoints). Triangulating this polygon instead of the bare corners makes the mesh
+    /// conforming: no cracks where a large leaf meets subdivided neighbours.
+    #[must_use]
+    pub fn boundary(&self, e: &ElementView) -> Vec<BoundaryPoint> {
+        let v = e.verts();
+        let uv: &[[f64; 2]] = if v.len() == 4 { &QUAD_UV } else { &TRI_UV };
+        let mut out = Vec::with_capacity(v.len() + 4);
+        for i in 0..v.len() {
+            let j = (i + 1) % v.len();
+            let (pa, va) = self.corner(e.patch, v[i]).unwrap_or((v[i], e.radiosity));
+            out.push(BoundaryPoint { position: pa, uv: uv[i], value: va });
+            self.t_vertices(e.patch, v[i], v[j], (uv[i], uv[j]), MAX_T_DEPTH, &mut out);
+        }
+        out
+    }
+
+    fn t_vertices(
+        &self,
+        patch: u32,
+        a: DVec3,
+        b: DVec3,
+        (ua, ub): ([f64; 2], [f64; 2]),
+        budget: u32,
+        out: &mut Vec<BoundaryPoint>,
+    ) {
+        if budget == 0 {
+            return;
+        }
+        let m = 0.5 * (a + b);
+        let Some((pm, vm)) = self.corner(patch, m) else { return };
+        let um = [0.5 * (ua[0] + ub[0]), 0.5 * (ua[1] + ub[1])];
+        self.t_vertices(patch, a, m, (ua, um), budget - 1, out);
+        out.push(BoundaryPoint { position: pm, uv: um, value: vm });
+        self.t_vertices(patch, m, b, (um, ub), budget - 1, out);
+    }
+}
+
 /// Radiosity at each corner of each leaf in `leaves` (indices into `elements`), for Gouraud
 /// shading: nodal averages within each input patch, T-vertices anchored to the larger
 /// neighbour's edge (see the module docs). Entries past `n_vertices` are zero.
 #[must_use]
 pub fn vertex_radiosity(elements: &[ElementView], leaves: &[u32]) -> Vec<[Rgb; 4]> {
-    let quant = Quantizer::new(elements);
-    let mut sums: HashMap<Key, (Rgb, u32)> = HashMap::new();
-    for &l in leaves {
-        let e = &elements[l as usize];
-        for v in e.verts() {
-            let s = sums.entry(quant.key(e.patch, *v)).or_insert((Rgb::ZERO, 0));
-            s.0 += e.radiosity;
-            s.1 += 1;
-        }
-    }
-    let mut value: HashMap<Key, Rgb> = sums.into_iter().map(|(k, (s, n))| (k, s / f64::from(n))).collect();
-
-    // Coarsest edges first, so a T-vertex's endpoints already hold their final values.
-    let mut order: Vec<u32> = leaves.to_vec();
-    order.sort_by_key(|&l| (elements[l as usize].depth, l));
-    for &l in &order {
-        let e = &elements[l as usize];
-        let n = e.verts().len();
-        for i in 0..n {
-            anchor(&quant, &mut value, e.patch, e.vertices[i], e.vertices[(i + 1) % n], MAX_T_DEPTH);
-        }
-    }
-
+    let field = VertexField::build(elements, leaves);
     leaves
         .iter()
         .map(|&l| {
             let e = &elements[l as usize];
             let mut out = [Rgb::ZERO; 4];
             for (o, v) in out.iter_mut().zip(e.verts()) {
-                *o = value.get(&quant.key(e.patch, *v)).copied().unwrap_or(e.radiosity);
+                *o = field.corner(e.patch, *v).map_or(e.radiosity, |c| c.1);
             }
             out
         })
         .collect()
 }
 
-fn anchor(quant: &Quantizer, value: &mut HashMap<Key, Rgb>, patch: u32, a: DVec3, b: DVec3, budget: u32) {
+fn anchor(
+    quant: &Quantizer,
+    value: &mut HashMap<Key, (DVec3, Rgb)>,
+    patch: u32,
+    a: DVec3,
+    b: DVec3,
+    budget: u32,
+) {
     if budget == 0 {
         return;
     }
@@ -339,53 +426,19 @@ fn anchor(quant: &Quantizer, value: &mut HashMap<Key, Rgb>, patch: u32, a: DVec3
         return;
     }
     let (Some(va), Some(vb)) =
-        (value.get(&quant.key(patch, a)).copied(), value.get(&quant.key(patch, b)).copied())
+        (value.get(&quant.key(patch, a)).map(|c| c.1), value.get(&quant.key(patch, b)).map(|c| c.1))
     else {
         return;
     };
-    value.insert(km, (va + vb) * 0.5);
+    if let Some(c) = value.get_mut(&km) {
+        c.1 = (va + vb) * 0.5;
+    }
     anchor(quant, value, patch, a, m, budget - 1);
     anchor(quant, value, patch, m, b, budget - 1);
 }
 
 // ---------------------------------------------------------------------------------------------
 // Overlays
-
-/// Edges of every leaf, coloured by the leaf's depth, lifted by `lift` along the element normal
-/// so they sit just in front of the surface (depth-tested against it). An edge shared by two
-/// leaves of the same patch is drawn once, in the colour of the deeper one (halves the lines).
-#[must_use]
-pub fn quadtree_lines(elements: &[ElementView], leaves: &[u32], lift: f64) -> LineList {
-    let quant = Quantizer::new(elements);
-    let mut out = LineList::default();
-    // Segment (sorted endpoint keys) → (index of its first point in `out`, depth drawn).
-    let mut seen: HashMap<(Key, Key), (usize, u8)> = HashMap::new();
-    for &l in leaves {
-        let e = &elements[l as usize];
-        let [r, g, b] = depth_color(e.depth);
-        let off = e.normal() * lift;
-        let v = e.verts();
-        for i in 0..v.len() {
-            let (a, c) = (v[i], v[(i + 1) % v.len()]);
-            let (ka, kc) = (quant.key(e.patch, a), quant.key(e.patch, c));
-            let key = if ka <= kc { (ka, kc) } else { (kc, ka) };
-            match seen.get_mut(&key) {
-                Some((at, depth)) => {
-                    if e.depth > *depth {
-                        *depth = e.depth;
-                        out.colors[*at] = [r, g, b, 1.0];
-                        out.colors[*at + 1] = [r, g, b, 1.0];
-                    }
-                }
-                None => {
-                    seen.insert(key, (out.points.len(), e.depth));
-                    out.push(a + off, c + off, [r, g, b, 1.0]);
-                }
-            }
-        }
-    }
-    out
-}
 
 /// Default decimation of the links overlay: beyond a few thousand lines a room is a solid
 /// fan of lines.
@@ -625,27 +678,34 @@ mod tests {
     }
 
     #[test]
-    fn shared_edges_are_drawn_once_in_the_finer_colour() {
-        let mut b = quad(1, 2, 1.0, 0.0, 1.0, 1.0);
-        b.patch = 0;
-        let els = vec![quad(0, 1, 0.0, 0.0, 1.0, 1.0), b];
-        let l = quadtree_lines(&els, &[0, 1], 0.0);
-        assert_eq!(l.segments(), 7, "two squares sharing one edge");
-        // The shared edge (x = 1) takes depth 2's colour.
-        let shared =
-            (0..l.segments()).find(|&s| l.points[2 * s].x == 1.0 && l.points[2 * s + 1].x == 1.0).unwrap();
-        assert_eq!(l.colors[2 * shared][..3], depth_color(2));
-    }
-
-    #[test]
-    fn quadtree_lines_colour_by_depth() {
-        let els = vec![quad(0, 0, 0.0, 0.0, 1.0, 1.0), quad(1, 3, 1.0, 0.0, 1.0, 1.0)];
-        let l = quadtree_lines(&els, &[0, 1], 0.01);
-        assert_eq!(l.segments(), 7, "the shared edge once");
-        assert_eq!(l.colors[0][..3], depth_color(0));
-        assert_eq!(l.colors[8][..3], depth_color(3));
-        assert_ne!(depth_color(0), depth_color(3));
-        assert!((l.points[0].z - 0.01).abs() < EXACT, "lifted along +z normal");
+    fn boundary_has_the_t_vertices_of_finer_neighbours() {
+        // A 2×2 square on the left; on its right a unit square below, and four half-unit squares
+        // above: T-vertices (2,1) and (2,1.5) on the big square's right edge.
+        let els = vec![
+            quad(0, 1, 0.0, 0.0, 2.0, 10.0),
+            quad(1, 2, 2.0, 0.0, 1.0, 0.0),
+            quad(2, 3, 2.0, 1.0, 0.5, 4.0),
+            quad(3, 3, 2.0, 1.5, 0.5, 4.0),
+            quad(4, 3, 2.5, 1.0, 0.5, 4.0),
+            quad(5, 3, 2.5, 1.5, 0.5, 4.0),
+        ];
+        let leaves: Vec<u32> = (0..6).collect();
+        let f = VertexField::build(&els, &leaves);
+        let b = f.boundary(&els[0]);
+        let pts: Vec<[f64; 2]> = b.iter().map(|p| [p.position.x, p.position.y]).collect();
+        assert_eq!(pts, vec![[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [2.0, 1.5], [2.0, 2.0], [0.0, 2.0]]);
+        // Parameter coordinates run along the right edge (u = 1).
+        assert_eq!(b[2].uv, [1.0, 0.5]);
+        assert_eq!(b[3].uv, [1.0, 0.75]);
+        // The unit square has one T-vertex, (2.5,1), on its top edge; a half-unit square none.
+        assert_eq!(f.boundary(&els[1]).len(), 5);
+        assert_eq!(f.boundary(&els[2]).len(), 4);
+        // A different patch's corners are not T-vertices.
+        let mut other = els.clone();
+        for e in &mut other[1..] {
+            e.patch = 1;
+        }
+        assert_eq!(VertexField::build(&other, &leaves).boundary(&other[0]).len(), 4);
     }
 
     fn links() -> Vec<LinkView> {

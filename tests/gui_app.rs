@@ -12,10 +12,11 @@ use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use radlab::math::{DVec3, Rgb};
+use radlab::reference::{Cache, ReferenceParams};
 use radlab::render::RgbaImage;
 use radlab::render::snapshot::{self, Thresholds};
 use radlab::scene::{Patch, Scene};
-use radlab::viewer::{RadlabApp, ViewerOptions};
+use radlab::viewer::{RadlabApp, RefSettings, RefState, ViewerOptions};
 use std::sync::Arc;
 
 /// Whole-window snapshots: anti-aliased text and line ends may move by a pixel between
@@ -73,7 +74,13 @@ fn cornell() -> Scene {
 }
 
 fn opts() -> ViewerOptions {
-    ViewerOptions { scene: String::new(), ..ViewerOptions::default() }
+    // An empty cache folder of its own: no reference is found unless a test computes one.
+    let cache = Cache::at(std::env::temp_dir().join(format!("radlab-gui-nocache-{}", std::process::id())));
+    ViewerOptions {
+        scene: String::new(),
+        reference: RefSettings { cache, ..RefSettings::default() },
+        ..ViewerOptions::default()
+    }
 }
 
 fn harness(opts: ViewerOptions) -> Harness<'static, RadlabApp> {
@@ -198,6 +205,56 @@ fn drive_the_viewer() {
     h.get_by_label("Reset").click();
     settle(&mut h);
     assert_eq!(h.state().view().leaves.len(), n_patches);
+}
+
+#[test]
+fn reference_feeds_the_true_error_and_the_error_plot() {
+    let dir = std::env::temp_dir().join(format!("radlab-gui-ref-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    // A rough reference (16 paths per region) keeps the test fast; it is seeded, so the
+    // snapshot is stable.
+    let reference = RefSettings {
+        params: ReferenceParams { samples: 16, ..ReferenceParams::quick() },
+        cache: Cache::at(&dir),
+    };
+    let mut h = harness(ViewerOptions { reference: reference.clone(), ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    assert_eq!(h.state().ref_state, RefState::Missing, "nothing cached yet");
+    assert_eq!(h.state().error_label(), "solver's error estimate");
+    h.get_by_label("Compute reference").click();
+    settle(&mut h);
+    assert!(matches!(h.state().ref_state, RefState::Ready { .. }), "{:?}", h.state().ref_state);
+    assert_eq!(h.state().error_label(), "true error |B − B_ref|");
+    // The unlit initial state is scored at solver time 0: everything but the lamp is wrong.
+    let s = h.state().error_samples().to_vec();
+    assert_eq!(s.len(), 1, "{s:?}");
+    assert!(s[0][0] == 0.0 && s[0][1] > 0.5, "{s:?}");
+    h.get_by_label("Solve").click();
+    settle(&mut h);
+    let s = h.state().error_samples().to_vec();
+    assert_eq!(s.len(), 2, "{s:?}");
+    assert!(s[1][0] > 0.0, "solver time advanced: {s:?}");
+    assert!(s[1][1] < 0.5 * s[0][1], "solving lowers the true error: {s:?}");
+    h.get_by_label("error heatmap").click();
+    settle(&mut h);
+    check(&mut h, "gui_reference");
+    // The plot (not in the snapshot: its time axis is wall time and sizes the panel).
+    h.get_by_label("Plots").click();
+    settle(&mut h);
+    assert!(h.query_by_label_contains("Error against the reference").is_some());
+
+    // A second window finds the reference in the cache by itself.
+    let mut h2 = harness(ViewerOptions { reference, ..opts() });
+    h2.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h2);
+    assert!(
+        matches!(&h2.state().ref_state, RefState::Ready { how, .. } if how.starts_with("cached")),
+        "{:?}",
+        h2.state().ref_state
+    );
+    assert_eq!(h2.state().error_samples().len(), 1, "the loaded state is scored");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -10,7 +10,9 @@ use radlab::math::{DVec3, Rgb};
 use radlab::overlay::{self, ElementView, LinkFilter, LinkView};
 use radlab::render::geometry::{self, MeshColors};
 use radlab::render::snapshot::{self, Thresholds};
-use radlab::render::{FrameParams, Geometry, NO_SELECTION, RgbaImage, SceneRenderer, Uniforms};
+use radlab::render::{
+    FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, RgbaImage, SceneRenderer, Uniforms,
+};
 use radlab::scene::Bounds;
 use radlab::viewer::camera::OrbitCamera;
 use std::sync::{Mutex, OnceLock};
@@ -75,10 +77,17 @@ fn uniforms(srgb: bool, mode: u32, selected: u32) -> Uniforms {
         mode,
         selected,
         back_color: [0.0, 0.0, 1.0, 1.0],
+        overlay: if selected == NO_SELECTION { 0 } else { OVERLAY_PICKED },
+        line_px: 0.75,
+        _pad: [0; 2],
     }
 }
 
 fn draw(g: &Geometry, u: Uniforms) -> RgbaImage {
+    draw_sized(g, u, [W, H])
+}
+
+fn draw_sized(g: &Geometry, u: Uniforms, size: [u32; 2]) -> RgbaImage {
     let rs = render_state().lock().unwrap();
     let mut r = SceneRenderer::new(&rs.device, wgpu::TextureFormat::Rgba8Unorm);
     r.set_geometry(&rs.device, g);
@@ -87,7 +96,7 @@ fn draw(g: &Geometry, u: Uniforms) -> RgbaImage {
         &rs.device,
         &rs.queue,
         &mut enc,
-        &FrameParams { uniforms: u, size: [W, H], clear: [0.0, 0.0, 0.0, 1.0] },
+        &FrameParams { uniforms: u, size, clear: [0.0, 0.0, 0.0, 1.0] },
     );
     rs.queue.submit([enc.finish()]);
     r.read_pixels(&rs.device, &rs.queue).unwrap()
@@ -145,9 +154,13 @@ fn back_faces_are_distinct_and_selection_is_highlighted() {
     let front = vec![square(0, 0.0, Rgb::new(0.0, 0.0, 0.0), false)];
     let g =
         Geometry { mesh: geometry::mesh(&front, &[0], MeshColors::Flat, DVec3::ZERO), ..Geometry::default() };
-    let c = draw(&g, uniforms(false, 0, 0)).pixel(W / 2, H / 2);
+    let img = draw(&g, uniforms(false, 0, 0));
+    let c = img.pixel(W / 2, H / 2);
     // Black mixed 55 % with orange (1, 0.55, 0).
     assert!(close(c, [140, 77, 0]), "highlight: {c:?}");
+    // And outlined in white along its boundary.
+    let row: Vec<[u8; 4]> = (0..W).map(|x| img.pixel(x, H / 2)).collect();
+    assert!(row.iter().any(|p| p[0] > 200 && p[1] > 200 && p[2] > 200), "white outline: {row:?}");
 }
 
 #[test]
@@ -216,18 +229,128 @@ fn lines_are_depth_tested_unless_xray() {
         &Geometry { mesh: mesh.clone(), links: line.clone(), ..Geometry::default() },
         uniforms(false, 0, NO_SELECTION),
     );
-    let shown = draw(
-        &Geometry { mesh, links: line, links_xray: true, ..Geometry::default() },
-        uniforms(false, 0, NO_SELECTION),
-    );
+    let shown = draw(&Geometry { mesh, links: line, links_xray: true }, uniforms(false, 0, NO_SELECTION));
     let row_max = |img: &RgbaImage| (0..img.height).map(|y| img.pixel(W / 2, y)[1]).max().unwrap();
     assert!(row_max(&hidden) < 5, "link behind the wall is hidden");
     assert!(row_max(&shown) > 100, "x-ray link is drawn (viridis top is bright)");
-    // Quadtree edges lifted off their own element pass the depth test.
-    let q = geometry::lines(&overlay::quadtree_lines(std::slice::from_ref(&wall), &[0], 1e-3), DVec3::ZERO);
-    let mesh = geometry::mesh(&[wall], &[0], MeshColors::Flat, DVec3::ZERO);
-    let img = draw(&Geometry { mesh, lines: q, ..Geometry::default() }, uniforms(false, 0, NO_SELECTION));
-    assert!(img.pixels.chunks_exact(4).any(|p| p[0] > 200 && p[1] > 200), "white depth-0 edges visible");
+}
+
+#[test]
+fn quadtree_edges_are_drawn_by_the_mesh_shader() {
+    // One black wall: its depth-0 edges (white) appear only with the overlay bit.
+    let wall = square(0, 0.0, Rgb::splat(0.0), false);
+    let g = Geometry {
+        mesh: geometry::mesh(&[wall], &[0], MeshColors::Flat, DVec3::ZERO),
+        ..Geometry::default()
+    };
+    // Edge pixels: at least 40 % covered by the (anti-aliased) white edge.
+    let white = |img: &RgbaImage| img.pixels.chunks_exact(4).filter(|p| p[0] > 100 && p[1] > 100).count();
+    let mut u = uniforms(false, 0, NO_SELECTION);
+    assert_eq!(white(&draw(&g, u)), 0);
+    u.overlay = OVERLAY_QUADTREE;
+    let img = draw(&g, u);
+    assert!(white(&img) > 100, "edges drawn: {}", white(&img));
+    assert!(close(img.pixel(W / 2, H / 2), [0, 0, 0]), "the interior stays the element's colour");
+}
+
+/// The patch of [`t_junction_patch`]: parameter (x, y) ∈ [−1, 1]² → a rotated, scaled, shifted
+/// square in the z = 0 plane. Each vertex is mapped from its own parameters, so (as in the
+/// solver) a T-vertex is not bit-for-bit the average of its edge's end points.
+fn patch_point(x: f64, y: f64) -> DVec3 {
+    let (s, c) = 0.37f64.sin_cos();
+    DVec3::new(0.93 * (c * x - s * y) + 0.0137, 0.93 * (s * x + c * y) - 0.0211, 0.0)
+}
+
+/// A square patch refined to depth `max_depth` along its diagonal and left coarse elsewhere:
+/// dozens of T-junctions where big leaves meet finer ones. All leaves have B = 1.
+fn t_junction_patch(max_depth: u8) -> (Vec<ElementView>, Vec<u32>) {
+    fn cell(out: &mut Vec<ElementView>, x0: f64, y0: f64, s: f64, depth: u8, max_depth: u8) {
+        let on_diagonal = (x0 - y0).abs() < s;
+        if depth < max_depth && on_diagonal {
+            let h = s / 2.0;
+            for (dx, dy) in [(0.0, 0.0), (h, 0.0), (h, h), (0.0, h)] {
+                cell(out, x0 + dx, y0 + dy, h, depth + 1, max_depth);
+            }
+            return;
+        }
+        let id = out.len() as u32;
+        let mut e = square(id, 0.0, Rgb::splat(1.0), false);
+        e.patch = 0;
+        e.depth = depth;
+        e.vertices = [
+            patch_point(x0, y0),
+            patch_point(x0 + s, y0),
+            patch_point(x0 + s, y0 + s),
+            patch_point(x0, y0 + s),
+        ];
+        e.area = s * s;
+        out.push(e);
+    }
+    let mut els = Vec::new();
+    cell(&mut els, -1.0, -1.0, 2.0, 0, max_depth);
+    let leaves = (0..els.len() as u32).collect();
+    (els, leaves)
+}
+
+#[test]
+fn t_junctions_leave_no_cracks() {
+    // Background black, every leaf white: any dark pixel well inside the patch's silhouette
+    // is a crack. Seen obliquely so that the shared edges are not pixel-aligned.
+    const SIZE: [u32; 2] = [480, 480];
+    // Pixels closer than this to the silhouette are not checked (edge coverage rules).
+    const SILHOUETTE_MARGIN_PX: f64 = 2.0;
+    let (els, leaves) = t_junction_patch(7);
+    assert!(els.len() > 40, "{} leaves", els.len());
+    let mut cam = OrbitCamera::frame_all(&Bounds { min: DVec3::splat(-1.0), max: DVec3::splat(1.0) });
+    cam.pitch = 0.35;
+    cam.yaw = 0.4;
+    cam.distance = 3.2;
+    let vp = cam.view_proj(1.0, DVec3::ZERO);
+    let to_px = |p: DVec3| {
+        let c = vp * p.extend(1.0);
+        [(c.x / c.w + 1.0) * 0.5 * f64::from(SIZE[0]), (1.0 - c.y / c.w) * 0.5 * f64::from(SIZE[1])]
+    };
+    let corners: Vec<[f64; 2]> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+        .iter()
+        .map(|&(x, y)| to_px(patch_point(x, y)))
+        .collect();
+    // Signed distance (pixels) from each edge of the projected quad, positive inside.
+    let orient = {
+        let [a, b, c] = [corners[0], corners[1], corners[2]];
+        ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])).signum()
+    };
+    let inside = |x: f64, y: f64| {
+        (0..4).all(|i| {
+            let (a, b) = (corners[i], corners[(i + 1) % 4]);
+            let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+            orient * (ex * (y - a[1]) - ey * (x - a[0])) / ex.hypot(ey) > SILHOUETTE_MARGIN_PX
+        })
+    };
+    for colors in [MeshColors::Flat, MeshColors::Smooth] {
+        let g = Geometry { mesh: geometry::mesh(&els, &leaves, colors, DVec3::ZERO), ..Geometry::default() };
+        let mut u = uniforms(false, 0, NO_SELECTION);
+        u.view_proj = vp.to_cols_array_2d().map(|c| c.map(|x| x as f32));
+        let img = draw_sized(&g, u, SIZE);
+        let mut checked = 0;
+        let mut cracks = Vec::new();
+        for y in 0..SIZE[1] {
+            for x in 0..SIZE[0] {
+                if inside(f64::from(x) + 0.5, f64::from(y) + 0.5) {
+                    checked += 1;
+                    if img.pixel(x, y)[0] < 250 {
+                        cracks.push((x, y));
+                    }
+                }
+            }
+        }
+        assert!(checked > 20_000, "the patch fills much of the image: {checked}");
+        assert!(
+            cracks.is_empty(),
+            "{colors:?}: {} crack pixels, first {:?}",
+            cracks.len(),
+            &cracks[..cracks.len().min(8)]
+        );
+    }
 }
 
 /// A box of five coloured faces seen from the open side: a golden image of the mesh pipeline.
@@ -251,14 +374,12 @@ fn golden_box() {
         face(4, [p(h, l, l), p(h, h, l), p(h, h, h), p(h, l, h)], Rgb::new(0.1, 0.6, 0.1)), // right
     ];
     let leaves: Vec<u32> = (0..5).collect();
-    let mut q = overlay::quadtree_lines(&els, &leaves, 1e-3);
-    q.colors.iter_mut().for_each(|c| *c = [1.0, 1.0, 0.0, 1.0]);
     let g = Geometry {
         mesh: geometry::mesh(&els, &leaves, MeshColors::Flat, DVec3::ZERO),
-        lines: geometry::lines(&q, DVec3::ZERO),
         ..Geometry::default()
     };
     let mut u = uniforms(true, 0, 4);
+    u.overlay |= OVERLAY_QUADTREE;
     let mut cam = camera();
     cam.distance = 3.5;
     cam.orbit(0.3, 0.2);

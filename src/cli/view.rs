@@ -107,6 +107,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         pick: args.pick,
         screenshot_window: args.window,
         show_plots: args.plots,
+        ..ViewerOptions::default()
     })?;
     Ok(())
 }

@@ -20,8 +20,18 @@ pub struct Uniforms {
     pub selected: u32,
     /// Colour of back faces (display space, alpha unused).
     pub back_color: [f32; 4],
+    /// Bit set of [`OVERLAY_QUADTREE`], [`OVERLAY_PICKED`].
+    pub overlay: u32,
+    /// Width of the quadtree edges in pixels (on each side of a shared edge).
+    pub line_px: f32,
+    pub _pad: [u32; 2],
 }
-const _: () = assert!(size_of::<Uniforms>() == 96);
+const _: () = assert!(size_of::<Uniforms>() == 112);
+
+/// `Uniforms::overlay` bit: draw every leaf's edges in its quadtree-depth colour.
+pub const OVERLAY_QUADTREE: u32 = 1;
+/// `Uniforms::overlay` bit: an element is picked (the shader outlines it).
+pub const OVERLAY_PICKED: u32 = 2;
 
 /// `Uniforms::selected` when nothing is picked.
 pub const NO_SELECTION: u32 = u32::MAX;
@@ -36,8 +46,15 @@ pub struct MeshVertex {
     pub element: u32,
     /// Radiosity (mode 0) or display colour (mode 1).
     pub color: [f32; 3],
+    /// Position in the leaf's parameter square (quads: corners (0,0), (1,0), (1,1), (0,1);
+    /// triangles: (0,0), (1,0), (0,1)); the shader turns it into a distance to the leaf's
+    /// boundary in pixels for the quadtree and the outline.
+    pub uv: [f32; 2],
+    /// Quadtree-depth colour of the leaf (RGB, unorm8); alpha 255 for a quad, 0 for a triangle
+    /// (which edges bound the parameter domain).
+    pub line_color: [u8; 4],
 }
-const _: () = assert!(size_of::<MeshVertex>() == 28);
+const _: () = assert!(size_of::<MeshVertex>() == 40);
 
 /// A line vertex (lines.wgsl `VsIn`).
 #[repr(C)]

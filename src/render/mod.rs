@@ -25,7 +25,7 @@ pub mod snapshot;
 use eframe::egui_wgpu;
 use eframe::wgpu;
 use eframe::wgpu::util::DeviceExt;
-pub use gpu_data::{LineVertex, MeshVertex, NO_SELECTION, Uniforms};
+pub use gpu_data::{LineVertex, MeshVertex, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, Uniforms};
 use std::sync::Arc;
 
 /// WGSL sources, one per pipeline (also parsed by the naga test).
@@ -43,10 +43,8 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Everything drawn in the viewport, in the scene's local frame.
 #[derive(Clone, Debug, Default)]
 pub struct Geometry {
-    /// Triangle list.
-    pub mesh: Vec<MeshVertex>,
-    /// Depth-tested lines (quadtree edges, highlight outlines).
-    pub lines: Vec<LineVertex>,
+    /// Indexed triangles (quadtree edges and the picked outline are drawn by its shader).
+    pub mesh: geometry::Mesh,
     /// Link lines.
     pub links: Vec<LineVertex>,
     /// Draw links over everything (x-ray) instead of depth-testing them.
@@ -54,7 +52,7 @@ pub struct Geometry {
 }
 
 /// Per-frame settings of one render.
-#[derive(Copy, Clone, Debug)]
+#[derive(Copy, Clone, Debug, PartialEq)]
 pub struct FrameParams {
     pub uniforms: Uniforms,
     /// Target size in pixels.
@@ -87,12 +85,17 @@ pub struct SceneRenderer {
     blit_layout: wgpu::BindGroupLayout,
     sampler: wgpu::Sampler,
     mesh: Option<GpuBuffer>,
-    lines: Option<GpuBuffer>,
+    mesh_indices: Option<GpuBuffer>,
     links: Option<GpuBuffer>,
     links_xray: bool,
     target: Option<Target>,
     /// Generation of the uploaded geometry (see [`ViewportCallback`]).
     generation: u64,
+    /// Wall time of the last [`SceneRenderer::set_geometry`] (seconds), for the benchmark.
+    pub last_upload_s: f64,
+    /// The settings of the image in the target; a frame with the same settings and geometry
+    /// reuses it instead of rasterising the scene again (a still camera costs only the blit).
+    drawn: Option<FrameParams>,
 }
 
 fn shader(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
@@ -138,7 +141,9 @@ impl SceneRenderer {
         });
 
         let mesh_module = shader(device, "mesh.wgsl");
-        let mesh_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32, 2 => Float32x3];
+        let mesh_attrs = wgpu::vertex_attr_array![
+            0 => Float32x3, 1 => Uint32, 2 => Float32x3, 3 => Float32x2, 4 => Unorm8x4
+        ];
         let depth = |write: bool, compare: wgpu::CompareFunction| wgpu::DepthStencilState {
             format: DEPTH_FORMAT,
             depth_write_enabled: Some(write),
@@ -288,30 +293,40 @@ impl SceneRenderer {
             blit_layout,
             sampler,
             mesh: None,
-            lines: None,
+            mesh_indices: None,
             links: None,
             links_xray: false,
             target: None,
             generation: u64::MAX,
+            last_upload_s: 0.0,
+            drawn: None,
         }
     }
 
-    /// Upload new geometry (replaces the previous buffers).
+    /// Upload new geometry (replaces the previous buffers). Called only when the geometry
+    /// changes (a new solution, display settings, the picked element), never per frame.
     pub fn set_geometry(&mut self, device: &wgpu::Device, geometry: &Geometry) {
-        fn upload<T: bytemuck::Pod>(device: &wgpu::Device, label: &str, data: &[T]) -> Option<GpuBuffer> {
+        fn upload<T: bytemuck::Pod>(
+            device: &wgpu::Device,
+            label: &str,
+            data: &[T],
+            usage: wgpu::BufferUsages,
+        ) -> Option<GpuBuffer> {
             (!data.is_empty()).then(|| GpuBuffer {
                 buffer: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some(label),
                     contents: bytemuck::cast_slice(data),
-                    usage: wgpu::BufferUsages::VERTEX,
+                    usage,
                 }),
                 count: data.len() as u32,
             })
         }
-        self.mesh = upload(device, "radlab mesh", &geometry.mesh);
-        self.lines = upload(device, "radlab lines", &geometry.lines);
-        self.links = upload(device, "radlab links", &geometry.links);
+        let (vertex, index) = (wgpu::BufferUsages::VERTEX, wgpu::BufferUsages::INDEX);
+        self.mesh = upload(device, "radlab mesh", &geometry.mesh.vertices, vertex);
+        self.mesh_indices = upload(device, "radlab mesh indices", &geometry.mesh.indices, index);
+        self.links = upload(device, "radlab links", &geometry.links, vertex);
         self.links_xray = geometry.links_xray;
+        self.drawn = None;
     }
 
     fn ensure_target(&mut self, device: &wgpu::Device, size: [u32; 2]) {
@@ -356,6 +371,7 @@ impl SceneRenderer {
             ],
         });
         self.target = Some(Target { size, color, color_view, depth_view, blit_group });
+        self.drawn = None;
     }
 
     /// Render the scene into the offscreen target (created or resized to `frame.size`).
@@ -367,8 +383,12 @@ impl SceneRenderer {
         frame: &FrameParams,
     ) {
         self.ensure_target(device, frame.size);
+        if self.drawn.as_ref() == Some(frame) && self.target.is_some() {
+            return;
+        }
         queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&frame.uniforms));
         let Some(target) = &self.target else { return };
+        self.drawn = Some(*frame);
         let [r, g, b, a] = frame.clear;
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("radlab viewport"),
@@ -394,15 +414,11 @@ impl SceneRenderer {
             multiview_mask: None,
         });
         pass.set_bind_group(0, &self.uniform_group, &[]);
-        if let Some(m) = &self.mesh {
+        if let (Some(m), Some(i)) = (&self.mesh, &self.mesh_indices) {
             pass.set_pipeline(&self.mesh_pipeline);
             pass.set_vertex_buffer(0, m.buffer.slice(..));
-            pass.draw(0..m.count, 0..1);
-        }
-        if let Some(l) = &self.lines {
-            pass.set_pipeline(&self.lines_pipeline);
-            pass.set_vertex_buffer(0, l.buffer.slice(..));
-            pass.draw(0..l.count, 0..1);
+            pass.set_index_buffer(i.buffer.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..i.count, 0, 0..1);
         }
         if let Some(l) = &self.links {
             pass.set_pipeline(if self.links_xray { &self.xray_pipeline } else { &self.lines_pipeline });
@@ -581,8 +597,10 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
     ) -> Vec<wgpu::CommandBuffer> {
         if let Some(r) = resources.get_mut::<SceneRenderer>() {
             if r.generation != self.generation {
+                let started = std::time::Instant::now();
                 r.set_geometry(device, &self.geometry);
                 r.generation = self.generation;
+                r.last_upload_s = started.elapsed().as_secs_f64();
             }
             r.render(device, queue, encoder, &self.frame);
         }

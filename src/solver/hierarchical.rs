@@ -445,7 +445,13 @@ impl HierarchicalSolver {
         let (want, below) = match self.params.oracle {
             Oracle::Feps => (f64::from(link.fmax) >= self.params.feps, StopReason::BelowFeps),
             Oracle::Bf => {
-                let b = self.hier.get(link.source).radiosity.max_channel();
+                // A partially visible link may see the bright or the dark part of its source
+                // (the floor round a box's foot is lit, the part under it is dark and hidden):
+                // B_avg · V_avg then counts the darkness twice. Bound it by the source's
+                // brightest leaf.
+                let src = self.hier.get(link.source);
+                let b =
+                    if link.class() == VisClass::Partial { src.b_max } else { src.radiosity.max_channel() };
                 let thr = if link.class() == VisClass::Partial {
                     self.bf_eps * PARTIAL_BF_FACTOR
                 } else {
@@ -804,15 +810,22 @@ impl HierarchicalSolver {
             let rest = rest_down + (e.gathered - e.gathered_full);
             let area = e.area;
             let mut b = Rgb::ZERO;
+            let mut b_max: f64 = 0.0;
             for c in kids {
                 let bc = self.push_pull_rec(c, full, rest);
-                b += bc * (self.hier.elements[c as usize].area / area);
+                let child = &self.hier.elements[c as usize];
+                b += bc * (child.area / area);
+                b_max = b_max.max(child.b_max);
             }
-            self.hier.elements[id as usize].radiosity = b;
+            let e = &mut self.hier.elements[id as usize];
+            e.radiosity = b;
+            e.b_max = b_max;
             b
         } else {
             let b = e.emission + e.reflectance.mul_rgb(full_down * e.norm + rest_down + e.gathered);
-            self.hier.elements[id as usize].radiosity = b;
+            let e = &mut self.hier.elements[id as usize];
+            e.radiosity = b;
+            e.b_max = b.max_channel();
             b
         }
     }

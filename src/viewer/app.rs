@@ -5,13 +5,16 @@
 //! an immutable `Arc<ViewData>` after each step; GPU geometry is rebuilt from those only when
 //! one of them changes.
 
+use super::bench::FrameBench;
+use super::builder::{self, Builder, Built, Coloring};
 use super::camera::OrbitCamera;
+use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::math::DVec3;
 use crate::overlay::{self, Decimation, LinkFilter, LogScale, Palette};
-use crate::render::geometry::{self, MeshColors};
 use crate::render::{
-    FrameParams, Geometry, NO_SELECTION, RgbaImage, SceneRenderer, Uniforms, ViewportCallback,
+    FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, RgbaImage, SceneRenderer,
+    Uniforms, ViewportCallback,
 };
 use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
@@ -54,6 +57,8 @@ pub struct ViewerOptions {
     pub screenshot_window: bool,
     /// Show the plots window open.
     pub show_plots: bool,
+    /// Where the reference solution comes from (settings and disk cache).
+    pub reference: RefSettings,
 }
 
 impl Default for ViewerOptions {
@@ -68,6 +73,7 @@ impl Default for ViewerOptions {
             pick: None,
             screenshot_window: false,
             show_plots: false,
+            reference: RefSettings::default(),
         }
     }
 }
@@ -120,9 +126,9 @@ impl Default for Display {
 const BACKGROUND: [f64; 4] = [0.08, 0.08, 0.1, 1.0];
 /// Back faces: dull magenta, striped in the shader.
 const BACK_COLOR: [f32; 4] = [0.55, 0.1, 0.45, 1.0];
-/// Overlay lines are lifted off their surface by this fraction of the scene diagonal (so the
-/// depth test keeps them in front of their own element and behind everything else).
-const LINE_LIFT: f64 = 2e-4;
+/// Width of the quadtree edges drawn by the mesh shader, pixels on each side of an edge (a
+/// shared edge shows both sides' depth colours, 1.5 px together).
+const QUADTREE_LINE_PX: f32 = 0.75;
 
 /// One run made in this window, for the links-against-elements plot.
 #[derive(Copy, Clone, Debug)]
@@ -141,13 +147,15 @@ enum Script {
     Settle(u32),
     WaitingShot,
     Bench {
-        left: usize,
-        times: Vec<f64>,
-        last: Option<Instant>,
-        ui_times: Vec<f64>,
+        /// Frames still to draw before measuring (the geometry upload happens in the first).
+        warmup: usize,
+        bench: FrameBench,
     },
     Done,
 }
+
+/// Frames drawn before `--bench-frames` starts measuring: the first uploads the geometry.
+const BENCH_WARMUP_FRAMES: usize = 3;
 
 /// The radlab viewer.
 pub struct RadlabApp {
@@ -172,15 +180,36 @@ pub struct RadlabApp {
     home: OrbitCamera,
     origin: DVec3,
     pub display: Display,
+    /// Counts the solver states received (identifies `view` in display builds).
+    view_seq: u64,
     /// Per-element true error (against a reference); replaces the solver's estimate when set.
-    true_error: Option<Vec<f64>>,
+    true_error: Option<Arc<Vec<f64>>>,
     /// Solver time since the last restart (sum of the steps' times), seconds.
     solver_time_s: f64,
     /// (solver time, error against the reference) after steps, for the error-vs-time plot.
     error_samples: Vec<[f64; 2]>,
     geometry: Arc<Geometry>,
     generation: u64,
-    geometry_key: Option<GeometryKey>,
+    /// The display builder thread (`None`: build on the UI thread).
+    builder: Option<Builder>,
+    /// What the newest display build was requested for, and its sequence number.
+    build_key: Option<BuildKey>,
+    build_seq: u64,
+    /// Sequence number of the build shown now.
+    shown_seq: u64,
+    /// The solver state whose auto exposure was applied last.
+    exposure_view_seq: u64,
+    /// The reference thread and where the current scene's reference stands.
+    reference: Option<RefThread>,
+    pub ref_state: RefState,
+    /// The solver state last sent to the reference thread for scoring.
+    evaluated_seq: u64,
+    /// Frame times while a scripted benchmark waits for its solve.
+    solve_frames: FrameBench,
+    /// Longest geometry upload seen (seconds; read from the renderer).
+    max_upload_s: f64,
+    /// Cached inspector rows: (view_seq, element, rows).
+    inspector_rows: Option<(u64, u32, Arc<Vec<LinkRow>>)>,
     link_stats: (usize, usize),
     link_scale: Option<LogScale>,
     error_scale: Option<LogScale>,
@@ -194,19 +223,51 @@ pub struct RadlabApp {
     show_plots: bool,
     /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
     last_ui_s: f64,
+    /// On-CPU time of the last `ui` call (benchmarks only).
+    last_ui_cpu_s: Option<f64>,
     rebuild_s: f64,
     /// Set when the window should close (scripted runs); read by the runner.
     pub exit_code: Option<i32>,
+    /// Leave the side panels unfilled: the window's clear colour (the native runner sets it to
+    /// the panel colour) shows through. On a CPU rasteriser egui's textured, blended fill of the
+    /// panels costs ~25 ms of CPU per frame at 1280×800; the clear is nearly free. Off by default
+    /// (egui_kittest clears to transparent).
+    pub panels_from_clear: bool,
 }
 
-/// What the current geometry was built from.
+/// Where the reference solution of the current scene stands.
 #[derive(Clone, Debug, PartialEq)]
-struct GeometryKey {
-    view: usize,
-    display: Display,
-    selected: Option<u32>,
-    has_true_error: bool,
+pub enum RefState {
+    /// No scene, or no reference thread.
+    None,
+    /// Looking in the disk cache.
+    Looking,
+    /// Not cached: the "Compute reference" button offers to compute it.
+    Missing,
+    Computing {
+        regions: usize,
+        samples: u32,
+        since: Instant,
+    },
+    Ready {
+        regions: usize,
+        samples: u32,
+        how: String,
+    },
+    Failed(String),
 }
+
+/// What a display build depends on.
+#[derive(Clone, Debug, PartialEq)]
+struct BuildKey {
+    view_seq: u64,
+    /// Address of the true-error list (`Arc` identity), if any.
+    true_error: Option<usize>,
+    settings: builder::Settings,
+}
+
+/// One row of the inspector's link table: (receiver, source, F, V, B·F·V).
+type LinkRow = (u32, u32, f32, f32, f64);
 
 impl RadlabApp {
     /// Build the app: store the viewport renderer in egui's callback resources, start the
@@ -221,6 +282,8 @@ impl RadlabApp {
         };
         let ctx = cc.egui_ctx.clone();
         let worker = Worker::spawn(move || ctx.request_repaint());
+        let ctx = cc.egui_ctx.clone();
+        let display_builder = Builder::spawn(move || ctx.request_repaint());
         let preset = if HierarchicalParams::preset(&opts.preset).is_some() {
             opts.preset.clone()
         } else {
@@ -256,7 +319,18 @@ impl RadlabApp {
             error_samples: Vec::new(),
             geometry: Arc::new(Geometry::default()),
             generation: 0,
-            geometry_key: None,
+            builder: None,
+            build_key: None,
+            build_seq: 0,
+            shown_seq: 0,
+            exposure_view_seq: 0,
+            inspector_rows: None,
+            view_seq: 0,
+            solve_frames: FrameBench::default(),
+            max_upload_s: 0.0,
+            reference: None,
+            ref_state: RefState::None,
+            evaluated_seq: 0,
             link_stats: (0, 0),
             link_scale: None,
             error_scale: None,
@@ -270,11 +344,20 @@ impl RadlabApp {
             show_plots: opts.show_plots,
             exit_code: None,
             last_ui_s: 0.0,
+            last_ui_cpu_s: None,
             rebuild_s: 0.0,
+            panels_from_clear: false,
             opts,
         };
         match worker {
             Ok(w) => app.worker = Some(w),
+            Err(e) => app.errors.push(e),
+        }
+        // Without the display thread the geometry is built on the UI thread (slower, correct).
+        app.builder = display_builder.ok();
+        let ctx = cc.egui_ctx.clone();
+        match RefThread::spawn(app.opts.reference.clone(), move || ctx.request_repaint()) {
+            Ok(t) => app.reference = Some(t),
             Err(e) => app.errors.push(e),
         }
         for o in &app.opts.overlay {
@@ -328,9 +411,13 @@ impl RadlabApp {
         self.scene_spec.clone_from(&scene.source);
         self.selected = None;
         self.true_error = None;
+        self.error_samples.clear();
         self.last_report = None;
-        self.view = Arc::new(ViewData::default());
-        self.geometry_key = None;
+        if let Some(r) = &mut self.reference {
+            r.send(RefCommand::Load { scene: Arc::clone(&scene), compute: false });
+            self.ref_state = RefState::Looking;
+        }
+        self.set_view(Arc::new(ViewData::default()));
         for w in &scene.warnings {
             self.status = format!("{}: {w}", scene.name);
         }
@@ -370,7 +457,7 @@ impl RadlabApp {
     /// Replace the error overlay's values with the true error against a reference (indexed by
     /// element id, units of B), or go back to the solver's estimate with `None`.
     pub fn set_true_error(&mut self, err: Option<Vec<f64>>) {
-        self.true_error = err;
+        self.true_error = err.map(Arc::new);
     }
 
     /// Solver time since the last restart (load, reset, parameter change), seconds.
@@ -420,7 +507,8 @@ impl RadlabApp {
         }
     }
 
-    /// Block until the solver thread is idle and apply its replies (tests, scripted runs).
+    /// Block until the solver thread is idle and apply its replies, then until the reference
+    /// thread has scored the result, then until the display is built (tests, scripted runs).
     pub fn wait_for_solver(&mut self) {
         let mut replies = Vec::new();
         if let Some(w) = &mut self.worker {
@@ -428,6 +516,21 @@ impl RadlabApp {
         }
         for r in replies {
             self.apply(r);
+        }
+        loop {
+            self.request_evaluation();
+            let mut replies = Vec::new();
+            match &mut self.reference {
+                Some(r) if r.busy() => r.wait_idle(|x| replies.push(x)),
+                _ => break,
+            }
+            for r in replies {
+                self.apply_ref(r);
+            }
+        }
+        self.request_geometry();
+        if let Some(b) = self.builder.as_mut().and_then(Builder::wait) {
+            self.apply_built(b);
         }
     }
 
@@ -450,13 +553,13 @@ impl RadlabApp {
     fn apply(&mut self, r: Reply) {
         match r {
             Reply::Loaded { view, .. } => {
-                self.view = view;
+                self.set_view(view);
                 self.progress = None;
                 self.solver_time_s = 0.0;
                 self.error_samples.clear();
             }
             Reply::Done { report, view } => {
-                self.view = view;
+                self.set_view(view);
                 self.progress = None;
                 if report.is_none() {
                     // SetParams / Reset restart the solver: element ids start over.
@@ -479,12 +582,9 @@ impl RadlabApp {
                 }
                 if self.script == Script::Solving && !self.busy() {
                     self.script = match self.opts.bench_frames {
-                        Some(n) => Script::Bench {
-                            left: n,
-                            times: Vec::with_capacity(n),
-                            last: None,
-                            ui_times: Vec::new(),
-                        },
+                        Some(_) => {
+                            Script::Bench { warmup: BENCH_WARMUP_FRAMES, bench: FrameBench::default() }
+                        }
                         None => Script::Settle(4),
                     };
                 }
@@ -501,81 +601,242 @@ impl RadlabApp {
         }
     }
 
-    /// Per-element error values shown by the heatmap, and what they are.
-    fn error_values(&self) -> (Vec<f64>, &'static str) {
-        match &self.true_error {
-            Some(e) if e.len() == self.view.elements.len() => (e.clone(), "true error |B − B_ref|"),
-            _ => (self.view.elements.iter().map(|e| e.error_estimate).collect(), "solver's error estimate"),
+    /// Compute the reference of the current scene on the reference thread (uses the disk
+    /// cache; the UI stays live and shows the elapsed time).
+    pub fn compute_reference(&mut self) {
+        if let (Some(r), Some(scene)) = (&mut self.reference, &self.scene) {
+            r.send(RefCommand::Load { scene: Arc::clone(scene), compute: true });
+            self.ref_state = RefState::Looking;
         }
     }
 
-    fn rebuild_geometry(&mut self) {
-        if self.display.auto_exposure
-            && self.geometry_key.as_ref().is_none_or(|k| k.view != Arc::as_ptr(&self.view) as usize)
-            && let Some(ev) = auto_exposure(&self.view)
+    /// The (solver time, rel L2 error against the reference) points of the error plot.
+    #[must_use]
+    pub fn error_samples(&self) -> &[[f64; 2]] {
+        &self.error_samples
+    }
+
+    /// Send the current solver state to the reference thread for scoring, once.
+    fn request_evaluation(&mut self) {
+        if !matches!(self.ref_state, RefState::Ready { .. })
+            || self.evaluated_seq == self.view_seq
+            || self.view.elements.is_empty()
         {
-            self.display.exposure_ev = ev;
-        }
-        let key = GeometryKey {
-            view: Arc::as_ptr(&self.view) as usize,
-            display: self.display,
-            selected: self.selected,
-            has_true_error: self.true_error.is_some(),
-        };
-        if self.geometry_key.as_ref() == Some(&key) {
             return;
         }
-        let started = Instant::now();
-        let v = &self.view;
-        let lift = self.camera.scale * LINE_LIFT;
-        let (errors, _) = self.error_values();
-        let (heat, escale) = overlay::heatmap_colors(&errors);
-        self.error_scale = escale;
-        let colors = if self.display.error {
-            MeshColors::Display(&heat)
-        } else if self.display.shading == Shading::Smooth {
-            MeshColors::Smooth
-        } else {
-            MeshColors::Flat
-        };
-        let mesh = geometry::mesh(&v.elements, &v.leaves, colors, self.origin);
-        let mut lines = Vec::new();
-        if self.display.quadtree {
-            lines = geometry::lines(&overlay::quadtree_lines(&v.elements, &v.leaves, lift), self.origin);
+        if let Some(r) = &mut self.reference {
+            r.send(RefCommand::Evaluate {
+                view: Arc::clone(&self.view),
+                view_seq: self.view_seq,
+                solver_time_s: self.solver_time_s,
+            });
+            self.evaluated_seq = self.view_seq;
         }
-        if let Some(sel) = self.selected.and_then(|s| v.elements.get(s as usize)) {
-            // Outline the picked element in white, lifted a little more than the quadtree.
-            let mut outline = overlay::LineList::default();
-            let n = sel.normal() * lift * 2.0;
-            let p = sel.verts();
-            for i in 0..p.len() {
-                outline.points.extend([p[i] + n, p[(i + 1) % p.len()] + n]);
-                outline.colors.extend([[1.0, 1.0, 1.0, 1.0]; 2]);
-            }
-            lines.extend(geometry::lines(&outline, self.origin));
-        }
-        let mut links = Vec::new();
-        self.link_stats = (0, 0);
-        self.link_scale = None;
-        let show_links = self.display.links || (self.selected.is_some() && self.display.selected_links_only);
-        if show_links {
-            let mut filter = self.display.link_filter;
-            filter.element = if self.display.selected_links_only { self.selected } else { None };
-            if self.display.selected_links_only && self.selected.is_none() {
-                filter.element = Some(u32::MAX); // nothing picked: nothing to show
-            }
-            let ll = overlay::link_lines(&v.elements, &v.links, &filter, self.display.link_alpha);
-            self.link_stats = (ll.shown, ll.matched);
-            self.link_scale = ll.scale;
-            links = geometry::lines(&ll.lines, self.origin);
-        }
-        self.geometry = Arc::new(Geometry { mesh, lines, links, links_xray: self.display.links_xray });
-        self.generation += 1;
-        self.geometry_key = Some(key);
-        self.rebuild_s = started.elapsed().as_secs_f64();
     }
 
-    fn uniforms(&self, aspect: f64) -> Uniforms {
+    fn poll_reference(&mut self) {
+        let mut replies = Vec::new();
+        if let Some(r) = &mut self.reference {
+            while let Some(x) = r.poll() {
+                replies.push(x);
+            }
+        }
+        for r in replies {
+            self.apply_ref(r);
+        }
+        self.request_evaluation();
+    }
+
+    fn apply_ref(&mut self, r: RefReply) {
+        let current = |source: &str, s: &Self| s.scene.as_ref().is_some_and(|sc| sc.source == source);
+        match r {
+            RefReply::Computing { source, regions, samples } if current(&source, self) => {
+                self.ref_state = RefState::Computing { regions, samples, since: Instant::now() };
+            }
+            RefReply::Missing { source } if current(&source, self) => self.ref_state = RefState::Missing,
+            RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
+                self.ref_state = RefState::Ready { regions, samples, how };
+                self.evaluated_seq = 0; // score the current state
+            }
+            RefReply::Evaluated(e) => {
+                if e.view_seq == self.view_seq {
+                    self.true_error = Some(Arc::new(e.per_element));
+                }
+                if e.rel_l2.is_finite() {
+                    self.error_samples.push([e.solver_time_s, e.rel_l2]);
+                }
+            }
+            RefReply::Failed(e) => {
+                self.ref_state = RefState::Failed(e.clone());
+                self.errors.push(e);
+            }
+            // Answers about a scene no longer shown.
+            RefReply::Computing { .. } | RefReply::Missing { .. } | RefReply::Ready { .. } => {}
+        }
+    }
+
+    fn reference_panel(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Reference");
+        let compute_button = |ui: &mut egui::Ui| {
+            ui.button("Compute reference")
+                .on_hover_text(
+                    "Independent Monte Carlo reference (radlab reference), on a background thread; \
+                     saved in the disk cache",
+                )
+                .clicked()
+        };
+        match self.ref_state.clone() {
+            RefState::None => {
+                ui.weak("no scene");
+            }
+            // Short lines: the panel widens to its widest line and keeps that width.
+            RefState::Looking => {
+                ui.horizontal(|ui| {
+                    ui.spinner();
+                    ui.label("looking in the cache…");
+                });
+            }
+            RefState::Missing => {
+                ui.label("none cached for this scene");
+                if compute_button(ui) {
+                    self.compute_reference();
+                }
+            }
+            RefState::Computing { regions, samples, since } => {
+                ui.horizontal(|ui| {
+                    ui.spinner();
+                    ui.label(format!("computing… {:.0} s", since.elapsed().as_secs_f64()));
+                });
+                ui.label(format!("{regions} regions × {samples} paths"));
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(500));
+            }
+            RefState::Ready { regions, samples, how } => {
+                ui.label(format!("{regions} regions × {samples} paths")).on_hover_text(how);
+                if let Some([_, e]) = self.error_samples.last() {
+                    ui.label(format!("rel L2 error {:.2} %", e * 100.0))
+                        .on_hover_text("of the current state; the plots show it against solver time");
+                }
+            }
+            RefState::Failed(e) => {
+                ui.colored_label(Color32::from_rgb(255, 150, 130), e);
+                if compute_button(ui) {
+                    self.compute_reference();
+                }
+            }
+        }
+    }
+
+    fn set_view(&mut self, view: Arc<ViewData>) {
+        self.view = view;
+        self.view_seq += 1;
+    }
+
+    /// The true error list, when it matches the current solver state.
+    fn true_error(&self) -> Option<&Arc<Vec<f64>>> {
+        self.true_error.as_ref().filter(|e| e.len() == self.view.elements.len())
+    }
+
+    /// What the error heatmap shows.
+    #[must_use]
+    pub fn error_label(&self) -> &'static str {
+        if self.true_error().is_some() { "true error |B − B_ref|" } else { "solver's error estimate" }
+    }
+
+    /// The error value of one element (as the heatmap shows it).
+    fn error_of(&self, id: u32) -> f64 {
+        match self.true_error() {
+            Some(e) => e.get(id as usize).copied().unwrap_or(0.0),
+            None => self.view.elements.get(id as usize).map_or(0.0, |e| e.error_estimate),
+        }
+    }
+
+    /// Ask for a display build when the solver state or a display setting it depends on
+    /// changed. The build runs on the `radlab-display` thread; the UI keeps showing the previous
+    /// geometry until [`RadlabApp::poll_geometry`] picks the new one up.
+    fn request_geometry(&mut self) {
+        let d = &self.display;
+        let show_links = d.links || (self.selected.is_some() && d.selected_links_only);
+        let links = show_links.then(|| {
+            let mut filter = d.link_filter;
+            filter.element = if d.selected_links_only {
+                // Nothing picked: nothing to show.
+                Some(self.selected.unwrap_or(u32::MAX))
+            } else {
+                None
+            };
+            filter
+        });
+        let settings = builder::Settings {
+            coloring: if d.error {
+                Coloring::Error
+            } else if d.shading == Shading::Smooth {
+                Coloring::Smooth
+            } else {
+                Coloring::Flat
+            },
+            links,
+            link_alpha: d.link_alpha,
+            links_xray: d.links_xray,
+            origin: self.origin,
+        };
+        let key = BuildKey {
+            view_seq: self.view_seq,
+            true_error: self.true_error().map(|e| Arc::as_ptr(e) as usize),
+            settings,
+        };
+        if self.build_key.as_ref() == Some(&key) {
+            return;
+        }
+        self.build_seq += 1;
+        let req = builder::Request {
+            seq: self.build_seq,
+            view: Arc::clone(&self.view),
+            view_seq: self.view_seq,
+            true_error: self.true_error().cloned(),
+            settings,
+        };
+        self.build_key = Some(key);
+        match &mut self.builder {
+            Some(b) => b.request(req),
+            None => {
+                let built = builder::build(&req);
+                self.apply_built(built);
+            }
+        }
+    }
+
+    fn poll_geometry(&mut self) {
+        if let Some(b) = self.builder.as_mut().and_then(Builder::poll) {
+            self.apply_built(b);
+        }
+    }
+
+    fn apply_built(&mut self, b: Built) {
+        if b.seq <= self.shown_seq && self.shown_seq != 0 {
+            return;
+        }
+        self.shown_seq = b.seq;
+        self.geometry = b.geometry;
+        self.generation += 1;
+        self.link_stats = b.link_stats;
+        self.link_scale = b.link_scale;
+        self.error_scale = b.error_scale;
+        self.rebuild_s = b.build_s;
+        if self.display.auto_exposure
+            && b.view_seq != self.exposure_view_seq
+            && let Some(ev) = b.auto_ev
+        {
+            self.display.exposure_ev = ev;
+            self.exposure_view_seq = b.view_seq;
+        }
+    }
+
+    /// True when the geometry shown is the newest requested (scripted runs wait for it).
+    fn geometry_current(&self) -> bool {
+        self.build_key.is_some() && self.shown_seq == self.build_seq
+    }
+
+    fn uniforms(&self, aspect: f64, pixels_per_point: f32) -> Uniforms {
         let m = self.camera.view_proj(aspect, self.origin).to_cols_array_2d();
         Uniforms {
             view_proj: m.map(|c| c.map(|x| x as f32)),
@@ -584,6 +845,10 @@ impl RadlabApp {
             mode: u32::from(self.display.error),
             selected: self.selected.unwrap_or(NO_SELECTION),
             back_color: BACK_COLOR,
+            overlay: if self.display.quadtree { OVERLAY_QUADTREE } else { 0 }
+                | if self.selected.is_some() { OVERLAY_PICKED } else { 0 },
+            line_px: QUADTREE_LINE_PX * pixels_per_point,
+            _pad: [0; 2],
         }
     }
 
@@ -724,6 +989,9 @@ impl RadlabApp {
         }
 
         ui.separator();
+        self.reference_panel(ui);
+
+        ui.separator();
         ui.heading("Display");
         let d = &mut self.display;
         ui.horizontal(|ui| {
@@ -789,7 +1057,7 @@ impl RadlabApp {
         let Some(e) = v.elements.get(id as usize) else {
             return;
         };
-        let (errors, err_label) = self.error_values();
+        let (error, err_label) = (self.error_of(id), self.error_label());
         egui::Grid::new("element").num_columns(2).striped(true).show(ui, |ui| {
             let row = |ui: &mut egui::Ui, k: &str, val: String| {
                 ui.label(k);
@@ -805,26 +1073,31 @@ impl RadlabApp {
             row(ui, "E", rgb_text(e.emission));
             row(ui, "ρ", rgb_text(e.reflectance));
             row(ui, "B", rgb_text(e.radiosity));
-            row(
-                ui,
-                "error",
-                format!("{:.3e} ({err_label})", errors.get(id as usize).copied().unwrap_or(0.0)),
-            );
+            row(ui, "error", format!("{error:.3e} ({err_label})"));
             row(ui, "stopped", e.stop.to_owned());
         });
         ui.separator();
-        // Links through which this element gathers: its own and its ancestors'.
-        let chain = overlay::ancestors(&v.elements, id);
-        let mut rows: Vec<(u32, u32, f32, f32, f64)> = v
-            .links
-            .iter()
-            .filter(|l| chain.contains(&l.receiver))
-            .map(|l| {
-                let b = v.elements.get(l.source as usize).map_or(0.0, |s| s.radiosity.mean());
-                (l.receiver, l.source, l.ff, l.vis, b * f64::from(l.ff) * f64::from(l.vis))
-            })
-            .collect();
-        rows.sort_by(|a, b| b.4.total_cmp(&a.4).then(a.1.cmp(&b.1)));
+        // Links through which this element gathers: its own and its ancestors' (computed once
+        // per solver state and element, not every frame).
+        let rows = match &self.inspector_rows {
+            Some((seq, sel, rows)) if *seq == self.view_seq && *sel == id => Arc::clone(rows),
+            _ => {
+                let chain = overlay::ancestors(&v.elements, id);
+                let mut rows: Vec<LinkRow> = v
+                    .links
+                    .iter()
+                    .filter(|l| chain.contains(&l.receiver))
+                    .map(|l| {
+                        let b = v.elements.get(l.source as usize).map_or(0.0, |s| s.radiosity.mean());
+                        (l.receiver, l.source, l.ff, l.vis, b * f64::from(l.ff) * f64::from(l.vis))
+                    })
+                    .collect();
+                rows.sort_by(|a, b| b.4.total_cmp(&a.4).then(a.1.cmp(&b.1)));
+                let rows = Arc::new(rows);
+                self.inspector_rows = Some((self.view_seq, id, Arc::clone(&rows)));
+                rows
+            }
+        };
         ui.label(format!("{} links gathered through (own + ancestors'), by B·F·V:", rows.len()));
         egui::ScrollArea::vertical().max_height(220.0).id_salt("links").show(ui, |ui| {
             egui::Grid::new("links").num_columns(5).striped(true).show(ui, |ui| {
@@ -885,7 +1158,7 @@ impl RadlabApp {
         if self.error_samples.is_empty() {
             ui.weak("Error against time appears when a reference solution is loaded.");
         } else {
-            ui.label("Error against the reference vs solver time");
+            ui.label("Error against the reference (rel L2, log₁₀) vs solver time");
             let pts: Vec<[f64; 2]> =
                 self.error_samples.iter().filter(|p| p[1] > 0.0).map(|p| [p[0], p[1].log10()]).collect();
             Plot::new("error_vs_time")
@@ -996,7 +1269,8 @@ impl RadlabApp {
             self.pick_at(pos, rect);
         }
 
-        self.rebuild_geometry();
+        self.request_geometry();
+        self.poll_geometry();
         let painter = ui.painter_at(rect);
         if self.has_wgpu {
             let ppp = ui.ctx().pixels_per_point();
@@ -1005,7 +1279,7 @@ impl RadlabApp {
             painter.add(egui_wgpu::Callback::new_paint_callback(
                 rect,
                 ViewportCallback {
-                    frame: FrameParams { uniforms: self.uniforms(aspect), size, clear: BACKGROUND },
+                    frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size, clear: BACKGROUND },
                     geometry: Arc::clone(&self.geometry),
                     generation: self.generation,
                 },
@@ -1122,7 +1396,7 @@ impl RadlabApp {
             y += 18.0;
         }
         if self.display.error {
-            let (_, what) = self.error_values();
+            let what = self.error_label();
             colour_bar(
                 painter,
                 Pos2::new(x, y),
@@ -1196,9 +1470,19 @@ impl RadlabApp {
     }
 
     fn run_script(&mut self, ctx: &egui::Context) {
+        // The display is final when the newest build is shown and the reference thread has
+        // nothing left to report (its look-up or a score changes the error overlay).
+        let current = self.geometry_current() && !self.reference.as_ref().is_some_and(RefThread::busy);
         match &mut self.script {
             Script::None | Script::Done | Script::WaitingShot => {}
-            Script::Solving => {}
+            Script::Solving => {
+                if self.opts.bench_frames.is_some() {
+                    // Keep drawing while the solver runs: the UI must not wait on it.
+                    self.solve_frames.tick(Instant::now(), self.last_ui_s, self.last_ui_cpu_s);
+                    self.camera.orbit(0.002, 0.0);
+                    ctx.request_repaint();
+                }
+            }
             Script::Settle(n) => {
                 let n = *n;
                 if n == 1
@@ -1208,44 +1492,56 @@ impl RadlabApp {
                     self.display.selected_links_only = true;
                 }
                 if n == 0 {
-                    self.script = Script::WaitingShot;
-                    self.request_screenshot(ctx);
+                    // The display thread may still be building the last change.
+                    if current {
+                        self.script = Script::WaitingShot;
+                        self.request_screenshot(ctx);
+                    }
                 } else {
                     self.script = Script::Settle(n - 1);
                 }
                 ctx.request_repaint();
             }
-            Script::Bench { left, times, last, ui_times } => {
-                if last.is_some() {
-                    ui_times.push(self.last_ui_s);
+            Script::Bench { warmup, bench } => {
+                if *warmup > 0 || !current {
+                    *warmup -= usize::from(current && *warmup > 0);
+                } else {
+                    bench.tick(Instant::now(), self.last_ui_s, self.last_ui_cpu_s);
                 }
-                let now = Instant::now();
-                if let Some(t) = last {
-                    times.push(now.duration_since(*t).as_secs_f64());
-                    *left = left.saturating_sub(1);
-                }
-                *last = Some(now);
                 // Spin the camera a little so every frame really redraws.
                 self.camera.orbit(0.002, 0.0);
-                if *left == 0 {
-                    let mut t = times.clone();
-                    t.sort_by(f64::total_cmp);
-                    let med = t.get(t.len() / 2).copied().unwrap_or(0.0);
-                    let p90 = t.get(t.len() * 9 / 10).copied().unwrap_or(0.0);
-                    let mut u = ui_times.clone();
-                    u.sort_by(f64::total_cmp);
-                    let ui_med = u.get(u.len() / 2).copied().unwrap_or(0.0);
+                if bench.frames() >= self.opts.bench_frames.unwrap_or(0) {
+                    let s = bench.summary();
+                    let fmt_cpu = |c: Option<f64>| c.map_or("n/a".to_owned(), |c| format!("{c:.1} ms"));
                     println!(
-                        "radlab: {} frames, {} leaves, {} links drawn, {} overlay lines; frame time median {:.2} ms, p90 {:.2} ms ({:.1} fps); UI code (egui + app, CPU) median {:.2} ms; last display rebuild {:.1} ms",
-                        t.len(),
+                        "radlab: {} frames; {} elements ({} leaves, {} triangles), {} links ({} drawn); quadtree {}; frame time median {:.2} ms, p95 {:.2} ms, max {:.2} ms ({:.1} fps); CPU {} per frame (all threads); UI code median {:.2} ms; last display build {:.1} ms (display thread); load average {}",
+                        s.frames,
+                        self.view.stats.elements,
                         self.view.leaves.len(),
-                        self.link_stats.0,
-                        self.geometry.lines.len() / 2,
-                        med * 1e3,
-                        p90 * 1e3,
-                        if med > 0.0 { 1.0 / med } else { 0.0 },
-                        ui_med * 1e3,
-                        self.rebuild_s * 1e3
+                        self.geometry.mesh.triangles(),
+                        self.view.links.len(),
+                        self.geometry.links.len() / 2,
+                        if self.display.quadtree { "on" } else { "off" },
+                        s.median_ms,
+                        s.p95_ms,
+                        s.max_ms,
+                        if s.median_ms > 0.0 { 1e3 / s.median_ms } else { 0.0 },
+                        fmt_cpu(s.cpu_ms_per_frame),
+                        s.ui_median_ms,
+                        self.rebuild_s * 1e3,
+                        super::bench::load_average().map_or("n/a".to_owned(), |l| format!("{l:.2}")),
+                    );
+                    let d = self.solve_frames.summary();
+                    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max) * 1e3;
+                    println!(
+                        "radlab: during the solve: {} frames, frame time median {:.2} ms, p95 {:.2} ms, max {:.2} ms; UI code max {:.2} ms wall, {:.2} ms on-CPU; largest geometry upload {:.2} ms",
+                        d.frames,
+                        d.median_ms,
+                        d.p95_ms,
+                        d.max_ms,
+                        max(&self.solve_frames.ui_s),
+                        max(&self.solve_frames.ui_cpu_s),
+                        self.max_upload_s * 1e3
                     );
                     self.script = Script::Done;
                     self.exit_code.get_or_insert(0);
@@ -1257,10 +1553,17 @@ impl RadlabApp {
 }
 
 impl eframe::App for RadlabApp {
-    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let started = Instant::now();
+        let cpu_started = self.opts.bench_frames.and_then(|_| super::bench::thread_cpu_s());
+        if let Some(rs) = frame.wgpu_render_state()
+            && let Some(r) = rs.renderer.read().callback_resources.get::<SceneRenderer>()
+        {
+            self.max_upload_s = self.max_upload_s.max(r.last_upload_s);
+        }
         let ctx = ui.ctx().clone();
         self.poll_worker();
+        self.poll_reference();
         if let Some(rx) = &self.open_rx
             && let Ok(res) = rx.try_recv()
         {
@@ -1285,12 +1588,16 @@ impl eframe::App for RadlabApp {
             }
         }
 
-        egui::Panel::top("top").show(ui, |ui| self.top_bar(ui));
-        egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
-        egui::Panel::left("controls").resizable(true).default_size(270.0).show(ui, |ui| {
+        let mut frame = egui::Frame::side_top_panel(ui.style());
+        if self.panels_from_clear {
+            frame = frame.fill(Color32::TRANSPARENT);
+        }
+        egui::Panel::top("top").frame(frame).show(ui, |ui| self.top_bar(ui));
+        egui::Panel::bottom("status").frame(frame).show(ui, |ui| self.status_bar(ui));
+        egui::Panel::left("controls").frame(frame).resizable(true).default_size(270.0).show(ui, |ui| {
             egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
         });
-        egui::Panel::right("inspector").resizable(true).default_size(300.0).show(ui, |ui| {
+        egui::Panel::right("inspector").frame(frame).resizable(true).default_size(300.0).show(ui, |ui| {
             egui::ScrollArea::vertical().id_salt("inspector_scroll").show(ui, |ui| {
                 if !self.errors.is_empty() {
                     ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
@@ -1323,6 +1630,7 @@ impl eframe::App for RadlabApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
         }
         self.last_ui_s = started.elapsed().as_secs_f64();
+        self.last_ui_cpu_s = cpu_started.and_then(|a| super::bench::thread_cpu_s().map(|b| b - a));
     }
 }
 

@@ -2,17 +2,24 @@
 //!
 //! - [`app`]: panels (solver controls, display, overlays, inspector, plots, status bar), picking,
 //!   screenshots, drag-and-drop and the scripted `--screenshot` / `--bench-frames` runs.
+//! - [`bench`]: frame-time statistics of `--bench-frames`.
+//! - [`builder`]: the `radlab-display` thread that builds GPU vertex arrays off the UI thread.
 //! - [`camera`]: orbit / pan / zoom camera.
+//! - [`reference`]: the `radlab-reference` thread: cached/computed reference, true error.
 //! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
 //!
 //! Rendering is in [`crate::render`]; display lists in [`crate::overlay`].
 
 pub mod app;
+pub mod bench;
+pub mod builder;
 pub mod camera;
+pub mod reference;
 pub mod worker;
 
-pub use app::{OverlayChoice, RadlabApp, ViewerOptions};
+pub use app::{OverlayChoice, RadlabApp, RefState, ViewerOptions};
 use eframe::egui;
+pub use reference::RefSettings;
 use std::sync::{Arc, Mutex};
 
 /// Why the viewer could not run.
@@ -45,6 +52,9 @@ pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
             .with_title("radlab")
             .with_inner_size([1280.0, 800.0])
             .with_drag_and_drop(true),
+        // Dithering only matters for gradients (egui draws none); on a CPU rasteriser it is
+        // per-pixel work in every egui draw.
+        dithering: false,
         ..eframe::NativeOptions::default()
     };
     if opts.bench_frames.is_some() {
@@ -56,7 +66,11 @@ pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
     let result = eframe::run_native(
         "radlab",
         native,
-        Box::new(move |cc| Ok(Box::new(ExitReporter { app: RadlabApp::new(cc, opts), exit: exit_app }))),
+        Box::new(move |cc| {
+            let mut app = RadlabApp::new(cc, opts);
+            app.panels_from_clear = true;
+            Ok(Box::new(ExitReporter { app, exit: exit_app }))
+        }),
     );
     result.map_err(|e| ViewerError::Window(e.to_string()))?;
     let code = exit.lock().map_or(None, |g| *g);
@@ -75,6 +89,11 @@ struct ExitReporter {
 }
 
 impl eframe::App for ExitReporter {
+    /// The panels' colour: the panels are drawn unfilled over it (`panels_from_clear`).
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        visuals.panel_fill.to_normalized_gamma_f32()
+    }
+
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.app.ui(ui, frame);
         if let Some(c) = self.app.exit_code

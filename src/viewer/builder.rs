@@ -1,0 +1,272 @@
+//! The display builder: turns a solver state ([`ViewData`]) and the display settings into
+//! ready-made GPU vertex arrays ([`Geometry`]) on its own thread, `radlab-display`, so the UI
+//! thread only uploads them: with 20 000+ elements the conforming mesh, the link lines and the
+//! colour scales take tens of milliseconds, more than a frame.
+//!
+//! ```text
+//!  UI ── Request {seq, view, settings} ──► "radlab-display" ── Built {seq, geometry} ──► UI
+//!        (only when the key changes)        builds the newest       (uploads it, keeps the
+//!                                           queued request only      old one until then)
+//! ```
+
+use super::worker::ViewData;
+use crate::math::DVec3;
+use crate::overlay::{self, LinkFilter, LogScale};
+use crate::render::Geometry;
+use crate::render::geometry::{self, MeshColors};
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
+use std::time::Instant;
+
+/// How the mesh is coloured.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Coloring {
+    Flat,
+    Smooth,
+    /// Error heatmap (true error when given, else the solver's estimate).
+    Error,
+}
+
+/// Everything besides the solver state that the geometry depends on.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Settings {
+    pub coloring: Coloring,
+    /// The links overlay, when shown: its filter (with the picked element already applied).
+    pub links: Option<LinkFilter>,
+    pub link_alpha: f32,
+    pub links_xray: bool,
+    /// Scene centre subtracted from every position.
+    pub origin: DVec3,
+}
+
+/// One build job.
+#[derive(Clone, Debug)]
+pub struct Request {
+    /// Increases with every request; results carry it back.
+    pub seq: u64,
+    pub view: Arc<ViewData>,
+    /// Identifies `view` (the UI counts the solver states it receives).
+    pub view_seq: u64,
+    /// Per-element true error (indexed like `view.elements`), when a reference exists.
+    pub true_error: Option<Arc<Vec<f64>>>,
+    pub settings: Settings,
+}
+
+/// What the UI receives.
+#[derive(Clone, Debug)]
+pub struct Built {
+    pub seq: u64,
+    /// The request's `view_seq`.
+    pub view_seq: u64,
+    pub geometry: Arc<Geometry>,
+    /// Links drawn, links matching the filter.
+    pub link_stats: (usize, usize),
+    pub link_scale: Option<LogScale>,
+    pub error_scale: Option<LogScale>,
+    /// Auto exposure of this solver state ([`super::app::auto_exposure`]).
+    pub auto_ev: Option<f32>,
+    /// Wall time of the build, seconds.
+    pub build_s: f64,
+}
+
+/// Build the geometry of one request (the builder thread runs this; tests may call it directly).
+#[must_use]
+pub fn build(req: &Request) -> Built {
+    let started = Instant::now();
+    let v = &req.view;
+    let s = &req.settings;
+    let true_error = req.true_error.as_deref().filter(|e| e.len() == v.elements.len());
+    let (heat, error_scale) = match true_error {
+        Some(e) => overlay::heatmap_colors(e),
+        None => overlay::heatmap_colors(&v.elements.iter().map(|e| e.error_estimate).collect::<Vec<_>>()),
+    };
+    let colors = match s.coloring {
+        Coloring::Error => MeshColors::Display(&heat),
+        Coloring::Smooth => MeshColors::Smooth,
+        Coloring::Flat => MeshColors::Flat,
+    };
+    let mesh = geometry::mesh(&v.elements, &v.leaves, colors, s.origin);
+    let (links, link_stats, link_scale) = match &s.links {
+        Some(filter) => {
+            let ll = overlay::link_lines(&v.elements, &v.links, filter, s.link_alpha);
+            (geometry::lines(&ll.lines, s.origin), (ll.shown, ll.matched), ll.scale)
+        }
+        None => (Vec::new(), (0, 0), None),
+    };
+    Built {
+        seq: req.seq,
+        view_seq: req.view_seq,
+        geometry: Arc::new(Geometry { mesh, links, links_xray: s.links_xray }),
+        link_stats,
+        link_scale,
+        error_scale,
+        auto_ev: super::app::auto_exposure(v),
+        build_s: started.elapsed().as_secs_f64(),
+    }
+}
+
+/// Handle of the builder thread (it ends when this is dropped).
+pub struct Builder {
+    tx: Sender<Request>,
+    rx: Receiver<Built>,
+    /// Sequence number of the newest request sent.
+    pub requested: Option<u64>,
+    /// Sequence number of the newest build handed out.
+    received: Option<u64>,
+}
+
+impl Builder {
+    /// Start the thread; `notify` is called after each build (the UI's repaint request).
+    pub fn spawn(notify: impl Fn() + Send + 'static) -> Result<Builder, String> {
+        let (tx, job_rx) = channel::<Request>();
+        let (done_tx, rx) = channel::<Built>();
+        std::thread::Builder::new()
+            .name("radlab-display".into())
+            .spawn(move || {
+                while let Ok(mut req) = job_rx.recv() {
+                    // Only the newest queued request matters.
+                    loop {
+                        match job_rx.try_recv() {
+                            Ok(newer) => req = newer,
+                            Err(TryRecvError::Empty) => break,
+                            Err(TryRecvError::Disconnected) => return,
+                        }
+                    }
+                    if done_tx.send(build(&req)).is_err() {
+                        return;
+                    }
+                    notify();
+                }
+            })
+            .map_err(|e| format!("cannot start the display thread: {e}"))?;
+        Ok(Builder { tx, rx, requested: None, received: None })
+    }
+
+    /// Queue a build.
+    pub fn request(&mut self, req: Request) {
+        let seq = req.seq;
+        if self.tx.send(req).is_ok() {
+            self.requested = Some(seq);
+        }
+    }
+
+    /// The newest finished build, if any (never blocks).
+    pub fn poll(&mut self) -> Option<Built> {
+        let mut last = None;
+        while let Ok(b) = self.rx.try_recv() {
+            last = Some(b);
+        }
+        if let Some(b) = &last {
+            self.received = Some(b.seq);
+        }
+        last
+    }
+
+    /// Block until the newest request is built, and return it unless it was handed out already
+    /// (tests and scripted runs only; never in `ui`).
+    pub fn wait(&mut self) -> Option<Built> {
+        let want = self.requested?;
+        if self.received.is_some_and(|r| r >= want) {
+            return None;
+        }
+        loop {
+            match self.rx.recv() {
+                Ok(b) if b.seq >= want => {
+                    self.received = Some(b.seq);
+                    return Some(b);
+                }
+                Ok(_) => {}
+                Err(_) => return None,
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Rgb;
+    use crate::overlay::{ElementView, LinkView};
+
+    fn view() -> Arc<ViewData> {
+        let sq = |id: u32, x: f64| ElementView {
+            id,
+            patch: id,
+            parent: None,
+            depth: 0,
+            leaf: true,
+            vertices: [
+                DVec3::new(x, 0.0, 0.0),
+                DVec3::new(x + 1.0, 0.0, 0.0),
+                DVec3::new(x + 1.0, 1.0, 0.0),
+                DVec3::new(x, 1.0, 0.0),
+            ],
+            n_vertices: 4,
+            area: 1.0,
+            reflectance: Rgb::splat(0.5),
+            emission: Rgb::ZERO,
+            radiosity: Rgb::splat(0.5),
+            error_estimate: 0.1 * f64::from(id + 1),
+            stop: "",
+        };
+        Arc::new(ViewData {
+            elements: vec![sq(0, 0.0), sq(1, 2.0)],
+            leaves: vec![0, 1],
+            links: vec![LinkView { receiver: 0, source: 1, ff: 0.1, vis: 1.0 }],
+            ..ViewData::default()
+        })
+    }
+
+    fn settings() -> Settings {
+        Settings {
+            coloring: Coloring::Smooth,
+            links: Some(LinkFilter::default()),
+            link_alpha: 1.0,
+            links_xray: false,
+            origin: DVec3::ZERO,
+        }
+    }
+
+    #[test]
+    fn builds_on_its_thread_newest_request_wins() {
+        let mut b = Builder::spawn(|| {}).unwrap();
+        assert!(b.wait().is_none(), "nothing requested");
+        for seq in 1..=3 {
+            b.request(Request { seq, view: view(), view_seq: 0, true_error: None, settings: settings() });
+        }
+        let built = b.wait().unwrap();
+        assert_eq!(built.seq, 3);
+        assert!(b.wait().is_none(), "handed out already: does not block");
+        assert_eq!(built.geometry.mesh.triangles(), 4);
+        assert_eq!(built.geometry.links.len(), 2);
+        assert_eq!(built.link_stats, (1, 1));
+        assert!(built.auto_ev.is_some());
+    }
+
+    #[test]
+    fn true_error_replaces_the_estimate_when_it_fits() {
+        let mut s = settings();
+        s.coloring = Coloring::Error;
+        s.links = None;
+        let est = build(&Request { seq: 0, view: view(), view_seq: 0, true_error: None, settings: s });
+        let err = build(&Request {
+            seq: 0,
+            view: view(),
+            view_seq: 0,
+            true_error: Some(Arc::new(vec![1.0, 100.0])),
+            settings: s,
+        });
+        assert!(est.error_scale.is_some() && err.error_scale.is_some());
+        assert_ne!(est.error_scale, err.error_scale, "the true error sets the scale");
+        // A list of the wrong length (a stale reference) is ignored.
+        let bad = build(&Request {
+            seq: 0,
+            view: view(),
+            view_seq: 0,
+            true_error: Some(Arc::new(vec![1.0])),
+            settings: s,
+        });
+        assert_eq!(bad.error_scale, est.error_scale);
+        assert!(err.geometry.links.is_empty());
+    }
+}

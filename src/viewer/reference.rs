@@ -1,0 +1,352 @@
+//! The reference solution in the viewer: looks up (or, on request, computes) the independent
+//! Monte Carlo reference of [`crate::reference`] for the loaded scene on its own thread,
+//! `radlab-reference`, and then scores every new solver state against it, off the UI thread:
+//!
+//! - the **true error per element** shown by the error heatmap: |B_i − B̂(i)| (mean over
+//!   channels, units of B), where B̂(i) is the reference averaged over leaf i
+//!   ([`crate::metrics::resample`] of the piecewise-constant reference onto the leaf);
+//! - the **relative L2 error** of the whole solution ([`crate::metrics`]: the solution resampled
+//!   onto the reference regions), a point of the error-against-time plot.
+//!
+//! The reference uses the mesh and settings of `radlab reference` by default (regions of
+//! diagonal / 16, [`ReferenceParams::standard`]) and its disk cache, so a reference computed on
+//! the command line is found here and the other way round. Its resolution limits the per-element
+//! error: a leaf finer than the reference regions is compared with the region's average.
+//!
+//! ```text
+//!  UI ── Load{scene, compute} ──► "radlab-reference": cache look-up / estimate (seconds–minutes)
+//!  UI ── Evaluate{view} ────────► per-element error + rel L2 ── Reply ──► UI (heatmap, plot)
+//! ```
+
+use super::worker::ViewData;
+use crate::accel::Accel;
+use crate::metrics;
+use crate::reference::{
+    Cache, CacheStatus, Estimate, RefElement, ReferenceParams, cache_key, reference_mesh,
+};
+use crate::scene::Scene;
+use crate::solver::SolvedElement;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::time::Instant;
+
+/// Reference regions are this fraction of the scene's bounding-box diagonal across (the default
+/// of `radlab reference`, so both share cache entries).
+pub const REGION_FRACTION_OF_DIAGONAL: f64 = 1.0 / 16.0;
+
+/// Where the reference comes from.
+#[derive(Clone, Debug)]
+pub struct RefSettings {
+    pub params: ReferenceParams,
+    pub cache: Cache,
+}
+
+impl Default for RefSettings {
+    fn default() -> Self {
+        RefSettings { params: ReferenceParams::standard(), cache: Cache::default_location() }
+    }
+}
+
+/// What the UI asks.
+pub enum RefCommand {
+    /// A new scene: look for a cached reference; with `compute`, estimate it when there is none.
+    Load { scene: Arc<Scene>, compute: bool },
+    /// Score a solver state (`view_seq` and `solver_time_s` are passed back).
+    Evaluate { view: Arc<ViewData>, view_seq: u64, solver_time_s: f64 },
+}
+
+/// What the reference thread answers.
+#[derive(Clone, Debug)]
+pub enum RefReply {
+    /// Computing: regions × paths per region, for the progress line.
+    Computing {
+        source: String,
+        regions: usize,
+        samples: u32,
+    },
+    /// No cached reference for this scene (and none was asked for).
+    Missing {
+        source: String,
+    },
+    Ready {
+        source: String,
+        regions: usize,
+        samples: u32,
+        how: String,
+    },
+    Evaluated(Evaluation),
+    Failed(String),
+}
+
+/// The score of one solver state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Evaluation {
+    pub view_seq: u64,
+    pub solver_time_s: f64,
+    /// |B − B̂| per element id (units of B; 0 for interior elements).
+    pub per_element: Vec<f64>,
+    /// Relative L2 error of the solution against the reference (see [`crate::metrics`]).
+    pub rel_l2: f64,
+}
+
+/// The reference of one scene.
+struct Loaded {
+    scene: Arc<Scene>,
+    mesh: Vec<RefElement>,
+    estimates: Vec<Estimate>,
+}
+
+/// Score a solver state against a reference.
+fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> Result<Evaluation, String> {
+    let leaves: Vec<SolvedElement> = view
+        .leaves
+        .iter()
+        .map(|&l| {
+            let e = &view.elements[l as usize];
+            SolvedElement {
+                patch: e.patch as usize,
+                vertices: e.verts().to_vec(),
+                area: e.area,
+                radiosity: e.radiosity,
+                error_estimate: None,
+            }
+        })
+        .collect();
+    // Scene norm: the solution resampled onto the reference regions.
+    let values = metrics::resample(&r.scene, &leaves, &r.mesh).map_err(|e| e.to_string())?;
+    let regions: Vec<(usize, f64)> =
+        r.mesh.iter().map(|m| (m.patch, crate::math::polygon_area(&m.vertices))).collect();
+    let report = metrics::compare_regions(&r.scene, &regions, &values, &r.estimates, 0.0)
+        .map_err(|e| e.to_string())?;
+    // Per leaf: the reference resampled onto the leaf.
+    let reference_elements: Vec<SolvedElement> = r
+        .mesh
+        .iter()
+        .zip(&r.estimates)
+        .map(|(m, est)| SolvedElement {
+            patch: m.patch,
+            vertices: m.vertices.clone(),
+            area: crate::math::polygon_area(&m.vertices),
+            radiosity: est.radiosity,
+            error_estimate: None,
+        })
+        .collect();
+    let leaf_regions: Vec<RefElement> =
+        leaves.iter().map(|l| RefElement { patch: l.patch, vertices: l.vertices.clone() }).collect();
+    let reference_at_leaves =
+        metrics::resample(&r.scene, &reference_elements, &leaf_regions).map_err(|e| e.to_string())?;
+    let mut per_element = vec![0.0; view.elements.len()];
+    for ((&l, leaf), b_ref) in view.leaves.iter().zip(&leaves).zip(&reference_at_leaves) {
+        per_element[l as usize] = (leaf.radiosity - *b_ref).map(f64::abs).mean();
+    }
+    Ok(Evaluation { view_seq, solver_time_s, per_element, rel_l2: report.scene.l2 })
+}
+
+/// Handle of the reference thread (it ends when this is dropped).
+pub struct RefThread {
+    tx: Sender<RefCommand>,
+    rx: Receiver<RefReply>,
+    /// Commands sent and not answered yet.
+    pending: usize,
+}
+
+impl RefThread {
+    /// Start the thread; `notify` is called after each reply (the UI's repaint request).
+    pub fn spawn(settings: RefSettings, notify: impl Fn() + Send + 'static) -> Result<RefThread, String> {
+        let (tx, cmd_rx) = channel::<RefCommand>();
+        let (reply_tx, rx) = channel::<RefReply>();
+        std::thread::Builder::new()
+            .name("radlab-reference".into())
+            .spawn(move || {
+                let mut loaded: Option<Loaded> = None;
+                while let Ok(cmd) = cmd_rx.recv() {
+                    let reply = match cmd {
+                        RefCommand::Load { scene, compute } => {
+                            let (reply, l) = load(&settings, scene, compute, &|r| {
+                                let _ = reply_tx.send(r);
+                                notify();
+                            });
+                            loaded = l;
+                            reply
+                        }
+                        RefCommand::Evaluate { view, view_seq, solver_time_s } => match &loaded {
+                            Some(r) => match evaluate(r, &view, view_seq, solver_time_s) {
+                                Ok(e) => RefReply::Evaluated(e),
+                                Err(e) => RefReply::Failed(format!("reference comparison: {e}")),
+                            },
+                            None => RefReply::Failed("no reference loaded".into()),
+                        },
+                    };
+                    if reply_tx.send(reply).is_err() {
+                        return;
+                    }
+                    notify();
+                }
+            })
+            .map_err(|e| format!("cannot start the reference thread: {e}"))?;
+        Ok(RefThread { tx, rx, pending: 0 })
+    }
+
+    pub fn send(&mut self, cmd: RefCommand) {
+        if self.tx.send(cmd).is_ok() {
+            self.pending += 1;
+        }
+    }
+
+    /// True while a command is queued or running.
+    #[must_use]
+    pub fn busy(&self) -> bool {
+        self.pending > 0
+    }
+
+    /// Next reply, if any (never blocks).
+    pub fn poll(&mut self) -> Option<RefReply> {
+        let r = self.rx.try_recv().ok()?;
+        if !matches!(r, RefReply::Computing { .. }) {
+            self.pending = self.pending.saturating_sub(1);
+        }
+        Some(r)
+    }
+
+    /// Block until every command is answered (tests and scripted runs only; never in `ui`).
+    pub fn wait_idle(&mut self, mut on_reply: impl FnMut(RefReply)) {
+        while self.pending > 0 {
+            match self.rx.recv() {
+                Ok(r) => {
+                    if !matches!(r, RefReply::Computing { .. }) {
+                        self.pending -= 1;
+                    }
+                    on_reply(r);
+                }
+                Err(_) => {
+                    self.pending = 0;
+                    on_reply(RefReply::Failed("the reference thread stopped".into()));
+                }
+            }
+        }
+    }
+}
+
+fn load(
+    settings: &RefSettings,
+    scene: Arc<Scene>,
+    compute: bool,
+    progress: &dyn Fn(RefReply),
+) -> (RefReply, Option<Loaded>) {
+    let source = scene.source.clone();
+    let mesh = match reference_mesh(&scene, scene.bounds().diagonal() * REGION_FRACTION_OF_DIAGONAL) {
+        Ok(m) => m,
+        Err(e) => return (RefReply::Failed(e.to_string()), None),
+    };
+    let (regions, samples) = (mesh.len(), settings.params.samples);
+    let key = cache_key(&scene, &mesh, &settings.params);
+    if !compute {
+        return match settings.cache.read(key, mesh.len()) {
+            Ok(c) => (
+                RefReply::Ready {
+                    source,
+                    regions,
+                    samples,
+                    how: format!("cached {}", settings.cache.file_for(key).display()),
+                },
+                Some(Loaded { scene, mesh, estimates: c.estimates }),
+            ),
+            Err(_) => (RefReply::Missing { source }, None),
+        };
+    }
+    progress(RefReply::Computing { source: source.clone(), regions, samples });
+    let started = Instant::now();
+    let accel = Accel::build(&scene);
+    match settings.cache.get_or_compute(&scene, &accel, &mesh, &settings.params) {
+        Ok((c, status)) => {
+            let how = match status {
+                CacheStatus::Hit(f) => format!("cached {}", f.display()),
+                CacheStatus::Computed(f) | CacheStatus::Recomputed { file: f, .. } => {
+                    format!("computed in {:.1} s, saved {}", started.elapsed().as_secs_f64(), f.display())
+                }
+            };
+            (
+                RefReply::Ready { source, regions, samples, how },
+                Some(Loaded { scene, mesh, estimates: c.estimates }),
+            )
+        }
+        Err(e) => (RefReply::Failed(e.to_string()), None),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{DVec3, Rgb};
+    use crate::overlay::ElementView;
+
+    #[test]
+    fn cache_miss_compute_hit_and_evaluation() {
+        let dir = std::env::temp_dir().join(format!("radlab-viewer-ref-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let settings = RefSettings {
+            params: ReferenceParams { samples: 8, ..ReferenceParams::quick() },
+            cache: Cache::at(&dir),
+        };
+        let scene = Arc::new(Scene::load("builtin:cube-one-light").unwrap());
+        let mut t = RefThread::spawn(settings, || {}).unwrap();
+        let mut replies = Vec::new();
+        t.send(RefCommand::Load { scene: Arc::clone(&scene), compute: false });
+        t.wait_idle(|r| replies.push(r));
+        assert!(matches!(replies.last(), Some(RefReply::Missing { .. })), "{replies:?}");
+        t.send(RefCommand::Load { scene: Arc::clone(&scene), compute: true });
+        t.wait_idle(|r| replies.push(r));
+        assert!(replies.iter().any(|r| matches!(r, RefReply::Computing { .. })));
+        assert!(
+            matches!(replies.last(), Some(RefReply::Ready { how, .. }) if how.starts_with("computed")),
+            "{replies:?}"
+        );
+        t.send(RefCommand::Load { scene: Arc::clone(&scene), compute: false });
+        t.wait_idle(|r| replies.push(r));
+        assert!(
+            matches!(replies.last(), Some(RefReply::Ready { how, .. }) if how.starts_with("cached")),
+            "{replies:?}"
+        );
+
+        // A solver state of one element per face, all at B = 0: the error is the reference itself.
+        let elements: Vec<ElementView> = scene
+            .patches
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let mut vertices = [DVec3::ZERO; 4];
+                vertices[..p.vertices.len()].copy_from_slice(&p.vertices);
+                ElementView {
+                    id: i as u32,
+                    patch: i as u32,
+                    parent: None,
+                    depth: 0,
+                    leaf: true,
+                    vertices,
+                    n_vertices: p.vertices.len() as u8,
+                    area: p.area,
+                    reflectance: p.reflectance,
+                    emission: p.emission,
+                    radiosity: Rgb::ZERO,
+                    error_estimate: 0.0,
+                    stop: "",
+                }
+            })
+            .collect();
+        let view = ViewData { leaves: (0..elements.len() as u32).collect(), elements, ..ViewData::default() };
+        t.send(RefCommand::Evaluate { view: Arc::new(view), view_seq: 7, solver_time_s: 0.5 });
+        let mut eval = None;
+        t.wait_idle(|r| {
+            if let RefReply::Evaluated(e) = r {
+                eval = Some(e);
+            }
+        });
+        let e = eval.expect("evaluated");
+        assert_eq!((e.view_seq, e.solver_time_s), (7, 0.5));
+        assert_eq!(e.per_element.len(), 6);
+        // The lit faces have B > 0 in the reference, so B = 0 is wrong by B̂ everywhere.
+        assert!(e.per_element.iter().all(|&x| x > 0.0), "{:?}", e.per_element);
+        assert!(e.rel_l2 > 0.5, "all-black solution: rel L2 {}", e.rel_l2);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
