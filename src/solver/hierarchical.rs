@@ -167,6 +167,9 @@ pub struct Snapshot {
     pub residuals: Vec<f64>,
 }
 
+/// Cached initial links: ((rays, seed, conservative), links per root receiver, pairs skipped).
+type InitialLinks = ((u32, u64, bool), Vec<Vec<Link>>, usize);
+
 /// Initial linking of one patch p: (q, link p←q, link q←p) for q > p, pairs skipped, rays cast.
 type PairRow = (Vec<(u32, Link, Link)>, usize, u64);
 
@@ -196,7 +199,7 @@ pub struct HierarchicalSolver {
     links: LinkStore,
     linked: bool,
     /// Initial links of the input patch pairs, reusable while `rays` and `seed` are unchanged.
-    initial_cache: Option<(u32, u64, Vec<Vec<Link>>, usize)>,
+    initial_cache: Option<InitialLinks>,
     stats: HierarchicalStats,
     residuals: Vec<f64>,
     converged: bool,
@@ -269,8 +272,8 @@ impl HierarchicalSolver {
         &self.accel
     }
 
-    /// Restart with new parameters. Reuses the BVH, and the initial patch-pair links when `rays`
-    /// and `seed` did not change.
+    /// Restart with new parameters. Reuses the BVH, and the initial patch-pair links when `rays`,
+    /// `seed` and `conservative` did not change.
     pub fn set_params(&mut self, p: HierarchicalParams) -> Result<(), String> {
         p.validate()?;
         self.params = p;
@@ -450,8 +453,11 @@ impl HierarchicalSolver {
                 // B_avg · V_avg then counts the darkness twice. Bound it by the source's
                 // brightest leaf.
                 let src = self.hier.get(link.source);
-                let b =
-                    if link.class() == VisClass::Partial { src.b_max } else { src.radiosity.max_channel() };
+                let b = if link.class() == VisClass::Partial && self.params.conservative {
+                    src.b_max
+                } else {
+                    src.radiosity.max_channel()
+                };
                 let thr = if link.class() == VisClass::Partial {
                     self.bf_eps * PARTIAL_BF_FACTOR
                 } else {
@@ -547,7 +553,7 @@ impl HierarchicalSolver {
             )
         };
         let vis = vis_with(rays, 0);
-        let mut link = new_link(p, q, source, ff, vis as f32, sides.straddle);
+        let mut link = new_link(p, q, source, ff, vis as f32, sides.straddle, self.params.conservative);
         let mut cast = u64::from(rays);
         if vis == 0.0 && self.params.zero_confirm > 0 {
             // A zero estimate ends refinement for good; if the link would be refined were it
@@ -566,9 +572,9 @@ impl HierarchicalSolver {
 
     /// Link every pair of input patches that face each other and are not fully occluded.
     fn initial_linking(&mut self) -> usize {
-        let key = (self.params.rays, self.params.seed);
-        if let Some((r, s, cached, skipped)) = &self.initial_cache
-            && (*r, *s) == key
+        let key = (self.params.rays, self.params.seed, self.params.conservative);
+        if let Some((k, cached, skipped)) = &self.initial_cache
+            && *k == key
         {
             let n = cached.iter().map(Vec::len).sum();
             for (i, l) in cached.iter().enumerate() {
@@ -580,6 +586,7 @@ impl HierarchicalSolver {
         let n = self.hier.roots as u32;
         let rays = self.params.rays;
         let seed = self.params.seed;
+        let conservative = self.params.conservative;
         // For each p, pairs (p, q > p): visibility once per unordered pair, used both ways.
         let rows: Vec<PairRow> = (0..n)
             .into_par_iter()
@@ -627,8 +634,8 @@ impl HierarchicalSolver {
                     let v = v as f32;
                     out.push((
                         qi,
-                        new_link(p, q, qi, fpq, v, sides.straddle),
-                        new_link(q, p, pi, fqp, v, sides.straddle),
+                        new_link(p, q, qi, fpq, v, sides.straddle, conservative),
+                        new_link(q, p, pi, fqp, v, sides.straddle, conservative),
                     ));
                 }
                 (out, skipped, cast)
@@ -653,7 +660,7 @@ impl HierarchicalSolver {
             self.links.by_receiver[i] = l.clone();
         }
         self.stats.pairs_skipped = skipped;
-        self.initial_cache = Some((rays, seed, lists, skipped));
+        self.initial_cache = Some((key, lists, skipped));
         total
     }
 
@@ -1092,11 +1099,19 @@ fn resolve_bf_eps(p: &HierarchicalParams, scene: &Scene) -> f64 {
 /// estimates F_pq, F_qp (with |cos| for straddling pairs, whose centroids may lie behind each
 /// other's planes while parts of the elements still see each other), which side to split (the
 /// larger estimate's: F_pq > F_qp → the source), and the error bound.
-fn new_link(p: &Element, q: &Element, source: u32, ff: f64, vis: f32, straddle: bool) -> Link {
+fn new_link(
+    p: &Element,
+    q: &Element,
+    source: u32,
+    ff: f64,
+    vis: f32,
+    straddle: bool,
+    conservative: bool,
+) -> Link {
     let est = if straddle { disk_abs } else { form_factor::disk };
     let mut fpq = est(p.centroid, p.normal, q.centroid, q.normal, q.area);
     let mut fqp = est(q.centroid, q.normal, p.centroid, p.normal, p.area);
-    if straddle {
+    if straddle && conservative {
         // Centroid-to-centroid estimates can vanish for a pair whose planes cut each other
         // (a lamp standing on a floor: the floor's centroid lies in the lamp's plane, where the
         // kernel is singular and rounding decides the side) while parts of the pair see each
