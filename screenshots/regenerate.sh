@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Regenerate screenshots/ with the tool itself (needs a display: e.g. Xvfb, and a Vulkan/GL driver
+# such as Mesa's lavapipe). Usage: screenshots/regenerate.sh [path/to/radlab]
+set -euo pipefail
+bin="${1:-target/release/radlab}"
+out="$(dirname "$0")"
+"$bin" view builtin:cornell --screenshot "$out/cornell.png"
+"$bin" view builtin:cornell --screenshot "$out/cornell-quadtree.png" --overlay quadtree
+"$bin" view builtin:cornell --screenshot "$out/cornell-links.png" --overlay links
+"$bin" view builtin:cornell --screenshot "$out/cornell-error.png" --overlay error
+"$bin" view builtin:cornell --screenshot "$out/cornell-picked.png" --pick 0.45,0.4 --window
+"$bin" view builtin:cornell --screenshot "$out/cornell-plots.png" --plots --window
+"$bin" view builtin:splash_room --screenshot "$out/splash_room-quadtree.png" --overlay quadtree
+"$bin" view builtin:table-room --screenshot "$out/table-room-error.png" --overlay error
+echo "screenshots written to $out"
