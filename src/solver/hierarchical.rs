@@ -21,13 +21,22 @@
 //! ```
 //! - **Refine** (the lecture's `Refine(p, q, Feps, Aeps)`): estimate F_pq and F_qp with the disk
 //!   formula; if the oracle is satisfied, keep the link; else split the element with the larger
-//!   estimate (F_pq > F_qp → split the source q), falling back to the other one, unless it is at
-//!   the Aeps floor or the maximum depth.
-//! - **Oracles**: `Feps` (both estimates below Feps), and `Bf` (B_source · max(F_pq, F_qp) below
-//!   BFeps, the SPLASH-2 criterion; partially visible links use BFeps/4, so shadow boundaries
-//!   refine first). Pairs whose planes cut each other ("straddling") are estimated with |cos|.
-//! - **Link form factor**: the exact point-to-polygon kernel at the receiver's centroid
-//!   (`form_factor::point_to_polygon`); visibility from `visibility::visible_fraction`.
+//!   estimate (F_pq > F_qp → split the source q) unless it is at the Aeps floor or the maximum
+//!   depth, then keep the link (`split_fallback` splits the other one instead). Each link caches
+//!   its estimates, split side and error bound when it is made (`Link`), so re-applying the
+//!   oracle after a gather costs one multiply per link.
+//! - **Oracles**: `Feps` (both estimates below Feps), and `Bf` (B_source · max(F_pq, F_qp) ·
+//!   error bound below BFeps, the SPLASH-2 criterion; the bound is (diam_p + diam_q) / distance,
+//!   at most 1, for fully visible links and 1 for partially visible ones, which also use BFeps/4,
+//!   so shadow boundaries refine first). Pairs whose planes cut each other ("straddling") are
+//!   estimated with |cos|. With `conservative` (not in `splash2`), straddling pairs also take the
+//!   exact point value at four interior points, and a partially visible link's B_source is its
+//!   source's brightest leaf (B_avg · V_avg counts a hidden dark part twice).
+//! - **Link form factor**: the exact point-to-polygon kernel at the receiver's centroid, or, for a
+//!   source under a fifth of the receiver's area, at the source's centroid turned into the
+//!   receiver's average by reciprocity (`link_form_factor`); visibility from
+//!   `visibility::visible_fraction_oriented`, with a zero estimate that would stop refinement
+//!   re-tested with `zero_confirm` × rays more rays.
 //! - **Per-leaf normalisation** (optional, off in every preset): a leaf x gathers through its
 //!   own links (evaluated exactly at its centroid) and through the links of its proper ancestors,
 //!   each evaluated at that ancestor's centroid. With `HierarchicalParams::normalize`, radlab
