@@ -23,9 +23,9 @@
 //! - [`hierarchy`]: element arena (`ElementId`), quad/triangle 1→4 split.
 //! - [`link`]: compact link store.
 //! - [`solver`]: parameters, uniform / progressive / hierarchical solvers, statistics.
-//! - [`reference`]: an independent Monte Carlo estimator that shares no kernel with `solver`.
+//! - [`reference`](mod@reference): an independent Monte Carlo estimator that shares no kernel with `solver`.
 //! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
-//! - [`bench`]: the speed-against-error sweep behind `radlab bench`.
+//! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
 //! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
 //! - [`overlay`]: CPU-side line/colour lists for quadtree, links and error overlays.

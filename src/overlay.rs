@@ -68,7 +68,7 @@ impl ElementView {
     }
 }
 
-/// One link: the receiver gathers from the source (`ff` = F from receiver to source, `vis` ∈ [0,1]).
+/// One link: the receiver gathers from the source (`ff` = F from receiver to source, `vis` ∈ \[0, 1\]).
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct LinkView {
     pub receiver: u32,
