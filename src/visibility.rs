@@ -9,8 +9,9 @@
 //! so the estimate does not depend on thread scheduling. Only sample pairs that face each other
 //! (x in front of the source's plane and y in front of the receiver's) are counted: the form
 //! factor already clips the parts behind either plane, and counting rays through them would
-//! darken a receiver that sees only part of a large source (a box face standing on a floor). The receiver and source patches are
-//! ignored by the ray cast, so an element never shadows itself; sample points sit strictly
+//! darken a receiver that sees only part of a large source (a box face standing on a floor).
+//! The receiver and source patches are ignored by the ray cast, so an element never shadows
+//! itself; sample points sit strictly
 //! inside the regions (strata centres jittered by at most 90 % of a stratum), so rays never
 //! graze a shared edge.
 
