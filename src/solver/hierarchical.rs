@@ -60,7 +60,7 @@ use super::params::{HierarchicalParams, Oracle};
 use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
 use crate::accel::Accel;
 use crate::form_factor;
-use crate::hierarchy::{Element, Hierarchy, StopReason};
+use crate::hierarchy::{Element, Hierarchy, NONE, StopReason};
 use crate::link::{Link, LinkStore, VisClass};
 use crate::math::{DVec3, Rgb};
 use crate::scene::Scene;
@@ -216,6 +216,17 @@ pub struct HierarchicalSolver {
     bvh_s: f64,
     energy: EnergyBalance,
     gathered_once: bool,
+    /// Scratch for `push_pull_flat`.
+    chain: Vec<Chain>,
+}
+
+/// Sums an element inherits in push-pull, its own included.
+#[derive(Copy, Clone, Debug, Default)]
+struct Chain {
+    full: Rgb,
+    rest: Rgb,
+    f: f64,
+    fv_partial: f64,
 }
 
 impl HierarchicalSolver {
@@ -255,6 +266,7 @@ impl HierarchicalSolver {
             bvh_s,
             energy: EnergyBalance::default(),
             gathered_once: false,
+            chain: Vec::new(),
         };
         s.energy.emitted = s.scene.emitted_power();
         s
@@ -684,18 +696,19 @@ impl HierarchicalSolver {
                 self.hier.elements[i].dirty = true;
             }
         }
-        for (i, e) in self.hier.elements.iter_mut().enumerate() {
-            let ls = &self.links.by_receiver[i];
-            e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
-            e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
-            e.fv_partial = e.fv_sum - e.f_sum;
-        }
-        if self.params.normalize {
+        let normalize = self.params.normalize;
+        self.hier.elements.par_iter_mut().zip(self.links.by_receiver.par_iter()).with_min_len(256).for_each(
+            |(e, ls)| {
+                e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
+                e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
+                e.fv_partial = e.fv_sum - e.f_sum;
+                if !normalize {
+                    e.norm = 1.0;
+                }
+            },
+        );
+        if normalize {
             self.normalise_dirty_leaves();
-        } else {
-            for e in &mut self.hier.elements {
-                e.norm = 1.0;
-            }
         }
         for e in &mut self.hier.elements {
             e.dirty = false;
@@ -757,7 +770,9 @@ impl HierarchicalSolver {
                 }
                 self.push_pull_root(root);
             }
-            self.finish_push_pull(&before);
+            // Recomputes the same leaf values (nothing was gathered since each root's push) and
+            // measures the change against the values before the sweep.
+            self.push_pull_flat(Some(&before));
             self.stats.gather_s += t.elapsed().as_secs_f64();
         } else {
             let g: Vec<(Rgb, Rgb)> =
@@ -805,11 +820,7 @@ impl HierarchicalSolver {
     /// Push gathered irradiance down to the leaves (B = E + ρ·norm·H), pull area averages up.
     pub fn push_pull_step(&mut self) -> StepReport {
         let t = Instant::now();
-        let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
-        for root in 0..self.hier.roots as u32 {
-            self.push_pull_root(root);
-        }
-        self.finish_push_pull(&before);
+        self.push_pull_flat(None);
         self.stats.push_pull_s += t.elapsed().as_secs_f64();
         self.report(StepKind::PushPull, t, 0, 0)
     }
@@ -846,36 +857,58 @@ impl HierarchicalSolver {
         }
     }
 
-    /// Residual and energy balance after a push-pull.
-    fn finish_push_pull(&mut self, before: &[Rgb]) {
+    /// Push-pull over the whole forest in two flat sweeps (parents have smaller ids than their
+    /// children): down in id order, each element's inherited sums from its parent's, leaves'
+    /// radiosity B = E + ρ·(H_full·norm + H_rest) and their energy terms; then up in reverse
+    /// order, area averages. The same values as `push_pull_rec` from every root. The residual is
+    /// the largest leaf change against `before` (default: the values before this call).
+    fn push_pull_flat(&mut self, before: Option<&[Rgb]>) {
         let mut max_change: f64 = 0.0;
         let mut max_reflected: f64 = 0.0;
         let mut absorbed = Rgb::ZERO;
         let mut escaped = Rgb::ZERO;
-        // Leaf energy terms need the chain sums of gathered irradiance and F·V.
         let n = self.hier.len();
-        // Per element: inherited-and-own sums (full-visibility irradiance, other irradiance,
-        // full-visibility F, other F·V). Parents have smaller ids than their children.
-        let mut chain = vec![(Rgb::ZERO, Rgb::ZERO, 0.0, 0.0); n];
-        for i in 0..n {
-            let e = &self.hier.elements[i];
-            let up = e.parent().map_or((Rgb::ZERO, Rgb::ZERO, 0.0, 0.0), |p| chain[p as usize]);
-            chain[i] = (
-                up.0 + e.gathered_full,
-                up.1 + (e.gathered - e.gathered_full),
-                up.2 + e.f_sum,
-                up.3 + e.fv_partial,
-            );
+        // Per element: its own and inherited sums (full-visibility irradiance, other irradiance,
+        // full-visibility F, other F·V).
+        let chain = &mut self.chain;
+        chain.clear();
+        chain.reserve(n);
+        let els = &mut self.hier.elements;
+        for (i, e) in els.iter_mut().enumerate() {
+            let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
+            chain.push(Chain {
+                full: up.full + e.gathered_full,
+                rest: up.rest + (e.gathered - e.gathered_full),
+                f: up.f + e.f_sum,
+                fv_partial: up.fv_partial + e.fv_partial,
+            });
             if e.is_leaf() {
-                let b = e.radiosity;
-                let old = before.get(i).copied().unwrap_or(b);
+                let h = up.full * e.norm + up.rest + e.gathered;
+                let b = e.emission + e.reflectance.mul_rgb(h);
+                let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
                 max_change = max_change.max(b.abs_diff_max(old));
                 max_reflected = max_reflected.max((b - e.emission).max_channel());
-                let h = up.0 * e.norm + up.1 + e.gathered;
                 absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                let fv = up.2 * e.norm + up.3 + e.fv_sum;
+                let fv = up.f * e.norm + up.fv_partial + e.fv_sum;
                 escaped += b * (e.area * (1.0 - fv));
+                e.radiosity = b;
+                e.b_max = b.max_channel();
             }
+        }
+        for i in (0..n).rev() {
+            let first = els[i].first_child;
+            if first == NONE {
+                continue;
+            }
+            let area = els[i].area;
+            let mut b = Rgb::ZERO;
+            let mut b_max: f64 = 0.0;
+            for c in &els[first as usize..first as usize + 4] {
+                b += c.radiosity * (c.area / area);
+                b_max = b_max.max(c.b_max);
+            }
+            els[i].radiosity = b;
+            els[i].b_max = b_max;
         }
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
         self.residuals.push(residual);
