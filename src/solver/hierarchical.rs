@@ -58,7 +58,7 @@
 
 use super::params::{HierarchicalParams, Oracle};
 use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
-use crate::accel::Accel;
+use crate::accel::{Accel, NO_HIT};
 use crate::form_factor;
 use crate::hierarchy::{Element, Hierarchy, NONE, StopReason};
 use crate::link::{Link, LinkStore, VisClass};
@@ -513,6 +513,7 @@ impl HierarchicalSolver {
         let mut own_changed = false;
         let mut created = 0;
         let mut next = splits.iter().peekable();
+        let mut last = NO_HIT;
         for (i, l) in old.iter().enumerate() {
             let side = match next.peek() {
                 Some(&&(j, side)) if j as usize == i => {
@@ -528,7 +529,7 @@ impl HierarchicalSolver {
                 Split::Source => {
                     own_changed = true;
                     for c in self.hier.get(l.source).children().expect("split in phase B") {
-                        let (nl, nr) = self.make_link(r, c);
+                        let (nl, nr) = self.make_link(r, c, &mut last);
                         rays += nr;
                         created += usize::from(nl.is_some());
                         own.extend(nl);
@@ -536,7 +537,7 @@ impl HierarchicalSolver {
                 }
                 Split::Receiver => {
                     for c in self.hier.get(r).children().expect("split in phase B") {
-                        let (nl, nr) = self.make_link(c, l.source);
+                        let (nl, nr) = self.make_link(c, l.source, &mut last);
                         rays += nr;
                         created += usize::from(nl.is_some());
                         kids.extend(nl.map(|l| (c, l)));
@@ -548,7 +549,9 @@ impl HierarchicalSolver {
     }
 
     /// A link receiver ← source, or None when the source contributes nothing geometrically.
-    fn make_link(&self, receiver: u32, source: u32) -> (Option<Link>, u64) {
+    ///
+    /// `last`: the shadow cache (see [`Accel::occluded_cached`]) shared by nearby pairs.
+    fn make_link(&self, receiver: u32, source: u32, last: &mut u32) -> (Option<Link>, u64) {
         let p = self.hier.get(receiver);
         let q = self.hier.get(source);
         if p.patch == q.patch {
@@ -563,14 +566,15 @@ impl HierarchicalSolver {
             return (None, 0);
         }
         let rays = self.params.rays;
-        let vis_with = |n: u32, salt: u64| {
-            visibility::visible_fraction_oriented(
+        let mut vis_with = |n: u32, salt: u64| {
+            visibility::visible_fraction_cached(
                 &self.accel,
                 (p.vertices(), p.patch, p.normal),
                 (q.vertices(), q.patch, q.normal),
                 n,
                 self.params.seed ^ salt,
                 pair_key(receiver, source),
+                last,
             )
         };
         let vis = vis_with(rays, 0);
