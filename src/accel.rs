@@ -279,6 +279,27 @@ mod tests {
         assert!(!acc.occluded(DVec3::new(0.1, 0.5, 1.0), DVec3::new(0.1, 0.5, 2.0), [u32::MAX, u32::MAX]));
     }
 
+    /// The shadow cache never changes the answer: a stale blocker that misses, or one that
+    /// belongs to an ignored patch, falls back to the traversal; a hit records the blocker.
+    #[test]
+    fn shadow_cache_gives_the_same_answers() {
+        let sc = two_squares_and_blocker(DVec3::ZERO, 1.0);
+        let acc = Accel::build(&sc);
+        let mut rng = crate::math::Pcg32::keyed(1, 2);
+        let mut last = NO_HIT;
+        for k in 0..400 {
+            let a = DVec3::new(rng.next_f64(), rng.next_f64(), 0.0);
+            let b = DVec3::new(rng.next_f64(), rng.next_f64(), 2.0);
+            // Every 7th segment ignores the blocker b1 (patch 2) too, while `last` may name it.
+            let ignore = if k % 7 == 0 { [0, 2] } else { [0, 1] };
+            let plain = acc.occluded(a, b, ignore);
+            assert_eq!(acc.occluded_cached(a, b, ignore, &mut last), plain, "segment {k}: {a} → {b}");
+            if plain {
+                assert_ne!(last, NO_HIT, "a hit records its blocker");
+            }
+        }
+    }
+
     #[test]
     fn first_hit_finds_nearest() {
         let sc = two_squares_and_blocker(DVec3::ZERO, 1.0);
