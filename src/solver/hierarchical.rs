@@ -177,6 +177,9 @@ pub struct Snapshot {
 }
 
 /// Cached initial links: ((rays, seed, conservative), links per root receiver, pairs skipped).
+/// A receiver with at least this many links to split computes their replacements in parallel.
+const PARALLEL_SPLITS: usize = 32;
+
 type InitialLinks = ((u32, u64, bool), Vec<Vec<Link>>, usize);
 
 /// Initial linking of one patch p: (q, link p←q, link q←p) for q > p, pairs skipped, rays cast.
@@ -507,41 +510,59 @@ impl HierarchicalSolver {
     /// New links replacing the split ones of receiver `r`: (own list, links for r's children, rays).
     fn replace_links(&self, r: u32, splits: &[(u32, Split)]) -> ReplaceResult {
         let old = &self.links.by_receiver[r as usize];
+        // The new links of each split link (its source's or its receiver's children, in child
+        // order), in parallel when the receiver has many: one busy receiver must not keep a
+        // thread waiting. Each split link has its own shadow cache, so the result does not
+        // depend on how the work is divided.
+        let new_of = |&(i, side): &(u32, Split)| -> ([Option<Link>; 4], u64) {
+            let l = &old[i as usize];
+            let mut last = NO_HIT;
+            let mut out = [None; 4];
+            let mut rays = 0;
+            let parent = if side == Split::Source { l.source } else { r };
+            for (k, c) in self.hier.get(parent).children().expect("split in phase B").into_iter().enumerate()
+            {
+                let (nl, nr) = match side {
+                    Split::Source => self.make_link(r, c, &mut last),
+                    Split::Receiver => self.make_link(c, l.source, &mut last),
+                };
+                out[k] = nl;
+                rays += nr;
+            }
+            (out, rays)
+        };
+        let made: Vec<([Option<Link>; 4], u64)> = if splits.len() >= PARALLEL_SPLITS {
+            splits.par_iter().with_max_len(PARALLEL_SPLITS / 4).map(new_of).collect()
+        } else {
+            splits.iter().map(new_of).collect()
+        };
         let mut own = Vec::with_capacity(old.len() + 3 * splits.len());
         let mut kids = Vec::new();
         let mut rays = 0u64;
         let mut own_changed = false;
         let mut created = 0;
-        let mut next = splits.iter().peekable();
-        let mut last = NO_HIT;
+        let mut next = splits.iter().zip(made).peekable();
         for (i, l) in old.iter().enumerate() {
-            let side = match next.peek() {
-                Some(&&(j, side)) if j as usize == i => {
-                    next.next();
-                    side
+            let (side, (new, nr)) = match next.peek() {
+                Some(&(&(j, _), _)) if j as usize == i => {
+                    let (&(_, side), made) = next.next().expect("peeked");
+                    (side, made)
                 }
                 _ => {
                     own.push(*l);
                     continue;
                 }
             };
+            rays += nr;
+            created += new.iter().flatten().count();
             match side {
                 Split::Source => {
                     own_changed = true;
-                    for c in self.hier.get(l.source).children().expect("split in phase B") {
-                        let (nl, nr) = self.make_link(r, c, &mut last);
-                        rays += nr;
-                        created += usize::from(nl.is_some());
-                        own.extend(nl);
-                    }
+                    own.extend(new.into_iter().flatten());
                 }
                 Split::Receiver => {
-                    for c in self.hier.get(r).children().expect("split in phase B") {
-                        let (nl, nr) = self.make_link(c, l.source, &mut last);
-                        rays += nr;
-                        created += usize::from(nl.is_some());
-                        kids.extend(nl.map(|l| (c, l)));
-                    }
+                    let children = self.hier.get(r).children().expect("split in phase B");
+                    kids.extend(children.into_iter().zip(new).filter_map(|(c, nl)| nl.map(|l| (c, l))));
                 }
             }
         }
