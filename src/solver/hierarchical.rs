@@ -125,6 +125,14 @@ pub struct HierarchicalStats {
     /// Links created by refinement, including those later replaced by finer ones.
     pub links_created: u64,
     pub refine_s: f64,
+    /// Parts of `refine_s`: initial linking of the input patches; the oracle on every link
+    /// (parallel); splitting elements (serial); computing replacement links, form factors and
+    /// rays (parallel); installing them (serial).
+    pub refine_initial_s: f64,
+    pub refine_decide_s: f64,
+    pub refine_split_s: f64,
+    pub refine_links_s: f64,
+    pub refine_install_s: f64,
     pub gather_s: f64,
     pub push_pull_s: f64,
     pub iterations: usize,
@@ -177,6 +185,38 @@ pub struct Snapshot {
 }
 
 /// Cached initial links: ((rays, seed, conservative), links per root receiver, pairs skipped).
+/// Mutable references to the elements of `v` at `ids`, which must be strictly increasing.
+fn disjoint_mut<T>(v: &mut [T], ids: impl Iterator<Item = u32>) -> Vec<&mut T> {
+    let mut out = Vec::new();
+    let mut rest = v;
+    let mut offset = 0usize;
+    for id in ids {
+        let (_, tail) = std::mem::take(&mut rest).split_at_mut(id as usize - offset);
+        let (item, tail) = tail.split_first_mut().expect("ids within the slice");
+        out.push(item);
+        rest = tail;
+        offset = id as usize + 1;
+    }
+    out
+}
+
+/// (Σ F·V·B over the links, the same over the fully visible ones), with source radiosities `b`.
+fn gather_links(links: &[Link], b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
+    let mut g = Rgb::ZERO;
+    let mut full = Rgb::ZERO;
+    for l in links {
+        let w = f64::from(l.ff) * f64::from(l.vis);
+        if w > 0.0 {
+            let t = b(l.source) * w;
+            g += t;
+            if l.vis >= 1.0 {
+                full += t;
+            }
+        }
+    }
+    (g, full)
+}
+
 /// A receiver with at least this many links to split computes their replacements in parallel.
 const PARALLEL_SPLITS: usize = 32;
 
@@ -362,10 +402,13 @@ impl HierarchicalSolver {
     fn refine_inner(&mut self) -> StepReport {
         let t = Instant::now();
         let mut new_links = 0;
+        let mut changed = Vec::new();
         if !self.linked {
             new_links += self.initial_linking();
             self.linked = true;
+            changed.extend(0..self.hier.roots as u32);
         }
+        self.stats.refine_initial_s += t.elapsed().as_secs_f64();
         let mut refined = 0;
         let mut active: Vec<u32> =
             (0..self.hier.len() as u32).filter(|&r| !self.links.by_receiver[r as usize].is_empty()).collect();
@@ -376,6 +419,7 @@ impl HierarchicalSolver {
                 break;
             }
             // A: decide, in parallel, read-only (from each link's cached geometry).
+            let phase = Instant::now();
             let decisions: Vec<ReceiverDecision> =
                 active.par_iter().map(|&r| self.decide_receiver(r)).collect();
             let mut to_split = Vec::new();
@@ -391,9 +435,11 @@ impl HierarchicalSolver {
                     e.stop = *reason;
                 }
             }
+            self.stats.refine_decide_s += phase.elapsed().as_secs_f64();
             if to_split.is_empty() {
                 break;
             }
+            let phase = Instant::now();
             // B: split, serially, in id order.
             to_split.sort_unstable();
             to_split.dedup();
@@ -404,15 +450,20 @@ impl HierarchicalSolver {
                 }
             }
             self.links.grow(self.hier.len());
+            self.stats.refine_split_s += phase.elapsed().as_secs_f64();
+            let phase = Instant::now();
             // C: replacement links, in parallel.
             let work: Vec<ReceiverDecision> =
                 decisions.into_iter().filter(|(_, _, sp)| !sp.is_empty()).collect();
             let results: Vec<ReplaceResult> =
                 work.par_iter().map(|(r, _, splits)| self.replace_links(*r, splits)).collect();
+            self.stats.refine_links_s += phase.elapsed().as_secs_f64();
+            let phase = Instant::now();
             // D: install, in receiver order: every receiver's own list first, then the links
             // pushed down to children (a child may itself have been a receiver in this pass).
             let mut next = Vec::new();
             let mut pushed_down = Vec::new();
+            let mut owns = Vec::with_capacity(results.len());
             for (r, own, kids, rays, own_changed, created) in results {
                 self.stats.rays += rays;
                 if own_changed {
@@ -420,20 +471,26 @@ impl HierarchicalSolver {
                 }
                 new_links += created;
                 total_links = total_links + own.len() + kids.len() - self.links.by_receiver[r as usize].len();
-                self.links.by_receiver[r as usize] = own;
                 self.hier.elements[r as usize].dirty = true;
+                changed.push(r);
+                owns.push((r, own));
                 pushed_down.extend(kids);
             }
+            // The new own lists replace the old ones in parallel (freeing them is most of it).
+            let slots = disjoint_mut(&mut self.links.by_receiver, owns.iter().map(|o| o.0));
+            slots.into_par_iter().zip(owns).with_min_len(64).for_each(|(slot, (_, own))| *slot = own);
             for (c, l) in pushed_down {
                 self.links.by_receiver[c as usize].push(l);
                 self.hier.elements[c as usize].dirty = true;
                 next.push(c);
+                changed.push(c);
             }
             next.sort_unstable();
             next.dedup();
             active = next;
+            self.stats.refine_install_s += phase.elapsed().as_secs_f64();
         }
-        self.update_sums_and_normalisation();
+        self.update_sums_and_normalisation(&mut changed);
         self.converged = false;
         self.stats.links_created += new_links as u64;
         self.stats.refine_s += t.elapsed().as_secs_f64();
@@ -712,31 +769,38 @@ impl HierarchicalSolver {
 
     /// Recompute Σ F and Σ F·V per element and the normalisation factor S_x / T_x of every leaf
     /// whose inherited links changed (an ancestor's list changed, or the leaf is new).
-    fn update_sums_and_normalisation(&mut self) {
-        // Propagate "dirty" down: parents have smaller ids than their children.
-        for i in 0..self.hier.len() {
+    ///
+    /// `changed`: the receivers whose link lists changed since the last call.
+    fn update_sums_and_normalisation(&mut self, changed: &mut Vec<u32>) {
+        let normalize = self.params.normalize;
+        // Propagate "dirty" down: parents have smaller ids than their children. Only the
+        // normalisation reads it (and `normalize` cannot change without a reset).
+        for i in 0..if normalize { self.hier.len() } else { 0 } {
             if let Some(p) = self.hier.elements[i].parent()
                 && self.hier.elements[p as usize].dirty
             {
                 self.hier.elements[i].dirty = true;
             }
         }
-        let normalize = self.params.normalize;
-        self.hier.elements.par_iter_mut().zip(self.links.by_receiver.par_iter()).with_min_len(256).for_each(
-            |(e, ls)| {
+        // Sums of the receivers whose lists changed (a pure function of the list).
+        changed.sort_unstable();
+        changed.dedup();
+        let links = &self.links.by_receiver;
+        disjoint_mut(&mut self.hier.elements, changed.iter().copied())
+            .into_par_iter()
+            .zip(changed.par_iter())
+            .with_min_len(256)
+            .for_each(|(e, &r)| {
+                let ls = &links[r as usize];
                 e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
                 e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
                 e.fv_partial = e.fv_sum - e.f_sum;
-                if !normalize {
-                    e.norm = 1.0;
-                }
-            },
-        );
+            });
         if normalize {
             self.normalise_dirty_leaves();
-        }
-        for e in &mut self.hier.elements {
-            e.dirty = false;
+            for e in &mut self.hier.elements {
+                e.dirty = false;
+            }
         }
     }
 
@@ -800,12 +864,17 @@ impl HierarchicalSolver {
             self.push_pull_flat(Some(&before));
             self.stats.gather_s += t.elapsed().as_secs_f64();
         } else {
-            let g: Vec<(Rgb, Rgb)> =
-                (0..self.hier.len() as u32).into_par_iter().map(|r| self.gather_one(r)).collect();
-            for (e, (g, full)) in self.hier.elements.iter_mut().zip(g) {
-                e.gathered = g;
-                e.gathered_full = full;
-            }
+            // Sources' radiosity in a compact array (read once per link, in any order), then
+            // every receiver gathers in parallel.
+            let b: Vec<Rgb> = self.hier.elements.par_iter().with_min_len(1024).map(|e| e.radiosity).collect();
+            self.hier
+                .elements
+                .par_iter_mut()
+                .zip(self.links.by_receiver.par_iter())
+                .with_min_len(256)
+                .for_each(|(e, ls)| {
+                    (e.gathered, e.gathered_full) = gather_links(ls, |s| b[s as usize]);
+                });
             self.stats.gather_s += t.elapsed().as_secs_f64();
         }
         self.gathered_once = true;
@@ -813,21 +882,9 @@ impl HierarchicalSolver {
         self.report(StepKind::Gather, t, 0, 0)
     }
 
-    /// (Σ F·V·B over all links, the same over fully visible links).
+    /// (Σ F·V·B over all links, the same over fully visible links), with the current radiosities.
     fn gather_one(&self, r: u32) -> (Rgb, Rgb) {
-        let mut g = Rgb::ZERO;
-        let mut full = Rgb::ZERO;
-        for l in &self.links.by_receiver[r as usize] {
-            let w = f64::from(l.ff) * f64::from(l.vis);
-            if w > 0.0 {
-                let t = self.hier.get(l.source).radiosity * w;
-                g += t;
-                if l.vis >= 1.0 {
-                    full += t;
-                }
-            }
-        }
-        (g, full)
+        gather_links(&self.links.by_receiver[r as usize], |s| self.hier.get(s).radiosity)
     }
 
     fn subtree(&self, root: u32) -> Vec<u32> {
