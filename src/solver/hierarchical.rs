@@ -261,6 +261,9 @@ pub struct HierarchicalSolver {
     gathered_once: bool,
     /// Scratch for `push_pull_flat`.
     chain: Vec<Chain>,
+    /// The oracle's compact copy of every element's (b_max, max channel of B) during
+    /// refinement; cleared afterwards, as B changes.
+    oracle_b: Vec<[f64; 2]>,
 }
 
 /// Sums an element inherits in push-pull, its own included.
@@ -310,6 +313,7 @@ impl HierarchicalSolver {
             energy: EnergyBalance::default(),
             gathered_once: false,
             chain: Vec::new(),
+            oracle_b: Vec::new(),
         };
         s.energy.emitted = s.scene.emitted_power();
         s
@@ -402,6 +406,8 @@ impl HierarchicalSolver {
     fn refine_inner(&mut self) -> StepReport {
         let t = Instant::now();
         let mut new_links = 0;
+        self.oracle_b.clear();
+        self.sync_oracle_b();
         let mut changed = Vec::new();
         if !self.linked {
             new_links += self.initial_linking();
@@ -450,6 +456,7 @@ impl HierarchicalSolver {
                 }
             }
             self.links.grow(self.hier.len());
+            self.sync_oracle_b();
             self.stats.refine_split_s += phase.elapsed().as_secs_f64();
             let phase = Instant::now();
             // C: replacement links, in parallel.
@@ -494,6 +501,7 @@ impl HierarchicalSolver {
         self.converged = false;
         self.stats.links_created += new_links as u64;
         self.stats.refine_s += t.elapsed().as_secs_f64();
+        self.oracle_b.clear();
         self.report(StepKind::Refine, t, refined, new_links)
     }
 
@@ -505,6 +513,24 @@ impl HierarchicalSolver {
         } else {
             Ok(())
         }
+    }
+
+    /// A source's (brightest leaf, largest channel of B) for the oracle: from the compact copy
+    /// made for this refinement (radiosity does not change during refinement; new children
+    /// inherit their parent's values), else from the element.
+    fn source_b(&self, id: u32) -> [f64; 2] {
+        self.oracle_b.get(id as usize).copied().unwrap_or_else(|| {
+            let e = self.hier.get(id);
+            [e.b_max, e.radiosity.max_channel()]
+        })
+    }
+
+    /// Extend the oracle's compact copy of B to every element (see `source_b`).
+    fn sync_oracle_b(&mut self) {
+        let start = self.oracle_b.len();
+        let els = &self.hier.elements;
+        self.oracle_b
+            .extend(els[start.min(els.len())..].iter().map(|e| [e.b_max, e.radiosity.max_channel()]));
     }
 
     fn decide_receiver(&self, r: u32) -> ReceiverDecision {
@@ -533,11 +559,11 @@ impl HierarchicalSolver {
                 // (the floor round a box's foot is lit, the part under it is dark and hidden):
                 // B_avg · V_avg then counts the darkness twice. Bound it by the source's
                 // brightest leaf.
-                let src = self.hier.get(link.source);
+                let [b_max, b_channel] = self.source_b(link.source);
                 let b = if link.class() == VisClass::Partial && self.params.conservative {
-                    src.b_max
+                    b_max
                 } else {
-                    src.radiosity.max_channel()
+                    b_channel
                 };
                 let thr = if link.class() == VisClass::Partial {
                     self.bf_eps * PARTIAL_BF_FACTOR
