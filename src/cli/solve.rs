@@ -413,8 +413,8 @@ fn print_summary(spec: &str, sol: &Solution) {
         }
     }
     println!(
-        "  time: load {:.3}s  bvh {:.3}s  form factors/refine {:.3}s  solve {:.3}s  total {:.3}s",
-        t.load, t.bvh, t.form_factors, t.solve, t.total
+        "  time: load {:.3}s  bvh {:.3}s  form factors/refine {:.3}s  solve {:.3}s  error estimate {:.3}s  total {:.3}s",
+        t.load, t.bvh, t.form_factors, t.solve, t.estimate, t.total
     );
     let e = &sol.energy;
     println!(

@@ -160,7 +160,12 @@ fn local_residual(hier: &Hierarchy, links: &LinkStore, x: u32) -> (Rgb, Rgb) {
             }
             let src = hier.get(l.source);
             let f = f64::from(l.ff);
-            let fx = form_factor::point_to_polygon(leaf.centroid, leaf.normal, src.vertices());
+            let fx = form_factor::point_to_polygon_oriented(
+                leaf.centroid,
+                leaf.normal,
+                src.vertices(),
+                src.normal,
+            );
             if !fx.is_finite() {
                 continue;
             }

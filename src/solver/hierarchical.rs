@@ -847,7 +847,12 @@ impl HierarchicalSolver {
                     for l in &links.by_receiver[a as usize] {
                         if l.ff > 0.0 && l.vis >= 1.0 {
                             let src = hier.get(l.source);
-                            s += form_factor::point_to_polygon(leaf.centroid, leaf.normal, src.vertices());
+                            s += form_factor::point_to_polygon_oriented(
+                                leaf.centroid,
+                                leaf.normal,
+                                src.vertices(),
+                                src.normal,
+                            );
                         }
                     }
                 }
@@ -1172,7 +1177,9 @@ impl HierarchicalSolver {
     /// The leaves as a [`Solution`] (with the solver's own error estimates).
     #[must_use]
     pub fn solution(&self) -> Solution {
+        let t = Instant::now();
         let est = self.error_estimates();
+        let estimate_s = t.elapsed().as_secs_f64();
         let elements: Vec<SolvedElement> = self
             .hier
             .elements
@@ -1210,7 +1217,8 @@ impl HierarchicalSolver {
                     bvh: self.bvh_s,
                     form_factors: st.refine_s,
                     solve: st.gather_s + st.push_pull_s,
-                    total: self.bvh_s + st.refine_s + st.gather_s + st.push_pull_s,
+                    estimate: estimate_s,
+                    total: self.bvh_s + st.refine_s + st.gather_s + st.push_pull_s + estimate_s,
                 },
                 extra: serde_json::to_value(&st).ok(),
             },
@@ -1228,10 +1236,20 @@ impl HierarchicalSolver {
 /// centroid the kernel varies little.
 fn link_form_factor(receiver: &Element, source: &Element) -> f64 {
     if source.area < RECIPROCAL_AREA_RATIO * receiver.area {
-        let f = form_factor::point_to_polygon(source.centroid, source.normal, receiver.vertices());
+        let f = form_factor::point_to_polygon_oriented(
+            source.centroid,
+            source.normal,
+            receiver.vertices(),
+            receiver.normal,
+        );
         f * source.area / receiver.area
     } else {
-        form_factor::point_to_polygon(receiver.centroid, receiver.normal, source.vertices())
+        form_factor::point_to_polygon_oriented(
+            receiver.centroid,
+            receiver.normal,
+            source.vertices(),
+            source.normal,
+        )
     }
 }
 
@@ -1285,7 +1303,7 @@ fn straddle_estimate(p: &Element, q: &Element) -> f64 {
     let mut best: f64 = 0.0;
     for (u, v) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
         let x = visibility::point_on_polygon(p.vertices(), u, v);
-        best = best.max(form_factor::point_to_polygon(x, p.normal, q.vertices()));
+        best = best.max(form_factor::point_to_polygon_oriented(x, p.normal, q.vertices(), q.normal));
     }
     best.min(1.0)
 }
