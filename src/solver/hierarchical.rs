@@ -1177,9 +1177,14 @@ impl HierarchicalSolver {
     /// The leaves as a [`Solution`] (with the solver's own error estimates).
     #[must_use]
     pub fn solution(&self) -> Solution {
-        let t = Instant::now();
-        let est = self.error_estimates();
-        let estimate_s = t.elapsed().as_secs_f64();
+        self.solution_with(true)
+    }
+
+    /// The leaves as a [`Solution`], with the solver's own error estimates only if `estimates`
+    /// (they cost about as much as the solve itself on a refined scene).
+    #[must_use]
+    pub fn solution_with(&self, estimates: bool) -> Solution {
+        let est = if estimates { Some(self.error_estimates()) } else { None };
         let elements: Vec<SolvedElement> = self
             .hier
             .elements
@@ -1191,7 +1196,7 @@ impl HierarchicalSolver {
                 vertices: e.vertices().to_vec(),
                 area: e.area,
                 radiosity: e.radiosity,
-                error_estimate: Some(est[i]),
+                error_estimate: est.as_ref().map(|v| v[i]),
             })
             .collect();
         let patch_radiosity = Solution::patch_averages(self.scene.patches.len(), &elements);
@@ -1217,8 +1222,7 @@ impl HierarchicalSolver {
                     bvh: self.bvh_s,
                     form_factors: st.refine_s,
                     solve: st.gather_s + st.push_pull_s,
-                    estimate: estimate_s,
-                    total: self.bvh_s + st.refine_s + st.gather_s + st.push_pull_s + estimate_s,
+                    total: self.bvh_s + st.refine_s + st.gather_s + st.push_pull_s,
                 },
                 extra: serde_json::to_value(&st).ok(),
             },

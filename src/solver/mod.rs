@@ -69,8 +69,6 @@ pub struct PhaseTimes {
     pub bvh: f64,
     pub form_factors: f64,
     pub solve: f64,
-    /// The solver's own error estimate (hierarchical; 0 where a method has none).
-    pub estimate: f64,
     pub total: f64,
 }
 
