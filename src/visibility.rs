@@ -137,14 +137,18 @@ pub fn visible_fraction_oriented(
     key: u64,
 ) -> f64 {
     let mut last = crate::accel::NO_HIT;
-    visible_fraction_cached(accel, receiver, source, rays, seed, key, &mut last)
+    visibility_sample(accel, receiver, source, rays, seed, key, &mut last, false).0
 }
 
 /// [`visible_fraction_oriented`] with a shadow cache shared with the caller (see
-/// [`Accel::occluded_cached`]): pass the same `last` for nearby region pairs (the children of
-/// one split link). The estimate does not depend on it.
-#[must_use]
-pub fn visible_fraction_cached(
+/// [`Accel::occluded_cached`]: pass the same `last` for nearby region pairs, the children of one
+/// split link; the estimate does not depend on it), returning the rays cast as well.
+///
+/// With `stop_at_visible`, the same rays in the same order up to the first unblocked one, which
+/// returns 1: whether the fraction is positive (else it is exactly 0), for a caller that needs
+/// nothing more.
+#[allow(clippy::too_many_arguments)]
+pub fn visibility_sample(
     accel: &Accel,
     (receiver, receiver_patch, n_r): (&[DVec3], u32, DVec3),
     (source, source_patch, n_s): (&[DVec3], u32, DVec3),
@@ -152,9 +156,10 @@ pub fn visible_fraction_cached(
     seed: u64,
     key: u64,
     last: &mut u32,
-) -> f64 {
+    stop_at_visible: bool,
+) -> (f64, u32) {
     if rays == 0 {
-        return 1.0;
+        return (1.0, 0);
     }
     let mut rng = Pcg32::keyed(seed, key);
     let strata = Strata::new(rays);
@@ -177,14 +182,17 @@ pub fn visible_fraction_cached(
         counted += 1;
         if !accel.occluded_cached(x, y, [receiver_patch, source_patch], last) {
             visible += 1;
+            if stop_at_visible {
+                return (1.0, counted);
+            }
         }
     }
     if counted == 0 {
         // No facing pair among the samples: the regions barely see each other; the form factor
         // (which clips exactly) decides, so do not also attenuate.
-        return 1.0;
+        return (1.0, 0);
     }
-    f64::from(visible) / f64::from(counted)
+    (f64::from(visible) / f64::from(counted), counted)
 }
 
 #[cfg(test)]

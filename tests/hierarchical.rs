@@ -314,6 +314,33 @@ fn cancel_stops_a_step_and_leaves_a_consistent_state() {
     assert!(s.solution().is_physical());
 }
 
+/// Refinement stopped by the link budget mid-pass leaves every link measured: V in [0, 1] (links
+/// the next pass would have replaced carry only "some ray passes" until then).
+#[test]
+fn a_budget_stop_leaves_every_visibility_measured() {
+    for max_links in [500, 2_000, 8_000] {
+        let p = HierarchicalParams {
+            bf_eps: 0.002,
+            bf_relative: false,
+            aeps: AreaEps::Absolute(1e-5),
+            max_links,
+            ..HierarchicalParams::interactive()
+        };
+        let mut s = HierarchicalSolver::new(Arc::new(common::table_room()), p).unwrap();
+        s.refine_step();
+        s.gather_step();
+        s.push_pull_step();
+        s.refine_step();
+        assert!(s.stats().budget_hit, "max_links {max_links}: the budget must stop refinement");
+        let snap = s.snapshot();
+        assert!(
+            snap.links.iter().all(|l| (0.0..=1.0).contains(&l.vis)),
+            "max_links {max_links}: a link left unmeasured"
+        );
+        assert!(s.solution().is_physical());
+    }
+}
+
 /// Area-weighted relative L1 difference of per-patch radiosity (mean over channels), emitters excluded.
 fn patch_l1(
     reference: &radlab::solver::Solution,

@@ -62,7 +62,7 @@ use crate::accel::{Accel, NO_HIT};
 use crate::form_factor;
 use crate::hierarchy::{Element, Hierarchy, NONE, StopReason};
 use crate::link::{Link, LinkStore, VisClass};
-use crate::math::{DVec3, Rgb};
+use crate::math::{DVec3, Rgb, newell_normal};
 use crate::scene::Scene;
 use crate::visibility;
 use rayon::prelude::*;
@@ -216,6 +216,10 @@ fn gather_links(links: &[Link], b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
     }
     (g, full)
 }
+
+/// V of a link the next refinement pass replaces whatever its V (one ray found it positive):
+/// above 1, so "fully visible" for the oracle, and never read otherwise (see `make_link`).
+const UNMEASURED_VIS: f32 = 2.0;
 
 /// A receiver with at least this many links to split computes their replacements in parallel.
 const PARALLEL_SPLITS: usize = 32;
@@ -497,6 +501,9 @@ impl HierarchicalSolver {
             active = next;
             self.stats.refine_install_s += phase.elapsed().as_secs_f64();
         }
+        if self.stats.budget_hit || self.cancelled() {
+            self.measure_unmeasured();
+        }
         self.update_sums_and_normalisation(&mut changed);
         self.converged = false;
         self.stats.links_created += new_links as u64;
@@ -670,8 +677,8 @@ impl HierarchicalSolver {
             return (None, 0);
         }
         let rays = self.params.rays;
-        let mut vis_with = |n: u32, salt: u64| {
-            visibility::visible_fraction_cached(
+        let mut vis_with = |n: u32, salt: u64, stop_at_visible: bool| {
+            let (v, cast) = visibility::visibility_sample(
                 &self.accel,
                 (p.vertices(), p.patch, p.normal),
                 (q.vertices(), q.patch, q.normal),
@@ -679,11 +686,26 @@ impl HierarchicalSolver {
                 self.params.seed ^ salt,
                 pair_key(receiver, source),
                 last,
-            )
+                stop_at_visible,
+            );
+            (v, u64::from(cast))
         };
-        let vis = vis_with(rays, 0);
-        let mut link = new_link(p, q, source, ff, vis as f32, sides.straddle, self.params.conservative);
-        let mut cast = u64::from(rays);
+        let mut link = new_link(p, q, source, ff, 1.0, sides.straddle, self.params.conservative);
+        // A link that the next refinement pass splits whatever its visible fraction (unless
+        // that is 0) needs only to know whether any ray passes: it is replaced before anyone
+        // reads its V.
+        let (vis, mut cast) = if self.splits_unless_hidden(p, &link) {
+            match vis_with(rays, 0, true) {
+                (v, cast) if v > 0.0 => {
+                    link.vis = UNMEASURED_VIS;
+                    return (Some(link), cast);
+                }
+                zero => zero,
+            }
+        } else {
+            vis_with(rays, 0, false)
+        };
+        link.vis = vis as f32;
         if vis == 0.0 && self.params.zero_confirm > 0 {
             // A zero estimate ends refinement for good; if the link would be refined were it
             // partially visible, confirm with more rays first (a stopping rule on a noisy zero
@@ -691,12 +713,54 @@ impl HierarchicalSolver {
             let probe = Link { vis: 0.5, ..link };
             if self.decide(p, &probe).is_ok() {
                 let more = self.params.zero_confirm.saturating_mul(rays);
-                let v2 = vis_with(more, 0x5EED);
-                cast += u64::from(more);
+                let (v2, c2) = vis_with(more, 0x5EED, false);
+                cast += c2;
                 link.vis = (v2 * f64::from(more) / f64::from(more + rays)) as f32;
             }
         }
         (Some(link), cast)
+    }
+
+    /// Does the oracle split this link (on the same side) whether it is fully or partially
+    /// visible? Then only V = 0 would keep it.
+    fn splits_unless_hidden(&self, p: &Element, link: &Link) -> bool {
+        let full = self.decide(p, &Link { vis: 1.0, ..*link });
+        let partial = self.decide(p, &Link { vis: 0.5, ..*link });
+        matches!((full, partial), (Ok(a), Ok(b)) if a == b)
+    }
+
+    /// Measure V of the links still marked [`UNMEASURED_VIS`] (refinement stopped, by the link
+    /// budget or a cancel, before the pass that would have replaced them).
+    fn measure_unmeasured(&mut self) {
+        let hier = &self.hier;
+        let (accel, seed, rays) = (&self.accel, self.params.seed, self.params.rays);
+        let cast: u64 = self
+            .links
+            .by_receiver
+            .par_iter_mut()
+            .enumerate()
+            .map(|(r, ls)| {
+                let mut cast = 0;
+                let mut last = NO_HIT;
+                for l in ls.iter_mut().filter(|l| l.vis == UNMEASURED_VIS) {
+                    let (p, q) = (hier.get(r as u32), hier.get(l.source));
+                    let (v, c) = visibility::visibility_sample(
+                        accel,
+                        (p.vertices(), p.patch, p.normal),
+                        (q.vertices(), q.patch, q.normal),
+                        rays,
+                        seed,
+                        pair_key(r as u32, l.source),
+                        &mut last,
+                        false,
+                    );
+                    l.vis = v as f32;
+                    cast += u64::from(c);
+                }
+                cast
+            })
+            .sum();
+        self.stats.rays += cast;
     }
 
     /// Link every pair of input patches that face each other and are not fully occluded.
@@ -737,23 +801,26 @@ impl HierarchicalSolver {
                         skipped += 1;
                         continue;
                     }
-                    let vis = |n_rays: u32, salt: u64| {
-                        visibility::visible_fraction(
+                    // Newell normals of the input polygons (as `visibility::visible_fraction`).
+                    let (n_p, n_q) = (newell_normal(p.vertices()), newell_normal(q.vertices()));
+                    let mut last = NO_HIT;
+                    let mut vis = |n_rays: u32, salt: u64| {
+                        let (v, c) = visibility::visibility_sample(
                             &self.accel,
-                            p.vertices(),
-                            pi,
-                            q.vertices(),
-                            qi,
+                            (p.vertices(), pi, n_p),
+                            (q.vertices(), qi, n_q),
                             n_rays,
                             seed ^ salt,
                             pair_key(pi, qi),
-                        )
+                            &mut last,
+                            false,
+                        );
+                        cast += u64::from(c);
+                        v
                     };
                     let mut v = vis(rays, 0);
-                    cast += u64::from(rays);
                     if v == 0.0 {
                         // Confirm full occlusion with more rays before dropping the pair.
-                        cast += u64::from(ROOT_CONFIRM_RAYS);
                         if vis(ROOT_CONFIRM_RAYS, 0x5EED) == 0.0 {
                             skipped += 1;
                             continue;
