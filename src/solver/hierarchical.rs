@@ -230,7 +230,12 @@ type InitialLinks = ((u32, u64, bool), Vec<Vec<Link>>, usize);
 type PairRow = (Vec<(u32, Link, Link)>, usize, u64);
 
 /// Receiver, its new own links, links for its children, rays cast, own list changed, links created.
-type ReplaceResult = (u32, Vec<Link>, Vec<(u32, Link)>, u64, bool, usize);
+type ReplaceResult = (u32, Vec<Link>, Kids, u64, bool, usize);
+
+/// Links pushed down to a receiver's four children (child k gets `.0[k]`, in the order of the
+/// split links in the receiver's list).
+#[derive(Default)]
+struct Kids([Vec<Link>; 4]);
 
 /// What refinement does with one link.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -481,17 +486,30 @@ impl HierarchicalSolver {
                     next.push(r);
                 }
                 new_links += created;
-                total_links = total_links + own.len() + kids.len() - self.links.by_receiver[r as usize].len();
+                let pushed: usize = kids.0.iter().map(Vec::len).sum();
+                total_links = total_links + own.len() + pushed - self.links.by_receiver[r as usize].len();
                 self.hier.elements[r as usize].dirty = true;
                 changed.push(r);
                 owns.push((r, own));
-                pushed_down.extend(kids);
+                if pushed > 0 {
+                    let first = self.hier.get(r).first_child;
+                    for (k, ls) in kids.0.into_iter().enumerate() {
+                        if !ls.is_empty() {
+                            pushed_down.push((first + k as u32, ls));
+                        }
+                    }
+                }
             }
             // The new own lists replace the old ones in parallel (freeing them is most of it).
             let slots = disjoint_mut(&mut self.links.by_receiver, owns.iter().map(|o| o.0));
             slots.into_par_iter().zip(owns).with_min_len(64).for_each(|(slot, (_, own))| *slot = own);
-            for (c, l) in pushed_down {
-                self.links.by_receiver[c as usize].push(l);
+            for (c, ls) in pushed_down {
+                let list = &mut self.links.by_receiver[c as usize];
+                if list.is_empty() {
+                    *list = ls;
+                } else {
+                    list.extend(ls);
+                }
                 self.hier.elements[c as usize].dirty = true;
                 next.push(c);
                 changed.push(c);
@@ -627,7 +645,7 @@ impl HierarchicalSolver {
             splits.iter().map(new_of).collect()
         };
         let mut own = Vec::with_capacity(old.len() + 3 * splits.len());
-        let mut kids = Vec::new();
+        let mut kids = Kids::default();
         let mut rays = 0u64;
         let mut own_changed = false;
         let mut created = 0;
@@ -651,8 +669,9 @@ impl HierarchicalSolver {
                     own.extend(new.into_iter().flatten());
                 }
                 Split::Receiver => {
-                    let children = self.hier.get(r).children().expect("split in phase B");
-                    kids.extend(children.into_iter().zip(new).filter_map(|(c, nl)| nl.map(|l| (c, l))));
+                    for (k, nl) in new.into_iter().enumerate() {
+                        kids.0[k].extend(nl);
+                    }
                 }
             }
         }
