@@ -200,6 +200,54 @@ fn disjoint_mut<T>(v: &mut [T], ids: impl Iterator<Item = u32>) -> Vec<&mut T> {
     out
 }
 
+/// Every receiver's links with F·V > 0, flattened for gathering (links do not change between
+/// refinements): source (high bit set when fully visible) and weight F·V, in list order.
+#[derive(Debug, Default)]
+struct GatherPlan {
+    /// Receiver r's links are `start[r]..start[r + 1]`.
+    start: Vec<u32>,
+    source: Vec<u32>,
+    weight: Vec<f64>,
+}
+
+const FULL_BIT: u32 = 1 << 31;
+
+impl GatherPlan {
+    fn new(links: &LinkStore) -> GatherPlan {
+        let mut plan =
+            GatherPlan { start: Vec::with_capacity(links.by_receiver.len() + 1), ..GatherPlan::default() };
+        for ls in &links.by_receiver {
+            plan.start.push(plan.source.len() as u32);
+            for l in ls {
+                let w = f64::from(l.ff) * f64::from(l.vis);
+                if w > 0.0 {
+                    debug_assert!(l.source < FULL_BIT, "element ids stay below 2^31");
+                    plan.source.push(l.source | if l.vis >= 1.0 { FULL_BIT } else { 0 });
+                    plan.weight.push(w);
+                }
+            }
+        }
+        plan.start.push(plan.source.len() as u32);
+        plan
+    }
+
+    /// `gather_links` for receiver `r` with source radiosities `b`: the same sums in the same
+    /// order.
+    fn gather(&self, r: usize, b: &[Rgb]) -> (Rgb, Rgb) {
+        let (lo, hi) = (self.start[r] as usize, self.start[r + 1] as usize);
+        let mut g = Rgb::ZERO;
+        let mut full = Rgb::ZERO;
+        for (&s, &w) in self.source[lo..hi].iter().zip(&self.weight[lo..hi]) {
+            let t = b[(s & !FULL_BIT) as usize] * w;
+            g += t;
+            if s & FULL_BIT != 0 {
+                full += t;
+            }
+        }
+        (g, full)
+    }
+}
+
 /// (Σ F·V·B over the links, the same over the fully visible ones), with source radiosities `b`.
 fn gather_links(links: &[Link], b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
     let mut g = Rgb::ZERO;
@@ -270,6 +318,8 @@ pub struct HierarchicalSolver {
     gathered_once: bool,
     /// Scratch for `push_pull_flat`.
     chain: Vec<Chain>,
+    /// The links flattened for gathering; rebuilt after links change.
+    gather_plan: Option<GatherPlan>,
     /// The oracle's compact copy of every element's (b_max, max channel of B) during
     /// refinement; cleared afterwards, as B changes.
     oracle_b: Vec<[f64; 2]>,
@@ -322,6 +372,7 @@ impl HierarchicalSolver {
             energy: EnergyBalance::default(),
             gathered_once: false,
             chain: Vec::new(),
+            gather_plan: None,
             oracle_b: Vec::new(),
         };
         s.energy.emitted = s.scene.emitted_power();
@@ -364,6 +415,7 @@ impl HierarchicalSolver {
     pub fn reset(&mut self) {
         self.hier = Hierarchy::from_scene(&self.scene);
         self.links = LinkStore::new(self.hier.len());
+        self.gather_plan = None;
         self.linked = false;
         self.stats = HierarchicalStats::default();
         self.residuals.clear();
@@ -417,6 +469,7 @@ impl HierarchicalSolver {
         let mut new_links = 0;
         self.oracle_b.clear();
         self.sync_oracle_b();
+        self.gather_plan = None;
         let mut changed = Vec::new();
         if !self.linked {
             new_links += self.initial_linking();
@@ -981,17 +1034,16 @@ impl HierarchicalSolver {
             self.push_pull_flat(Some(&before));
             self.stats.gather_s += t.elapsed().as_secs_f64();
         } else {
-            // Sources' radiosity in a compact array (read once per link, in any order), then
-            // every receiver gathers in parallel.
+            // Sources' radiosity in a compact array (read once per link, in any order), the
+            // links as one contiguous plan, then every receiver gathers in parallel.
+            if self.gather_plan.is_none() {
+                self.gather_plan = Some(GatherPlan::new(&self.links));
+            }
+            let plan = self.gather_plan.as_ref().expect("built above");
             let b: Vec<Rgb> = self.hier.elements.par_iter().with_min_len(1024).map(|e| e.radiosity).collect();
-            self.hier
-                .elements
-                .par_iter_mut()
-                .zip(self.links.by_receiver.par_iter())
-                .with_min_len(256)
-                .for_each(|(e, ls)| {
-                    (e.gathered, e.gathered_full) = gather_links(ls, |s| b[s as usize]);
-                });
+            self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
+                (e.gathered, e.gathered_full) = plan.gather(r, &b);
+            });
             self.stats.gather_s += t.elapsed().as_secs_f64();
         }
         self.gathered_once = true;
