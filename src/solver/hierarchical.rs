@@ -744,7 +744,11 @@ impl HierarchicalSolver {
         if !sides.facing {
             return (None, 0);
         }
-        let ff = link_form_factor(p, q);
+        // The exact form factor is needed only by links that outlive the next pass, and to
+        // know whether the link exists at all, which a pair clearly in front of each other
+        // settles (`form_factor_surely_positive`).
+        let surely = !sides.straddle && form_factor_surely_positive(p, q);
+        let ff = if surely { f64::NAN } else { link_form_factor(p, q) };
         if ff <= 0.0 && !sides.straddle {
             return (None, 0);
         }
@@ -777,6 +781,9 @@ impl HierarchicalSolver {
         } else {
             vis_with(rays, 0, false)
         };
+        if surely {
+            link.ff = link_form_factor(p, q) as f32;
+        }
         link.vis = vis as f32;
         if vis == 0.0 && self.params.zero_confirm > 0 {
             // A zero estimate ends refinement for good; if the link would be refined were it
@@ -821,6 +828,7 @@ impl HierarchicalSolver {
                 let mut last = NO_HIT;
                 for l in ls.iter_mut().filter(|l| l.vis == UNMEASURED_VIS) {
                     let (p, q) = (hier.get(r as u32), hier.get(l.source));
+                    l.ff = link_form_factor(p, q) as f32;
                     let (v, c) = visibility::visibility_sample(
                         accel,
                         (p.vertices(), p.patch, p.normal),
@@ -1372,6 +1380,25 @@ impl HierarchicalSolver {
             elements,
         }
     }
+}
+
+/// Margin (relative to the pair's size) by which `form_factor_surely_positive` wants the point
+/// in front of the polygon and the polygon in front of the point's tangent plane: far above the
+/// kernel's own in-plane and clipping tolerances (1e-11, 1e-12), so the kernel neither clips nor
+/// takes a limit there.
+const SURE_MARGIN: f64 = 1e-6;
+
+/// Is `link_form_factor(receiver, source)` certainly positive? True when its evaluation point
+/// lies clearly in front of the polygon it looks at and that polygon lies clearly in front of
+/// the point's tangent plane: it then subtends a positive projected solid angle.
+fn form_factor_surely_positive(receiver: &Element, source: &Element) -> bool {
+    let (x, nx, poly, np) = if source.area < RECIPROCAL_AREA_RATIO * receiver.area {
+        (source.centroid, source.normal, receiver.vertices(), receiver.normal)
+    } else {
+        (receiver.centroid, receiver.normal, source.vertices(), source.normal)
+    };
+    let margin = SURE_MARGIN * (receiver.diam + source.diam);
+    poly.iter().all(|&v| np.dot(x - v) > margin && nx.dot(v - x) > margin)
 }
 
 /// Form factor of a link receiver ← source: the exact point-to-polygon kernel evaluated at the
