@@ -24,6 +24,10 @@ pub struct Link {
     pub bound: f32,
     /// Refine splits the source (F_pq > F_qp), else the receiver.
     pub split_source: bool,
+    /// Created since its receiver's links were last examined by the oracle in the current
+    /// refinement (a refinement pass examines only these after its first pass).
+    #[serde(skip)]
+    pub fresh: bool,
 }
 
 const _: () = assert!(std::mem::size_of::<Link>() == 24);

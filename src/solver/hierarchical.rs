@@ -481,6 +481,8 @@ impl HierarchicalSolver {
         let mut active: Vec<u32> =
             (0..self.hier.len() as u32).filter(|&r| !self.links.by_receiver[r as usize].is_empty()).collect();
         let mut total_links = self.links.len();
+        let mut first_pass = true;
+        let mut kept_reason: Vec<StopReason> = Vec::new();
         while !active.is_empty() && !self.cancelled() {
             if total_links >= self.params.max_links {
                 self.stats.budget_hit = true;
@@ -489,7 +491,9 @@ impl HierarchicalSolver {
             // A: decide, in parallel, read-only (from each link's cached geometry).
             let phase = Instant::now();
             let decisions: Vec<ReceiverDecision> =
-                active.par_iter().map(|&r| self.decide_receiver(r)).collect();
+                active.par_iter().map(|&r| self.decide_receiver(r, first_pass)).collect();
+            first_pass = false;
+            kept_reason.resize(self.hier.len(), StopReason::Unrefined);
             let mut to_split = Vec::new();
             for (r, reason, splits) in &decisions {
                 for &(i, side) in splits {
@@ -498,9 +502,15 @@ impl HierarchicalSolver {
                         Split::Receiver => *r,
                     });
                 }
+                // The strongest reason over all the links the receiver keeps, examined now or
+                // in an earlier pass.
+                let kept = &mut kept_reason[*r as usize];
+                if reason.rank() > kept.rank() {
+                    *kept = *reason;
+                }
                 let e = &mut self.hier.elements[*r as usize];
-                if e.is_leaf() && *reason != StopReason::Unrefined {
-                    e.stop = *reason;
+                if e.is_leaf() && *kept != StopReason::Unrefined {
+                    e.stop = *kept;
                 }
             }
             self.stats.refine_decide_s += phase.elapsed().as_secs_f64();
@@ -611,11 +621,17 @@ impl HierarchicalSolver {
             .extend(els[start.min(els.len())..].iter().map(|e| [e.b_max, e.radiosity.max_channel()]));
     }
 
-    fn decide_receiver(&self, r: u32) -> ReceiverDecision {
+    /// The oracle on receiver `r`'s links: all of them, or (`all` false) only the fresh ones,
+    /// the others having been kept by an earlier pass of this refinement (the oracle's inputs
+    /// do not change during a refinement).
+    fn decide_receiver(&self, r: u32, all: bool) -> ReceiverDecision {
         let p = self.hier.get(r);
         let mut reason = StopReason::Unrefined;
         let mut splits = Vec::new();
         for (i, l) in self.links.by_receiver[r as usize].iter().enumerate() {
+            if !all && !l.fresh {
+                continue;
+            }
             match self.decide(p, l) {
                 Ok(side) => splits.push((i as u32, side)),
                 Err(why) => {
@@ -710,7 +726,7 @@ impl HierarchicalSolver {
                     (side, made)
                 }
                 _ => {
-                    own.push(*l);
+                    own.push(Link { fresh: false, ..*l });
                     continue;
                 }
             };
@@ -1468,6 +1484,7 @@ fn new_link(
         fmax: fpq.max(fqp) as f32,
         bound: geometric_variation(p, q) as f32,
         split_source: fpq > fqp,
+        fresh: true,
     }
 }
 
