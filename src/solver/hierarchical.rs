@@ -280,10 +280,10 @@ type PairRow = (Vec<(u32, Link, Link)>, usize, u64);
 /// Receiver, its new own links, links for its children, rays cast, own list changed, links created.
 type ReplaceResult = (u32, Vec<Link>, Kids, u64, bool, usize);
 
-/// Links pushed down to a receiver's four children (child k gets `.0[k]`, in the order of the
-/// split links in the receiver's list).
+/// Links pushed down to a receiver's four children (child k, id `.1 + k`, gets `.0[k]`, in the
+/// order of the split links in the receiver's list).
 #[derive(Default)]
-struct Kids([Vec<Link>; 4]);
+struct Kids([Vec<Link>; 4], u32);
 
 /// What refinement does with one link.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -481,6 +481,8 @@ impl HierarchicalSolver {
         let mut active: Vec<u32> =
             (0..self.hier.len() as u32).filter(|&r| !self.links.by_receiver[r as usize].is_empty()).collect();
         let mut total_links = self.links.len();
+        // Only the normalisation reads the "dirty" marks (see update_sums_and_normalisation).
+        let normalize = self.params.normalize;
         let mut first_pass = true;
         let mut kept_reason: Vec<StopReason> = Vec::new();
         while !active.is_empty() && !self.cancelled() {
@@ -551,11 +553,13 @@ impl HierarchicalSolver {
                 new_links += created;
                 let pushed: usize = kids.0.iter().map(Vec::len).sum();
                 total_links = total_links + own.len() + pushed - self.links.by_receiver[r as usize].len();
-                self.hier.elements[r as usize].dirty = true;
+                if normalize {
+                    self.hier.elements[r as usize].dirty = true;
+                }
                 changed.push(r);
                 owns.push((r, own));
                 if pushed > 0 {
-                    let first = self.hier.get(r).first_child;
+                    let first = kids.1;
                     for (k, ls) in kids.0.into_iter().enumerate() {
                         if !ls.is_empty() {
                             pushed_down.push((first + k as u32, ls));
@@ -573,7 +577,9 @@ impl HierarchicalSolver {
                 } else {
                     list.extend(ls);
                 }
-                self.hier.elements[c as usize].dirty = true;
+                if normalize {
+                    self.hier.elements[c as usize].dirty = true;
+                }
                 next.push(c);
                 changed.push(c);
             }
@@ -743,6 +749,9 @@ impl HierarchicalSolver {
                     }
                 }
             }
+        }
+        if kids.0.iter().any(|k| !k.is_empty()) {
+            kids.1 = self.hier.get(r).first_child;
         }
         (r, own, kids, rays, own_changed, created)
     }
