@@ -414,7 +414,7 @@ impl RadlabApp {
         self.error_samples.clear();
         self.last_report = None;
         if let Some(r) = &mut self.reference {
-            r.send(RefCommand::Load { scene: Arc::clone(&scene), compute: false });
+            r.load(Arc::clone(&scene), false);
             self.ref_state = RefState::Looking;
         }
         self.set_view(Arc::new(ViewData::default()));
@@ -605,9 +605,23 @@ impl RadlabApp {
     /// cache; the UI stays live and shows the elapsed time).
     pub fn compute_reference(&mut self) {
         if let (Some(r), Some(scene)) = (&mut self.reference, &self.scene) {
-            r.send(RefCommand::Load { scene: Arc::clone(scene), compute: true });
+            r.load(Arc::clone(scene), true);
             self.ref_state = RefState::Looking;
         }
+    }
+
+    /// Stop the reference computation started by [`RadlabApp::compute_reference`]; the scene
+    /// is left without a reference (nothing is cached).
+    pub fn cancel_reference(&mut self) {
+        if let Some(r) = &self.reference {
+            r.cancel();
+        }
+    }
+
+    /// (regions finished, regions) of the reference computation.
+    #[must_use]
+    pub fn reference_progress(&self) -> (usize, usize) {
+        self.reference.as_ref().map_or((0, 0), RefThread::progress)
     }
 
     /// The (solver time, rel L2 error against the reference) points of the error plot.
@@ -654,6 +668,10 @@ impl RadlabApp {
                 self.ref_state = RefState::Computing { regions, samples, since: Instant::now() };
             }
             RefReply::Missing { source } if current(&source, self) => self.ref_state = RefState::Missing,
+            RefReply::Cancelled { source } if current(&source, self) => {
+                self.ref_state = RefState::Missing;
+                self.status = "reference computation cancelled".into();
+            }
             RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
                 self.ref_state = RefState::Ready { regions, samples, how };
                 self.evaluated_seq = 0; // score the current state
@@ -671,7 +689,10 @@ impl RadlabApp {
                 self.errors.push(e);
             }
             // Answers about a scene no longer shown.
-            RefReply::Computing { .. } | RefReply::Missing { .. } | RefReply::Ready { .. } => {}
+            RefReply::Computing { .. }
+            | RefReply::Missing { .. }
+            | RefReply::Ready { .. }
+            | RefReply::Cancelled { .. } => {}
         }
     }
 
@@ -703,12 +724,22 @@ impl RadlabApp {
                 }
             }
             RefState::Computing { regions, samples, since } => {
-                ui.horizontal(|ui| {
-                    ui.spinner();
-                    ui.label(format!("computing… {:.0} s", since.elapsed().as_secs_f64()));
-                });
+                let (done, total) = self.reference_progress();
+                let total = if total == 0 { regions } else { total };
                 ui.label(format!("{regions} regions × {samples} paths"));
-                ui.ctx().request_repaint_after(std::time::Duration::from_millis(500));
+                ui.add(
+                    egui::ProgressBar::new(done as f32 / total.max(1) as f32)
+                        .desired_width(180.0)
+                        .text(format!("{done}/{total} · {:.0} s", since.elapsed().as_secs_f64())),
+                );
+                if ui
+                    .button("Cancel reference")
+                    .on_hover_text("Stop the computation (nothing is cached)")
+                    .clicked()
+                {
+                    self.cancel_reference();
+                }
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
             }
             RefState::Ready { regions, samples, how } => {
                 ui.label(format!("{regions} regions × {samples} paths")).on_hover_text(how);
