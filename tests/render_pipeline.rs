@@ -80,6 +80,7 @@ fn uniforms(srgb: bool, mode: u32, selected: u32) -> Uniforms {
         overlay: if selected == NO_SELECTION { 0 } else { OVERLAY_PICKED },
         line_px: 0.75,
         _pad: [0; 2],
+        background: [0.0, 0.0, 0.0, 1.0],
     }
 }
 
@@ -89,15 +90,10 @@ fn draw(g: &Geometry, u: Uniforms) -> RgbaImage {
 
 fn draw_sized(g: &Geometry, u: Uniforms, size: [u32; 2]) -> RgbaImage {
     let rs = render_state().lock().unwrap();
-    let mut r = SceneRenderer::new(&rs.device, wgpu::TextureFormat::Rgba8Unorm);
+    let mut r = SceneRenderer::new(&rs.device, wgpu::TextureFormat::Rgba8Unorm, None);
     r.set_geometry(&rs.device, g);
     let mut enc = rs.device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-    r.render(
-        &rs.device,
-        &rs.queue,
-        &mut enc,
-        &FrameParams { uniforms: u, size, clear: [0.0, 0.0, 0.0, 1.0] },
-    );
+    r.render(&rs.device, &rs.queue, &mut enc, &FrameParams { uniforms: u, size });
     rs.queue.submit([enc.finish()]);
     r.read_pixels(&rs.device, &rs.queue).unwrap()
 }
@@ -486,6 +482,149 @@ fn golden_box() {
         img.distinct_colors()
     );
 }
+
+/// Draw `g` the way the native viewer does: straight into a host pass (egui's) with a
+/// Depth32Float depth buffer cleared to 1, the viewport set to `rect` inside a larger target
+/// cleared to `panel`. Returns the whole target.
+fn draw_direct(
+    g: &Geometry,
+    u: Uniforms,
+    format: wgpu::TextureFormat,
+    target: [u32; 2],
+    rect: [u32; 4],
+    panel: wgpu::Color,
+) -> RgbaImage {
+    let rs = render_state().lock().unwrap();
+    let mut r = SceneRenderer::new(&rs.device, format, Some(radlab::render::DEPTH_FORMAT));
+    assert!(r.draws_direct());
+    r.set_geometry(&rs.device, g);
+    let frame = FrameParams { uniforms: u, size: [rect[2], rect[3]] };
+    r.prepare_direct(&rs.queue, &frame);
+    let texture = |format, usage| {
+        rs.device.create_texture(&wgpu::TextureDescriptor {
+            label: None,
+            size: wgpu::Extent3d { width: target[0], height: target[1], depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    let color = texture(format, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC);
+    let depth = texture(radlab::render::DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT);
+    let color_view = color.create_view(&wgpu::TextureViewDescriptor::default());
+    let depth_view = depth.create_view(&wgpu::TextureViewDescriptor::default());
+    let mut enc = rs.device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    {
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("host pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(panel), store: wgpu::StoreOp::Store },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        let [x, y, w, h] = rect.map(|v| v as f32);
+        pass.set_viewport(x, y, w, h, 0.0, 1.0);
+        pass.set_scissor_rect(rect[0], rect[1], rect[2], rect[3]);
+        assert!(r.paint_direct(&mut pass));
+    }
+    rs.queue.submit([enc.finish()]);
+    radlab::render::read_texture(&rs.device, &rs.queue, &color).unwrap()
+}
+
+#[test]
+fn direct_drawing_into_the_host_pass_matches_the_offscreen_image() {
+    // The golden box with every feature on (back faces, quadtree, selection, links, background)
+    // drawn offscreen and, as the native viewer does, straight into a larger host pass at an
+    // offset: the viewport must be the same image, and the host's pixels around it untouched.
+    let (l, h) = (-1.0, 1.0);
+    let p = DVec3::new;
+    let face = |id: u32, mut v: [DVec3; 4], b: Rgb| {
+        if id != 0 {
+            v.reverse();
+        }
+        ElementView { id, patch: id, vertices: v, radiosity: b, ..square(id, 0.0, b, false) }
+    };
+    let els = vec![
+        face(0, [p(l, l, l), p(h, l, l), p(h, l, h), p(l, l, h)], Rgb::splat(0.6)),
+        face(1, [p(l, h, l), p(l, h, h), p(h, h, h), p(h, h, l)], Rgb::splat(0.9)),
+        face(2, [p(l, l, l), p(l, h, l), p(h, h, l), p(h, l, l)], Rgb::splat(0.5)),
+        face(3, [p(l, l, l), p(l, l, h), p(l, h, h), p(l, h, l)], Rgb::new(0.6, 0.1, 0.1)),
+    ];
+    let leaves: Vec<u32> = (0..4).collect();
+    let links = [
+        LinkView { receiver: 0, source: 1, ff: 0.2, vis: 1.0 },
+        LinkView { receiver: 3, source: 2, ff: 0.1, vis: 0.5 },
+    ];
+    let list = overlay::link_lines(&els, &links, &LinkFilter::default(), 0.8).lines;
+    let g = Geometry {
+        mesh: geometry::mesh(&els, &leaves, MeshColors::Smooth, DVec3::ZERO),
+        links: geometry::lines(&list, DVec3::ZERO),
+        links_xray: false,
+    };
+    assert!(!g.links.is_empty());
+    let mut u = uniforms(true, 0, 3);
+    u.overlay |= OVERLAY_QUADTREE;
+    u.background = [0.08, 0.08, 0.1, 1.0];
+    let mut cam = camera();
+    cam.distance = 3.5;
+    cam.orbit(0.3, 0.2);
+    u.view_proj = cam
+        .view_proj(f64::from(W) / f64::from(H), DVec3::ZERO)
+        .to_cols_array_2d()
+        .map(|c| c.map(|x| x as f32));
+    let offscreen = draw(&g, u);
+    // The background shows (the box is open), so the background pass is exercised.
+    let bg = [20, 20, 26];
+    assert!(offscreen.pixels.chunks_exact(4).any(|q| close([q[0], q[1], q[2], q[3]], bg)));
+    // Back-face stripes follow window pixels, 12 to a period along x + y: an offset that is a
+    // multiple of it keeps them where the offscreen image has them; even, it keeps the 2×2 pixel
+    // quads of the derivatives (quadtree edge widths) aligned too.
+    let (x0, y0) = (14, 10);
+    let panel = wgpu::Color { r: 0.2, g: 0.4, b: 0.6, a: 1.0 };
+    for format in [wgpu::TextureFormat::Rgba8Unorm, wgpu::TextureFormat::Rgba8UnormSrgb] {
+        let host = draw_direct(&g, u, format, [W + 30, H + 20], [x0, y0, W, H], panel);
+        let viewport = host.crop(x0, y0, W, H);
+        // An sRGB target stores the same display values after its decode-then-encode round trip
+        // (±1 level), and the panel's linear clear colour encoded.
+        let (stats, _) = snapshot::diff(&viewport, &offscreen).unwrap();
+        if format.is_srgb() {
+            // The link lines blend in linear light on an sRGB target (a few pixels differ more).
+            assert!(
+                stats.p95 <= f64::from(DIRECT_MAX_DIFF) && stats.mean <= SRGB_MEAN_DIFF,
+                "{format:?}: {stats:?}"
+            );
+        } else {
+            assert!(stats.max <= DIRECT_MAX_DIFF, "{format:?}: {stats:?}");
+        }
+        let want_panel: [u8; 3] = if format.is_srgb() { [124, 170, 203] } else { [51, 102, 153] };
+        for (x, y) in [(0, 0), (x0 - 1, y0 + 5), (x0 + W, y0 + H - 1), (W + 29, H + 19)] {
+            assert!(close(host.pixel(x, y), want_panel), "{format:?} ({x}, {y}): {:?}", host.pixel(x, y));
+        }
+    }
+}
+
+/// Direct and offscreen drawing run the same shaders on the same rasteriser: equal, up to one
+/// level (interpolation rounding at another window offset; the sRGB target's decode-encode round
+/// trip).
+const DIRECT_MAX_DIFF: u8 = 1;
+/// Mean difference allowed on an sRGB target, where the few link-line pixels blend differently.
+const SRGB_MEAN_DIFF: f64 = 1.0;
 
 #[test]
 fn every_shader_parses_and_validates() {

@@ -59,6 +59,9 @@ pub struct ViewerOptions {
     pub show_plots: bool,
     /// Where the reference solution comes from (settings and disk cache).
     pub reference: RefSettings,
+    /// egui's render pass has a [`crate::render::DEPTH_FORMAT`] depth buffer (the native window
+    /// asks for one): draw the 3-D view straight into it instead of through an offscreen copy.
+    pub direct_viewport: bool,
 }
 
 impl Default for ViewerOptions {
@@ -74,6 +77,7 @@ impl Default for ViewerOptions {
             screenshot_window: false,
             show_plots: false,
             reference: RefSettings::default(),
+            direct_viewport: false,
         }
     }
 }
@@ -123,7 +127,7 @@ impl Default for Display {
 }
 
 /// Background of the viewport (display space).
-const BACKGROUND: [f64; 4] = [0.08, 0.08, 0.1, 1.0];
+const BACKGROUND: [f32; 4] = [0.08, 0.08, 0.1, 1.0];
 /// Back faces: dull magenta, striped in the shader.
 const BACK_COLOR: [f32; 4] = [0.55, 0.1, 0.45, 1.0];
 /// Width of the quadtree edges drawn by the mesh shader, pixels on each side of an edge (a
@@ -274,7 +278,8 @@ impl RadlabApp {
     /// solver thread, load the scene.
     pub fn new(cc: &eframe::CreationContext<'_>, opts: ViewerOptions) -> RadlabApp {
         let has_wgpu = if let Some(rs) = &cc.wgpu_render_state {
-            let renderer = SceneRenderer::new(&rs.device, rs.target_format);
+            let depth = opts.direct_viewport.then_some(crate::render::DEPTH_FORMAT);
+            let renderer = SceneRenderer::new(&rs.device, rs.target_format, depth);
             rs.renderer.write().callback_resources.insert(renderer);
             true
         } else {
@@ -880,6 +885,7 @@ impl RadlabApp {
                 | if self.selected.is_some() { OVERLAY_PICKED } else { 0 },
             line_px: QUADTREE_LINE_PX * pixels_per_point,
             _pad: [0; 2],
+            background: BACKGROUND,
         }
     }
 
@@ -1310,7 +1316,7 @@ impl RadlabApp {
             painter.add(egui_wgpu::Callback::new_paint_callback(
                 rect,
                 ViewportCallback {
-                    frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size, clear: BACKGROUND },
+                    frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size },
                     geometry: Arc::clone(&self.geometry),
                     generation: self.generation,
                 },
