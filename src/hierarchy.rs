@@ -70,42 +70,45 @@ impl StopReason {
 }
 
 /// One element of the hierarchy.
+// Field order is kept (repr(C)): the fields push-pull and gather touch come first, in the
+// first cache lines; geometry follows.
 #[derive(Clone, Debug)]
+#[repr(C)]
 pub struct Element {
-    pub patch: u32,
     pub parent: u32,
     pub first_child: u32,
-    pub depth: u8,
-    pub n_verts: u8,
-    pub stop: StopReason,
-    pub verts: [DVec3; 4],
     pub area: f64,
-    /// Largest vertex-to-vertex distance (cached: the oracle asks for it per link).
-    pub diam: f64,
-    pub centroid: DVec3,
-    pub normal: DVec3,
-    /// Links of this element or an ancestor changed since its normalisation was computed.
-    pub dirty: bool,
-    pub reflectance: Rgb,
-    pub emission: Rgb,
-    /// Radiosity: leaves E + ρ·H; interior elements the area average of their children (pull).
-    pub radiosity: Rgb,
+    /// Per-leaf form-factor normalisation factor (1 for interior elements); see `solver::hierarchical`.
+    pub norm: f64,
+    /// Σ F over this element's fully visible own links (for the per-leaf normalisation).
+    pub f_sum: f64,
+    /// Σ F·V over this element's own links that are not fully visible.
+    pub fv_partial: f64,
+    /// Σ F·V over this element's own links (for the escaped-energy balance).
+    pub fv_sum: f64,
     /// Largest channel of any leaf's radiosity below (and including) this element, from the last
     /// push-pull: the BF oracle's source term for partially visible links.
     pub b_max: f64,
+    /// Radiosity: leaves E + ρ·H; interior elements the area average of their children (pull).
+    pub radiosity: Rgb,
     /// Irradiance gathered over this element's own links, Σ F·V·B_source (before push).
     pub gathered: Rgb,
     /// The part of `gathered` that comes through fully visible links (V = 1); only this part is
     /// normalised when pushed down to leaves.
     pub gathered_full: Rgb,
-    /// Σ F·V over this element's own links (for the escaped-energy balance).
-    pub fv_sum: f64,
-    /// Σ F over this element's fully visible own links (for the per-leaf normalisation).
-    pub f_sum: f64,
-    /// Σ F·V over this element's own links that are not fully visible.
-    pub fv_partial: f64,
-    /// Per-leaf form-factor normalisation factor (1 for interior elements); see `solver::hierarchical`.
-    pub norm: f64,
+    pub emission: Rgb,
+    pub reflectance: Rgb,
+    pub patch: u32,
+    pub depth: u8,
+    pub n_verts: u8,
+    pub stop: StopReason,
+    /// Links of this element or an ancestor changed since its normalisation was computed.
+    pub dirty: bool,
+    /// Largest vertex-to-vertex distance (cached: the oracle asks for it per link).
+    pub diam: f64,
+    pub centroid: DVec3,
+    pub normal: DVec3,
+    pub verts: [DVec3; 4],
 }
 
 impl Element {

@@ -56,12 +56,46 @@ impl Strata {
     }
 
     fn point(&self, k: u32, perm: u32, rng: &mut Pcg32) -> (f64, f64) {
-        let s = (k.wrapping_mul(perm | 1).wrapping_add(perm)) % (self.cols * self.rows);
-        let (i, j) = (s % self.cols, s / self.cols);
+        let s = (u64::from(k) * u64::from(perm | 1) + u64::from(perm)) % u64::from(self.cols * self.rows);
+        let s = s as u32;
+        self.jittered(s % self.cols, s / self.cols, rng)
+    }
+
+    fn jittered(&self, i: u32, j: u32, rng: &mut Pcg32) -> (f64, f64) {
         let ju = 0.05 + 0.9 * rng.next_f64();
         let jv = 0.05 + 0.9 * rng.next_f64();
         ((f64::from(i) + ju) * self.inv_cols, (f64::from(j) + jv) * self.inv_rows)
     }
+
+    /// The strata of samples k = 0, 1, … in order: the same as `point(k, perm, ·)` without a
+    /// division per sample (stratum k·(perm|1) + perm mod cols·rows, advanced by adding).
+    fn walk(&self, perm: u32) -> Walk {
+        let m = self.cols * self.rows;
+        let (s0, step) = (perm % m, (perm | 1) % m);
+        Walk { i: s0 % self.cols, j: s0 / self.cols, di: step % self.cols, dj: step / self.cols }
+    }
+
+    fn next(&self, w: &mut Walk, rng: &mut Pcg32) -> (f64, f64) {
+        let p = self.jittered(w.i, w.j, rng);
+        w.i += w.di;
+        w.j += w.dj;
+        if w.i >= self.cols {
+            w.i -= self.cols;
+            w.j += 1;
+        }
+        if w.j >= self.rows {
+            w.j -= self.rows;
+        }
+        p
+    }
+}
+
+/// Position of a [`Strata::walk`]: the current stratum (column, row) and the step.
+struct Walk {
+    i: u32,
+    j: u32,
+    di: u32,
+    dj: u32,
 }
 
 /// Estimate the visible fraction between a receiver region and a source region.
@@ -96,11 +130,28 @@ pub fn visible_fraction(
 #[must_use]
 pub fn visible_fraction_oriented(
     accel: &Accel,
+    receiver: (&[DVec3], u32, DVec3),
+    source: (&[DVec3], u32, DVec3),
+    rays: u32,
+    seed: u64,
+    key: u64,
+) -> f64 {
+    let mut last = crate::accel::NO_HIT;
+    visible_fraction_cached(accel, receiver, source, rays, seed, key, &mut last)
+}
+
+/// [`visible_fraction_oriented`] with a shadow cache shared with the caller (see
+/// [`Accel::occluded_cached`]): pass the same `last` for nearby region pairs (the children of
+/// one split link). The estimate does not depend on it.
+#[must_use]
+pub fn visible_fraction_cached(
+    accel: &Accel,
     (receiver, receiver_patch, n_r): (&[DVec3], u32, DVec3),
     (source, source_patch, n_s): (&[DVec3], u32, DVec3),
     rays: u32,
     seed: u64,
     key: u64,
+    last: &mut u32,
 ) -> f64 {
     if rays == 0 {
         return 1.0;
@@ -111,9 +162,10 @@ pub fn visible_fraction_oriented(
     let mut counted = 0u32;
     // Receiver strata in order, source strata in a co-prime stride so pairs decorrelate.
     let stride = 2 * rays / 3 + 1;
-    for k in 0..rays {
-        let (ru, rv) = strata.point(k, 0, &mut rng);
-        let (su, sv) = strata.point(k, stride, &mut rng);
+    let (mut walk_r, mut walk_s) = (strata.walk(0), strata.walk(stride));
+    for _ in 0..rays {
+        let (ru, rv) = strata.next(&mut walk_r, &mut rng);
+        let (su, sv) = strata.next(&mut walk_s, &mut rng);
         let x = point_on_polygon(receiver, ru, rv);
         let y = point_on_polygon(source, su, sv);
         // Only pairs that face each other carry energy (both cosines positive); a pair behind
@@ -123,7 +175,7 @@ pub fn visible_fraction_oriented(
             continue;
         }
         counted += 1;
-        if !accel.occluded(x, y, [receiver_patch, source_patch]) {
+        if !accel.occluded_cached(x, y, [receiver_patch, source_patch], last) {
             visible += 1;
         }
     }
@@ -152,6 +204,24 @@ mod tests {
                 seen[((v * f64::from(rows)) as u32 * cols + (u * f64::from(cols)) as u32) as usize] += 1;
             }
             assert!(seen.iter().all(|&c| c <= 1), "n={n}: {seen:?}");
+        }
+    }
+
+    #[test]
+    fn strata_walk_matches_the_closed_form() {
+        for n in [1u32, 2, 3, 4, 7, 10, 16, 40, 64, 4096] {
+            let strata = Strata::new(n);
+            for perm in [0, 1, 2 * n / 3 + 1, 5, 97] {
+                let mut w = strata.walk(perm);
+                let (mut a, mut b) = (Pcg32::new(3, 5), Pcg32::new(3, 5));
+                for k in 0..n {
+                    assert_eq!(
+                        strata.next(&mut w, &mut a),
+                        strata.point(k, perm, &mut b),
+                        "n {n} perm {perm} k {k}"
+                    );
+                }
+            }
         }
     }
 

@@ -55,6 +55,13 @@ pub struct Row {
     pub links_created: u64,
     pub rays_cast: u64,
     pub refine_s: f64,
+    /// Parts of refine: initial linking, oracle (parallel), splitting (serial), new links
+    /// (parallel), installing them (serial).
+    pub refine_initial_s: f64,
+    pub refine_decide_s: f64,
+    pub refine_split_s: f64,
+    pub refine_links_s: f64,
+    pub refine_install_s: f64,
     pub gather_s: f64,
     pub push_pull_s: f64,
     pub total_s: f64,
@@ -122,6 +129,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 links_created: st.links_created,
                 rays_cast: st.rays,
                 refine_s: st.refine_s,
+                refine_initial_s: st.refine_initial_s,
+                refine_decide_s: st.refine_decide_s,
+                refine_split_s: st.refine_split_s,
+                refine_links_s: st.refine_links_s,
+                refine_install_s: st.refine_install_s,
                 gather_s: st.gather_s,
                 push_pull_s: st.push_pull_s,
                 total_s: total,
@@ -147,6 +159,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
             rows.push(row);
         }
+    }
+    println!();
+    println!("Refinement by phase (same runs; split and install are serial):");
+    println!("| rays | threads | initial linking | oracle | split | new links | install | other |");
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for r in &rows {
+        let parts =
+            r.refine_initial_s + r.refine_decide_s + r.refine_split_s + r.refine_links_s + r.refine_install_s;
+        println!(
+            "| {} | {} | {:.3} s | {:.3} s | {:.3} s | {:.3} s | {:.3} s | {:.3} s |",
+            r.rays,
+            r.threads,
+            r.refine_initial_s,
+            r.refine_decide_s,
+            r.refine_split_s,
+            r.refine_links_s,
+            r.refine_install_s,
+            r.refine_s - parts
+        );
     }
     println!(
         "SPLASH-2 radiosity on this class of machine (issue figure): {SPLASH2_CPU_S} s CPU on one thread, \

@@ -58,9 +58,9 @@
 
 use super::params::{HierarchicalParams, Oracle};
 use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
-use crate::accel::Accel;
+use crate::accel::{Accel, NO_HIT};
 use crate::form_factor;
-use crate::hierarchy::{Element, Hierarchy, StopReason};
+use crate::hierarchy::{Element, Hierarchy, NONE, StopReason};
 use crate::link::{Link, LinkStore, VisClass};
 use crate::math::{DVec3, Rgb};
 use crate::scene::Scene;
@@ -125,6 +125,14 @@ pub struct HierarchicalStats {
     /// Links created by refinement, including those later replaced by finer ones.
     pub links_created: u64,
     pub refine_s: f64,
+    /// Parts of `refine_s`: initial linking of the input patches; the oracle on every link
+    /// (parallel); splitting elements (serial); computing replacement links, form factors and
+    /// rays (parallel); installing them (serial).
+    pub refine_initial_s: f64,
+    pub refine_decide_s: f64,
+    pub refine_split_s: f64,
+    pub refine_links_s: f64,
+    pub refine_install_s: f64,
     pub gather_s: f64,
     pub push_pull_s: f64,
     pub iterations: usize,
@@ -177,6 +185,41 @@ pub struct Snapshot {
 }
 
 /// Cached initial links: ((rays, seed, conservative), links per root receiver, pairs skipped).
+/// Mutable references to the elements of `v` at `ids`, which must be strictly increasing.
+fn disjoint_mut<T>(v: &mut [T], ids: impl Iterator<Item = u32>) -> Vec<&mut T> {
+    let mut out = Vec::new();
+    let mut rest = v;
+    let mut offset = 0usize;
+    for id in ids {
+        let (_, tail) = std::mem::take(&mut rest).split_at_mut(id as usize - offset);
+        let (item, tail) = tail.split_first_mut().expect("ids within the slice");
+        out.push(item);
+        rest = tail;
+        offset = id as usize + 1;
+    }
+    out
+}
+
+/// (Σ F·V·B over the links, the same over the fully visible ones), with source radiosities `b`.
+fn gather_links(links: &[Link], b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
+    let mut g = Rgb::ZERO;
+    let mut full = Rgb::ZERO;
+    for l in links {
+        let w = f64::from(l.ff) * f64::from(l.vis);
+        if w > 0.0 {
+            let t = b(l.source) * w;
+            g += t;
+            if l.vis >= 1.0 {
+                full += t;
+            }
+        }
+    }
+    (g, full)
+}
+
+/// A receiver with at least this many links to split computes their replacements in parallel.
+const PARALLEL_SPLITS: usize = 32;
+
 type InitialLinks = ((u32, u64, bool), Vec<Vec<Link>>, usize);
 
 /// Initial linking of one patch p: (q, link p←q, link q←p) for q > p, pairs skipped, rays cast.
@@ -216,6 +259,20 @@ pub struct HierarchicalSolver {
     bvh_s: f64,
     energy: EnergyBalance,
     gathered_once: bool,
+    /// Scratch for `push_pull_flat`.
+    chain: Vec<Chain>,
+    /// The oracle's compact copy of every element's (b_max, max channel of B) during
+    /// refinement; cleared afterwards, as B changes.
+    oracle_b: Vec<[f64; 2]>,
+}
+
+/// Sums an element inherits in push-pull, its own included.
+#[derive(Copy, Clone, Debug, Default)]
+struct Chain {
+    full: Rgb,
+    rest: Rgb,
+    f: f64,
+    fv_partial: f64,
 }
 
 impl HierarchicalSolver {
@@ -255,6 +312,8 @@ impl HierarchicalSolver {
             bvh_s,
             energy: EnergyBalance::default(),
             gathered_once: false,
+            chain: Vec::new(),
+            oracle_b: Vec::new(),
         };
         s.energy.emitted = s.scene.emitted_power();
         s
@@ -347,10 +406,15 @@ impl HierarchicalSolver {
     fn refine_inner(&mut self) -> StepReport {
         let t = Instant::now();
         let mut new_links = 0;
+        self.oracle_b.clear();
+        self.sync_oracle_b();
+        let mut changed = Vec::new();
         if !self.linked {
             new_links += self.initial_linking();
             self.linked = true;
+            changed.extend(0..self.hier.roots as u32);
         }
+        self.stats.refine_initial_s += t.elapsed().as_secs_f64();
         let mut refined = 0;
         let mut active: Vec<u32> =
             (0..self.hier.len() as u32).filter(|&r| !self.links.by_receiver[r as usize].is_empty()).collect();
@@ -361,6 +425,7 @@ impl HierarchicalSolver {
                 break;
             }
             // A: decide, in parallel, read-only (from each link's cached geometry).
+            let phase = Instant::now();
             let decisions: Vec<ReceiverDecision> =
                 active.par_iter().map(|&r| self.decide_receiver(r)).collect();
             let mut to_split = Vec::new();
@@ -376,9 +441,11 @@ impl HierarchicalSolver {
                     e.stop = *reason;
                 }
             }
+            self.stats.refine_decide_s += phase.elapsed().as_secs_f64();
             if to_split.is_empty() {
                 break;
             }
+            let phase = Instant::now();
             // B: split, serially, in id order.
             to_split.sort_unstable();
             to_split.dedup();
@@ -389,15 +456,21 @@ impl HierarchicalSolver {
                 }
             }
             self.links.grow(self.hier.len());
+            self.sync_oracle_b();
+            self.stats.refine_split_s += phase.elapsed().as_secs_f64();
+            let phase = Instant::now();
             // C: replacement links, in parallel.
             let work: Vec<ReceiverDecision> =
                 decisions.into_iter().filter(|(_, _, sp)| !sp.is_empty()).collect();
             let results: Vec<ReplaceResult> =
                 work.par_iter().map(|(r, _, splits)| self.replace_links(*r, splits)).collect();
+            self.stats.refine_links_s += phase.elapsed().as_secs_f64();
+            let phase = Instant::now();
             // D: install, in receiver order: every receiver's own list first, then the links
             // pushed down to children (a child may itself have been a receiver in this pass).
             let mut next = Vec::new();
             let mut pushed_down = Vec::new();
+            let mut owns = Vec::with_capacity(results.len());
             for (r, own, kids, rays, own_changed, created) in results {
                 self.stats.rays += rays;
                 if own_changed {
@@ -405,23 +478,30 @@ impl HierarchicalSolver {
                 }
                 new_links += created;
                 total_links = total_links + own.len() + kids.len() - self.links.by_receiver[r as usize].len();
-                self.links.by_receiver[r as usize] = own;
                 self.hier.elements[r as usize].dirty = true;
+                changed.push(r);
+                owns.push((r, own));
                 pushed_down.extend(kids);
             }
+            // The new own lists replace the old ones in parallel (freeing them is most of it).
+            let slots = disjoint_mut(&mut self.links.by_receiver, owns.iter().map(|o| o.0));
+            slots.into_par_iter().zip(owns).with_min_len(64).for_each(|(slot, (_, own))| *slot = own);
             for (c, l) in pushed_down {
                 self.links.by_receiver[c as usize].push(l);
                 self.hier.elements[c as usize].dirty = true;
                 next.push(c);
+                changed.push(c);
             }
             next.sort_unstable();
             next.dedup();
             active = next;
+            self.stats.refine_install_s += phase.elapsed().as_secs_f64();
         }
-        self.update_sums_and_normalisation();
+        self.update_sums_and_normalisation(&mut changed);
         self.converged = false;
         self.stats.links_created += new_links as u64;
         self.stats.refine_s += t.elapsed().as_secs_f64();
+        self.oracle_b.clear();
         self.report(StepKind::Refine, t, refined, new_links)
     }
 
@@ -433,6 +513,24 @@ impl HierarchicalSolver {
         } else {
             Ok(())
         }
+    }
+
+    /// A source's (brightest leaf, largest channel of B) for the oracle: from the compact copy
+    /// made for this refinement (radiosity does not change during refinement; new children
+    /// inherit their parent's values), else from the element.
+    fn source_b(&self, id: u32) -> [f64; 2] {
+        self.oracle_b.get(id as usize).copied().unwrap_or_else(|| {
+            let e = self.hier.get(id);
+            [e.b_max, e.radiosity.max_channel()]
+        })
+    }
+
+    /// Extend the oracle's compact copy of B to every element (see `source_b`).
+    fn sync_oracle_b(&mut self) {
+        let start = self.oracle_b.len();
+        let els = &self.hier.elements;
+        self.oracle_b
+            .extend(els[start.min(els.len())..].iter().map(|e| [e.b_max, e.radiosity.max_channel()]));
     }
 
     fn decide_receiver(&self, r: u32) -> ReceiverDecision {
@@ -461,11 +559,11 @@ impl HierarchicalSolver {
                 // (the floor round a box's foot is lit, the part under it is dark and hidden):
                 // B_avg · V_avg then counts the darkness twice. Bound it by the source's
                 // brightest leaf.
-                let src = self.hier.get(link.source);
+                let [b_max, b_channel] = self.source_b(link.source);
                 let b = if link.class() == VisClass::Partial && self.params.conservative {
-                    src.b_max
+                    b_max
                 } else {
-                    src.radiosity.max_channel()
+                    b_channel
                 };
                 let thr = if link.class() == VisClass::Partial {
                     self.bf_eps * PARTIAL_BF_FACTOR
@@ -495,40 +593,59 @@ impl HierarchicalSolver {
     /// New links replacing the split ones of receiver `r`: (own list, links for r's children, rays).
     fn replace_links(&self, r: u32, splits: &[(u32, Split)]) -> ReplaceResult {
         let old = &self.links.by_receiver[r as usize];
+        // The new links of each split link (its source's or its receiver's children, in child
+        // order), in parallel when the receiver has many: one busy receiver must not keep a
+        // thread waiting. Each split link has its own shadow cache, so the result does not
+        // depend on how the work is divided.
+        let new_of = |&(i, side): &(u32, Split)| -> ([Option<Link>; 4], u64) {
+            let l = &old[i as usize];
+            let mut last = NO_HIT;
+            let mut out = [None; 4];
+            let mut rays = 0;
+            let parent = if side == Split::Source { l.source } else { r };
+            for (k, c) in self.hier.get(parent).children().expect("split in phase B").into_iter().enumerate()
+            {
+                let (nl, nr) = match side {
+                    Split::Source => self.make_link(r, c, &mut last),
+                    Split::Receiver => self.make_link(c, l.source, &mut last),
+                };
+                out[k] = nl;
+                rays += nr;
+            }
+            (out, rays)
+        };
+        let made: Vec<([Option<Link>; 4], u64)> = if splits.len() >= PARALLEL_SPLITS {
+            splits.par_iter().with_max_len(PARALLEL_SPLITS / 4).map(new_of).collect()
+        } else {
+            splits.iter().map(new_of).collect()
+        };
         let mut own = Vec::with_capacity(old.len() + 3 * splits.len());
         let mut kids = Vec::new();
         let mut rays = 0u64;
         let mut own_changed = false;
         let mut created = 0;
-        let mut next = splits.iter().peekable();
+        let mut next = splits.iter().zip(made).peekable();
         for (i, l) in old.iter().enumerate() {
-            let side = match next.peek() {
-                Some(&&(j, side)) if j as usize == i => {
-                    next.next();
-                    side
+            let (side, (new, nr)) = match next.peek() {
+                Some(&(&(j, _), _)) if j as usize == i => {
+                    let (&(_, side), made) = next.next().expect("peeked");
+                    (side, made)
                 }
                 _ => {
                     own.push(*l);
                     continue;
                 }
             };
+            rays += nr;
+            created += new.iter().flatten().count();
             match side {
                 Split::Source => {
                     own_changed = true;
-                    for c in self.hier.get(l.source).children().expect("split in phase B") {
-                        let (nl, nr) = self.make_link(r, c);
-                        rays += nr;
-                        created += usize::from(nl.is_some());
-                        own.extend(nl);
-                    }
+                    own.extend(new.into_iter().flatten());
                 }
                 Split::Receiver => {
-                    for c in self.hier.get(r).children().expect("split in phase B") {
-                        let (nl, nr) = self.make_link(c, l.source);
-                        rays += nr;
-                        created += usize::from(nl.is_some());
-                        kids.extend(nl.map(|l| (c, l)));
-                    }
+                    let children = self.hier.get(r).children().expect("split in phase B");
+                    kids.extend(children.into_iter().zip(new).filter_map(|(c, nl)| nl.map(|l| (c, l))));
                 }
             }
         }
@@ -536,7 +653,9 @@ impl HierarchicalSolver {
     }
 
     /// A link receiver ← source, or None when the source contributes nothing geometrically.
-    fn make_link(&self, receiver: u32, source: u32) -> (Option<Link>, u64) {
+    ///
+    /// `last`: the shadow cache (see [`Accel::occluded_cached`]) shared by nearby pairs.
+    fn make_link(&self, receiver: u32, source: u32, last: &mut u32) -> (Option<Link>, u64) {
         let p = self.hier.get(receiver);
         let q = self.hier.get(source);
         if p.patch == q.patch {
@@ -551,14 +670,15 @@ impl HierarchicalSolver {
             return (None, 0);
         }
         let rays = self.params.rays;
-        let vis_with = |n: u32, salt: u64| {
-            visibility::visible_fraction_oriented(
+        let mut vis_with = |n: u32, salt: u64| {
+            visibility::visible_fraction_cached(
                 &self.accel,
                 (p.vertices(), p.patch, p.normal),
                 (q.vertices(), q.patch, q.normal),
                 n,
                 self.params.seed ^ salt,
                 pair_key(receiver, source),
+                last,
             )
         };
         let vis = vis_with(rays, 0);
@@ -675,30 +795,38 @@ impl HierarchicalSolver {
 
     /// Recompute Σ F and Σ F·V per element and the normalisation factor S_x / T_x of every leaf
     /// whose inherited links changed (an ancestor's list changed, or the leaf is new).
-    fn update_sums_and_normalisation(&mut self) {
-        // Propagate "dirty" down: parents have smaller ids than their children.
-        for i in 0..self.hier.len() {
+    ///
+    /// `changed`: the receivers whose link lists changed since the last call.
+    fn update_sums_and_normalisation(&mut self, changed: &mut Vec<u32>) {
+        let normalize = self.params.normalize;
+        // Propagate "dirty" down: parents have smaller ids than their children. Only the
+        // normalisation reads it (and `normalize` cannot change without a reset).
+        for i in 0..if normalize { self.hier.len() } else { 0 } {
             if let Some(p) = self.hier.elements[i].parent()
                 && self.hier.elements[p as usize].dirty
             {
                 self.hier.elements[i].dirty = true;
             }
         }
-        for (i, e) in self.hier.elements.iter_mut().enumerate() {
-            let ls = &self.links.by_receiver[i];
-            e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
-            e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
-            e.fv_partial = e.fv_sum - e.f_sum;
-        }
-        if self.params.normalize {
+        // Sums of the receivers whose lists changed (a pure function of the list).
+        changed.sort_unstable();
+        changed.dedup();
+        let links = &self.links.by_receiver;
+        disjoint_mut(&mut self.hier.elements, changed.iter().copied())
+            .into_par_iter()
+            .zip(changed.par_iter())
+            .with_min_len(256)
+            .for_each(|(e, &r)| {
+                let ls = &links[r as usize];
+                e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
+                e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
+                e.fv_partial = e.fv_sum - e.f_sum;
+            });
+        if normalize {
             self.normalise_dirty_leaves();
-        } else {
             for e in &mut self.hier.elements {
-                e.norm = 1.0;
+                e.dirty = false;
             }
-        }
-        for e in &mut self.hier.elements {
-            e.dirty = false;
         }
     }
 
@@ -757,15 +885,22 @@ impl HierarchicalSolver {
                 }
                 self.push_pull_root(root);
             }
-            self.finish_push_pull(&before);
+            // Recomputes the same leaf values (nothing was gathered since each root's push) and
+            // measures the change against the values before the sweep.
+            self.push_pull_flat(Some(&before));
             self.stats.gather_s += t.elapsed().as_secs_f64();
         } else {
-            let g: Vec<(Rgb, Rgb)> =
-                (0..self.hier.len() as u32).into_par_iter().map(|r| self.gather_one(r)).collect();
-            for (e, (g, full)) in self.hier.elements.iter_mut().zip(g) {
-                e.gathered = g;
-                e.gathered_full = full;
-            }
+            // Sources' radiosity in a compact array (read once per link, in any order), then
+            // every receiver gathers in parallel.
+            let b: Vec<Rgb> = self.hier.elements.par_iter().with_min_len(1024).map(|e| e.radiosity).collect();
+            self.hier
+                .elements
+                .par_iter_mut()
+                .zip(self.links.by_receiver.par_iter())
+                .with_min_len(256)
+                .for_each(|(e, ls)| {
+                    (e.gathered, e.gathered_full) = gather_links(ls, |s| b[s as usize]);
+                });
             self.stats.gather_s += t.elapsed().as_secs_f64();
         }
         self.gathered_once = true;
@@ -773,21 +908,9 @@ impl HierarchicalSolver {
         self.report(StepKind::Gather, t, 0, 0)
     }
 
-    /// (Σ F·V·B over all links, the same over fully visible links).
+    /// (Σ F·V·B over all links, the same over fully visible links), with the current radiosities.
     fn gather_one(&self, r: u32) -> (Rgb, Rgb) {
-        let mut g = Rgb::ZERO;
-        let mut full = Rgb::ZERO;
-        for l in &self.links.by_receiver[r as usize] {
-            let w = f64::from(l.ff) * f64::from(l.vis);
-            if w > 0.0 {
-                let t = self.hier.get(l.source).radiosity * w;
-                g += t;
-                if l.vis >= 1.0 {
-                    full += t;
-                }
-            }
-        }
-        (g, full)
+        gather_links(&self.links.by_receiver[r as usize], |s| self.hier.get(s).radiosity)
     }
 
     fn subtree(&self, root: u32) -> Vec<u32> {
@@ -805,11 +928,7 @@ impl HierarchicalSolver {
     /// Push gathered irradiance down to the leaves (B = E + ρ·norm·H), pull area averages up.
     pub fn push_pull_step(&mut self) -> StepReport {
         let t = Instant::now();
-        let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
-        for root in 0..self.hier.roots as u32 {
-            self.push_pull_root(root);
-        }
-        self.finish_push_pull(&before);
+        self.push_pull_flat(None);
         self.stats.push_pull_s += t.elapsed().as_secs_f64();
         self.report(StepKind::PushPull, t, 0, 0)
     }
@@ -846,36 +965,58 @@ impl HierarchicalSolver {
         }
     }
 
-    /// Residual and energy balance after a push-pull.
-    fn finish_push_pull(&mut self, before: &[Rgb]) {
+    /// Push-pull over the whole forest in two flat sweeps (parents have smaller ids than their
+    /// children): down in id order, each element's inherited sums from its parent's, leaves'
+    /// radiosity B = E + ρ·(H_full·norm + H_rest) and their energy terms; then up in reverse
+    /// order, area averages. The same values as `push_pull_rec` from every root. The residual is
+    /// the largest leaf change against `before` (default: the values before this call).
+    fn push_pull_flat(&mut self, before: Option<&[Rgb]>) {
         let mut max_change: f64 = 0.0;
         let mut max_reflected: f64 = 0.0;
         let mut absorbed = Rgb::ZERO;
         let mut escaped = Rgb::ZERO;
-        // Leaf energy terms need the chain sums of gathered irradiance and F·V.
         let n = self.hier.len();
-        // Per element: inherited-and-own sums (full-visibility irradiance, other irradiance,
-        // full-visibility F, other F·V). Parents have smaller ids than their children.
-        let mut chain = vec![(Rgb::ZERO, Rgb::ZERO, 0.0, 0.0); n];
-        for i in 0..n {
-            let e = &self.hier.elements[i];
-            let up = e.parent().map_or((Rgb::ZERO, Rgb::ZERO, 0.0, 0.0), |p| chain[p as usize]);
-            chain[i] = (
-                up.0 + e.gathered_full,
-                up.1 + (e.gathered - e.gathered_full),
-                up.2 + e.f_sum,
-                up.3 + e.fv_partial,
-            );
+        // Per element: its own and inherited sums (full-visibility irradiance, other irradiance,
+        // full-visibility F, other F·V).
+        let chain = &mut self.chain;
+        chain.clear();
+        chain.reserve(n);
+        let els = &mut self.hier.elements;
+        for (i, e) in els.iter_mut().enumerate() {
+            let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
+            chain.push(Chain {
+                full: up.full + e.gathered_full,
+                rest: up.rest + (e.gathered - e.gathered_full),
+                f: up.f + e.f_sum,
+                fv_partial: up.fv_partial + e.fv_partial,
+            });
             if e.is_leaf() {
-                let b = e.radiosity;
-                let old = before.get(i).copied().unwrap_or(b);
+                let h = up.full * e.norm + up.rest + e.gathered;
+                let b = e.emission + e.reflectance.mul_rgb(h);
+                let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
                 max_change = max_change.max(b.abs_diff_max(old));
                 max_reflected = max_reflected.max((b - e.emission).max_channel());
-                let h = up.0 * e.norm + up.1 + e.gathered;
                 absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                let fv = up.2 * e.norm + up.3 + e.fv_sum;
+                let fv = up.f * e.norm + up.fv_partial + e.fv_sum;
                 escaped += b * (e.area * (1.0 - fv));
+                e.radiosity = b;
+                e.b_max = b.max_channel();
             }
+        }
+        for i in (0..n).rev() {
+            let first = els[i].first_child;
+            if first == NONE {
+                continue;
+            }
+            let area = els[i].area;
+            let mut b = Rgb::ZERO;
+            let mut b_max: f64 = 0.0;
+            for c in &els[first as usize..first as usize + 4] {
+                b += c.radiosity * (c.area / area);
+                b_max = b_max.max(c.b_max);
+            }
+            els[i].radiosity = b;
+            els[i].b_max = b_max;
         }
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
         self.residuals.push(residual);
