@@ -1,5 +1,5 @@
 // Radiosity mesh: one colour per vertex (flat: the element's B at every corner; smooth: Gouraud
-// from vertex averages), exposure and tone mapping, back faces drawn distinctly, picked element
+// from vertex averages), exposure and tone mapping (per vertex), back faces drawn distinctly, picked element
 // highlighted and outlined, quadtree edges drawn from each fragment's distance to its leaf's
 // boundary (no line geometry: "single-pass wireframe", Bærentzen et al. 2006). Output is
 // display-encoded (sRGB or linear, per `tone`): into the Rgba8Unorm offscreen target, or straight
@@ -66,7 +66,7 @@ struct VsOut {
 fn vs_main(v: VsIn) -> VsOut {
     var o: VsOut;
     o.clip = u.view_proj * vec4<f32>(v.position, 1.0);
-    o.color = v.color;
+    o.color = display(v.color);
     o.element = v.element;
     o.uv = v.uv;
     o.line_color = v.line_color;
@@ -85,6 +85,21 @@ fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
     return select(hi, lo, c <= vec3<f32>(0.0031308));
 }
 
+// A vertex colour as displayed: radiosity (mode 0) exposed, clamped and tone-mapped; a display
+// colour (mode 1, heatmap) as it is. Done per vertex, so smooth shading interpolates display
+// values (as Gouraud shading on a display does); the fragment shader, which runs for every pixel
+// of the viewport on a CPU rasteriser, only adds the overlays.
+fn display(color: vec3<f32>) -> vec3<f32> {
+    if (u.mode != 0u) {
+        return color;
+    }
+    let c = clamp(color * u.exposure, vec3<f32>(0.0), vec3<f32>(1.0));
+    if (u.tone == 1u) {
+        return srgb_encode(c);
+    }
+    return c;
+}
+
 @fragment
 fn fs_main(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
     // Distance to the leaf's boundary in pixels, only when an overlay needs it (the branch is
@@ -99,15 +114,7 @@ fn fs_main(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f3
         let diagonal = (1.0 - i.uv.x - i.uv.y) / (w.x + w.y);
         d = min(near, select(diagonal, far, i.line_color.a > 0.5));
     }
-    var c: vec3<f32>;
-    if (u.mode == 0u) {
-        c = clamp(i.color * u.exposure, vec3<f32>(0.0), vec3<f32>(1.0));
-        if (u.tone == 1u) {
-            c = srgb_encode(c);
-        }
-    } else {
-        c = i.color;
-    }
+    var c = i.color;
     if (!front) {
         // Back faces: the back colour with diagonal stripes, so they never pass for lit surfaces.
         let s = (u32(i.clip.x + i.clip.y) / 6u) % 2u;

@@ -302,6 +302,39 @@ fn reference_computation_shows_progress_and_can_be_cancelled() {
 /// Longest wait for the first reference region (a busy 2-core machine, dev profile).
 const WAIT_S: u64 = 60;
 
+/// A file dropped on the window (what egui-winit hands the app on native platforms).
+#[derive(Debug)]
+struct Dropped(std::path::PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}
+
+#[test]
+fn dropping_a_gltf_opens_it_and_other_files_are_refused() {
+    let mut h = harness(opts());
+    h.run_steps(2);
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let drop = |h: &mut Harness<'static, RadlabApp>, path: std::path::PathBuf| {
+        h.input_mut().dropped_files.push(Arc::new(Dropped(path)));
+        h.run_steps(1);
+        settle(h);
+    };
+    drop(&mut h, assets.join("parallel.gltf"));
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    assert_eq!(h.state().view().leaves.len(), 2, "the dropped two-patch scene is loaded");
+    assert!(h.query_by_label_contains("parallel.gltf").is_some(), "the top bar names the file");
+    drop(&mut h, assets.join("../fonts/LICENSE-DejaVu.txt"));
+    assert_eq!(h.state().errors().len(), 1);
+    assert!(h.state().errors()[0].contains("not a .gltf/.glb file"), "{:?}", h.state().errors());
+    assert_eq!(h.state().view().leaves.len(), 2, "the scene shown stays");
+}
+
 #[test]
 fn load_errors_are_shown_not_fatal() {
     // No wgpu here: the app must also run (without its 3-D view) when there is no renderer.
