@@ -1,6 +1,6 @@
 // Radiosity mesh: one colour per vertex (flat: the element's B at every corner; smooth: Gouraud
-// from vertex averages), exposure and tone mapping (per vertex), back faces drawn distinctly, picked element
-// highlighted and outlined, quadtree edges drawn from each fragment's distance to its leaf's
+// from vertex averages), exposure and tone mapping (per vertex), back faces drawn distinctly,
+// picked element highlighted and outlined, quadtree edges drawn from each fragment's distance to its leaf's
 // boundary (no line geometry: "single-pass wireframe", Bærentzen et al. 2006). Output is
 // display-encoded (sRGB or linear, per `tone`): into the Rgba8Unorm offscreen target, or straight
 // into egui's pass, whose *Srgb target formats re-encode on write (then `DECODE_OUTPUT` undoes

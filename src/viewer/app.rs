@@ -1450,6 +1450,15 @@ impl RadlabApp {
                 "No scene. Open… a .gltf/.glb, drop one here, or type builtin:NAME above and press Load."
             };
             painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, font, Color32::LIGHT_GRAY);
+        } else if self.view.links.is_empty() && !self.busy() {
+            // A freshly loaded scene: only the lamps are lit. Say what to do next.
+            let at = Pos2::new(rect.center().x, rect.bottom() - 28.0);
+            let msg =
+                "Only the lamps are lit: press Solve, or Refine step then Gather step to watch it converge.";
+            let galley = painter.layout_no_wrap(msg.to_owned(), font, Color32::WHITE);
+            let box_r = Rect::from_center_size(at, galley.size() + Vec2::new(16.0, 8.0));
+            painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+            painter.galley(box_r.min + Vec2::new(8.0, 4.0), galley, Color32::WHITE);
         }
     }
 
