@@ -12,9 +12,19 @@ struct Uniforms {
     line_px: f32,
     pad0: u32,
     pad1: u32,
+    background: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
+
+// True when the colour target is an *Srgb format (see mesh.wgsl).
+override DECODE_OUTPUT: bool = false;
+
+fn srgb_decode(c: vec3<f32>) -> vec3<f32> {
+    let lo = c / 12.92;
+    let hi = pow((c + 0.055) / 1.055, vec3<f32>(2.4));
+    return select(hi, lo, c <= vec3<f32>(0.04045));
+}
 
 struct VsIn {
     @location(0) position: vec3<f32>,
@@ -36,5 +46,8 @@ fn vs_main(v: VsIn) -> VsOut {
 
 @fragment
 fn fs_main(i: VsOut) -> @location(0) vec4<f32> {
+    if (DECODE_OUTPUT) {
+        return vec4<f32>(srgb_decode(i.color.rgb), i.color.a);
+    }
     return i.color;
 }

@@ -1,8 +1,10 @@
 // Radiosity mesh: one colour per vertex (flat: the element's B at every corner; smooth: Gouraud
-// from vertex averages), exposure and tone mapping, back faces drawn distinctly, picked element
-// highlighted and outlined, quadtree edges drawn from each fragment's distance to its leaf's
+// from vertex averages), exposure and tone mapping (per vertex), back faces drawn distinctly,
+// picked element highlighted and outlined, quadtree edges drawn from each fragment's distance to its leaf's
 // boundary (no line geometry: "single-pass wireframe", Bærentzen et al. 2006). Output is
-// display-encoded (sRGB or linear, per `tone`) into an Rgba8Unorm target.
+// display-encoded (sRGB or linear, per `tone`): into the Rgba8Unorm offscreen target, or straight
+// into egui's pass, whose *Srgb target formats re-encode on write (then `DECODE_OUTPUT` undoes
+// the encoding first). `vs_background`/`fs_background` fill the pixels the mesh left empty.
 
 struct Uniforms {
     view_proj: mat4x4<f32>,
@@ -20,9 +22,27 @@ struct Uniforms {
     line_px: f32,
     pad0: u32,
     pad1: u32,
+    background: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
+
+// True when the colour target is an *Srgb format (the hardware encodes what we write).
+override DECODE_OUTPUT: bool = false;
+
+fn srgb_decode(c: vec3<f32>) -> vec3<f32> {
+    let lo = c / 12.92;
+    let hi = pow((c + 0.055) / 1.055, vec3<f32>(2.4));
+    return select(hi, lo, c <= vec3<f32>(0.04045));
+}
+
+// A display-encoded colour as the colour target wants it.
+fn to_target(c: vec3<f32>) -> vec4<f32> {
+    if (DECODE_OUTPUT) {
+        return vec4<f32>(srgb_decode(c), 1.0);
+    }
+    return vec4<f32>(c, 1.0);
+}
 
 struct VsIn {
     @location(0) position: vec3<f32>,
@@ -46,7 +66,7 @@ struct VsOut {
 fn vs_main(v: VsIn) -> VsOut {
     var o: VsOut;
     o.clip = u.view_proj * vec4<f32>(v.position, 1.0);
-    o.color = v.color;
+    o.color = display(v.color);
     o.element = v.element;
     o.uv = v.uv;
     o.line_color = v.line_color;
@@ -65,6 +85,21 @@ fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
     return select(hi, lo, c <= vec3<f32>(0.0031308));
 }
 
+// A vertex colour as displayed: radiosity (mode 0) exposed, clamped and tone-mapped; a display
+// colour (mode 1, heatmap) as it is. Done per vertex, so smooth shading interpolates display
+// values (as Gouraud shading on a display does); the fragment shader, which runs for every pixel
+// of the viewport on a CPU rasteriser, only adds the overlays.
+fn display(color: vec3<f32>) -> vec3<f32> {
+    if (u.mode != 0u) {
+        return color;
+    }
+    let c = clamp(color * u.exposure, vec3<f32>(0.0), vec3<f32>(1.0));
+    if (u.tone == 1u) {
+        return srgb_encode(c);
+    }
+    return c;
+}
+
 @fragment
 fn fs_main(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
     // Distance to the leaf's boundary in pixels, only when an overlay needs it (the branch is
@@ -79,15 +114,7 @@ fn fs_main(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f3
         let diagonal = (1.0 - i.uv.x - i.uv.y) / (w.x + w.y);
         d = min(near, select(diagonal, far, i.line_color.a > 0.5));
     }
-    var c: vec3<f32>;
-    if (u.mode == 0u) {
-        c = clamp(i.color * u.exposure, vec3<f32>(0.0), vec3<f32>(1.0));
-        if (u.tone == 1u) {
-            c = srgb_encode(c);
-        }
-    } else {
-        c = i.color;
-    }
+    var c = i.color;
     if (!front) {
         // Back faces: the back colour with diagonal stripes, so they never pass for lit surfaces.
         let s = (u32(i.clip.x + i.clip.y) / 6u) % 2u;
@@ -101,5 +128,20 @@ fn fs_main(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f3
         // A white outline twice the quadtree's width.
         c = mix(c, vec3<f32>(1.0), clamp(2.0 * u.line_px + 0.5 - d, 0.0, 1.0));
     }
-    return vec4<f32>(c, 1.0);
+    return to_target(c);
+}
+
+// The background: one triangle over the viewport at the far plane (depth 1). Drawn after the
+// mesh with the depth test "less or equal" against a depth buffer cleared to 1, it shades only the
+// pixels the mesh left empty.
+@vertex
+fn vs_background(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let x = f32((i << 1u) & 2u);
+    let y = f32(i & 2u);
+    return vec4<f32>(x * 2.0 - 1.0, 1.0 - y * 2.0, 1.0, 1.0);
+}
+
+@fragment
+fn fs_background() -> @location(0) vec4<f32> {
+    return to_target(u.background.rgb);
 }

@@ -17,6 +17,11 @@
 //!   ```
 //! - **Conforming mesh**: each leaf is triangulated with the T-vertices on its edges (corners
 //!   of finer neighbours, [`VertexField::boundary`]), so no cracks open along T-junctions.
+//!   Across patches too: where two input patches meet along an edge (a wall and the floor, two
+//!   faces of a box) each is refined on its own, so one side's corners lie inside the other
+//!   side's edges. Those corners are inserted into the other side's boundary ([`Seams`]), and
+//!   every corner takes one canonical position shared by all patches, so both sides of a seam
+//!   draw the same vertices and the rasteriser leaves no background pixel between them.
 //! - **Quadtree**: every leaf's edges, coloured by its depth below the input patch (the HSA91
 //!   quadtree, Hanrahan, Salzman & Aupperle 1991, §3). Drawn by the mesh shader from each
 //!   vertex's position in its leaf's parameter square, so it costs no extra geometry; see
@@ -264,9 +269,14 @@ pub const MERGE_REL: f64 = 1e-9;
 
 type Key = (u32, i64, i64, i64);
 
+/// The `patch` of a [`Key`] that merges points of every patch.
+const ANY_PATCH: u32 = u32::MAX;
+
 struct Quantizer {
     origin: DVec3,
     inv: f64,
+    /// The scene's bounding-box diagonal (1 for an empty or degenerate scene).
+    diag: f64,
 }
 
 impl Quantizer {
@@ -280,8 +290,12 @@ impl Quantizer {
             }
         }
         let diag = (max - min).length();
-        let quantum = if diag > 0.0 && diag.is_finite() { diag * MERGE_REL } else { 1.0 };
-        Quantizer { origin: if min.is_finite() { min } else { DVec3::ZERO }, inv: 1.0 / quantum }
+        let diag = if diag > 0.0 && diag.is_finite() { diag } else { 1.0 };
+        Quantizer {
+            origin: if min.is_finite() { min } else { DVec3::ZERO },
+            inv: 1.0 / (diag * MERGE_REL),
+            diag,
+        }
     }
     fn key(&self, patch: u32, p: DVec3) -> Key {
         let q = (p - self.origin) * self.inv;
@@ -299,6 +313,7 @@ pub struct VertexField {
     quant: Quantizer,
     /// Corner key → (canonical position, smooth radiosity).
     corners: HashMap<Key, (DVec3, Rgb)>,
+    seams: Seams,
 }
 
 /// A point on a leaf's boundary: a corner or a T-vertex, with its position in the leaf's
@@ -319,11 +334,20 @@ impl VertexField {
     #[must_use]
     pub fn build(elements: &[ElementView], leaves: &[u32]) -> VertexField {
         let quant = Quantizer::new(elements);
+        // One canonical position per point, whatever the patch (the first leaf's, in leaf
+        // order), so corners shared across a seam are bit-identical on both sides.
+        let mut canonical: HashMap<Key, DVec3> = HashMap::with_capacity(leaves.len() * 2);
+        for &l in leaves {
+            for v in elements[l as usize].verts() {
+                canonical.entry(quant.key(ANY_PATCH, *v)).or_insert(*v);
+            }
+        }
         let mut sums: HashMap<Key, (DVec3, Rgb, u32)> = HashMap::with_capacity(leaves.len() * 2);
         for &l in leaves {
             let e = &elements[l as usize];
             for v in e.verts() {
-                let s = sums.entry(quant.key(e.patch, *v)).or_insert((*v, Rgb::ZERO, 0));
+                let p = canonical.get(&quant.key(ANY_PATCH, *v)).copied().unwrap_or(*v);
+                let s = sums.entry(quant.key(e.patch, *v)).or_insert((p, Rgb::ZERO, 0));
                 s.1 += e.radiosity;
                 s.2 += 1;
             }
@@ -341,7 +365,8 @@ impl VertexField {
                 anchor(&quant, &mut corners, e.patch, e.vertices[i], e.vertices[(i + 1) % n], MAX_T_DEPTH);
             }
         }
-        VertexField { quant, corners }
+        let seams = Seams::build(elements, leaves, &quant, &canonical);
+        VertexField { quant, corners, seams }
     }
 
     /// Canonical position and smooth value of a corner of a leaf on `patch`.
@@ -363,8 +388,14 @@ impl VertexField {
         for i in 0..v.len() {
             let j = (i + 1) % v.len();
             let (pa, va) = self.corner(e.patch, v[i]).unwrap_or((v[i], e.radiosity));
+            let start = out.len();
             out.push(BoundaryPoint { position: pa, uv: uv[i], value: va });
             self.t_vertices(e.patch, v[i], v[j], (uv[i], uv[j]), MAX_T_DEPTH, &mut out);
+            if !self.seams.is_empty() {
+                let (pb, vb) = self.corner(e.patch, v[j]).unwrap_or((v[j], e.radiosity));
+                let end = BoundaryPoint { position: pb, uv: uv[j], value: vb };
+                self.seams.insert(e.patch, v[i], v[j], &mut out, start, end);
+            }
         }
         out
     }
@@ -387,6 +418,209 @@ impl VertexField {
         self.t_vertices(patch, a, m, (ua, um), budget - 1, out);
         out.push(BoundaryPoint { position: pm, uv: um, value: vm });
         self.t_vertices(patch, m, b, (um, ub), budget - 1, out);
+    }
+}
+
+/// Where input patches meet: pairs of collinear, overlapping patch edges of different patches,
+/// and on each edge the leaf corners of its partner patches (projected onto it).
+///
+/// ```text
+///   patch P (coarse)         ● a corner of a Q leaf on the shared edge, inside a P leaf's edge:
+///  ┌────────────────┐        inserted into that P leaf's boundary (and every P corner into
+///  ├───●────●───●───┤        Q's), so both sides of the seam rasterise the same edges
+///  │ Q │    │   │   │
+/// ```
+///
+/// Patch edges are the edges of the root elements (`parent == None`); without roots in the
+/// element list there are no seams.
+struct Seams {
+    edges: Vec<SeamEdge>,
+    /// Seam edges of each patch.
+    by_patch: HashMap<u32, Vec<usize>>,
+    /// Distance (scene units) within which a point is on an edge.
+    tol: f64,
+}
+
+struct SeamEdge {
+    a: DVec3,
+    /// Unit direction a → b.
+    dir: DVec3,
+    len: f64,
+    /// Partner patches' leaf corners on this edge: (parameter along `dir`, canonical position),
+    /// sorted by parameter.
+    points: Vec<(f64, DVec3)>,
+}
+
+impl SeamEdge {
+    fn new(a: DVec3, b: DVec3) -> Option<SeamEdge> {
+        let len = (b - a).length();
+        (len > 0.0 && len.is_finite()).then(|| SeamEdge { a, dir: (b - a) / len, len, points: Vec::new() })
+    }
+    /// Parameter of `p` along the edge if `p` lies on it (within `tol`).
+    fn param(&self, p: DVec3, tol: f64) -> Option<f64> {
+        let w = p - self.a;
+        let t = w.dot(self.dir);
+        ((w - t * self.dir).length_squared() <= tol * tol && t >= -tol && t <= self.len + tol).then_some(t)
+    }
+}
+
+/// Points are on a seam edge when within this fraction of the scene's diagonal of it: input
+/// vertices stored as f32 (glTF) agree to ~1e-7 of the scene's size.
+pub const SEAM_REL: f64 = 1e-6;
+
+impl Seams {
+    fn build(
+        elements: &[ElementView],
+        leaves: &[u32],
+        quant: &Quantizer,
+        canonical: &HashMap<Key, DVec3>,
+    ) -> Seams {
+        let tol = SEAM_REL * quant.diag;
+        let mut edges: Vec<(u32, SeamEdge)> = Vec::new();
+        for r in elements.iter().filter(|e| e.parent.is_none()) {
+            let v = r.verts();
+            for i in 0..v.len() {
+                if let Some(edge) = SeamEdge::new(v[i], v[(i + 1) % v.len()]) {
+                    edges.push((r.patch, edge));
+                }
+            }
+        }
+        // Pairs of collinear, overlapping edges of different patches (sweep over x).
+        let lo_x = |e: &SeamEdge| e.a.x.min(e.a.x + e.dir.x * e.len);
+        let hi_x = |e: &SeamEdge| e.a.x.max(e.a.x + e.dir.x * e.len);
+        let mut order: Vec<usize> = (0..edges.len()).collect();
+        order.sort_by(|&i, &j| lo_x(&edges[i].1).total_cmp(&lo_x(&edges[j].1)));
+        let mut partners: Vec<Vec<usize>> = vec![Vec::new(); edges.len()];
+        for (k, &i) in order.iter().enumerate() {
+            let (pi, ei) = &edges[i];
+            for &j in &order[k + 1..] {
+                let (pj, ej) = &edges[j];
+                if lo_x(ej) > hi_x(ei) + tol {
+                    break;
+                }
+                if pi == pj {
+                    continue;
+                }
+                let b = ej.a + ej.dir * ej.len;
+                let collinear = |e: &SeamEdge, p: DVec3| {
+                    let w = p - e.a;
+                    (w - w.dot(e.dir) * e.dir).length_squared() <= tol * tol
+                };
+                if !(collinear(ei, ej.a) && collinear(ei, b)) {
+                    continue;
+                }
+                let (t0, t1) = (ei.dir.dot(ej.a - ei.a), ei.dir.dot(b - ei.a));
+                if t0.max(t1) > tol && t0.min(t1) < ei.len - tol {
+                    partners[i].push(j);
+                    partners[j].push(i);
+                }
+            }
+        }
+        let mut by_patch: HashMap<u32, Vec<usize>> = HashMap::new();
+        for (i, (p, _)) in edges.iter().enumerate() {
+            if !partners[i].is_empty() {
+                by_patch.entry(*p).or_default().push(i);
+            }
+        }
+        if by_patch.is_empty() {
+            return Seams { edges: Vec::new(), by_patch, tol };
+        }
+        // Each seam edge's own leaf corners, then handed to its partners.
+        let mut own: Vec<Vec<DVec3>> = vec![Vec::new(); edges.len()];
+        for &l in leaves {
+            let e = &elements[l as usize];
+            let Some(seam) = by_patch.get(&e.patch) else { continue };
+            for v in e.verts() {
+                for &i in seam {
+                    if edges[i].1.param(*v, tol).is_some() {
+                        own[i].push(canonical.get(&quant.key(ANY_PATCH, *v)).copied().unwrap_or(*v));
+                    }
+                }
+            }
+        }
+        for (i, pts) in own.iter().enumerate() {
+            for &j in &partners[i] {
+                let target = &edges[j].1;
+                let mut add: Vec<(f64, DVec3)> =
+                    pts.iter().filter_map(|p| target.param(*p, tol).map(|t| (t, *p))).collect();
+                edges[j].1.points.append(&mut add);
+            }
+        }
+        for (_, e) in &mut edges {
+            e.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            e.points.dedup_by(|a, b| (a.0 - b.0).abs() <= tol);
+        }
+        Seams { edges: edges.into_iter().map(|(_, e)| e).collect(), by_patch, tol }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.by_patch.is_empty()
+    }
+
+    /// Insert the partner corners strictly inside the leaf edge a → b of `patch` into
+    /// `out[start..]` (the edge's start point and its own T-vertices, in order; `end` is the next
+    /// corner), with parameter coordinates and smooth values interpolated along the edge.
+    fn insert(
+        &self,
+        patch: u32,
+        a: DVec3,
+        b: DVec3,
+        out: &mut Vec<BoundaryPoint>,
+        start: usize,
+        end: BoundaryPoint,
+    ) {
+        let Some(seam) = self.by_patch.get(&patch) else { return };
+        for &i in seam {
+            let edge = &self.edges[i];
+            let (Some(ta), Some(tb)) = (edge.param(a, self.tol), edge.param(b, self.tol)) else { continue };
+            let (lo, hi) = (ta.min(tb) + self.tol, ta.max(tb) - self.tol);
+            let first = edge.points.partition_point(|p| p.0 <= lo);
+            let inside = &edge.points[first..edge.points.partition_point(|p| p.0 < hi)];
+            if inside.is_empty() {
+                continue;
+            }
+            // Fraction along a → b of each point already there, and of the new ones.
+            let len = (b - a).length();
+            let s_of = |p: DVec3| (p - a).dot(b - a) / (len * len);
+            let mut own: Vec<(f64, BoundaryPoint)> =
+                out[start..].iter().map(|p| (s_of(p.position), *p)).collect();
+            own.push((1.0, end));
+            let mut merged: Vec<BoundaryPoint> = Vec::with_capacity(own.len() + inside.len());
+            let mut k = 0; // own[k] is the next own point at or after the current position
+            let points: Box<dyn Iterator<Item = &(f64, DVec3)>> =
+                if ta <= tb { Box::new(inside.iter()) } else { Box::new(inside.iter().rev()) };
+            for &(_, p) in points {
+                let s = s_of(p);
+                while k < own.len() && own[k].0 <= s {
+                    if k + 1 < own.len() {
+                        merged.push(own[k].1);
+                    }
+                    k += 1;
+                }
+                // Skip points that coincide with one already there (same canonical position).
+                let near = |q: &BoundaryPoint| (q.position - p).length_squared() <= self.tol * self.tol;
+                if merged.last().is_some_and(near) || own.get(k).is_some_and(|q| near(&q.1)) {
+                    continue;
+                }
+                let (Some(prev), Some(next)) = (k.checked_sub(1).map(|i| own[i]), own.get(k).copied()) else {
+                    continue;
+                };
+                let f =
+                    if next.0 > prev.0 { ((s - prev.0) / (next.0 - prev.0)).clamp(0.0, 1.0) } else { 0.0 };
+                let lerp2 = |x: [f64; 2], y: [f64; 2]| [x[0] + f * (y[0] - x[0]), x[1] + f * (y[1] - x[1])];
+                merged.push(BoundaryPoint {
+                    position: p,
+                    uv: lerp2(prev.1.uv, next.1.uv),
+                    value: prev.1.value + (next.1.value - prev.1.value) * f,
+                });
+            }
+            while k + 1 < own.len() {
+                merged.push(own[k].1);
+                k += 1;
+            }
+            out.truncate(start);
+            out.extend(merged);
+        }
     }
 }
 
@@ -700,12 +934,62 @@ mod tests {
         // The unit square has one T-vertex, (2.5,1), on its top edge; a half-unit square none.
         assert_eq!(f.boundary(&els[1]).len(), 5);
         assert_eq!(f.boundary(&els[2]).len(), 4);
-        // A different patch's corners are not T-vertices.
+        // A different patch's corners are not T-vertices unless the patches meet along the edge
+        // (see `boundary_has_the_corners_of_the_neighbouring_patch`): here patch 1's elements have
+        // a parent that is not in the list, so there are no patch edges to share.
         let mut other = els.clone();
         for e in &mut other[1..] {
             e.patch = 1;
+            e.parent = Some(0);
         }
         assert_eq!(VertexField::build(&other, &leaves).boundary(&other[0]).len(), 4);
+    }
+
+    #[test]
+    fn boundary_has_the_corners_of_the_neighbouring_patch() {
+        // Patch 0: one 2×2 leaf (its own root). Patch 1 on its right: a root split into four, so
+        // its corner (2,1) lies inside patch 0's right edge, and (2,1.5) of a finer leaf too.
+        let mut root = quad(1, 0, 2.0, 0.0, 2.0, 0.0);
+        root.patch = 1;
+        root.leaf = false;
+        let mut els = vec![quad(0, 0, 0.0, 0.0, 2.0, 10.0), root];
+        for (x, y, s) in [(2.0, 0.0, 1.0), (3.0, 0.0, 1.0), (3.0, 1.0, 1.0), (2.0, 1.0, 0.5), (2.5, 1.0, 0.5)]
+        {
+            let mut e = quad(els.len() as u32, 1, x, y, s, 4.0);
+            e.patch = 1;
+            e.parent = Some(1);
+            els.push(e);
+        }
+        for (x, y) in [(2.0, 1.5), (2.5, 1.5)] {
+            let mut e = quad(els.len() as u32, 2, x, y, 0.5, 4.0);
+            e.patch = 1;
+            e.parent = Some(1);
+            els.push(e);
+        }
+        let leaves: Vec<u32> = (0..els.len() as u32).filter(|&i| i != 1).collect();
+        let f = VertexField::build(&els, &leaves);
+        let b = f.boundary(&els[0]);
+        let pts: Vec<[f64; 2]> = b.iter().map(|p| [p.position.x, p.position.y]).collect();
+        assert_eq!(pts, vec![[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [2.0, 1.5], [2.0, 2.0], [0.0, 2.0]]);
+        // Interpolated along the edge: parameters on u = 1, values those of patch 0's own corners
+        // (its only leaf: 10 everywhere), not patch 1's.
+        assert_eq!(b[2].uv, [1.0, 0.5]);
+        assert_eq!(b[3].uv, [1.0, 0.75]);
+        assert!(b.iter().all(|p| (p.value.r() - 10.0).abs() < EXACT), "{b:?}");
+        // Patch 1's leaf at (2,0): its own T-vertex (2.5,1) only (its edge x = 2 from y = 1 to 0
+        // holds no corner of patch 0).
+        let b2: Vec<[f64; 2]> = f.boundary(&els[2]).iter().map(|p| [p.position.x, p.position.y]).collect();
+        assert_eq!(b2, vec![[2.0, 0.0], [3.0, 0.0], [3.0, 1.0], [2.5, 1.0], [2.0, 1.0]]);
+        // Without roots there are no seams.
+        let no_roots: Vec<ElementView> = els
+            .iter()
+            .cloned()
+            .map(|mut e| {
+                e.parent = Some(0);
+                e
+            })
+            .collect();
+        assert_eq!(VertexField::build(&no_roots, &leaves).boundary(&no_roots[0]).len(), 4);
     }
 
     fn links() -> Vec<LinkView> {

@@ -37,7 +37,8 @@
 //! emits nor reflects, but it blocks light), as in every solver.
 //!
 //! Each element has its own random stream `Pcg32::keyed(seed, element index)`; elements run in
-//! parallel (rayon) and the result is identical for any thread count.
+//! parallel (rayon) and the result is identical for any thread count. A [`Control`] reports
+//! progress (elements finished) and cancels a long estimate without changing any result.
 
 use crate::accel::Accel;
 use crate::math::{DVec3, Pcg32, Rgb, orthonormal_basis, polygon_area, splitmix64};
@@ -45,6 +46,7 @@ use crate::scene::Scene;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// Version of the cache file format and of the estimator; bump it when either changes.
 pub const FORMAT_VERSION: u32 = 1;
@@ -60,6 +62,8 @@ pub enum ReferenceError {
     BadElement { index: usize, patch: usize, patches: usize },
     #[error("reference: element {index} has {n} vertices (3 or 4 expected) or zero area")]
     DegenerateElement { index: usize, n: usize },
+    #[error("reference: cancelled")]
+    Cancelled,
     #[error("reference cache {dir}: cannot create: {source}")]
     CacheDir {
         dir: PathBuf,
@@ -397,12 +401,51 @@ impl Tracer<'_> {
     }
 }
 
+/// Progress and cancellation of a long estimate, shared with another thread (the viewer's
+/// progress bar and Cancel button, the CLI's progress bar). Elements are counted as they finish;
+/// setting `cancel` stops the estimate at the next element boundary. Neither changes the result:
+/// each element keeps its own random stream.
+#[derive(Debug, Default)]
+pub struct Control {
+    done: AtomicUsize,
+    total: AtomicUsize,
+    cancel: AtomicBool,
+}
+
+impl Control {
+    /// Ask the running estimate to stop ([`ReferenceError::Cancelled`]).
+    pub fn cancel(&self) {
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+    #[must_use]
+    pub fn cancelled(&self) -> bool {
+        self.cancel.load(Ordering::Relaxed)
+    }
+    /// (elements finished, elements in the estimate); (0, 0) before it starts.
+    #[must_use]
+    pub fn progress(&self) -> (usize, usize) {
+        (self.done.load(Ordering::Relaxed), self.total.load(Ordering::Relaxed))
+    }
+}
+
 /// Estimate the average radiosity of each element, in order, with standard errors.
 pub fn estimate_elements(
     scene: &Scene,
     accel: &Accel,
     elements: &[RefElement],
     params: &ReferenceParams,
+) -> Result<Vec<Estimate>, ReferenceError> {
+    estimate_elements_with(scene, accel, elements, params, &Control::default())
+}
+
+/// [`estimate_elements`] reporting progress to, and stopping on request of, `control`.
+/// The estimates are bit-identical to [`estimate_elements`]'s.
+pub fn estimate_elements_with(
+    scene: &Scene,
+    accel: &Accel,
+    elements: &[RefElement],
+    params: &ReferenceParams,
+    control: &Control,
 ) -> Result<Vec<Estimate>, ReferenceError> {
     if params.samples == 0 {
         return Err(ReferenceError::ZeroSamples("samples"));
@@ -421,7 +464,21 @@ pub fn estimate_elements(
         }
     }
     let tracer = Tracer { scene, accel, emitters: Emitters::new(scene), params: *params };
-    Ok(elements.par_iter().enumerate().map(|(i, e)| tracer.element(e, i as u64)).collect())
+    control.done.store(0, Ordering::Relaxed);
+    control.total.store(elements.len(), Ordering::Relaxed);
+    elements
+        .par_iter()
+        .enumerate()
+        .map(|(i, e)| {
+            if control.cancelled() {
+                return None;
+            }
+            let estimate = tracer.element(e, i as u64);
+            control.done.fetch_add(1, Ordering::Relaxed);
+            Some(estimate)
+        })
+        .collect::<Option<Vec<Estimate>>>()
+        .ok_or(ReferenceError::Cancelled)
 }
 
 /// Combine K independent estimates of the same elements (e.g. batches with seeds s, s+1, …, each
@@ -616,6 +673,19 @@ impl Cache {
         elements: &[RefElement],
         params: &ReferenceParams,
     ) -> Result<(CachedReference, CacheStatus), ReferenceError> {
+        self.get_or_compute_with(scene, accel, elements, params, &Control::default())
+    }
+
+    /// [`Cache::get_or_compute`] with progress and cancellation ([`Control`]); a cancelled
+    /// computation writes nothing.
+    pub fn get_or_compute_with(
+        &self,
+        scene: &Scene,
+        accel: &Accel,
+        elements: &[RefElement],
+        params: &ReferenceParams,
+        control: &Control,
+    ) -> Result<(CachedReference, CacheStatus), ReferenceError> {
         let key = cache_key(scene, elements, params);
         let file = self.file_for(key);
         let previous = if file.exists() {
@@ -627,7 +697,7 @@ impl Cache {
             None
         };
         let t0 = std::time::Instant::now();
-        let estimates = estimate_elements(scene, accel, elements, params)?;
+        let estimates = estimate_elements_with(scene, accel, elements, params, control)?;
         let entry = CachedReference {
             format_version: FORMAT_VERSION,
             key: format!("{key:016x}"),
@@ -691,6 +761,31 @@ fn read_entry(file: &Path, key: u64, n_elements: usize) -> Result<CachedReferenc
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn control_reports_progress_cancels_and_changes_nothing() {
+        let scene = Scene::load("builtin:cube-one-light").unwrap();
+        let accel = Accel::build(&scene);
+        let mesh = reference_mesh(&scene, 0.5).unwrap();
+        let params = ReferenceParams { samples: 4, ..ReferenceParams::quick() };
+        let plain = estimate_elements(&scene, &accel, &mesh, &params).unwrap();
+        let control = Control::default();
+        let with = estimate_elements_with(&scene, &accel, &mesh, &params, &control).unwrap();
+        // Bit-identical, not merely close.
+        assert_eq!(plain, with);
+        assert_eq!(control.progress(), (mesh.len(), mesh.len()));
+        control.cancel();
+        assert!(matches!(
+            estimate_elements_with(&scene, &accel, &mesh, &params, &control),
+            Err(ReferenceError::Cancelled)
+        ));
+        let dir = std::env::temp_dir().join(format!("radlab-ref-cancel-{}", std::process::id()));
+        let cache = Cache::at(&dir);
+        assert!(cache.get_or_compute_with(&scene, &accel, &mesh, &params, &control).is_err());
+        let key = cache_key(&scene, &mesh, &params);
+        assert!(!cache.file_for(key).exists(), "a cancelled computation writes no cache entry");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn area_map_is_area_uniform_on_a_trapezoid() {

@@ -258,6 +258,84 @@ fn reference_feeds_the_true_error_and_the_error_plot() {
 }
 
 #[test]
+fn reference_computation_shows_progress_and_can_be_cancelled() {
+    let dir = std::env::temp_dir().join(format!("radlab-gui-ref-cancel-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    // Far more paths than the test waits for (minutes of work): only a cancel ends it early.
+    let reference = RefSettings {
+        params: ReferenceParams { samples: 1 << 16, ..ReferenceParams::quick() },
+        cache: Cache::at(&dir),
+    };
+    let mut h = harness(ViewerOptions { reference, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    assert_eq!(h.state().ref_state, RefState::Missing);
+    h.get_by_label("Compute reference").click();
+    // Wait (bounded) until the computation has finished at least one region.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while h.state().reference_progress().0 == 0 {
+        assert!(std::time::Instant::now() < deadline, "no progress in {WAIT_S} s: {:?}", h.state().ref_state);
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    h.run_steps(2);
+    let (done, total) = h.state().reference_progress();
+    assert!(matches!(h.state().ref_state, RefState::Computing { .. }), "{:?}", h.state().ref_state);
+    assert!(done >= 1 && done < total, "progress {done}/{total}");
+    assert!(h.query_by_label_contains(&format!("/{total} ·")).is_some(), "the progress bar shows done/total");
+    h.get_by_label("Cancel reference").click();
+    settle(&mut h);
+    assert_eq!(h.state().ref_state, RefState::Missing, "back to idle, without a reference");
+    assert_eq!(h.state().error_label(), "solver's error estimate");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    assert!(h.query_by_label("Compute reference").is_some(), "it can be started again");
+    assert!(h.query_by_label("Cancel reference").is_none());
+    let cached = std::fs::read_dir(&dir).map_or(0, |d| d.filter_map(Result::ok).count());
+    assert_eq!(cached, 0, "a cancelled reference leaves nothing in the cache");
+    // The solver still works.
+    h.get_by_label("Solve").click();
+    settle(&mut h);
+    assert!(h.state().view().stats.links > 0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Longest wait for the first reference region (a busy 2-core machine, dev profile).
+const WAIT_S: u64 = 60;
+
+/// A file dropped on the window (what egui-winit hands the app on native platforms).
+#[derive(Debug)]
+struct Dropped(std::path::PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}
+
+#[test]
+fn dropping_a_gltf_opens_it_and_other_files_are_refused() {
+    let mut h = harness(opts());
+    h.run_steps(2);
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let drop = |h: &mut Harness<'static, RadlabApp>, path: std::path::PathBuf| {
+        h.input_mut().dropped_files.push(Arc::new(Dropped(path)));
+        h.run_steps(1);
+        settle(h);
+    };
+    drop(&mut h, assets.join("parallel.gltf"));
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    assert_eq!(h.state().view().leaves.len(), 2, "the dropped two-patch scene is loaded");
+    assert!(h.query_by_label_contains("parallel.gltf").is_some(), "the top bar names the file");
+    drop(&mut h, assets.join("../fonts/LICENSE-DejaVu.txt"));
+    assert_eq!(h.state().errors().len(), 1);
+    assert!(h.state().errors()[0].contains("not a .gltf/.glb file"), "{:?}", h.state().errors());
+    assert_eq!(h.state().view().leaves.len(), 2, "the scene shown stays");
+}
+
+#[test]
 fn load_errors_are_shown_not_fatal() {
     // No wgpu here: the app must also run (without its 3-D view) when there is no renderer.
     let mut h = Harness::builder().with_size(egui::Vec2::new(900.0, 600.0)).build_eframe(|cc| {

@@ -80,6 +80,7 @@ fn uniforms(srgb: bool, mode: u32, selected: u32) -> Uniforms {
         overlay: if selected == NO_SELECTION { 0 } else { OVERLAY_PICKED },
         line_px: 0.75,
         _pad: [0; 2],
+        background: [0.0, 0.0, 0.0, 1.0],
     }
 }
 
@@ -89,15 +90,10 @@ fn draw(g: &Geometry, u: Uniforms) -> RgbaImage {
 
 fn draw_sized(g: &Geometry, u: Uniforms, size: [u32; 2]) -> RgbaImage {
     let rs = render_state().lock().unwrap();
-    let mut r = SceneRenderer::new(&rs.device, wgpu::TextureFormat::Rgba8Unorm);
+    let mut r = SceneRenderer::new(&rs.device, wgpu::TextureFormat::Rgba8Unorm, None);
     r.set_geometry(&rs.device, g);
     let mut enc = rs.device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-    r.render(
-        &rs.device,
-        &rs.queue,
-        &mut enc,
-        &FrameParams { uniforms: u, size, clear: [0.0, 0.0, 0.0, 1.0] },
-    );
+    r.render(&rs.device, &rs.queue, &mut enc, &FrameParams { uniforms: u, size });
     rs.queue.submit([enc.finish()]);
     r.read_pixels(&rs.device, &rs.queue).unwrap()
 }
@@ -292,18 +288,20 @@ fn t_junction_patch(max_depth: u8) -> (Vec<ElementView>, Vec<u32>) {
     (els, leaves)
 }
 
-#[test]
-fn t_junctions_leave_no_cracks() {
-    // Background black, every leaf white: any dark pixel well inside the patch's silhouette
-    // is a crack. Seen obliquely so that the shared edges are not pixel-aligned.
+/// Render white `leaves` on black, seen obliquely (so that shared edges are not pixel-aligned),
+/// and return the dark pixels well inside the square `patch_point([−1, 1]²)`: cracks.
+fn crack_pixels(
+    els: &[ElementView],
+    leaves: &[u32],
+    colors: MeshColors<'_>,
+    (yaw, pitch): (f64, f64),
+) -> (usize, Vec<(u32, u32)>) {
     const SIZE: [u32; 2] = [480, 480];
     // Pixels closer than this to the silhouette are not checked (edge coverage rules).
     const SILHOUETTE_MARGIN_PX: f64 = 2.0;
-    let (els, leaves) = t_junction_patch(7);
-    assert!(els.len() > 40, "{} leaves", els.len());
     let mut cam = OrbitCamera::frame_all(&Bounds { min: DVec3::splat(-1.0), max: DVec3::splat(1.0) });
-    cam.pitch = 0.35;
-    cam.yaw = 0.4;
+    cam.pitch = pitch;
+    cam.yaw = yaw;
     cam.distance = 3.2;
     let vp = cam.view_proj(1.0, DVec3::ZERO);
     let to_px = |p: DVec3| {
@@ -326,23 +324,31 @@ fn t_junctions_leave_no_cracks() {
             orient * (ex * (y - a[1]) - ey * (x - a[0])) / ex.hypot(ey) > SILHOUETTE_MARGIN_PX
         })
     };
-    for colors in [MeshColors::Flat, MeshColors::Smooth] {
-        let g = Geometry { mesh: geometry::mesh(&els, &leaves, colors, DVec3::ZERO), ..Geometry::default() };
-        let mut u = uniforms(false, 0, NO_SELECTION);
-        u.view_proj = vp.to_cols_array_2d().map(|c| c.map(|x| x as f32));
-        let img = draw_sized(&g, u, SIZE);
-        let mut checked = 0;
-        let mut cracks = Vec::new();
-        for y in 0..SIZE[1] {
-            for x in 0..SIZE[0] {
-                if inside(f64::from(x) + 0.5, f64::from(y) + 0.5) {
-                    checked += 1;
-                    if img.pixel(x, y)[0] < 250 {
-                        cracks.push((x, y));
-                    }
+    let g = Geometry { mesh: geometry::mesh(els, leaves, colors, DVec3::ZERO), ..Geometry::default() };
+    let mut u = uniforms(false, 0, NO_SELECTION);
+    u.view_proj = vp.to_cols_array_2d().map(|c| c.map(|x| x as f32));
+    let img = draw_sized(&g, u, SIZE);
+    let mut checked = 0;
+    let mut cracks = Vec::new();
+    for y in 0..SIZE[1] {
+        for x in 0..SIZE[0] {
+            if inside(f64::from(x) + 0.5, f64::from(y) + 0.5) {
+                checked += 1;
+                if img.pixel(x, y)[0] < 250 {
+                    cracks.push((x, y));
                 }
             }
         }
+    }
+    (checked, cracks)
+}
+
+#[test]
+fn t_junctions_leave_no_cracks() {
+    let (els, leaves) = t_junction_patch(7);
+    assert!(els.len() > 40, "{} leaves", els.len());
+    for colors in [MeshColors::Flat, MeshColors::Smooth] {
+        let (checked, cracks) = crack_pixels(&els, &leaves, colors, (0.4, 0.35));
         assert!(checked > 20_000, "the patch fills much of the image: {checked}");
         assert!(
             cracks.is_empty(),
@@ -350,6 +356,81 @@ fn t_junctions_leave_no_cracks() {
             cracks.len(),
             &cracks[..cracks.len().min(8)]
         );
+    }
+}
+
+/// Patch `patch` over the parameter rectangle [x0, x0 + w] × [−1, 1] of [`patch_point`], as the
+/// solver keeps it: the root (not a leaf) and a quadtree below it, each vertex mapped from its own
+/// parameters. Cells for which `refine(x, y, size, depth)` holds are split.
+fn quadtree_patch(
+    els: &mut Vec<ElementView>,
+    patch: u32,
+    x0: f64,
+    w: f64,
+    refine: &dyn Fn(f64, f64, f64, u8) -> bool,
+) -> Vec<u32> {
+    fn cell(
+        els: &mut Vec<ElementView>,
+        leaves: &mut Vec<u32>,
+        parent: Option<u32>,
+        patch: u32,
+        [x, y, w, h]: [f64; 4],
+        depth: u8,
+        refine: &dyn Fn(f64, f64, f64, u8) -> bool,
+    ) {
+        let id = els.len() as u32;
+        let mut e = square(id, 0.0, Rgb::splat(1.0), false);
+        e.patch = patch;
+        e.parent = parent;
+        e.depth = depth;
+        e.vertices =
+            [patch_point(x, y), patch_point(x + w, y), patch_point(x + w, y + h), patch_point(x, y + h)];
+        e.area = w * h;
+        let split = refine(x, y, w, depth);
+        e.leaf = !split;
+        els.push(e);
+        if split {
+            let (hw, hh) = (w / 2.0, h / 2.0);
+            for (dx, dy) in [(0.0, 0.0), (hw, 0.0), (hw, hh), (0.0, hh)] {
+                cell(els, leaves, Some(id), patch, [x + dx, y + dy, hw, hh], depth + 1, refine);
+            }
+        } else {
+            leaves.push(id);
+        }
+    }
+    let mut leaves = Vec::new();
+    cell(els, &mut leaves, None, patch, [x0, -1.0, w, 2.0], 0, refine);
+    leaves
+}
+
+/// Camera (yaw, pitch) of the seam test: a crack shows only where a pixel centre falls in the
+/// sliver between the two sides' edges, so several views make a missed one unlikely.
+const SEAM_VIEWS: [(f64, f64); 8] =
+    [(0.4, 0.35), (-0.3, 0.5), (0.9, 0.2), (-0.8, 0.7), (0.15, 0.9), (1.1, 0.45), (-1.2, 0.3), (0.6, 1.0)];
+
+#[test]
+fn seams_between_patches_leave_no_cracks() {
+    // Two patches side by side sharing the edge x = 0 (a wall meeting the next wall, a box face
+    // meeting the next), each refined along it differently: the left finely, the right in a band
+    // at the bottom. The rasteriser leaves background pixels where one side's corner sits on the
+    // other side's edge (a T-junction across patches), unless both sides share those vertices.
+    let mut els = Vec::new();
+    let mut leaves = quadtree_patch(&mut els, 0, -1.0, 1.0, &|x, _, w, d| d < 7 && x + w > -1e-9);
+    leaves.extend(quadtree_patch(&mut els, 1, 0.0, 1.0, &|_, y, _, d| d < 4 && y < -0.6));
+    let patches: std::collections::HashSet<u32> = leaves.iter().map(|&l| els[l as usize].patch).collect();
+    assert_eq!(patches.len(), 2);
+    for colors in [MeshColors::Flat, MeshColors::Smooth] {
+        for view in SEAM_VIEWS {
+            let (checked, cracks) = crack_pixels(&els, &leaves, colors, view);
+            eprintln!("{view:?} {} cracks", cracks.len());
+            assert!(checked > 20_000, "the patches fill much of the image: {checked}");
+            assert!(
+                cracks.is_empty(),
+                "{colors:?}, view {view:?}: {} crack pixels along the seam, first {:?}",
+                cracks.len(),
+                &cracks[..cracks.len().min(8)]
+            );
+        }
     }
 }
 
@@ -401,6 +482,149 @@ fn golden_box() {
         img.distinct_colors()
     );
 }
+
+/// Draw `g` the way the native viewer does: straight into a host pass (egui's) with a
+/// Depth32Float depth buffer cleared to 1, the viewport set to `rect` inside a larger target
+/// cleared to `panel`. Returns the whole target.
+fn draw_direct(
+    g: &Geometry,
+    u: Uniforms,
+    format: wgpu::TextureFormat,
+    target: [u32; 2],
+    rect: [u32; 4],
+    panel: wgpu::Color,
+) -> RgbaImage {
+    let rs = render_state().lock().unwrap();
+    let mut r = SceneRenderer::new(&rs.device, format, Some(radlab::render::DEPTH_FORMAT));
+    assert!(r.draws_direct());
+    r.set_geometry(&rs.device, g);
+    let frame = FrameParams { uniforms: u, size: [rect[2], rect[3]] };
+    r.prepare_direct(&rs.queue, &frame);
+    let texture = |format, usage| {
+        rs.device.create_texture(&wgpu::TextureDescriptor {
+            label: None,
+            size: wgpu::Extent3d { width: target[0], height: target[1], depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    let color = texture(format, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC);
+    let depth = texture(radlab::render::DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT);
+    let color_view = color.create_view(&wgpu::TextureViewDescriptor::default());
+    let depth_view = depth.create_view(&wgpu::TextureViewDescriptor::default());
+    let mut enc = rs.device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    {
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("host pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(panel), store: wgpu::StoreOp::Store },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        let [x, y, w, h] = rect.map(|v| v as f32);
+        pass.set_viewport(x, y, w, h, 0.0, 1.0);
+        pass.set_scissor_rect(rect[0], rect[1], rect[2], rect[3]);
+        assert!(r.paint_direct(&mut pass));
+    }
+    rs.queue.submit([enc.finish()]);
+    radlab::render::read_texture(&rs.device, &rs.queue, &color).unwrap()
+}
+
+#[test]
+fn direct_drawing_into_the_host_pass_matches_the_offscreen_image() {
+    // The golden box with every feature on (back faces, quadtree, selection, links, background)
+    // drawn offscreen and, as the native viewer does, straight into a larger host pass at an
+    // offset: the viewport must be the same image, and the host's pixels around it untouched.
+    let (l, h) = (-1.0, 1.0);
+    let p = DVec3::new;
+    let face = |id: u32, mut v: [DVec3; 4], b: Rgb| {
+        if id != 0 {
+            v.reverse();
+        }
+        ElementView { id, patch: id, vertices: v, radiosity: b, ..square(id, 0.0, b, false) }
+    };
+    let els = vec![
+        face(0, [p(l, l, l), p(h, l, l), p(h, l, h), p(l, l, h)], Rgb::splat(0.6)),
+        face(1, [p(l, h, l), p(l, h, h), p(h, h, h), p(h, h, l)], Rgb::splat(0.9)),
+        face(2, [p(l, l, l), p(l, h, l), p(h, h, l), p(h, l, l)], Rgb::splat(0.5)),
+        face(3, [p(l, l, l), p(l, l, h), p(l, h, h), p(l, h, l)], Rgb::new(0.6, 0.1, 0.1)),
+    ];
+    let leaves: Vec<u32> = (0..4).collect();
+    let links = [
+        LinkView { receiver: 0, source: 1, ff: 0.2, vis: 1.0 },
+        LinkView { receiver: 3, source: 2, ff: 0.1, vis: 0.5 },
+    ];
+    let list = overlay::link_lines(&els, &links, &LinkFilter::default(), 0.8).lines;
+    let g = Geometry {
+        mesh: geometry::mesh(&els, &leaves, MeshColors::Smooth, DVec3::ZERO),
+        links: geometry::lines(&list, DVec3::ZERO),
+        links_xray: false,
+    };
+    assert!(!g.links.is_empty());
+    let mut u = uniforms(true, 0, 3);
+    u.overlay |= OVERLAY_QUADTREE;
+    u.background = [0.08, 0.08, 0.1, 1.0];
+    let mut cam = camera();
+    cam.distance = 3.5;
+    cam.orbit(0.3, 0.2);
+    u.view_proj = cam
+        .view_proj(f64::from(W) / f64::from(H), DVec3::ZERO)
+        .to_cols_array_2d()
+        .map(|c| c.map(|x| x as f32));
+    let offscreen = draw(&g, u);
+    // The background shows (the box is open), so the background pass is exercised.
+    let bg = [20, 20, 26];
+    assert!(offscreen.pixels.chunks_exact(4).any(|q| close([q[0], q[1], q[2], q[3]], bg)));
+    // Back-face stripes follow window pixels, 12 to a period along x + y: an offset that is a
+    // multiple of it keeps them where the offscreen image has them; even, it keeps the 2×2 pixel
+    // quads of the derivatives (quadtree edge widths) aligned too.
+    let (x0, y0) = (14, 10);
+    let panel = wgpu::Color { r: 0.2, g: 0.4, b: 0.6, a: 1.0 };
+    for format in [wgpu::TextureFormat::Rgba8Unorm, wgpu::TextureFormat::Rgba8UnormSrgb] {
+        let host = draw_direct(&g, u, format, [W + 30, H + 20], [x0, y0, W, H], panel);
+        let viewport = host.crop(x0, y0, W, H);
+        // An sRGB target stores the same display values after its decode-then-encode round trip
+        // (±1 level), and the panel's linear clear colour encoded.
+        let (stats, _) = snapshot::diff(&viewport, &offscreen).unwrap();
+        if format.is_srgb() {
+            // The link lines blend in linear light on an sRGB target (a few pixels differ more).
+            assert!(
+                stats.p95 <= f64::from(DIRECT_MAX_DIFF) && stats.mean <= SRGB_MEAN_DIFF,
+                "{format:?}: {stats:?}"
+            );
+        } else {
+            assert!(stats.max <= DIRECT_MAX_DIFF, "{format:?}: {stats:?}");
+        }
+        let want_panel: [u8; 3] = if format.is_srgb() { [124, 170, 203] } else { [51, 102, 153] };
+        for (x, y) in [(0, 0), (x0 - 1, y0 + 5), (x0 + W, y0 + H - 1), (W + 29, H + 19)] {
+            assert!(close(host.pixel(x, y), want_panel), "{format:?} ({x}, {y}): {:?}", host.pixel(x, y));
+        }
+    }
+}
+
+/// Direct and offscreen drawing run the same shaders on the same rasteriser: equal, up to one
+/// level (interpolation rounding at another window offset; the sRGB target's decode-encode round
+/// trip).
+const DIRECT_MAX_DIFF: u8 = 1;
+/// Mean difference allowed on an sRGB target, where the few link-line pixels blend differently.
+const SRGB_MEAN_DIFF: f64 = 1.0;
 
 #[test]
 fn every_shader_parses_and_validates() {

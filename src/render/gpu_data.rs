@@ -25,8 +25,11 @@ pub struct Uniforms {
     /// Width of the quadtree edges in pixels (on each side of a shared edge).
     pub line_px: f32,
     pub _pad: [u32; 2],
+    /// Background of the viewport (display space; alpha unused): the clear colour of the
+    /// offscreen target, drawn behind the mesh when drawing straight into egui's pass.
+    pub background: [f32; 4],
 }
-const _: () = assert!(size_of::<Uniforms>() == 112);
+const _: () = assert!(size_of::<Uniforms>() == 128);
 
 /// `Uniforms::overlay` bit: draw every leaf's edges in its quadtree-depth colour.
 pub const OVERLAY_QUADTREE: u32 = 1;

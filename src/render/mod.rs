@@ -1,21 +1,31 @@
-//! wgpu rendering of the viewport: the radiosity mesh and overlay lines, drawn into an offscreen
-//! colour + depth target, then shown in egui through an `egui_wgpu` paint callback.
+//! wgpu rendering of the viewport: the radiosity mesh and overlay lines, shown in egui through an
+//! `egui_wgpu` paint callback — drawn straight into egui's render pass when that pass has a depth
+//! buffer (the native window: `NativeOptions::depth_buffer`), else into an offscreen colour +
+//! depth target that is then copied into egui's pass.
 //!
 //! ## How it works
 //! ```text
 //!  UI thread (each frame)              egui_wgpu renderer
-//!  ─────────────────────              ──────────────────────────────────────────────
-//!  ViewportCallback { uniforms,  ──►  prepare(): upload Geometry if its generation changed,
-//!    Arc<Geometry>, generation }        write uniforms, render mesh + lines into the offscreen
-//!                                       Rgba8Unorm + Depth32Float target (own depth buffer)
-//!                                     paint():   blit the offscreen image into egui's pass
+//!  ─────────────────────              ──────────────────────────────────────────────────────
+//!  ViewportCallback { frame,     ──►  prepare(): upload Geometry if its generation changed,
+//!    Arc<Geometry>, generation }        write the uniforms
+//!                                       [offscreen] render mesh + lines into the Rgba8Unorm +
+//!                                       Depth32Float target
+//!                                     paint():   [direct] mesh, background behind it, lines,
+//!                                                 into egui's pass (viewport = callback rect)
+//!                                                [offscreen] blit the image into egui's pass
 //! ```
-//! Pipelines are built once and kept in egui's `CallbackResources` (the egui custom-3D pattern).
-//! Rendering into an own target gives the 3-D view a depth buffer whatever egui's pass has, and
-//! lets tests and the screenshot button read the exact viewport pixels back
-//! ([`SceneRenderer::read_pixels`]).
+//! Drawing directly saves, per frame, the clear of an own colour + depth target and a full-size
+//! copy; on a CPU rasteriser (lavapipe) those are whole-viewport passes over memory. The
+//! background is drawn *after* the mesh, at the far plane with the depth test "less or equal", so
+//! it shades only the pixels the mesh left empty instead of clearing every pixel first.
 //!
-//! Shaders: `shaders/mesh.wgsl` (radiosity, tone mapping, back faces, highlight),
+//! Pipelines are built once and kept in egui's `CallbackResources` (the egui custom-3D pattern).
+//! The offscreen target serves the tests (which read the exact viewport pixels back,
+//! [`SceneRenderer::read_pixels`]) and egui passes without depth (egui_kittest). Screenshots
+//! (the button, `--screenshot`) capture egui's whole frame either way and crop the viewport.
+//!
+//! Shaders: `shaders/mesh.wgsl` (radiosity, tone mapping, back faces, highlight, background),
 //! `shaders/lines.wgsl` (overlays), `shaders/blit.wgsl` (copy into egui's pass).
 
 pub mod geometry;
@@ -37,8 +47,11 @@ pub const SHADERS: [(&str, &str); 3] = [
 
 /// Format of the offscreen colour target (display-encoded values).
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
-/// Format of the offscreen depth buffer.
+/// Format of the offscreen depth buffer, and of egui's when the viewer asks for one
+/// (`NativeOptions::depth_buffer = 32`, see [`HOST_DEPTH_BITS`]).
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// `NativeOptions::depth_buffer` that gives egui's pass a [`DEPTH_FORMAT`] depth buffer.
+pub const HOST_DEPTH_BITS: u8 = 32;
 
 /// Everything drawn in the viewport, in the scene's local frame.
 #[derive(Clone, Debug, Default)]
@@ -51,14 +64,21 @@ pub struct Geometry {
     pub links_xray: bool,
 }
 
-/// Per-frame settings of one render.
+/// Per-frame settings of one render (the background colour is `uniforms.background`).
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct FrameParams {
     pub uniforms: Uniforms,
     /// Target size in pixels.
     pub size: [u32; 2],
-    /// Background colour (display space).
-    pub clear: [f64; 4],
+}
+
+/// The pipelines that draw the scene into one kind of pass (colour format + depth format).
+struct ScenePipelines {
+    mesh: wgpu::RenderPipeline,
+    lines: wgpu::RenderPipeline,
+    xray: wgpu::RenderPipeline,
+    /// Fills what the mesh left empty (only where there is no clear to the background).
+    background: wgpu::RenderPipeline,
 }
 
 struct Target {
@@ -76,9 +96,10 @@ struct GpuBuffer {
 
 /// The viewport's pipelines, buffers and offscreen target.
 pub struct SceneRenderer {
-    mesh_pipeline: wgpu::RenderPipeline,
-    lines_pipeline: wgpu::RenderPipeline,
-    xray_pipeline: wgpu::RenderPipeline,
+    /// Into the offscreen Rgba8Unorm + Depth32Float target.
+    offscreen: ScenePipelines,
+    /// Straight into egui's pass, when it has a [`DEPTH_FORMAT`] depth buffer.
+    direct: Option<ScenePipelines>,
     blit_pipeline: wgpu::RenderPipeline,
     uniform_buffer: wgpu::Buffer,
     uniform_group: wgpu::BindGroup,
@@ -106,11 +127,137 @@ fn shader(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
     })
 }
 
+impl ScenePipelines {
+    /// Pipelines for a pass with this colour and depth format. An *Srgb colour format encodes on
+    /// write, so the shaders decode their display-encoded output first (`DECODE_OUTPUT`).
+    fn new(
+        device: &wgpu::Device,
+        layout: &wgpu::PipelineLayout,
+        color: wgpu::TextureFormat,
+        depth_format: wgpu::TextureFormat,
+    ) -> ScenePipelines {
+        let decode = [("DECODE_OUTPUT", if color.is_srgb() { 1.0 } else { 0.0 })];
+        let options = wgpu::PipelineCompilationOptions { constants: &decode, ..Default::default() };
+        let depth = |write: bool, compare: wgpu::CompareFunction| wgpu::DepthStencilState {
+            format: depth_format,
+            depth_write_enabled: Some(write),
+            depth_compare: Some(compare),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        };
+        let mesh_module = shader(device, "mesh.wgsl");
+        let mesh_attrs = wgpu::vertex_attr_array![
+            0 => Float32x3, 1 => Uint32, 2 => Float32x3, 3 => Float32x2, 4 => Unorm8x4
+        ];
+        let opaque =
+            [Some(wgpu::ColorTargetState { format: color, blend: None, write_mask: wgpu::ColorWrites::ALL })];
+        let mesh = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("radlab mesh"),
+            layout: Some(layout),
+            vertex: wgpu::VertexState {
+                module: &mesh_module,
+                entry_point: Some("vs_main"),
+                compilation_options: options.clone(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: size_of::<MeshVertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &mesh_attrs,
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: None, // back faces are drawn, distinctly (mesh.wgsl)
+                ..wgpu::PrimitiveState::default()
+            },
+            depth_stencil: Some(depth(true, wgpu::CompareFunction::Less)),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &mesh_module,
+                entry_point: Some("fs_main"),
+                compilation_options: options.clone(),
+                targets: &opaque,
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let background = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("radlab background"),
+            layout: Some(layout),
+            vertex: wgpu::VertexState {
+                module: &mesh_module,
+                entry_point: Some("vs_background"),
+                compilation_options: options.clone(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(depth(false, wgpu::CompareFunction::LessEqual)),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &mesh_module,
+                entry_point: Some("fs_background"),
+                compilation_options: options.clone(),
+                targets: &opaque,
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+
+        let lines_module = shader(device, "lines.wgsl");
+        let line_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4];
+        let line_pipeline = |label: &str, compare: wgpu::CompareFunction| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module: &lines_module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: options.clone(),
+                    buffers: &[Some(wgpu::VertexBufferLayout {
+                        array_stride: size_of::<LineVertex>() as u64,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &line_attrs,
+                    })],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::LineList,
+                    ..wgpu::PrimitiveState::default()
+                },
+                depth_stencil: Some(depth(false, compare)),
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &lines_module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: options.clone(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: color,
+                        blend: Some(wgpu::BlendState::ALPHA_BLENDING),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        ScenePipelines {
+            mesh,
+            lines: line_pipeline("radlab lines", wgpu::CompareFunction::LessEqual),
+            xray: line_pipeline("radlab lines x-ray", wgpu::CompareFunction::Always),
+            background,
+        }
+    }
+}
+
 impl SceneRenderer {
-    /// Build the pipelines. `output_format` is the format of the pass the viewport is blitted into
-    /// (egui's target format).
+    /// Build the pipelines. `output_format` is the format of egui's pass (its target format);
+    /// `host_depth` its depth format, if it has a depth buffer: with [`DEPTH_FORMAT`] the scene
+    /// is drawn straight into that pass, else through the offscreen target.
     #[must_use]
-    pub fn new(device: &wgpu::Device, output_format: wgpu::TextureFormat) -> SceneRenderer {
+    pub fn new(
+        device: &wgpu::Device,
+        output_format: wgpu::TextureFormat,
+        host_depth: Option<wgpu::TextureFormat>,
+    ) -> SceneRenderer {
         let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("radlab uniforms"),
             entries: &[wgpu::BindGroupLayoutEntry {
@@ -139,91 +286,9 @@ impl SceneRenderer {
             bind_group_layouts: &[Some(&uniform_layout)],
             immediate_size: 0,
         });
-
-        let mesh_module = shader(device, "mesh.wgsl");
-        let mesh_attrs = wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Uint32, 2 => Float32x3, 3 => Float32x2, 4 => Unorm8x4
-        ];
-        let depth = |write: bool, compare: wgpu::CompareFunction| wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(write),
-            depth_compare: Some(compare),
-            stencil: wgpu::StencilState::default(),
-            bias: wgpu::DepthBiasState::default(),
-        };
-        let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("radlab mesh"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &mesh_module,
-                entry_point: Some("vs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: size_of::<MeshVertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &mesh_attrs,
-                })],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                front_face: wgpu::FrontFace::Ccw,
-                cull_mode: None, // back faces are drawn, distinctly (mesh.wgsl)
-                ..wgpu::PrimitiveState::default()
-            },
-            depth_stencil: Some(depth(true, wgpu::CompareFunction::Less)),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &mesh_module,
-                entry_point: Some("fs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: COLOR_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-
-        let lines_module = shader(device, "lines.wgsl");
-        let line_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4];
-        let line_pipeline = |label: &str, compare: wgpu::CompareFunction| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &lines_module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: wgpu::PipelineCompilationOptions::default(),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: size_of::<LineVertex>() as u64,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &line_attrs,
-                    })],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::LineList,
-                    ..wgpu::PrimitiveState::default()
-                },
-                depth_stencil: Some(depth(false, compare)),
-                multisample: wgpu::MultisampleState::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &lines_module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: wgpu::PipelineCompilationOptions::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: COLOR_FORMAT,
-                        blend: Some(wgpu::BlendState::ALPHA_BLENDING),
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let lines_pipeline = line_pipeline("radlab lines", wgpu::CompareFunction::LessEqual);
-        let xray_pipeline = line_pipeline("radlab lines x-ray", wgpu::CompareFunction::Always);
+        let offscreen = ScenePipelines::new(device, &layout, COLOR_FORMAT, DEPTH_FORMAT);
+        let direct = (host_depth == Some(DEPTH_FORMAT))
+            .then(|| ScenePipelines::new(device, &layout, output_format, DEPTH_FORMAT));
 
         let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("radlab blit"),
@@ -284,9 +349,8 @@ impl SceneRenderer {
             ..wgpu::SamplerDescriptor::default()
         });
         SceneRenderer {
-            mesh_pipeline,
-            lines_pipeline,
-            xray_pipeline,
+            offscreen,
+            direct,
             blit_pipeline,
             uniform_buffer,
             uniform_group,
@@ -389,7 +453,7 @@ impl SceneRenderer {
         queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&frame.uniforms));
         let Some(target) = &self.target else { return };
         self.drawn = Some(*frame);
-        let [r, g, b, a] = frame.clear;
+        let [r, g, b, a] = frame.uniforms.background.map(f64::from);
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("radlab viewport"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -413,18 +477,51 @@ impl SceneRenderer {
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        self.draw(&mut pass, &self.offscreen, false);
+    }
+
+    /// Mesh, then (without a clear behind it) the background, then the link lines.
+    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, pipelines: &ScenePipelines, background: bool) {
         pass.set_bind_group(0, &self.uniform_group, &[]);
         if let (Some(m), Some(i)) = (&self.mesh, &self.mesh_indices) {
-            pass.set_pipeline(&self.mesh_pipeline);
+            pass.set_pipeline(&pipelines.mesh);
             pass.set_vertex_buffer(0, m.buffer.slice(..));
             pass.set_index_buffer(i.buffer.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..i.count, 0, 0..1);
         }
+        if background {
+            pass.set_pipeline(&pipelines.background);
+            pass.draw(0..3, 0..1);
+        }
         if let Some(l) = &self.links {
-            pass.set_pipeline(if self.links_xray { &self.xray_pipeline } else { &self.lines_pipeline });
+            pass.set_pipeline(if self.links_xray { &pipelines.xray } else { &pipelines.lines });
             pass.set_vertex_buffer(0, l.buffer.slice(..));
             pass.draw(0..l.count, 0..1);
         }
+    }
+
+    /// True when the scene is drawn straight into egui's pass ([`SceneRenderer::paint_direct`]).
+    #[must_use]
+    pub fn draws_direct(&self) -> bool {
+        self.direct.is_some()
+    }
+
+    /// Before [`SceneRenderer::paint_direct`]: write this frame's uniforms.
+    pub fn prepare_direct(&mut self, queue: &wgpu::Queue, frame: &FrameParams) {
+        if self.drawn.as_ref() != Some(frame) {
+            queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&frame.uniforms));
+            self.drawn = Some(*frame);
+        }
+    }
+
+    /// Draw the scene into a pass whose colour target has the `output_format` and whose depth
+    /// buffer is a [`DEPTH_FORMAT`] one cleared to 1 (egui's, with the viewport set to the
+    /// callback rect): the mesh, the background where the mesh left pixels empty, the lines.
+    /// Returns false (drawing nothing) without direct pipelines.
+    pub fn paint_direct(&self, pass: &mut wgpu::RenderPass<'_>) -> bool {
+        let Some(p) = &self.direct else { return false };
+        self.draw(pass, p, true);
+        true
     }
 
     /// Draw the offscreen image into egui's pass (its viewport already set to the callback rect).
@@ -445,54 +542,64 @@ impl SceneRenderer {
     /// Read the offscreen image back: `(width, height, RGBA8 rows)`. Blocks until the GPU is done.
     pub fn read_pixels(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<RgbaImage, String> {
         let t = self.target.as_ref().ok_or("nothing rendered yet")?;
-        let [w, h] = t.size;
-        let row = w * 4;
-        let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("radlab read-back"),
-            size: u64::from(padded) * u64::from(h),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder =
-            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read-back") });
-        encoder.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &t.color,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded),
-                    rows_per_image: Some(h),
-                },
-            },
-            wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-        );
-        let index = queue.submit([encoder.finish()]);
-        let slice = buffer.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::Wait { submission_index: Some(index), timeout: Some(READBACK_TIMEOUT) })
-            .map_err(|e| format!("GPU read-back: {e}"))?;
-        rx.recv().map_err(|e| e.to_string())?.map_err(|e| format!("GPU read-back: {e}"))?;
-        let data = slice.get_mapped_range().map_err(|e| format!("GPU read-back: {e:?}"))?;
-        let mut pixels = Vec::with_capacity((row * h) as usize);
-        for y in 0..h {
-            let start = (y * padded) as usize;
-            pixels.extend_from_slice(&data[start..start + row as usize]);
-        }
-        drop(data);
-        buffer.unmap();
-        Ok(RgbaImage { width: w, height: h, pixels })
+        read_texture(device, queue, &t.color)
     }
+}
+
+/// Read a 2-D texture with 4 bytes per texel (RGBA8 or BGRA8, returned as stored) back to the
+/// CPU. Blocks until the GPU is done.
+pub fn read_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    texture: &wgpu::Texture,
+) -> Result<RgbaImage, String> {
+    let (w, h) = (texture.width(), texture.height());
+    let row = w * 4;
+    let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("radlab read-back"),
+        size: u64::from(padded) * u64::from(h),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder =
+        device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read-back") });
+    encoder.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: Some(h),
+            },
+        },
+        wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+    );
+    let index = queue.submit([encoder.finish()]);
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::Wait { submission_index: Some(index), timeout: Some(READBACK_TIMEOUT) })
+        .map_err(|e| format!("GPU read-back: {e}"))?;
+    rx.recv().map_err(|e| e.to_string())?.map_err(|e| format!("GPU read-back: {e}"))?;
+    let data = slice.get_mapped_range().map_err(|e| format!("GPU read-back: {e:?}"))?;
+    let mut pixels = Vec::with_capacity((row * h) as usize);
+    for y in 0..h {
+        let start = (y * padded) as usize;
+        pixels.extend_from_slice(&data[start..start + row as usize]);
+    }
+    drop(data);
+    buffer.unmap();
+    Ok(RgbaImage { width: w, height: h, pixels })
 }
 
 /// Longest wait for a read-back (software rasterisers can be slow on big targets).
@@ -602,7 +709,11 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
                 r.generation = self.generation;
                 r.last_upload_s = started.elapsed().as_secs_f64();
             }
-            r.render(device, queue, encoder, &self.frame);
+            if r.draws_direct() {
+                r.prepare_direct(queue, &self.frame);
+            } else {
+                r.render(device, queue, encoder, &self.frame);
+            }
         }
         Vec::new()
     }
@@ -613,7 +724,9 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
         pass: &mut wgpu::RenderPass<'static>,
         resources: &egui_wgpu::CallbackResources,
     ) {
-        if let Some(r) = resources.get::<SceneRenderer>() {
+        if let Some(r) = resources.get::<SceneRenderer>()
+            && !r.paint_direct(pass)
+        {
             r.blit(pass);
         }
     }

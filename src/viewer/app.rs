@@ -59,6 +59,9 @@ pub struct ViewerOptions {
     pub show_plots: bool,
     /// Where the reference solution comes from (settings and disk cache).
     pub reference: RefSettings,
+    /// egui's render pass has a [`crate::render::DEPTH_FORMAT`] depth buffer (the native window
+    /// asks for one): draw the 3-D view straight into it instead of through an offscreen copy.
+    pub direct_viewport: bool,
 }
 
 impl Default for ViewerOptions {
@@ -74,6 +77,7 @@ impl Default for ViewerOptions {
             screenshot_window: false,
             show_plots: false,
             reference: RefSettings::default(),
+            direct_viewport: false,
         }
     }
 }
@@ -123,7 +127,7 @@ impl Default for Display {
 }
 
 /// Background of the viewport (display space).
-const BACKGROUND: [f64; 4] = [0.08, 0.08, 0.1, 1.0];
+const BACKGROUND: [f32; 4] = [0.08, 0.08, 0.1, 1.0];
 /// Back faces: dull magenta, striped in the shader.
 const BACK_COLOR: [f32; 4] = [0.55, 0.1, 0.45, 1.0];
 /// Width of the quadtree edges drawn by the mesh shader, pixels on each side of an edge (a
@@ -274,7 +278,8 @@ impl RadlabApp {
     /// solver thread, load the scene.
     pub fn new(cc: &eframe::CreationContext<'_>, opts: ViewerOptions) -> RadlabApp {
         let has_wgpu = if let Some(rs) = &cc.wgpu_render_state {
-            let renderer = SceneRenderer::new(&rs.device, rs.target_format);
+            let depth = opts.direct_viewport.then_some(crate::render::DEPTH_FORMAT);
+            let renderer = SceneRenderer::new(&rs.device, rs.target_format, depth);
             rs.renderer.write().callback_resources.insert(renderer);
             true
         } else {
@@ -414,7 +419,7 @@ impl RadlabApp {
         self.error_samples.clear();
         self.last_report = None;
         if let Some(r) = &mut self.reference {
-            r.send(RefCommand::Load { scene: Arc::clone(&scene), compute: false });
+            r.load(Arc::clone(&scene), false);
             self.ref_state = RefState::Looking;
         }
         self.set_view(Arc::new(ViewData::default()));
@@ -605,9 +610,23 @@ impl RadlabApp {
     /// cache; the UI stays live and shows the elapsed time).
     pub fn compute_reference(&mut self) {
         if let (Some(r), Some(scene)) = (&mut self.reference, &self.scene) {
-            r.send(RefCommand::Load { scene: Arc::clone(scene), compute: true });
+            r.load(Arc::clone(scene), true);
             self.ref_state = RefState::Looking;
         }
+    }
+
+    /// Stop the reference computation started by [`RadlabApp::compute_reference`]; the scene
+    /// is left without a reference (nothing is cached).
+    pub fn cancel_reference(&mut self) {
+        if let Some(r) = &self.reference {
+            r.cancel();
+        }
+    }
+
+    /// (regions finished, regions) of the reference computation.
+    #[must_use]
+    pub fn reference_progress(&self) -> (usize, usize) {
+        self.reference.as_ref().map_or((0, 0), RefThread::progress)
     }
 
     /// The (solver time, rel L2 error against the reference) points of the error plot.
@@ -654,6 +673,10 @@ impl RadlabApp {
                 self.ref_state = RefState::Computing { regions, samples, since: Instant::now() };
             }
             RefReply::Missing { source } if current(&source, self) => self.ref_state = RefState::Missing,
+            RefReply::Cancelled { source } if current(&source, self) => {
+                self.ref_state = RefState::Missing;
+                self.status = "reference computation cancelled".into();
+            }
             RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
                 self.ref_state = RefState::Ready { regions, samples, how };
                 self.evaluated_seq = 0; // score the current state
@@ -671,7 +694,10 @@ impl RadlabApp {
                 self.errors.push(e);
             }
             // Answers about a scene no longer shown.
-            RefReply::Computing { .. } | RefReply::Missing { .. } | RefReply::Ready { .. } => {}
+            RefReply::Computing { .. }
+            | RefReply::Missing { .. }
+            | RefReply::Ready { .. }
+            | RefReply::Cancelled { .. } => {}
         }
     }
 
@@ -703,12 +729,22 @@ impl RadlabApp {
                 }
             }
             RefState::Computing { regions, samples, since } => {
-                ui.horizontal(|ui| {
-                    ui.spinner();
-                    ui.label(format!("computing… {:.0} s", since.elapsed().as_secs_f64()));
-                });
+                let (done, total) = self.reference_progress();
+                let total = if total == 0 { regions } else { total };
                 ui.label(format!("{regions} regions × {samples} paths"));
-                ui.ctx().request_repaint_after(std::time::Duration::from_millis(500));
+                ui.add(
+                    egui::ProgressBar::new(done as f32 / total.max(1) as f32)
+                        .desired_width(180.0)
+                        .text(format!("{done}/{total} · {:.0} s", since.elapsed().as_secs_f64())),
+                );
+                if ui
+                    .button("Cancel reference")
+                    .on_hover_text("Stop the computation (nothing is cached)")
+                    .clicked()
+                {
+                    self.cancel_reference();
+                }
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
             }
             RefState::Ready { regions, samples, how } => {
                 ui.label(format!("{regions} regions × {samples} paths")).on_hover_text(how);
@@ -849,6 +885,7 @@ impl RadlabApp {
                 | if self.selected.is_some() { OVERLAY_PICKED } else { 0 },
             line_px: QUADTREE_LINE_PX * pixels_per_point,
             _pad: [0; 2],
+            background: BACKGROUND,
         }
     }
 
@@ -1279,7 +1316,7 @@ impl RadlabApp {
             painter.add(egui_wgpu::Callback::new_paint_callback(
                 rect,
                 ViewportCallback {
-                    frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size, clear: BACKGROUND },
+                    frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size },
                     geometry: Arc::clone(&self.geometry),
                     generation: self.generation,
                 },
@@ -1413,6 +1450,15 @@ impl RadlabApp {
                 "No scene. Open… a .gltf/.glb, drop one here, or type builtin:NAME above and press Load."
             };
             painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, font, Color32::LIGHT_GRAY);
+        } else if self.view.links.is_empty() && !self.busy() {
+            // A freshly loaded scene: only the lamps are lit. Say what to do next.
+            let at = Pos2::new(rect.center().x, rect.bottom() - 28.0);
+            let msg =
+                "Only the lamps are lit: press Solve, or Refine step then Gather step to watch it converge.";
+            let galley = painter.layout_no_wrap(msg.to_owned(), font, Color32::WHITE);
+            let box_r = Rect::from_center_size(at, galley.size() + Vec2::new(16.0, 8.0));
+            painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+            painter.galley(box_r.min + Vec2::new(8.0, 4.0), galley, Color32::WHITE);
         }
     }
 

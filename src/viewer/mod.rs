@@ -55,8 +55,11 @@ pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
         // Dithering only matters for gradients (egui draws none); on a CPU rasteriser it is
         // per-pixel work in every egui draw.
         dithering: false,
+        // A depth buffer on egui's pass: the 3-D view is drawn straight into it.
+        depth_buffer: crate::render::HOST_DEPTH_BITS,
         ..eframe::NativeOptions::default()
     };
+    let opts = ViewerOptions { direct_viewport: true, ..opts };
     if opts.bench_frames.is_some() {
         // Measure drawing, not the display's refresh.
         native.wgpu_options.surface.present_mode = eframe::wgpu::PresentMode::AutoNoVsync;

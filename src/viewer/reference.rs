@@ -13,8 +13,12 @@
 //! the command line is found here and the other way round. Its resolution limits the per-element
 //! error: a leaf finer than the reference regions is compared with the region's average.
 //!
+//! A computation reports its progress (regions finished) and can be cancelled through a shared
+//! [`Control`]; a cancelled computation leaves no cache entry and the scene without reference.
+//!
 //! ```text
 //!  UI ── Load{scene, compute} ──► "radlab-reference": cache look-up / estimate (seconds–minutes)
+//!  UI ◄─ progress / cancel ─────► Arc<Control> (atomics, read every frame)
 //!  UI ── Evaluate{view} ────────► per-element error + rel L2 ── Reply ──► UI (heatmap, plot)
 //! ```
 
@@ -22,7 +26,8 @@ use super::worker::ViewData;
 use crate::accel::Accel;
 use crate::metrics;
 use crate::reference::{
-    Cache, CacheStatus, Estimate, RefElement, ReferenceParams, cache_key, reference_mesh,
+    Cache, CacheStatus, Control, Estimate, RefElement, ReferenceError, ReferenceParams, cache_key,
+    reference_mesh,
 };
 use crate::scene::Scene;
 use crate::solver::SolvedElement;
@@ -49,8 +54,9 @@ impl Default for RefSettings {
 
 /// What the UI asks.
 pub enum RefCommand {
-    /// A new scene: look for a cached reference; with `compute`, estimate it when there is none.
-    Load { scene: Arc<Scene>, compute: bool },
+    /// A new scene: look for a cached reference; with `compute`, estimate it when there is none
+    /// (progress and cancellation through `control`).
+    Load { scene: Arc<Scene>, compute: bool, control: Arc<Control> },
     /// Score a solver state (`view_seq` and `solver_time_s` are passed back).
     Evaluate { view: Arc<ViewData>, view_seq: u64, solver_time_s: f64 },
 }
@@ -73,6 +79,10 @@ pub enum RefReply {
         regions: usize,
         samples: u32,
         how: String,
+    },
+    /// The computation was cancelled (nothing cached; the scene has no reference).
+    Cancelled {
+        source: String,
     },
     Evaluated(Evaluation),
     Failed(String),
@@ -148,6 +158,8 @@ pub struct RefThread {
     rx: Receiver<RefReply>,
     /// Commands sent and not answered yet.
     pending: usize,
+    /// Progress and cancellation of the newest `Load`.
+    control: Option<Arc<Control>>,
 }
 
 impl RefThread {
@@ -161,8 +173,8 @@ impl RefThread {
                 let mut loaded: Option<Loaded> = None;
                 while let Ok(cmd) = cmd_rx.recv() {
                     let reply = match cmd {
-                        RefCommand::Load { scene, compute } => {
-                            let (reply, l) = load(&settings, scene, compute, &|r| {
+                        RefCommand::Load { scene, compute, control } => {
+                            let (reply, l) = load(&settings, scene, compute, &control, &|r| {
                                 let _ = reply_tx.send(r);
                                 notify();
                             });
@@ -184,13 +196,40 @@ impl RefThread {
                 }
             })
             .map_err(|e| format!("cannot start the reference thread: {e}"))?;
-        Ok(RefThread { tx, rx, pending: 0 })
+        Ok(RefThread { tx, rx, pending: 0, control: None })
     }
 
     pub fn send(&mut self, cmd: RefCommand) {
+        let control = match &cmd {
+            RefCommand::Load { control, .. } => Some(Arc::clone(control)),
+            RefCommand::Evaluate { .. } => None,
+        };
         if self.tx.send(cmd).is_ok() {
             self.pending += 1;
+            if control.is_some() {
+                self.control = control;
+            }
         }
+    }
+
+    /// Look up (and with `compute`, estimate) the reference of `scene`; cancels a computation
+    /// still running for the previous request.
+    pub fn load(&mut self, scene: Arc<Scene>, compute: bool) {
+        self.cancel();
+        self.send(RefCommand::Load { scene, compute, control: Arc::new(Control::default()) });
+    }
+
+    /// Cancel the running computation, if any (it answers [`RefReply::Cancelled`]).
+    pub fn cancel(&self) {
+        if let Some(c) = &self.control {
+            c.cancel();
+        }
+    }
+
+    /// (regions finished, regions) of the newest computation; (0, 0) before it starts.
+    #[must_use]
+    pub fn progress(&self) -> (usize, usize) {
+        self.control.as_ref().map_or((0, 0), |c| c.progress())
     }
 
     /// True while a command is queued or running.
@@ -231,8 +270,12 @@ fn load(
     settings: &RefSettings,
     scene: Arc<Scene>,
     compute: bool,
+    control: &Control,
     progress: &dyn Fn(RefReply),
 ) -> (RefReply, Option<Loaded>) {
+    if control.cancelled() {
+        return (RefReply::Cancelled { source: scene.source.clone() }, None);
+    }
     let source = scene.source.clone();
     let mesh = match reference_mesh(&scene, scene.bounds().diagonal() * REGION_FRACTION_OF_DIAGONAL) {
         Ok(m) => m,
@@ -257,7 +300,7 @@ fn load(
     progress(RefReply::Computing { source: source.clone(), regions, samples });
     let started = Instant::now();
     let accel = Accel::build(&scene);
-    match settings.cache.get_or_compute(&scene, &accel, &mesh, &settings.params) {
+    match settings.cache.get_or_compute_with(&scene, &accel, &mesh, &settings.params, control) {
         Ok((c, status)) => {
             let how = match status {
                 CacheStatus::Hit(f) => format!("cached {}", f.display()),
@@ -270,6 +313,7 @@ fn load(
                 Some(Loaded { scene, mesh, estimates: c.estimates }),
             )
         }
+        Err(ReferenceError::Cancelled) => (RefReply::Cancelled { source }, None),
         Err(e) => (RefReply::Failed(e.to_string()), None),
     }
 }
@@ -291,17 +335,17 @@ mod tests {
         let scene = Arc::new(Scene::load("builtin:cube-one-light").unwrap());
         let mut t = RefThread::spawn(settings, || {}).unwrap();
         let mut replies = Vec::new();
-        t.send(RefCommand::Load { scene: Arc::clone(&scene), compute: false });
+        t.load(Arc::clone(&scene), false);
         t.wait_idle(|r| replies.push(r));
         assert!(matches!(replies.last(), Some(RefReply::Missing { .. })), "{replies:?}");
-        t.send(RefCommand::Load { scene: Arc::clone(&scene), compute: true });
+        t.load(Arc::clone(&scene), true);
         t.wait_idle(|r| replies.push(r));
         assert!(replies.iter().any(|r| matches!(r, RefReply::Computing { .. })));
         assert!(
             matches!(replies.last(), Some(RefReply::Ready { how, .. }) if how.starts_with("computed")),
             "{replies:?}"
         );
-        t.send(RefCommand::Load { scene: Arc::clone(&scene), compute: false });
+        t.load(Arc::clone(&scene), false);
         t.wait_idle(|r| replies.push(r));
         assert!(
             matches!(replies.last(), Some(RefReply::Ready { how, .. }) if how.starts_with("cached")),
