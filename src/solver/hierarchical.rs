@@ -269,6 +269,40 @@ fn gather_links(links: &[Link], b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
 /// above 1, so "fully visible" for the oracle, and never read otherwise (see `make_link`).
 const UNMEASURED_VIS: f32 = 2.0;
 
+/// A set of element ids, read back in ascending order (marks instead of sorting duplicates).
+#[derive(Default)]
+struct IdSet {
+    mark: Vec<bool>,
+    ids: Vec<u32>,
+}
+
+impl IdSet {
+    fn insert(&mut self, id: u32) {
+        let i = id as usize;
+        if i >= self.mark.len() {
+            self.mark.resize(i + 1, false);
+        }
+        if !self.mark[i] {
+            self.mark[i] = true;
+            self.ids.push(id);
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+
+    /// The ids, ascending; the set is left empty.
+    fn take_sorted(&mut self) -> Vec<u32> {
+        let mut ids = std::mem::take(&mut self.ids);
+        for &i in &ids {
+            self.mark[i as usize] = false;
+        }
+        ids.sort_unstable();
+        ids
+    }
+}
+
 /// A receiver with at least this many links to split computes their replacements in parallel.
 const PARALLEL_SPLITS: usize = 32;
 
@@ -470,11 +504,13 @@ impl HierarchicalSolver {
         self.oracle_b.clear();
         self.sync_oracle_b();
         self.gather_plan = None;
-        let mut changed = Vec::new();
+        let mut changed = IdSet::default();
         if !self.linked {
             new_links += self.initial_linking();
             self.linked = true;
-            changed.extend(0..self.hier.roots as u32);
+            for r in 0..self.hier.roots as u32 {
+                changed.insert(r);
+            }
         }
         self.stats.refine_initial_s += t.elapsed().as_secs_f64();
         let mut refined = 0;
@@ -496,23 +532,20 @@ impl HierarchicalSolver {
                 active.par_iter().map(|&r| self.decide_receiver(r, first_pass)).collect();
             first_pass = false;
             kept_reason.resize(self.hier.len(), StopReason::Unrefined);
-            let mut to_split = Vec::new();
+            let mut to_split = IdSet::default();
             for (r, reason, splits) in &decisions {
                 for &(i, side) in splits {
-                    to_split.push(match side {
+                    to_split.insert(match side {
                         Split::Source => self.links.by_receiver[*r as usize][i as usize].source,
                         Split::Receiver => *r,
                     });
                 }
                 // The strongest reason over all the links the receiver keeps, examined now or
                 // in an earlier pass.
+                // (Written to the leaves once, after the last pass.)
                 let kept = &mut kept_reason[*r as usize];
                 if reason.rank() > kept.rank() {
                     *kept = *reason;
-                }
-                let e = &mut self.hier.elements[*r as usize];
-                if e.is_leaf() && *kept != StopReason::Unrefined {
-                    e.stop = *kept;
                 }
             }
             self.stats.refine_decide_s += phase.elapsed().as_secs_f64();
@@ -521,9 +554,7 @@ impl HierarchicalSolver {
             }
             let phase = Instant::now();
             // B: split, serially, in id order.
-            to_split.sort_unstable();
-            to_split.dedup();
-            for id in to_split {
+            for id in to_split.take_sorted() {
                 if self.hier.get(id).is_leaf() {
                     self.hier.split(id);
                     refined += 1;
@@ -542,13 +573,13 @@ impl HierarchicalSolver {
             let phase = Instant::now();
             // D: install, in receiver order: every receiver's own list first, then the links
             // pushed down to children (a child may itself have been a receiver in this pass).
-            let mut next = Vec::new();
+            let mut next = IdSet::default();
             let mut pushed_down = Vec::new();
             let mut owns = Vec::with_capacity(results.len());
             for (r, own, kids, rays, own_changed, created) in results {
                 self.stats.rays += rays;
                 if own_changed {
-                    next.push(r);
+                    next.insert(r);
                 }
                 new_links += created;
                 let pushed: usize = kids.0.iter().map(Vec::len).sum();
@@ -556,7 +587,7 @@ impl HierarchicalSolver {
                 if normalize {
                     self.hier.elements[r as usize].dirty = true;
                 }
-                changed.push(r);
+                changed.insert(r);
                 owns.push((r, own));
                 if pushed > 0 {
                     let first = kids.1;
@@ -580,18 +611,22 @@ impl HierarchicalSolver {
                 if normalize {
                     self.hier.elements[c as usize].dirty = true;
                 }
-                next.push(c);
-                changed.push(c);
+                next.insert(c);
+                changed.insert(c);
             }
-            next.sort_unstable();
-            next.dedup();
-            active = next;
+            active = next.take_sorted();
             self.stats.refine_install_s += phase.elapsed().as_secs_f64();
         }
         if self.stats.budget_hit || self.cancelled() {
             self.measure_unmeasured();
         }
-        self.update_sums_and_normalisation(&mut changed);
+        for (r, kept) in kept_reason.iter().enumerate() {
+            let e = &mut self.hier.elements[r];
+            if *kept != StopReason::Unrefined && e.is_leaf() {
+                e.stop = *kept;
+            }
+        }
+        self.update_sums_and_normalisation(&changed.take_sorted());
         self.converged = false;
         self.stats.links_created += new_links as u64;
         self.stats.refine_s += t.elapsed().as_secs_f64();
@@ -974,7 +1009,7 @@ impl HierarchicalSolver {
     /// whose inherited links changed (an ancestor's list changed, or the leaf is new).
     ///
     /// `changed`: the receivers whose link lists changed since the last call.
-    fn update_sums_and_normalisation(&mut self, changed: &mut Vec<u32>) {
+    fn update_sums_and_normalisation(&mut self, changed: &[u32]) {
         let normalize = self.params.normalize;
         // Propagate "dirty" down: parents have smaller ids than their children. Only the
         // normalisation reads it (and `normalize` cannot change without a reset).
@@ -986,8 +1021,6 @@ impl HierarchicalSolver {
             }
         }
         // Sums of the receivers whose lists changed (a pure function of the list).
-        changed.sort_unstable();
-        changed.dedup();
         let links = &self.links.by_receiver;
         disjoint_mut(&mut self.hier.elements, changed.iter().copied())
             .into_par_iter()
