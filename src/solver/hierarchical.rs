@@ -231,14 +231,14 @@ impl GatherPlan {
         plan
     }
 
-    /// `gather_links` for receiver `r` with source radiosities `b`: the same sums in the same
-    /// order.
-    fn gather(&self, r: usize, b: &[Rgb]) -> (Rgb, Rgb) {
+    /// (Σ F·V·B over receiver `r`'s links, the same over the fully visible ones), in list
+    /// order, with source radiosities `b`.
+    fn gather(&self, r: usize, b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
         let (lo, hi) = (self.start[r] as usize, self.start[r + 1] as usize);
         let mut g = Rgb::ZERO;
         let mut full = Rgb::ZERO;
         for (&s, &w) in self.source[lo..hi].iter().zip(&self.weight[lo..hi]) {
-            let t = b[(s & !FULL_BIT) as usize] * w;
+            let t = b(s & !FULL_BIT) * w;
             g += t;
             if s & FULL_BIT != 0 {
                 full += t;
@@ -246,23 +246,6 @@ impl GatherPlan {
         }
         (g, full)
     }
-}
-
-/// (Σ F·V·B over the links, the same over the fully visible ones), with source radiosities `b`.
-fn gather_links(links: &[Link], b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
-    let mut g = Rgb::ZERO;
-    let mut full = Rgb::ZERO;
-    for l in links {
-        let w = f64::from(l.ff) * f64::from(l.vis);
-        if w > 0.0 {
-            let t = b(l.source) * w;
-            g += t;
-            if l.vis >= 1.0 {
-                full += t;
-            }
-        }
-    }
-    (g, full)
 }
 
 /// V of a link the next refinement pass replaces whatever its V (one ray found it positive):
@@ -1089,11 +1072,14 @@ impl HierarchicalSolver {
 
     fn gather_inner(&mut self) -> StepReport {
         let t = Instant::now();
+        // The links as one contiguous plan, rebuilt after they change.
+        let plan = self.gather_plan.take().unwrap_or_else(|| GatherPlan::new(&self.links));
         if self.params.gauss_seidel {
             let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
             for root in 0..self.hier.roots as u32 {
                 let ids = self.subtree(root);
-                let g: Vec<(Rgb, Rgb)> = ids.iter().map(|&r| self.gather_one(r)).collect();
+                let g: Vec<(Rgb, Rgb)> =
+                    ids.iter().map(|&r| plan.gather(r as usize, |s| self.hier.get(s).radiosity)).collect();
                 for (&r, (g, full)) in ids.iter().zip(g) {
                     self.hier.elements[r as usize].gathered = g;
                     self.hier.elements[r as usize].gathered_full = full;
@@ -1105,26 +1091,18 @@ impl HierarchicalSolver {
             self.push_pull_flat(Some(&before));
             self.stats.gather_s += t.elapsed().as_secs_f64();
         } else {
-            // Sources' radiosity in a compact array (read once per link, in any order), the
-            // links as one contiguous plan, then every receiver gathers in parallel.
-            if self.gather_plan.is_none() {
-                self.gather_plan = Some(GatherPlan::new(&self.links));
-            }
-            let plan = self.gather_plan.as_ref().expect("built above");
+            // Sources' radiosity in a compact array (read once per link, in any order), then
+            // every receiver gathers in parallel.
             let b: Vec<Rgb> = self.hier.elements.par_iter().with_min_len(1024).map(|e| e.radiosity).collect();
             self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
-                (e.gathered, e.gathered_full) = plan.gather(r, &b);
+                (e.gathered, e.gathered_full) = plan.gather(r, |s| b[s as usize]);
             });
             self.stats.gather_s += t.elapsed().as_secs_f64();
         }
+        self.gather_plan = Some(plan);
         self.gathered_once = true;
         self.stats.iterations += 1;
         self.report(StepKind::Gather, t, 0, 0)
-    }
-
-    /// (Σ F·V·B over all links, the same over fully visible links), with the current radiosities.
-    fn gather_one(&self, r: u32) -> (Rgb, Rgb) {
-        gather_links(&self.links.by_receiver[r as usize], |s| self.hier.get(s).radiosity)
     }
 
     fn subtree(&self, root: u32) -> Vec<u32> {
