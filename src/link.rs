@@ -28,6 +28,10 @@ pub struct Link {
     /// refinement (a refinement pass examines only these after its first pass).
     #[serde(skip)]
     pub fresh: bool,
+    /// V was not fully measured: the rays stopped once they showed that the next refinement
+    /// pass replaces the link whatever V's exact value is (see `HierarchicalSolver::make_link`).
+    #[serde(skip)]
+    pub unmeasured: bool,
 }
 
 const _: () = assert!(std::mem::size_of::<Link>() == 24);

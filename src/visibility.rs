@@ -137,16 +137,28 @@ pub fn visible_fraction_oriented(
     key: u64,
 ) -> f64 {
     let mut last = crate::accel::NO_HIT;
-    visibility_sample(accel, receiver, source, rays, seed, key, &mut last, false).0
+    visibility_sample(accel, receiver, source, rays, seed, key, &mut last, Stop::Never).0
+}
+
+/// When [`visibility_sample`] may stop before casting every ray.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Stop {
+    /// Cast every ray: the estimate itself.
+    Never,
+    /// Stop at the first unblocked ray and return 1: only whether the fraction is positive
+    /// (otherwise it is exactly 0).
+    AtVisible,
+    /// Stop as soon as one ray passed and one was blocked, returning the fraction so far (in
+    /// (0, 1)): only whether the fraction is 0, 1 or in between (0 and 1 are exact).
+    AtMixed,
 }
 
 /// [`visible_fraction_oriented`] with a shadow cache shared with the caller (see
 /// [`Accel::occluded_cached`]: pass the same `last` for nearby region pairs, the children of one
 /// split link; the estimate does not depend on it), returning the rays cast as well.
 ///
-/// With `stop_at_visible`, the same rays in the same order up to the first unblocked one, which
-/// returns 1: whether the fraction is positive (else it is exactly 0), for a caller that needs
-/// nothing more.
+/// With a [`Stop`] other than `Never`, the same rays in the same order, stopping as soon as the
+/// answer the caller needs is known (see [`Stop`]).
 #[allow(clippy::too_many_arguments)]
 pub fn visibility_sample(
     accel: &Accel,
@@ -156,7 +168,7 @@ pub fn visibility_sample(
     seed: u64,
     key: u64,
     last: &mut u32,
-    stop_at_visible: bool,
+    stop: Stop,
 ) -> (f64, u32) {
     if rays == 0 {
         return (1.0, 0);
@@ -180,10 +192,18 @@ pub fn visibility_sample(
             continue;
         }
         counted += 1;
-        if !accel.occluded_cached(x, y, [receiver_patch, source_patch], last) {
+        if accel.occluded_cached(x, y, [receiver_patch, source_patch], last) {
+            if stop == Stop::AtMixed && visible > 0 {
+                return (f64::from(visible) / f64::from(counted), counted);
+            }
+        } else {
             visible += 1;
-            if stop_at_visible {
-                return (1.0, counted);
+            match stop {
+                Stop::AtVisible => return (1.0, counted),
+                Stop::AtMixed if visible < counted => {
+                    return (f64::from(visible) / f64::from(counted), counted);
+                }
+                _ => {}
             }
         }
     }

@@ -197,6 +197,31 @@ fn identical_results_for_one_and_two_threads() {
     assert!(run(2).2 == two.2, "two runs differ");
 }
 
+/// The early exits of link visibility (stop at the first unblocked ray, or at the first mix of
+/// unblocked and blocked rays, when that settles what the next pass does) cast fewer rays and
+/// change nothing else: the same elements, links and radiosity bits as casting every ray.
+#[test]
+fn early_exits_cast_fewer_rays_and_change_nothing() {
+    let p = HierarchicalParams {
+        bf_eps: 0.02,
+        bf_relative: false,
+        aeps: AreaEps::Absolute(2e-4),
+        ..HierarchicalParams::interactive()
+    };
+    let run = |early: bool| {
+        let mut s = HierarchicalSolver::new(Arc::new(common::table_room()), p).unwrap();
+        s.set_early_exit(early);
+        s.solve(&mut |_, _| {});
+        (bits(&s), s.stats().rays)
+    };
+    let (with, rays_with) = run(true);
+    let (without, rays_without) = run(false);
+    assert!(with.0 > 100, "the run must refine");
+    assert_eq!((with.0, with.1), (without.0, without.1), "element and link counts differ");
+    assert!(with.2 == without.2, "radiosity values differ with the early exits");
+    assert!(rays_with < rays_without, "no ray saved: {rays_with} against {rays_without}");
+}
+
 /// Energy balance at convergence, |emitted − absorbed − escaped| / emitted. It measures the
 /// reciprocity error of one-directional links (A_i F_ij V_ij ≠ A_j F_ji V_ji when the two
 /// directions are refined to different levels), so it is a discretisation error, not round-off.

@@ -64,7 +64,7 @@ use crate::hierarchy::{Element, Hierarchy, NONE, StopReason};
 use crate::link::{Link, LinkStore, VisClass};
 use crate::math::{DVec3, Rgb, newell_normal};
 use crate::scene::Scene;
-use crate::visibility;
+use crate::visibility::{self, Stop};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
@@ -340,6 +340,9 @@ pub struct HierarchicalSolver {
     /// The oracle's compact copy of every element's (b_max, max channel of B) during
     /// refinement; cleared afterwards, as B changes.
     oracle_b: Vec<[f64; 2]>,
+    /// Stop casting a new link's rays once they settle what the next refinement pass does
+    /// with it (on by default; off only to check that it changes nothing).
+    early_exit: bool,
 }
 
 /// Sums an element inherits in push-pull, its own included.
@@ -391,9 +394,16 @@ impl HierarchicalSolver {
             chain: Vec::new(),
             gather_plan: None,
             oracle_b: Vec::new(),
+            early_exit: true,
         };
         s.energy.emitted = s.scene.emitted_power();
         s
+    }
+
+    /// Turn off (or on) the early exits of link visibility (see `make_link`). They cast fewer
+    /// rays and leave every result the same; turning them off is for checking exactly that.
+    pub fn set_early_exit(&mut self, on: bool) {
+        self.early_exit = on;
     }
 
     #[must_use]
@@ -796,7 +806,7 @@ impl HierarchicalSolver {
             return (None, 0);
         }
         let rays = self.params.rays;
-        let mut vis_with = |n: u32, salt: u64, stop_at_visible: bool| {
+        let mut vis_with = |n: u32, salt: u64, stop: Stop| {
             let (v, cast) = visibility::visibility_sample(
                 &self.accel,
                 (p.vertices(), p.patch, p.normal),
@@ -805,25 +815,33 @@ impl HierarchicalSolver {
                 self.params.seed ^ salt,
                 pair_key(receiver, source),
                 last,
-                stop_at_visible,
+                stop,
             );
             (v, u64::from(cast))
         };
         let mut link = new_link(p, q, source, ff, 1.0, sides.straddle, self.params.conservative);
-        // A link that the next refinement pass splits whatever its visible fraction (unless
-        // that is 0) needs only to know whether any ray passes: it is replaced before anyone
-        // reads its V.
-        let (vis, mut cast) = if self.splits_unless_hidden(p, &link) {
-            match vis_with(rays, 0, true) {
-                (v, cast) if v > 0.0 => {
-                    link.vis = UNMEASURED_VIS;
-                    return (Some(link), cast);
-                }
-                zero => zero,
-            }
+        // A link that the next refinement pass splits whatever its exact V is needs only the
+        // rays that tell which case it is in: it is replaced before anyone reads V. When the
+        // pass splits it unless V = 0, one unblocked ray settles it; when it splits it unless
+        // V is 0 or 1, one unblocked and one blocked ray do.
+        let stop = if self.splits_unless_hidden(p, &link) {
+            Stop::AtVisible
+        } else if self.splits_if_partial(p, &link) {
+            Stop::AtMixed
         } else {
-            vis_with(rays, 0, false)
+            Stop::Never
         };
+        let (vis, mut cast) = vis_with(rays, 0, stop);
+        let settled = match stop {
+            Stop::Never => false,
+            Stop::AtVisible => vis > 0.0,
+            Stop::AtMixed => vis > 0.0 && vis < 1.0,
+        };
+        if settled {
+            link.vis = if stop == Stop::AtVisible { UNMEASURED_VIS } else { vis as f32 };
+            link.unmeasured = true;
+            return (Some(link), cast);
+        }
         if surely {
             link.ff = link_form_factor(p, q) as f32;
         }
@@ -835,7 +853,7 @@ impl HierarchicalSolver {
             let probe = Link { vis: 0.5, ..link };
             if self.decide(p, &probe).is_ok() {
                 let more = self.params.zero_confirm.saturating_mul(rays);
-                let (v2, c2) = vis_with(more, 0x5EED, false);
+                let (v2, c2) = vis_with(more, 0x5EED, Stop::Never);
                 cast += c2;
                 link.vis = (v2 * f64::from(more) / f64::from(more + rays)) as f32;
             }
@@ -848,6 +866,9 @@ impl HierarchicalSolver {
     /// partially visible: the partial test uses a bound of 1 instead of ≤ 1, a source term
     /// b_max ≥ max channel of B, and a threshold 4× lower; the side does not depend on V.
     fn splits_unless_hidden(&self, p: &Element, link: &Link) -> bool {
+        if !self.early_exit {
+            return false;
+        }
         let full = self.decide(p, &Link { vis: 1.0, ..*link });
         debug_assert!(
             full.is_err() || full == self.decide(p, &Link { vis: 0.5, ..*link }),
@@ -856,7 +877,14 @@ impl HierarchicalSolver {
         full.is_ok()
     }
 
-    /// Measure V of the links still marked [`UNMEASURED_VIS`] (refinement stopped, by the link
+    /// Does the oracle split this link whenever it is partially visible? Its decision for a
+    /// partial link does not depend on V's value (the partial bound is 1), so a link shown to be
+    /// partial (one ray passed, one blocked) needs no more rays.
+    fn splits_if_partial(&self, p: &Element, link: &Link) -> bool {
+        self.early_exit && self.decide(p, &Link { vis: 0.5, ..*link }).is_ok()
+    }
+
+    /// Measure V of the links still marked unmeasured (refinement stopped, by the link
     /// budget or a cancel, before the pass that would have replaced them).
     fn measure_unmeasured(&mut self) {
         let hier = &self.hier;
@@ -869,7 +897,7 @@ impl HierarchicalSolver {
             .map(|(r, ls)| {
                 let mut cast = 0;
                 let mut last = NO_HIT;
-                for l in ls.iter_mut().filter(|l| l.vis == UNMEASURED_VIS) {
+                for l in ls.iter_mut().filter(|l| l.unmeasured) {
                     let (p, q) = (hier.get(r as u32), hier.get(l.source));
                     l.ff = link_form_factor(p, q) as f32;
                     let (v, c) = visibility::visibility_sample(
@@ -880,9 +908,10 @@ impl HierarchicalSolver {
                         seed,
                         pair_key(r as u32, l.source),
                         &mut last,
-                        false,
+                        Stop::Never,
                     );
                     l.vis = v as f32;
+                    l.unmeasured = false;
                     cast += u64::from(c);
                 }
                 cast
@@ -941,7 +970,7 @@ impl HierarchicalSolver {
                             seed ^ salt,
                             pair_key(pi, qi),
                             &mut last,
-                            false,
+                            Stop::Never,
                         );
                         cast += u64::from(c);
                         v
@@ -1505,6 +1534,7 @@ fn new_link(
         bound: geometric_variation(p, q) as f32,
         split_source: fpq > fqp,
         fresh: true,
+        unmeasured: false,
     }
 }
 
