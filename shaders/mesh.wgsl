@@ -106,13 +106,17 @@ fn fs_main(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f3
     // on a uniform, so the derivatives stay in uniform control flow).
     var d = 1e6;
     if ((u.overlay & 3u) != 0u) {
-        let w = max(fwidth(i.uv), vec2<f32>(1e-6));
-        // Distances to u = 0 and v = 0 (both shapes), u = 1 and v = 1 (quads), u + v = 1
-        // (triangles; fwidth(u + v) ≤ fwidth(u) + fwidth(v), so that edge is drawn a bit thinner).
-        let near = min(i.uv.x / w.x, i.uv.y / w.y);
-        let far = min((1.0 - i.uv.x) / w.x, (1.0 - i.uv.y) / w.y);
-        let diagonal = (1.0 - i.uv.x - i.uv.y) / (w.x + w.y);
-        d = min(near, select(diagonal, far, i.line_color.a > 0.5));
+        // Each edge's own coordinate divided by that coordinate's screen-space rate of change:
+        // u = 0 and v = 0 (both shapes), u = 1 and v = 1 (quads), s = 1 − u − v = 0 (a
+        // triangle's third edge). The third edge needs fwidth(s) itself: fwidth(u) + fwidth(v)
+        // overestimates it without bound where u and v change fast in opposite directions (a
+        // sheared parameterisation, e.g. long triangles seen at a grazing angle), which drew
+        // that edge as a wide, blurred band.
+        let s = 1.0 - i.uv.x - i.uv.y;
+        let inv = 1.0 / max(fwidth(vec3<f32>(i.uv, s)), vec3<f32>(1e-6));
+        let near = min(i.uv.x * inv.x, i.uv.y * inv.y);
+        let far = min((1.0 - i.uv.x) * inv.x, (1.0 - i.uv.y) * inv.y);
+        d = min(near, select(s * inv.z, far, i.line_color.a > 0.5));
     }
     var c = i.color;
     if (!front) {

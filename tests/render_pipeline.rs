@@ -249,6 +249,43 @@ fn quadtree_edges_are_drawn_by_the_mesh_shader() {
     assert!(close(img.pixel(W / 2, H / 2), [0, 0, 0]), "the interior stays the element's colour");
 }
 
+#[test]
+fn a_triangles_third_edge_is_as_thin_as_the_others() {
+    // A long, thin triangle whose third edge (u + v = 1, from corner 1 to corner 2) is its short
+    // base: u and v both change fast across the triangle, in opposite directions, while u + v
+    // changes slowly. Measuring that edge with fwidth(u) + fwidth(v) instead of fwidth(u + v)
+    // drew it as a band ~12× too wide (the green streaks on Cornell's triangulated left wall).
+    const SIZE: u32 = 240;
+    // Rows below the base checked for the interior colour: from just past the edge's width
+    // (line_px = 0.75 on each side, plus anti-aliasing) to where the side edges come near.
+    const ROWS: std::ops::RangeInclusive<u32> = 3..=12;
+    let half_base = 0.15;
+    let mut tri = square(0, 0.0, Rgb::splat(0.0), false);
+    tri.n_vertices = 3;
+    tri.vertices = [
+        DVec3::new(0.0, -1.0, 0.0),
+        DVec3::new(half_base, 0.6, 0.0),
+        DVec3::new(-half_base, 0.6, 0.0),
+        DVec3::ZERO,
+    ];
+    let g =
+        Geometry { mesh: geometry::mesh(&[tri], &[0], MeshColors::Flat, DVec3::ZERO), ..Geometry::default() };
+    let vp = camera().view_proj(1.0, DVec3::ZERO);
+    let mut u = uniforms(false, 0, NO_SELECTION);
+    u.view_proj = vp.to_cols_array_2d().map(|c| c.map(|x| x as f32));
+    u.overlay = OVERLAY_QUADTREE;
+    let img = draw_sized(&g, u, [SIZE, SIZE]);
+    let c = vp * DVec3::new(0.0, 0.6, 0.0).extend(1.0);
+    let x = ((c.x / c.w + 1.0) * 0.5 * f64::from(SIZE)) as u32;
+    let base = ((1.0 - c.y / c.w) * 0.5 * f64::from(SIZE)) as u32;
+    // Edge colour (white) mixed in: the base row is partly covered, so its pixels are grey.
+    let bright = |y: u32| img.pixel(x, y)[0] > 40;
+    assert!((base.saturating_sub(2)..=base + 2).any(bright), "the base edge is drawn at row {base}");
+    let wide: Vec<u32> = ROWS.map(|r| base + r).filter(|&y| bright(y)).collect();
+    assert!(wide.is_empty(), "edge colour {wide:?} rows inside the triangle, below its base at row {base}");
+    assert!(close(img.pixel(x, base + 40), [0, 0, 0]), "the interior is the element's colour");
+}
+
 /// The patch of [`t_junction_patch`]: parameter (x, y) ∈ [−1, 1]² → a rotated, scaled, shifted
 /// square in the z = 0 plane. Each vertex is mapped from its own parameters, so (as in the
 /// solver) a T-vertex is not bit-for-bit the average of its edge's end points.
