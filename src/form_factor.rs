@@ -107,9 +107,9 @@ fn point_to_polygon_unit(p: DVec3, n: DVec3, verts: &[DVec3], src_n: DVec3) -> f
     // Clip against the receiver's tangent plane: keep n·(v − p) ≥ 0. A convex polygon clipped
     // by one plane gains at most one vertex; room for 2k keeps a non-convex input from panicking.
     let k = verts.len();
-    let mut small = [DVec3::ZERO; 16];
+    let mut small = [DVec3::ZERO; 8];
     let mut large = Vec::new();
-    let clipped: &mut [DVec3] = if k <= 8 {
+    let clipped: &mut [DVec3] = if k <= 4 {
         &mut small
     } else {
         large.resize(2 * k, DVec3::ZERO);
