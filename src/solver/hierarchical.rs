@@ -335,6 +335,9 @@ pub struct HierarchicalSolver {
     gathered_once: bool,
     /// Scratch for `push_pull_flat`.
     chain: Vec<Chain>,
+    /// Scratch for Jacobi gathers: every element's radiosity before the gather (kept between
+    /// gathers, so no large allocation per iteration).
+    b_prev: Vec<Rgb>,
     /// The links flattened for gathering; rebuilt after links change.
     gather_plan: Option<GatherPlan>,
     /// The oracle's compact copy of every element's (b_max, max channel of B) during
@@ -392,6 +395,7 @@ impl HierarchicalSolver {
             energy: EnergyBalance::default(),
             gathered_once: false,
             chain: Vec::new(),
+            b_prev: Vec::new(),
             gather_plan: None,
             oracle_b: Vec::new(),
             early_exit: true,
@@ -1122,10 +1126,16 @@ impl HierarchicalSolver {
         } else {
             // Sources' radiosity in a compact array (read once per link, in any order), then
             // every receiver gathers in parallel.
-            let b: Vec<Rgb> = self.hier.elements.par_iter().with_min_len(1024).map(|e| e.radiosity).collect();
+            let mut b = std::mem::take(&mut self.b_prev);
+            b.resize(self.hier.len(), Rgb::ZERO);
+            b.par_iter_mut()
+                .zip(self.hier.elements.par_iter())
+                .with_min_len(1024)
+                .for_each(|(b, e)| *b = e.radiosity);
             self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
                 (e.gathered, e.gathered_full) = plan.gather(r, |s| b[s as usize]);
             });
+            self.b_prev = b;
             self.stats.gather_s += t.elapsed().as_secs_f64();
         }
         self.gather_plan = Some(plan);
