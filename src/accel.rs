@@ -279,8 +279,7 @@ impl Accel {
 /// the tree is deeper than the shadow-ray stack allows.
 fn decode_wide(bvh: &CwBvh) -> Vec<WideNode> {
     let mut out = Vec::with_capacity(bvh.nodes.len());
-    let mut depth = vec![0usize; bvh.nodes.len()];
-    for (i, n) in bvh.nodes.iter().enumerate() {
+    for n in &bvh.nodes {
         let mut w =
             WideNode { lo: [[Vec4::ZERO; 2]; 3], hi: [[Vec4::ZERO; 2]; 3], used: 0, child: [LEAF; 8] };
         for c in 0..8 {
@@ -298,18 +297,24 @@ fn decode_wide(bvh: &CwBvh) -> Vec<WideNode> {
                 debug_assert!((1..=7).contains(&count) && first < 1 << 27);
                 w.child[c] = LEAF | first << 3 | count;
             } else {
-                let k = n.child_node_index(c);
-                w.child[c] = k;
-                let d = depth[i] + 1;
-                if let Some(slot) = depth.get_mut(k as usize) {
-                    *slot = d;
-                }
+                w.child[c] = n.child_node_index(c);
             }
         }
         out.push(w);
     }
-    let deepest = depth.iter().copied().max().unwrap_or(0);
-    if bvh.nodes.is_empty() || 7 * deepest + 8 > WIDE_STACK { Vec::new() } else { out }
+    // Depth from the root, whatever order the builder laid the nodes out in.
+    let mut deepest = 0;
+    let mut todo = vec![(0u32, 0usize)];
+    while let Some((node, d)) = todo.pop() {
+        deepest = deepest.max(d);
+        let Some(w) = out.get(node as usize) else { return Vec::new() };
+        for c in 0..8 {
+            if w.used & (1 << c) != 0 && w.child[c] & LEAF == 0 {
+                todo.push((w.child[c], d + 1));
+            }
+        }
+    }
+    if out.is_empty() || 7 * deepest + 8 > WIDE_STACK { Vec::new() } else { out }
 }
 
 /// Which of the node's eight child boxes the ray's [tmin, tmax] interval meets (bit c for child
