@@ -39,12 +39,16 @@ const END_EPS: f32 = 2e-6;
 struct Poly {
     /// Patch index in the scene.
     patch: u32,
-    n_edges: u32,
     normal: Vec3A,
     d: f32,
-    /// Inward edge normals (in the polygon plane) and offsets: inside if `e·p >= o` for all edges.
-    edge_n: [Vec3A; 4],
-    edge_o: [f32; 4],
+    /// Inward edge normals (in the polygon plane) and offsets, edge k in lane k: inside if
+    /// `e·p >= o` for all edges.
+    edge_x: Vec4,
+    edge_y: Vec4,
+    edge_z: Vec4,
+    edge_o: Vec4,
+    /// Bit k set for each edge k the polygon has.
+    edges: u32,
     aabb: Aabb,
 }
 
@@ -57,32 +61,104 @@ impl Boundable for Poly {
 /// "No polygon" for [`Accel::occluded_cached`]'s shadow cache.
 pub const NO_HIT: u32 = u32::MAX;
 
+/// Eight `f32` lanes as two glam `Vec4`s: each operation is one SSE/AVX instruction per half
+/// (`minps`/`maxps`/`cmpleps`, as the min/max slab test always used). Safe code cannot name
+/// 256-bit intrinsics without `#[target_feature]` on every caller, and per-lane loops over
+/// `[f32; 8]` vectorise badly (measured: more instructions than two `Vec4`s).
+mod lanes {
+    use glam::Vec4;
+
+    #[derive(Clone, Copy, Debug)]
+    pub struct F8([Vec4; 2]);
+
+    impl F8 {
+        #[inline(always)]
+        pub fn splat(x: f32) -> F8 {
+            F8([Vec4::splat(x); 2])
+        }
+
+        pub fn from_array(a: [f32; 8]) -> F8 {
+            F8([Vec4::new(a[0], a[1], a[2], a[3]), Vec4::new(a[4], a[5], a[6], a[7])])
+        }
+
+        #[inline(always)]
+        pub fn sub(self, rhs: F8) -> F8 {
+            F8([self.0[0] - rhs.0[0], self.0[1] - rhs.0[1]])
+        }
+
+        #[inline(always)]
+        pub fn mul(self, rhs: F8) -> F8 {
+            F8([self.0[0] * rhs.0[0], self.0[1] * rhs.0[1]])
+        }
+
+        #[inline(always)]
+        pub fn min(self, rhs: F8) -> F8 {
+            F8([self.0[0].min(rhs.0[0]), self.0[1].min(rhs.0[1])])
+        }
+
+        #[inline(always)]
+        pub fn max(self, rhs: F8) -> F8 {
+            F8([self.0[0].max(rhs.0[0]), self.0[1].max(rhs.0[1])])
+        }
+
+        /// Bit c set where lane c of `self` <= lane c of `rhs`.
+        #[inline(always)]
+        pub fn le_mask(self, rhs: F8) -> u32 {
+            self.0[0].cmple(rhs.0[0]).bitmask() | self.0[1].cmple(rhs.0[1]).bitmask() << 4
+        }
+    }
+}
+
+use lanes::F8;
+
 /// One CWBVH node decoded for shadow rays: its eight child boxes as f32 planes (structure of
-/// arrays, so the slab test of all eight runs as a few 8-wide vector instructions) and what each
+/// arrays, so the slab test of all eight is a few 8-wide vector instructions) and what each
 /// child holds.
 #[derive(Clone, Copy, Debug)]
 struct WideNode {
-    /// Child c's box: `lo[axis][c / 4][c % 4]`, `hi` likewise.
-    lo: [[Vec4; 2]; 3],
-    hi: [[Vec4; 2]; 3],
-    /// Bit c set when slot c holds a child.
-    used: u32,
-    /// Per child: a node index, or [`LEAF`] | first polygon << 3 | polygon count (1 to 3).
+    /// `planes[axis][0]`: the children's lower bounds along `axis`, lane c for child c;
+    /// `planes[axis][1]`: their upper bounds. An empty slot holds the inverted box
+    /// (+∞, −∞), which no ray meets.
+    planes: [[F8; 2]; 3],
+    /// Per child: a node index, or [`LEAF`] | the index of its [`LeafPack`].
     child: [u32; 8],
 }
 
 /// Marks a leaf child in [`WideNode::child`].
 const LEAF: u32 = 1 << 31;
-/// Entries of the shadow-ray traversal stack: a node pushes at most 7 children (it visits the
-/// eighth), so trees up to `(WIDE_STACK - 1) / 7` levels deep fit; deeper ones use obvhs's own
-/// traversal.
+/// Entries of the shadow-ray traversal stack. While a node at depth k is processed, at most 7
+/// siblings wait per level above it and it pushes at most 8 children; only nodes above the
+/// deepest push, so a tree whose deepest node is at depth D needs `7 D + 1` entries: D <= 9
+/// fits; deeper trees use obvhs's own traversal.
 const WIDE_STACK: usize = 64;
+/// The stack used when it suffices (D <= 4, the built-in rooms): half the entries to clear per
+/// ray.
+const SMALL_STACK: usize = 32;
+/// Polygons per [`LeafPack`]; a CWBVH leaf holds at most 3.
+const PACK: usize = 4;
+
+/// The polygons of one leaf as structure of arrays: their planes, for a 4-wide plane test.
+#[derive(Clone, Copy, Debug)]
+struct LeafPack {
+    nx: Vec4,
+    ny: Vec4,
+    nz: Vec4,
+    d: Vec4,
+    /// Lane k is polygon `first + k` (BVH order).
+    first: u32,
+    /// Bit k set when lane k holds a polygon.
+    lanes: u32,
+}
 
 /// The BVH over a scene's patches.
 pub struct Accel {
     bvh: CwBvh,
     /// The same tree decoded for shadow rays (empty if it is too deep for [`WIDE_STACK`]).
     wide: Vec<WideNode>,
+    /// The leaves of `wide`.
+    packs: Vec<LeafPack>,
+    /// Entries the traversal stack needs (at most [`WIDE_STACK`]).
+    stack_needs: usize,
     /// Polygons in BVH primitive order.
     polys: Vec<Poly>,
     origin: DVec3,
@@ -129,45 +205,61 @@ impl Accel {
                 let pad = Vec3A::splat(EDGE_EPS * 4.0);
                 Poly {
                     patch: i as u32,
-                    n_edges: v.len() as u32,
                     normal,
                     d,
-                    edge_n,
-                    edge_o,
+                    edge_x: Vec4::from_array(edge_n.map(|e| e.x)),
+                    edge_y: Vec4::from_array(edge_n.map(|e| e.y)),
+                    edge_z: Vec4::from_array(edge_n.map(|e| e.z)),
+                    edge_o: Vec4::from_array(edge_o),
+                    edges: (1 << v.len()) - 1,
                     aabb: Aabb::new(mn - pad, mx + pad),
                 }
             })
             .collect();
         let mut t = Duration::ZERO;
         let bvh = obvhs::cwbvh::builder::build_cwbvh(&polys, BvhBuildParams::very_slow_build(), &mut t);
-        let ordered = bvh.primitive_indices.iter().map(|&i| polys[i as usize]).collect();
-        let wide = decode_wide(&bvh);
-        Accel { bvh, wide, polys: ordered, origin, inv_scale }
+        let ordered: Vec<Poly> = bvh.primitive_indices.iter().map(|&i| polys[i as usize]).collect();
+        let (wide, packs, stack_needs) = decode_wide(&bvh, &ordered);
+        Accel { bvh, wide, packs, stack_needs, polys: ordered, origin, inv_scale }
     }
 
-    /// Does the ray hit any polygon for which `hit(index)` (BVH order) says so? The CWBVH's own
-    /// tree, traversed with unquantised 8-wide slab tests: the same polygons reach `hit` as with
+    /// The first polygon (BVH order) that blocks the shadow ray, or `None`. The CWBVH's own
+    /// tree, traversed with unquantised 8-wide slab tests: the same polygons are tested as with
     /// obvhs's traversal of that tree whenever the ray can hit them (both tests are
-    /// conservative), so the answer is the same, for about a third of the box-test instructions.
-    fn any_hit(&self, ray: &Ray, mut hit: impl FnMut(usize) -> bool) -> bool {
-        if self.wide.is_empty() {
-            return !self.bvh.ray_traverse_miss(*ray, |_, id| {
-                if hit(id) { 0.5 * (ray.tmin + ray.tmax) } else { f32::INFINITY }
-            });
+    /// conservative), so the answer is the same, for about a sixth of the box-test instructions.
+    fn shadow_blocker(&self, ray: &Ray, ignore: [u32; 2]) -> Option<u32> {
+        if self.stack_needs <= SMALL_STACK {
+            self.shadow_blocker_in::<SMALL_STACK>(ray, ignore)
+        } else {
+            self.shadow_blocker_in::<WIDE_STACK>(ray, ignore)
         }
-        let o = [Vec4::splat(ray.origin.x), Vec4::splat(ray.origin.y), Vec4::splat(ray.origin.z)];
-        let inv = [
-            Vec4::splat(ray.inv_direction.x),
-            Vec4::splat(ray.inv_direction.y),
-            Vec4::splat(ray.inv_direction.z),
-        ];
-        let (tmin, tmax) = (Vec4::splat(ray.tmin), Vec4::splat(ray.tmax));
-        let mut stack = [0u32; WIDE_STACK];
+    }
+
+    /// [`Accel::shadow_blocker`] with a traversal stack of `N` entries.
+    #[inline(always)]
+    fn shadow_blocker_in<const N: usize>(&self, ray: &Ray, ignore: [u32; 2]) -> Option<u32> {
+        let usable = |p: &Poly| p.patch != ignore[0] && p.patch != ignore[1];
+        if self.wide.is_empty() {
+            let mut blocker = None;
+            self.bvh.ray_traverse_miss(*ray, |_, id| {
+                let p = &self.polys[id];
+                if usable(p) && intersect(p, ray).is_finite() {
+                    blocker = Some(id as u32);
+                    0.5 * (ray.tmin + ray.tmax)
+                } else {
+                    f32::INFINITY
+                }
+            });
+            return blocker;
+        }
+        let boxes = SlabRay::new(ray);
+        let planes = PlaneRay::new(ray);
+        let mut stack = [0u32; N];
         let mut sp = 0;
         let mut node = 0u32;
         loop {
             let n = &self.wide[node as usize];
-            let mut mask = slab8(n, o, inv, tmin, tmax);
+            let mut mask = boxes.hits(n);
             while mask != 0 {
                 let c = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
@@ -175,21 +267,47 @@ impl Accel {
                 if ch & LEAF == 0 {
                     stack[sp] = ch;
                     sp += 1;
-                } else {
-                    let first = ((ch & !LEAF) >> 3) as usize;
-                    for i in first..first + (ch & 7) as usize {
-                        if hit(i) {
-                            return true;
-                        }
-                    }
+                } else if let Some(id) =
+                    self.pack_blocker(&self.packs[(ch & !LEAF) as usize], ray, &planes, ignore)
+                {
+                    return Some(id);
                 }
             }
             if sp == 0 {
-                return false;
+                return None;
             }
             sp -= 1;
             node = stack[sp];
         }
+    }
+
+    /// The first polygon of the leaf, in lane order, that blocks the ray: the planes of all its
+    /// polygons at once, then the edges of those whose plane the segment crosses. Exactly
+    /// [`intersect`]'s arithmetic, lane by lane.
+    #[inline]
+    fn pack_blocker(&self, pack: &LeafPack, ray: &Ray, r: &PlaneRay, ignore: [u32; 2]) -> Option<u32> {
+        let denom = pack.nx * r.d[0] + pack.ny * r.d[1] + pack.nz * r.d[2];
+        let dist = pack.nx * r.o[0] + pack.ny * r.o[1] + pack.nz * r.o[2];
+        let t = (pack.d - dist) / denom;
+        let crosses = denom.abs().cmpge(Vec4::splat(PARALLEL)) & t.cmpgt(r.tmin) & t.cmplt(r.tmax);
+        let mut m = crosses.bitmask() & pack.lanes;
+        if m == 0 {
+            return None;
+        }
+        let t = t.to_array();
+        while m != 0 {
+            let k = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let id = pack.first as usize + k;
+            let p = &self.polys[id];
+            if p.patch != ignore[0]
+                && p.patch != ignore[1]
+                && inside_edges(p, ray.origin + ray.direction * t[k])
+            {
+                return Some(id as u32);
+            }
+        }
+        None
     }
 
     fn to_local(&self, p: DVec3) -> Vec3A {
@@ -229,29 +347,21 @@ impl Accel {
         if !(len > 2.0 * END_EPS) {
             return false;
         }
-        let dir = delta / len;
-        let ray = Ray::new(la, dir, END_EPS, len - END_EPS);
-        let usable = |p: &Poly| p.patch != ignore[0] && p.patch != ignore[1];
+        let ray = shadow_ray(la, delta / len, END_EPS, len - END_EPS);
         if let Some(p) = self.polys.get(*last as usize)
-            && usable(p)
+            && p.patch != ignore[0]
+            && p.patch != ignore[1]
             && intersect(p, &ray).is_finite()
         {
             return true;
         }
-        let mut blocker = NO_HIT;
-        let blocked = self.any_hit(&ray, |id| {
-            let p = &self.polys[id];
-            if usable(p) && intersect(p, &ray).is_finite() {
-                blocker = id as u32;
+        match self.shadow_blocker(&ray, ignore) {
+            Some(id) => {
+                *last = id;
                 true
-            } else {
-                false
             }
-        });
-        if blocked {
-            *last = blocker;
+            None => false,
         }
-        blocked
     }
 
     /// First patch hit along the ray from `origin` in direction `dir` (any length), ignoring
@@ -275,85 +385,167 @@ impl Accel {
     }
 }
 
-/// The CWBVH's nodes decoded into [`WideNode`]s (node i is the CWBVH's node i), or nothing when
-/// the tree is deeper than the shadow-ray stack allows.
-fn decode_wide(bvh: &CwBvh) -> Vec<WideNode> {
+/// `Ray::new(origin, dir, tmin, tmax)` with the three reciprocals in one vector division:
+/// obvhs's `safe_inverse` lane by lane (`1/x`, or `signum(x)/ε` where `|x| <= ε`), the same
+/// values.
+#[inline]
+fn shadow_ray(origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32) -> Ray {
+    let tiny = dir.abs().cmple(Vec3A::splat(f32::EPSILON));
+    let inv = Vec3A::select(tiny, Vec3A::ONE.copysign(dir) / f32::EPSILON, Vec3A::ONE / dir);
+    Ray { origin, direction: dir, inv_direction: inv, tmin, tmax }
+}
+
+/// A ray set up for [`WideNode`] slab tests: origin, reciprocal direction and interval in all
+/// eight lanes, and per axis which plane the ray meets first.
+struct SlabRay {
+    o: [F8; 3],
+    inv: [F8; 3],
+    /// 1 where the ray runs towards −axis (it enters a box through its upper plane), else 0.
+    near: [usize; 3],
+    tmin: F8,
+    tmax: F8,
+}
+
+impl SlabRay {
+    #[inline(always)]
+    fn new(ray: &Ray) -> SlabRay {
+        let (o, inv) = (ray.origin, ray.inv_direction);
+        SlabRay {
+            o: [F8::splat(o.x), F8::splat(o.y), F8::splat(o.z)],
+            inv: [F8::splat(inv.x), F8::splat(inv.y), F8::splat(inv.z)],
+            near: [usize::from(inv.x < 0.0), usize::from(inv.y < 0.0), usize::from(inv.z < 0.0)],
+            tmin: F8::splat(ray.tmin),
+            tmax: F8::splat(ray.tmax),
+        }
+    }
+
+    /// Which of the node's eight child boxes the ray's [tmin, tmax] interval meets (bit c for
+    /// child c). The textbook slab test `max(tmin, min(x0, x1)) <= min(tmax, max(x0, x1))`
+    /// with `x = (plane - o) / dir` per axis, where the near plane's `x` is the min of the two
+    /// without computing it: `(lo - o) * inv <= (hi - o) * inv` when `inv > 0` because rounded
+    /// subtraction and multiplication are monotonic (and the other way round when `inv < 0`),
+    /// so the masks are bit for bit those of the min/max form. No NaN arises (`inv` is finite
+    /// and non-zero; the empty slots' infinities give ±∞).
+    #[inline(always)]
+    fn hits(&self, n: &WideNode) -> u32 {
+        let mut t0 = self.tmin;
+        let mut t1 = self.tmax;
+        for a in 0..3 {
+            let near = n.planes[a][self.near[a]].sub(self.o[a]).mul(self.inv[a]);
+            let far = n.planes[a][1 - self.near[a]].sub(self.o[a]).mul(self.inv[a]);
+            t0 = t0.max(near);
+            t1 = t1.min(far);
+        }
+        t0.le_mask(t1)
+    }
+}
+
+/// A ray set up for [`LeafPack`] plane tests: origin, direction and interval in four lanes.
+struct PlaneRay {
+    o: [Vec4; 3],
+    d: [Vec4; 3],
+    tmin: Vec4,
+    tmax: Vec4,
+}
+
+impl PlaneRay {
+    #[inline(always)]
+    fn new(ray: &Ray) -> PlaneRay {
+        let (o, d) = (ray.origin, ray.direction);
+        PlaneRay {
+            o: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
+            d: [Vec4::splat(d.x), Vec4::splat(d.y), Vec4::splat(d.z)],
+            tmin: Vec4::splat(ray.tmin),
+            tmax: Vec4::splat(ray.tmax),
+        }
+    }
+}
+
+/// The CWBVH's nodes decoded into [`WideNode`]s (node i is the CWBVH's node i), their leaves
+/// into [`LeafPack`]s, and the traversal stack entries they need; no nodes when the tree is
+/// deeper than [`WIDE_STACK`] allows. `polys` is in BVH order.
+fn decode_wide(bvh: &CwBvh, polys: &[Poly]) -> (Vec<WideNode>, Vec<LeafPack>, usize) {
     let mut out = Vec::with_capacity(bvh.nodes.len());
+    let mut packs = Vec::new();
     for n in &bvh.nodes {
-        let mut w =
-            WideNode { lo: [[Vec4::ZERO; 2]; 3], hi: [[Vec4::ZERO; 2]; 3], used: 0, child: [LEAF; 8] };
+        let mut lo = [[f32::INFINITY; 8]; 3];
+        let mut hi = [[f32::NEG_INFINITY; 8]; 3];
+        let mut child = [LEAF; 8];
         for c in 0..8 {
             if n.is_child_empty(c) {
                 continue;
             }
             let b = n.child_aabb(c);
-            w.used |= 1 << c;
             for a in 0..3 {
-                w.lo[a][c / 4][c % 4] = b.min[a];
-                w.hi[a][c / 4][c % 4] = b.max[a];
+                // min/max keeps an inverted box (never built) tested as the min/max form would.
+                lo[a][c] = b.min[a].min(b.max[a]);
+                hi[a][c] = b.min[a].max(b.max[a]);
             }
             if n.is_leaf(c) {
                 let (first, count) = n.child_primitives(c);
-                debug_assert!((1..=7).contains(&count) && first < 1 << 27);
-                w.child[c] = LEAF | first << 3 | count;
+                let Some(members) = polys.get(first as usize..(first + count) as usize) else {
+                    return (Vec::new(), Vec::new(), 0);
+                };
+                if members.is_empty() || members.len() > PACK {
+                    return (Vec::new(), Vec::new(), 0);
+                }
+                let lane = |f: &dyn Fn(&Poly) -> f32| {
+                    Vec4::from_array(std::array::from_fn(|k| members.get(k).map_or(0.0, f)))
+                };
+                child[c] = LEAF | packs.len() as u32;
+                packs.push(LeafPack {
+                    nx: lane(&|p| p.normal.x),
+                    ny: lane(&|p| p.normal.y),
+                    nz: lane(&|p| p.normal.z),
+                    d: lane(&|p| p.d),
+                    first,
+                    lanes: (1 << members.len()) - 1,
+                });
             } else {
-                w.child[c] = n.child_node_index(c);
+                child[c] = n.child_node_index(c);
             }
         }
-        out.push(w);
+        let planes = std::array::from_fn(|a| [F8::from_array(lo[a]), F8::from_array(hi[a])]);
+        out.push(WideNode { planes, child });
     }
     // Depth from the root, whatever order the builder laid the nodes out in.
     let mut deepest = 0;
     let mut todo = vec![(0u32, 0usize)];
     while let Some((node, d)) = todo.pop() {
         deepest = deepest.max(d);
-        let Some(w) = out.get(node as usize) else { return Vec::new() };
-        for c in 0..8 {
-            if w.used & (1 << c) != 0 && w.child[c] & LEAF == 0 {
-                todo.push((w.child[c], d + 1));
+        let Some(w) = out.get(node as usize) else { return (Vec::new(), Vec::new(), 0) };
+        for &ch in &w.child {
+            if ch & LEAF == 0 {
+                todo.push((ch, d + 1));
             }
         }
     }
-    if out.is_empty() || 7 * deepest + 8 > WIDE_STACK { Vec::new() } else { out }
+    let needs = 7 * deepest + 1;
+    if out.is_empty() || needs > WIDE_STACK { (Vec::new(), Vec::new(), 0) } else { (out, packs, needs) }
 }
 
-/// Which of the node's eight child boxes the ray's [tmin, tmax] interval meets (bit c for child
-/// c), four at a time with glam's SIMD `Vec4`. No NaN can arise (`Ray` keeps `inv_direction`
-/// finite).
-#[inline(always)]
-fn slab8(n: &WideNode, o: [Vec4; 3], inv: [Vec4; 3], tmin: Vec4, tmax: Vec4) -> u32 {
-    let mut mask = 0;
-    for h in 0..2 {
-        let mut t0 = tmin;
-        let mut t1 = tmax;
-        for a in 0..3 {
-            let x0 = (n.lo[a][h] - o[a]) * inv[a];
-            let x1 = (n.hi[a][h] - o[a]) * inv[a];
-            t0 = t0.max(x0.min(x1));
-            t1 = t1.min(x0.max(x1));
-        }
-        mask |= t0.cmple(t1).bitmask() << (4 * h);
-    }
-    mask & n.used
-}
+/// `|n · dir|` below this: the ray runs parallel to the polygon's plane and misses it.
+const PARALLEL: f32 = 1e-12;
 
 #[inline]
 fn intersect(p: &Poly, r: &Ray) -> f32 {
     let denom = p.normal.dot(r.direction);
-    if denom.abs() < 1e-12 {
+    if denom.abs() < PARALLEL {
         return f32::INFINITY;
     }
     let t = (p.d - p.normal.dot(r.origin)) / denom;
     if !(t > r.tmin && t < r.tmax) {
         return f32::INFINITY;
     }
-    let q = r.origin + r.direction * t;
-    for k in 0..p.n_edges as usize {
-        if p.edge_n[k].dot(q) < p.edge_o[k] {
-            return f32::INFINITY;
-        }
-    }
-    t
+    if inside_edges(p, r.origin + r.direction * t) { t } else { f32::INFINITY }
+}
+
+/// Is the point `q` of the polygon's plane inside all its (widened) edges? All edges at once:
+/// `(x·qx + y·qy) + z·qz`, glam's `dot` order, lane by lane.
+#[inline]
+fn inside_edges(p: &Poly, q: Vec3A) -> bool {
+    let dot = p.edge_x * q.x + p.edge_y * q.y + p.edge_z * q.z;
+    dot.cmplt(p.edge_o).bitmask() & p.edges == 0
 }
 
 #[cfg(test)]
