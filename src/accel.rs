@@ -3,9 +3,23 @@
 //! `ray_traverse`).
 //!
 //! Shadow rays (any-hit, nearly all the rays the solvers cast) traverse the same tree decoded
-//! once into unquantised 8-wide nodes, four slab tests per SIMD instruction: a third of the
+//! once into unquantised 8-wide nodes, four slab tests per SIMD instruction: a small part of the
 //! box-test work of obvhs's traversal, which dequantises each node per ray, and conservative
 //! where that one is not (rays starting a hair from another polygon's box were missed).
+//!
+//! ## Shadow-ray traversal
+//! ```text
+//!  segment a→b ─▶ local frame ─▶ shadow cache: last blocker hit? ──yes──▶ blocked
+//!                                      │ no
+//!                                      ▼
+//!  node: slab test of its 8 child boxes (near plane per axis from the ray's signs)
+//!    ├─ leaf children, slot order: 4-wide plane test of the leaf's polygons,
+//!    │     edges of those whose plane the segment crosses ──inside──▶ blocked
+//!    └─ node children, slot order: pushed (popped last-pushed first) ──▶ node …
+//! ```
+//! Every step does the arithmetic of the plain scalar tests lane by lane (the slab test's
+//! `min`/`max` replaced by the plane the ray meets first, which rounding cannot reorder), so
+//! the polygons tested, their order, and every answer are those of a scalar traversal.
 //!
 //! ## How it works
 //! - The BVH is `f32`. To keep precision for scenes far from the origin (translated by 1e6) or at
@@ -120,12 +134,14 @@ struct WideNode {
     /// `planes[axis][1]`: their upper bounds. An empty slot holds the inverted box
     /// (+∞, −∞), which no ray meets.
     planes: [[F8; 2]; 3],
-    /// Per child: a node index, or [`LEAF`] | the index of its [`LeafPack`].
+    /// Per child slot: the child's node index when it is a node.
     child: [u32; 8],
+    /// Bit c set when child c is a leaf.
+    leaves: u32,
+    /// Per child slot: the leaf's polygons (no lanes when the child is not a leaf).
+    packs: [LeafPack; 8],
 }
 
-/// Marks a leaf child in [`WideNode::child`].
-const LEAF: u32 = 1 << 31;
 /// Entries of the shadow-ray traversal stack. While a node at depth k is processed, at most 7
 /// siblings wait per level above it and it pushes at most 8 children; only nodes above the
 /// deepest push, so a tree whose deepest node is at depth D needs `7 D + 1` entries: D <= 9
@@ -138,7 +154,7 @@ const SMALL_STACK: usize = 32;
 const PACK: usize = 4;
 
 /// The polygons of one leaf as structure of arrays: their planes, for a 4-wide plane test.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 struct LeafPack {
     nx: Vec4,
     ny: Vec4,
@@ -155,8 +171,6 @@ pub struct Accel {
     bvh: CwBvh,
     /// The same tree decoded for shadow rays (empty if it is too deep for [`WIDE_STACK`]).
     wide: Vec<WideNode>,
-    /// The leaves of `wide`.
-    packs: Vec<LeafPack>,
     /// Entries the traversal stack needs (at most [`WIDE_STACK`]).
     stack_needs: usize,
     /// Polygons in BVH primitive order.
@@ -219,14 +233,14 @@ impl Accel {
         let mut t = Duration::ZERO;
         let bvh = obvhs::cwbvh::builder::build_cwbvh(&polys, BvhBuildParams::very_slow_build(), &mut t);
         let ordered: Vec<Poly> = bvh.primitive_indices.iter().map(|&i| polys[i as usize]).collect();
-        let (wide, packs, stack_needs) = decode_wide(&bvh, &ordered);
-        Accel { bvh, wide, packs, stack_needs, polys: ordered, origin, inv_scale }
+        let (wide, stack_needs) = decode_wide(&bvh, &ordered);
+        Accel { bvh, wide, stack_needs, polys: ordered, origin, inv_scale }
     }
 
-    /// The first polygon (BVH order) that blocks the shadow ray, or `None`. The CWBVH's own
-    /// tree, traversed with unquantised 8-wide slab tests: the same polygons are tested as with
-    /// obvhs's traversal of that tree whenever the ray can hit them (both tests are
-    /// conservative), so the answer is the same, for about a sixth of the box-test instructions.
+    /// The first polygon (in traversal order) that blocks the shadow ray, or `None`. The
+    /// CWBVH's own tree, traversed with unquantised 8-wide slab tests: the same polygons are
+    /// tested as with obvhs's traversal of that tree whenever the ray can hit them (both tests
+    /// are conservative), so the answer is the same, for a fraction of the box-test instructions.
     fn shadow_blocker(&self, ray: &Ray, ignore: [u32; 2]) -> Option<u32> {
         if self.stack_needs <= SMALL_STACK {
             self.shadow_blocker_in::<SMALL_STACK>(ray, ignore)
@@ -259,19 +273,23 @@ impl Accel {
         let mut node = 0u32;
         loop {
             let n = &self.wide[node as usize];
-            let mut mask = boxes.hits(n);
-            while mask != 0 {
-                let c = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let ch = n.child[c];
-                if ch & LEAF == 0 {
-                    stack[sp] = ch;
-                    sp += 1;
-                } else if let Some(id) =
-                    self.pack_blocker(&self.packs[(ch & !LEAF) as usize], ray, &planes, ignore)
-                {
+            let mask = boxes.hits(n);
+            // Leaves first, then the nodes: the same polygons in the same order as visiting the
+            // children in slot order, since pushing a node tests nothing.
+            let mut leaves = mask & n.leaves;
+            while leaves != 0 {
+                let c = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                if let Some(id) = self.pack_blocker(&n.packs[c], ray, &planes, ignore) {
                     return Some(id);
                 }
+            }
+            let mut nodes = mask & !n.leaves;
+            while nodes != 0 {
+                let c = nodes.trailing_zeros() as usize;
+                nodes &= nodes - 1;
+                stack[sp] = n.child[c];
+                sp += 1;
             }
             if sp == 0 {
                 return None;
@@ -461,16 +479,17 @@ impl PlaneRay {
     }
 }
 
-/// The CWBVH's nodes decoded into [`WideNode`]s (node i is the CWBVH's node i), their leaves
-/// into [`LeafPack`]s, and the traversal stack entries they need; no nodes when the tree is
+/// The CWBVH's nodes decoded into [`WideNode`]s (node i is the CWBVH's node i, its leaves
+/// into [`LeafPack`]s) and the traversal stack entries they need; no nodes when the tree is
 /// deeper than [`WIDE_STACK`] allows. `polys` is in BVH order.
-fn decode_wide(bvh: &CwBvh, polys: &[Poly]) -> (Vec<WideNode>, Vec<LeafPack>, usize) {
+fn decode_wide(bvh: &CwBvh, polys: &[Poly]) -> (Vec<WideNode>, usize) {
     let mut out = Vec::with_capacity(bvh.nodes.len());
-    let mut packs = Vec::new();
     for n in &bvh.nodes {
         let mut lo = [[f32::INFINITY; 8]; 3];
         let mut hi = [[f32::NEG_INFINITY; 8]; 3];
-        let mut child = [LEAF; 8];
+        let mut child = [0; 8];
+        let mut leaves = 0;
+        let mut packs = [LeafPack::default(); 8];
         for c in 0..8 {
             if n.is_child_empty(c) {
                 continue;
@@ -484,44 +503,46 @@ fn decode_wide(bvh: &CwBvh, polys: &[Poly]) -> (Vec<WideNode>, Vec<LeafPack>, us
             if n.is_leaf(c) {
                 let (first, count) = n.child_primitives(c);
                 let Some(members) = polys.get(first as usize..(first + count) as usize) else {
-                    return (Vec::new(), Vec::new(), 0);
+                    return (Vec::new(), 0);
                 };
                 if members.is_empty() || members.len() > PACK {
-                    return (Vec::new(), Vec::new(), 0);
+                    return (Vec::new(), 0);
                 }
                 let lane = |f: &dyn Fn(&Poly) -> f32| {
                     Vec4::from_array(std::array::from_fn(|k| members.get(k).map_or(0.0, f)))
                 };
-                child[c] = LEAF | packs.len() as u32;
-                packs.push(LeafPack {
+                leaves |= 1 << c;
+                packs[c] = LeafPack {
                     nx: lane(&|p| p.normal.x),
                     ny: lane(&|p| p.normal.y),
                     nz: lane(&|p| p.normal.z),
                     d: lane(&|p| p.d),
                     first,
                     lanes: (1 << members.len()) - 1,
-                });
+                };
             } else {
                 child[c] = n.child_node_index(c);
             }
         }
         let planes = std::array::from_fn(|a| [F8::from_array(lo[a]), F8::from_array(hi[a])]);
-        out.push(WideNode { planes, child });
+        out.push(WideNode { planes, child, leaves, packs });
     }
     // Depth from the root, whatever order the builder laid the nodes out in.
     let mut deepest = 0;
     let mut todo = vec![(0u32, 0usize)];
     while let Some((node, d)) = todo.pop() {
         deepest = deepest.max(d);
-        let Some(w) = out.get(node as usize) else { return (Vec::new(), Vec::new(), 0) };
-        for &ch in &w.child {
-            if ch & LEAF == 0 {
-                todo.push((ch, d + 1));
+        let (Some(w), Some(n)) = (out.get(node as usize), bvh.nodes.get(node as usize)) else {
+            return (Vec::new(), 0);
+        };
+        for c in 0..8 {
+            if !n.is_child_empty(c) && w.leaves & (1 << c) == 0 {
+                todo.push((w.child[c], d + 1));
             }
         }
     }
     let needs = 7 * deepest + 1;
-    if out.is_empty() || needs > WIDE_STACK { (Vec::new(), Vec::new(), 0) } else { (out, packs, needs) }
+    if out.is_empty() || needs > WIDE_STACK { (Vec::new(), 0) } else { (out, needs) }
 }
 
 /// `|n · dir|` below this: the ray runs parallel to the polygon's plane and misses it.
@@ -669,6 +690,133 @@ mod tests {
                 total += 1;
             }
             assert!(blocked > total / 20 && blocked < total, "{name}: {blocked} of {total} blocked");
+        }
+    }
+
+    /// Random unit directions, with some components forced to ±0, ±ε and a hair above ε (where
+    /// `safe_inverse` switches branch).
+    fn directions(rng: &mut crate::math::Pcg32, n: usize) -> Vec<Vec3A> {
+        let special = [0.0, -0.0, f32::EPSILON, -f32::EPSILON, 1.5 * f32::EPSILON, -1e-30];
+        (0..n)
+            .map(|k| {
+                let mut d = Vec3A::new(
+                    rng.next_f64() as f32 - 0.5,
+                    rng.next_f64() as f32 - 0.5,
+                    rng.next_f64() as f32 - 0.5,
+                )
+                .normalize();
+                if k % 3 == 0 {
+                    d[k % 2] = special[(k / 3) % special.len()];
+                }
+                d
+            })
+            .collect()
+    }
+
+    /// The vectorised reciprocal is obvhs's `Ray::new` bit for bit.
+    #[test]
+    fn shadow_ray_is_ray_new() {
+        let mut rng = crate::math::Pcg32::keyed(3, 5);
+        for d in directions(&mut rng, 3000) {
+            let o = Vec3A::new(0.1, -0.2, 0.3);
+            let (a, b) = (shadow_ray(o, d, END_EPS, 0.5), Ray::new(o, d, END_EPS, 0.5));
+            for k in 0..3 {
+                assert_eq!(a.inv_direction[k].to_bits(), b.inv_direction[k].to_bits(), "{d} lane {k}");
+            }
+        }
+    }
+
+    /// The near/far-plane slab test gives, for every decoded node, the masks of the textbook
+    /// min/max test on the CWBVH's own child boxes, rays running both ways along every axis.
+    #[test]
+    fn slab_masks_are_those_of_the_min_max_test() {
+        let sc = Scene::load("builtin:splash_room").unwrap();
+        let acc = Accel::build(&sc);
+        let mut rng = crate::math::Pcg32::keyed(9, 4);
+        let dirs = directions(&mut rng, 2000);
+        let mut hits = 0;
+        for (i, d) in dirs.into_iter().enumerate() {
+            let o = Vec3A::new(
+                rng.next_f64() as f32 - 0.5,
+                rng.next_f64() as f32 - 0.5,
+                rng.next_f64() as f32 - 0.5,
+            );
+            let ray = shadow_ray(o, d, END_EPS, 0.2 + (i % 4) as f32 * 0.3);
+            let slab = SlabRay::new(&ray);
+            for (w, n) in acc.wide.iter().zip(&acc.bvh.nodes) {
+                let mut want = 0;
+                for c in 0..8 {
+                    if n.is_child_empty(c) {
+                        continue;
+                    }
+                    let b = n.child_aabb(c);
+                    let (mut t0, mut t1) = (ray.tmin, ray.tmax);
+                    for a in 0..3 {
+                        let x0 = (b.min[a] - ray.origin[a]) * ray.inv_direction[a];
+                        let x1 = (b.max[a] - ray.origin[a]) * ray.inv_direction[a];
+                        t0 = t0.max(x0.min(x1));
+                        t1 = t1.min(x0.max(x1));
+                    }
+                    want |= u32::from(t0 <= t1) << c;
+                }
+                assert_eq!(slab.hits(w), want, "ray {i}: {o} + t {d}");
+                hits += want.count_ones();
+            }
+        }
+        assert!(hits > 1000, "the rays must meet boxes ({hits} child boxes met)");
+    }
+
+    /// A leaf's 4-wide test finds the first polygon, in BVH order, that the scalar test says
+    /// blocks the ray.
+    #[test]
+    fn leaf_packs_agree_with_the_scalar_polygon_test() {
+        let sc = Scene::load("builtin:splash_room").unwrap();
+        let acc = Accel::build(&sc);
+        let mut rng = crate::math::Pcg32::keyed(2, 8);
+        let n = sc.patches.len();
+        let mut found = 0;
+        for _ in 0..3000 {
+            let i = (rng.next_u32() as usize) % n;
+            let j = (rng.next_u32() as usize) % n;
+            let a =
+                crate::visibility::point_on_polygon(&sc.patches[i].vertices, rng.next_f64(), rng.next_f64());
+            let b =
+                crate::visibility::point_on_polygon(&sc.patches[j].vertices, rng.next_f64(), rng.next_f64());
+            let (la, lb) = (acc.to_local(a), acc.to_local(b));
+            let len = (lb - la).length();
+            if !(len > 2.0 * END_EPS) {
+                continue;
+            }
+            let ray = shadow_ray(la, (lb - la) / len, END_EPS, len - END_EPS);
+            let planes = PlaneRay::new(&ray);
+            let ignore = [i as u32, j as u32];
+            for w in &acc.wide {
+                for c in 0..8 {
+                    if w.leaves & (1 << c) == 0 {
+                        continue;
+                    }
+                    let pack = &w.packs[c];
+                    let first = pack.first as usize;
+                    let want = (first..first + pack.lanes.count_ones() as usize)
+                        .find(|&id| {
+                            let p = &acc.polys[id];
+                            !ignore.contains(&p.patch) && intersect(p, &ray).is_finite()
+                        })
+                        .map(|id| id as u32);
+                    assert_eq!(acc.pack_blocker(pack, &ray, &planes, ignore), want, "{a} → {b}");
+                    found += usize::from(want.is_some());
+                }
+            }
+        }
+        assert!(found > 100, "some leaves must block ({found})");
+    }
+
+    /// The built-in rooms' trees are shallow enough for the small stack.
+    #[test]
+    fn built_in_rooms_use_the_small_stack() {
+        for name in ["builtin:splash_room", "builtin:splash_largeroom", "builtin:cornell"] {
+            let acc = Accel::build(&Scene::load(name).unwrap());
+            assert!(!acc.wide.is_empty() && acc.stack_needs <= SMALL_STACK, "{name}: {}", acc.stack_needs);
         }
     }
 
