@@ -16,7 +16,7 @@
 //! graze a shared edge.
 
 use crate::accel::Accel;
-use crate::math::{DVec3, Pcg32};
+use crate::math::{DVec3, Pcg32, splitmix64};
 
 /// Point on a triangle or quad from (u, v) ∈ [0,1)²: bilinear on quads, the square-root map
 /// (uniform in area) on triangles.
@@ -56,15 +56,31 @@ impl Strata {
     }
 
     fn point(&self, k: u32, perm: u32, rng: &mut Pcg32) -> (f64, f64) {
-        let s = (u64::from(k) * u64::from(perm | 1) + u64::from(perm)) % u64::from(self.cols * self.rows);
-        let s = s as u32;
-        self.jittered(s % self.cols, s / self.cols, rng)
-    }
-
-    fn jittered(&self, i: u32, j: u32, rng: &mut Pcg32) -> (f64, f64) {
+        let (i, j) = self.stratum(k, perm);
         let ju = 0.05 + 0.9 * rng.next_f64();
         let jv = 0.05 + 0.9 * rng.next_f64();
+        self.at(i, j, ju, jv)
+    }
+
+    /// (column, row) of sample k's stratum: k·(perm|1) + perm mod cols·rows.
+    fn stratum(&self, k: u32, perm: u32) -> (u32, u32) {
+        let s = (u64::from(k) * u64::from(perm | 1) + u64::from(perm)) % u64::from(self.cols * self.rows);
+        let s = s as u32;
+        (s % self.cols, s / self.cols)
+    }
+
+    /// Stratum (i, j) at offsets (ju, jv) ∈ [0, 1) within it.
+    fn at(&self, i: u32, j: u32, ju: f64, jv: f64) -> (f64, f64) {
         ((f64::from(i) + ju) * self.inv_cols, (f64::from(j) + jv) * self.inv_rows)
+    }
+
+    /// Stratum (i, j) jittered by the low 32 bits of `bits` (16 bits per axis), at most 90 % of
+    /// a stratum from its centre region's edge, as in `point`.
+    fn jittered_bits(&self, i: u32, j: u32, bits: u64) -> (f64, f64) {
+        const UNIT: f64 = 0.9 / 65536.0;
+        let ju = 0.05 + UNIT * f64::from(bits as u16);
+        let jv = 0.05 + UNIT * f64::from((bits >> 16) as u16);
+        self.at(i, j, ju, jv)
     }
 
     /// The strata of samples k = 0, 1, … in order: the same as `point(k, perm, ·)` without a
@@ -75,8 +91,9 @@ impl Strata {
         Walk { i: s0 % self.cols, j: s0 / self.cols, di: step % self.cols, dj: step / self.cols }
     }
 
-    fn next(&self, w: &mut Walk, rng: &mut Pcg32) -> (f64, f64) {
-        let p = self.jittered(w.i, w.j, rng);
+    /// The walk's current stratum jittered by `bits` (see `jittered_bits`), then a step.
+    fn next(&self, w: &mut Walk, bits: u64) -> (f64, f64) {
+        let p = self.jittered_bits(w.i, w.j, bits);
         w.i += w.di;
         w.j += w.dj;
         if w.i >= self.cols {
@@ -173,16 +190,19 @@ pub fn visibility_sample(
     if rays == 0 {
         return (1.0, 0);
     }
-    let mut rng = Pcg32::keyed(seed, key);
+    let base = splitmix64(seed ^ splitmix64(key));
     let strata = Strata::new(rays);
     let mut visible = 0u32;
     let mut counted = 0u32;
     // Receiver strata in order, source strata in a co-prime stride so pairs decorrelate.
     let stride = 2 * rays / 3 + 1;
     let (mut walk_r, mut walk_s) = (strata.walk(0), strata.walk(stride));
-    for _ in 0..rays {
-        let (ru, rv) = strata.next(&mut walk_r, &mut rng);
-        let (su, sv) = strata.next(&mut walk_s, &mut rng);
+    for k in 0..rays {
+        // One hash per ray gives the four 16-bit jitters of its two points: independent of the
+        // other rays (no serial generator state), so they are computed side by side.
+        let h = splitmix64(base.wrapping_add(u64::from(k).wrapping_mul(0x9E37_79B9_7F4A_7C15)));
+        let (ru, rv) = strata.next(&mut walk_r, h);
+        let (su, sv) = strata.next(&mut walk_s, h >> 32);
         let x = point_on_polygon(receiver, ru, rv);
         let y = point_on_polygon(source, su, sv);
         // Only pairs that face each other carry energy (both cosines positive); a pair behind
@@ -241,11 +261,12 @@ mod tests {
             let strata = Strata::new(n);
             for perm in [0, 1, 2 * n / 3 + 1, 5, 97] {
                 let mut w = strata.walk(perm);
-                let (mut a, mut b) = (Pcg32::new(3, 5), Pcg32::new(3, 5));
                 for k in 0..n {
+                    let bits = u64::from(k).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                    let (i, j) = strata.stratum(k, perm);
                     assert_eq!(
-                        strata.next(&mut w, &mut a),
-                        strata.point(k, perm, &mut b),
+                        strata.next(&mut w, bits),
+                        strata.jittered_bits(i, j, bits),
                         "n {n} perm {perm} k {k}"
                     );
                 }

@@ -684,30 +684,46 @@ impl HierarchicalSolver {
 
     /// The oracle on one link: `Ok(side to split)` or `Err(why it is kept)`.
     fn decide(&self, p: &Element, link: &Link) -> Result<Split, StopReason> {
-        let (want, below) = match self.params.oracle {
-            Oracle::Feps => (f64::from(link.fmax) >= self.params.feps, StopReason::BelowFeps),
+        let class = link.class();
+        if class == VisClass::None || !self.wants_split(link, class, self.source_b(link.source)) {
+            return Err(self.below_reason());
+        }
+        self.split_side(p, link)
+    }
+
+    /// Why a link the oracle does not want to split is kept.
+    fn below_reason(&self) -> StopReason {
+        match self.params.oracle {
+            Oracle::Feps => StopReason::BelowFeps,
+            Oracle::Bf => StopReason::BelowBfEps,
+        }
+    }
+
+    /// Does the oracle's estimate call for splitting this link were its visibility of class
+    /// `class` (Full or Partial)? `b`: the source's `source_b`.
+    fn wants_split(&self, link: &Link, class: VisClass, [b_max, b_channel]: [f64; 2]) -> bool {
+        match self.params.oracle {
+            Oracle::Feps => f64::from(link.fmax) >= self.params.feps,
             Oracle::Bf => {
                 // A partially visible link may see the bright or the dark part of its source
                 // (the floor round a box's foot is lit, the part under it is dark and hidden):
                 // B_avg · V_avg then counts the darkness twice. Bound it by the source's
                 // brightest leaf.
-                let [b_max, b_channel] = self.source_b(link.source);
-                let b = if link.class() == VisClass::Partial && self.params.conservative {
-                    b_max
+                let partial = class == VisClass::Partial;
+                let b = if partial && self.params.conservative { b_max } else { b_channel };
+                let (bound, thr) = if partial {
+                    (1.0, self.bf_eps * PARTIAL_BF_FACTOR)
                 } else {
-                    b_channel
+                    (f64::from(link.bound), self.bf_eps)
                 };
-                let thr = if link.class() == VisClass::Partial {
-                    self.bf_eps * PARTIAL_BF_FACTOR
-                } else {
-                    self.bf_eps
-                };
-                (b > 0.0 && link.bf_error(b) > thr, StopReason::BelowBfEps)
+                b > 0.0 && b * f64::from(link.fmax) * bound > thr
             }
-        };
-        if !want || link.vis <= 0.0 {
-            return Err(below);
         }
+    }
+
+    /// The side a link the oracle wants split is split on (`Err`: why it is kept instead, both
+    /// elements being at their limits). Does not depend on the link's visibility.
+    fn split_side(&self, p: &Element, link: &Link) -> Result<Split, StopReason> {
         let q = self.hier.get(link.source);
         let (first, second) = if link.split_source { (q, p) } else { (p, q) };
         let side = |source: bool| if source { Split::Source } else { Split::Receiver };
@@ -824,13 +840,26 @@ impl HierarchicalSolver {
             (v, u64::from(cast))
         };
         let mut link = new_link(p, q, source, ff, 1.0, sides.straddle, self.params.conservative);
+        // Which visibility classes the next pass would split the link in (the side does not
+        // depend on V; a split when fully visible implies one when partially visible: the
+        // partial test uses a bound of 1 instead of ≤ 1, a source term b_max ≥ the max channel
+        // of B, and a threshold 4× lower).
+        let (split_full, split_partial) = if self.split_side(p, &link).is_ok() {
+            let b = self.source_b(source);
+            (self.wants_split(&link, VisClass::Full, b), self.wants_split(&link, VisClass::Partial, b))
+        } else {
+            (false, false)
+        };
+        debug_assert!(!split_full || split_partial, "a full-visibility split must imply a partial one");
         // A link that the next refinement pass splits whatever its exact V is needs only the
         // rays that tell which case it is in: it is replaced before anyone reads V. When the
         // pass splits it unless V = 0, one unblocked ray settles it; when it splits it unless
         // V is 0 or 1, one unblocked and one blocked ray do.
-        let stop = if self.splits_unless_hidden(p, &link) {
+        let stop = if !self.early_exit {
+            Stop::Never
+        } else if split_full {
             Stop::AtVisible
-        } else if self.splits_if_partial(p, &link) {
+        } else if split_partial {
             Stop::AtMixed
         } else {
             Stop::Never
@@ -854,8 +883,7 @@ impl HierarchicalSolver {
             // A zero estimate ends refinement for good; if the link would be refined were it
             // partially visible, confirm with more rays first (a stopping rule on a noisy zero
             // biases the solution dark).
-            let probe = Link { vis: 0.5, ..link };
-            if self.decide(p, &probe).is_ok() {
+            if split_partial {
                 let more = self.params.zero_confirm.saturating_mul(rays);
                 let (v2, c2) = vis_with(more, 0x5EED, Stop::Never);
                 cast += c2;
@@ -863,29 +891,6 @@ impl HierarchicalSolver {
             }
         }
         (Some(link), cast)
-    }
-
-    /// Does the oracle split this link (on the same side) whether it is fully or partially
-    /// visible? Then only V = 0 would keep it. A split when fully visible implies one when
-    /// partially visible: the partial test uses a bound of 1 instead of ≤ 1, a source term
-    /// b_max ≥ max channel of B, and a threshold 4× lower; the side does not depend on V.
-    fn splits_unless_hidden(&self, p: &Element, link: &Link) -> bool {
-        if !self.early_exit {
-            return false;
-        }
-        let full = self.decide(p, &Link { vis: 1.0, ..*link });
-        debug_assert!(
-            full.is_err() || full == self.decide(p, &Link { vis: 0.5, ..*link }),
-            "a full-visibility split must imply a partial one"
-        );
-        full.is_ok()
-    }
-
-    /// Does the oracle split this link whenever it is partially visible? Its decision for a
-    /// partial link does not depend on V's value (the partial bound is 1), so a link shown to be
-    /// partial (one ray passed, one blocked) needs no more rays.
-    fn splits_if_partial(&self, p: &Element, link: &Link) -> bool {
-        self.early_exit && self.decide(p, &Link { vis: 0.5, ..*link }).is_ok()
     }
 
     /// Measure V of the links still marked unmeasured (refinement stopped, by the link
