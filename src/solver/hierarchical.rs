@@ -282,6 +282,9 @@ impl PlanChunk {
 /// above 1, so "fully visible" for the oracle, and never read otherwise (see `make_link`).
 const UNMEASURED_VIS: f32 = 2.0;
 
+/// An [`IdSet`] holding at least 1/this of the ids up to its largest is read off its marks.
+const DENSE_ID_SET: usize = 16;
+
 /// A set of element ids, read back in ascending order (marks instead of sorting duplicates).
 #[derive(Default)]
 struct IdSet {
@@ -305,13 +308,24 @@ impl IdSet {
         self.ids.is_empty()
     }
 
-    /// The ids, ascending; the set is left empty.
+    /// The ids, ascending; the set is left empty. A dense set is read off its marks (one pass,
+    /// no sort).
     fn take_sorted(&mut self) -> Vec<u32> {
         let mut ids = std::mem::take(&mut self.ids);
-        for &i in &ids {
-            self.mark[i as usize] = false;
+        if ids.len() >= self.mark.len() / DENSE_ID_SET {
+            ids.clear();
+            for (i, m) in self.mark.iter_mut().enumerate() {
+                if *m {
+                    *m = false;
+                    ids.push(i as u32);
+                }
+            }
+        } else {
+            for &i in &ids {
+                self.mark[i as usize] = false;
+            }
+            ids.sort_unstable();
         }
-        ids.sort_unstable();
         ids
     }
 }
@@ -815,6 +829,12 @@ impl HierarchicalSolver {
         };
         let mut own = Vec::with_capacity(old.len() + 3 * splits.len());
         let mut kids = Kids::default();
+        let down = splits.iter().filter(|(_, side)| *side == Split::Receiver).count();
+        if down > 0 {
+            for k in &mut kids.0 {
+                k.reserve_exact(down);
+            }
+        }
         let mut rays = 0u64;
         let mut own_changed = false;
         let mut created = 0;
