@@ -822,11 +822,14 @@ impl HierarchicalSolver {
             }
             (out, rays)
         };
-        let made: Vec<([Option<Link>; 4], u64)> = if splits.len() >= PARALLEL_SPLITS {
+        // Few splits: made one by one below, without a list.
+        let parallel = splits.len() >= PARALLEL_SPLITS;
+        let made: Vec<([Option<Link>; 4], u64)> = if parallel {
             splits.par_iter().with_max_len(PARALLEL_SPLITS / 4).map(new_of).collect()
         } else {
-            splits.iter().map(new_of).collect()
+            Vec::new()
         };
+        let mut made = made.into_iter();
         let mut own = Vec::with_capacity(old.len() + 3 * splits.len());
         let mut kids = Kids::default();
         let down = splits.iter().filter(|(_, side)| *side == Split::Receiver).count();
@@ -838,12 +841,13 @@ impl HierarchicalSolver {
         let mut rays = 0u64;
         let mut own_changed = false;
         let mut created = 0;
-        let mut next = splits.iter().zip(made).peekable();
+        let mut next = splits.iter().peekable();
         for (i, l) in old.iter().enumerate() {
             let (side, (new, nr)) = match next.peek() {
-                Some(&(&(j, _), _)) if j as usize == i => {
-                    let (&(_, side), made) = next.next().expect("peeked");
-                    (side, made)
+                Some(&&(j, _)) if j as usize == i => {
+                    let split = next.next().expect("peeked");
+                    let m = if parallel { made.next().expect("one per split") } else { new_of(split) };
+                    (split.1, m)
                 }
                 _ => {
                     own.push(Link { fresh: false, ..*l });
