@@ -1,16 +1,19 @@
-//! `radlab speed [SCENE] [--preset P] [--rays 4,10] [--threads 1,2] [--repeats N] [--json PATH]`:
+//! `radlab speed [SCENE] [--preset P] [--rays 4,10] [--threads 1,2] [--repeats N] [--seeds K] [--json PATH]`:
 //! the hierarchical solver's speed benchmark (issue: "faster than the classic implementation").
 //!
 //! Runs the full HSA91 solve (`HierarchicalSolver::solve`, BVH reused) for every rays × threads
 //! combination, `repeats` times after one untimed warm-up, and prints the median wall time per
 //! phase, the element and link counts, and the link-creation rate (links created by refinement,
-//! including replaced ones, per second of refinement). Defaults: the SPLASH-2 room at settings
+//! including replaced ones, per second of refinement). With `--seeds K` the timed runs cycle
+//! through K visibility seeds: the mesh depends on which links a few rays find partially
+//! visible, so one seed can be lucky; the row then gives the median time over all runs, the
+//! counts of the run with the median link count, and the range of links. Defaults: the SPLASH-2 room at settings
 //! equivalent to the SPLASH-2 `radiosity` program's defaults (preset `splash2`: minimum element
 //! area 2000, BF epsilon 0.015, energy tolerance 0.005).
 
 use anyhow::{Context, bail};
 use radlab::accel::Accel;
-use radlab::solver::hierarchical::HierarchicalSolver;
+use radlab::solver::hierarchical::{HierarchicalSolver, HierarchicalStats};
 use radlab::solver::params::HierarchicalParams;
 use serde::Serialize;
 use std::sync::Arc;
@@ -67,6 +70,8 @@ pub struct Row {
     pub refine_split_s: f64,
     pub refine_links_s: f64,
     pub refine_install_s: f64,
+    /// Jacobi iterations: `solve` fuses gather and push-pull into one sweep and counts it here;
+    /// `push_pull_s` holds only separate push-pull steps (none in `solve`).
     pub gather_s: f64,
     pub push_pull_s: f64,
     pub total_s: f64,
@@ -107,9 +112,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         preset.seed.wrapping_add(args.seeds - 1)
     );
     println!(
-        "| rays | threads | elements (leaves) | links | links created | rays cast | refine | gather | push-pull | total (median) | links/s | rays/s |"
+        "| rays | threads | elements (leaves) | links | links created | rays cast | refine | gather + push-pull | total (median) | links/s | rays/s |"
     );
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let mut rows = Vec::new();
     for &rays in &args.rays {
         for &threads in &args.threads {
@@ -136,16 +141,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             runs.sort_by(|a, b| a.0.total_cmp(&b.0));
             let totals: Vec<f64> = runs.iter().map(|r| r.0).collect();
             let (total, st) = runs[runs.len() / 2].clone();
+            // Counts from the run with the median link count (they depend on the seed only, so
+            // they agree across thread counts; times come from the median-time run).
+            let mut by_links: Vec<&HierarchicalStats> = runs.iter().map(|r| &r.1).collect();
+            by_links.sort_by_key(|s| (s.links, s.elements, s.rays));
+            let counts = by_links[by_links.len() / 2].clone();
             let links_min = runs.iter().map(|r| r.1.links).min().unwrap_or(0);
             let links_max = runs.iter().map(|r| r.1.links).max().unwrap_or(0);
             let row = Row {
                 rays,
                 threads,
-                elements: st.elements,
-                leaves: st.leaves,
-                links: st.links,
-                links_created: st.links_created,
-                rays_cast: st.rays,
+                elements: counts.elements,
+                leaves: counts.leaves,
+                links: counts.links,
+                links_created: counts.links_created,
+                rays_cast: counts.rays,
                 refine_s: st.refine_s,
                 refine_initial_s: st.refine_initial_s,
                 refine_decide_s: st.refine_decide_s,
@@ -163,7 +173,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 rays_per_s: st.rays as f64 / st.refine_s.max(1e-9),
             };
             println!(
-                "| {} | {} | {} ({}) | {} | {} | {} | {:.3} s | {:.3} s | {:.3} s | {:.3} s | {:.2} M | {:.2} M |",
+                "| {} | {} | {} ({}) | {} | {} | {} | {:.3} s | {:.3} s | {:.3} s | {:.2} M | {:.2} M |",
                 row.rays,
                 row.threads,
                 row.elements,
@@ -172,8 +182,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 row.links_created,
                 row.rays_cast,
                 row.refine_s,
-                row.gather_s,
-                row.push_pull_s,
+                row.gather_s + row.push_pull_s,
                 row.total_s,
                 row.links_per_s / 1e6,
                 row.rays_per_s / 1e6
