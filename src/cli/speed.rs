@@ -70,8 +70,6 @@ pub struct Row {
     pub refine_split_s: f64,
     pub refine_links_s: f64,
     pub refine_install_s: f64,
-    /// Jacobi iterations: `solve` fuses gather and push-pull into one sweep and counts it here;
-    /// `push_pull_s` holds only separate push-pull steps (none in `solve`).
     pub gather_s: f64,
     pub push_pull_s: f64,
     pub total_s: f64,

@@ -380,13 +380,6 @@ pub struct HierarchicalSolver {
     /// Every root's subtree in preorder, for `push_pull_flat`; rebuilt after the hierarchy
     /// changes.
     pp_order: Option<Vec<Vec<PpNode>>>,
-    /// Element id → (root, position in that root's preorder), with `pp_order`.
-    pp_pos: Vec<[u32; 2]>,
-    /// The last sweep's results per root, in preorder (see [`PpOut`]).
-    pp_out: Vec<Vec<PpOut>>,
-    /// The elements' radiosity, b_max and the compact `gathered` lag behind `pp_out` (inside
-    /// `solve`'s iterations; every public step ends with them written).
-    elements_stale: bool,
     /// Every element's radiosity, compact, for Jacobi gathers: written by push-pull, read by the
     /// next gather (kept between gathers, so no large allocation per iteration).
     b_prev: Vec<Rgb>,
@@ -416,18 +409,9 @@ struct PpNode {
     kids: [u32; 4],
 }
 
-/// One element after a sweep: radiosity, brightest leaf below it, irradiance gathered through
-/// its own links (all, fully visible).
-#[derive(Copy, Clone, Debug)]
-struct PpOut {
-    b: Rgb,
-    b_max: f64,
-    gathered: [Rgb; 2],
-}
-
-/// What one root's sweep returns: every element's [`PpOut`] in the subtree's preorder, the
+/// What one root's push-pull returns: every element's (B, b_max) in the subtree's preorder, the
 /// largest leaf change and reflected radiosity, absorbed and escaped power.
-type RootPushPull = (Vec<PpOut>, f64, f64, Rgb, Rgb);
+type RootPushPull = (Vec<(Rgb, f64)>, f64, f64, Rgb, Rgb);
 
 /// Sums an element inherits in push-pull, its own included.
 #[derive(Copy, Clone, Debug, Default)]
@@ -476,9 +460,6 @@ impl HierarchicalSolver {
             energy: EnergyBalance::default(),
             gathered_once: false,
             pp_order: None,
-            pp_pos: Vec::new(),
-            pp_out: Vec::new(),
-            elements_stale: false,
             b_fresh: false,
             gathered: Vec::new(),
             b_prev: Vec::new(),
@@ -534,8 +515,6 @@ impl HierarchicalSolver {
         self.links = LinkStore::new(self.hier.len());
         self.gather_plan = None;
         self.pp_order = None;
-        self.pp_out.clear();
-        self.elements_stale = false;
         self.b_fresh = false;
         self.gathered.clear();
         self.linked = false;
@@ -587,7 +566,6 @@ impl HierarchicalSolver {
     }
 
     fn refine_inner(&mut self) -> StepReport {
-        self.sync_elements();
         let t = Instant::now();
         let mut new_links = 0;
         self.oracle_b.clear();
@@ -1218,7 +1196,6 @@ impl HierarchicalSolver {
         // The links as one contiguous plan, rebuilt after they change.
         let plan = self.gather_plan.take().unwrap_or_else(|| GatherPlan::new(&self.links));
         if self.params.gauss_seidel {
-            self.sync_elements();
             let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
             for root in 0..self.hier.roots as u32 {
                 let ids = self.subtree(root);
@@ -1234,19 +1211,19 @@ impl HierarchicalSolver {
             }
             // Recomputes the same leaf values (nothing was gathered since each root's push) and
             // measures the change against the values before the sweep.
-            self.gather_plan = Some(plan);
-            self.sweep(false, Some(&before));
-            self.sync_elements();
+            self.push_pull_flat(Some(&before));
             self.stats.gather_s += t.elapsed().as_secs_f64();
-            self.gathered_once = true;
-            self.stats.iterations += 1;
-            return self.report(StepKind::Gather, t, 0, 0);
         } else {
             // Sources' radiosity in a compact array (read once per link, in any order), then
             // every receiver gathers in parallel.
-            self.sync_elements();
-            self.refresh_b_prev();
-            let b = std::mem::take(&mut self.b_prev);
+            let mut b = std::mem::take(&mut self.b_prev);
+            if !self.b_fresh || b.len() != self.hier.len() {
+                b.resize(self.hier.len(), Rgb::ZERO);
+                b.par_iter_mut()
+                    .zip(self.hier.elements.par_iter())
+                    .with_min_len(1024)
+                    .for_each(|(b, e)| *b = e.radiosity);
+            }
             let mut gathered = std::mem::take(&mut self.gathered);
             gathered.resize(self.hier.len(), [Rgb::ZERO; 2]);
             gathered.par_chunks_mut(PLAN_CHUNK).enumerate().for_each(|(k, gs)| {
@@ -1286,63 +1263,10 @@ impl HierarchicalSolver {
         self.gathered.get(i).map_or(self.hier.elements[i].gathered, |g| g[0])
     }
 
-    /// `b_prev` := the elements' radiosities, unless it already holds them.
-    fn refresh_b_prev(&mut self) {
-        if !self.b_fresh || self.b_prev.len() != self.hier.len() {
-            self.b_prev.resize(self.hier.len(), Rgb::ZERO);
-            self.b_prev
-                .par_iter_mut()
-                .zip(self.hier.elements.par_iter())
-                .with_min_len(1024)
-                .for_each(|(b, e)| *b = e.radiosity);
-            self.b_fresh = true;
-        }
-    }
-
-    /// Write the last sweep's results into the elements (radiosity, b_max) and the compact
-    /// gathered irradiance, in parallel by element id.
-    fn sync_elements(&mut self) {
-        if !self.elements_stale {
-            return;
-        }
-        let (out, pos) = (&self.pp_out, &self.pp_pos);
-        let at = |id: usize| {
-            let [r, p] = pos[id];
-            &out[r as usize][p as usize]
-        };
-        self.hier.elements.par_iter_mut().enumerate().with_min_len(1024).for_each(|(id, e)| {
-            let o = at(id);
-            e.radiosity = o.b;
-            e.b_max = o.b_max;
-        });
-        self.gathered.resize(self.hier.len(), [Rgb::ZERO; 2]);
-        self.gathered.par_iter_mut().enumerate().with_min_len(1024).for_each(|(id, g)| *g = at(id).gathered);
-        self.elements_stale = false;
-    }
-
-    /// One Jacobi iteration, gather and push-pull fused: every root's subtree in parallel
-    /// gathers its elements' links from the previous radiosities and pushes and pulls at once
-    /// (one parallel pass, the elements written only when a public step ends).
-    fn jacobi_iteration(&mut self) {
-        let t = Instant::now();
-        self.sync_elements();
-        self.refresh_b_prev();
-        if self.gather_plan.is_none() {
-            self.gather_plan = Some(GatherPlan::new(&self.links));
-        }
-        self.sweep(true, None);
-        self.gathered_once = true;
-        self.stats.iterations += 1;
-        self.stats.gather_s += t.elapsed().as_secs_f64();
-    }
-
     /// Push gathered irradiance down to the leaves (B = E + ρ·norm·H), pull area averages up.
     pub fn push_pull_step(&mut self) -> StepReport {
         let t = Instant::now();
-        self.sync_elements();
-        self.refresh_b_prev();
-        self.sweep(false, None);
-        self.sync_elements();
+        self.push_pull_flat(None);
         self.stats.push_pull_s += t.elapsed().as_secs_f64();
         self.report(StepKind::PushPull, t, 0, 0)
     }
@@ -1384,21 +1308,15 @@ impl HierarchicalSolver {
     /// B = E + ρ·(H_full·norm + H_rest) and their energy terms; then up in reverse, area
     /// averages (children in order, as `push_pull_rec`). The same values as `push_pull_rec` from
     /// every root; the power sums are added root by root, so they do not depend on the thread
-    /// count. With `fused`, each element first gathers its links from `b_prev` (a Jacobi
-    /// gather), else its irradiance comes from the last gather. The residual is the largest
-    /// leaf change against `before` (default: `b_prev`, the radiosities before this sweep).
-    /// Results go to `pp_out` and `b_prev`; the elements lag until `sync_elements`.
-    fn sweep(&mut self, fused: bool, before: Option<&[Rgb]>) {
-        if self.pp_order.is_none() {
-            let (order, pos) = self.preorders();
-            self.pp_order = Some(order);
-            self.pp_pos = pos;
-        }
-        let order = self.pp_order.take().expect("just built");
+    /// count. The residual is the largest leaf change against `before` (default: the values
+    /// before this call).
+    fn push_pull_flat(&mut self, before: Option<&[Rgb]>) {
+        let order = match self.pp_order.take() {
+            Some(o) => o,
+            None => self.preorders(),
+        };
         let els = &self.hier.elements;
         let gathered = &self.gathered;
-        let b_prev = &self.b_prev;
-        let plan = if fused { self.gather_plan.as_ref() } else { None };
         let per_root: Vec<RootPushPull> = order
             .par_iter()
             .with_max_len(4)
@@ -1408,17 +1326,11 @@ impl HierarchicalSolver {
                 let mut absorbed = Rgb::ZERO;
                 let mut escaped = Rgb::ZERO;
                 let mut chain: Vec<Chain> = Vec::with_capacity(nodes.len());
-                let mut out: Vec<PpOut> = Vec::with_capacity(nodes.len());
+                let mut out: Vec<(Rgb, f64)> = Vec::with_capacity(nodes.len());
                 for n in nodes {
-                    let id = n.id as usize;
-                    let e = &els[id];
-                    let [e_gathered, e_gathered_full] = match plan {
-                        Some(plan) => {
-                            let (all, full) = plan.gather(id, |s| b_prev[s as usize]);
-                            [all, full]
-                        }
-                        None => gathered.get(id).copied().unwrap_or([Rgb::ZERO; 2]),
-                    };
+                    let e = &els[n.id as usize];
+                    let [e_gathered, e_gathered_full] =
+                        gathered.get(n.id as usize).copied().unwrap_or([Rgb::ZERO; 2]);
                     let up = if n.parent == NONE { Chain::default() } else { chain[n.parent as usize] };
                     chain.push(Chain {
                         full: up.full + e_gathered_full,
@@ -1426,23 +1338,19 @@ impl HierarchicalSolver {
                         f: up.f + e.f_sum,
                         fv_partial: up.fv_partial + e.fv_partial,
                     });
-                    let (b, b_max) = if n.kids[0] == NONE {
+                    if n.kids[0] == NONE {
                         let h = up.full * e.norm + up.rest + e_gathered;
                         let b = e.emission + e.reflectance.mul_rgb(h);
-                        let old = match before {
-                            Some(v) => v.get(id).copied().unwrap_or(e.radiosity),
-                            None => b_prev.get(id).copied().unwrap_or(e.radiosity),
-                        };
+                        let old = before.and_then(|v| v.get(n.id as usize).copied()).unwrap_or(e.radiosity);
                         max_change = max_change.max(b.abs_diff_max(old));
                         max_reflected = max_reflected.max((b - e.emission).max_channel());
                         absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
                         let fv = up.f * e.norm + up.fv_partial + e.fv_sum;
                         escaped += b * (e.area * (1.0 - fv));
-                        (b, b.max_channel())
+                        out.push((b, b.max_channel()));
                     } else {
-                        (Rgb::ZERO, 0.0)
-                    };
-                    out.push(PpOut { b, b_max, gathered: [e_gathered, e_gathered_full] });
+                        out.push((Rgb::ZERO, 0.0));
+                    }
                 }
                 for (i, n) in nodes.iter().enumerate().rev() {
                     if n.kids[0] == NONE {
@@ -1452,12 +1360,11 @@ impl HierarchicalSolver {
                     let mut b = Rgb::ZERO;
                     let mut b_max: f64 = 0.0;
                     for &k in &n.kids {
-                        let o = &out[k as usize];
-                        b += o.b * (els[nodes[k as usize].id as usize].area / area);
-                        b_max = b_max.max(o.b_max);
+                        let (bk, mk) = out[k as usize];
+                        b += bk * (els[nodes[k as usize].id as usize].area / area);
+                        b_max = b_max.max(mk);
                     }
-                    out[i].b = b;
-                    out[i].b_max = b_max;
+                    out[i] = (b, b_max);
                 }
                 (out, max_change, max_reflected, absorbed, escaped)
             })
@@ -1466,24 +1373,22 @@ impl HierarchicalSolver {
         let mut max_reflected: f64 = 0.0;
         let mut absorbed = Rgb::ZERO;
         let mut escaped = Rgb::ZERO;
-        let mut outs = Vec::with_capacity(per_root.len());
-        for (out, mc, mr, ab, es) in per_root {
+        let els = &mut self.hier.elements;
+        let b_all = &mut self.b_prev;
+        b_all.resize(els.len(), Rgb::ZERO);
+        for (nodes, (out, mc, mr, ab, es)) in order.iter().zip(per_root) {
             max_change = max_change.max(mc);
             max_reflected = max_reflected.max(mr);
             absorbed += ab;
             escaped += es;
-            outs.push(out);
+            for (n, (b, b_max)) in nodes.iter().zip(out) {
+                let e = &mut els[n.id as usize];
+                e.radiosity = b;
+                e.b_max = b_max;
+                b_all[n.id as usize] = b;
+            }
         }
-        // The new radiosities become the next gather's sources.
-        let pos = &self.pp_pos;
-        self.b_prev.resize(self.hier.len(), Rgb::ZERO);
-        self.b_prev.par_iter_mut().enumerate().with_min_len(1024).for_each(|(id, b)| {
-            let [r, p] = pos[id];
-            *b = outs[r as usize][p as usize].b;
-        });
         self.b_fresh = true;
-        self.pp_out = outs;
-        self.elements_stale = true;
         self.pp_order = Some(order);
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
         self.residuals.push(residual);
@@ -1492,10 +1397,9 @@ impl HierarchicalSolver {
         self.energy.escaped = escaped;
     }
 
-    /// Every root's subtree in preorder (children in order), with parent and child positions;
-    /// and every element's (root, position).
-    fn preorders(&self) -> (Vec<Vec<PpNode>>, Vec<[u32; 2]>) {
-        let order: Vec<Vec<PpNode>> = (0..self.hier.roots as u32)
+    /// Every root's subtree in preorder (children in order), with parent and child positions.
+    fn preorders(&self) -> Vec<Vec<PpNode>> {
+        (0..self.hier.roots as u32)
             .into_par_iter()
             .map(|root| {
                 let mut nodes = Vec::new();
@@ -1515,14 +1419,7 @@ impl HierarchicalSolver {
                 }
                 nodes
             })
-            .collect();
-        let mut pos = vec![[0u32; 2]; self.hier.len()];
-        for (r, nodes) in order.iter().enumerate() {
-            for (p, n) in nodes.iter().enumerate() {
-                pos[n.id as usize] = [r as u32, p as u32];
-            }
-        }
-        (order, pos)
+            .collect()
     }
 
     /// Refine, gather, push-pull.
@@ -1533,11 +1430,9 @@ impl HierarchicalSolver {
         if r.cancelled {
             return self.report(StepKind::Iterate, t, r.refined, r.new_links);
         }
-        if self.params.gauss_seidel {
-            self.gather_inner();
-        } else {
-            self.jacobi_iteration();
-            self.sync_elements();
+        self.gather_inner();
+        if !self.params.gauss_seidel {
+            self.push_pull_step();
         }
         self.report(StepKind::Iterate, t, r.refined, r.new_links)
     }
@@ -1568,10 +1463,9 @@ impl HierarchicalSolver {
             }
             let mut iters = 0;
             loop {
-                if self.params.gauss_seidel {
-                    self.gather_inner();
-                } else {
-                    self.jacobi_iteration();
+                self.gather_inner();
+                if !self.params.gauss_seidel {
+                    self.push_pull_step();
                 }
                 iters += 1;
                 if self.converged || iters >= self.params.max_iterations || self.cancelled() {
@@ -1583,7 +1477,6 @@ impl HierarchicalSolver {
                 break;
             }
         }
-        self.sync_elements();
         progress(u64::from(rounds), u64::from(rounds));
         self.report(StepKind::Solve, t, refined_total, links_total)
     }
