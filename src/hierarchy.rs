@@ -91,9 +91,7 @@ pub struct Element {
     pub b_max: f64,
     /// Radiosity: leaves E + ρ·H; interior elements the area average of their children (pull).
     pub radiosity: Rgb,
-    /// Irradiance gathered over this element's own links, Σ F·V·B_source (before push). The
-    /// hierarchical solver's Jacobi gathers keep these in a compact array of their own (its
-    /// snapshot reports them); only its Gauss–Seidel sweep writes them here.
+    /// Irradiance gathered over this element's own links, Σ F·V·B_source (before push).
     pub gathered: Rgb,
     /// The part of `gathered` that comes through fully visible links (V = 1); only this part is
     /// normalised when pushed down to leaves.

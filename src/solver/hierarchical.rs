@@ -380,16 +380,9 @@ pub struct HierarchicalSolver {
     /// Every root's subtree in preorder, for `push_pull_flat`; rebuilt after the hierarchy
     /// changes.
     pp_order: Option<Vec<Vec<PpNode>>>,
-    /// Every element's radiosity, compact, for Jacobi gathers: written by push-pull, read by the
-    /// next gather (kept between gathers, so no large allocation per iteration).
+    /// Scratch for Jacobi gathers: every element's radiosity before the gather (kept between
+    /// gathers, so no large allocation per iteration).
     b_prev: Vec<Rgb>,
-    /// `b_prev` holds the elements' current radiosities (false after anything but push-pull
-    /// changed them or the hierarchy).
-    b_fresh: bool,
-    /// Every element's gathered irradiance (all links, fully visible links), compact: written
-    /// by the gathers, read by push-pull. The elements' own `gathered` fields are written only
-    /// by the Gauss–Seidel sweep; read through [`Self::gathered_of`].
-    gathered: Vec<[Rgb; 2]>,
     /// The links flattened for gathering; rebuilt after links change.
     gather_plan: Option<GatherPlan>,
     /// The oracle's compact copy of every element's (b_max, max channel of B) during
@@ -460,8 +453,6 @@ impl HierarchicalSolver {
             energy: EnergyBalance::default(),
             gathered_once: false,
             pp_order: None,
-            b_fresh: false,
-            gathered: Vec::new(),
             b_prev: Vec::new(),
             gather_plan: None,
             oracle_b: Vec::new(),
@@ -515,8 +506,6 @@ impl HierarchicalSolver {
         self.links = LinkStore::new(self.hier.len());
         self.gather_plan = None;
         self.pp_order = None;
-        self.b_fresh = false;
-        self.gathered.clear();
         self.linked = false;
         self.stats = HierarchicalStats::default();
         self.residuals.clear();
@@ -572,7 +561,6 @@ impl HierarchicalSolver {
         self.sync_oracle_b();
         self.gather_plan = None;
         self.pp_order = None;
-        self.b_fresh = false;
         let mut changed = IdSet::default();
         if !self.linked {
             new_links += self.initial_linking();
@@ -1201,11 +1189,9 @@ impl HierarchicalSolver {
                 let ids = self.subtree(root);
                 let g: Vec<(Rgb, Rgb)> =
                     ids.iter().map(|&r| plan.gather(r as usize, |s| self.hier.get(s).radiosity)).collect();
-                self.gathered.resize(self.hier.len(), [Rgb::ZERO; 2]);
                 for (&r, (g, full)) in ids.iter().zip(g) {
                     self.hier.elements[r as usize].gathered = g;
                     self.hier.elements[r as usize].gathered_full = full;
-                    self.gathered[r as usize] = [g, full];
                 }
                 self.push_pull_root(root);
             }
@@ -1217,26 +1203,20 @@ impl HierarchicalSolver {
             // Sources' radiosity in a compact array (read once per link, in any order), then
             // every receiver gathers in parallel.
             let mut b = std::mem::take(&mut self.b_prev);
-            if !self.b_fresh || b.len() != self.hier.len() {
-                b.resize(self.hier.len(), Rgb::ZERO);
-                b.par_iter_mut()
-                    .zip(self.hier.elements.par_iter())
-                    .with_min_len(1024)
-                    .for_each(|(b, e)| *b = e.radiosity);
-            }
-            let mut gathered = std::mem::take(&mut self.gathered);
-            gathered.resize(self.hier.len(), [Rgb::ZERO; 2]);
-            gathered.par_chunks_mut(PLAN_CHUNK).enumerate().for_each(|(k, gs)| {
+            b.resize(self.hier.len(), Rgb::ZERO);
+            b.par_iter_mut()
+                .zip(self.hier.elements.par_iter())
+                .with_min_len(1024)
+                .for_each(|(b, e)| *b = e.radiosity);
+            self.hier.elements.par_chunks_mut(PLAN_CHUNK).enumerate().for_each(|(k, els)| {
                 let chunk = plan.chunks.get(k);
-                for (i, g) in gs.iter_mut().enumerate() {
-                    let (all, full) = match chunk {
+                for (i, e) in els.iter_mut().enumerate() {
+                    (e.gathered, e.gathered_full) = match chunk {
                         Some(c) if i + 1 < c.start.len() => c.gather(i, |s| b[s as usize]),
                         _ => (Rgb::ZERO, Rgb::ZERO),
                     };
-                    *g = [all, full];
                 }
             });
-            self.gathered = gathered;
             self.b_prev = b;
             self.stats.gather_s += t.elapsed().as_secs_f64();
         }
@@ -1256,11 +1236,6 @@ impl HierarchicalSolver {
             }
         }
         out
-    }
-
-    /// Element `i`'s irradiance gathered through its own links at the last gather.
-    fn gathered_of(&self, i: usize) -> Rgb {
-        self.gathered.get(i).map_or(self.hier.elements[i].gathered, |g| g[0])
     }
 
     /// Push gathered irradiance down to the leaves (B = E + ρ·norm·H), pull area averages up.
@@ -1316,7 +1291,6 @@ impl HierarchicalSolver {
             None => self.preorders(),
         };
         let els = &self.hier.elements;
-        let gathered = &self.gathered;
         let per_root: Vec<RootPushPull> = order
             .par_iter()
             .with_max_len(4)
@@ -1329,17 +1303,15 @@ impl HierarchicalSolver {
                 let mut out: Vec<(Rgb, f64)> = Vec::with_capacity(nodes.len());
                 for n in nodes {
                     let e = &els[n.id as usize];
-                    let [e_gathered, e_gathered_full] =
-                        gathered.get(n.id as usize).copied().unwrap_or([Rgb::ZERO; 2]);
                     let up = if n.parent == NONE { Chain::default() } else { chain[n.parent as usize] };
                     chain.push(Chain {
-                        full: up.full + e_gathered_full,
-                        rest: up.rest + (e_gathered - e_gathered_full),
+                        full: up.full + e.gathered_full,
+                        rest: up.rest + (e.gathered - e.gathered_full),
                         f: up.f + e.f_sum,
                         fv_partial: up.fv_partial + e.fv_partial,
                     });
                     if n.kids[0] == NONE {
-                        let h = up.full * e.norm + up.rest + e_gathered;
+                        let h = up.full * e.norm + up.rest + e.gathered;
                         let b = e.emission + e.reflectance.mul_rgb(h);
                         let old = before.and_then(|v| v.get(n.id as usize).copied()).unwrap_or(e.radiosity);
                         max_change = max_change.max(b.abs_diff_max(old));
@@ -1374,8 +1346,6 @@ impl HierarchicalSolver {
         let mut absorbed = Rgb::ZERO;
         let mut escaped = Rgb::ZERO;
         let els = &mut self.hier.elements;
-        let b_all = &mut self.b_prev;
-        b_all.resize(els.len(), Rgb::ZERO);
         for (nodes, (out, mc, mr, ab, es)) in order.iter().zip(per_root) {
             max_change = max_change.max(mc);
             max_reflected = max_reflected.max(mr);
@@ -1385,10 +1355,8 @@ impl HierarchicalSolver {
                 let e = &mut els[n.id as usize];
                 e.radiosity = b;
                 e.b_max = b_max;
-                b_all[n.id as usize] = b;
             }
         }
-        self.b_fresh = true;
         self.pp_order = Some(order);
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
         self.residuals.push(residual);
@@ -1538,7 +1506,7 @@ impl HierarchicalSolver {
                 reflectance: e.reflectance,
                 emission: e.emission,
                 radiosity: e.radiosity,
-                gathered: self.gathered_of(i),
+                gathered: e.gathered,
                 error_estimate: est[i],
                 stop: e.stop,
             })
