@@ -201,70 +201,40 @@ fn disjoint_mut<T>(v: &mut [T], ids: impl Iterator<Item = u32>) -> Vec<&mut T> {
 }
 
 /// Every receiver's links with F·V > 0, flattened for gathering (links do not change between
-/// refinements): source (high bit set when fully visible) and weight F·V, in list order. Kept in
-/// chunks of `PLAN_CHUNK` receivers, built and gathered in parallel chunk by chunk.
+/// refinements): source (high bit set when fully visible) and weight F·V, in list order.
 #[derive(Debug, Default)]
 struct GatherPlan {
-    chunks: Vec<PlanChunk>,
-}
-
-/// Receivers `k·PLAN_CHUNK ..` of a [`GatherPlan`]: local receiver i's links are
-/// `start[i]..start[i + 1]`.
-#[derive(Debug, Default)]
-struct PlanChunk {
+    /// Receiver r's links are `start[r]..start[r + 1]`.
     start: Vec<u32>,
     source: Vec<u32>,
     weight: Vec<f64>,
 }
 
 const FULL_BIT: u32 = 1 << 31;
-/// Receivers per [`PlanChunk`] (the unit of parallel work in a Jacobi gather).
-const PLAN_CHUNK: usize = 256;
 
 impl GatherPlan {
     fn new(links: &LinkStore) -> GatherPlan {
-        let chunks = links
-            .by_receiver
-            .par_chunks(PLAN_CHUNK)
-            .map(|lists| {
-                let n: usize = lists.iter().map(Vec::len).sum();
-                let mut c = PlanChunk {
-                    start: Vec::with_capacity(lists.len() + 1),
-                    source: Vec::with_capacity(n),
-                    weight: Vec::with_capacity(n),
-                };
-                for ls in lists {
-                    c.start.push(c.source.len() as u32);
-                    for l in ls {
-                        let w = f64::from(l.ff) * f64::from(l.vis);
-                        if w > 0.0 {
-                            debug_assert!(l.source < FULL_BIT, "element ids stay below 2^31");
-                            c.source.push(l.source | if l.vis >= 1.0 { FULL_BIT } else { 0 });
-                            c.weight.push(w);
-                        }
-                    }
+        let mut plan =
+            GatherPlan { start: Vec::with_capacity(links.by_receiver.len() + 1), ..GatherPlan::default() };
+        for ls in &links.by_receiver {
+            plan.start.push(plan.source.len() as u32);
+            for l in ls {
+                let w = f64::from(l.ff) * f64::from(l.vis);
+                if w > 0.0 {
+                    debug_assert!(l.source < FULL_BIT, "element ids stay below 2^31");
+                    plan.source.push(l.source | if l.vis >= 1.0 { FULL_BIT } else { 0 });
+                    plan.weight.push(w);
                 }
-                c.start.push(c.source.len() as u32);
-                c
-            })
-            .collect();
-        GatherPlan { chunks }
+            }
+        }
+        plan.start.push(plan.source.len() as u32);
+        plan
     }
 
     /// (Σ F·V·B over receiver `r`'s links, the same over the fully visible ones), in list
     /// order, with source radiosities `b`.
     fn gather(&self, r: usize, b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
-        match self.chunks.get(r / PLAN_CHUNK) {
-            Some(c) => c.gather(r % PLAN_CHUNK, b),
-            None => (Rgb::ZERO, Rgb::ZERO),
-        }
-    }
-}
-
-impl PlanChunk {
-    /// [`GatherPlan::gather`] for local receiver `i`.
-    fn gather(&self, i: usize, b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
-        let (lo, hi) = (self.start[i] as usize, self.start[i + 1] as usize);
+        let (lo, hi) = (self.start[r] as usize, self.start[r + 1] as usize);
         let mut g = Rgb::ZERO;
         let mut full = Rgb::ZERO;
         for (&s, &w) in self.source[lo..hi].iter().zip(&self.weight[lo..hi]) {
@@ -377,9 +347,8 @@ pub struct HierarchicalSolver {
     bvh_s: f64,
     energy: EnergyBalance,
     gathered_once: bool,
-    /// Every root's subtree in preorder, for `push_pull_flat`; rebuilt after the hierarchy
-    /// changes.
-    pp_order: Option<Vec<Vec<PpNode>>>,
+    /// Scratch for `push_pull_flat`.
+    chain: Vec<Chain>,
     /// Scratch for Jacobi gathers: every element's radiosity before the gather (kept between
     /// gathers, so no large allocation per iteration).
     b_prev: Vec<Rgb>,
@@ -392,19 +361,6 @@ pub struct HierarchicalSolver {
     /// with it (on by default; off only to check that it changes nothing).
     early_exit: bool,
 }
-
-/// One element of a root's subtree in preorder (`push_pull_flat`): its id, and the positions in
-/// that list of its parent (`NONE` for the root) and of its children (`NONE` for a leaf).
-#[derive(Copy, Clone, Debug)]
-struct PpNode {
-    id: u32,
-    parent: u32,
-    kids: [u32; 4],
-}
-
-/// What one root's push-pull returns: every element's (B, b_max) in the subtree's preorder, the
-/// largest leaf change and reflected radiosity, absorbed and escaped power.
-type RootPushPull = (Vec<(Rgb, f64)>, f64, f64, Rgb, Rgb);
 
 /// Sums an element inherits in push-pull, its own included.
 #[derive(Copy, Clone, Debug, Default)]
@@ -452,7 +408,7 @@ impl HierarchicalSolver {
             bvh_s,
             energy: EnergyBalance::default(),
             gathered_once: false,
-            pp_order: None,
+            chain: Vec::new(),
             b_prev: Vec::new(),
             gather_plan: None,
             oracle_b: Vec::new(),
@@ -505,7 +461,6 @@ impl HierarchicalSolver {
         self.hier = Hierarchy::from_scene(&self.scene);
         self.links = LinkStore::new(self.hier.len());
         self.gather_plan = None;
-        self.pp_order = None;
         self.linked = false;
         self.stats = HierarchicalStats::default();
         self.residuals.clear();
@@ -560,7 +515,6 @@ impl HierarchicalSolver {
         self.oracle_b.clear();
         self.sync_oracle_b();
         self.gather_plan = None;
-        self.pp_order = None;
         let mut changed = IdSet::default();
         if !self.linked {
             new_links += self.initial_linking();
@@ -1208,14 +1162,8 @@ impl HierarchicalSolver {
                 .zip(self.hier.elements.par_iter())
                 .with_min_len(1024)
                 .for_each(|(b, e)| *b = e.radiosity);
-            self.hier.elements.par_chunks_mut(PLAN_CHUNK).enumerate().for_each(|(k, els)| {
-                let chunk = plan.chunks.get(k);
-                for (i, e) in els.iter_mut().enumerate() {
-                    (e.gathered, e.gathered_full) = match chunk {
-                        Some(c) if i + 1 < c.start.len() => c.gather(i, |s| b[s as usize]),
-                        _ => (Rgb::ZERO, Rgb::ZERO),
-                    };
-                }
+            self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
+                (e.gathered, e.gathered_full) = plan.gather(r, |s| b[s as usize]);
             });
             self.b_prev = b;
             self.stats.gather_s += t.elapsed().as_secs_f64();
@@ -1278,116 +1226,64 @@ impl HierarchicalSolver {
         }
     }
 
-    /// Push-pull over the whole forest, every root's subtree in parallel in two sweeps over its
-    /// preorder: down, each element's inherited sums from its parent's, leaves' radiosity
-    /// B = E + ρ·(H_full·norm + H_rest) and their energy terms; then up in reverse, area
-    /// averages (children in order, as `push_pull_rec`). The same values as `push_pull_rec` from
-    /// every root; the power sums are added root by root, so they do not depend on the thread
-    /// count. The residual is the largest leaf change against `before` (default: the values
-    /// before this call).
+    /// Push-pull over the whole forest in two flat sweeps (parents have smaller ids than their
+    /// children): down in id order, each element's inherited sums from its parent's, leaves'
+    /// radiosity B = E + ρ·(H_full·norm + H_rest) and their energy terms; then up in reverse
+    /// order, area averages. The same values as `push_pull_rec` from every root. The residual is
+    /// the largest leaf change against `before` (default: the values before this call).
     fn push_pull_flat(&mut self, before: Option<&[Rgb]>) {
-        let order = match self.pp_order.take() {
-            Some(o) => o,
-            None => self.preorders(),
-        };
-        let els = &self.hier.elements;
-        let per_root: Vec<RootPushPull> = order
-            .par_iter()
-            .with_max_len(4)
-            .map(|nodes| {
-                let mut max_change: f64 = 0.0;
-                let mut max_reflected: f64 = 0.0;
-                let mut absorbed = Rgb::ZERO;
-                let mut escaped = Rgb::ZERO;
-                let mut chain: Vec<Chain> = Vec::with_capacity(nodes.len());
-                let mut out: Vec<(Rgb, f64)> = Vec::with_capacity(nodes.len());
-                for n in nodes {
-                    let e = &els[n.id as usize];
-                    let up = if n.parent == NONE { Chain::default() } else { chain[n.parent as usize] };
-                    chain.push(Chain {
-                        full: up.full + e.gathered_full,
-                        rest: up.rest + (e.gathered - e.gathered_full),
-                        f: up.f + e.f_sum,
-                        fv_partial: up.fv_partial + e.fv_partial,
-                    });
-                    if n.kids[0] == NONE {
-                        let h = up.full * e.norm + up.rest + e.gathered;
-                        let b = e.emission + e.reflectance.mul_rgb(h);
-                        let old = before.and_then(|v| v.get(n.id as usize).copied()).unwrap_or(e.radiosity);
-                        max_change = max_change.max(b.abs_diff_max(old));
-                        max_reflected = max_reflected.max((b - e.emission).max_channel());
-                        absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                        let fv = up.f * e.norm + up.fv_partial + e.fv_sum;
-                        escaped += b * (e.area * (1.0 - fv));
-                        out.push((b, b.max_channel()));
-                    } else {
-                        out.push((Rgb::ZERO, 0.0));
-                    }
-                }
-                for (i, n) in nodes.iter().enumerate().rev() {
-                    if n.kids[0] == NONE {
-                        continue;
-                    }
-                    let area = els[n.id as usize].area;
-                    let mut b = Rgb::ZERO;
-                    let mut b_max: f64 = 0.0;
-                    for &k in &n.kids {
-                        let (bk, mk) = out[k as usize];
-                        b += bk * (els[nodes[k as usize].id as usize].area / area);
-                        b_max = b_max.max(mk);
-                    }
-                    out[i] = (b, b_max);
-                }
-                (out, max_change, max_reflected, absorbed, escaped)
-            })
-            .collect();
         let mut max_change: f64 = 0.0;
         let mut max_reflected: f64 = 0.0;
         let mut absorbed = Rgb::ZERO;
         let mut escaped = Rgb::ZERO;
+        let n = self.hier.len();
+        // Per element: its own and inherited sums (full-visibility irradiance, other irradiance,
+        // full-visibility F, other F·V).
+        let chain = &mut self.chain;
+        chain.clear();
+        chain.reserve(n);
         let els = &mut self.hier.elements;
-        for (nodes, (out, mc, mr, ab, es)) in order.iter().zip(per_root) {
-            max_change = max_change.max(mc);
-            max_reflected = max_reflected.max(mr);
-            absorbed += ab;
-            escaped += es;
-            for (n, (b, b_max)) in nodes.iter().zip(out) {
-                let e = &mut els[n.id as usize];
+        for (i, e) in els.iter_mut().enumerate() {
+            let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
+            chain.push(Chain {
+                full: up.full + e.gathered_full,
+                rest: up.rest + (e.gathered - e.gathered_full),
+                f: up.f + e.f_sum,
+                fv_partial: up.fv_partial + e.fv_partial,
+            });
+            if e.is_leaf() {
+                let h = up.full * e.norm + up.rest + e.gathered;
+                let b = e.emission + e.reflectance.mul_rgb(h);
+                let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
+                max_change = max_change.max(b.abs_diff_max(old));
+                max_reflected = max_reflected.max((b - e.emission).max_channel());
+                absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
+                let fv = up.f * e.norm + up.fv_partial + e.fv_sum;
+                escaped += b * (e.area * (1.0 - fv));
                 e.radiosity = b;
-                e.b_max = b_max;
+                e.b_max = b.max_channel();
             }
         }
-        self.pp_order = Some(order);
+        for i in (0..n).rev() {
+            let first = els[i].first_child;
+            if first == NONE {
+                continue;
+            }
+            let area = els[i].area;
+            let mut b = Rgb::ZERO;
+            let mut b_max: f64 = 0.0;
+            for c in &els[first as usize..first as usize + 4] {
+                b += c.radiosity * (c.area / area);
+                b_max = b_max.max(c.b_max);
+            }
+            els[i].radiosity = b;
+            els[i].b_max = b_max;
+        }
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
         self.residuals.push(residual);
         self.converged = residual < self.params.tolerance;
         self.energy.absorbed = absorbed;
         self.energy.escaped = escaped;
-    }
-
-    /// Every root's subtree in preorder (children in order), with parent and child positions.
-    fn preorders(&self) -> Vec<Vec<PpNode>> {
-        (0..self.hier.roots as u32)
-            .into_par_iter()
-            .map(|root| {
-                let mut nodes = Vec::new();
-                // (element, its parent's position)
-                let mut stack = vec![(root, NONE)];
-                while let Some((id, parent)) = stack.pop() {
-                    let pos = nodes.len() as u32;
-                    nodes.push(PpNode { id, parent, kids: [NONE; 4] });
-                    if parent != NONE {
-                        let p = &mut nodes[parent as usize];
-                        let slot = p.kids.iter().position(|&k| k == NONE).expect("at most four children");
-                        p.kids[slot] = pos;
-                    }
-                    if let Some(c) = self.hier.get(id).children() {
-                        stack.extend(c.iter().rev().map(|&k| (k, pos)));
-                    }
-                }
-                nodes
-            })
-            .collect()
     }
 
     /// Refine, gather, push-pull.
