@@ -5,15 +5,17 @@
 //! V_ij ≈ (1/N) Σ_k [segment x_k → y_k unblocked],   x_k on the receiver, y_k on the source
 //! ```
 //!
-//! Deterministic: the jitter comes from a PCG stream keyed by the caller (a link's element ids),
-//! so the estimate does not depend on thread scheduling. Only sample pairs that face each other
+//! Deterministic: ray k's jitter is one SplitMix64 hash of (seed, the caller's key — a link's
+//! element ids —, k), split into four 16-bit offsets, so the estimate does not depend on thread
+//! scheduling and the rays' samples are independent of each other. The strata of each ray count
+//! are computed once; points are made from each region's bilinear form mapped once into the
+//! BVH's local frame, where the rays are cast. Only sample pairs that face each other
 //! (x in front of the source's plane and y in front of the receiver's) are counted: the form
 //! factor already clips the parts behind either plane, and counting rays through them would
 //! darken a receiver that sees only part of a large source (a box face standing on a floor).
 //! The receiver and source patches are ignored by the ray cast, so an element never shadows
-//! itself; sample points sit strictly
-//! inside the regions (strata centres jittered by at most 90 % of a stratum), so rays never
-//! graze a shared edge.
+//! itself; sample points sit strictly inside the regions (5 % to 95 % across their stratum), so
+//! rays never graze a shared edge.
 
 use crate::accel::Accel;
 use crate::math::{DVec3, Pcg32, splitmix64};
