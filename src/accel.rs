@@ -329,8 +329,16 @@ impl Accel {
     }
 
     fn to_local(&self, p: DVec3) -> Vec3A {
-        let q = (p - self.origin) * self.inv_scale;
+        let q = self.local_f64(p);
         Vec3A::new(q.x as f32, q.y as f32, q.z as f32)
+    }
+
+    /// A point in the BVH's local frame (centred on the scene's bounds, diagonal 1), in `f64`.
+    /// The map is a translation and a uniform positive scale: directions and the signs of dot
+    /// products with normals carry over.
+    #[must_use]
+    pub fn local_f64(&self, p: DVec3) -> DVec3 {
+        (p - self.origin) * self.inv_scale
     }
 
     /// Number of polygons in the BVH.
@@ -358,8 +366,13 @@ impl Accel {
     /// costs one polygon test instead of a traversal. The answer is the same as without it.
     #[must_use]
     pub fn occluded_cached(&self, a: DVec3, b: DVec3, ignore: [u32; 2], last: &mut u32) -> bool {
-        let la = self.to_local(a);
-        let lb = self.to_local(b);
+        self.occluded_local_cached(self.to_local(a), self.to_local(b), ignore, last)
+    }
+
+    /// [`Accel::occluded_cached`] for end points already in the BVH's local frame
+    /// ([`Accel::local_f64`], rounded to `f32`).
+    #[must_use]
+    pub fn occluded_local_cached(&self, la: Vec3A, lb: Vec3A, ignore: [u32; 2], last: &mut u32) -> bool {
         let delta = lb - la;
         let len = delta.length();
         if !(len > 2.0 * END_EPS) {

@@ -5,18 +5,21 @@
 //! V_ij ≈ (1/N) Σ_k [segment x_k → y_k unblocked],   x_k on the receiver, y_k on the source
 //! ```
 //!
-//! Deterministic: the jitter comes from a PCG stream keyed by the caller (a link's element ids),
-//! so the estimate does not depend on thread scheduling. Only sample pairs that face each other
+//! Deterministic: ray k's jitter is one SplitMix64 hash of (seed, the caller's key — a link's
+//! element ids —, k), split into four 16-bit offsets, so the estimate does not depend on thread
+//! scheduling and the rays' samples are independent of each other. The strata of each ray count
+//! are computed once; points are made from each region's bilinear form mapped once into the
+//! BVH's local frame, where the rays are cast. Only sample pairs that face each other
 //! (x in front of the source's plane and y in front of the receiver's) are counted: the form
 //! factor already clips the parts behind either plane, and counting rays through them would
 //! darken a receiver that sees only part of a large source (a box face standing on a floor).
 //! The receiver and source patches are ignored by the ray cast, so an element never shadows
-//! itself; sample points sit strictly
-//! inside the regions (strata centres jittered by at most 90 % of a stratum), so rays never
-//! graze a shared edge.
+//! itself; sample points sit strictly inside the regions (5 % to 95 % across their stratum), so
+//! rays never graze a shared edge.
 
 use crate::accel::Accel;
-use crate::math::{DVec3, Pcg32};
+use crate::math::{DVec3, Pcg32, splitmix64};
+use glam::Vec3A;
 
 /// Point on a triangle or quad from (u, v) ∈ [0,1)²: bilinear on quads, the square-root map
 /// (uniform in area) on triangles.
@@ -29,6 +32,82 @@ pub fn point_on_polygon(verts: &[DVec3], u: f64, v: f64) -> DVec3 {
         let a = verts[0].lerp(verts[1], u);
         let b = verts[3].lerp(verts[2], u);
         a.lerp(b, v)
+    }
+}
+
+/// Offset within a stratum from 16 bits: 5 % to 95 % of the stratum, so points never reach
+/// its edges (and sample points never touch a region's boundary).
+#[inline]
+fn jitter(bits: u64) -> f64 {
+    const UNIT: f64 = 0.9 / 65536.0;
+    0.05 + UNIT * f64::from(bits as u16)
+}
+
+/// The strata of `n` sample pairs: sample k's receiver and source strata (lower corners in
+/// [0,1)², `corners[k] = [u_r, v_r, u_s, v_s]`) and the strata's size. Receiver strata in
+/// order, source strata in a co-prime stride so pairs decorrelate.
+#[derive(Clone, Debug)]
+struct SamplePattern {
+    corners: Vec<[f64; 4]>,
+    du: f64,
+    dv: f64,
+}
+
+impl SamplePattern {
+    fn new(n: u32) -> SamplePattern {
+        let strata = Strata::new(n);
+        let (mut walk_r, mut walk_s) = (strata.walk(0), strata.walk(strata.coprime_stride(n)));
+        let corners = (0..n)
+            .map(|_| {
+                let (ri, rj) = strata.step(&mut walk_r);
+                let (si, sj) = strata.step(&mut walk_s);
+                let (du, dv) = (strata.inv_cols, strata.inv_rows);
+                [f64::from(ri) * du, f64::from(rj) * dv, f64::from(si) * du, f64::from(sj) * dv]
+            })
+            .collect();
+        SamplePattern { corners, du: strata.inv_cols, dv: strata.inv_rows }
+    }
+}
+
+/// Patterns for 1 to `CACHED_PATTERNS` rays, built once (they depend on nothing else).
+const CACHED_PATTERNS: u32 = 64;
+static PATTERNS: std::sync::OnceLock<Vec<SamplePattern>> = std::sync::OnceLock::new();
+
+fn build_patterns() -> Vec<SamplePattern> {
+    (1..=CACHED_PATTERNS).map(SamplePattern::new).collect()
+}
+
+/// A region as P(u, v) = a + f·e1 + g·e2 + h·e3 in the BVH's local frame: on a quad (f, g, h)
+/// = (u, v, uv), the bilinear map of [`point_on_polygon`]; on a triangle (√u, 0, √u·v), its
+/// square-root map.
+struct Bilinear {
+    a: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+    e3: DVec3,
+    triangle: bool,
+}
+
+impl Bilinear {
+    fn new(accel: &Accel, verts: &[DVec3]) -> Bilinear {
+        let l = |i: usize| accel.local_f64(verts[i]);
+        if verts.len() == 3 {
+            let (v0, v1, v2) = (l(0), l(1), l(2));
+            Bilinear { a: v0, e1: v1 - v0, e2: DVec3::ZERO, e3: v2 - v1, triangle: true }
+        } else {
+            let (v0, v1, v2, v3) = (l(0), l(1), l(2), l(3));
+            Bilinear { a: v0, e1: v1 - v0, e2: v3 - v0, e3: (v2 - v3) - (v1 - v0), triangle: false }
+        }
+    }
+
+    #[inline]
+    fn point(&self, u: f64, v: f64) -> DVec3 {
+        if self.triangle {
+            let su = u.sqrt();
+            self.a + self.e1 * su + self.e3 * (su * v)
+        } else {
+            self.a + self.e1 * u + self.e2 * v + self.e3 * (u * v)
+        }
     }
 }
 
@@ -56,14 +135,38 @@ impl Strata {
     }
 
     fn point(&self, k: u32, perm: u32, rng: &mut Pcg32) -> (f64, f64) {
-        let s = (u64::from(k) * u64::from(perm | 1) + u64::from(perm)) % u64::from(self.cols * self.rows);
-        let s = s as u32;
-        self.jittered(s % self.cols, s / self.cols, rng)
-    }
-
-    fn jittered(&self, i: u32, j: u32, rng: &mut Pcg32) -> (f64, f64) {
+        let (i, j) = self.stratum(k, perm);
         let ju = 0.05 + 0.9 * rng.next_f64();
         let jv = 0.05 + 0.9 * rng.next_f64();
+        self.at(i, j, ju, jv)
+    }
+
+    /// A stride for the source's strata: about 2n/3, co-prime with the number of strata so the
+    /// walk visits each once (2n/3 + 1 itself is not always: 27 and 42 strata for n = 40).
+    fn coprime_stride(&self, n: u32) -> u32 {
+        let m = self.cols * self.rows;
+        let gcd = |mut a: u32, mut b: u32| {
+            while b != 0 {
+                (a, b) = (b, a % b);
+            }
+            a
+        };
+        let mut s = 2 * n / 3 + 1;
+        while gcd(s | 1, m) != 1 {
+            s += 1;
+        }
+        s
+    }
+
+    /// (column, row) of sample k's stratum: k·(perm|1) + perm mod cols·rows.
+    fn stratum(&self, k: u32, perm: u32) -> (u32, u32) {
+        let s = (u64::from(k) * u64::from(perm | 1) + u64::from(perm)) % u64::from(self.cols * self.rows);
+        let s = s as u32;
+        (s % self.cols, s / self.cols)
+    }
+
+    /// Stratum (i, j) at offsets (ju, jv) ∈ [0, 1) within it.
+    fn at(&self, i: u32, j: u32, ju: f64, jv: f64) -> (f64, f64) {
         ((f64::from(i) + ju) * self.inv_cols, (f64::from(j) + jv) * self.inv_rows)
     }
 
@@ -75,8 +178,9 @@ impl Strata {
         Walk { i: s0 % self.cols, j: s0 / self.cols, di: step % self.cols, dj: step / self.cols }
     }
 
-    fn next(&self, w: &mut Walk, rng: &mut Pcg32) -> (f64, f64) {
-        let p = self.jittered(w.i, w.j, rng);
+    /// The walk's current stratum (column, row), then a step.
+    fn step(&self, w: &mut Walk) -> (u32, u32) {
+        let p = (w.i, w.j);
         w.i += w.di;
         w.j += w.dj;
         if w.i >= self.cols {
@@ -173,26 +277,36 @@ pub fn visibility_sample(
     if rays == 0 {
         return (1.0, 0);
     }
-    let mut rng = Pcg32::keyed(seed, key);
-    let strata = Strata::new(rays);
+    let base = splitmix64(seed ^ splitmix64(key));
+    let owned;
+    let pattern = match PATTERNS.get_or_init(build_patterns).get(rays as usize - 1) {
+        Some(p) => p,
+        None => {
+            owned = SamplePattern::new(rays);
+            &owned
+        }
+    };
+    // Points are made directly in the BVH's local frame, where the rays are cast, from each
+    // region's bilinear form (mapped there once per estimate).
+    let (rf, sf) = (Bilinear::new(accel, receiver), Bilinear::new(accel, source));
     let mut visible = 0u32;
     let mut counted = 0u32;
-    // Receiver strata in order, source strata in a co-prime stride so pairs decorrelate.
-    let stride = 2 * rays / 3 + 1;
-    let (mut walk_r, mut walk_s) = (strata.walk(0), strata.walk(stride));
-    for _ in 0..rays {
-        let (ru, rv) = strata.next(&mut walk_r, &mut rng);
-        let (su, sv) = strata.next(&mut walk_s, &mut rng);
-        let x = point_on_polygon(receiver, ru, rv);
-        let y = point_on_polygon(source, su, sv);
+    for (k, c) in pattern.corners.iter().enumerate() {
+        // One hash per ray gives the four 16-bit jitters of its two points: independent of the
+        // other rays (no serial generator state), so they are computed side by side.
+        let h = splitmix64(base.wrapping_add((k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)));
+        let x = rf.point(c[0] + pattern.du * jitter(h), c[1] + pattern.dv * jitter(h >> 16));
+        let y = sf.point(c[2] + pattern.du * jitter(h >> 32), c[3] + pattern.dv * jitter(h >> 48));
         // Only pairs that face each other carry energy (both cosines positive); a pair behind
         // either plane says nothing about the visibility that the form factor counts.
         let d = y - x;
         if n_r.dot(d) <= 0.0 || n_s.dot(d) >= 0.0 {
             continue;
         }
+        let (x, y) =
+            (Vec3A::new(x.x as f32, x.y as f32, x.z as f32), Vec3A::new(y.x as f32, y.y as f32, y.z as f32));
         counted += 1;
-        if accel.occluded_cached(x, y, [receiver_patch, source_patch], last) {
+        if accel.occluded_local_cached(x, y, [receiver_patch, source_patch], last) {
             if stop == Stop::AtMixed && visible > 0 {
                 return (f64::from(visible) / f64::from(counted), counted);
             }
@@ -241,13 +355,34 @@ mod tests {
             let strata = Strata::new(n);
             for perm in [0, 1, 2 * n / 3 + 1, 5, 97] {
                 let mut w = strata.walk(perm);
-                let (mut a, mut b) = (Pcg32::new(3, 5), Pcg32::new(3, 5));
                 for k in 0..n {
-                    assert_eq!(
-                        strata.next(&mut w, &mut a),
-                        strata.point(k, perm, &mut b),
-                        "n {n} perm {perm} k {k}"
-                    );
+                    assert_eq!(strata.step(&mut w), strata.stratum(k, perm), "n {n} perm {perm} k {k}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sample_patterns_cover_every_stratum_once_and_stay_inside() {
+        for n in [1u32, 2, 3, 4, 7, 10, 16, 40, 64, 65, 100] {
+            let p = SamplePattern::new(n);
+            assert_eq!(p.corners.len(), n as usize);
+            for side in [0, 2] {
+                let mut seen: Vec<(u64, u64)> = p
+                    .corners
+                    .iter()
+                    .map(|c| ((c[side] / p.du).round() as u64, (c[side + 1] / p.dv).round() as u64))
+                    .collect();
+                seen.sort_unstable();
+                seen.dedup();
+                assert_eq!(seen.len(), n as usize, "n {n}: a stratum used twice");
+            }
+            for c in &p.corners {
+                for (x, d) in [(c[0], p.du), (c[1], p.dv), (c[2], p.du), (c[3], p.dv)] {
+                    for bits in [0u64, 0xFFFF, 0x8000] {
+                        let u = x + d * jitter(bits);
+                        assert!(u > x && u < x + d && u < 1.0, "n {n}: {u} outside [{x}, {})", x + d);
+                    }
                 }
             }
         }

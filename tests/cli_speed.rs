@@ -9,7 +9,7 @@ fn speed_benchmark_writes_rows_with_identical_counts_for_any_thread_count() {
     let json = dir.join("speed.json");
     let out = Command::new(env!("CARGO_BIN_EXE_radlab"))
         .args(["speed", "builtin:cornell", "--preset", "interactive", "--rays", "2,4", "--threads", "1,2"])
-        .args(["--repeats", "1", "--json"])
+        .args(["--repeats", "2", "--seeds", "2", "--json"])
         .arg(&json)
         .output()
         .unwrap();
@@ -25,7 +25,15 @@ fn speed_benchmark_writes_rows_with_identical_counts_for_any_thread_count() {
         }
         assert!(pair[0]["links"].as_u64().unwrap() > 100);
         assert!(pair[0]["total_s"].as_f64().unwrap() > 0.0);
+        for row in pair {
+            assert_eq!(row["seeds"], 2);
+            let (lo, hi) = (row["links_min"].as_u64().unwrap(), row["links_max"].as_u64().unwrap());
+            assert!(lo <= row["links"].as_u64().unwrap() && row["links"].as_u64().unwrap() <= hi);
+        }
     }
+    let bad = Command::new(env!("CARGO_BIN_EXE_radlab")).args(["speed", "--seeds", "0"]).output().unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--seeds"));
     let bad = Command::new(env!("CARGO_BIN_EXE_radlab")).args(["speed", "--repeats", "0"]).output().unwrap();
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);

@@ -252,6 +252,9 @@ impl GatherPlan {
 /// above 1, so "fully visible" for the oracle, and never read otherwise (see `make_link`).
 const UNMEASURED_VIS: f32 = 2.0;
 
+/// An [`IdSet`] holding at least 1/this of the ids up to its largest is read off its marks.
+const DENSE_ID_SET: usize = 16;
+
 /// A set of element ids, read back in ascending order (marks instead of sorting duplicates).
 #[derive(Default)]
 struct IdSet {
@@ -275,13 +278,24 @@ impl IdSet {
         self.ids.is_empty()
     }
 
-    /// The ids, ascending; the set is left empty.
+    /// The ids, ascending; the set is left empty. A dense set is read off its marks (one pass,
+    /// no sort).
     fn take_sorted(&mut self) -> Vec<u32> {
         let mut ids = std::mem::take(&mut self.ids);
-        for &i in &ids {
-            self.mark[i as usize] = false;
+        if ids.len() >= self.mark.len() / DENSE_ID_SET {
+            ids.clear();
+            for (i, m) in self.mark.iter_mut().enumerate() {
+                if *m {
+                    *m = false;
+                    ids.push(i as u32);
+                }
+            }
+        } else {
+            for &i in &ids {
+                self.mark[i as usize] = false;
+            }
+            ids.sort_unstable();
         }
-        ids.sort_unstable();
         ids
     }
 }
@@ -684,30 +698,46 @@ impl HierarchicalSolver {
 
     /// The oracle on one link: `Ok(side to split)` or `Err(why it is kept)`.
     fn decide(&self, p: &Element, link: &Link) -> Result<Split, StopReason> {
-        let (want, below) = match self.params.oracle {
-            Oracle::Feps => (f64::from(link.fmax) >= self.params.feps, StopReason::BelowFeps),
+        let class = link.class();
+        if class == VisClass::None || !self.wants_split(link, class, self.source_b(link.source)) {
+            return Err(self.below_reason());
+        }
+        self.split_side(p, link)
+    }
+
+    /// Why a link the oracle does not want to split is kept.
+    fn below_reason(&self) -> StopReason {
+        match self.params.oracle {
+            Oracle::Feps => StopReason::BelowFeps,
+            Oracle::Bf => StopReason::BelowBfEps,
+        }
+    }
+
+    /// Does the oracle's estimate call for splitting this link were its visibility of class
+    /// `class` (Full or Partial)? `b`: the source's `source_b`.
+    fn wants_split(&self, link: &Link, class: VisClass, [b_max, b_channel]: [f64; 2]) -> bool {
+        match self.params.oracle {
+            Oracle::Feps => f64::from(link.fmax) >= self.params.feps,
             Oracle::Bf => {
                 // A partially visible link may see the bright or the dark part of its source
                 // (the floor round a box's foot is lit, the part under it is dark and hidden):
                 // B_avg · V_avg then counts the darkness twice. Bound it by the source's
                 // brightest leaf.
-                let [b_max, b_channel] = self.source_b(link.source);
-                let b = if link.class() == VisClass::Partial && self.params.conservative {
-                    b_max
+                let partial = class == VisClass::Partial;
+                let b = if partial && self.params.conservative { b_max } else { b_channel };
+                let (bound, thr) = if partial {
+                    (1.0, self.bf_eps * PARTIAL_BF_FACTOR)
                 } else {
-                    b_channel
+                    (f64::from(link.bound), self.bf_eps)
                 };
-                let thr = if link.class() == VisClass::Partial {
-                    self.bf_eps * PARTIAL_BF_FACTOR
-                } else {
-                    self.bf_eps
-                };
-                (b > 0.0 && link.bf_error(b) > thr, StopReason::BelowBfEps)
+                b > 0.0 && b * f64::from(link.fmax) * bound > thr
             }
-        };
-        if !want || link.vis <= 0.0 {
-            return Err(below);
         }
+    }
+
+    /// The side a link the oracle wants split is split on (`Err`: why it is kept instead, both
+    /// elements being at their limits). Does not depend on the link's visibility.
+    fn split_side(&self, p: &Element, link: &Link) -> Result<Split, StopReason> {
         let q = self.hier.get(link.source);
         let (first, second) = if link.split_source { (q, p) } else { (p, q) };
         let side = |source: bool| if source { Split::Source } else { Split::Receiver };
@@ -746,22 +776,32 @@ impl HierarchicalSolver {
             }
             (out, rays)
         };
-        let made: Vec<([Option<Link>; 4], u64)> = if splits.len() >= PARALLEL_SPLITS {
+        // Few splits: made one by one below, without a list.
+        let parallel = splits.len() >= PARALLEL_SPLITS;
+        let made: Vec<([Option<Link>; 4], u64)> = if parallel {
             splits.par_iter().with_max_len(PARALLEL_SPLITS / 4).map(new_of).collect()
         } else {
-            splits.iter().map(new_of).collect()
+            Vec::new()
         };
+        let mut made = made.into_iter();
         let mut own = Vec::with_capacity(old.len() + 3 * splits.len());
         let mut kids = Kids::default();
+        let down = splits.iter().filter(|(_, side)| *side == Split::Receiver).count();
+        if down > 0 {
+            for k in &mut kids.0 {
+                k.reserve_exact(down);
+            }
+        }
         let mut rays = 0u64;
         let mut own_changed = false;
         let mut created = 0;
-        let mut next = splits.iter().zip(made).peekable();
+        let mut next = splits.iter().peekable();
         for (i, l) in old.iter().enumerate() {
             let (side, (new, nr)) = match next.peek() {
-                Some(&(&(j, _), _)) if j as usize == i => {
-                    let (&(_, side), made) = next.next().expect("peeked");
-                    (side, made)
+                Some(&&(j, _)) if j as usize == i => {
+                    let split = next.next().expect("peeked");
+                    let m = if parallel { made.next().expect("one per split") } else { new_of(split) };
+                    (split.1, m)
                 }
                 _ => {
                     own.push(Link { fresh: false, ..*l });
@@ -824,13 +864,26 @@ impl HierarchicalSolver {
             (v, u64::from(cast))
         };
         let mut link = new_link(p, q, source, ff, 1.0, sides.straddle, self.params.conservative);
+        // Which visibility classes the next pass would split the link in (the side does not
+        // depend on V; a split when fully visible implies one when partially visible: the
+        // partial test uses a bound of 1 instead of ≤ 1, a source term b_max ≥ the max channel
+        // of B, and a threshold 4× lower).
+        let (split_full, split_partial) = if self.split_side(p, &link).is_ok() {
+            let b = self.source_b(source);
+            (self.wants_split(&link, VisClass::Full, b), self.wants_split(&link, VisClass::Partial, b))
+        } else {
+            (false, false)
+        };
+        debug_assert!(!split_full || split_partial, "a full-visibility split must imply a partial one");
         // A link that the next refinement pass splits whatever its exact V is needs only the
         // rays that tell which case it is in: it is replaced before anyone reads V. When the
         // pass splits it unless V = 0, one unblocked ray settles it; when it splits it unless
         // V is 0 or 1, one unblocked and one blocked ray do.
-        let stop = if self.splits_unless_hidden(p, &link) {
+        let stop = if !self.early_exit {
+            Stop::Never
+        } else if split_full {
             Stop::AtVisible
-        } else if self.splits_if_partial(p, &link) {
+        } else if split_partial {
             Stop::AtMixed
         } else {
             Stop::Never
@@ -847,15 +900,14 @@ impl HierarchicalSolver {
             return (Some(link), cast);
         }
         if surely {
-            link.ff = link_form_factor(p, q) as f32;
+            link.ff = link_form_factor_rule(p, q, self.params.five_times) as f32;
         }
         link.vis = vis as f32;
         if vis == 0.0 && self.params.zero_confirm > 0 {
             // A zero estimate ends refinement for good; if the link would be refined were it
             // partially visible, confirm with more rays first (a stopping rule on a noisy zero
             // biases the solution dark).
-            let probe = Link { vis: 0.5, ..link };
-            if self.decide(p, &probe).is_ok() {
+            if split_partial {
                 let more = self.params.zero_confirm.saturating_mul(rays);
                 let (v2, c2) = vis_with(more, 0x5EED, Stop::Never);
                 cast += c2;
@@ -865,34 +917,12 @@ impl HierarchicalSolver {
         (Some(link), cast)
     }
 
-    /// Does the oracle split this link (on the same side) whether it is fully or partially
-    /// visible? Then only V = 0 would keep it. A split when fully visible implies one when
-    /// partially visible: the partial test uses a bound of 1 instead of ≤ 1, a source term
-    /// b_max ≥ max channel of B, and a threshold 4× lower; the side does not depend on V.
-    fn splits_unless_hidden(&self, p: &Element, link: &Link) -> bool {
-        if !self.early_exit {
-            return false;
-        }
-        let full = self.decide(p, &Link { vis: 1.0, ..*link });
-        debug_assert!(
-            full.is_err() || full == self.decide(p, &Link { vis: 0.5, ..*link }),
-            "a full-visibility split must imply a partial one"
-        );
-        full.is_ok()
-    }
-
-    /// Does the oracle split this link whenever it is partially visible? Its decision for a
-    /// partial link does not depend on V's value (the partial bound is 1), so a link shown to be
-    /// partial (one ray passed, one blocked) needs no more rays.
-    fn splits_if_partial(&self, p: &Element, link: &Link) -> bool {
-        self.early_exit && self.decide(p, &Link { vis: 0.5, ..*link }).is_ok()
-    }
-
     /// Measure V of the links still marked unmeasured (refinement stopped, by the link
     /// budget or a cancel, before the pass that would have replaced them).
     fn measure_unmeasured(&mut self) {
         let hier = &self.hier;
         let (accel, seed, rays) = (&self.accel, self.params.seed, self.params.rays);
+        let five_times = self.params.five_times;
         let cast: u64 = self
             .links
             .by_receiver
@@ -903,7 +933,7 @@ impl HierarchicalSolver {
                 let mut last = NO_HIT;
                 for l in ls.iter_mut().filter(|l| l.unmeasured) {
                     let (p, q) = (hier.get(r as u32), hier.get(l.source));
-                    l.ff = link_form_factor(p, q) as f32;
+                    l.ff = link_form_factor_rule(p, q, five_times) as f32;
                     let (v, c) = visibility::visibility_sample(
                         accel,
                         (p.vertices(), p.patch, p.normal),
@@ -1502,6 +1532,37 @@ fn link_form_factor(receiver: &Element, source: &Element) -> f64 {
     }
 }
 
+/// The lecture's five-times rule: a polygon at least this many of its diameters away acts as a
+/// point (a disk) for the form factor.
+const FIVE_TIMES: f64 = 5.0;
+
+/// [`link_form_factor`], or with `five_times` the disk estimate from the evaluation point to the
+/// larger element's centroid when that element is at least `FIVE_TIMES` of its diameters away
+/// and wholly in front of the point's tangent plane, the point in front of its plane (the
+/// lecture's five-times rule: "a finite area Lambertian reflector may be modeled as a point
+/// light source when the distance to the receiving surface is five times greater than the size
+/// of the light source"). The exact kernel clips and integrates four edges; this is a few
+/// multiplies and one square root.
+fn link_form_factor_rule(receiver: &Element, source: &Element, five_times: bool) -> f64 {
+    if five_times {
+        let reciprocal = source.area < RECIPROCAL_AREA_RATIO * receiver.area;
+        let (x, far) = if reciprocal { (source, receiver) } else { (receiver, source) };
+        let d = far.centroid - x.centroid;
+        let r2 = d.length_squared();
+        let margin = SURE_MARGIN * (receiver.diam + source.diam);
+        if r2 >= (FIVE_TIMES * far.diam).powi(2)
+            && far
+                .vertices()
+                .iter()
+                .all(|&v| far.normal.dot(x.centroid - v) > margin && x.normal.dot(v - x.centroid) > margin)
+        {
+            let f = form_factor::disk(x.centroid, x.normal, far.centroid, far.normal, far.area);
+            return if reciprocal { f * source.area / receiver.area } else { f };
+        }
+    }
+    link_form_factor(receiver, source)
+}
+
 /// BFeps in units of B.
 fn resolve_bf_eps(p: &HierarchicalParams, scene: &Scene) -> f64 {
     if p.bf_relative {
@@ -1607,4 +1668,59 @@ fn pair_sides(p: &Element, q: &Element) -> PairSides {
     let (q_front, q_back) = plane_sides(p, q);
     let (p_front, p_back) = plane_sides(q, p);
     PairSides { facing: q_front && p_front, straddle: (q_front && q_back) || (p_front && p_back) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Patch;
+
+    /// The five-times rule's disk estimate against the exact kernel at five diameters or more
+    /// (the lecture quotes the rule as good to about a percent; 3 % allows for off-axis pairs).
+    const FIVE_TIMES_REL: f64 = 0.03;
+
+    fn square(c: DVec3, side: f64, up: bool) -> Patch {
+        let h = side / 2.0;
+        let mut v = vec![
+            c + DVec3::new(-h, -h, 0.0),
+            c + DVec3::new(h, -h, 0.0),
+            c + DVec3::new(h, h, 0.0),
+            c + DVec3::new(-h, h, 0.0),
+        ];
+        if !up {
+            v.reverse();
+        }
+        Patch::new(v, Rgb::splat(0.5), Rgb::ZERO, "sq", 0, "sq", "m").expect("valid square")
+    }
+
+    /// A floor square facing up and a ceiling square facing down, `offset` apart in x, `height` apart in z.
+    fn pair(side: f64, offset: f64, height: f64) -> Hierarchy {
+        let floor = square(DVec3::ZERO, side, true);
+        let ceil = square(DVec3::new(offset, 0.0, height), side, false);
+        Hierarchy::from_scene(&Scene::new("t", "t", vec![floor, ceil]))
+    }
+
+    #[test]
+    fn five_times_rule_is_close_far_away_and_unused_near() {
+        for (offset, height) in [(0.0, 8.0), (3.0, 8.0), (6.0, 7.5), (0.0, 20.0)] {
+            let h = pair(1.0, offset, height);
+            let (p, q) = (h.get(0), h.get(1));
+            let exact = link_form_factor(p, q);
+            let rule = link_form_factor_rule(p, q, true);
+            assert!(exact > 0.0);
+            assert_ne!(rule, exact, "offset {offset} height {height}: the rule should apply");
+            assert!((rule / exact - 1.0).abs() < FIVE_TIMES_REL, "offset {offset}: {rule} vs {exact}");
+            assert_eq!(link_form_factor_rule(p, q, false), exact);
+        }
+        // Closer than five diameters (√2 for a unit square): the exact kernel.
+        for (offset, height) in [(0.0, 1.0), (2.0, 6.0)] {
+            let h = pair(1.0, offset, height);
+            let (p, q) = (h.get(0), h.get(1));
+            assert_eq!(link_form_factor_rule(p, q, true), link_form_factor(p, q));
+        }
+        // Far but in the receiver's tangent plane: the exact kernel (it clips, here to nothing).
+        let h = pair(1.0, 40.0, 0.0);
+        let (p, q) = (h.get(0), h.get(1));
+        assert_eq!(link_form_factor_rule(p, q, true), link_form_factor(p, q));
+    }
 }
