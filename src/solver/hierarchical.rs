@@ -1151,7 +1151,7 @@ impl HierarchicalSolver {
             }
             // Recomputes the same leaf values (nothing was gathered since each root's push) and
             // measures the change against the values before the sweep.
-            self.push_pull_flat(Some(&before));
+            self.push_pull_flat(Some(&before), true);
             self.stats.gather_s += t.elapsed().as_secs_f64();
         } else {
             // Sources' radiosity in a compact array (read once per link, in any order), then
@@ -1189,7 +1189,7 @@ impl HierarchicalSolver {
     /// Push gathered irradiance down to the leaves (B = E + ρ·norm·H), pull area averages up.
     pub fn push_pull_step(&mut self) -> StepReport {
         let t = Instant::now();
-        self.push_pull_flat(None);
+        self.push_pull_flat(None, true);
         self.stats.push_pull_s += t.elapsed().as_secs_f64();
         self.report(StepKind::PushPull, t, 0, 0)
     }
@@ -1231,7 +1231,7 @@ impl HierarchicalSolver {
     /// radiosity B = E + ρ·(H_full·norm + H_rest) and their energy terms; then up in reverse
     /// order, area averages. The same values as `push_pull_rec` from every root. The residual is
     /// the largest leaf change against `before` (default: the values before this call).
-    fn push_pull_flat(&mut self, before: Option<&[Rgb]>) {
+    fn push_pull_flat(&mut self, before: Option<&[Rgb]>, energy: bool) {
         let mut max_change: f64 = 0.0;
         let mut max_reflected: f64 = 0.0;
         let mut absorbed = Rgb::ZERO;
@@ -1257,9 +1257,11 @@ impl HierarchicalSolver {
                 let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
                 max_change = max_change.max(b.abs_diff_max(old));
                 max_reflected = max_reflected.max((b - e.emission).max_channel());
-                absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                let fv = up.f * e.norm + up.fv_partial + e.fv_sum;
-                escaped += b * (e.area * (1.0 - fv));
+                if energy {
+                    absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
+                    let fv = up.f * e.norm + up.fv_partial + e.fv_sum;
+                    escaped += b * (e.area * (1.0 - fv));
+                }
                 e.radiosity = b;
                 e.b_max = b.max_channel();
             }
@@ -1282,6 +1284,36 @@ impl HierarchicalSolver {
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
         self.residuals.push(residual);
         self.converged = residual < self.params.tolerance;
+        if energy {
+            self.energy.absorbed = absorbed;
+            self.energy.escaped = escaped;
+        }
+    }
+
+    /// The absorbed and escaped power of the current state, as the last push-pull would have
+    /// summed them (the same terms in the same order, with each leaf's B as it left them): for
+    /// `solve`, whose iterations skip these sums until the end.
+    fn energy_pass(&mut self) {
+        let mut absorbed = Rgb::ZERO;
+        let mut escaped = Rgb::ZERO;
+        let chain = &mut self.chain;
+        chain.clear();
+        chain.reserve(self.hier.len());
+        for e in &self.hier.elements {
+            let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
+            chain.push(Chain {
+                full: up.full + e.gathered_full,
+                rest: up.rest + (e.gathered - e.gathered_full),
+                f: up.f + e.f_sum,
+                fv_partial: up.fv_partial + e.fv_partial,
+            });
+            if e.is_leaf() {
+                let h = up.full * e.norm + up.rest + e.gathered;
+                absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
+                let fv = up.f * e.norm + up.fv_partial + e.fv_sum;
+                escaped += e.radiosity * (e.area * (1.0 - fv));
+            }
+        }
         self.energy.absorbed = absorbed;
         self.energy.escaped = escaped;
     }
@@ -1310,6 +1342,8 @@ impl HierarchicalSolver {
         let mut refined_total = 0;
         let mut links_total = 0;
         let rounds = self.params.max_rounds.max(1);
+        // Push-pulls inside the loop skip the power sums; one pass at the end makes them.
+        let mut energy_due = false;
         for round in 0..rounds {
             progress(u64::from(round), u64::from(rounds));
             // Refinement marks the solution unconverged; remember whether the last gathers had.
@@ -1329,7 +1363,10 @@ impl HierarchicalSolver {
             loop {
                 self.gather_inner();
                 if !self.params.gauss_seidel {
-                    self.push_pull_step();
+                    let t = Instant::now();
+                    self.push_pull_flat(None, false);
+                    self.stats.push_pull_s += t.elapsed().as_secs_f64();
+                    energy_due = true;
                 }
                 iters += 1;
                 if self.converged || iters >= self.params.max_iterations || self.cancelled() {
@@ -1340,6 +1377,11 @@ impl HierarchicalSolver {
             if self.cancelled() || (self.params.oracle == Oracle::Feps && self.converged) {
                 break;
             }
+        }
+        if energy_due {
+            let te = Instant::now();
+            self.energy_pass();
+            self.stats.push_pull_s += te.elapsed().as_secs_f64();
         }
         progress(u64::from(rounds), u64::from(rounds));
         self.report(StepKind::Solve, t, refined_total, links_total)
