@@ -371,6 +371,18 @@ struct Chain {
     fv_partial: f64,
 }
 
+impl Chain {
+    /// The sums of element `e`, whose parent's are `self`.
+    fn then(self, e: &Element) -> Chain {
+        Chain {
+            full: self.full + e.gathered_full,
+            rest: self.rest + (e.gathered - e.gathered_full),
+            f: self.f + e.f_sum,
+            fv_partial: self.fv_partial + e.fv_partial,
+        }
+    }
+}
+
 impl HierarchicalSolver {
     /// Build the BVH and one root element per input patch (no links yet, B = E).
     pub fn new(scene: Arc<Scene>, params: HierarchicalParams) -> Result<Self, String> {
@@ -1245,12 +1257,7 @@ impl HierarchicalSolver {
         let els = &mut self.hier.elements;
         for (i, e) in els.iter_mut().enumerate() {
             let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            chain.push(Chain {
-                full: up.full + e.gathered_full,
-                rest: up.rest + (e.gathered - e.gathered_full),
-                f: up.f + e.f_sum,
-                fv_partial: up.fv_partial + e.fv_partial,
-            });
+            chain.push(up.then(e));
             if e.is_leaf() {
                 let h = up.full * e.norm + up.rest + e.gathered;
                 let b = e.emission + e.reflectance.mul_rgb(h);
@@ -1301,12 +1308,7 @@ impl HierarchicalSolver {
         chain.reserve(self.hier.len());
         for e in &self.hier.elements {
             let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            chain.push(Chain {
-                full: up.full + e.gathered_full,
-                rest: up.rest + (e.gathered - e.gathered_full),
-                f: up.f + e.f_sum,
-                fv_partial: up.fv_partial + e.fv_partial,
-            });
+            chain.push(up.then(e));
             if e.is_leaf() {
                 let h = up.full * e.norm + up.rest + e.gathered;
                 absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
