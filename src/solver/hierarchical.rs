@@ -912,7 +912,7 @@ impl HierarchicalSolver {
             return (Some(link), cast);
         }
         if surely {
-            link.ff = link_form_factor_rule(p, q, self.params.five_times) as f32;
+            link.ff = link_form_factor_rule(p, q, self.params.five_times, true) as f32;
         }
         link.vis = vis as f32;
         if vis == 0.0 && self.params.zero_confirm > 0 {
@@ -945,7 +945,7 @@ impl HierarchicalSolver {
                 let mut last = NO_HIT;
                 for l in ls.iter_mut().filter(|l| l.unmeasured) {
                     let (p, q) = (hier.get(r as u32), hier.get(l.source));
-                    l.ff = link_form_factor_rule(p, q, five_times) as f32;
+                    l.ff = link_form_factor_rule(p, q, five_times, form_factor_surely_positive(p, q)) as f32;
                     let (v, c) = visibility::visibility_sample(
                         accel,
                         (p.vertices(), p.patch, p.normal),
@@ -1582,24 +1582,16 @@ const FIVE_TIMES: f64 = 5.0;
 
 /// [`link_form_factor`], or with `five_times` the disk estimate from the evaluation point to the
 /// larger element's centroid when that element is at least `FIVE_TIMES` of its diameters away
-/// and wholly in front of the point's tangent plane, the point in front of its plane (the
-/// lecture's five-times rule: "a finite area Lambertian reflector may be modeled as a point
-/// light source when the distance to the receiving surface is five times greater than the size
-/// of the light source"). The exact kernel clips and integrates four edges; this is a few
-/// multiplies and one square root.
-fn link_form_factor_rule(receiver: &Element, source: &Element, five_times: bool) -> f64 {
-    if five_times {
+/// and `surely` ([`form_factor_surely_positive`]: it lies wholly in front of the point's tangent
+/// plane, the point in front of its plane) — the lecture's five-times rule: "a finite area
+/// Lambertian reflector may be modeled as a point light source when the distance to the
+/// receiving surface is five times greater than the size of the light source". The exact kernel
+/// clips and integrates four edges; this is a few multiplies and one square root.
+fn link_form_factor_rule(receiver: &Element, source: &Element, five_times: bool, surely: bool) -> f64 {
+    if five_times && surely {
         let reciprocal = source.area < RECIPROCAL_AREA_RATIO * receiver.area;
         let (x, far) = if reciprocal { (source, receiver) } else { (receiver, source) };
-        let d = far.centroid - x.centroid;
-        let r2 = d.length_squared();
-        let margin = SURE_MARGIN * (receiver.diam + source.diam);
-        if r2 >= (FIVE_TIMES * far.diam).powi(2)
-            && far
-                .vertices()
-                .iter()
-                .all(|&v| far.normal.dot(x.centroid - v) > margin && x.normal.dot(v - x.centroid) > margin)
-        {
+        if far.centroid.distance_squared(x.centroid) >= (FIVE_TIMES * far.diam).powi(2) {
             let f = form_factor::disk(x.centroid, x.normal, far.centroid, far.normal, far.area);
             return if reciprocal { f * source.area / receiver.area } else { f };
         }
@@ -1750,21 +1742,27 @@ mod tests {
             let h = pair(1.0, offset, height);
             let (p, q) = (h.get(0), h.get(1));
             let exact = link_form_factor(p, q);
-            let rule = link_form_factor_rule(p, q, true);
+            let rule = link_form_factor_rule(p, q, true, form_factor_surely_positive(p, q));
             assert!(exact > 0.0);
             assert_ne!(rule, exact, "offset {offset} height {height}: the rule should apply");
             assert!((rule / exact - 1.0).abs() < FIVE_TIMES_REL, "offset {offset}: {rule} vs {exact}");
-            assert_eq!(link_form_factor_rule(p, q, false), exact);
+            assert_eq!(link_form_factor_rule(p, q, false, true), exact);
         }
         // Closer than five diameters (√2 for a unit square): the exact kernel.
         for (offset, height) in [(0.0, 1.0), (2.0, 6.0)] {
             let h = pair(1.0, offset, height);
             let (p, q) = (h.get(0), h.get(1));
-            assert_eq!(link_form_factor_rule(p, q, true), link_form_factor(p, q));
+            assert_eq!(
+                link_form_factor_rule(p, q, true, form_factor_surely_positive(p, q)),
+                link_form_factor(p, q)
+            );
         }
         // Far but in the receiver's tangent plane: the exact kernel (it clips, here to nothing).
         let h = pair(1.0, 40.0, 0.0);
         let (p, q) = (h.get(0), h.get(1));
-        assert_eq!(link_form_factor_rule(p, q, true), link_form_factor(p, q));
+        assert_eq!(
+            link_form_factor_rule(p, q, true, form_factor_surely_positive(p, q)),
+            link_form_factor(p, q)
+        );
     }
 }
