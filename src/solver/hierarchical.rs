@@ -212,23 +212,54 @@ struct GatherPlan {
 
 const FULL_BIT: u32 = 1 << 31;
 
+/// Receivers per block when the gather plan is built in parallel.
+const PLAN_BLOCK: usize = 256;
+
 impl GatherPlan {
-    fn new(links: &LinkStore) -> GatherPlan {
-        let mut plan =
-            GatherPlan { start: Vec::with_capacity(links.by_receiver.len() + 1), ..GatherPlan::default() };
-        for ls in &links.by_receiver {
-            plan.start.push(plan.source.len() as u32);
-            for l in ls {
-                let w = f64::from(l.ff) * f64::from(l.vis);
-                if w > 0.0 {
+    /// Rebuild the plan from `links`, reusing its buffers. Built in parallel over blocks of
+    /// receivers (counts, prefix sums, then each block fills its own range): the same arrays
+    /// as a serial pass in receiver order.
+    fn rebuild(&mut self, links: &LinkStore) {
+        let lists = &links.by_receiver;
+        let weight = |l: &Link| f64::from(l.ff) * f64::from(l.vis);
+        self.start.clear();
+        self.start.par_extend(
+            lists
+                .par_iter()
+                .with_min_len(PLAN_BLOCK)
+                .map(|ls| ls.iter().filter(|l| weight(l) > 0.0).count() as u32),
+        );
+        let mut total = 0u32;
+        for c in &mut self.start {
+            (*c, total) = (total, total + *c);
+        }
+        self.start.push(total);
+        self.source.resize(total as usize, 0);
+        self.weight.resize(total as usize, 0.0);
+        // Disjoint output ranges, one per block of receivers.
+        let (mut source, mut weights) = (&mut self.source[..], &mut self.weight[..]);
+        let mut blocks = Vec::with_capacity(lists.len().div_ceil(PLAN_BLOCK));
+        for (k, block) in lists.chunks(PLAN_BLOCK).enumerate() {
+            let first = k * PLAN_BLOCK;
+            let len = (self.start[first + block.len()] - self.start[first]) as usize;
+            let (s, s_rest) = std::mem::take(&mut source).split_at_mut(len);
+            let (w, w_rest) = std::mem::take(&mut weights).split_at_mut(len);
+            (source, weights) = (s_rest, w_rest);
+            blocks.push((block, s, w));
+        }
+        blocks.into_par_iter().for_each(|(block, s, w)| {
+            let mut i = 0;
+            for l in block.iter().flatten() {
+                let wl = weight(l);
+                if wl > 0.0 {
                     debug_assert!(l.source < FULL_BIT, "element ids stay below 2^31");
-                    plan.source.push(l.source | if l.vis >= 1.0 { FULL_BIT } else { 0 });
-                    plan.weight.push(w);
+                    s[i] = l.source | if l.vis >= 1.0 { FULL_BIT } else { 0 };
+                    w[i] = wl;
+                    i += 1;
                 }
             }
-        }
-        plan.start.push(plan.source.len() as u32);
-        plan
+            debug_assert_eq!(i, s.len(), "counted and filled alike");
+        });
     }
 
     /// (Σ F·V·B over receiver `r`'s links, the same over the fully visible ones), in list
@@ -352,8 +383,10 @@ pub struct HierarchicalSolver {
     /// Scratch for Jacobi gathers: every element's radiosity before the gather (kept between
     /// gathers, so no large allocation per iteration).
     b_prev: Vec<Rgb>,
-    /// The links flattened for gathering; rebuilt after links change.
-    gather_plan: Option<GatherPlan>,
+    /// The links flattened for gathering (buffers kept between rebuilds).
+    gather_plan: GatherPlan,
+    /// `gather_plan` matches the current links (cleared when links change).
+    plan_valid: bool,
     /// The oracle's compact copy of every element's (b_max, max channel of B) during
     /// refinement; cleared afterwards, as B changes.
     oracle_b: Vec<[f64; 2]>,
@@ -422,7 +455,8 @@ impl HierarchicalSolver {
             gathered_once: false,
             chain: Vec::new(),
             b_prev: Vec::new(),
-            gather_plan: None,
+            gather_plan: GatherPlan::default(),
+            plan_valid: false,
             oracle_b: Vec::new(),
             early_exit: true,
         };
@@ -472,7 +506,7 @@ impl HierarchicalSolver {
     pub fn reset(&mut self) {
         self.hier = Hierarchy::from_scene(&self.scene);
         self.links = LinkStore::new(self.hier.len());
-        self.gather_plan = None;
+        self.plan_valid = false;
         self.linked = false;
         self.stats = HierarchicalStats::default();
         self.residuals.clear();
@@ -526,7 +560,7 @@ impl HierarchicalSolver {
         let mut new_links = 0;
         self.oracle_b.clear();
         self.sync_oracle_b();
-        self.gather_plan = None;
+        self.plan_valid = false;
         let mut changed = IdSet::default();
         if !self.linked {
             new_links += self.initial_linking();
@@ -1148,7 +1182,11 @@ impl HierarchicalSolver {
     fn gather_inner(&mut self) -> StepReport {
         let t = Instant::now();
         // The links as one contiguous plan, rebuilt after they change.
-        let plan = self.gather_plan.take().unwrap_or_else(|| GatherPlan::new(&self.links));
+        let mut plan = std::mem::take(&mut self.gather_plan);
+        if !self.plan_valid {
+            plan.rebuild(&self.links);
+            self.plan_valid = true;
+        }
         if self.params.gauss_seidel {
             let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
             for root in 0..self.hier.roots as u32 {
@@ -1180,7 +1218,7 @@ impl HierarchicalSolver {
             self.b_prev = b;
             self.stats.gather_s += t.elapsed().as_secs_f64();
         }
-        self.gather_plan = Some(plan);
+        self.gather_plan = plan;
         self.gathered_once = true;
         self.stats.iterations += 1;
         self.report(StepKind::Gather, t, 0, 0)
