@@ -17,6 +17,7 @@
 
 use crate::math::{DVec3, Rgb, polygon_area, polygon_centroid};
 use crate::scene::Scene;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Index of an element in the arena.
@@ -138,6 +139,49 @@ impl Element {
     }
 }
 
+/// Children made per parallel task in [`Hierarchy::split_many`].
+const PARALLEL_CHILDREN: usize = 256;
+
+/// Child `k` (0..4, in the order of the module docs) of `parent`, whose id is `id`; not yet in
+/// the arena.
+fn child(parent: &Element, id: u32, k: usize) -> Element {
+    let v = parent.verts;
+    let n = parent.n_verts;
+    let verts: [DVec3; 4] = if n == 4 {
+        let m01 = 0.5 * (v[0] + v[1]);
+        let m12 = 0.5 * (v[1] + v[2]);
+        let m23 = 0.5 * (v[2] + v[3]);
+        let m30 = 0.5 * (v[3] + v[0]);
+        let c = 0.25 * (v[0] + v[1] + v[2] + v[3]);
+        [[v[0], m01, c, m30], [m01, v[1], m12, c], [c, m12, v[2], m23], [m30, c, m23, v[3]]][k]
+    } else {
+        let m01 = 0.5 * (v[0] + v[1]);
+        let m12 = 0.5 * (v[1] + v[2]);
+        let m20 = 0.5 * (v[2] + v[0]);
+        let z = DVec3::ZERO;
+        [[v[0], m01, m20, z], [m01, v[1], m12, z], [m20, m12, v[2], z], [m12, m20, m01, z]][k]
+    };
+    let used = &verts[..n as usize];
+    Element {
+        parent: id,
+        first_child: NONE,
+        depth: parent.depth + 1,
+        stop: StopReason::Unrefined,
+        verts,
+        area: polygon_area(used),
+        diam: max_pairwise_distance(used),
+        dirty: true,
+        centroid: polygon_centroid(used),
+        gathered: Rgb::ZERO,
+        gathered_full: Rgb::ZERO,
+        fv_sum: 0.0,
+        f_sum: 0.0,
+        fv_partial: 0.0,
+        norm: 1.0,
+        ..parent.clone()
+    }
+}
+
 fn max_pairwise_distance(v: &[DVec3]) -> f64 {
     let mut d: f64 = 0.0;
     for i in 0..v.len() {
@@ -216,49 +260,36 @@ impl Hierarchy {
         if e.first_child != NONE {
             return e.first_child;
         }
-        let parent = e.clone();
         let first = self.elements.len() as u32;
-        let v = parent.verts;
-        let n = parent.n_verts;
-        let kids: [[DVec3; 4]; 4] = if n == 4 {
-            let m01 = 0.5 * (v[0] + v[1]);
-            let m12 = 0.5 * (v[1] + v[2]);
-            let m23 = 0.5 * (v[2] + v[3]);
-            let m30 = 0.5 * (v[3] + v[0]);
-            let c = 0.25 * (v[0] + v[1] + v[2] + v[3]);
-            [[v[0], m01, c, m30], [m01, v[1], m12, c], [c, m12, v[2], m23], [m30, c, m23, v[3]]]
-        } else {
-            let m01 = 0.5 * (v[0] + v[1]);
-            let m12 = 0.5 * (v[1] + v[2]);
-            let m20 = 0.5 * (v[2] + v[0]);
-            let z = DVec3::ZERO;
-            [[v[0], m01, m20, z], [m01, v[1], m12, z], [m20, m12, v[2], z], [m12, m20, m01, z]]
-        };
-        for k in kids {
-            let verts = &k[..n as usize];
-            self.elements.push(Element {
-                parent: id,
-                first_child: NONE,
-                depth: parent.depth + 1,
-                stop: StopReason::Unrefined,
-                verts: k,
-                area: polygon_area(verts),
-                diam: max_pairwise_distance(verts),
-                dirty: true,
-                centroid: polygon_centroid(verts),
-                gathered: Rgb::ZERO,
-                gathered_full: Rgb::ZERO,
-                fv_sum: 0.0,
-                f_sum: 0.0,
-                fv_partial: 0.0,
-                norm: 1.0,
-                ..parent.clone()
-            });
-        }
+        let parent = e.clone();
+        self.elements.extend((0..4).map(|k| child(&parent, id, k)));
         let p = &mut self.elements[id as usize];
         p.first_child = first;
         p.stop = StopReason::Subdivided;
         first
+    }
+
+    /// Split every leaf among `ids` (ascending, no duplicates), in that order: the same ids and
+    /// elements as calling [`Hierarchy::split`] on each, with the children made in parallel.
+    /// Returns how many were split.
+    pub fn split_many(&mut self, ids: &[u32]) -> usize {
+        debug_assert!(ids.windows(2).all(|w| w[0] < w[1]), "ids ascending and distinct");
+        let leaves: Vec<u32> =
+            ids.iter().copied().filter(|&id| self.elements[id as usize].is_leaf()).collect();
+        let parents: Vec<Element> = leaves.iter().map(|&id| self.elements[id as usize].clone()).collect();
+        let first = self.elements.len() as u32;
+        self.elements.par_extend(
+            (0..4 * leaves.len())
+                .into_par_iter()
+                .with_min_len(PARALLEL_CHILDREN)
+                .map(|i| child(&parents[i / 4], leaves[i / 4], i % 4)),
+        );
+        for (k, &id) in leaves.iter().enumerate() {
+            let p = &mut self.elements[id as usize];
+            p.first_child = first + 4 * k as u32;
+            p.stop = StopReason::Subdivided;
+        }
+        leaves.len()
     }
 
     /// Ids of the leaves, in id order.
@@ -340,6 +371,33 @@ mod tests {
             let e = h.get(k);
             assert!((e.area - 0.125).abs() < 1e-15);
             assert!(crate::math::polygon_normal(e.vertices()).dot(DVec3::Z) > 0.999);
+        }
+    }
+
+    #[test]
+    fn split_many_makes_the_same_elements_as_splitting_one_by_one() {
+        let sc = Scene::load("builtin:splash_room").unwrap();
+        let mut one = Hierarchy::from_scene(&sc);
+        let mut many = one.clone();
+        // Three passes; each splits every third leaf (and an already split element, a no-op).
+        for pass in 0..3u32 {
+            let mut ids: Vec<u32> = one.leaves().into_iter().filter(|i| (i + pass) % 3 == 0).collect();
+            ids.push(0);
+            ids.sort_unstable();
+            ids.dedup();
+            let mut n = 0;
+            for &id in &ids {
+                if one.get(id).is_leaf() {
+                    one.split(id);
+                    n += 1;
+                }
+            }
+            assert_eq!(many.split_many(&ids), n, "pass {pass}: the leaves among the ids are split");
+        }
+        assert!(one.len() > 1000, "enough elements to be split in parallel");
+        assert_eq!(one.len(), many.len());
+        for (a, b) in one.elements.iter().zip(&many.elements) {
+            assert_eq!(format!("{a:?}"), format!("{b:?}"));
         }
     }
 }

@@ -610,13 +610,8 @@ impl HierarchicalSolver {
                 break;
             }
             let phase = Instant::now();
-            // B: split, serially, in id order.
-            for id in to_split.take_sorted() {
-                if self.hier.get(id).is_leaf() {
-                    self.hier.split(id);
-                    refined += 1;
-                }
-            }
+            // B: split, in id order (children computed in parallel).
+            refined += self.hier.split_many(&to_split.take_sorted());
             self.links.grow(self.hier.len());
             self.sync_oracle_b();
             self.stats.refine_split_s += phase.elapsed().as_secs_f64();
