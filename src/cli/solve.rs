@@ -71,6 +71,14 @@ pub struct Args {
     /// Gauss–Seidel instead of Jacobi gathering (hierarchical).
     #[arg(long)]
     pub gauss_seidel: bool,
+    /// Gathers between refinements while the mesh still changes (hierarchical; the settled
+    /// mesh is gathered to convergence).
+    #[arg(long)]
+    pub round_iterations: Option<u32>,
+    /// Refinement ends when a refinement of the converged solution adds at most this fraction
+    /// of the links; 0: until no link changes (hierarchical).
+    #[arg(long)]
+    pub settle: Option<f64>,
 
     /// Target element size, scene units (uniform, progressive); default: 1/8 of the scene's
     /// bounding-box diagonal.
@@ -216,6 +224,12 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
     }
     if let Some(v) = args.zero_confirm {
         p.zero_confirm = v;
+    }
+    if let Some(v) = args.round_iterations {
+        p.round_iterations = v;
+    }
+    if let Some(v) = args.settle {
+        p.settle = v;
     }
     p.normalize |= args.normalize;
     p.gauss_seidel = args.gauss_seidel;

@@ -1368,9 +1368,11 @@ impl HierarchicalSolver {
         self.report(StepKind::Iterate, t, r.refined, r.new_links)
     }
 
-    /// The HSA91 loop: refine → gather/push-pull until converged → refine again with the
-    /// oracle on the new radiosities → … until nothing refines and the solution has converged,
-    /// or the caps (`max_rounds`, `max_iterations`) are reached.
+    /// The HSA91 loop: refine → gather/push-pull (`round_iterations` times, or to convergence)
+    /// → refine again with the oracle on the new radiosities → … until a refinement of the
+    /// converged solution adds at most `settle` of the links (0: none) and those are gathered to
+    /// convergence, or the caps (`max_rounds`, `max_iterations` per round) are reached; the last
+    /// allowed round converges fully.
     pub fn solve(&mut self, progress: Progress) -> StepReport {
         self.cancel.store(false, Ordering::Relaxed);
         let t = Instant::now();
@@ -1389,11 +1391,23 @@ impl HierarchicalSolver {
             if r.cancelled {
                 break;
             }
-            if round > 0 && r.new_links == 0 && was_converged {
+            // A refinement that adds few links (at most `settle` of them) is gathered to
+            // convergence before the next one; on an already converged solution it ends the
+            // refinement (the mesh has settled).
+            let small = r.new_links as f64 <= self.params.settle * self.links.len() as f64;
+            let settled = round > 0 && was_converged && small;
+            if settled && r.new_links == 0 {
                 // Nothing changed since the converged gather: the solution stands.
                 self.converged = true;
                 break;
             }
+            // While the mesh still changes, refine again after `round_iterations` gathers.
+            let last = settled || round + 1 == rounds || self.params.oracle == Oracle::Feps;
+            let cap = if last || small {
+                self.params.max_iterations
+            } else {
+                self.params.round_iterations.min(self.params.max_iterations)
+            };
             let mut iters = 0;
             loop {
                 self.gather_inner();
@@ -1404,12 +1418,12 @@ impl HierarchicalSolver {
                     energy_due = true;
                 }
                 iters += 1;
-                if self.converged || iters >= self.params.max_iterations || self.cancelled() {
+                if self.converged || iters >= cap || self.cancelled() {
                     break;
                 }
             }
             self.stats.rounds = round as usize + 1;
-            if self.cancelled() || (self.params.oracle == Oracle::Feps && self.converged) {
+            if self.cancelled() || settled || (self.params.oracle == Oracle::Feps && self.converged) {
                 break;
             }
         }

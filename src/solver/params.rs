@@ -70,6 +70,14 @@ pub struct HierarchicalParams {
     pub max_iterations: u32,
     /// Safety cap on refine→gather rounds (the HSA91 outer loop).
     pub max_rounds: u32,
+    /// Gathers per round while the mesh is still changing: the next refinement comes after this
+    /// many gathers, not after convergence (a refinement that adds at most `settle` of the
+    /// links, and the last allowed round, converge fully). `max_iterations`: converge every round.
+    pub round_iterations: u32,
+    /// The mesh has settled, and refinement ends, when a refinement of the converged solution
+    /// adds at most this fraction of the links (its few links are gathered to convergence);
+    /// 0: refine until no link changes at all.
+    pub settle: f64,
     /// Gauss–Seidel (use new radiosities as soon as a patch is gathered) instead of Jacobi.
     pub gauss_seidel: bool,
     /// Scale each leaf's inherited irradiance so its total form factor equals the exact point
@@ -114,7 +122,9 @@ impl HierarchicalParams {
             max_links: 500_000,
             tolerance: 1e-3,
             max_iterations: 100,
-            max_rounds: 8,
+            max_rounds: 16,
+            round_iterations: 3,
+            settle: 1e-3,
             gauss_seidel: false,
             normalize: false,
             split_fallback: false,
@@ -139,7 +149,9 @@ impl HierarchicalParams {
             max_links: 4_000_000,
             tolerance: 1e-4,
             max_iterations: 200,
-            max_rounds: 12,
+            max_rounds: 24,
+            round_iterations: 3,
+            settle: 1e-3,
             gauss_seidel: false,
             normalize: false,
             split_fallback: false,
@@ -165,6 +177,8 @@ impl HierarchicalParams {
             tolerance: 1e-4,
             max_iterations: 200,
             max_rounds: 1,
+            round_iterations: 3,
+            settle: 1e-3,
             gauss_seidel: false,
             normalize: false,
             split_fallback: false,
@@ -190,7 +204,9 @@ impl HierarchicalParams {
             max_links: 4_000_000,
             tolerance: 0.005,
             max_iterations: 100,
-            max_rounds: 16,
+            max_rounds: 24,
+            round_iterations: 3,
+            settle: 1e-3,
             gauss_seidel: false,
             normalize: false,
             split_fallback: false,
@@ -252,6 +268,12 @@ impl HierarchicalParams {
         }
         if self.max_iterations == 0 {
             return Err("max-iterations must be at least 1".into());
+        }
+        if self.round_iterations == 0 {
+            return Err("round-iterations must be at least 1".into());
+        }
+        if !(self.settle.is_finite() && (0.0..=1.0).contains(&self.settle)) {
+            return Err(format!("settle is a fraction of the links, in 0..=1 (got {})", self.settle));
         }
         Ok(())
     }
