@@ -24,10 +24,6 @@ pub struct Link {
     pub bound: f32,
     /// Refine splits the source (F_pq > F_qp), else the receiver.
     pub split_source: bool,
-    /// Created since its receiver's links were last examined by the oracle in the current
-    /// refinement (a refinement pass examines only these after its first pass).
-    #[serde(skip)]
-    pub fresh: bool,
     /// V was not fully measured: the rays stopped once they showed that the next refinement
     /// pass replaces the link whatever V's exact value is (see `HierarchicalSolver::make_link`).
     #[serde(skip)]

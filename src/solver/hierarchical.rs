@@ -339,13 +339,45 @@ type InitialLinks = ((u32, u64, bool), Vec<Vec<Link>>, usize);
 /// Initial linking of one patch p: (q, link p←q, link q←p) for q > p, pairs skipped, rays cast.
 type PairRow = (Vec<(u32, Link, Link)>, usize, u64);
 
-/// Receiver, its new own links, links for its children, rays cast, own list changed, links created.
-type ReplaceResult = (u32, Vec<Link>, Kids, u64, bool, usize);
+/// What `replace_links` made for one receiver.
+struct Replaced {
+    receiver: u32,
+    /// Its new own list, and the next pass's verdict on the new links in it.
+    own: Vec<Link>,
+    own_verdict: Verdict,
+    /// Links pushed down to its children (child k, id `first_child + k`, gets `kids[k]`, in
+    /// the order of the split links in the receiver's list), and the verdicts on them.
+    kids: [Vec<Link>; 4],
+    kid_verdicts: [Verdict; 4],
+    first_child: u32,
+    rays: u64,
+    /// The own list gained links (a source was split).
+    own_changed: bool,
+    created: usize,
+}
 
-/// Links pushed down to a receiver's four children (child k, id `.1 + k`, gets `.0[k]`, in the
-/// order of the split links in the receiver's list).
+/// The oracle's verdict on some new links of one list, made when they were created (its
+/// inputs do not change during a refinement): the strongest reason among the kept ones, and
+/// the ones to split (index in the list, which side).
 #[derive(Default)]
-struct Kids([Vec<Link>; 4], u32);
+struct Verdict {
+    reason: StopReason,
+    splits: Vec<(u32, Split)>,
+}
+
+impl Verdict {
+    /// Record link `index`'s verdict.
+    fn note(&mut self, index: usize, v: Decision) {
+        match v {
+            Ok(side) => self.splits.push((index as u32, side)),
+            Err(why) => {
+                if why.rank() > self.reason.rank() {
+                    self.reason = why;
+                }
+            }
+        }
+    }
+}
 
 /// What refinement does with one link.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -353,6 +385,9 @@ enum Split {
     Source,
     Receiver,
 }
+
+/// The oracle's decision on one link: `Ok(side to split)` or `Err(why it is kept)`.
+type Decision = Result<Split, StopReason>;
 
 /// One receiver's verdict in pass A: why its kept links stopped (the strongest reason), and the
 /// links to split (index in its list, which side).
@@ -571,23 +606,32 @@ impl HierarchicalSolver {
         }
         self.stats.refine_initial_s += t.elapsed().as_secs_f64();
         let mut refined = 0;
-        let mut active: Vec<u32> =
-            (0..self.hier.len() as u32).filter(|&r| !self.links.by_receiver[r as usize].is_empty()).collect();
         let mut total_links = self.links.len();
         // Only the normalisation reads the "dirty" marks (see update_sums_and_normalisation).
         let normalize = self.params.normalize;
-        let mut first_pass = true;
         let mut kept_reason: Vec<StopReason> = Vec::new();
-        while !active.is_empty() && !self.cancelled() {
+        // The verdicts on the links made by the last pass (None: the first pass, which examines
+        // every link, as B has changed since the last refinement).
+        let mut pending: Option<Vec<ReceiverDecision>> = None;
+        while !self.cancelled() {
             if total_links >= self.params.max_links {
                 self.stats.budget_hit = true;
                 break;
             }
-            // A: decide, in parallel, read-only (from each link's cached geometry).
+            // A: decide, in parallel, read-only (from each link's cached geometry); later passes
+            // take the verdicts made with the links.
             let phase = Instant::now();
-            let decisions: Vec<ReceiverDecision> =
-                active.par_iter().map(|&r| self.decide_receiver(r, first_pass)).collect();
-            first_pass = false;
+            let decisions: Vec<ReceiverDecision> = match pending.take() {
+                Some(d) => d,
+                None => (0..self.hier.len() as u32)
+                    .into_par_iter()
+                    .filter(|&r| !self.links.by_receiver[r as usize].is_empty())
+                    .map(|r| self.decide_receiver(r))
+                    .collect(),
+            };
+            if decisions.is_empty() {
+                break;
+            }
             kept_reason.resize(self.hier.len(), StopReason::Unrefined);
             let mut to_split = IdSet::default();
             for (r, reason, splits) in &decisions {
@@ -619,33 +663,35 @@ impl HierarchicalSolver {
             // C: replacement links, in parallel.
             let work: Vec<ReceiverDecision> =
                 decisions.into_iter().filter(|(_, _, sp)| !sp.is_empty()).collect();
-            let results: Vec<ReplaceResult> =
+            let results: Vec<Replaced> =
                 work.par_iter().map(|(r, _, splits)| self.replace_links(*r, splits)).collect();
             self.stats.refine_links_s += phase.elapsed().as_secs_f64();
             let phase = Instant::now();
             // D: install, in receiver order: every receiver's own list first, then the links
             // pushed down to children (a child may itself have been a receiver in this pass).
-            let mut next = IdSet::default();
+            // The next pass examines exactly the new links, by their verdicts.
+            let mut next: Vec<ReceiverDecision> = Vec::new();
             let mut pushed_down = Vec::new();
             let mut owns = Vec::with_capacity(results.len());
-            for (r, own, kids, rays, own_changed, created) in results {
-                self.stats.rays += rays;
-                if own_changed {
-                    next.insert(r);
+            for rep in results {
+                let r = rep.receiver;
+                self.stats.rays += rep.rays;
+                if rep.own_changed {
+                    next.push((r, rep.own_verdict.reason, rep.own_verdict.splits));
                 }
-                new_links += created;
-                let pushed: usize = kids.0.iter().map(Vec::len).sum();
-                total_links = total_links + own.len() + pushed - self.links.by_receiver[r as usize].len();
+                new_links += rep.created;
+                let pushed: usize = rep.kids.iter().map(Vec::len).sum();
+                total_links = total_links + rep.own.len() + pushed - self.links.by_receiver[r as usize].len();
                 if normalize {
                     self.hier.elements[r as usize].dirty = true;
                 }
                 changed.insert(r);
-                owns.push((r, own));
+                owns.push((r, rep.own));
                 if pushed > 0 {
-                    let first = kids.1;
-                    for (k, ls) in kids.0.into_iter().enumerate() {
+                    let first = rep.first_child;
+                    for (k, (ls, v)) in rep.kids.into_iter().zip(rep.kid_verdicts).enumerate() {
                         if !ls.is_empty() {
-                            pushed_down.push((first + k as u32, ls));
+                            pushed_down.push((first + k as u32, ls, v));
                         }
                     }
                 }
@@ -653,20 +699,38 @@ impl HierarchicalSolver {
             // The new own lists replace the old ones in parallel (freeing them is most of it).
             let slots = disjoint_mut(&mut self.links.by_receiver, owns.iter().map(|o| o.0));
             slots.into_par_iter().zip(owns).with_min_len(64).for_each(|(slot, (_, own))| *slot = own);
-            for (c, ls) in pushed_down {
+            for (c, ls, mut v) in pushed_down {
                 let list = &mut self.links.by_receiver[c as usize];
+                // The child's list may hold links already (its own, just replaced, or earlier ones).
+                let offset = list.len() as u32;
                 if list.is_empty() {
                     *list = ls;
                 } else {
                     list.extend(ls);
                 }
+                for (i, _) in &mut v.splits {
+                    *i += offset;
+                }
                 if normalize {
                     self.hier.elements[c as usize].dirty = true;
                 }
-                next.insert(c);
+                next.push((c, v.reason, v.splits));
                 changed.insert(c);
             }
-            active = next.take_sorted();
+            // In receiver order; a child that was a receiver in this pass too has its own list's
+            // verdict first (lower indices), then its parent's pushed links'.
+            next.sort_by_key(|d| d.0);
+            next.dedup_by(|later, first| {
+                if later.0 != first.0 {
+                    return false;
+                }
+                if later.1.rank() > first.1.rank() {
+                    first.1 = later.1;
+                }
+                first.2.append(&mut later.2);
+                true
+            });
+            pending = Some(next);
             self.stats.refine_install_s += phase.elapsed().as_secs_f64();
         }
         if self.stats.budget_hit || self.cancelled() {
@@ -714,31 +778,20 @@ impl HierarchicalSolver {
             .extend(els[start.min(els.len())..].iter().map(|e| [e.b_max, e.radiosity.max_channel()]));
     }
 
-    /// The oracle on receiver `r`'s links: all of them, or (`all` false) only the fresh ones,
-    /// the others having been kept by an earlier pass of this refinement (the oracle's inputs
-    /// do not change during a refinement).
-    fn decide_receiver(&self, r: u32, all: bool) -> ReceiverDecision {
+    /// The oracle on all of receiver `r`'s links (the first pass of a refinement; later passes
+    /// use the verdicts made with the new links, the oracle's inputs not changing during a
+    /// refinement).
+    fn decide_receiver(&self, r: u32) -> ReceiverDecision {
         let p = self.hier.get(r);
-        let mut reason = StopReason::Unrefined;
-        let mut splits = Vec::new();
+        let mut v = Verdict::default();
         for (i, l) in self.links.by_receiver[r as usize].iter().enumerate() {
-            if !all && !l.fresh {
-                continue;
-            }
-            match self.decide(p, l) {
-                Ok(side) => splits.push((i as u32, side)),
-                Err(why) => {
-                    if why.rank() > reason.rank() {
-                        reason = why;
-                    }
-                }
-            }
+            v.note(i, self.decide(p, l));
         }
-        (r, reason, splits)
+        (r, v.reason, v.splits)
     }
 
     /// The oracle on one link: `Ok(side to split)` or `Err(why it is kept)`.
-    fn decide(&self, p: &Element, link: &Link) -> Result<Split, StopReason> {
+    fn decide(&self, p: &Element, link: &Link) -> Decision {
         let class = link.class();
         if class == VisClass::None || !self.wants_split(link, class, self.source_b(link.source)) {
             return Err(self.below_reason());
@@ -793,14 +846,15 @@ impl HierarchicalSolver {
         }
     }
 
-    /// New links replacing the split ones of receiver `r`: (own list, links for r's children, rays).
-    fn replace_links(&self, r: u32, splits: &[(u32, Split)]) -> ReplaceResult {
+    /// New links replacing the split ones of receiver `r` (its own list, links for its
+    /// children), with the next pass's verdicts on them.
+    fn replace_links(&self, r: u32, splits: &[(u32, Split)]) -> Replaced {
         let old = &self.links.by_receiver[r as usize];
         // The new links of each split link (its source's or its receiver's children, in child
         // order), in parallel when the receiver has many: one busy receiver must not keep a
         // thread waiting. Each split link has its own shadow cache, so the result does not
         // depend on how the work is divided.
-        let new_of = |&(i, side): &(u32, Split)| -> ([Option<Link>; 4], u64) {
+        let new_of = |&(i, side): &(u32, Split)| -> ([Option<(Link, Decision)>; 4], u64) {
             let l = &old[i as usize];
             let mut last = NO_HIT;
             let mut out = [None; 4];
@@ -819,60 +873,64 @@ impl HierarchicalSolver {
         };
         // Few splits: made one by one below, without a list.
         let parallel = splits.len() >= PARALLEL_SPLITS;
-        let made: Vec<([Option<Link>; 4], u64)> = if parallel {
+        let made: Vec<([Option<(Link, Decision)>; 4], u64)> = if parallel {
             splits.par_iter().with_max_len(PARALLEL_SPLITS / 4).map(new_of).collect()
         } else {
             Vec::new()
         };
         let mut made = made.into_iter();
-        let mut own = Vec::with_capacity(old.len() + 3 * splits.len());
-        let mut kids = Kids::default();
+        let mut rep = Replaced {
+            receiver: r,
+            own: Vec::with_capacity(old.len() + 3 * splits.len()),
+            own_verdict: Verdict::default(),
+            kids: Default::default(),
+            kid_verdicts: Default::default(),
+            first_child: NONE,
+            rays: 0,
+            own_changed: false,
+            created: 0,
+        };
         let down = splits.iter().filter(|(_, side)| *side == Split::Receiver).count();
         if down > 0 {
-            for k in &mut kids.0 {
+            for k in &mut rep.kids {
                 k.reserve_exact(down);
             }
+            rep.first_child = self.hier.get(r).first_child;
         }
-        let mut rays = 0u64;
-        let mut own_changed = false;
-        let mut created = 0;
-        let mut next = splits.iter().peekable();
-        for (i, l) in old.iter().enumerate() {
-            let (side, (new, nr)) = match next.peek() {
-                Some(&&(j, _)) if j as usize == i => {
-                    let split = next.next().expect("peeked");
-                    let m = if parallel { made.next().expect("one per split") } else { new_of(split) };
-                    (split.1, m)
-                }
-                _ => {
-                    own.push(Link { fresh: false, ..*l });
-                    continue;
-                }
-            };
-            rays += nr;
-            created += new.iter().flatten().count();
-            match side {
+        // The kept links between split ones are copied in runs.
+        let mut kept_from = 0;
+        for split in splits {
+            let i = split.0 as usize;
+            rep.own.extend_from_slice(&old[kept_from..i]);
+            kept_from = i + 1;
+            let (new, nr) = if parallel { made.next().expect("one per split") } else { new_of(split) };
+            rep.rays += nr;
+            rep.created += new.iter().flatten().count();
+            match split.1 {
                 Split::Source => {
-                    own_changed = true;
-                    own.extend(new.into_iter().flatten());
+                    rep.own_changed = true;
+                    for (nl, d) in new.into_iter().flatten() {
+                        rep.own_verdict.note(rep.own.len(), d);
+                        rep.own.push(nl);
+                    }
                 }
                 Split::Receiver => {
-                    for (k, nl) in new.into_iter().enumerate() {
-                        kids.0[k].extend(nl);
+                    for (k, (nl, d)) in new.into_iter().enumerate().filter_map(|(k, n)| Some((k, n?))) {
+                        rep.kid_verdicts[k].note(rep.kids[k].len(), d);
+                        rep.kids[k].push(nl);
                     }
                 }
             }
         }
-        if kids.0.iter().any(|k| !k.is_empty()) {
-            kids.1 = self.hier.get(r).first_child;
-        }
-        (r, own, kids, rays, own_changed, created)
+        rep.own.extend_from_slice(&old[kept_from..]);
+        rep
     }
 
     /// A link receiver ← source, or None when the source contributes nothing geometrically.
     ///
     /// `last`: the shadow cache (see [`Accel::occluded_cached`]) shared by nearby pairs.
-    fn make_link(&self, receiver: u32, source: u32, last: &mut u32) -> (Option<Link>, u64) {
+    /// With the link comes the next refinement pass's decision on it (see `decide`).
+    fn make_link(&self, receiver: u32, source: u32, last: &mut u32) -> (Option<(Link, Decision)>, u64) {
         let p = self.hier.get(receiver);
         let q = self.hier.get(source);
         if p.patch == q.patch {
@@ -938,7 +996,7 @@ impl HierarchicalSolver {
         if settled {
             link.vis = if stop == Stop::AtVisible { UNMEASURED_VIS } else { vis as f32 };
             link.unmeasured = true;
-            return (Some(link), cast);
+            return (Some((link, self.decide(p, &link))), cast);
         }
         if surely {
             link.ff = link_form_factor_rule(p, q, self.params.five_times, true) as f32;
@@ -955,7 +1013,7 @@ impl HierarchicalSolver {
                 link.vis = (v2 * f64::from(more) / f64::from(more + rays)) as f32;
             }
         }
-        (Some(link), cast)
+        (Some((link, self.decide(p, &link))), cast)
     }
 
     /// Measure V of the links still marked unmeasured (refinement stopped, by the link
@@ -1687,7 +1745,6 @@ fn new_link(
         fmax: fpq.max(fqp) as f32,
         bound: geometric_variation(p, q) as f32,
         split_source: fpq > fqp,
-        fresh: true,
         unmeasured: false,
     }
 }
