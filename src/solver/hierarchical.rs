@@ -15,10 +15,15 @@
 //!   │                └ per receiver (parallel): gathered = Σ_links F·V·B_source   (Jacobi)
 //!   └ passes until nothing splits; each pass:
 //!       A (parallel, read-only)  decide per link: keep / split source / split receiver
-//!       B (serial, sorted ids)   split the chosen elements → deterministic element ids
-//!       C (parallel)             form factors + visibility of the replacement links
-//!       D (serial, receiver order) install the links
+//!                                (first pass: every link; later: the verdicts made with the
+//!                                new links, the oracle's inputs being fixed during a refinement)
+//!       B (sorted ids)           split the chosen elements → deterministic element ids
+//!       C (parallel)             form factors + visibility + verdicts of the replacement links
+//!       D (receiver order)       install the links
 //! ```
+//! `solve` runs the loop: refine, then `round_iterations` gathers (to convergence once a
+//! refinement adds at most `settle` of the links, or in the last allowed round), until a
+//! refinement of the converged solution adds at most `settle` of the links.
 //! - **Refine** (the lecture's `Refine(p, q, Feps, Aeps)`): estimate F_pq and F_qp with the disk
 //!   formula; if the oracle is satisfied, keep the link; else split the element with the larger
 //!   estimate (F_pq > F_qp → split the source q) unless it is at the Aeps floor or the maximum
