@@ -189,7 +189,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     println!();
-    println!("Refinement by phase (same runs; split and install are serial):");
+    println!("Refinement by phase (same runs; install is mostly serial):");
     println!("| rays | threads | initial linking | oracle | split | new links | install | other |");
     println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in &rows {
