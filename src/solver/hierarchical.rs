@@ -394,6 +394,10 @@ enum Split {
 /// The oracle's decision on one link: `Ok(side to split)` or `Err(why it is kept)`.
 type Decision = Result<Split, StopReason>;
 
+/// The replacement links of one split link (in child order) with their verdicts, and the rays
+/// cast for them.
+type NewLinks = ([Option<(Link, Decision)>; 4], u64);
+
 /// One receiver's verdict in pass A: why its kept links stopped (the strongest reason), and the
 /// links to split (index in its list, which side).
 type ReceiverDecision = (u32, StopReason, Vec<(u32, Split)>);
@@ -859,7 +863,7 @@ impl HierarchicalSolver {
         // order), in parallel when the receiver has many: one busy receiver must not keep a
         // thread waiting. Each split link has its own shadow cache, so the result does not
         // depend on how the work is divided.
-        let new_of = |&(i, side): &(u32, Split)| -> ([Option<(Link, Decision)>; 4], u64) {
+        let new_of = |&(i, side): &(u32, Split)| -> NewLinks {
             let l = &old[i as usize];
             let mut last = NO_HIT;
             let mut out = [None; 4];
@@ -878,7 +882,7 @@ impl HierarchicalSolver {
         };
         // Few splits: made one by one below, without a list.
         let parallel = splits.len() >= PARALLEL_SPLITS;
-        let made: Vec<([Option<(Link, Decision)>; 4], u64)> = if parallel {
+        let made: Vec<NewLinks> = if parallel {
             splits.par_iter().with_max_len(PARALLEL_SPLITS / 4).map(new_of).collect()
         } else {
             Vec::new()
