@@ -510,3 +510,18 @@ fn gathering_between_refinements_matches_converging_every_round() {
     assert!((lb / la - 1.0).abs() < SCHEDULE_LINKS_TOL, "links {la} → {lb}");
     assert!(ib < ia, "the schedule must save gathers: {ia} → {ib}");
 }
+
+#[test]
+fn absurd_schedule_parameters_are_refused_with_their_names() {
+    for name in HierarchicalParams::PRESETS {
+        assert_eq!(HierarchicalParams::preset(name).unwrap().validate(), Ok(()), "preset {name}");
+    }
+    let p = HierarchicalParams::interactive();
+    let e = HierarchicalParams { round_iterations: 0, ..p }.validate().unwrap_err();
+    assert!(e.contains("round-iterations"), "{e}");
+    for settle in [-0.1, 1.5, f64::NAN, f64::INFINITY] {
+        let e = HierarchicalParams { settle, ..p }.validate().unwrap_err();
+        assert!(e.contains("settle"), "{settle}: {e}");
+    }
+    assert_eq!(HierarchicalParams { settle: 0.0, round_iterations: 1, ..p }.validate(), Ok(()));
+}
