@@ -375,12 +375,21 @@ impl Verdict {
     fn note(&mut self, index: usize, v: Decision) {
         match v {
             Ok(side) => self.splits.push((index as u32, side)),
-            Err(why) => {
-                if why.rank() > self.reason.rank() {
-                    self.reason = why;
-                }
-            }
+            Err(why) => self.keep(why),
         }
+    }
+
+    /// Record a kept link's reason (the strongest one stands).
+    fn keep(&mut self, why: StopReason) {
+        if why.rank() > self.reason.rank() {
+            self.reason = why;
+        }
+    }
+
+    /// Add the verdict on links that follow this verdict's in the same list.
+    fn absorb(&mut self, mut later: Verdict) {
+        self.keep(later.reason);
+        self.splits.append(&mut later.splits);
     }
 }
 
@@ -398,9 +407,8 @@ type Decision = Result<Split, StopReason>;
 /// cast for them.
 type NewLinks = ([Option<(Link, Decision)>; 4], u64);
 
-/// One receiver's verdict in pass A: why its kept links stopped (the strongest reason), and the
-/// links to split (index in its list, which side).
-type ReceiverDecision = (u32, StopReason, Vec<(u32, Split)>);
+/// One receiver's verdict in pass A.
+type ReceiverDecision = (u32, Verdict);
 
 /// The HSA91 solver with a step API.
 pub struct HierarchicalSolver {
@@ -643,7 +651,7 @@ impl HierarchicalSolver {
             }
             kept_reason.resize(self.hier.len(), StopReason::Unrefined);
             let mut to_split = IdSet::default();
-            for (r, reason, splits) in &decisions {
+            for (r, Verdict { reason, splits }) in &decisions {
                 for &(i, side) in splits {
                     to_split.insert(match side {
                         Split::Source => self.links.by_receiver[*r as usize][i as usize].source,
@@ -671,9 +679,9 @@ impl HierarchicalSolver {
             let phase = Instant::now();
             // C: replacement links, in parallel.
             let work: Vec<ReceiverDecision> =
-                decisions.into_iter().filter(|(_, _, sp)| !sp.is_empty()).collect();
+                decisions.into_iter().filter(|(_, v)| !v.splits.is_empty()).collect();
             let results: Vec<Replaced> =
-                work.par_iter().map(|(r, _, splits)| self.replace_links(*r, splits)).collect();
+                work.par_iter().map(|(r, v)| self.replace_links(*r, &v.splits)).collect();
             self.stats.refine_links_s += phase.elapsed().as_secs_f64();
             let phase = Instant::now();
             // D: install, in receiver order: every receiver's own list first, then the links
@@ -686,7 +694,7 @@ impl HierarchicalSolver {
                 let r = rep.receiver;
                 self.stats.rays += rep.rays;
                 if rep.own_changed {
-                    next.push((r, rep.own_verdict.reason, rep.own_verdict.splits));
+                    next.push((r, rep.own_verdict));
                 }
                 new_links += rep.created;
                 let pushed: usize = rep.kids.iter().map(Vec::len).sum();
@@ -723,21 +731,18 @@ impl HierarchicalSolver {
                 if normalize {
                     self.hier.elements[c as usize].dirty = true;
                 }
-                next.push((c, v.reason, v.splits));
+                next.push((c, v));
                 changed.insert(c);
             }
             // In receiver order; a child that was a receiver in this pass too has its own list's
             // verdict first (lower indices), then its parent's pushed links'.
             next.sort_by_key(|d| d.0);
             next.dedup_by(|later, first| {
-                if later.0 != first.0 {
-                    return false;
+                let same = later.0 == first.0;
+                if same {
+                    first.1.absorb(std::mem::take(&mut later.1));
                 }
-                if later.1.rank() > first.1.rank() {
-                    first.1 = later.1;
-                }
-                first.2.append(&mut later.2);
-                true
+                same
             });
             pending = Some(next);
             self.stats.refine_install_s += phase.elapsed().as_secs_f64();
@@ -796,7 +801,7 @@ impl HierarchicalSolver {
         for (i, l) in self.links.by_receiver[r as usize].iter().enumerate() {
             v.note(i, self.decide(p, l));
         }
-        (r, v.reason, v.splits)
+        (r, v)
     }
 
     /// The oracle on one link: `Ok(side to split)` or `Err(why it is kept)`.
