@@ -38,6 +38,12 @@ pub struct Args {
     /// Element size of --compare uniform/progressive (default: scene diagonal / 16).
     #[arg(long)]
     pub solve_element_size: Option<f64>,
+    /// Shadow rays per link of --compare hierarchical (default: the preset's).
+    #[arg(long)]
+    pub solve_rays: Option<u32>,
+    /// Visibility seed of --compare hierarchical (default: the preset's).
+    #[arg(long)]
+    pub solve_seed: Option<u64>,
     /// With --compare: write PREFIX_solution.png and PREFIX_error.png (per-element relative error,
     /// colour bar) from the scene's default camera.
     #[arg(long)]
@@ -176,9 +182,12 @@ fn compare(
     let t0 = std::time::Instant::now();
     let sol = match method {
         "hierarchical" => {
-            let p = HierarchicalParams::preset(&args.preset).with_context(|| {
+            let mut p = HierarchicalParams::preset(&args.preset).with_context(|| {
                 format!("--preset {}: one of {:?}", args.preset, HierarchicalParams::PRESETS)
             })?;
+            p.rays = args.solve_rays.unwrap_or(p.rays);
+            p.seed = args.solve_seed.unwrap_or(p.seed);
+            p.validate().map_err(anyhow::Error::msg).context("invalid --solve-rays")?;
             let mut s =
                 HierarchicalSolver::new(std::sync::Arc::new(scene.clone()), p).map_err(anyhow::Error::msg)?;
             s.solve(&mut |_, _| {});

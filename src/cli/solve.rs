@@ -94,10 +94,14 @@ pub struct Args {
     /// Convergence tolerance (relative change of radiosity; progressive: unshot/emitted power).
     #[arg(long)]
     pub tolerance: Option<f64>,
-    /// Re-test a zero visibility estimate that would stop refinement with this many times the
-    /// rays before accepting it; 0 never (hierarchical).
+    /// Re-test a zero visibility estimate, on a link that would be refined at any other
+    /// visibility, with up to this many times the rays before accepting it; 0 never (hierarchical).
     #[arg(long)]
     pub zero_confirm: Option<u32>,
+    /// Partially visible links refine at this fraction of BFeps, in (0, 1] (hierarchical, BF
+    /// oracle; 1 is SPLASH-2's criterion).
+    #[arg(long)]
+    pub partial_bf_factor: Option<f64>,
     /// Seed of the visibility jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -224,6 +228,9 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
     }
     if let Some(v) = args.zero_confirm {
         p.zero_confirm = v;
+    }
+    if let Some(v) = args.partial_bf_factor {
+        p.partial_bf_factor = v;
     }
     if let Some(v) = args.round_iterations {
         p.round_iterations = v;
