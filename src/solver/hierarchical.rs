@@ -984,7 +984,7 @@ impl HierarchicalSolver {
         // Which visibility classes the next pass would split the link in (the side does not
         // depend on V; a split when fully visible implies one when partially visible: the
         // partial test uses a bound of 1 instead of ≤ 1, a source term b_max ≥ the max channel
-        // of B, and a threshold 4× lower).
+        // of B, and a threshold `partial_bf_factor` ≤ 1 times the full one).
         let (split_full, split_partial) = if self.split_side(p, &link).is_ok() {
             let b = self.source_b(source);
             (self.wants_split(&link, VisClass::Full, b), self.wants_split(&link, VisClass::Partial, b))
