@@ -92,7 +92,7 @@ pub struct HierarchicalParams {
     /// the zero is accepted (0: never). For such a link a zero is the only way refinement stops,
     /// so without the test each level of refinement loses the expected P(zero) · V of the
     /// link's light, and the losses compound: on splash_room at 4 rays the floor came out 14 %
-    /// dark (2 % with `zero_confirm` 2; see `solver::hierarchical`). With `conservative`, links
+    /// dark (2–4 % with `zero_confirm` 2; see `solver::hierarchical`). With `conservative`, links
     /// the oracle would refine only were they partially visible are re-tested too (Cornell's
     /// ceiling, one bounce from the floor: −5.7 % → −3.2 %).
     pub zero_confirm: u32,
