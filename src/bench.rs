@@ -264,6 +264,7 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
         out.push(Method::Uniform(UniformParams {
             element_size: d / k,
             rays: 16,
+            ff_tolerance: uniform::COARSE_FF_TOLERANCE,
             ..UniformParams::default()
         }));
     }
@@ -283,6 +284,7 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
             max_shots: n,
             tolerance: 1e-9,
             rays: 16,
+            ff_tolerance: uniform::COARSE_FF_TOLERANCE,
             ..ProgressiveParams::default()
         }));
     }

@@ -25,6 +25,8 @@
 //! - [`solver`]: parameters, uniform / progressive / hierarchical solvers, statistics.
 //! - [`reference`](mod@reference): an independent Monte Carlo estimator that shares no kernel with `solver`.
 //! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
+//! - [`exact`]: exact single-bounce radiosity (one emitter, black occluders, one receiver):
+//!   a closed-form ruler with no reference noise.
 //! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
 //! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
@@ -33,6 +35,7 @@
 
 pub mod accel;
 pub mod bench;
+pub mod exact;
 pub mod form_factor;
 pub mod hard_cases;
 pub mod hierarchy;

@@ -18,8 +18,16 @@ const F32_REL: f64 = 1e-6;
 /// Coordinates of the scenes are at most ~1000 units: absolute f32 position error bound.
 const POS_ABS: f64 = 1e-3 * F32_REL * 1e3;
 
-const CODE_BUILT: &[&str] =
-    &["cornell", "perpendicular", "parallel", "furnace", "cube-one-light", "table-room"];
+const CODE_BUILT: &[&str] = &[
+    "cornell",
+    "perpendicular",
+    "parallel",
+    "furnace",
+    "cube-one-light",
+    "table-room",
+    "shadow-wide",
+    "shadow-narrow",
+];
 
 fn asset_path(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/scenes").join(format!("{name}.gltf"))

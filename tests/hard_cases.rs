@@ -59,7 +59,12 @@ impl Solver {
         let accel = Accel::build(&scene);
         match self {
             Solver::Uniform => {
-                let p = UniformParams { element_size: d / 8.0, rays: 16, ..UniformParams::default() };
+                let p = UniformParams {
+                    element_size: d / 8.0,
+                    rays: 16,
+                    ff_tolerance: uniform::COARSE_FF_TOLERANCE,
+                    ..UniformParams::default()
+                };
                 uniform::solve(&scene, &accel, &p, &mut |_, _| {})
             }
             Solver::Progressive => {
@@ -67,6 +72,7 @@ impl Solver {
                     element_size: d / 8.0,
                     rays: 16,
                     tolerance: PROGRESSIVE_TOLERANCE,
+                    ff_tolerance: uniform::COARSE_FF_TOLERANCE,
                     ..ProgressiveParams::default()
                 };
                 progressive::solve(&scene, &accel, &p, &mut |_, _| {})

@@ -419,13 +419,18 @@ fn patch_l1(
 /// per link, open in the issue.
 #[test]
 fn hierarchical_approaches_the_fine_uniform_solution_as_bf_eps_shrinks() {
-    use radlab::solver::uniform::{UniformParams, solve as uniform};
+    use radlab::solver::uniform::{COARSE_FF_TOLERANCE, UniformParams, solve as uniform};
     for (name, size, coarse, fine, tol_coarse, tol_fine) in
         [("cornell", 60.0, 1e-2, 2e-3, 0.125, 0.09), ("cube-one-light", 0.1, 1e-2, 1e-3, 0.046, 0.004)]
     {
         let scene = radlab::scene::Scene::load(&format!("builtin:{name}")).unwrap();
         let accel = radlab::accel::Accel::build(&scene);
-        let up = UniformParams { element_size: size, rays: 16, ..UniformParams::default() };
+        let up = UniformParams {
+            element_size: size,
+            rays: 16,
+            ff_tolerance: COARSE_FF_TOLERANCE,
+            ..UniformParams::default()
+        };
         let reference = uniform(&scene, &accel, &up, &mut |_, _| {}).unwrap();
         let mut errs = Vec::new();
         for (bf, tol) in [(coarse, tol_coarse), (fine, tol_fine)] {

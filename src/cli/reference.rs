@@ -44,6 +44,12 @@ pub struct Args {
     /// Visibility seed of --compare hierarchical (default: the preset's).
     #[arg(long)]
     pub solve_seed: Option<u64>,
+    /// Estimate B at the points listed in this JSON file instead of over a mesh: an array of
+    /// `{"patch": INDEX, "point": [x, y, z]}` (each point on its patch), `--samples` paths each;
+    /// `--json` then writes `{"points": [{"patch", "point", "radiosity", "std_error"}]}`.
+    /// Not cached.
+    #[arg(long, conflicts_with_all = ["compare", "images", "element_size"])]
+    pub points: Option<PathBuf>,
     /// With --compare: write PREFIX_solution.png and PREFIX_error.png (per-element relative error,
     /// colour bar) from the scene's default camera.
     #[arg(long)]
@@ -60,8 +66,79 @@ struct PatchSummary<'a> {
     std_error: Rgb,
 }
 
+/// One entry of a `--points` file.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PointSpec {
+    patch: usize,
+    point: [f64; 3],
+}
+
+/// Largest distance of a `--points` point from its patch's plane, relative to the patch's size.
+const POINT_OFF_PLANE_REL: f64 = 1e-6;
+
+/// `--points`: B at listed points with standard errors (see [`radlab::reference::estimate_points`]).
+fn run_points(args: &Args, scene: &radlab::scene::Scene, file: &std::path::Path) -> anyhow::Result<()> {
+    let text = std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
+    let specs: Vec<PointSpec> = serde_json::from_str(&text).with_context(|| {
+        format!("{}: expected an array of {{\"patch\": N, \"point\": [x, y, z]}}", file.display())
+    })?;
+    let mut points = Vec::with_capacity(specs.len());
+    for (i, s) in specs.iter().enumerate() {
+        let Some(p) = scene.patches.get(s.patch) else {
+            anyhow::bail!(
+                "{}: point {i}: patch {} does not exist ({} patches)",
+                file.display(),
+                s.patch,
+                scene.patches.len()
+            );
+        };
+        let x = radlab::math::DVec3::from_array(s.point);
+        let off = (p.normal.dot(x) - p.plane_d()).abs();
+        if !x.is_finite() || off > POINT_OFF_PLANE_REL * p.diameter() {
+            anyhow::bail!(
+                "{}: point {i} {:?} is not on patch {} ({} off its plane)",
+                file.display(),
+                s.point,
+                s.patch,
+                off
+            );
+        }
+        points.push((x, s.patch));
+    }
+    let params = ReferenceParams { samples: args.samples, seed: args.seed, ..ReferenceParams::standard() };
+    let accel = Accel::build(scene);
+    let t0 = std::time::Instant::now();
+    let est = radlab::reference::estimate_points(scene, &accel, &points, &params)?;
+    eprintln!(
+        "reference for {}: {} points, {} paths each, {:.2} s",
+        scene.source,
+        points.len(),
+        params.samples,
+        t0.elapsed().as_secs_f64()
+    );
+    let doc = serde_json::json!({
+        "scene": scene.source,
+        "params": params,
+        "points": specs.iter().zip(&est).map(|(s, e)| serde_json::json!({
+            "patch": s.patch, "point": s.point, "radiosity": e.radiosity, "std_error": e.std_error,
+        })).collect::<Vec<_>>(),
+    });
+    let text = serde_json::to_string_pretty(&doc)?;
+    match args.json.as_deref() {
+        Some(p) if p.as_os_str() != "-" => {
+            std::fs::write(p, text + "\n").with_context(|| format!("writing {}", p.display()))?;
+        }
+        _ => println!("{text}"),
+    }
+    Ok(())
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
+    if let Some(file) = &args.points {
+        return run_points(&args, &scene, file);
+    }
     let size = args.element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
     let mesh = reference_mesh(&scene, size)?;
     let params = ReferenceParams { samples: args.samples, seed: args.seed, ..ReferenceParams::standard() };
@@ -194,12 +271,17 @@ fn compare(
             s.solution()
         }
         "uniform" => {
-            let p = uniform::UniformParams { element_size: h, ..uniform::UniformParams::default() };
+            let p = uniform::UniformParams {
+                element_size: h,
+                ff_tolerance: uniform::COARSE_FF_TOLERANCE,
+                ..uniform::UniformParams::default()
+            };
             uniform::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?
         }
         "progressive" => {
             let p = progressive::ProgressiveParams {
                 element_size: h,
+                ff_tolerance: uniform::COARSE_FF_TOLERANCE,
                 ..progressive::ProgressiveParams::default()
             };
             progressive::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?

@@ -25,6 +25,13 @@
 //! - `table-room`: a 4 × 3 × 4 room with a table (top slab + four legs, all boxes) under a
 //!   0.5 × 0.5 ceiling light set into the ceiling: sharp shadows under the table, the classic
 //!   meshing example. Walls ρ = 0.6, floor 0.4, table 0.5, light E = 50 (B of the walls O(1)).
+//! - `shadow-wide`, `shadow-narrow`: single-bounce scenes with an exact answer
+//!   ([`crate::exact`]): one emitter with ρ = 0 facing down, black occluders (ρ = 0, E = 0),
+//!   one 2 × 2 receiver on the floor (ρ = 0.5), nothing else, so the receiver's radiosity is
+//!   ρ E F(x → visible part of the lamp) in closed form. `shadow-wide`: a 1 × 1 lamp (E = 10) at
+//!   height 2 and two overlapping occluders at heights 1 and 0.6: penumbrae about a unit wide,
+//!   overlapping shadows (inclusion–exclusion). `shadow-narrow`: a 0.2 × 0.2 lamp (E = 250) at
+//!   height 2 and one occluder at height 0.25, near the receiver: a penumbra about 0.03 wide.
 //! - `splash_room`, `splash_largeroom`: the HSA91 / SPLASH-2 `radiosity` test rooms (216 and
 //!   305 polygons) converted to glTF, shipped unchanged; their lamps have ρ = 1.0, clamped by the
 //!   loader with a warning. They have no code version (`build` returns `None`).
@@ -48,6 +55,8 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("furnace", "closed unit cube, every face E = 1 and rho = 0.5 (B = 2 everywhere)"),
     ("cube-one-light", "closed unit cube, top face emitting, rho = 0.5 elsewhere"),
     ("table-room", "a table under a small ceiling light in a room: sharp shadows"),
+    ("shadow-wide", "single bounce with an exact answer: a large lamp, two occluders, broad penumbrae"),
+    ("shadow-narrow", "single bounce with an exact answer: a small lamp, an occluder near the floor"),
     ("splash_room", "the HSA91 / SPLASH-2 test room (216 polygons, lamps rho = 1 clamped)"),
     ("splash_largeroom", "the larger SPLASH-2 room (305 polygons, lamps rho = 1 clamped)"),
 ];
@@ -61,6 +70,8 @@ fn asset(name: &str) -> Option<&'static [u8]> {
         "furnace" => include_bytes!("../../assets/scenes/furnace.gltf"),
         "cube-one-light" => include_bytes!("../../assets/scenes/cube-one-light.gltf"),
         "table-room" => include_bytes!("../../assets/scenes/table-room.gltf"),
+        "shadow-wide" => include_bytes!("../../assets/scenes/shadow-wide.gltf"),
+        "shadow-narrow" => include_bytes!("../../assets/scenes/shadow-narrow.gltf"),
         "splash_room" => include_bytes!("../../assets/scenes/splash_room.gltf"),
         "splash_largeroom" => include_bytes!("../../assets/scenes/splash_largeroom.gltf"),
         _ => return None,
@@ -90,6 +101,8 @@ pub fn build(name: &str) -> Option<Scene> {
         "furnace" => furnace(&mut b),
         "cube-one-light" => cube_one_light(&mut b),
         "table-room" => table_room(&mut b),
+        "shadow-wide" => shadow_wide(&mut b),
+        "shadow-narrow" => shadow_narrow(&mut b),
         _ => return None,
     };
     let mut scene = Scene::new(name, format!("builtin:{name}"), b.patches);
@@ -345,4 +358,38 @@ fn table_room(b: &mut Builder) -> Option<Viewpoint> {
         b.mesh(&format!("leg{k}"), table, faces);
     }
     Some(Viewpoint { eye: v(3.7, 2.2, 3.7), target: v(2.0, 0.6, 2.0), up: DVec3::Y, fov_y_deg: 60.0 })
+}
+
+/// The horizontal rectangle [x0,x1]×[z0,z1] at height y, facing up (`up`) or down.
+fn level_rect(y: f64, [x0, x1, z0, z1]: [f64; 4], up: bool) -> Vec<DVec3> {
+    let r = vec![v(x0, y, z0), v(x1, y, z0), v(x1, y, z1), v(x0, y, z1)];
+    facing(r, v(0.5 * (x0 + x1), if up { y + 1.0 } else { y - 1.0 }, 0.5 * (z0 + z1)))
+}
+
+/// A single-bounce scene: a 2 × 2 floor receiver (ρ = 0.5), a lamp facing down (ρ = 0), black
+/// occluders (listed as rectangles at a height).
+fn single_bounce(
+    b: &mut Builder,
+    lamp: (f64, [f64; 4], f64),
+    occluders: &[(f64, [f64; 4])],
+) -> Option<Viewpoint> {
+    b.mesh("receiver", grey("grey", 0.5), vec![level_rect(0.0, [-1.0, 1.0, -1.0, 1.0], true)]);
+    let (y, rect, e) = lamp;
+    let light = Mat { name: "light", rho: Rgb::ZERO, emission: Rgb::splat(e) };
+    b.mesh("light", light, vec![level_rect(y, rect, false)]);
+    let black = grey("black", 0.0);
+    b.mesh("occluders", black, occluders.iter().map(|&(y, r)| level_rect(y, r, true)).collect());
+    Some(Viewpoint { eye: v(2.2, 2.4, 2.8), target: v(0.0, 0.4, 0.0), up: DVec3::Y, fov_y_deg: 50.0 })
+}
+
+fn shadow_wide(b: &mut Builder) -> Option<Viewpoint> {
+    single_bounce(
+        b,
+        (2.0, [-0.5, 0.5, -0.5, 0.5], 10.0),
+        &[(1.0, [-0.6, 0.2, -0.4, 0.4]), (0.6, [0.0, 0.7, -0.2, 0.6])],
+    )
+}
+
+fn shadow_narrow(b: &mut Builder) -> Option<Viewpoint> {
+    single_bounce(b, (2.0, [-0.1, 0.1, -0.1, 0.1], 250.0), &[(0.25, [-0.4, 0.2, -0.2, 0.4])])
 }

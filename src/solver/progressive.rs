@@ -52,7 +52,8 @@ pub struct ProgressiveParams {
     pub max_shots: u32,
     /// Seed of the visibility jitter.
     pub seed: u64,
-    /// Relative accuracy asked of each form factor's quadrature.
+    /// Relative accuracy asked of each form factor's quadrature (`--ff-tol`, default
+    /// [`super::uniform::DEFAULT_FF_TOLERANCE`]).
     pub ff_tolerance: f64,
     /// Refuse meshes with more elements than this.
     pub max_elements: usize,
@@ -66,7 +67,7 @@ impl Default for ProgressiveParams {
             tolerance: 1e-3,
             max_shots: 100_000,
             seed: 0,
-            ff_tolerance: 1e-4,
+            ff_tolerance: super::uniform::DEFAULT_FF_TOLERANCE,
             max_elements: 10_000,
         }
     }

@@ -43,6 +43,21 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
+/// Default relative accuracy of each form factor's quadrature (`--ff-tol`): tight enough that a
+/// closed box with one element per face (`builtin:furnace`, `builtin:cube-one-light`) matches the
+/// exact 6×6 solution from the catalog form factors to 1e-9 (tests/classical_solvers.rs).
+/// Measured (uniform and progressive alike, worst face and channel): 1e-4 → 3.7e-5…6.6e-5 off,
+/// 1e-6 → 2.9e-8…5.6e-8, 1e-8 → 0.8e-9…1.5e-9 (not enough), 1e-9 → 1.1e-10…2.2e-10.
+/// It costs time: the uniform solve of `builtin:cornell` at the CLI's default mesh (277 elements)
+/// takes ~23× as long as at [`COARSE_FF_TOLERANCE`] and moves no patch by more than 9e-6.
+pub const DEFAULT_FF_TOLERANCE: f64 = 1e-9;
+
+/// The former fixed tolerance: for comparisons at the percent level (the bench, `reference
+/// --compare`, tests against a reference), where the quadrature error (≤ 1e-4 relative per form
+/// factor, 9e-6 on cornell's patches) is far below what is measured and the tight default would
+/// only cost time.
+pub const COARSE_FF_TOLERANCE: f64 = 1e-4;
+
 /// Largest subdivision of one patch side (quads) — 4096² elements; a triangle's depth is capped
 /// at the same resolution. Callers check [`element_count`] against their cap first.
 const MAX_SPLITS_PER_SIDE: f64 = 4096.0;
@@ -62,7 +77,7 @@ pub struct UniformParams {
     /// Seed of the visibility jitter.
     pub seed: u64,
     /// Relative accuracy asked of each form factor's quadrature (each row's absolute accuracy is
-    /// about twice this).
+    /// about twice this); the CLI's `--ff-tol`, default [`DEFAULT_FF_TOLERANCE`].
     pub ff_tolerance: f64,
     /// Refuse meshes with more elements than this (the matrix needs O(n²) memory and time).
     pub max_elements: usize,
@@ -76,7 +91,7 @@ impl Default for UniformParams {
             tolerance: 1e-10,
             max_iterations: 1000,
             seed: 0,
-            ff_tolerance: 1e-4,
+            ff_tolerance: DEFAULT_FF_TOLERANCE,
             max_elements: 10_000,
         }
     }
@@ -96,7 +111,7 @@ pub(crate) fn validate_common(
         return Err(format!("rays must be in 0..=4096 (got {rays})"));
     }
     if !(ff_tolerance.is_finite() && ff_tolerance > 0.0 && ff_tolerance < 1.0) {
-        return Err(format!("ff-tolerance must be in (0, 1) (got {ff_tolerance})"));
+        return Err(format!("ff-tol (form-factor tolerance) must be in (0, 1) (got {ff_tolerance})"));
     }
     if max_elements == 0 {
         return Err("max-elements must be at least 1".into());
