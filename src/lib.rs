@@ -25,6 +25,7 @@
 //! - [`solver`]: parameters, uniform / progressive / hierarchical solvers, statistics.
 //! - [`reference`](mod@reference): an independent Monte Carlo estimator that shares no kernel with `solver`.
 //! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
+//! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
 //! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
 //! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
@@ -41,6 +42,7 @@ pub mod link;
 pub mod math;
 pub mod metrics;
 pub mod overlay;
+pub mod pointwise;
 pub mod reference;
 pub mod scene;
 pub mod solver;

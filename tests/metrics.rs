@@ -3,12 +3,18 @@
 
 use radlab::accel::Accel;
 use radlab::hard_cases;
+use radlab::math::DVec3;
 use radlab::math::{Rgb, polygon_area, polygon_centroid};
 use radlab::metrics::{self, compare_resampled, compare_solution, resample};
-use radlab::reference::{Estimate, RefElement, ReferenceParams, estimate_elements, reference_mesh};
+use radlab::pointwise::{self, PiecewiseConstant, Reconstruction};
+use radlab::reference::{
+    Control, Estimate, PointParams, RefElement, ReferenceParams, estimate_at, estimate_elements,
+    reference_mesh, reference_points,
+};
 use radlab::scene::Scene;
 use radlab::solver::hierarchical::HierarchicalSolver;
 use radlab::solver::params::{AreaEps, HierarchicalParams};
+use radlab::solver::uniform::{self, UniformParams};
 use radlab::solver::{EnergyBalance, Solution, SolveStats, SolvedElement};
 use std::sync::Arc;
 
@@ -290,6 +296,7 @@ fn quick_bench_runs_every_method_and_writes_table_json_and_plot() {
     assert!(lines.iter().filter(|l| l.contains("reference batch 2/2")).count() == 2, "{lines:#?}");
     for sc in &report.scenes {
         assert_eq!((sc.reference_batches, sc.reference_samples), (2, 2 * config.reference.samples));
+        assert!(sc.reference_points >= config.reference_points as usize, "{} points", sc.reference_points);
         // A target is resolved exactly when noise and resolution are both ≤ half of it.
         for &(target, ok) in &sc.resolved {
             let want = sc.reference_noise <= 0.5 * target && sc.resolution <= 0.5 * target;
@@ -312,6 +319,9 @@ fn quick_bench_runs_every_method_and_writes_table_json_and_plot() {
     }
     assert_eq!(report.scenes.len(), 2);
     let md = bench::markdown(&report);
+    // The table says which ruler and how many points.
+    let points = radlab::pointwise::thousands(report.scenes[0].reference_points);
+    assert!(md.contains("**Pointwise**") && md.contains(&format!("{points} points")), "{md}");
     assert!(
         md.contains("| shared_edge_perpendicular") || md.contains("| hard:shared_edge_perpendicular"),
         "{md}"
@@ -323,4 +333,138 @@ fn quick_bench_runs_every_method_and_writes_table_json_and_plot() {
     let json = serde_json::to_string(&report).unwrap();
     assert!(json.contains("\"rows\""));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A solution equal to the reference at every point has zero pointwise error, and its noise is
+/// reported; a closure reconstruction plugs in like the piecewise-constant one.
+#[test]
+fn pointwise_error_of_the_reference_itself_is_zero_and_closures_reconstruct() {
+    let scene = hard_cases::boxes_on_floor().scene;
+    let accel = Accel::build(&scene);
+    let params = PointParams {
+        points: 400,
+        paths: ReferenceParams { samples: 8, ..ReferenceParams::quick() },
+        ..PointParams::quick()
+    };
+    let (set, reference) = reference_points(&scene, &accel, &params, &Control::default()).unwrap();
+    let values: Vec<Rgb> = reference.iter().map(|e| e.radiosity).collect();
+    let r = pointwise::compare_points(&scene, &set.points, &values, &reference, 0.0).unwrap();
+    assert_eq!(r.scene.l2, 0.0);
+    assert_eq!(r.scene.l2_debiased, 0.0);
+    assert!(r.scene.reference_noise > 0.0);
+    // The reference as a piecewise-constant solution on its own cells reads itself back exactly.
+    let cells = set.cell_regions(&scene);
+    let sol = solution_on(&scene, &cells, &values);
+    let pc = PiecewiseConstant::new(&scene, &sol.elements).unwrap();
+    assert_eq!(pointwise::evaluate(&pc, &set.points), values);
+    // A closure: twice the reference's value; the error is then exactly the reference's B.
+    let twice = |patch: usize, x: DVec3| pc.radiosity_at(patch, x) * 2.0;
+    let doubled = pointwise::evaluate(&twice, &set.points);
+    let d = pointwise::compare_points(&scene, &set.points, &doubled, &reference, 0.0).unwrap();
+    let b2: f64 = set
+        .points
+        .iter()
+        .zip(&reference)
+        .map(|(p, e)| p.area * e.radiosity.mul_rgb(e.radiosity).0.iter().sum::<f64>())
+        .sum();
+    let refl2: f64 = set
+        .points
+        .iter()
+        .zip(&reference)
+        .map(|(p, e)| {
+            let r = e.radiosity - scene.patches[p.patch].emission;
+            p.area * r.mul_rgb(r).0.iter().sum::<f64>()
+        })
+        .sum();
+    assert!(
+        (d.scene.l2 - (b2 / refl2).sqrt()).abs() < 1e-9 * d.scene.l2,
+        "{} vs {}",
+        d.scene.l2,
+        (b2 / refl2).sqrt()
+    );
+    assert!(pointwise::compare_points(&scene, &set.points[1..], &values[1..], &reference, 0.0).is_err());
+}
+
+/// Issue 15 §1: the pointwise ruler sees a shadow. On table-room (penumbra of the table's edge on
+/// the floor: light 0.5 wide at 2.2 above the table top, floor 0.8 below it → 0.5 · 0.8 / 2.2 ≈
+/// 0.18 wide), against a quick pointwise reference (8192 points, 64 paths each):
+/// - a uniform solution at h = d/4 scores clearly worse than one at h = d/16
+///   (measured: COARSE_FINE pointwise, where the old element-average ruler read 0.47 % for a
+///   blocky solution);
+/// - the fine solution displaced by half a penumbra width (0.09, along x in each patch's plane)
+///   scores worse than undisplaced (measured: DISPLACED).
+#[test]
+fn pointwise_ruler_sees_the_table_rooms_shadow() {
+    let scene = Scene::load("builtin:table-room").unwrap();
+    let accel = Accel::build(&scene);
+    let params = PointParams {
+        points: 8192,
+        paths: ReferenceParams { samples: 64, ..ReferenceParams::quick() },
+        ..PointParams::quick()
+    };
+    let t0 = std::time::Instant::now();
+    let (set, reference) = reference_points(&scene, &accel, &params, &Control::default()).unwrap();
+    let t_ref = t0.elapsed().as_secs_f64();
+    let d = scene.bounds().diagonal();
+    let solve = |h: f64| {
+        uniform::solve(
+            &scene,
+            &accel,
+            &UniformParams { element_size: h, ..UniformParams::default() },
+            &mut |_, _| {},
+        )
+        .unwrap()
+    };
+    let t1 = std::time::Instant::now();
+    let coarse = solve(d / 4.0);
+    let fine = solve(d / 16.0);
+    let t_solve = t1.elapsed().as_secs_f64();
+    let err = |sol: &Solution| {
+        pointwise::compare_solution_points(&scene, sol, &set.points, &reference).unwrap().scene
+    };
+    let (ec, ef) = (err(&coarse), err(&fine));
+    let shift = DVec3::new(0.09, 0.0, 0.0);
+    let pc = PiecewiseConstant::new(&scene, &fine.elements).unwrap();
+    let displaced = |patch: usize, x: DVec3| {
+        let n = scene.patches[patch].normal;
+        pc.radiosity_at(patch, x + shift - n * n.dot(shift))
+    };
+    let values = pointwise::evaluate(&displaced, &set.points);
+    let ed = pointwise::compare_points(&scene, &set.points, &values, &reference, 0.0).unwrap().scene;
+    // The fine solution displaced by half a penumbra, evaluated on the reference's own cells (a
+    // second, independent batch as the "solution"): displacement only.
+    let batch =
+        estimate_at(&scene, &accel, &set, &ReferenceParams { seed: 1, ..params.paths }, &Control::default())
+            .unwrap();
+    let cells = set.cell_regions(&scene);
+    let own = solution_on(&scene, &cells, &batch.iter().map(|e| e.radiosity).collect::<Vec<_>>());
+    let pc2 = PiecewiseConstant::new(&scene, &own.elements).unwrap();
+    let own_at = |s: DVec3| {
+        let f = |patch: usize, x: DVec3| {
+            let n = scene.patches[patch].normal;
+            pc2.radiosity_at(patch, x + s - n * n.dot(s))
+        };
+        pointwise::compare_points(&scene, &set.points, &pointwise::evaluate(&f, &set.points), &reference, 0.0)
+            .unwrap()
+            .scene
+    };
+    let (e_own, e_own_d) = (own_at(DVec3::ZERO), own_at(shift));
+    eprintln!(
+        "table-room: {} points (ref {t_ref:.1} s, solves {t_solve:.1} s), noise {:.2} %; coarse {} el {:.2} %, fine {} el {:.2} % (ratio {:.2}); fine displaced {:.2} % (ratio {:.2}); reference batch 2 {:.2} %, displaced {:.2} %",
+        set.points.len(),
+        100.0 * ef.reference_noise,
+        coarse.elements.len(),
+        100.0 * ec.l2_debiased,
+        fine.elements.len(),
+        100.0 * ef.l2_debiased,
+        ec.l2_debiased / ef.l2_debiased,
+        100.0 * ed.l2_debiased,
+        ed.l2_debiased / ef.l2_debiased,
+        100.0 * e_own.l2_debiased,
+        100.0 * e_own_d.l2_debiased,
+    );
+    assert!(set.points.len() >= 8192);
+    assert!(ec.l2_debiased > 1.0 * ef.l2_debiased);
+    assert!(ed.l2_debiased > 1.0 * ef.l2_debiased);
+    assert!(e_own_d.l2_debiased > 1.0 * e_own.l2_debiased);
 }
