@@ -732,7 +732,8 @@ impl Cache {
 
     /// The pointwise reference for these settings ([`points`]): from the cache if a valid entry
     /// exists, else computed and written. A batch whose seed is not the layout seed reuses (or
-    /// first computes) the layout's entry and re-estimates its points.
+    /// first computes) the layout's entry and re-estimates its points; its file holds only the
+    /// estimates (the returned entry carries the layout's points).
     pub fn get_or_compute_points(
         &self,
         scene: &Scene,
@@ -740,26 +741,32 @@ impl Cache {
         params: &PointParams,
         control: &Control,
     ) -> Result<(CachedPoints, CacheStatus), ReferenceError> {
+        let layout = if params.paths.seed == params.layout_seed {
+            None
+        } else {
+            Some(self.get_or_compute_points(scene, accel, &params.batch(params.layout_seed), control)?.0.set)
+        };
         let key = points::points_cache_key(scene, params);
         let file = self.points_file_for(key);
         let previous = if file.exists() {
-            match read_points_entry(&file, key) {
-                Ok(c) => return Ok((c, CacheStatus::Hit(file))),
+            match read_points_entry(&file, key, layout.as_ref().map(|l| l.points.len())) {
+                Ok(mut c) => {
+                    if let Some(set) = layout {
+                        c.set = set;
+                    }
+                    return Ok((c, CacheStatus::Hit(file)));
+                }
                 Err(why) => Some(why),
             }
         } else {
             None
         };
         let t0 = std::time::Instant::now();
-        let (set, estimates) = if params.paths.seed == params.layout_seed {
-            reference_points(scene, accel, params, control)?
-        } else {
-            let (layout, _) =
-                self.get_or_compute_points(scene, accel, &params.batch(params.layout_seed), control)?;
-            let estimates = estimate_at(scene, accel, &layout.set, &params.paths, control)?;
-            (layout.set, estimates)
+        let (set, estimates) = match &layout {
+            None => reference_points(scene, accel, params, control)?,
+            Some(set) => (PointSet::default(), estimate_at(scene, accel, set, &params.paths, control)?),
         };
-        let entry = CachedPoints {
+        let mut entry = CachedPoints {
             format_version: FORMAT_VERSION,
             key: format!("{key:016x}"),
             scene: scene.source.clone(),
@@ -769,6 +776,9 @@ impl Cache {
             compute_s: t0.elapsed().as_secs_f64(),
         };
         self.write(&file, &entry)?;
+        if let Some(set) = layout {
+            entry.set = set;
+        }
         let status = match previous {
             Some(why) => CacheStatus::Recomputed { file, why },
             None => CacheStatus::Computed(file),
@@ -809,8 +819,9 @@ fn read_entry(file: &Path, key: u64, n_elements: usize) -> Result<CachedReferenc
     Ok(c)
 }
 
-/// Read and check a pointwise cache file (as [`read_entry`]).
-fn read_points_entry(file: &Path, key: u64) -> Result<CachedPoints, String> {
+/// Read and check a pointwise cache file (as [`read_entry`]); `batch_of`: the layout's point
+/// count when the file is a further batch (estimates only).
+fn read_points_entry(file: &Path, key: u64, batch_of: Option<usize>) -> Result<CachedPoints, String> {
     let c: CachedPoints = read_checked(file)?;
     if c.format_version != FORMAT_VERSION {
         return Err(format!("format version {} (expected {FORMAT_VERSION})", c.format_version));
@@ -818,8 +829,9 @@ fn read_points_entry(file: &Path, key: u64) -> Result<CachedPoints, String> {
     if c.key != format!("{key:016x}") {
         return Err(format!("key {} (expected {key:016x})", c.key));
     }
-    if c.estimates.len() != c.set.points.len() || c.set.points.len() < c.params.points as usize {
-        return Err(format!("{} estimates for {} points", c.estimates.len(), c.set.points.len()));
+    let n = batch_of.unwrap_or(c.set.points.len());
+    if c.estimates.len() != n || (batch_of.is_none() && n < c.params.points as usize) {
+        return Err(format!("{} estimates for {n} points", c.estimates.len()));
     }
     if c.estimates.iter().any(|e| !(e.radiosity.is_finite() && e.std_error.is_finite())) {
         return Err("non-finite estimate".into());

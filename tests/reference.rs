@@ -255,8 +255,17 @@ fn point_cache_hits_and_batches_reuse_the_layout() {
     assert!(matches!(s2, CacheStatus::Hit(_)), "{s2:?}");
     assert_eq!(first.estimates, second.estimates);
     // A second batch: the same points, other estimates.
-    let (b1, _) = cache.get_or_compute_points(&case.scene, &acc, &p.batch(1), &Control::default()).unwrap();
+    let (b1, sb) = cache.get_or_compute_points(&case.scene, &acc, &p.batch(1), &Control::default()).unwrap();
+    let CacheStatus::Computed(batch_file) = sb else { panic!("expected a fresh batch, got {sb:?}") };
     assert_eq!(b1.set, first.set);
     assert_ne!(b1.estimates, first.estimates);
+    // Its file holds only the estimates; read back, it carries the layout's points again.
+    let CacheStatus::Hit(layout_file) = s2 else { unreachable!() };
+    let size = |f: &std::path::Path| std::fs::metadata(f).unwrap().len();
+    assert!(size(&batch_file) < size(&layout_file), "{} vs {}", size(&batch_file), size(&layout_file));
+    let (again, s3) =
+        cache.get_or_compute_points(&case.scene, &acc, &p.batch(1), &Control::default()).unwrap();
+    assert!(matches!(s3, CacheStatus::Hit(_)), "{s3:?}");
+    assert_eq!((again.set, again.estimates), (b1.set, b1.estimates));
     let _ = std::fs::remove_dir_all(&dir);
 }

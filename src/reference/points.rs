@@ -149,7 +149,7 @@ pub struct RefPoint {
 
 /// A set of points with their estimates (same order), and the level-0 grid of every patch (so
 /// a point's cell can be drawn, see [`PointSet::cell_region`]).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PointSet {
     /// (nu, nv) of each patch's level-0 grid, in patch order.
     pub grids: Vec<(u32, u32)>,
@@ -445,6 +445,7 @@ pub struct CachedPoints {
     pub key: String,
     pub scene: String,
     pub params: PointParams,
+    /// The points (in the file: empty for a further batch, whose points are the layout's).
     pub set: PointSet,
     pub estimates: Vec<Estimate>,
     /// Seconds the computation took (this batch; not the layout it reused).
