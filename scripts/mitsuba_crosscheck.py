@@ -2,7 +2,7 @@
 """Cross-check radlab's Monte Carlo reference against Mitsuba 3 at points of builtin:cornell.
 
 Issue 15 §1: irradiance meters at >= 32 points, B = rho * E_irr + E, compared with
-`radlab reference --points` at the same points; agreement within 3 combined standard errors at
+`radlab reference --point-file` at the same points; agreement within 3 combined standard errors at
 >= 95 % of the points. Mitsuba is a tool to check with, not a dependency of radlab (not in CI):
 
     python3 -m venv /tmp/mi && /tmp/mi/bin/pip install mitsuba numpy
@@ -101,7 +101,7 @@ def main():
     pts_file = os.path.join(tmp, "points.json")
     json.dump(specs, open(pts_file, "w"))
     ref_file = os.path.join(tmp, "reference.json")
-    run([args.radlab, "reference", args.scene, "--points", pts_file, "--samples", str(args.radlab_samples),
+    run([args.radlab, "reference", args.scene, "--point-file", pts_file, "--samples", str(args.radlab_samples),
          "--json", ref_file])
     ref = json.load(open(ref_file))["points"]
 
@@ -171,7 +171,7 @@ def main():
         json.dump({"rows": rows, "agree": agree, "points": len(rows)}, open(args.json_out, "w"), indent=1)
     with open(args.out, "w") as f:
         f.write("# Reference cross-check against Mitsuba 3\n\n")
-        f.write("Issue 15 §1: radlab's independent Monte Carlo reference (`radlab reference --points`, "
+        f.write("Issue 15 §1: radlab's independent Monte Carlo reference (`radlab reference --point-file`, "
                 "`radlab::reference::estimate_points`) against Mitsuba 3 "
                 f"({mi.__version__}, variant `scalar_rgb`, `path` integrator, unbounded depth) at "
                 f"{len(rows)} points of `{args.scene}`: two fixed points on every patch but the light. "

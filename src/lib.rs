@@ -27,6 +27,7 @@
 //! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
 //! - [`exact`]: exact single-bounce radiosity (one emitter, black occluders, one receiver):
 //!   a closed-form ruler with no reference noise.
+//! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
 //! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
 //! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
@@ -44,6 +45,7 @@ pub mod link;
 pub mod math;
 pub mod metrics;
 pub mod overlay;
+pub mod pointwise;
 pub mod reference;
 pub mod scene;
 pub mod solver;

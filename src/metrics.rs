@@ -31,6 +31,11 @@
 //! 99th percentile of the per-region error |ΔB| (mean over channels) / R — the level that 5 % / 1 %
 //! of the area exceeds; one noisy element cannot move them.
 //!
+//! **Pointwise**: [`crate::pointwise`] evaluates a solution at the points of the pointwise
+//! reference and takes the same norms with each point weighted by the area of its cell — the
+//! default figure of `radlab bench` and `radlab reference --compare`; this module's
+//! element-average comparisons stay beside it.
+//!
 //! When the reference was computed on other regions than the solution's elements (a fixed
 //! reference mesh, cached once per scene), [`resample`] evaluates the solution's piecewise-constant
 //! radiosity at a grid of area-uniform points in each reference region and averages them.
@@ -337,7 +342,7 @@ fn grid_point(verts: &[DVec3], u: f64, v: f64) -> (DVec3, f64) {
 }
 
 /// Point location among the elements of one patch: a uniform 2-D bucket grid in the patch plane.
-struct Locator {
+pub(crate) struct Locator {
     t: DVec3,
     b: DVec3,
     min: [f64; 2],
@@ -348,7 +353,7 @@ struct Locator {
 }
 
 impl Locator {
-    fn new(normal: DVec3, elements: &[SolvedElement], ids: &[usize]) -> Self {
+    pub(crate) fn new(normal: DVec3, elements: &[SolvedElement], ids: &[usize]) -> Self {
         let (t, b) = orthonormal_basis(normal);
         let proj = |x: DVec3| [x.dot(t), x.dot(b)];
         let mut min = [f64::INFINITY; 2];
@@ -389,7 +394,7 @@ impl Locator {
     }
 
     /// The element containing x (or the nearest by centroid among the bucket's, else the patch's).
-    fn locate(&self, x: DVec3, elements: &[SolvedElement]) -> usize {
+    pub(crate) fn locate(&self, x: DVec3, elements: &[SolvedElement]) -> usize {
         let p = [x.dot(self.t), x.dot(self.b)];
         let c = |k: usize| (((p[k] - self.min[k]) / self.cell[k]).floor().max(0.0) as usize).min(self.n - 1);
         let bucket = &self.buckets[c(1) * self.n + c(0)];

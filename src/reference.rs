@@ -1,5 +1,5 @@
-//! An independent reference: Monte Carlo estimates of radiosity averaged over elements, each with
-//! its standard error, cached on disk.
+//! An independent reference: Monte Carlo estimates of radiosity at points ([`points`], the
+//! pointwise ruler) or averaged over elements, each with its standard error, cached on disk.
 //!
 //! For a diffuse surface the radiance leaving a point is L = B/π, and
 //!
@@ -48,8 +48,12 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
+pub mod points;
+pub use points::{CachedPoints, Cell, PointParams, PointSet, RefPoint, estimate_at, reference_points};
+
 /// Version of the cache file format and of the estimator; bump it when either changes.
-pub const FORMAT_VERSION: u32 = 1;
+/// Version 2: the pointwise reference ([`points`]) joined the element averages.
+pub const FORMAT_VERSION: u32 = 2;
 
 /// Errors of the reference estimator and its cache.
 #[derive(Debug, thiserror::Error)]
@@ -584,14 +588,7 @@ impl Hasher64 {
 pub fn cache_key(scene: &Scene, elements: &[RefElement], params: &ReferenceParams) -> u64 {
     let mut h = Hasher64::default();
     h.u64(u64::from(FORMAT_VERSION));
-    h.u64(scene.patches.len() as u64);
-    for p in &scene.patches {
-        h.u64(p.vertices.len() as u64);
-        for v in &p.vertices {
-            h.vec3(*v);
-        }
-        h.rgb(p.reflectance).rgb(p.emission);
-    }
+    hash_scene(&mut h, scene);
     h.u64(elements.len() as u64);
     for e in elements {
         h.u64(e.patch as u64);
@@ -604,6 +601,18 @@ pub fn cache_key(scene: &Scene, elements: &[RefElement], params: &ReferenceParam
         .u64(u64::from(params.max_bounces))
         .u64(params.seed);
     h.finish()
+}
+
+/// Hash the patches' geometry and materials.
+fn hash_scene(h: &mut Hasher64, scene: &Scene) {
+    h.u64(scene.patches.len() as u64);
+    for p in &scene.patches {
+        h.u64(p.vertices.len() as u64);
+        for v in &p.vertices {
+            h.vec3(*v);
+        }
+        h.rgb(p.reflectance).rgb(p.emission);
+    }
 }
 
 /// First word of a cache file's header line: `radlab-reference <checksum of the JSON body>`.
@@ -715,7 +724,69 @@ impl Cache {
         Ok((entry, status))
     }
 
-    fn write(&self, file: &Path, entry: &CachedReference) -> Result<(), ReferenceError> {
+    /// The file of a pointwise reference entry.
+    #[must_use]
+    pub fn points_file_for(&self, key: u64) -> PathBuf {
+        self.dir.join(format!("points-v{FORMAT_VERSION}-{key:016x}.json"))
+    }
+
+    /// The pointwise reference for these settings ([`points`]): from the cache if a valid entry
+    /// exists, else computed and written. A batch whose seed is not the layout seed reuses (or
+    /// first computes) the layout's entry and re-estimates its points; its file holds only the
+    /// estimates (the returned entry carries the layout's points).
+    pub fn get_or_compute_points(
+        &self,
+        scene: &Scene,
+        accel: &Accel,
+        params: &PointParams,
+        control: &Control,
+    ) -> Result<(CachedPoints, CacheStatus), ReferenceError> {
+        let layout = if params.paths.seed == params.layout_seed {
+            None
+        } else {
+            Some(self.get_or_compute_points(scene, accel, &params.batch(params.layout_seed), control)?.0.set)
+        };
+        let key = points::points_cache_key(scene, params);
+        let file = self.points_file_for(key);
+        let previous = if file.exists() {
+            match read_points_entry(&file, key, layout.as_ref().map(|l| l.points.len())) {
+                Ok(mut c) => {
+                    if let Some(set) = layout {
+                        c.set = set;
+                    }
+                    return Ok((c, CacheStatus::Hit(file)));
+                }
+                Err(why) => Some(why),
+            }
+        } else {
+            None
+        };
+        let t0 = std::time::Instant::now();
+        let (set, estimates) = match &layout {
+            None => reference_points(scene, accel, params, control)?,
+            Some(set) => (PointSet::default(), estimate_at(scene, accel, set, &params.paths, control)?),
+        };
+        let mut entry = CachedPoints {
+            format_version: FORMAT_VERSION,
+            key: format!("{key:016x}"),
+            scene: scene.source.clone(),
+            params: *params,
+            set,
+            estimates,
+            compute_s: t0.elapsed().as_secs_f64(),
+        };
+        self.write(&file, &entry)?;
+        if let Some(set) = layout {
+            entry.set = set;
+        }
+        let status = match previous {
+            Some(why) => CacheStatus::Recomputed { file, why },
+            None => CacheStatus::Computed(file),
+        };
+        Ok((entry, status))
+    }
+
+    fn write<T: Serialize>(&self, file: &Path, entry: &T) -> Result<(), ReferenceError> {
         std::fs::create_dir_all(&self.dir)
             .map_err(|source| ReferenceError::CacheDir { dir: self.dir.clone(), source })?;
         let body = serde_json::to_string(entry).expect("cache entries serialise (plain data)");
@@ -732,17 +803,7 @@ impl Cache {
 /// Read and check a cache file: header line `radlab-reference <hash>`, then the JSON body whose
 /// hash must match (so any flipped byte is caught before parsing), then key and sizes.
 fn read_entry(file: &Path, key: u64, n_elements: usize) -> Result<CachedReference, String> {
-    let text = std::fs::read_to_string(file).map_err(|e| format!("cannot read: {e}"))?;
-    let (header, body) = text.split_once('\n').ok_or("no header line")?;
-    let sum = header
-        .strip_prefix(CACHE_MAGIC)
-        .map(str::trim)
-        .and_then(|h| u64::from_str_radix(h, 16).ok())
-        .ok_or_else(|| format!("bad header {header:?}"))?;
-    if sum != Hasher64::default().bytes(body.as_bytes()).finish() {
-        return Err("checksum mismatch (corrupt entry)".into());
-    }
-    let c: CachedReference = serde_json::from_str(body).map_err(|e| format!("cannot parse: {e}"))?;
+    let c: CachedReference = read_checked(file)?;
     if c.format_version != FORMAT_VERSION {
         return Err(format!("format version {} (expected {FORMAT_VERSION})", c.format_version));
     }
@@ -756,6 +817,41 @@ fn read_entry(file: &Path, key: u64, n_elements: usize) -> Result<CachedReferenc
         return Err("non-finite estimate".into());
     }
     Ok(c)
+}
+
+/// Read and check a pointwise cache file (as [`read_entry`]); `batch_of`: the layout's point
+/// count when the file is a further batch (estimates only).
+fn read_points_entry(file: &Path, key: u64, batch_of: Option<usize>) -> Result<CachedPoints, String> {
+    let c: CachedPoints = read_checked(file)?;
+    if c.format_version != FORMAT_VERSION {
+        return Err(format!("format version {} (expected {FORMAT_VERSION})", c.format_version));
+    }
+    if c.key != format!("{key:016x}") {
+        return Err(format!("key {} (expected {key:016x})", c.key));
+    }
+    let n = batch_of.unwrap_or(c.set.points.len());
+    if c.estimates.len() != n || (batch_of.is_none() && n < c.params.points as usize) {
+        return Err(format!("{} estimates for {n} points", c.estimates.len()));
+    }
+    if c.estimates.iter().any(|e| !(e.radiosity.is_finite() && e.std_error.is_finite())) {
+        return Err("non-finite estimate".into());
+    }
+    Ok(c)
+}
+
+/// The header line, checksum and JSON body of a cache file.
+fn read_checked<T: serde::de::DeserializeOwned>(file: &Path) -> Result<T, String> {
+    let text = std::fs::read_to_string(file).map_err(|e| format!("cannot read: {e}"))?;
+    let (header, body) = text.split_once('\n').ok_or("no header line")?;
+    let sum = header
+        .strip_prefix(CACHE_MAGIC)
+        .map(str::trim)
+        .and_then(|h| u64::from_str_radix(h, 16).ok())
+        .ok_or_else(|| format!("bad header {header:?}"))?;
+    if sum != Hasher64::default().bytes(body.as_bytes()).finish() {
+        return Err("checksum mismatch (corrupt entry)".into());
+    }
+    serde_json::from_str(body).map_err(|e| format!("cannot parse: {e}"))
 }
 
 #[cfg(test)]

@@ -419,7 +419,7 @@ fn hierarchical_quality_against_the_exact_answer() {
     }
 }
 
-/// `radlab reference --points` on a single-bounce scene agrees with the exact answer (the Monte
+/// `radlab reference --point-file` on a single-bounce scene agrees with the exact answer (the Monte
 /// Carlo reference checked against closed form, penumbra points included), and bad input gives
 /// one-line errors.
 #[test]
@@ -439,7 +439,7 @@ fn reference_at_points_matches_the_exact_answer() {
     std::fs::write(&file, serde_json::to_string(&spec).unwrap()).unwrap();
     let out_file = dir.join("out.json");
     let out = Command::new(env!("CARGO_BIN_EXE_radlab"))
-        .args(["reference", "builtin:shadow-wide", "--samples", "4096", "--points"])
+        .args(["reference", "builtin:shadow-wide", "--samples", "4096", "--point-file"])
         .arg(&file)
         .arg("--json")
         .arg(&out_file)
@@ -468,7 +468,7 @@ fn reference_at_points_matches_the_exact_answer() {
     ] {
         std::fs::write(&bad, text).unwrap();
         let out = Command::new(env!("CARGO_BIN_EXE_radlab"))
-            .args(["reference", "builtin:shadow-wide", "--points"])
+            .args(["reference", "builtin:shadow-wide", "--point-file"])
             .arg(&bad)
             .output()
             .unwrap();

@@ -5,8 +5,8 @@ use radlab::accel::Accel;
 use radlab::hard_cases::{self, HardCase};
 use radlab::math::DVec3;
 use radlab::reference::{
-    Cache, CacheStatus, Estimate, RefElement, ReferenceParams, estimate_elements, estimate_points,
-    reference_mesh,
+    Cache, CacheStatus, Control, Estimate, PointParams, RefElement, ReferenceParams, estimate_at,
+    estimate_elements, estimate_points, reference_mesh, reference_points,
 };
 
 /// A correct estimator lands within 4 standard errors of the truth (p ≈ 6e-5 per channel, and the
@@ -205,5 +205,67 @@ fn cache_hits_and_recomputes_a_corrupt_entry() {
         radlab::reference::cache_key(&moved, &els, &p),
         radlab::reference::cache_key(&case.scene, &els, &p)
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn point_params(points: u32, samples: u32) -> PointParams {
+    PointParams { points, paths: params(samples), ..PointParams::quick() }
+}
+
+#[test]
+fn point_reference_is_identical_for_any_thread_count_and_has_its_points() {
+    let case = hard_cases::boxes_on_floor();
+    let acc = Accel::build(&case.scene);
+    let p = point_params(600, 8);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| reference_points(&case.scene, &acc, &p, &Control::default()).unwrap())
+    };
+    let (set, est) = run(1);
+    assert_eq!((set.clone(), est.clone()), run(3));
+    assert!(set.points.len() >= 600, "{} points", set.points.len());
+    // The cells tile the scene: their areas sum to the scene's area.
+    let area: f64 = case.scene.patches.iter().map(|p| p.area).sum();
+    let cells: f64 = set.points.iter().map(|p| p.area).sum();
+    assert!((cells - area).abs() < 1e-9 * area, "{cells} vs {area}");
+    // Refinement happened (boxes on a floor under a light have edges and shadows).
+    assert!(set.points.iter().any(|p| p.cell.level > 0));
+    // Re-estimating at the layout's own seed reproduces the layout's estimates bit for bit.
+    let again = estimate_at(&case.scene, &acc, &set, &p.paths, &Control::default()).unwrap();
+    assert_eq!(again, est);
+    assert!(
+        reference_points(&case.scene, &acc, &PointParams { points: 0, ..p }, &Control::default()).is_err()
+    );
+}
+
+#[test]
+fn point_cache_hits_and_batches_reuse_the_layout() {
+    let dir = std::env::temp_dir().join(format!("radlab-ref-points-test-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let cache = Cache::at(&dir);
+    let case = hard_cases::open_scene();
+    let acc = Accel::build(&case.scene);
+    let p = point_params(200, 8);
+    let (first, s1) = cache.get_or_compute_points(&case.scene, &acc, &p, &Control::default()).unwrap();
+    assert!(matches!(s1, CacheStatus::Computed(_)), "{s1:?}");
+    let (second, s2) = cache.get_or_compute_points(&case.scene, &acc, &p, &Control::default()).unwrap();
+    assert!(matches!(s2, CacheStatus::Hit(_)), "{s2:?}");
+    assert_eq!(first.estimates, second.estimates);
+    // A second batch: the same points, other estimates.
+    let (b1, sb) = cache.get_or_compute_points(&case.scene, &acc, &p.batch(1), &Control::default()).unwrap();
+    let CacheStatus::Computed(batch_file) = sb else { panic!("expected a fresh batch, got {sb:?}") };
+    assert_eq!(b1.set, first.set);
+    assert_ne!(b1.estimates, first.estimates);
+    // Its file holds only the estimates; read back, it carries the layout's points again.
+    let CacheStatus::Hit(layout_file) = s2 else { unreachable!() };
+    let size = |f: &std::path::Path| std::fs::metadata(f).unwrap().len();
+    assert!(size(&batch_file) < size(&layout_file), "{} vs {}", size(&batch_file), size(&layout_file));
+    let (again, s3) =
+        cache.get_or_compute_points(&case.scene, &acc, &p.batch(1), &Control::default()).unwrap();
+    assert!(matches!(s3, CacheStatus::Hit(_)), "{s3:?}");
+    assert_eq!((again.set, again.estimates), (b1.set, b1.estimates));
     let _ = std::fs::remove_dir_all(&dir);
 }

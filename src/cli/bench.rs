@@ -11,7 +11,8 @@ pub struct Args {
     /// Default: cornell, table-room, perpendicular, splash_room.
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
-    /// A smoke run: two settings per method, one repeat, a rough reference (under a minute).
+    /// A smoke run: two settings per method, one repeat, a rough reference (4096 points, 64 paths
+    /// each; under a minute).
     #[arg(long, conflicts_with = "full")]
     pub quick: bool,
     /// Finer sweeps, five repeats, a better reference.
@@ -20,9 +21,12 @@ pub struct Args {
     /// Repeats per setting (default: 1 quick, 3 standard, 5 full); the median time is reported.
     #[arg(long)]
     pub repeats: Option<usize>,
-    /// Paths per reference element in each reference batch (default: 64 quick, 4096 standard and full).
+    /// Paths per reference point in each reference batch (default: 64 quick, 1024 standard and full).
     #[arg(long)]
     pub reference_samples: Option<u32>,
+    /// Points of the pointwise reference, at least (default: 4096 quick, 65536 standard, 262144 full).
+    #[arg(long)]
+    pub reference_points: Option<u32>,
     /// Add reference batches until the reference's noise and resolution are at most this relative
     /// L2, e.g. 0.005 (default: 0.005 standard and full; quick: one batch). 0: one batch.
     #[arg(long)]
@@ -76,6 +80,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(n) = args.reference_samples {
         anyhow::ensure!(n >= 1, "--reference-samples must be at least 1");
         config.reference.samples = n;
+    }
+    if let Some(n) = args.reference_points {
+        anyhow::ensure!(n >= 1, "--reference-points must be at least 1");
+        config.reference_points = n;
     }
     if let Some(t) = args.reference_target {
         anyhow::ensure!(t.is_finite() && t >= 0.0, "--reference-target must be a number >= 0 (got {t})");

@@ -1,11 +1,15 @@
-//! `radlab reference SCENE`: the independent Monte Carlo reference on a uniform reference mesh,
-//! cached on disk (see [`radlab::reference`]).
+//! `radlab reference SCENE`: the independent Monte Carlo reference, cached on disk (see
+//! [`radlab::reference`]): at adaptive points by default (the pointwise ruler,
+//! [`radlab::reference::points`], [`radlab::pointwise`]), or averaged over a uniform reference
+//! mesh (`--ruler regions`).
 
 use anyhow::Context;
 use radlab::accel::Accel;
 use radlab::hard_cases;
 use radlab::math::{Rgb, polygon_area};
-use radlab::reference::{Cache, CacheStatus, ReferenceParams, reference_mesh};
+use radlab::metrics::ErrorReport;
+use radlab::pointwise::thousands;
+use radlab::reference::{Cache, CacheStatus, Control, PointParams, ReferenceParams, reference_mesh};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -13,10 +17,18 @@ use std::path::PathBuf;
 pub struct Args {
     /// Scene: `builtin:NAME`, `hard:NAME` (a generated hard case) or a .gltf/.glb path.
     pub scene: String,
-    /// Paths (stratified points) per element.
-    #[arg(long, default_value_t = ReferenceParams::standard().samples)]
+    /// `points`: estimates at adaptive points, the pointwise ruler; `regions`: averages over a
+    /// uniform reference mesh (the element-average reference).
+    #[arg(long, default_value = "points", value_parser = ["points", "regions"])]
+    pub ruler: String,
+    /// Paths per point (points) or stratified paths per element (regions).
+    #[arg(long, default_value_t = PointParams::standard().paths.samples)]
     pub samples: u32,
-    /// Largest element side of the reference mesh, in scene units (default: scene diagonal / 16).
+    /// At least this many points (points ruler).
+    #[arg(long, default_value_t = PointParams::standard().points)]
+    pub points: u32,
+    /// Largest element side of the reference mesh, in scene units (regions ruler; default: scene
+    /// diagonal / 16).
     #[arg(long)]
     pub element_size: Option<f64>,
     /// Seed of the sampling.
@@ -49,7 +61,7 @@ pub struct Args {
     /// `--json` then writes `{"points": [{"patch", "point", "radiosity", "std_error"}]}`.
     /// Not cached.
     #[arg(long, conflicts_with_all = ["compare", "images", "element_size"])]
-    pub points: Option<PathBuf>,
+    pub point_file: Option<PathBuf>,
     /// With --compare: write PREFIX_solution.png and PREFIX_error.png (per-element relative error,
     /// colour bar) from the scene's default camera.
     #[arg(long)]
@@ -66,7 +78,7 @@ struct PatchSummary<'a> {
     std_error: Rgb,
 }
 
-/// One entry of a `--points` file.
+/// One entry of a `--point-file` file.
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct PointSpec {
@@ -74,11 +86,11 @@ struct PointSpec {
     point: [f64; 3],
 }
 
-/// Largest distance of a `--points` point from its patch's plane, relative to the patch's size.
+/// Largest distance of a `--point-file` point from its patch's plane, relative to the patch's size.
 const POINT_OFF_PLANE_REL: f64 = 1e-6;
 
-/// `--points`: B at listed points with standard errors (see [`radlab::reference::estimate_points`]).
-fn run_points(args: &Args, scene: &radlab::scene::Scene, file: &std::path::Path) -> anyhow::Result<()> {
+/// `--point-file`: B at listed points with standard errors (see [`radlab::reference::estimate_points`]).
+fn run_point_file(args: &Args, scene: &radlab::scene::Scene, file: &std::path::Path) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
     let specs: Vec<PointSpec> = serde_json::from_str(&text).with_context(|| {
         format!("{}: expected an array of {{\"patch\": N, \"point\": [x, y, z]}}", file.display())
@@ -135,10 +147,14 @@ fn run_points(args: &Args, scene: &radlab::scene::Scene, file: &std::path::Path)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
-    if let Some(file) = &args.points {
-        return run_points(&args, &scene, file);
+    if let Some(file) = &args.point_file {
+        let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
+        return run_point_file(&args, &scene, file);
     }
+    if args.ruler == "points" {
+        return run_points(&args);
+    }
+    let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
     let size = args.element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
     let mesh = reference_mesh(&scene, size)?;
     let params = ReferenceParams { samples: args.samples, seed: args.seed, ..ReferenceParams::standard() };
@@ -216,7 +232,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         writeln!(log, "mean relative standard error per element: {:.2} %", 100.0 * mean)?;
     }
     if let Some(method) = &args.compare {
-        compare(&args, method, &scene, &accel, &mesh, &entry.estimates, &mut log)?;
+        let sol = solve(&args, method, &scene, &accel, &mut log)?;
+        compare(&args, &sol, &scene, &accel, &mesh, &entry.estimates, &mut log)?;
     } else if args.images.is_some() {
         anyhow::bail!("--images needs --compare METHOD");
     }
@@ -244,15 +261,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn compare(
+/// Solve the scene with `--compare METHOD` and its settings; logs the size and time.
+fn solve(
     args: &Args,
     method: &str,
     scene: &radlab::scene::Scene,
     accel: &Accel,
-    mesh: &[radlab::reference::RefElement],
-    estimates: &[radlab::reference::Estimate],
     log: &mut Box<dyn Write>,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<radlab::solver::Solution> {
     use radlab::solver::params::HierarchicalParams;
     use radlab::solver::{hierarchical::HierarchicalSolver, progressive, uniform};
     let h = args.solve_element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
@@ -289,25 +305,47 @@ fn compare(
         other => anyhow::bail!("--compare {other}: expected hierarchical, uniform or progressive"),
     };
     let secs = t0.elapsed().as_secs_f64();
-    let rep = radlab::metrics::compare_resampled(scene, &sol, mesh, estimates)?;
     writeln!(log, "\n{method}: {} elements, {} links, {secs:.3} s", sol.elements.len(), sol.stats.links)?;
-    writeln!(
-        log,
-        "{:>5}  {:<28} {:>9} {:>9} {:>9} {:>9} {:>9}",
-        "patch", "name", "rel L1", "rel L2", "L∞ raw", "L∞ deb.", "p99"
-    )?;
-    for p in &rep.per_patch {
+    Ok(sol)
+}
+
+/// Print the error of a solution against the element-average reference per patch and for the scene.
+fn compare(
+    args: &Args,
+    sol: &radlab::solver::Solution,
+    scene: &radlab::scene::Scene,
+    accel: &Accel,
+    mesh: &[radlab::reference::RefElement],
+    estimates: &[radlab::reference::Estimate],
+    log: &mut Box<dyn Write>,
+) -> anyhow::Result<()> {
+    let rep = radlab::metrics::compare_resampled(scene, sol, mesh, estimates)?;
+    writeln!(log, "element-average error (the solution averaged over {} reference regions):", mesh.len())?;
+    print_report(&rep, true, log)?;
+    write_images(args, sol, scene, accel, mesh, &rep.per_element, log)
+}
+
+/// The per-patch table (when `per_patch`) and the scene line of an error report.
+fn print_report(rep: &ErrorReport, per_patch: bool, log: &mut Box<dyn Write>) -> anyhow::Result<()> {
+    if per_patch {
         writeln!(
             log,
-            "{:>5}  {:<28} {:>8.2}% {:>8.2}% {:>8.2}% {:>8.2}% {:>8.2}%",
-            p.patch,
-            p.name,
-            100.0 * p.norms.l1,
-            100.0 * p.norms.l2_debiased,
-            100.0 * p.norms.linf,
-            100.0 * p.norms.linf_debiased,
-            100.0 * p.norms.p99
+            "{:>5}  {:<28} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            "patch", "name", "rel L1", "rel L2", "L∞ raw", "L∞ deb.", "p99"
         )?;
+        for p in &rep.per_patch {
+            writeln!(
+                log,
+                "{:>5}  {:<28} {:>8.2}% {:>8.2}% {:>8.2}% {:>8.2}% {:>8.2}%",
+                p.patch,
+                p.name,
+                100.0 * p.norms.l1,
+                100.0 * p.norms.l2_debiased,
+                100.0 * p.norms.linf,
+                100.0 * p.norms.linf_debiased,
+                100.0 * p.norms.p99
+            )?;
+        }
     }
     let n = &rep.scene;
     writeln!(
@@ -324,6 +362,19 @@ fn compare(
         100.0 * n.p99,
         rep.energy_residual
     )?;
+    Ok(())
+}
+
+/// With --images: the solution image and the error image over `regions` (one value each).
+fn write_images(
+    args: &Args,
+    sol: &radlab::solver::Solution,
+    scene: &radlab::scene::Scene,
+    accel: &Accel,
+    regions: &[radlab::reference::RefElement],
+    errors: &[f64],
+    log: &mut Box<dyn Write>,
+) -> anyhow::Result<()> {
     if let Some(prefix) = &args.images {
         let camera = radlab::image::Camera::for_scene(scene);
         let (w, h) = (640, 480);
@@ -332,10 +383,140 @@ fn compare(
         radlab::image::radiosity_image(scene, accel, &sol.elements, &camera, w, h)
             .write_png(&sol_path)
             .with_context(|| format!("writing {}", sol_path.display()))?;
-        radlab::metrics::error_image(scene, accel, mesh, &rep.per_element, &camera, w, h)
+        radlab::metrics::error_image(scene, accel, regions, errors, &camera, w, h)
             .write_png(&err_path)
             .with_context(|| format!("writing {}", err_path.display()))?;
         writeln!(log, "wrote {} and {}", sol_path.display(), err_path.display())?;
+    }
+    Ok(())
+}
+
+/// `radlab reference` with the pointwise ruler (the default).
+fn run_points(args: &Args) -> anyhow::Result<()> {
+    let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
+    anyhow::ensure!(args.element_size.is_none(), "--element-size needs --ruler regions");
+    let params = PointParams {
+        points: args.points,
+        paths: ReferenceParams { samples: args.samples, seed: args.seed, ..ReferenceParams::standard() },
+        layout_seed: args.seed,
+        ..PointParams::standard()
+    };
+    let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
+    let accel = Accel::build(&scene);
+    let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    let mut log: Box<dyn Write> =
+        if to_stdout { Box::new(std::io::stderr()) } else { Box::new(std::io::stdout()) };
+    writeln!(
+        log,
+        "pointwise reference for {} ({} patches): at least {} points, {} paths each",
+        scene.source,
+        scene.patches.len(),
+        thousands(params.points as usize),
+        params.paths.samples
+    )?;
+    let (entry, status) = cache.get_or_compute_points(&scene, &accel, &params, &Control::default())?;
+    let file = match &status {
+        CacheStatus::Hit(f) => {
+            writeln!(log, "cache: read {}", f.display())?;
+            f
+        }
+        CacheStatus::Computed(f) => {
+            writeln!(log, "cache: computed in {:.2} s, wrote {}", entry.compute_s, f.display())?;
+            f
+        }
+        CacheStatus::Recomputed { file, why } => {
+            writeln!(log, "cache: entry {} was invalid ({why}); recomputed and rewrote it", file.display())?;
+            file
+        }
+    };
+    let points = &entry.set.points;
+    let regions = entry.set.weights();
+    let values: Vec<Rgb> = entry.estimates.iter().map(|e| e.radiosity).collect();
+    let quality = radlab::metrics::compare_regions(&scene, &regions, &values, &entry.estimates, 0.0)?;
+    let max_level = points.iter().map(|p| p.cell.level).max().unwrap_or(0);
+    let refined = points.iter().filter(|p| p.cell.level > 0).count();
+    writeln!(
+        log,
+        "{} points ({} in refined cells, down to level {max_level}); noise {:.2} % of the RMS reflected radiosity (the pointwise rel L2 a perfect solver would read), resolution {:.2} %",
+        thousands(points.len()),
+        thousands(refined),
+        100.0 * quality.scene.reference_noise,
+        100.0 * quality.scene.resolution
+    )?;
+    // Per-patch area-weighted averages; standard errors combine as √(Σ a² σ²)/Σ a.
+    let mut sums = vec![(0usize, 0.0, Rgb::ZERO, Rgb::ZERO); scene.patches.len()];
+    for (p, e) in points.iter().zip(&entry.estimates) {
+        let s = &mut sums[p.patch];
+        s.0 += 1;
+        s.1 += p.area;
+        s.2 += e.radiosity * p.area;
+        s.3 += e.std_error.mul_rgb(e.std_error) * (p.area * p.area);
+    }
+    let patches: Vec<PatchSummary> = sums
+        .iter()
+        .enumerate()
+        .map(|(i, (n, a, b, v))| PatchSummary {
+            patch: i,
+            name: &scene.patches[i].name,
+            elements: *n,
+            radiosity: *b / *a,
+            std_error: v.map(f64::sqrt) / *a,
+        })
+        .collect();
+    writeln!(
+        log,
+        "{:>5}  {:<28} {:>6}  {:>30}  {:>10}",
+        "patch", "name", "points", "radiosity (r, g, b)", "std err"
+    )?;
+    for p in &patches {
+        let b = p.radiosity.0;
+        writeln!(
+            log,
+            "{:>5}  {:<28} {:>6}  {:>9.4e} {:>9.4e} {:>9.4e}  {:>10.3e}",
+            p.patch,
+            p.name,
+            p.elements,
+            b[0],
+            b[1],
+            b[2],
+            p.std_error.max_channel()
+        )?;
+    }
+    if let Some(method) = &args.compare {
+        let sol = solve(args, method, &scene, &accel, &mut log)?;
+        let score = radlab::pointwise::score_solution(&scene, &sol, points, &entry.estimates)?;
+        writeln!(log, "{}:", radlab::pointwise::label(&score.pointwise, points.len()))?;
+        print_report(&score.pointwise, true, &mut log)?;
+        writeln!(
+            log,
+            "element-average error (element values against the reference averaged over each element's points, {} elements):",
+            score.element_average.per_element.len()
+        )?;
+        print_report(&score.element_average, false, &mut log)?;
+        let cells = entry.set.cell_regions(&scene);
+        write_images(args, &sol, &scene, &accel, &cells, &score.pointwise.per_element, &mut log)?;
+    } else if args.images.is_some() {
+        anyhow::bail!("--images needs --compare METHOD");
+    }
+    if let Some(path) = &args.json {
+        let doc = serde_json::json!({
+            "scene": scene.source,
+            "ruler": "points",
+            "cache_file": file.display().to_string(),
+            "params": entry.params,
+            "patches": patches,
+            "points": points.iter().zip(&entry.estimates).map(|(p, e)| serde_json::json!({
+                "patch": p.patch, "position": p.position, "area": p.area, "level": p.cell.level,
+                "radiosity": e.radiosity, "std_error": e.std_error,
+            })).collect::<Vec<_>>(),
+        });
+        let text = serde_json::to_string_pretty(&doc)?;
+        if to_stdout {
+            println!("{text}");
+        } else {
+            std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+            writeln!(log, "wrote {}", path.display())?;
+        }
     }
     Ok(())
 }

@@ -1,0 +1,228 @@
+//! The pointwise ruler: a solution evaluated through its own reconstruction at the reference's
+//! points ([`crate::reference::points`]), and its error there — the error a user sees.
+//!
+//! A point x_k of patch p stands for a cell of area a_k (Σ_k a_k = the scene's area), with the
+//! reference estimate B̂_k ± σ_k. A solution's reconstruction B(p, x) — piecewise constant today:
+//! the radiosity of the leaf element of patch p that contains x — is evaluated at every point, and
+//! the norms of [`crate::metrics`] are taken with the points as regions of weight a_k:
+//!
+//! ```text
+//! rel L2  = √( Σ_k a_k Σ_c (B_c(x_k) − B̂_kc)² − Σ_k a_k Σ_c σ_kc² )  /  √( Σ_k a_k Σ_c (B̂_kc − E_kc)² )
+//! rel L∞  = max_k max_c (|B_c(x_k) − B̂_kc| − K σ_kc)₊ / R          K = √(2 ln(3N/α)), N points
+//! p95     = the level of |ΔB| (mean over channels) / R that 5 % of the area exceeds
+//! ```
+//!
+//! i.e. the midpoint rule for ∫_S |B − B_true|² dA over the cells, debiased by the reference's
+//! noise exactly as for regions ([`crate::metrics::Norms`]); R is the RMS reflected radiosity.
+//! Unlike an average over a reference region, a point sees a shadow edge that a coarse element
+//! smears: an element straddling a penumbra is charged its full representation error.
+//!
+//! **Element averages from the same points** ([`compare_element_averages`]): each point is also
+//! located in its solution element e, and the element's value B_e is compared with the reference
+//! averaged over the points inside it, B̂_e = Σ_{k∈e} a_k B̂_k / a_e, σ_e² = Σ_{k∈e} a_k² σ_k² / a_e²,
+//! a_e = Σ_{k∈e} a_k (elements holding no point are left out). That is the error of what the
+//! solver computes (its element values), without the representation error of its mesh; the
+//! pointwise error includes both.
+//!
+//! A reconstruction is anything that implements [`Reconstruction`] — [`PiecewiseConstant`] for
+//! a [`Solution`]'s leaves, or a closure `Fn(patch, point) -> Rgb` (a linear-element
+//! reconstruction plugs in the same way). Evaluation runs in parallel and is a pure function of
+//! its inputs.
+
+use crate::math::{DVec3, Rgb};
+use crate::metrics::{ErrorReport, Locator, MetricsError, compare_regions};
+use crate::reference::{Estimate, RefPoint};
+use crate::scene::Scene;
+use crate::solver::{Solution, SolvedElement};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// A solution's radiosity at any point of any patch.
+pub trait Reconstruction: Sync {
+    /// B at the point `x` of patch `patch` (x lies on the patch).
+    fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb;
+}
+
+impl<F: Fn(usize, DVec3) -> Rgb + Sync> Reconstruction for F {
+    fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
+        self(patch, x)
+    }
+}
+
+/// Piecewise-constant reconstruction of leaf elements: B(p, x) = B_e of the element e of patch p
+/// that contains x (on an edge, the first found; in a rounding-size gap, the nearest by
+/// centroid). A patch without elements reads its emission. Point location is a per-patch 2-D
+/// bucket grid, so a lookup tests the few elements of one bucket, not all of the patch's.
+pub struct PiecewiseConstant<'a> {
+    scene: &'a Scene,
+    elements: &'a [SolvedElement],
+    locators: Vec<Option<Locator>>,
+}
+
+impl<'a> PiecewiseConstant<'a> {
+    /// Index the elements by patch. Errors if an element names a patch the scene lacks.
+    pub fn new(scene: &'a Scene, elements: &'a [SolvedElement]) -> Result<Self, MetricsError> {
+        let np = scene.patches.len();
+        let mut by_patch: Vec<Vec<usize>> = vec![Vec::new(); np];
+        for (i, e) in elements.iter().enumerate() {
+            if e.patch >= np {
+                return Err(MetricsError::BadPatch { index: i, patch: e.patch, patches: np });
+            }
+            by_patch[e.patch].push(i);
+        }
+        let locators = by_patch
+            .iter()
+            .enumerate()
+            .map(|(p, ids)| (!ids.is_empty()).then(|| Locator::new(scene.patches[p].normal, elements, ids)))
+            .collect();
+        Ok(PiecewiseConstant { scene, elements, locators })
+    }
+
+    /// Index of the element of `patch` that holds `x`; `None` when the patch has no element.
+    #[must_use]
+    pub fn element_at(&self, patch: usize, x: DVec3) -> Option<usize> {
+        self.locators.get(patch)?.as_ref().map(|l| l.locate(x, self.elements))
+    }
+}
+
+impl Reconstruction for PiecewiseConstant<'_> {
+    fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
+        match self.element_at(patch, x) {
+            Some(i) => self.elements[i].radiosity,
+            None => self.scene.patches.get(patch).map_or(Rgb::ZERO, |p| p.emission),
+        }
+    }
+}
+
+/// The reconstruction's value at every point, in point order (parallel; identical for any
+/// thread count).
+pub fn evaluate<R: Reconstruction + ?Sized>(reconstruction: &R, points: &[RefPoint]) -> Vec<Rgb> {
+    points.par_iter().map(|p| reconstruction.radiosity_at(p.patch, p.position)).collect()
+}
+
+/// Pointwise error of values at the points (e.g. from [`evaluate`]) against the reference there
+/// (module docs). `per_element` of the report is per point.
+pub fn compare_points(
+    scene: &Scene,
+    points: &[RefPoint],
+    values: &[Rgb],
+    reference: &[Estimate],
+    energy_residual: f64,
+) -> Result<ErrorReport, MetricsError> {
+    if points.len() != reference.len() {
+        return Err(MetricsError::LengthMismatch { solution: points.len(), reference: reference.len() });
+    }
+    let regions: Vec<(usize, f64)> = points.iter().map(|p| (p.patch, p.area)).collect();
+    compare_regions(scene, &regions, values, reference, energy_residual)
+}
+
+/// Pointwise error of a solution's piecewise-constant reconstruction.
+pub fn compare_solution_points(
+    scene: &Scene,
+    solution: &Solution,
+    points: &[RefPoint],
+    reference: &[Estimate],
+) -> Result<ErrorReport, MetricsError> {
+    let values = evaluate(&PiecewiseConstant::new(scene, &solution.elements)?, points);
+    compare_points(scene, points, &values, reference, solution.energy.relative_residual())
+}
+
+/// Error of a solution's element values against the reference averaged over the points inside
+/// each element (module docs); `per_element` is per element holding at least one point, in
+/// element order.
+pub fn compare_element_averages(
+    scene: &Scene,
+    solution: &Solution,
+    points: &[RefPoint],
+    reference: &[Estimate],
+) -> Result<ErrorReport, MetricsError> {
+    if points.len() != reference.len() {
+        return Err(MetricsError::LengthMismatch { solution: points.len(), reference: reference.len() });
+    }
+    let locate = PiecewiseConstant::new(scene, &solution.elements)?;
+    let owner: Vec<Option<usize>> =
+        points.par_iter().map(|p| locate.element_at(p.patch, p.position)).collect();
+    // Per element: Σ a, Σ a B̂, Σ a² σ².
+    let mut acc = vec![(0.0, Rgb::ZERO, Rgb::ZERO); solution.elements.len()];
+    for ((p, r), o) in points.iter().zip(reference).zip(&owner) {
+        if let Some(e) = *o {
+            let s = &mut acc[e];
+            s.0 += p.area;
+            s.1 += r.radiosity * p.area;
+            s.2 += r.std_error.mul_rgb(r.std_error) * (p.area * p.area);
+        }
+    }
+    let mut regions = Vec::new();
+    let mut values = Vec::new();
+    let mut averages = Vec::new();
+    for (e, &(a, b, v)) in solution.elements.iter().zip(&acc) {
+        if a > 0.0 {
+            regions.push((e.patch, a));
+            values.push(e.radiosity);
+            averages.push(Estimate { radiosity: b / a, std_error: v.map(f64::sqrt) / a });
+        }
+    }
+    compare_regions(scene, &regions, &values, &averages, solution.energy.relative_residual())
+}
+
+/// Both figures of one solution against a pointwise reference.
+#[derive(Clone, Debug, Serialize)]
+pub struct PointwiseScore {
+    /// Points of the reference.
+    pub points: usize,
+    /// The error of the reconstruction at the points (the headline figure).
+    pub pointwise: ErrorReport,
+    /// The error of the element values against the reference's averages over the elements.
+    pub element_average: ErrorReport,
+}
+
+/// [`compare_solution_points`] and [`compare_element_averages`] together.
+pub fn score_solution(
+    scene: &Scene,
+    solution: &Solution,
+    points: &[RefPoint],
+    reference: &[Estimate],
+) -> Result<PointwiseScore, MetricsError> {
+    Ok(PointwiseScore {
+        points: points.len(),
+        pointwise: compare_solution_points(scene, solution, points, reference)?,
+        element_average: compare_element_averages(scene, solution, points, reference)?,
+    })
+}
+
+/// A one-line label of a pointwise figure: "pointwise rel L2 4.21 % (65 536 points, noise 0.31 %)".
+#[must_use]
+pub fn label(report: &ErrorReport, points: usize) -> String {
+    format!(
+        "pointwise rel L2 {:.2} % ({} points, noise {:.2} %)",
+        100.0 * report.scene.l2_debiased,
+        thousands(points),
+        100.0 * report.scene.reference_noise
+    )
+}
+
+/// 65536 → "65 536".
+#[must_use]
+pub fn thousands(n: usize) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, ch) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i) % 3 == 0 {
+            out.push(' ');
+        }
+        out.push(ch);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thousands_groups_digits() {
+        assert_eq!(thousands(65_536), "65 536");
+        assert_eq!(thousands(999), "999");
+        assert_eq!(thousands(1_000_000), "1 000 000");
+    }
+}
