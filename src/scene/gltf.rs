@@ -256,10 +256,10 @@ impl Loader<'_> {
 
         for image in doc.images() {
             // `parse` checked that every image has exactly one source (the crate panics otherwise).
-            if let gltf::image::Source::Uri { uri, .. } = image.source() {
-                if let Some(rel) = self.check_uri(uri)? {
-                    self.check_image_file(image.index(), &rel, uri)?;
-                }
+            if let gltf::image::Source::Uri { uri, .. } = image.source()
+                && let Some(rel) = self.check_uri(uri)?
+            {
+                self.check_image_file(image.index(), &rel, uri)?;
             }
         }
 
