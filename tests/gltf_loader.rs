@@ -721,3 +721,265 @@ fn check_no_panic(bytes: &[u8], label: &Path, opts: &LoadOptions, round: usize) 
         }
     }
 }
+
+// ------------------------------------------------------------------ hostile files (issue 17 §4)
+
+/// The fuzz findings kept as files (tests/fuzz_regressions/): each was a panic or work out of
+/// proportion to the file, and each is now a one-line error naming the file and the cause. Each
+/// file is loaded from its path and from bytes (as the fuzz target does).
+#[test]
+fn fuzz_regression_files_are_one_line_errors() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
+    let cases = [
+        // gltf's `Image::source` unwrapped both: a panic.
+        ("image_without_source.gltf", "image 0 has neither uri nor bufferView"),
+        ("image_view_without_mime.gltf", "image 0 has a bufferView but no mimeType"),
+        // gltf's `Camera::projection` unwraps the projection its type names: a panic.
+        ("camera_without_projection.gltf", "camera 0 lacks the projection its type names"),
+        // 19 nodes, each the next one's parent twice over: 2^18 mesh instances from 1 KB.
+        ("node_dag.gltf", "node 1 has two parents (0 and 0)"),
+    ];
+    for (name, cause) in cases {
+        let path = dir.join(name);
+        let e = load_err(&path);
+        assert!(e.to_string().contains(cause), "{name}: {e}");
+        let bytes = std::fs::read(&path).unwrap();
+        let e = load_slice(&bytes, None, Path::new(name), &LoadOptions::default()).unwrap_err();
+        assert!(e.to_string().contains(cause) && !e.to_string().contains('\n'), "{name}: {e}");
+    }
+    // The same files made well-formed load: the errors come from the defect, not the rest.
+    let mut d: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("image_without_source.gltf")).unwrap()).unwrap();
+    d["images"][0]["uri"] = json!("data:image/png;base64,AAAA");
+    assert_eq!(load_ok(&write_doc("image_ok", &d)).patches.len(), 1);
+    d["images"][0] = json!({"bufferView": 0, "mimeType": "image/png"});
+    assert_eq!(load_ok(&write_doc("image_view_ok", &d)).patches.len(), 1);
+    let mut d: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("camera_without_projection.gltf")).unwrap()).unwrap();
+    d["cameras"][0]["type"] = json!("orthographic");
+    assert_eq!(load_ok(&write_doc("camera_ok", &d)).patches.len(), 1);
+}
+
+/// glTF nodes form disjoint trees [glTF 2.0 §3.5.3]; a scene that lists a node twice or lists a
+/// child as a root would walk a subtree many times.
+#[test]
+fn scene_roots_must_be_distinct_root_nodes() {
+    let mut d = lit_square();
+    d["scenes"] = json!([{"nodes": [0, 0]}]);
+    let e = load_err(&write_doc("root_twice", &d));
+    assert!(e.to_string().contains("scene 0 lists node 0 twice"), "{e}");
+    d["nodes"] = json!([{"children": [1]}, {"mesh": 0}]);
+    d["scenes"] = json!([{"nodes": [0, 1]}]);
+    let e = load_err(&write_doc("root_child", &d));
+    assert!(e.to_string().contains("scene 0: root node 1 has a parent (0)"), "{e}");
+    d["scenes"] = json!([{"nodes": [0]}]);
+    assert_eq!(load_ok(&write_doc("root_ok", &d)).patches.len(), 1);
+}
+
+/// Time limit for the linear-work tests below: each takes well under a second here, and the
+/// quadratic versions they guard against took minutes on the same input.
+const LINEAR_WORK_SECONDS: f64 = 20.0;
+
+/// Many nodes instancing one primitive whose POSITION accessor is large but whose triangles use
+/// three of its vertices: the primitive is decoded once and each instance transforms only the
+/// vertices its triangles use. (Decoding the accessor again per instance was 4000 × 100 000
+/// vertex reads and hash inserts from a 1.6 MB file.)
+#[test]
+fn instancing_is_linear_in_the_triangles_it_adds() {
+    let mut positions = vec![[0.0f32; 3]; 100_000];
+    for (k, p) in positions.iter_mut().enumerate() {
+        *p = [k as f32, 1.0, 2.0];
+    }
+    positions[0] = [0.0, 0.0, 0.0];
+    positions[1] = [1.0, 0.0, 0.0];
+    positions[2] = [0.0, 1.0, 0.0];
+    let mut d = doc(&positions, &[0, 1, 2], Some(emissive(0.5, 1.0)));
+    let nodes: Vec<Value> =
+        (0..4000).map(|k| json!({"mesh": 0, "translation": [0.0, 0.0, k as f64]})).collect();
+    d["nodes"] = json!(nodes);
+    d["scenes"] = json!([{"nodes": (0..4000).collect::<Vec<_>>()}]);
+    let bytes = serde_json::to_vec(&d).unwrap();
+    let t = std::time::Instant::now();
+    let s = load_slice(&bytes, None, Path::new("instances.gltf"), &LoadOptions::default()).unwrap();
+    let secs = t.elapsed().as_secs_f64();
+    assert_eq!(s.patches.len(), 4000);
+    assert!(s.patches[3999].centroid.distance(DVec3::new(1.0 / 3.0, 1.0 / 3.0, 3999.0)) < 1e-4);
+    assert!(secs < LINEAR_WORK_SECONDS, "4000 instances of one triangle took {secs:.1} s");
+}
+
+/// A fan: n triangles on the directed edge a→b and n on b→a, no two forming a planar quad. Each
+/// triangle looks at no more than a few merge partners per edge (all n of them made merging n²).
+#[test]
+fn quad_merging_is_linear_on_shared_edges() {
+    let n = 20_000;
+    let mut positions = vec![[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0]];
+    let mut indices = Vec::new();
+    for k in 0..n {
+        // c_k on one side (angles in (0.1, 1.5)), d_k on the other ((1.7, 3.0)): c and d are never
+        // opposite (angle π apart), so no quad (a d b c) is planar.
+        let (tc, td) = (0.1 + 1.4 * k as f64 / n as f64, 1.7 + 1.3 * k as f64 / n as f64);
+        let c = positions.len() as u32;
+        positions.push([0.5, tc.cos() as f32, tc.sin() as f32]);
+        positions.push([0.5, td.cos() as f32, td.sin() as f32]);
+        indices.extend([0, 1, c, 1, 0, c + 1]);
+    }
+    let bytes = serde_json::to_vec(&doc(&positions, &indices, Some(emissive(0.5, 1.0)))).unwrap();
+    let t = std::time::Instant::now();
+    let s = load_slice(&bytes, None, Path::new("fan.gltf"), &LoadOptions::default()).unwrap();
+    let secs = t.elapsed().as_secs_f64();
+    assert_eq!(s.patches.len(), 2 * n);
+    assert!(s.patches.iter().all(|p| p.vertices.len() == 3));
+    assert!(secs < LINEAR_WORK_SECONDS, "a fan of {n} triangle pairs took {secs:.1} s");
+    // A quad on a shared edge is still found among the first candidates: a square whose diagonal
+    // is shared with two extra (non-planar) triangles still merges.
+    let (mut p, mut i) = square();
+    p.push([0.5, 0.5, 1.0]);
+    i.extend([2, 0, 4]);
+    let s = load_slice(
+        &serde_json::to_vec(&doc(&p, &i, Some(emissive(0.5, 1.0)))).unwrap(),
+        None,
+        Path::new("fan.gltf"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(s.patches.iter().map(|p| p.vertices.len()).collect::<Vec<_>>(), [4, 3]);
+}
+
+/// Every patch carries its mesh and material names: a long name is shortened once, not copied
+/// at full length into every triangle.
+#[test]
+fn long_names_are_shortened() {
+    let mut d = lit_square();
+    d["meshes"][0]["name"] = json!("m".repeat(100_000));
+    d["materials"][0]["name"] = json!("é".repeat(50_000));
+    let s = load_ok(&write_doc("long_names", &d));
+    let p = &s.patches[0];
+    assert!(p.mesh.len() <= 256 + 3 && p.mesh.starts_with("mmm"), "{}", p.mesh.len());
+    assert!(p.material.len() <= 256 + 3 && p.material.starts_with('é'), "{}", p.material.len());
+    assert!(p.name.len() < 300);
+    assert!(
+        s.warnings.iter().any(|w| w.contains("2 mesh or material name(s) longer than 256 bytes")),
+        "{:?}",
+        s.warnings
+    );
+}
+
+/// Buffers' declared byteLengths are summed and capped before any is read; many buffers naming
+/// the one GLB binary chunk share it.
+#[test]
+fn declared_buffer_lengths_are_capped_and_the_glb_chunk_is_shared() {
+    let mut d = lit_square();
+    d["buffers"] = json!([d["buffers"][0].clone(), {"byteLength": 3u64 << 30, "uri": "a.bin"}, {"byteLength": 3u64 << 30, "uri": "b.bin"}]);
+    let e = load_err(&write_doc("declared", &d));
+    assert!(
+        e.to_string()
+            .contains("buffers declare 6442451016 bytes in all, more than the 4294967296 byte limit"),
+        "{e}"
+    );
+
+    let (p, i) = square();
+    let bin = bytes_of(&p, &i);
+    let mut d = doc(&p, &i, Some(emissive(0.5, 1.0)));
+    let buffers: Vec<Value> = (0..2000).map(|_| json!({"byteLength": bin.len()})).collect();
+    d["buffers"] = json!(buffers);
+    d["bufferViews"][1]["buffer"] = json!(1999);
+    let s = load_slice(&glb(&d, &bin), None, Path::new("shared.glb"), &LoadOptions::default()).unwrap();
+    assert_eq!(s.patches.len(), 1);
+}
+
+/// Run `f` on a thread and wait at most `secs` for it: a refusal that regresses into a blocking
+/// open or an endless read fails the test instead of hanging it.
+#[cfg(unix)]
+fn within<T: Send + 'static>(secs: u64, f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(secs))
+        .expect("did not return: blocked on a FIFO or device?")
+}
+
+#[cfg(unix)]
+fn mkfifo(path: &Path) {
+    let ok = std::process::Command::new("mkfifo").arg(path).status().unwrap().success();
+    assert!(ok, "mkfifo {}", path.display());
+}
+
+/// A FIFO as a buffer would block the loader until a writer came (and then read what it
+/// wrote); a FIFO as an image is refused the same way, before anything opens it.
+#[cfg(unix)]
+#[test]
+fn fifo_buffer_or_image_is_refused() {
+    let dir = tmpdir("fifo");
+    mkfifo(&dir.join("pipe.bin"));
+    let mut d = lit_square();
+    d["buffers"][0] = json!({"byteLength": 72, "uri": "pipe.bin"});
+    let path = write(&dir, "fifo_buffer.gltf", serde_json::to_string(&d).unwrap().as_bytes());
+    let e = within(30, move || load_err(&path));
+    assert!(matches!(e, SceneError::Buffer { index: 0, .. }), "{e}");
+    assert!(e.to_string().contains("pipe.bin is a FIFO, not a regular file"), "{e}");
+
+    let mut d = lit_square();
+    d["images"] = json!([{"uri": "pipe.bin"}]);
+    let path = write(&dir, "fifo_image.gltf", serde_json::to_string(&d).unwrap().as_bytes());
+    let e = within(30, move || load_err(&path));
+    assert!(e.to_string().contains("image 0: ") && e.to_string().contains("is a FIFO"), "{e}");
+    // A missing image is only a warning (textures are not used).
+    d["images"] = json!([{"uri": "missing.png"}]);
+    let s = load_ok(&write(&dir, "missing_image.gltf", serde_json::to_string(&d).unwrap().as_bytes()));
+    assert!(s.warnings.iter().any(|w| w.contains("image 0") && w.contains("not found")), "{:?}", s.warnings);
+}
+
+/// The scene file itself must be a regular file: a device never ends (`/dev/zero` was read until
+/// memory ran out) and a FIFO blocks.
+#[cfg(unix)]
+#[test]
+fn device_or_fifo_as_the_scene_file_is_refused() {
+    let e = within(30, || load_err(Path::new("/dev/zero")));
+    assert!(matches!(e, SceneError::NotRegularFile { kind: "a character device", .. }), "{e}");
+    let dir = tmpdir("fifo_scene");
+    let path = dir.join("scene.gltf");
+    mkfifo(&path);
+    let e = within(30, move || load_err(&path));
+    assert!(e.to_string().contains("it is a FIFO, not a regular file"), "{e}");
+    let e = load_err(&dir);
+    assert!(matches!(e, SceneError::NotRegularFile { kind: "a folder", .. }), "{e}");
+}
+
+/// Loading reads and never writes: the file's bytes and modification time are unchanged, and a
+/// read-only file loads.
+#[test]
+fn the_input_file_is_never_written() {
+    let f = write_doc("readonly", &lit_square());
+    let before = std::fs::read(&*f).unwrap();
+    let mut perms = std::fs::metadata(&*f).unwrap().permissions();
+    perms.set_readonly(true);
+    std::fs::set_permissions(&*f, perms).unwrap();
+    let mtime = std::fs::metadata(&*f).unwrap().modified().unwrap();
+    assert_eq!(load_ok(&f).patches.len(), 1);
+    assert_eq!(std::fs::read(&*f).unwrap(), before);
+    assert_eq!(std::fs::metadata(&*f).unwrap().modified().unwrap(), mtime);
+}
+
+/// The fuzz target's seed corpus (fuzz/seeds/loader, made by fuzz/make_seeds.py) loads: the
+/// fuzzer starts from files that reach the geometry, not from early errors.
+#[test]
+fn fuzz_seeds_load_from_bytes() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds/loader");
+    let mut names: Vec<PathBuf> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+    names.sort();
+    assert!(names.len() >= 8, "{names:?}");
+    assert!(names.iter().any(|p| p.extension().is_some_and(|e| e == "glb")));
+    for path in &names {
+        let bytes = std::fs::read(path).unwrap();
+        let s = load_slice(&bytes, None, path, &LoadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        assert!(!s.patches.is_empty() && s.validate().is_empty(), "{}", path.display());
+    }
+    // features.glb: two meshes under a node tree, u8 and u16 indices, a double-sided floor, a
+    // camera, and both image sources.
+    let bytes = std::fs::read(dir.join("features.glb")).unwrap();
+    let s = load_slice(&bytes, None, Path::new("features.glb"), &LoadOptions::default()).unwrap();
+    assert_eq!(s.patches.len(), 3);
+    assert!(s.camera.is_some());
+    assert!(s.patches.iter().any(|p| p.emission.max_channel() > 4.0));
+}

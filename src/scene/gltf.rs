@@ -35,7 +35,23 @@
 //! here as well. Every buffer, buffer view and accessor range is checked with overflow-safe
 //! arithmetic before any byte is read, and the triangle count is checked against
 //! [`LoadOptions::max_triangles`] before any geometry is read, so a hostile file can neither panic
-//! the loader nor make it allocate without bound.
+//! the loader nor make it allocate without bound. `tests/gltf_loader.rs` and the fuzz target
+//! (`fuzz/`, docs/fuzzing.md) hold it to that. In detail:
+//!
+//! - **Files**: the scene file and buffer files are read only if they are regular files (a FIFO
+//!   would block, a device never end), opened read-only, and read up to
+//!   [`LoadOptions::max_file_bytes`]; the sum of the buffers' declared byteLengths is capped
+//!   the same way before any is read. Image files are not read (textures are not used); one that
+//!   exists must be a regular file inside the folder too. Nothing is ever written.
+//! - **Structure the `gltf` crate assumes** and does not validate is checked first: an image has
+//!   one source (and a MIME type with a buffer view), a camera has the projection its type
+//!   names, and the nodes form disjoint trees, so the walk visits each node once (a node reused
+//!   as a child would describe exponentially many instances).
+//! - **Work linear in the input plus the output**: each primitive is decoded once however many
+//!   nodes instance it, and an instance transforms only the vertices its triangles use; quad
+//!   merging looks at no more than `MAX_EDGE_CANDIDATES` partners per edge; names longer than
+//!   `MAX_NAME_BYTES` are shortened, since every patch carries them. The output is bounded by
+//!   the triangle cap.
 //!
 //! The writer ([`write_gltf`]) produces the inverse: one data-URI buffer, one mesh per run of
 //! patches with the same mesh name, one material per distinct (ρ, E), quads as two triangles
@@ -47,6 +63,7 @@ use base64::Engine as _;
 use glam::{DMat3, DMat4, DQuat, DVec4};
 use gltf::accessor::{DataType, Dimensions};
 use serde::Serialize;
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
@@ -76,25 +93,96 @@ const DEGENERATE_REL_AREA: f64 = 1e-14;
 /// to the quad's size squared): a quad with a ~straight corner is really a triangle.
 const MERGE_CONVEX_REL: f64 = 1e-9;
 
-/// Upper bound on node visits while walking the scene graph: a DAG of nodes that reuse each other
-/// can otherwise describe an exponential number of instances.
-const MAX_NODE_VISITS: usize = 1_000_000;
+/// A merge partner is looked for among at most this many later triangles on each edge. A
+/// surface edge has one (two triangles share it); more is a fan of overlapping triangles, and
+/// looking at all of them would make merging quadratic in the primitive's size.
+const MAX_EDGE_CANDIDATES: usize = 8;
 
-/// Load a .gltf or .glb file. Relative buffer URIs are resolved in the file's folder.
+/// Mesh and material names longer than this are shortened (with a warning): every patch carries
+/// its names, so a long name would otherwise cost its length once per triangle instance.
+const MAX_NAME_BYTES: usize = 256;
+
+/// Load a .gltf or .glb file. Relative buffer URIs are resolved in the file's folder. The file
+/// is opened for reading only, and only if it is a regular file (see [`read_regular`]).
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> {
-    let io_err = |source| SceneError::Io { file: path.to_path_buf(), source };
-    let meta = std::fs::metadata(path).map_err(io_err)?;
-    if meta.len() > opts.max_file_bytes {
-        return Err(SceneError::InvalidGltf {
+    let bytes = read_regular(path, opts.max_file_bytes, None).map_err(|e| match e {
+        ReadError::Io(source) => SceneError::Io { file: path.to_path_buf(), source },
+        ReadError::NotRegular(kind) => SceneError::NotRegularFile { file: path.to_path_buf(), kind },
+        ReadError::TooLarge(len) => SceneError::InvalidGltf {
             file: path.to_path_buf(),
-            cause: format!("file has {} bytes, more than the {} byte limit", meta.len(), opts.max_file_bytes),
-        });
-    }
-    let bytes = std::fs::read(path).map_err(io_err)?;
+            cause: format!("file has {len} bytes, more than the {} byte limit", opts.max_file_bytes),
+        },
+    })?;
     let base = path.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
     let mut scene = load_slice(&bytes, base, path, opts)?;
     scene.source = path.display().to_string();
     Ok(scene)
+}
+
+/// Why [`read_regular`] refused or failed.
+enum ReadError {
+    Io(std::io::Error),
+    /// What the path is instead of a regular file ("a FIFO", "a character device", …).
+    NotRegular(&'static str),
+    /// The file's size in bytes, above the limit.
+    TooLarge(u64),
+}
+
+/// What a non-regular file is, for the error message.
+fn file_kind(ft: std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt as _;
+        if ft.is_fifo() {
+            return "a FIFO";
+        }
+        if ft.is_char_device() {
+            return "a character device";
+        }
+        if ft.is_block_device() {
+            return "a block device";
+        }
+        if ft.is_socket() {
+            return "a socket";
+        }
+    }
+    if ft.is_dir() { "a folder" } else { "not a regular file" }
+}
+
+/// Read a regular file of at most `max_bytes` bytes (at most `want` of them, if given).
+///
+/// A FIFO, device, socket or folder is refused before it is opened: opening a FIFO blocks until
+/// a writer comes, and a device such as `/dev/zero` never ends. The file is then opened read-only
+/// and non-blocking (so a FIFO swapped in after the check cannot block either), checked again
+/// through the open handle, and read through `take`, so the allocation is bounded by the limit
+/// even if the file grows meanwhile.
+fn read_regular(path: &Path, max_bytes: u64, want: Option<u64>) -> Result<Vec<u8>, ReadError> {
+    let check = |meta: &std::fs::Metadata| -> Result<u64, ReadError> {
+        if !meta.is_file() {
+            return Err(ReadError::NotRegular(file_kind(meta.file_type())));
+        }
+        if meta.len() > max_bytes {
+            return Err(ReadError::TooLarge(meta.len()));
+        }
+        Ok(meta.len())
+    };
+    check(&std::fs::metadata(path).map_err(ReadError::Io)?)?;
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt as _;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let file = options.open(path).map_err(ReadError::Io)?;
+    let len = check(&file.metadata().map_err(ReadError::Io)?)?;
+    let limit = want.map_or(max_bytes.saturating_add(1), |w| w.min(max_bytes.saturating_add(1)));
+    let mut data = Vec::with_capacity(len.min(limit) as usize);
+    file.take(limit).read_to_end(&mut data).map_err(ReadError::Io)?;
+    if data.len() as u64 > max_bytes {
+        return Err(ReadError::TooLarge(data.len() as u64));
+    }
+    Ok(data)
 }
 
 /// Load glTF from memory. `base_dir` is the folder relative buffer URIs are resolved in (`None`:
@@ -106,7 +194,8 @@ pub fn load_slice(
     file_label: &Path,
     opts: &LoadOptions,
 ) -> Result<Scene, SceneError> {
-    Loader { file: file_label.to_path_buf(), base_dir, opts, warnings: Vec::new() }.run(bytes)
+    Loader { file: file_label.to_path_buf(), base_dir, opts, warnings: Vec::new(), shortened_names: 0 }
+        .run(bytes)
 }
 
 struct Loader<'a> {
@@ -114,6 +203,30 @@ struct Loader<'a> {
     base_dir: Option<&'a Path>,
     opts: &'a LoadOptions,
     warnings: Vec<String>,
+    /// How many names [`Loader::short_name`] shortened (one warning for all).
+    shortened_names: usize,
+}
+
+/// What an instance of a mesh adds, found once per mesh.
+struct MeshInfo {
+    name: String,
+    /// Triangles over its triangle primitives (from the accessors' counts, before reading them).
+    triangles: usize,
+    /// The primitives with at least one triangle: (primitive index, material index).
+    primitives: Vec<(usize, Option<usize>)>,
+    skipped_modes: usize,
+    missing_positions: usize,
+}
+
+/// One primitive's geometry, decoded once however many nodes instance its mesh.
+struct PrimGeometry {
+    /// The vertices the triangles use, in order of first use (the mesh's own frame).
+    vertices: Vec<DVec3>,
+    /// Canonical id of each vertex: equal positions share one, so unindexed duplicates still
+    /// share edges.
+    ids: Vec<u32>,
+    /// Every triangle in index order (degenerate ones too: their number names the others).
+    triangles: Vec<[u32; 3]>,
 }
 
 /// One mesh instance found while walking the node graph.
@@ -142,33 +255,23 @@ impl Loader<'_> {
         let doc = &document;
 
         for image in doc.images() {
-            if let gltf::image::Source::Uri { uri, .. } = image.source() {
-                self.check_uri(uri)?;
+            // `parse` checked that every image has exactly one source (the crate panics otherwise).
+            if let gltf::image::Source::Uri { uri, .. } = image.source()
+                && let Some(rel) = self.check_uri(uri)?
+            {
+                self.check_image_file(image.index(), &rel, uri)?;
             }
         }
 
         // Walk the graph first: instances, camera, and the triangle count before reading geometry.
         let (instances, camera_node) = self.walk(doc)?;
-        let meshes: Vec<gltf::Mesh> = doc.meshes().collect();
+        let meshes: Vec<MeshInfo> = doc.meshes().map(|m| self.mesh_info(&m)).collect();
         let mut triangles: usize = 0;
         for inst in &instances {
             let mesh = meshes.get(inst.mesh).ok_or_else(|| self.invalid("mesh index out of range"))?;
-            for prim in mesh.primitives() {
-                if prim.mode() != gltf::mesh::Mode::Triangles {
-                    continue;
-                }
-                let n = match (prim.indices(), prim.get(&gltf::Semantic::Positions)) {
-                    (Some(ix), _) => ix.count() / 3,
-                    (None, Some(pos)) => pos.count() / 3,
-                    (None, None) => 0,
-                };
-                triangles = triangles.saturating_add(n);
-                if triangles > self.opts.max_triangles {
-                    return Err(SceneError::TooLarge {
-                        file: self.file.clone(),
-                        cap: self.opts.max_triangles,
-                    });
-                }
+            triangles = triangles.saturating_add(mesh.triangles);
+            if triangles > self.opts.max_triangles {
+                return Err(SceneError::TooLarge { file: self.file.clone(), cap: self.opts.max_triangles });
             }
         }
 
@@ -177,39 +280,25 @@ impl Loader<'_> {
         let default_mat =
             Mat { name: "default".into(), rho: Rgb::splat(0.5), emission: Rgb::ZERO, double_sided: false };
 
+        // Each primitive is decoded once, however many nodes instance its mesh: the work per
+        // instance is then linear in the triangles it adds (which the cap above bounds).
+        let mut geometry: HashMap<(usize, usize), PrimGeometry> = HashMap::new();
         let mut patches = Vec::new();
-        let mut skipped_modes = 0usize;
-        let mut dropped = 0usize;
-        let mut missing_positions = 0usize;
+        let (mut skipped_modes, mut missing_positions, mut dropped) = (0usize, 0usize, 0usize);
         for inst in &instances {
-            let mesh = meshes.get(inst.mesh).ok_or_else(|| self.invalid("mesh index out of range"))?;
-            let mesh_name = mesh.name().map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
-            for prim in mesh.primitives() {
-                if prim.mode() != gltf::mesh::Mode::Triangles {
-                    skipped_modes += 1;
-                    continue;
-                }
-                let Some(pos_acc) = prim.get(&gltf::Semantic::Positions) else {
-                    missing_positions += 1;
-                    continue;
+            let mesh = &meshes[inst.mesh];
+            skipped_modes += mesh.skipped_modes;
+            missing_positions += mesh.missing_positions;
+            for &(primitive, material) in &mesh.primitives {
+                let mat = material.map_or(&default_mat, |i| &materials[i]);
+                let geom = match geometry.entry((inst.mesh, primitive)) {
+                    std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+                    std::collections::hash_map::Entry::Vacant(e) => {
+                        let g = self.decode_primitive(doc, inst.mesh, primitive, &mesh.name, &buffers)?;
+                        e.insert(g)
+                    }
                 };
-                let mat = match prim.material().index() {
-                    Some(i) => &materials[i],
-                    None => &default_mat,
-                };
-                let positions = self.read_positions(&pos_acc, &buffers, &mesh_name, prim.index())?;
-                if prim.indices().is_some_and(|a| a.count() % 3 != 0) {
-                    self.warnings.push(format!(
-                        "mesh {mesh_name:?} primitive {}: index count is not a multiple of 3 (the rest is ignored)",
-                        prim.index()
-                    ));
-                }
-                let indices = match prim.indices() {
-                    Some(acc) => self.read_indices(&acc, &buffers, positions.len())?,
-                    None => (0..positions.len() as u32).collect(),
-                };
-                let (prim_patches, d) =
-                    self.primitive_patches(&positions, &indices, inst, mat, &mesh_name, prim.index())?;
+                let (prim_patches, d) = self.primitive_patches(geom, inst, mat, &mesh.name, primitive)?;
                 dropped += d;
                 patches.extend(prim_patches);
             }
@@ -225,6 +314,12 @@ impl Loader<'_> {
         if dropped > 0 {
             self.warnings.push(format!("{dropped} zero-area triangle(s) dropped"));
         }
+        if self.shortened_names > 0 {
+            self.warnings.push(format!(
+                "{} mesh or material name(s) longer than {MAX_NAME_BYTES} bytes shortened",
+                self.shortened_names
+            ));
+        }
         if patches.is_empty() {
             return Err(SceneError::Empty { file: self.file.clone() });
         }
@@ -238,6 +333,94 @@ impl Loader<'_> {
         warnings.append(&mut scene.warnings);
         scene.warnings = warnings;
         Ok(scene)
+    }
+
+    /// `name`, cut to at most [`MAX_NAME_BYTES`] (at a character boundary, marked with "…").
+    fn short_name(&mut self, name: &str) -> String {
+        if name.len() <= MAX_NAME_BYTES {
+            return name.to_string();
+        }
+        self.shortened_names += 1;
+        let cut = (0..=MAX_NAME_BYTES).rev().find(|&i| name.is_char_boundary(i)).unwrap_or(0);
+        format!("{}…", &name[..cut])
+    }
+
+    /// A mesh's name (shortened) and the primitives an instance of it makes triangles from.
+    fn mesh_info(&mut self, mesh: &gltf::Mesh) -> MeshInfo {
+        let name = match mesh.name() {
+            Some(n) => self.short_name(n),
+            None => format!("mesh{}", mesh.index()),
+        };
+        let mut info =
+            MeshInfo { name, triangles: 0, primitives: Vec::new(), skipped_modes: 0, missing_positions: 0 };
+        for prim in mesh.primitives() {
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                info.skipped_modes += 1;
+                continue;
+            }
+            let Some(positions) = prim.get(&gltf::Semantic::Positions) else {
+                info.missing_positions += 1;
+                continue;
+            };
+            let n = prim.indices().map_or(positions.count(), |ix| ix.count()) / 3;
+            if n > 0 {
+                info.triangles = info.triangles.saturating_add(n);
+                info.primitives.push((prim.index(), prim.material().index()));
+            }
+        }
+        info
+    }
+
+    /// Read one primitive's positions and indices and keep the vertices its triangles use.
+    fn decode_primitive(
+        &mut self,
+        doc: &gltf::Document,
+        mesh_index: usize,
+        primitive: usize,
+        mesh_name: &str,
+        buffers: &[Cow<[u8]>],
+    ) -> Result<PrimGeometry, SceneError> {
+        let prim = doc
+            .meshes()
+            .nth(mesh_index)
+            .and_then(|m| m.primitives().nth(primitive))
+            .ok_or_else(|| self.invalid("primitive index out of range"))?;
+        let pos_acc =
+            prim.get(&gltf::Semantic::Positions).ok_or_else(|| self.invalid("primitive without POSITION"))?;
+        let positions = self.read_positions(&pos_acc, buffers, mesh_name, primitive)?;
+        let indices = match prim.indices() {
+            Some(acc) => {
+                if acc.count() % 3 != 0 {
+                    self.warnings.push(format!(
+                        "mesh {mesh_name:?} primitive {primitive}: index count is not a multiple of 3 (the rest is ignored)"
+                    ));
+                }
+                self.read_indices(&acc, buffers, positions.len())?
+            }
+            None => (0..positions.len() as u32).collect(),
+        };
+        // Compact: only the vertices the triangles use, numbered in order of first use, so an
+        // instance transforms at most 3 vertices per triangle whatever the accessor's size.
+        let mut compact = vec![u32::MAX; positions.len()];
+        let mut vertices = Vec::new();
+        let mut ids = Vec::new();
+        let mut canon: HashMap<[u32; 3], u32> = HashMap::new();
+        let mut triangles = Vec::with_capacity(indices.len() / 3);
+        for tri in indices.chunks_exact(3) {
+            triangles.push([tri[0], tri[1], tri[2]].map(|i| {
+                let slot = &mut compact[i as usize];
+                if *slot == u32::MAX {
+                    *slot = vertices.len() as u32;
+                    let p = positions[i as usize];
+                    vertices.push(DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])));
+                    // Canonical ids by exact position, so unindexed duplicates still share edges.
+                    let next = canon.len() as u32;
+                    ids.push(*canon.entry(p.map(f32::to_bits)).or_insert(next));
+                }
+                *slot
+            }));
+        }
+        Ok(PrimGeometry { vertices, ids, triangles })
     }
 
     /// Parse and validate the JSON. Every index must be in range (the `gltf` crate's iterators
@@ -272,7 +455,76 @@ impl Loader<'_> {
                 if errors.len() > 1 { format!(" (and {} more)", errors.len() - 1) } else { String::new() };
             return Err(self.invalid(format!("{first}{more}")));
         }
+        self.check_structure(&root)?;
         Ok(gltf::Document::from_json_without_validation(root))
+    }
+
+    /// What the spec requires, gltf-json does not validate, and the `gltf` crate (or a linear
+    /// walk of the scene) relies on:
+    /// - an image has a `uri` or a `bufferView`, not both, and a `bufferView` image has a
+    ///   `mimeType` [glTF 2.0 §5.18] (`Image::source` unwraps them);
+    /// - a camera has the projection its `type` names (`Camera::projection` unwraps it);
+    /// - the nodes form disjoint trees [§3.5.3]: no node has two parents, a scene's root nodes
+    ///   have none and are listed once. A node reused as a child of several nodes (or listed
+    ///   many times) would describe exponentially many instances from a few bytes; as trees,
+    ///   the walk visits each node at most once.
+    fn check_structure(&self, root: &gltf::json::Root) -> Result<(), SceneError> {
+        for (i, image) in root.images.iter().enumerate() {
+            match (&image.uri, &image.buffer_view, &image.mime_type) {
+                (Some(_), None, _) | (None, Some(_), Some(_)) => {}
+                (None, None, _) => {
+                    return Err(self.invalid(format!("image {i} has neither uri nor bufferView")));
+                }
+                (Some(_), Some(_), _) => {
+                    return Err(self.invalid(format!("image {i} has both uri and bufferView")));
+                }
+                (None, Some(_), None) => {
+                    return Err(self.invalid(format!("image {i} has a bufferView but no mimeType")));
+                }
+            }
+        }
+        for (i, camera) in root.cameras.iter().enumerate() {
+            use gltf::json::camera::Type;
+            use gltf::json::validation::Checked;
+            let ok = match camera.type_ {
+                Checked::Valid(Type::Perspective) => camera.perspective.is_some(),
+                Checked::Valid(Type::Orthographic) => camera.orthographic.is_some(),
+                Checked::Invalid => false,
+            };
+            if !ok {
+                return Err(self.invalid(format!("camera {i} lacks the projection its type names")));
+            }
+        }
+        let mut parent: Vec<Option<usize>> = vec![None; root.nodes.len()];
+        for (i, node) in root.nodes.iter().enumerate() {
+            for c in node.children.iter().flatten() {
+                let slot = parent
+                    .get_mut(c.value())
+                    .ok_or_else(|| self.invalid(format!("node {i}: child {} does not exist", c.value())))?;
+                if let Some(p) = slot.replace(i) {
+                    return Err(self.invalid(format!(
+                        "node {} has two parents ({p} and {i}); glTF nodes form disjoint trees",
+                        c.value()
+                    )));
+                }
+            }
+        }
+        for (s, scene) in root.scenes.iter().enumerate() {
+            let mut listed = vec![false; root.nodes.len()];
+            for n in &scene.nodes {
+                let i = n.value();
+                let seen = listed
+                    .get_mut(i)
+                    .ok_or_else(|| self.invalid(format!("scene {s}: node {i} does not exist")))?;
+                if std::mem::replace(seen, true) {
+                    return Err(self.invalid(format!("scene {s} lists node {i} twice")));
+                }
+                if let Some(p) = parent[i] {
+                    return Err(self.invalid(format!("scene {s}: root node {i} has a parent ({p})")));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Split a GLB container into its JSON chunk and optional BIN chunk [glTF 2.0 §4.4].
@@ -351,7 +603,21 @@ impl Loader<'_> {
     }
 
     /// Read every buffer: data URIs, relative files, or the GLB binary chunk.
-    fn read_buffers(&self, doc: &gltf::Document, blob: Option<&[u8]>) -> Result<Vec<Vec<u8>>, SceneError> {
+    /// Read every buffer: data URIs, relative files, or the GLB binary chunk (borrowed, not
+    /// copied: however many buffers name it, it is in memory once). The declared byteLengths are
+    /// summed and capped by [`LoadOptions::max_file_bytes`] before any buffer is read.
+    fn read_buffers<'b>(
+        &self,
+        doc: &gltf::Document,
+        blob: Option<&'b [u8]>,
+    ) -> Result<Vec<Cow<'b, [u8]>>, SceneError> {
+        let declared = doc.buffers().fold(0u64, |sum, b| sum.saturating_add(b.length() as u64));
+        if declared > self.opts.max_file_bytes {
+            return Err(self.invalid(format!(
+                "buffers declare {declared} bytes in all, more than the {} byte limit",
+                self.opts.max_file_bytes
+            )));
+        }
         let mut out = Vec::new();
         for buf in doc.buffers() {
             let index = buf.index();
@@ -359,11 +625,11 @@ impl Loader<'_> {
             let want = buf.length();
             let data = match buf.source() {
                 gltf::buffer::Source::Bin => {
-                    blob.ok_or_else(|| err("no GLB binary chunk and no uri".into()))?.to_vec()
+                    Cow::Borrowed(blob.ok_or_else(|| err("no GLB binary chunk and no uri".into()))?)
                 }
                 gltf::buffer::Source::Uri(uri) => match self.check_uri(uri)? {
-                    None => decode_data_uri(uri).map_err(err)?,
-                    Some(rel) => self.read_relative(&rel, uri, want).map_err(err)?,
+                    None => Cow::Owned(decode_data_uri(uri).map_err(err)?),
+                    Some(rel) => Cow::Owned(self.read_relative(&rel, uri, want).map_err(err)?),
                 },
             };
             if data.len() < want {
@@ -374,35 +640,66 @@ impl Loader<'_> {
         Ok(out)
     }
 
-    fn read_relative(&self, rel: &Path, uri: &str, want: usize) -> Result<Vec<u8>, String> {
+    /// The file a relative URI names, if it stays inside the scene's folder (symbolic links
+    /// included).
+    fn resolve(&self, rel: &Path, uri: &str) -> Result<PathBuf, String> {
         let base = self.base_dir.ok_or_else(|| format!("{uri:?}: no folder to resolve a relative URI in"))?;
         let path = base.join(rel);
-        // Symbolic links must not lead out of the scene's folder either.
         let canon_base = base.canonicalize().map_err(|e| format!("{}: {e}", base.display()))?;
         let canon = path.canonicalize().map_err(|e| format!("{}: {e}", path.display()))?;
         if !canon.starts_with(&canon_base) {
             return Err(format!("{uri:?} resolves outside the scene's folder"));
         }
-        let file = std::fs::File::open(&canon).map_err(|e| format!("{}: {e}", path.display()))?;
-        let len = file.metadata().map_err(|e| format!("{}: {e}", path.display()))?.len();
-        if len > self.opts.max_file_bytes {
-            return Err(format!(
+        Ok(canon)
+    }
+
+    /// Read at most `want` bytes (the buffer's byteLength) of a regular file inside the folder.
+    fn read_relative(&self, rel: &Path, uri: &str, want: usize) -> Result<Vec<u8>, String> {
+        let canon = self.resolve(rel, uri)?;
+        let shown = self.base_dir.map_or_else(|| rel.to_path_buf(), |b| b.join(rel));
+        read_regular(&canon, self.opts.max_file_bytes, Some(want as u64)).map_err(|e| match e {
+            ReadError::Io(e) => format!("{}: {e}", shown.display()),
+            ReadError::NotRegular(kind) => format!("{} is {kind}, not a regular file", shown.display()),
+            ReadError::TooLarge(len) => format!(
                 "{} has {len} bytes, more than the {} byte limit",
-                path.display(),
+                shown.display(),
                 self.opts.max_file_bytes
-            ));
+            ),
+        })
+    }
+
+    /// An image file is not read (textures are not used), but one that exists must be a
+    /// regular file inside the folder, as a buffer must: a FIFO or device is refused here, before
+    /// anything could open it. A missing image is a warning.
+    fn check_image_file(&mut self, index: usize, rel: &Path, uri: &str) -> Result<(), SceneError> {
+        let Some(base) = self.base_dir else { return Ok(()) };
+        let shown = base.join(rel);
+        if std::fs::metadata(&shown).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
+            self.warnings
+                .push(format!("image {index}: {} not found (textures are not used)", shown.display()));
+            return Ok(());
         }
-        // Read at most byteLength bytes: the allocation is bounded by the real file size.
-        let mut data = Vec::with_capacity((len as usize).min(want));
-        file.take(want as u64).read_to_end(&mut data).map_err(|e| format!("{}: {e}", path.display()))?;
-        Ok(data)
+        let err = |cause: String| SceneError::Image { file: self.file.clone(), index, cause };
+        let canon = self.resolve(rel, uri).map_err(err)?;
+        let meta = std::fs::metadata(&canon).map_err(|e| err(format!("{}: {e}", shown.display())))?;
+        if !meta.is_file() {
+            return Err(err(format!(
+                "{} is {}, not a regular file",
+                shown.display(),
+                file_kind(meta.file_type())
+            )));
+        }
+        Ok(())
     }
 
     fn materials(&mut self, doc: &gltf::Document) -> Result<Vec<Mat>, SceneError> {
         let mut out = Vec::new();
         for m in doc.materials() {
             let index = m.index().unwrap_or(0);
-            let name = m.name().map_or_else(|| format!("material{index}"), str::to_string);
+            let name = match m.name() {
+                Some(n) => self.short_name(n),
+                None => format!("material{index}"),
+            };
             let pbr = m.pbr_metallic_roughness();
             let base = pbr.base_color_factor();
             let mut rho = Rgb::new(f64::from(base[0]), f64::from(base[1]), f64::from(base[2]));
@@ -460,23 +757,15 @@ impl Loader<'_> {
         let nodes: Vec<gltf::Node> = doc.nodes().collect();
         let mut instances = Vec::new();
         let mut camera = None;
-        let mut visits = 0usize;
-        let mut on_path = vec![false; nodes.len()];
-        // Explicit stack: (node, parent world matrix, leaving?) so deep graphs cannot overflow.
-        let mut stack: Vec<(usize, DMat4, bool)> =
-            roots.iter().rev().map(|&r| (r, DMat4::IDENTITY, false)).collect();
-        while let Some((i, parent, leaving)) = stack.pop() {
-            if leaving {
-                on_path[i] = false;
-                continue;
-            }
+        // `check_structure` made the nodes disjoint trees, so no node is reached twice; the
+        // check stays as the walk's own guarantee of linear work.
+        let mut visited = vec![false; nodes.len()];
+        // Explicit stack: (node, parent world matrix) so deep trees cannot overflow.
+        let mut stack: Vec<(usize, DMat4)> = roots.iter().rev().map(|&r| (r, DMat4::IDENTITY)).collect();
+        while let Some((i, parent)) = stack.pop() {
             let node = nodes.get(i).ok_or_else(|| self.invalid(format!("node {i} does not exist")))?;
-            if on_path[i] {
-                return Err(self.invalid(format!("node {i} is its own ancestor (cycle in the node graph)")));
-            }
-            visits += 1;
-            if visits > MAX_NODE_VISITS {
-                return Err(self.invalid(format!("more than {MAX_NODE_VISITS} node instances")));
+            if std::mem::replace(&mut visited[i], true) {
+                return Err(self.invalid(format!("node {i} is reached twice (the nodes are not trees)")));
             }
             let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
             if !local.is_finite() {
@@ -489,11 +778,9 @@ impl Loader<'_> {
             if camera.is_none() && node.camera().is_some() {
                 camera = Some((i, world));
             }
-            on_path[i] = true;
-            stack.push((i, parent, true));
             let children: Vec<usize> = node.children().map(|c| c.index()).collect();
             for &c in children.iter().rev() {
-                stack.push((c, world, false));
+                stack.push((c, world));
             }
         }
         Ok((instances, camera))
@@ -503,7 +790,7 @@ impl Loader<'_> {
     fn accessor_bytes<'b>(
         &self,
         acc: &gltf::Accessor,
-        buffers: &'b [Vec<u8>],
+        buffers: &'b [Cow<'_, [u8]>],
         elem: usize,
     ) -> Result<(&'b [u8], usize), SceneError> {
         let ai = acc.index();
@@ -561,7 +848,7 @@ impl Loader<'_> {
     fn read_positions(
         &self,
         acc: &gltf::Accessor,
-        buffers: &[Vec<u8>],
+        buffers: &[Cow<[u8]>],
         mesh: &str,
         primitive: usize,
     ) -> Result<Vec<[f32; 3]>, SceneError> {
@@ -589,7 +876,7 @@ impl Loader<'_> {
     fn read_indices(
         &self,
         acc: &gltf::Accessor,
-        buffers: &[Vec<u8>],
+        buffers: &[Cow<[u8]>],
         n_vertices: usize,
     ) -> Result<Vec<u32>, SceneError> {
         let size = match acc.data_type() {
@@ -624,29 +911,15 @@ impl Loader<'_> {
     /// Returns the patches and the number of zero-area triangles dropped.
     fn primitive_patches(
         &self,
-        positions: &[[f32; 3]],
-        indices: &[u32],
+        geom: &PrimGeometry,
         inst: &Instance,
         mat: &Mat,
         mesh: &str,
         primitive: usize,
     ) -> Result<(Vec<Patch>, usize), SceneError> {
         let flip = DMat3::from_mat4(inst.world).determinant() < 0.0;
-        // Canonical vertex ids by exact position, so unindexed duplicates still share edges.
-        let mut canon: HashMap<[u32; 3], u32> = HashMap::new();
-        let ids: Vec<u32> = positions
-            .iter()
-            .map(|p| {
-                let next = canon.len() as u32;
-                *canon.entry(p.map(f32::to_bits)).or_insert(next)
-            })
-            .collect();
-        let world: Vec<DVec3> = positions
-            .iter()
-            .map(|p| {
-                inst.world.transform_point3(DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
-            })
-            .collect();
+        let ids = &geom.ids;
+        let world: Vec<DVec3> = geom.vertices.iter().map(|&p| inst.world.transform_point3(p)).collect();
         if world.iter().any(|v| !v.is_finite()) {
             return Err(SceneError::NonFinitePosition {
                 file: self.file.clone(),
@@ -658,7 +931,7 @@ impl Loader<'_> {
         // Valid triangles: (index-order number, vertex indices in front-facing order).
         let mut tris: Vec<(usize, [u32; 3])> = Vec::new();
         let mut dropped = 0;
-        for (t, c) in indices.chunks_exact(3).enumerate() {
+        for (t, c) in geom.triangles.iter().enumerate() {
             let v = if flip { [c[0], c[2], c[1]] } else { [c[0], c[1], c[2]] };
             let [a, b, cc] = v.map(|i| world[i as usize]);
             let longest =
@@ -690,8 +963,17 @@ impl Loader<'_> {
             let mut best: Option<(usize, Vec<DVec3>)> = None;
             for e in 0..3 {
                 let key = (ids[v[(e + 1) % 3] as usize], ids[v[e] as usize]);
-                for &j in edges.get(&key).map_or(&[][..], Vec::as_slice) {
-                    if j <= k || used[j] || best.as_ref().is_some_and(|(b, _)| *b <= j) {
+                // The list is in triangle order: skip to the triangles after k, and look at no
+                // more than MAX_EDGE_CANDIDATES of them (an edge that many triangles share is not
+                // a surface a quad belongs to; without the bound a fan of n triangles on one edge
+                // costs n² merge tests).
+                let list = edges.get(&key).map_or(&[][..], Vec::as_slice);
+                let later = &list[list.partition_point(|&j| j <= k)..];
+                for &j in later.iter().take(MAX_EDGE_CANDIDATES) {
+                    if best.as_ref().is_some_and(|(b, _)| *b <= j) {
+                        break;
+                    }
+                    if used[j] {
                         continue;
                     }
                     let w = tris[j].1;

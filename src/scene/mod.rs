@@ -45,6 +45,10 @@ pub enum SceneError {
     ReflectanceOutOfRange { file: PathBuf, material: String, value: f64 },
     #[error("{file}: material {material:?}: negative or non-finite emission {value}")]
     BadEmission { file: PathBuf, material: String, value: f64 },
+    #[error("{file}: image {index}: {cause}")]
+    Image { file: PathBuf, index: usize, cause: String },
+    #[error("{file}: cannot read: it is {kind}, not a regular file")]
+    NotRegularFile { file: PathBuf, kind: &'static str },
     #[error("{file}: the scene has no patches")]
     Empty { file: PathBuf },
     #[error("{file}: more than {cap} triangles (the size cap; raise it with --max-triangles)")]
