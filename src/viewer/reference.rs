@@ -8,9 +8,10 @@
 //! - the **relative L2 error** of the whole solution ([`crate::metrics`]: the solution resampled
 //!   onto the reference regions), a point of the error-against-time plot.
 //!
-//! The reference uses the mesh and settings of `radlab reference` by default (regions of
+//! The reference uses the mesh and settings of `radlab reference --ruler regions` (regions of
 //! diagonal / 16, [`ReferenceParams::standard`]) and its disk cache, so a reference computed on
-//! the command line is found here and the other way round. Its resolution limits the per-element
+//! the command line with that ruler is found here and the other way round (the command line's
+//! default is now the pointwise ruler, [`crate::pointwise`], which the viewer does not use yet). Its resolution limits the per-element
 //! error: a leaf finer than the reference regions is compared with the region's average.
 //!
 //! A computation reports its progress (regions finished) and can be cancelled through a shared
@@ -36,7 +37,7 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
 
 /// Reference regions are this fraction of the scene's bounding-box diagonal across (the default
-/// of `radlab reference`, so both share cache entries).
+/// of `radlab reference --ruler regions`, so both share cache entries).
 pub const REGION_FRACTION_OF_DIAGONAL: f64 = 1.0 / 16.0;
 
 /// Where the reference comes from.
