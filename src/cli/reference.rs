@@ -9,7 +9,9 @@ use radlab::hard_cases;
 use radlab::math::{Rgb, polygon_area};
 use radlab::metrics::ErrorReport;
 use radlab::pointwise::thousands;
-use radlab::reference::{Cache, CacheStatus, Control, PointParams, ReferenceParams, reference_mesh};
+use radlab::reference::{
+    Cache, CacheStatus, Control, Estimate, PointParams, ReferenceParams, reference_mesh,
+};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -76,6 +78,56 @@ struct PatchSummary<'a> {
     elements: usize,
     radiosity: Rgb,
     std_error: Rgb,
+}
+
+/// Per-patch area-weighted averages of reference estimates given as (patch, area, estimate)
+/// (standard errors combine as √(Σ a² σ²) / Σ a), printed as a table whose count column is
+/// headed `unit`.
+fn patch_summaries<'a, 'e>(
+    scene: &'a radlab::scene::Scene,
+    items: impl Iterator<Item = (usize, f64, &'e Estimate)>,
+    unit: &str,
+    log: &mut impl std::io::Write,
+) -> anyhow::Result<Vec<PatchSummary<'a>>> {
+    let mut sums = vec![(0usize, 0.0, Rgb::ZERO, Rgb::ZERO); scene.patches.len()];
+    for (patch, a, e) in items {
+        let s = &mut sums[patch];
+        s.0 += 1;
+        s.1 += a;
+        s.2 += e.radiosity * a;
+        s.3 += e.std_error.mul_rgb(e.std_error) * (a * a);
+    }
+    let patches: Vec<PatchSummary> = sums
+        .iter()
+        .enumerate()
+        .map(|(i, (n, a, b, v))| PatchSummary {
+            patch: i,
+            name: &scene.patches[i].name,
+            elements: *n,
+            radiosity: *b / *a,
+            std_error: v.map(f64::sqrt) / *a,
+        })
+        .collect();
+    writeln!(
+        log,
+        "{:>5}  {:<28} {:>6}  {:>30}  {:>10}",
+        "patch", "name", unit, "radiosity (r, g, b)", "std err"
+    )?;
+    for p in &patches {
+        let b = p.radiosity.0;
+        writeln!(
+            log,
+            "{:>5}  {:<28} {:>6}  {:>9.4e} {:>9.4e} {:>9.4e}  {:>10.3e}",
+            p.patch,
+            p.name,
+            p.elements,
+            b[0],
+            b[1],
+            b[2],
+            p.std_error.max_channel()
+        )?;
+    }
+    Ok(patches)
 }
 
 /// One entry of a `--point-file` file.
@@ -182,45 +234,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     // Per-patch area-weighted averages; standard errors combine as √(Σ a² σ²)/Σ a.
-    let mut sums = vec![(0usize, 0.0, Rgb::ZERO, Rgb::ZERO); scene.patches.len()];
-    for (m, e) in mesh.iter().zip(&entry.estimates) {
-        let a = polygon_area(&m.vertices);
-        let s = &mut sums[m.patch];
-        s.0 += 1;
-        s.1 += a;
-        s.2 += e.radiosity * a;
-        s.3 += e.std_error.mul_rgb(e.std_error) * (a * a);
-    }
-    let patches: Vec<PatchSummary> = sums
-        .iter()
-        .enumerate()
-        .map(|(i, (n, a, b, v))| PatchSummary {
-            patch: i,
-            name: &scene.patches[i].name,
-            elements: *n,
-            radiosity: *b / *a,
-            std_error: v.map(f64::sqrt) / *a,
-        })
-        .collect();
-    writeln!(
-        log,
-        "{:>5}  {:<28} {:>6}  {:>30}  {:>10}",
-        "patch", "name", "elems", "radiosity (r, g, b)", "std err"
-    )?;
-    for p in &patches {
-        let b = p.radiosity.0;
-        writeln!(
-            log,
-            "{:>5}  {:<28} {:>6}  {:>9.4e} {:>9.4e} {:>9.4e}  {:>10.3e}",
-            p.patch,
-            p.name,
-            p.elements,
-            b[0],
-            b[1],
-            b[2],
-            p.std_error.max_channel()
-        )?;
-    }
+    let regions = mesh.iter().zip(&entry.estimates).map(|(m, e)| (m.patch, polygon_area(&m.vertices), e));
+    let patches = patch_summaries(&scene, regions, "elems", &mut log)?;
     let rel: Vec<f64> = entry
         .estimates
         .iter()
@@ -443,45 +458,8 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         100.0 * quality.scene.reference_noise,
         100.0 * quality.scene.resolution
     )?;
-    // Per-patch area-weighted averages; standard errors combine as √(Σ a² σ²)/Σ a.
-    let mut sums = vec![(0usize, 0.0, Rgb::ZERO, Rgb::ZERO); scene.patches.len()];
-    for (p, e) in points.iter().zip(&entry.estimates) {
-        let s = &mut sums[p.patch];
-        s.0 += 1;
-        s.1 += p.area;
-        s.2 += e.radiosity * p.area;
-        s.3 += e.std_error.mul_rgb(e.std_error) * (p.area * p.area);
-    }
-    let patches: Vec<PatchSummary> = sums
-        .iter()
-        .enumerate()
-        .map(|(i, (n, a, b, v))| PatchSummary {
-            patch: i,
-            name: &scene.patches[i].name,
-            elements: *n,
-            radiosity: *b / *a,
-            std_error: v.map(f64::sqrt) / *a,
-        })
-        .collect();
-    writeln!(
-        log,
-        "{:>5}  {:<28} {:>6}  {:>30}  {:>10}",
-        "patch", "name", "points", "radiosity (r, g, b)", "std err"
-    )?;
-    for p in &patches {
-        let b = p.radiosity.0;
-        writeln!(
-            log,
-            "{:>5}  {:<28} {:>6}  {:>9.4e} {:>9.4e} {:>9.4e}  {:>10.3e}",
-            p.patch,
-            p.name,
-            p.elements,
-            b[0],
-            b[1],
-            b[2],
-            p.std_error.max_channel()
-        )?;
-    }
+    let cells = points.iter().zip(&entry.estimates).map(|(p, e)| (p.patch, p.area, e));
+    let patches = patch_summaries(&scene, cells, "points", &mut log)?;
     if let Some(method) = &args.compare {
         let sol = solve(args, method, &scene, &accel, &mut log)?;
         let score = radlab::pointwise::score_solution(&scene, &sol, points, &entry.estimates)?;
