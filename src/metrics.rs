@@ -278,6 +278,27 @@ pub fn compare_resampled(
 /// Points per side of the grid at which [`resample`] evaluates a solution inside each region.
 pub const RESAMPLE_GRID: u32 = 6;
 
+/// A [`Locator`] per patch over the elements that lie on it (`None` for a patch without
+/// elements). Errors if an element names a patch the scene lacks.
+pub(crate) fn patch_locators(
+    scene: &Scene,
+    elements: &[SolvedElement],
+) -> Result<Vec<Option<Locator>>, MetricsError> {
+    let np = scene.patches.len();
+    let mut by_patch: Vec<Vec<usize>> = vec![Vec::new(); np];
+    for (i, e) in elements.iter().enumerate() {
+        if e.patch >= np {
+            return Err(MetricsError::BadPatch { index: i, patch: e.patch, patches: np });
+        }
+        by_patch[e.patch].push(i);
+    }
+    Ok(by_patch
+        .iter()
+        .enumerate()
+        .map(|(p, ids)| (!ids.is_empty()).then(|| Locator::new(scene.patches[p].normal, elements, ids)))
+        .collect())
+}
+
 /// Average of a solution's piecewise-constant radiosity over each region: the area-weighted mean
 /// over a RESAMPLE_GRID² grid of points (see `grid_point`). A point that falls in no element
 /// (a gap of rounding size along an edge) takes the nearest element's value on the same patch.
@@ -287,18 +308,7 @@ pub fn resample(
     regions: &[RefElement],
 ) -> Result<Vec<Rgb>, MetricsError> {
     let np = scene.patches.len();
-    let mut by_patch: Vec<Vec<usize>> = vec![Vec::new(); np];
-    for (i, e) in elements.iter().enumerate() {
-        if e.patch >= np {
-            return Err(MetricsError::BadPatch { index: i, patch: e.patch, patches: np });
-        }
-        by_patch[e.patch].push(i);
-    }
-    let locators: Vec<Option<Locator>> = by_patch
-        .iter()
-        .enumerate()
-        .map(|(p, ids)| (!ids.is_empty()).then(|| Locator::new(scene.patches[p].normal, elements, ids)))
-        .collect();
+    let locators = patch_locators(scene, elements)?;
     let g = RESAMPLE_GRID;
     regions
         .iter()

@@ -62,19 +62,7 @@ pub struct PiecewiseConstant<'a> {
 impl<'a> PiecewiseConstant<'a> {
     /// Index the elements by patch. Errors if an element names a patch the scene lacks.
     pub fn new(scene: &'a Scene, elements: &'a [SolvedElement]) -> Result<Self, MetricsError> {
-        let np = scene.patches.len();
-        let mut by_patch: Vec<Vec<usize>> = vec![Vec::new(); np];
-        for (i, e) in elements.iter().enumerate() {
-            if e.patch >= np {
-                return Err(MetricsError::BadPatch { index: i, patch: e.patch, patches: np });
-            }
-            by_patch[e.patch].push(i);
-        }
-        let locators = by_patch
-            .iter()
-            .enumerate()
-            .map(|(p, ids)| (!ids.is_empty()).then(|| Locator::new(scene.patches[p].normal, elements, ids)))
-            .collect();
+        let locators = crate::metrics::patch_locators(scene, elements)?;
         Ok(PiecewiseConstant { scene, elements, locators })
     }
 
@@ -83,14 +71,26 @@ impl<'a> PiecewiseConstant<'a> {
     pub fn element_at(&self, patch: usize, x: DVec3) -> Option<usize> {
         self.locators.get(patch)?.as_ref().map(|l| l.locate(x, self.elements))
     }
+
+    /// [`Self::element_at`] of every point, in point order (parallel).
+    #[must_use]
+    pub fn owners(&self, points: &[RefPoint]) -> Vec<Option<usize>> {
+        points.par_iter().map(|p| self.element_at(p.patch, p.position)).collect()
+    }
+
+    /// The value of the element that holds a point (`owner`, from [`Self::owners`]), or the
+    /// patch's emission where it has no element: [`Reconstruction::radiosity_at`] once located.
+    fn value_of(&self, patch: usize, owner: Option<usize>) -> Rgb {
+        match owner {
+            Some(i) => self.elements[i].radiosity,
+            None => self.scene.patches.get(patch).map_or(Rgb::ZERO, |p| p.emission),
+        }
+    }
 }
 
 impl Reconstruction for PiecewiseConstant<'_> {
     fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
-        match self.element_at(patch, x) {
-            Some(i) => self.elements[i].radiosity,
-            None => self.scene.patches.get(patch).map_or(Rgb::ZERO, |p| p.emission),
-        }
+        self.value_of(patch, self.element_at(patch, x))
     }
 }
 
@@ -139,12 +139,21 @@ pub fn compare_element_averages(
     if points.len() != reference.len() {
         return Err(MetricsError::LengthMismatch { solution: points.len(), reference: reference.len() });
     }
-    let locate = PiecewiseConstant::new(scene, &solution.elements)?;
-    let owner: Vec<Option<usize>> =
-        points.par_iter().map(|p| locate.element_at(p.patch, p.position)).collect();
+    let owner = PiecewiseConstant::new(scene, &solution.elements)?.owners(points);
+    element_averages(scene, solution, points, reference, &owner)
+}
+
+/// [`compare_element_averages`] with each point's element (`owner`) already located.
+fn element_averages(
+    scene: &Scene,
+    solution: &Solution,
+    points: &[RefPoint],
+    reference: &[Estimate],
+    owner: &[Option<usize>],
+) -> Result<ErrorReport, MetricsError> {
     // Per element: Σ a, Σ a B̂, Σ a² σ².
     let mut acc = vec![(0.0, Rgb::ZERO, Rgb::ZERO); solution.elements.len()];
-    for ((p, r), o) in points.iter().zip(reference).zip(&owner) {
+    for ((p, r), o) in points.iter().zip(reference).zip(owner) {
         if let Some(e) = *o {
             let s = &mut acc[e];
             s.0 += p.area;
@@ -183,10 +192,18 @@ pub fn score_solution(
     points: &[RefPoint],
     reference: &[Estimate],
 ) -> Result<PointwiseScore, MetricsError> {
+    if points.len() != reference.len() {
+        return Err(MetricsError::LengthMismatch { solution: points.len(), reference: reference.len() });
+    }
+    // Every point is located once and serves both figures.
+    let pc = PiecewiseConstant::new(scene, &solution.elements)?;
+    let owner = pc.owners(points);
+    let values: Vec<Rgb> = points.iter().zip(&owner).map(|(p, o)| pc.value_of(p.patch, *o)).collect();
+    let residual = solution.energy.relative_residual();
     Ok(PointwiseScore {
         points: points.len(),
-        pointwise: compare_solution_points(scene, solution, points, reference)?,
-        element_average: compare_element_averages(scene, solution, points, reference)?,
+        pointwise: compare_points(scene, points, &values, reference, residual)?,
+        element_average: element_averages(scene, solution, points, reference, &owner)?,
     })
 }
 
