@@ -40,6 +40,8 @@ pub enum StopReason {
     BelowFeps,
     /// Every link it receives has B·F below BFeps.
     BelowBfEps,
+    /// Its gathered radiosity varies less than the error threshold across it (error oracle).
+    BelowErrorEps,
     /// A link wanted it subdivided, but its area is at the Aeps floor.
     AepsFloor,
     /// A link wanted it subdivided, but it is at the maximum depth.
@@ -53,6 +55,7 @@ impl StopReason {
             StopReason::Unrefined => "not refined yet",
             StopReason::Subdivided => "subdivided",
             StopReason::BelowFeps => "all links below Feps",
+            StopReason::BelowErrorEps => "its radiosity varies less than the error threshold",
             StopReason::BelowBfEps => "all links below BFeps",
             StopReason::AepsFloor => "at the Aeps floor (area too small to split)",
             StopReason::MaxDepth => "at the maximum depth",
@@ -62,7 +65,7 @@ impl StopReason {
     pub(crate) fn rank(self) -> u8 {
         match self {
             StopReason::Unrefined => 0,
-            StopReason::BelowFeps | StopReason::BelowBfEps => 1,
+            StopReason::BelowFeps | StopReason::BelowBfEps | StopReason::BelowErrorEps => 1,
             StopReason::AepsFloor => 2,
             StopReason::MaxDepth => 3,
             StopReason::Subdivided => 4,

@@ -28,6 +28,7 @@ pub enum Method {
 pub enum OracleArg {
     Feps,
     Bf,
+    Error,
 }
 
 #[derive(clap::Args, Debug)]
@@ -200,6 +201,7 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
         p.oracle = match o {
             OracleArg::Feps => Oracle::Feps,
             OracleArg::Bf => Oracle::Bf,
+            OracleArg::Error => Oracle::Error,
         };
     }
     if let Some(v) = args.feps {

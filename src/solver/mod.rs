@@ -13,8 +13,9 @@
 //! area-weighted radiosity, the energy balance and statistics. The CLI's JSON, the PNG renderer,
 //! the error metrics and the viewer read only this type.
 
-pub mod estimate;
 pub mod hierarchical;
+/// The hierarchical solver's own error estimate (kept at its old path).
+pub use hierarchical::estimate;
 pub mod params;
 pub mod progressive;
 pub mod uniform;

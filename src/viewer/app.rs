@@ -949,6 +949,7 @@ impl RadlabApp {
         egui::ComboBox::from_label("oracle").selected_text(format!("{:?}", p.oracle)).show_ui(ui, |ui| {
             ui.selectable_value(&mut p.oracle, Oracle::Feps, "Feps (form factor)");
             ui.selectable_value(&mut p.oracle, Oracle::Bf, "BF (B × F)");
+            ui.selectable_value(&mut p.oracle, Oracle::Error, "Error (where the answer is wrong)");
         });
         log_slider(
             ui,

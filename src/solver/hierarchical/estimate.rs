@@ -86,7 +86,7 @@
 //! 0.18 s (transport 0.016 s) against a 0.44 s solve; cornell interactive 0.003 s. `solution()`
 //! and `snapshot()` pay it on every call; `radlab bench` times the solve without it.
 
-use super::hierarchical::HierarchicalSolver;
+use super::HierarchicalSolver;
 use crate::form_factor;
 use crate::hierarchy::Hierarchy;
 use crate::link::LinkStore;

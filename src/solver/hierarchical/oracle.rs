@@ -1,0 +1,195 @@
+//! The error-driven oracle: refine where a receiver's answer is wrong, not where much light flows.
+//!
+//! A constant element holds one value of the gathered irradiance H over its area. What is wrong
+//! with that is how much the *total* irradiance, from all its links (its own and those it
+//! inherits from its ancestors), varies across it. At the four points x_k where splitting would
+//! put its children's centroids:
+//!
+//! ```text
+//! h(x_k) = Σ_{links a ← q, a = r or an ancestor} F(x_k → q) V_aq B_q        (exact point kernel)
+//! e_r    = ρ_r · max_k |h(x_k) − mean_k h(x_k)|  +  ρ_r Σ_{own partial links} 2 min(V, 1 − V) F_rq B_q
+//! ```
+//!
+//! (largest RGB channel). The first term is the receiver's variation of the total — a link
+//! whose contribution is uniform across r, or whose variation the other links cancel (in the
+//! white furnace Σ_q F(x → q) = 1 at every point), adds nothing, however much power it carries
+//! [Lischinski, Smits & Greenberg 1994, "Bounds and error estimates for radiosity", §4: the
+//! error of a constant element is bounded by the spread of its gathered radiosity across it].
+//! The second is the uncertainty of partially visible links, whose visibility varies across the
+//! receiver in a way the link's average V hides (where the shadows are) [Holzschuch & Sillion
+//! 1998, "An exhaustive error-bounding algorithm for hierarchical radiosity", §3.2: the
+//! visibility term of a link's bound].
+//!
+//! A link r ← q is split on the receiver's side when r's answer is wrong (e_r > ε) and the link
+//! is one of its causes: its own variation across r, c_rq = ρ_r V B_q max_k |F(x_k → q) − mean|
+//! (+ its visibility term), is at least e_r / (1 + n_r), n_r the number of r's own links (so one
+//! of them always qualifies when the own links make the error). It is split on the source's
+//! side when q's radiosity varies (ΔB_q: q's own e_q, or the spread of its children's B) enough
+//! to matter through the kernel's variation across the pair: ρ_r F_rq V ΔB_q (diam_r + diam_q)
+//! / distance > ε [Holzschuch & Sillion 1998, §3.1, the source-radiosity term]. Every decision
+//! is taken for the pair (both directions, the larger element first when both ask), from
+//! quantities both sides compute alike, so a link and its mirror always agree and the links
+//! stay mirror images (energy conservation, see `transfer`).
+//!
+//! ε is `bf_eps` (absolute, or relative to the largest emission). Refinement stops at the Aeps
+//! floor and the maximum depth, as with the other oracles.
+
+use super::HierarchicalSolver;
+use crate::form_factor;
+use crate::hierarchy::{Element, StopReason};
+use crate::link::Link;
+use crate::math::{DVec3, Rgb};
+use rayon::prelude::*;
+
+/// Per-element inputs of the error oracle, computed once per refinement pass.
+#[derive(Default)]
+pub(super) struct ErrorField {
+    /// e_r: the receiver's error (module docs); 0 for an element without own links.
+    pub err: Vec<f64>,
+    /// ΔB: how much the element's radiosity varies across it.
+    pub spread: Vec<f64>,
+    /// Number of own links.
+    pub own: Vec<u32>,
+}
+
+/// The four points where a split would put the children's centroids (see `hierarchy` for the
+/// split: quads at their bilinear quarter points, triangles at the sub-triangles' centroids).
+pub(super) fn child_points(e: &Element) -> [DVec3; 4] {
+    let v = e.vertices();
+    if v.len() == 4 {
+        let at = |u: f64, t: f64| {
+            v[0] * ((1.0 - u) * (1.0 - t)) + v[1] * (u * (1.0 - t)) + v[2] * (u * t) + v[3] * ((1.0 - u) * t)
+        };
+        [at(0.25, 0.25), at(0.75, 0.25), at(0.75, 0.75), at(0.25, 0.75)]
+    } else {
+        let (a, b, c) = (v[0], v[1], v[2]);
+        let (ab, bc, ca) = ((a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5);
+        let third = 1.0 / 3.0;
+        [(a + ab + ca) * third, (ab + b + bc) * third, (ca + bc + c) * third, (ab + bc + ca) * third]
+    }
+}
+
+/// F(x_k → q) at the four child points of `r`, and their mean.
+fn kernel_at(r: &Element, pts: &[DVec3; 4], q: &Element) -> ([f64; 4], f64) {
+    let mut f = [0.0; 4];
+    for (fk, x) in f.iter_mut().zip(pts) {
+        *fk = form_factor::point_to_polygon_oriented(*x, r.normal, q.vertices(), q.normal);
+    }
+    let mean = 0.25 * (f[0] + f[1] + f[2] + f[3]);
+    (f, mean)
+}
+
+/// The visibility term's weight 2 min(V, 1 − V) of a link (0 when fully visible or hidden).
+fn partial_weight(l: &Link) -> f64 {
+    let v = f64::from(l.vis).clamp(0.0, 1.0);
+    2.0 * v.min(1.0 - v)
+}
+
+impl HierarchicalSolver {
+    /// The error field of the current state (parallel over elements, deterministic).
+    pub(super) fn error_field(&self) -> ErrorField {
+        let hier = &self.hier;
+        let links = &self.links.by_receiver;
+        let n = hier.len();
+        let err: Vec<f64> = (0..n as u32)
+            .into_par_iter()
+            .with_min_len(64)
+            .map(|r| {
+                let own = &links[r as usize];
+                if own.is_empty() {
+                    return 0.0;
+                }
+                let e = hier.get(r);
+                let pts = child_points(e);
+                let mut h = [Rgb::ZERO; 4];
+                let mut partial = Rgb::ZERO;
+                for a in hier.ancestors(r) {
+                    for l in &links[a as usize] {
+                        let vb = hier.get(l.source).radiosity * f64::from(l.vis).min(1.0);
+                        if vb.max_channel() <= 0.0 {
+                            continue;
+                        }
+                        let (f, _) = kernel_at(e, &pts, hier.get(l.source));
+                        for (hk, fk) in h.iter_mut().zip(f) {
+                            *hk += vb * fk;
+                        }
+                        if a == r {
+                            partial += hier.get(l.source).radiosity * (f64::from(l.ff) * partial_weight(l));
+                        }
+                    }
+                }
+                let mean = (h[0] + h[1] + h[2] + h[3]) * 0.25;
+                let var = h.iter().map(|hk| hk.abs_diff_max(mean)).fold(0.0, f64::max);
+                // ρ per channel: the largest channel of ρ·spread, bounded by ρ_max·spread.
+                let rho = e.reflectance.max_channel();
+                rho * var + e.reflectance.mul_rgb(partial).max_channel()
+            })
+            .collect();
+        let spread: Vec<f64> = (0..n)
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|i| {
+                let e = &hier.elements[i];
+                let kids = e.children().map_or(0.0, |c| {
+                    c.iter().map(|&k| hier.get(k).radiosity.abs_diff_max(e.radiosity)).fold(0.0, f64::max)
+                });
+                kids.max(err[i])
+            })
+            .collect();
+        let own = links.iter().map(|l| l.len() as u32).collect();
+        ErrorField { err, spread, own }
+    }
+
+    /// c_rq (module docs) and F̂_rq = mean_k F(x_k → q) of the link r ← q, from r's side.
+    fn link_variation(&self, r: u32, l_vis: f32, q: u32) -> (f64, f64) {
+        let (re, qe) = (self.hier.get(r), self.hier.get(q));
+        let (f, mean) = kernel_at(re, &child_points(re), qe);
+        let v = f64::from(l_vis).clamp(0.0, 1.0);
+        let vw = 2.0 * v.min(1.0 - v);
+        let b = qe.radiosity.max_channel();
+        let spread = f.iter().map(|fk| (fk - mean).abs()).fold(0.0, f64::max);
+        let rho = re.reflectance.max_channel();
+        (rho * b * (v * spread + vw * mean), mean)
+    }
+
+    /// The error oracle's decision on the pair (r, q) seen from the link r ← q: the element to
+    /// split, or why the link is kept. Symmetric: the link q ← r gets the same element.
+    pub(super) fn decide_error(&self, field: &ErrorField, r: u32, link: &Link) -> Result<u32, StopReason> {
+        let q = link.source;
+        let (lo, hi) = if r < q { (r, q) } else { (q, r) };
+        let eps = self.bf_eps;
+        let (c_lo, f_lo) = self.link_variation(lo, link.vis, hi);
+        let (c_hi, f_hi) = self.link_variation(hi, link.vis, lo);
+        let (elo, ehi) = (self.hier.get(lo), self.hier.get(hi));
+        let v = f64::from(link.vis).clamp(0.0, 1.0);
+        let bound = super::geometric_variation(elo, ehi);
+        let wants_recv = |x: u32, c: f64| {
+            let e = field.err[x as usize];
+            e > eps && c >= e / (1.0 + f64::from(field.own[x as usize]))
+        };
+        // Split lo when its answer is wrong because of this link, or when hi's answer is wrong
+        // because lo's radiosity varies across lo.
+        let split_lo = wants_recv(lo, c_lo)
+            || ehi.reflectance.max_channel() * f_hi * v * field.spread[lo as usize] * bound > eps;
+        let split_hi = wants_recv(hi, c_hi)
+            || elo.reflectance.max_channel() * f_lo * v * field.spread[hi as usize] * bound > eps;
+        let (first, second) = match (split_lo, split_hi) {
+            (false, false) => return Err(StopReason::BelowErrorEps),
+            (true, false) => (lo, None),
+            (false, true) => (hi, None),
+            (true, true) => {
+                let lo_larger = elo.area >= ehi.area;
+                if lo_larger { (lo, Some(hi)) } else { (hi, Some(lo)) }
+            }
+        };
+        match self.can_split(self.hier.get(first)) {
+            Ok(()) => Ok(first),
+            Err(why) => {
+                match second.or(self.params.split_fallback.then_some(if first == lo { hi } else { lo })) {
+                    Some(s) if self.can_split(self.hier.get(s)).is_ok() => Ok(s),
+                    _ => Err(why),
+                }
+            }
+        }
+    }
+}

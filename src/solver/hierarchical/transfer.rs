@@ -1,0 +1,237 @@
+//! Link coefficients: the Galerkin form factor of a pair of elements, one number for both
+//! directions.
+//!
+//! ```text
+//! G_pq = ∫_p ∫_q cosθ_p cosθ_q / (π r²) dA_q dA_p = ∫_p F(x → q) dA_x = A_p F_pq = A_q F_qp
+//! ```
+//!
+//! [Cohen & Wallace 1993, eq. 4.8 (the area-averaged form factor) and §4.4 (reciprocity);
+//! Hanrahan, Salzman, Aupperle 1991, §3 (links carry F between two elements of the hierarchy)].
+//! A link p ← q gathers `F_pq = G_pq / A_p`, the mirror link q ← p gathers `F_qp = G_pq / A_q`:
+//! what q sends to p through the pair is exactly what p receives, so the hierarchy conserves
+//! energy (the power balance of a converged solve is exact up to the iteration's tolerance).
+//!
+//! ## How it is computed
+//! G is integrated over one element of the pair (the one with the smaller area, ties broken by
+//! the lower id, so both directions compute the very same number) with the exact point-to-polygon
+//! kernel to the other ([`form_factor::point_to_polygon_oriented`], Lambert's contour integral).
+//! The rule grows as the pair gets closer relative to the integrated element's size `s`
+//! (diameter), measured by the gap `g` between the two elements' bounding spheres:
+//!
+//! ```text
+//!   input patches, touching / near (g < s/2) or straddling ──► adaptive cubature to 1e-7
+//!                                                              (form_factor::polygon_to_polygon_adaptive)
+//!   otherwise ──► n×n Gauss–Legendre, n = ⌈s / g⌉ clamped to [1, 4]
+//!   five-times rule (optional, centroids ≥ 5 diameters of either apart) ──► disk formula
+//! ```
+//!
+//! For an analytic integrand whose nearest singularity lies a distance g from an interval of
+//! length s, the n-point Gauss rule converges like ρ^(−2n) with ρ ≈ 1 + 2g/s + √((1+2g/s)² − 1)
+//! [Trefethen 2008, "Is Gauss quadrature better than Clenshaw–Curtis?", Thm. 4.5]. The pairs of
+//! input patches carry a closed box's whole answer (the white furnace is exact only if Σ F = 1),
+//! so they are integrated adaptively where the kernel's derivative is log-singular (shared
+//! edges, contact); refined pairs, whose coefficients the oracle has already judged, take at
+//! most 4×4 points (tests/hierarchical and the unit tests below give the accuracy reached).
+//! Reciprocity is exact by construction whatever the rule: one G serves both links.
+
+use crate::form_factor;
+use crate::hierarchy::Element;
+use crate::math::DVec3;
+use std::sync::OnceLock;
+
+/// Relative tolerance of the adaptive rule for pairs of input patches: tight, as the root links
+/// of a closed box are its whole answer (the white furnace is exact to 1e-6 only if Σ F = 1 to
+/// better than that).
+pub(super) const ROOT_REL_TOL: f64 = 1e-7;
+/// Relative tolerance of the adaptive rule for refined (smaller) pairs: below the solver's own
+/// discretisation error by orders of magnitude, at a fraction of the root rule's cost.
+pub(super) const ELEMENT_REL_TOL: f64 = 1e-4;
+/// Absolute tolerances (in units of F) of the adaptive rule: a grazing pair whose form factor
+/// is 1e-12 cannot be had to a relative tolerance (the rule ran into its 2 M evaluation cap on
+/// splash_room's furniture), and needs none: the furnace's Σ F = 1 to 1e-9 is what matters.
+pub(super) const ROOT_ABS_TOL: f64 = 1e-10;
+pub(super) const ELEMENT_ABS_TOL: f64 = 1e-8;
+/// Largest Gauss–Legendre order per axis.
+const MAX_GAUSS: usize = 4;
+/// Gauss order per axis per (integrated element's diameter / gap).
+const GAUSS_PER_GAP: f64 = 1.0;
+/// A pair whose bounding-sphere gap is below this fraction of the integrated element's diameter
+/// is "near": adaptive cubature.
+const NEAR_GAP: f64 = 0.5;
+/// The lecture's five-times rule: a polygon at least this many of its diameters away acts as a
+/// disk for the form factor.
+pub(super) const FIVE_TIMES: f64 = 5.0;
+
+/// Gauss–Legendre rules on [0, 1] for n = 1..=MAX_GAUSS, computed once.
+fn rules() -> &'static [Vec<(f64, f64)>] {
+    static RULES: OnceLock<Vec<Vec<(f64, f64)>>> = OnceLock::new();
+    RULES.get_or_init(|| (1..=MAX_GAUSS).map(form_factor::gauss_legendre).collect())
+}
+
+/// How a pair's coupling is integrated.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(super) enum Rule {
+    /// Disk formula at the integrated element's centroid (the five-times rule).
+    Disk,
+    /// n×n Gauss–Legendre over the integrated element.
+    Gauss(usize),
+    /// Adaptive cubature to a relative tolerance.
+    Adaptive,
+}
+
+/// Which element of the pair is integrated over: the smaller (ties: the lower id). `true`: `a`.
+fn integrate_over_a(a: &Element, a_id: u32, b: &Element, b_id: u32) -> bool {
+    if a.area != b.area { a.area < b.area } else { a_id < b_id }
+}
+
+/// The rule for integrating over `x` with the kernel to `y`.
+pub(super) fn rule(x: &Element, y: &Element, straddle: bool, root: bool, five_times: bool) -> Rule {
+    let d = x.centroid.distance(y.centroid);
+    let gap = d - 0.5 * (x.diam + y.diam);
+    if root && (straddle || gap < NEAR_GAP * x.diam) {
+        return Rule::Adaptive;
+    }
+    if five_times && d >= FIVE_TIMES * y.diam && d >= FIVE_TIMES * x.diam {
+        return Rule::Disk;
+    }
+    let n = (GAUSS_PER_GAP * x.diam / gap.max(0.0)).ceil();
+    Rule::Gauss(if n.is_finite() { (n as usize).clamp(1, MAX_GAUSS) } else { MAX_GAUSS })
+}
+
+/// G = A_a F_ab = A_b F_ba of two elements (ids `a_id`, `b_id`), independent of their order.
+/// `straddle`: one element has vertices on both sides of the other's plane (see `pair_sides`);
+/// `root`: both are input patches (tighter tolerance); `five_times`: allow the disk formula.
+pub(super) fn coupling(
+    a: &Element,
+    a_id: u32,
+    b: &Element,
+    b_id: u32,
+    straddle: bool,
+    root: bool,
+    five_times: bool,
+) -> f64 {
+    let (x, y) = if integrate_over_a(a, a_id, b, b_id) { (a, b) } else { (b, a) };
+    let g = match rule(x, y, straddle, root, five_times) {
+        Rule::Disk => x.area * form_factor::disk(x.centroid, x.normal, y.centroid, y.normal, y.area),
+        Rule::Gauss(n) => x.area * gauss(x, y, n),
+        Rule::Adaptive => {
+            let (rel, abs) =
+                if root { (ROOT_REL_TOL, ROOT_ABS_TOL) } else { (ELEMENT_REL_TOL, ELEMENT_ABS_TOL) };
+            let q = form_factor::polygon_to_polygon_adaptive(x.vertices(), y.vertices(), rel, abs);
+            x.area * q.value
+        }
+    };
+    if g.is_finite() { g.max(0.0) } else { 0.0 }
+}
+
+/// F_xy = (1/A_x) ∫_x F(p → y) dA_p by the n×n Gauss–Legendre rule on x's bilinear map (a
+/// triangle is a quad collapsed onto its third vertex; the Jacobian carries the collapse).
+fn gauss(x: &Element, y: &Element, n: usize) -> f64 {
+    let v = x.vertices();
+    let (v0, v1, v2) = (v[0], v[1], v[2]);
+    let v3 = if v.len() == 4 { v[3] } else { v[2] };
+    let rule = &rules()[n - 1];
+    let (yv, yn) = (y.vertices(), y.normal);
+    let mut sum = 0.0;
+    let mut wsum = 0.0;
+    for &(u, wu) in rule {
+        for &(t, wt) in rule {
+            let du = (v1 - v0) * (1.0 - t) + (v2 - v3) * t;
+            let dv = (v3 - v0) * (1.0 - u) + (v2 - v1) * u;
+            let jac = du.cross(dv).length();
+            let p: DVec3 =
+                v0 * ((1.0 - u) * (1.0 - t)) + v1 * (u * (1.0 - t)) + v2 * (u * t) + v3 * ((1.0 - u) * t);
+            let w = wu * wt * jac;
+            sum += w * form_factor::point_to_polygon_oriented(p, x.normal, yv, yn);
+            wsum += w;
+        }
+    }
+    // Σ w·jac is the element's area to rounding for a planar bilinear map (exact for the rule).
+    if wsum > 0.0 { sum / wsum } else { 0.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hierarchy::Hierarchy;
+    use crate::math::Rgb;
+    use crate::scene::{Patch, Scene};
+
+    fn patch(verts: Vec<DVec3>) -> Patch {
+        Patch::new(verts, Rgb::splat(0.5), Rgb::ZERO, "p", 0, "p", "m").expect("valid patch")
+    }
+
+    fn hier(patches: Vec<Patch>) -> Hierarchy {
+        Hierarchy::from_scene(&Scene::new("t", "t", patches))
+    }
+
+    /// Unit square at height h facing down, offset sideways by `dx`, scaled by `s`.
+    fn square_down(dx: f64, h: f64, s: f64) -> Patch {
+        patch(vec![
+            DVec3::new(dx, 0.0, h),
+            DVec3::new(dx, s, h),
+            DVec3::new(dx + s, s, h),
+            DVec3::new(dx + s, 0.0, h),
+        ])
+    }
+
+    fn floor() -> Patch {
+        patch(vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ])
+    }
+
+    /// Parallel unit squares at distance 1: F = 0.1998202406 (the catalog value, Cohen & Wallace
+    /// 1993 appendix); adjacent perpendicular squares: 0.2000437761. The root rule is adaptive
+    /// (the pairs are near) and must hit both to 1e-9.
+    #[test]
+    fn root_couplings_match_the_catalog() {
+        let h = hier(vec![floor(), square_down(0.0, 1.0, 1.0)]);
+        let g = coupling(h.get(0), 0, h.get(1), 1, false, true, false);
+        assert!((g - 0.199_820_240_6).abs() < 1e-9, "parallel: {g}");
+        let wall = patch(vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(1.0, 0.0, 0.0),
+        ]);
+        let h = hier(vec![floor(), wall]);
+        let g = coupling(h.get(0), 0, h.get(1), 1, false, true, false);
+        assert!((g - 0.200_043_776_1).abs() < 1e-9, "perpendicular: {g}");
+    }
+
+    /// The same number serves both directions, bit for bit, whatever the order of the call.
+    #[test]
+    fn coupling_is_symmetric_bit_for_bit() {
+        for (dx, h, s) in [(0.3, 0.7, 0.2), (2.0, 1.0, 0.5), (0.0, 0.05, 1.0), (0.5, 3.0, 1.0)] {
+            let hr = hier(vec![floor(), square_down(dx, h, s)]);
+            let ab = coupling(hr.get(0), 0, hr.get(1), 1, false, false, false);
+            let ba = coupling(hr.get(1), 1, hr.get(0), 0, false, false, false);
+            assert_eq!(ab.to_bits(), ba.to_bits(), "dx {dx} h {h} s {s}");
+            assert!(ab > 0.0);
+        }
+    }
+
+    /// Across distances, the Gauss and adaptive rules agree with a tight adaptive integration
+    /// to 1e-4 relative (what `rule` promises for the Gauss orders it picks).
+    #[test]
+    fn chosen_rules_are_accurate_at_every_distance() {
+        for (dx, h, s) in
+            [(0.2, 0.4, 0.3), (0.0, 1.5, 0.5), (1.0, 0.6, 0.25), (0.3, 0.15, 0.1), (3.0, 2.0, 1.0)]
+        {
+            let hr = hier(vec![floor(), square_down(dx, h, s)]);
+            let (p, q) = (hr.get(0), hr.get(1));
+            let g = coupling(p, 0, q, 1, false, false, false);
+            let exact = q.area * form_factor::polygon_to_polygon(q.vertices(), p.vertices(), 1e-11);
+            let rel = (g - exact).abs() / exact;
+            assert!(
+                rel < 1e-4,
+                "dx {dx} h {h} s {s}: {g} vs {exact} ({rel:.2e}, rule {:?})",
+                rule(q, p, false, false, false)
+            );
+        }
+    }
+}
