@@ -82,9 +82,7 @@ pub struct Element {
     pub parent: u32,
     pub first_child: u32,
     pub area: f64,
-    /// Per-leaf form-factor normalisation factor (1 for interior elements); see `solver::hierarchical`.
-    pub norm: f64,
-    /// Σ F over this element's fully visible own links (for the per-leaf normalisation).
+    /// Σ F over this element's fully visible own links.
     pub f_sum: f64,
     /// Σ F·V over this element's own links that are not fully visible.
     pub fv_partial: f64,
@@ -97,8 +95,7 @@ pub struct Element {
     pub radiosity: Rgb,
     /// Irradiance gathered over this element's own links, Σ F·V·B_source (before push).
     pub gathered: Rgb,
-    /// The part of `gathered` that comes through fully visible links (V = 1); only this part is
-    /// normalised when pushed down to leaves.
+    /// The part of `gathered` that comes through fully visible links (V = 1).
     pub gathered_full: Rgb,
     pub emission: Rgb,
     pub reflectance: Rgb,
@@ -106,8 +103,6 @@ pub struct Element {
     pub depth: u8,
     pub n_verts: u8,
     pub stop: StopReason,
-    /// Links of this element or an ancestor changed since its normalisation was computed.
-    pub dirty: bool,
     /// Largest vertex-to-vertex distance (cached: the oracle asks for it per link).
     pub diam: f64,
     pub centroid: DVec3,
@@ -173,14 +168,12 @@ fn child(parent: &Element, id: u32, k: usize) -> Element {
         verts,
         area: polygon_area(used),
         diam: max_pairwise_distance(used),
-        dirty: true,
         centroid: polygon_centroid(used),
         gathered: Rgb::ZERO,
         gathered_full: Rgb::ZERO,
         fv_sum: 0.0,
         f_sum: 0.0,
         fv_partial: 0.0,
-        norm: 1.0,
         ..parent.clone()
     }
 }
@@ -223,7 +216,6 @@ impl Hierarchy {
                     verts,
                     area: p.area,
                     diam: max_pairwise_distance(&p.vertices),
-                    dirty: true,
                     centroid: p.centroid,
                     normal: p.normal,
                     reflectance: p.reflectance,
@@ -235,7 +227,6 @@ impl Hierarchy {
                     fv_sum: 0.0,
                     f_sum: 0.0,
                     fv_partial: 0.0,
-                    norm: 1.0,
                 }
             })
             .collect();

@@ -65,10 +65,6 @@ pub struct Args {
     /// Stop refining once this many links exist (hierarchical).
     #[arg(long)]
     pub max_links: Option<usize>,
-    /// Turn on the per-leaf form-factor normalisation (hierarchical; exact white furnace, biased
-    /// when inherited sources differ in radiosity).
-    #[arg(long)]
-    pub normalize: bool,
     /// Gauss–Seidel instead of Jacobi gathering (hierarchical).
     #[arg(long)]
     pub gauss_seidel: bool,
@@ -80,6 +76,11 @@ pub struct Args {
     /// of the links; 0: until no link changes (hierarchical).
     #[arg(long)]
     pub settle: Option<f64>,
+    /// Relative accuracy of each link's Galerkin coefficient (hierarchical; 0: one point at the
+    /// smaller element's centroid, SPLASH-2's rule; presets: 1e-3 interactive, 1e-4 quality
+    /// and lecture, 0 splash2).
+    #[arg(long)]
+    pub link_tol: Option<f64>,
 
     /// Target element size, scene units (uniform, progressive); default: 1/8 of the scene's
     /// bounding-box diagonal.
@@ -245,7 +246,9 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
     if let Some(v) = args.settle {
         p.settle = v;
     }
-    p.normalize |= args.normalize;
+    if let Some(v) = args.link_tol {
+        p.link_tol = v;
+    }
     p.gauss_seidel = args.gauss_seidel;
     p.seed = args.seed;
     p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;

@@ -85,10 +85,6 @@ pub struct HierarchicalParams {
     pub settle: f64,
     /// Gauss–Seidel (use new radiosities as soon as a patch is gathered) instead of Jacobi.
     pub gauss_seidel: bool,
-    /// Scale each leaf's inherited irradiance so its total form factor equals the exact point
-    /// value at the leaf (see `solver::hierarchical`): exact white furnace, but biased when the
-    /// inherited sources differ in radiosity, and costly. Off in every preset.
-    pub normalize: bool,
     /// When the element with the larger form-factor estimate is at the Aeps floor, split the other
     /// one instead (off: the lecture's Refine links them).
     pub split_fallback: bool,
@@ -117,6 +113,12 @@ pub struct HierarchicalParams {
     /// gets the disk estimate instead of the exact point-to-polygon kernel (see
     /// `solver::hierarchical`). Cheaper; changes F by about a percent on those links.
     pub five_times: bool,
+    /// Relative accuracy of a refined link's Galerkin coefficient (`solver::hierarchical::transfer`:
+    /// the Gauss order grows as the pair gets closer until it meets it, adaptive cubature
+    /// beyond); 0: the kernel at the smaller element's centroid, SPLASH-2's one-point rule.
+    /// Input patch pairs are always integrated to 1e-7 where they are near. Exactness in
+    /// closed scenes (Σ F = 1 per element) needs this at 1e-7 once the mesh is refined.
+    pub link_tol: f64,
     /// Seed of the visibility jitter.
     pub seed: u64,
 }
@@ -141,12 +143,12 @@ impl HierarchicalParams {
             round_iterations: 3,
             settle: 1e-3,
             gauss_seidel: false,
-            normalize: false,
             split_fallback: false,
             zero_confirm: 4,
             partial_bf_factor: 0.25,
             conservative: true,
             five_times: false,
+            link_tol: 1e-3,
             seed: 0,
         }
     }
@@ -169,12 +171,12 @@ impl HierarchicalParams {
             round_iterations: 3,
             settle: 1e-3,
             gauss_seidel: false,
-            normalize: false,
             split_fallback: false,
             zero_confirm: 4,
             partial_bf_factor: 0.25,
             conservative: true,
             five_times: false,
+            link_tol: 1e-4,
             seed: 0,
         }
     }
@@ -197,12 +199,12 @@ impl HierarchicalParams {
             round_iterations: 3,
             settle: 1e-3,
             gauss_seidel: false,
-            normalize: false,
             split_fallback: false,
             zero_confirm: 4,
             partial_bf_factor: 0.25,
             conservative: true,
             five_times: false,
+            link_tol: 1e-4,
             seed: 0,
         }
     }
@@ -230,12 +232,12 @@ impl HierarchicalParams {
             round_iterations: 3,
             settle: 1e-3,
             gauss_seidel: false,
-            normalize: false,
             split_fallback: false,
             zero_confirm: 2,
             partial_bf_factor: 1.0,
             conservative: false,
             five_times: true,
+            link_tol: 0.0,
             seed: 0,
         }
     }
@@ -273,6 +275,9 @@ impl HierarchicalParams {
                     return Err(format!("aeps-rel is a fraction of the scene's area, at most 1 (got {a})"));
                 }
             }
+        }
+        if !(self.link_tol.is_finite() && (0.0..1.0).contains(&self.link_tol)) {
+            return Err(format!("link_tol must be in [0, 1) (got {})", self.link_tol));
         }
         if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
             return Err(format!("tolerance must be > 0 (got {})", self.tolerance));

@@ -178,7 +178,7 @@ impl HierarchicalSolver {
             (true, false) => (lo, None),
             (false, true) => (hi, None),
             (true, true) => {
-                let lo_larger = elo.area >= ehi.area;
+                let lo_larger = super::nearly_equal(elo.area, ehi.area) || elo.area > ehi.area;
                 if lo_larger { (lo, Some(hi)) } else { (hi, Some(lo)) }
             }
         };
