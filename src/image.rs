@@ -826,6 +826,7 @@ mod tests {
         let (img, scale) =
             radiosity_image_with_exposure(&scene, &accel, &elements, &Camera::for_scene(&scene), 24, 16);
         assert!((scale - 0.5).abs() < 1e-12);
+        assert_eq!(auto_exposure(&scene, &accel, &elements, &Camera::for_scene(&scene), 24, 16), scale);
         assert!(img.pixels.iter().all(|p| *p == [1.0, 1.0, 1.0]));
         assert!((srgb_encode(0.5) - 0.735_356_983_052_04).abs() < 1e-12);
     }
