@@ -195,8 +195,8 @@ fn document(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<(V
         if exposed.iter().any(|c| !(0.0..=1.0).contains(c)) {
             clipped += 1;
         }
-        for c in 0..3 {
-            b_max[c] = b_max[c].max(e.radiosity.0[c]);
+        for (m, c) in b_max.iter_mut().zip(e.radiosity.0) {
+            *m = m.max(c);
         }
         let color = exposed.map(|c| c.clamp(0.0, 1.0) as f32);
         let radiosity = e.radiosity.0.map(|c| c as f32);
