@@ -423,21 +423,7 @@ pub fn radiosity_image_with_exposure(
     h: usize,
 ) -> (Image, f64) {
     let hits = render_hits(scene, accel, elements, camera, w, h);
-    let mut lum: Vec<f64> = hits
-        .iter()
-        .filter_map(|h| match h {
-            PixelHit::Element(e) => Some(elements[*e].radiosity.luminance()),
-            _ => None,
-        })
-        .filter(|l| l.is_finite())
-        .collect();
-    let scale = if lum.is_empty() {
-        1.0
-    } else {
-        let k = ((lum.len() - 1) as f64 * EXPOSURE_PERCENTILE).round() as usize;
-        let (_, p, _) = lum.select_nth_unstable_by(k, f64::total_cmp);
-        if *p > 0.0 { 1.0 / *p } else { 1.0 }
-    };
+    let scale = exposure_of_hits(&hits, elements);
     let shade = |e: usize| -> [f32; 3] {
         let b = elements[e].radiosity;
         if !b.is_finite() {
@@ -447,6 +433,38 @@ pub fn radiosity_image_with_exposure(
     };
     let pixels = hits.par_iter().map(|h| flat_or(*h, &shade)).collect();
     (Image { width: w, height: h, pixels }, scale)
+}
+
+/// The exposure scale [`radiosity_image`] uses for this view, without shading an image: 1 over
+/// the 99th percentile of the visible pixels' luminance of B (1 if no pixel sees a lit element).
+/// `radlab solve --bake` uses it so that a bake looks like the `--png` of the same solve.
+#[must_use]
+pub fn auto_exposure(
+    scene: &Scene,
+    accel: &Accel,
+    elements: &[SolvedElement],
+    camera: &Camera,
+    w: usize,
+    h: usize,
+) -> f64 {
+    exposure_of_hits(&render_hits(scene, accel, elements, camera, w, h), elements)
+}
+
+fn exposure_of_hits(hits: &[PixelHit], elements: &[SolvedElement]) -> f64 {
+    let mut lum: Vec<f64> = hits
+        .iter()
+        .filter_map(|h| match h {
+            PixelHit::Element(e) => Some(elements[*e].radiosity.luminance()),
+            _ => None,
+        })
+        .filter(|l| l.is_finite())
+        .collect();
+    if lum.is_empty() {
+        return 1.0;
+    }
+    let k = ((lum.len() - 1) as f64 * EXPOSURE_PERCENTILE).round() as usize;
+    let (_, p, _) = lum.select_nth_unstable_by(k, f64::total_cmp);
+    if *p > 0.0 { 1.0 / *p } else { 1.0 }
 }
 
 /// [`radiosity_image_with_exposure`] without the scale.
@@ -808,6 +826,7 @@ mod tests {
         let (img, scale) =
             radiosity_image_with_exposure(&scene, &accel, &elements, &Camera::for_scene(&scene), 24, 16);
         assert!((scale - 0.5).abs() < 1e-12);
+        assert_eq!(auto_exposure(&scene, &accel, &elements, &Camera::for_scene(&scene), 24, 16), scale);
         assert!(img.pixels.iter().all(|p| *p == [1.0, 1.0, 1.0]));
         assert!((srgb_encode(0.5) - 0.735_356_983_052_04).abs() < 1e-12);
     }

@@ -31,10 +31,12 @@
 //! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
 //! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
+//! - [`bake`]: a solution as a glTF asset (vertex colours, unlit) that any viewer shows as solved.
 //! - [`overlay`]: CPU-side line/colour lists for quadtree, links and error overlays.
 //! - `render`, `viewer` (feature `gui`): wgpu pipelines and the eframe app.
 
 pub mod accel;
+pub mod bake;
 pub mod bench;
 pub mod exact;
 pub mod form_factor;

@@ -1,5 +1,6 @@
 //! `radlab solve SCENE`: solve a scene, print statistics and the energy balance, optionally write
-//! JSON (`--json`), an image (`--png`) and the whole hierarchy (`--dump-hierarchy`).
+//! JSON (`--json`), an image (`--png`), the whole hierarchy (`--dump-hierarchy`) and a baked glTF
+//! with the radiosity as vertex colours (`--bake`, [`radlab::bake`]).
 
 use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -10,7 +11,7 @@ use radlab::solver::progressive::{self, ProgressiveParams};
 use radlab::solver::uniform::{self, UniformParams};
 use radlab::solver::{PhaseTimes, Solution};
 use serde_json::json;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -133,6 +134,14 @@ pub struct Args {
     /// Write every element (vertices, radiosity) and link (receiver, source, F, visibility) as JSON.
     #[arg(long)]
     pub dump_hierarchy: Option<PathBuf>,
+    /// Write the solved mesh with its radiosity as vertex colours, unlit (COLOR_0, linear; the
+    /// exposure and units in `extras`): PATH.glb, or PATH.gltf with the buffer embedded.
+    #[arg(long, value_name = "PATH")]
+    pub bake: Option<PathBuf>,
+    /// COLOR_0 = clamp(B × this, 0, 1) in the bake; default: the --png image's exposure (the
+    /// 99th percentile of the luminance the default camera sees at --width × --height maps to 1).
+    #[arg(long, requires = "bake")]
+    pub bake_exposure: Option<f64>,
     /// No progress bar, no summary (errors still go to stderr).
     #[arg(long, short)]
     pub quiet: bool,
@@ -257,6 +266,10 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     set_threads(args.threads)?;
+    let bake_format = match &args.bake {
+        Some(out) => Some(check_bake_path(out, &args.scene, args.bake_exposure)?),
+        None => None,
+    };
     let t_total = Instant::now();
     let t = Instant::now();
     let scene = Arc::new(load_scene(&args.scene, args.max_triangles)?);
@@ -361,11 +374,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }))
         .with_context(|| format!("writing {}", path.display()))?;
     }
+    let cam = radlab::image::Camera::for_scene(&scene);
+    let mut png_exposure = None;
     if let Some(path) = &args.png {
-        let cam = radlab::image::Camera::for_scene(&scene);
-        let img =
-            radlab::image::radiosity_image(&scene, &accel, &solution.elements, &cam, args.width, args.height);
+        let (img, exposure) = radlab::image::radiosity_image_with_exposure(
+            &scene,
+            &accel,
+            &solution.elements,
+            &cam,
+            args.width,
+            args.height,
+        );
         img.write_png(path).with_context(|| format!("writing {}", path.display()))?;
+        png_exposure = Some(exposure);
+    }
+    let mut baked = None;
+    if let (Some(path), Some(format)) = (&args.bake, bake_format) {
+        let (exposure, exposure_rule) = match args.bake_exposure {
+            Some(x) => (x, "--bake-exposure".to_string()),
+            None => (
+                png_exposure.unwrap_or_else(|| {
+                    radlab::image::auto_exposure(
+                        &scene,
+                        &accel,
+                        &solution.elements,
+                        &cam,
+                        args.width,
+                        args.height,
+                    )
+                }),
+                format!(
+                    "auto, as radlab solve --png: 1 / the 99th percentile of the luminance of B seen by the scene's default camera at {}x{} pixels",
+                    args.width, args.height
+                ),
+            ),
+        };
+        let opts = radlab::bake::BakeOptions {
+            exposure,
+            exposure_rule,
+            scene_label: args.scene.clone(),
+            params: Some(params_json.clone()),
+        };
+        let bytes = radlab::bake::bake(&scene, &solution, &opts, format)
+            .with_context(|| format!("baking {}", path.display()))?;
+        std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        baked = Some((path, exposure));
     }
     let doc = solution_json(&args.scene, &scene, &solution, params_json);
     match args.json.as_deref() {
@@ -376,8 +429,54 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if !args.quiet && args.json.as_deref() != Some("-") {
         print_summary(&args.scene, &solution);
+        if let Some((path, exposure)) = baked {
+            println!(
+                "  baked {} elements to {} (COLOR_0 = B × {exposure:.6e}, clamped to [0, 1])",
+                solution.elements.len(),
+                path.display()
+            );
+        }
     }
     Ok(())
+}
+
+/// Check `--bake PATH` before the solve, so a bad path fails at once: a known extension, an
+/// existing folder, not the input scene itself, and a usable `--bake-exposure`.
+fn check_bake_path(
+    out: &Path,
+    scene_spec: &str,
+    exposure: Option<f64>,
+) -> anyhow::Result<radlab::bake::BakeFormat> {
+    let format = radlab::bake::BakeFormat::from_path(out)?;
+    if let Some(x) = exposure
+        && !(x.is_finite() && x > 0.0)
+    {
+        bail!("--bake-exposure {x}: must be a finite positive number");
+    }
+    if !scene_spec.starts_with("builtin:") && same_file(out, Path::new(scene_spec)) {
+        bail!("--bake {}: that is the input scene; refusing to overwrite it", out.display());
+    }
+    let folder = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !folder.is_dir() {
+        bail!("--bake {}: folder {} does not exist", out.display(), folder.display());
+    }
+    Ok(format)
+}
+
+/// True if both paths name one existing file (through symbolic or hard links).
+fn same_file(a: &Path, b: &Path) -> bool {
+    let (Ok(ca), Ok(cb)) = (std::fs::canonicalize(a), std::fs::canonicalize(b)) else { return false };
+    if ca == cb {
+        return true;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt as _;
+        if let (Ok(ma), Ok(mb)) = (std::fs::metadata(&ca), std::fs::metadata(&cb)) {
+            return ma.dev() == mb.dev() && ma.ino() == mb.ino();
+        }
+    }
+    false
 }
 
 /// The stable JSON document of `radlab solve`.

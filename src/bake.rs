@@ -1,0 +1,430 @@
+//! A solved scene baked into a glTF 2.0 asset that any viewer shows as solved.
+//!
+//! Radiosity is view-independent: a diffuse surface leaves radiance L = B/π in every direction
+//! [Cohen & Wallace 1993, §2.4], so the solution *is* a coloured mesh. Every leaf element of a
+//! [`Solution`] becomes one flat-coloured polygon (a quad as two triangles) with per-vertex
+//!
+//! ```text
+//!   COLOR_0    = clamp(B · exposure, 0, 1)   linear RGB, VEC3 float (glTF requires [0, 1])
+//!   _RADIOSITY = B                           linear RGB, VEC3 float, unclamped, no exposure
+//! ```
+//!
+//! and POSITION, NORMAL (the patch's plane) and indices, under one material with
+//! `KHR_materials_unlit` and base colour 1, so a viewer shows COLOR_0 unlit: the lighting as
+//! solved [Khronos glTF 2.0 specification §3.7.2 (attributes); KHR_materials_unlit]. The material
+//! is single-sided, as radlab's patches are: a patch radiates and receives on its front only (a
+//! `doubleSided` input material already became two back-to-back patches, each baked with its own
+//! radiosity).
+//!
+//! B is radiant exitance (emitted + reflected power per unit area) in the scene's own unit of
+//! emission ([`UNITS`]); the exposure, its rule, the units and where the solution came from are
+//! written to `asset.extras.radlab` (and again to the scene's `extras`, which Blender keeps as
+//! custom properties). The piecewise-constant solution is baked as it is: each element has its
+//! own vertices (none shared), so colours do not blend across element edges.
+//!
+//! ## Layout
+//! ```text
+//!   one node + mesh + primitive per input mesh name (patch.mesh, first-appearance order)
+//!   accessors per primitive: POSITION, NORMAL, COLOR_0, _RADIOSITY (f32), indices (u32)
+//!   .glb : 12-byte header ─ JSON chunk (space-padded) ─ BIN chunk (zero-padded)
+//!   .gltf: JSON with the one buffer as a base64 data: URI
+//! ```
+//! Output is deterministic: the same solution gives the same bytes.
+
+use crate::scene::Scene;
+use crate::solver::Solution;
+use base64::Engine as _;
+use serde_json::{Value, json};
+use std::collections::HashMap;
+use std::path::Path;
+
+/// What B (and `_RADIOSITY`) is measured in; written to the extras.
+pub const UNITS: &str = "radiant exitance B (emitted + reflected power per unit area) in the scene's unit of \
+emission: glTF emissiveFactor x KHR_materials_emissive_strength (W/m^2 for a scene authored in W/m^2)";
+
+/// How COLOR_0 relates to B; written to the extras.
+pub const COLOR_RULE: &str =
+    "COLOR_0 = clamp(B * exposure, 0, 1), linear RGB; _RADIOSITY = B, linear RGB, unclamped";
+
+const GL_FLOAT: u32 = 5126;
+const GL_UNSIGNED_INT: u32 = 5125;
+const GL_ARRAY_BUFFER: u32 = 34962;
+const GL_ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const GL_TRIANGLES: u32 = 4;
+const GLB_MAGIC: &[u8; 4] = b"glTF";
+const GLB_CHUNK_JSON: u32 = 0x4E4F_534A;
+const GLB_CHUNK_BIN: u32 = 0x004E_4942;
+
+/// The two containers a bake can be written in, chosen by the output file's extension.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum BakeFormat {
+    /// Binary glTF: one file, JSON and binary chunks.
+    Glb,
+    /// glTF JSON with the buffer embedded as a base64 `data:` URI.
+    Gltf,
+}
+
+impl BakeFormat {
+    /// `.glb` or `.gltf` (any case); anything else is [`BakeError::UnknownExtension`].
+    pub fn from_path(path: &Path) -> Result<BakeFormat, BakeError> {
+        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("glb") => Ok(BakeFormat::Glb),
+            Some("gltf") => Ok(BakeFormat::Gltf),
+            _ => Err(BakeError::UnknownExtension { path: path.display().to_string() }),
+        }
+    }
+}
+
+/// What a bake records besides the geometry and colours.
+#[derive(Clone, Debug)]
+pub struct BakeOptions {
+    /// COLOR_0 = clamp(B · exposure, 0, 1); finite and > 0.
+    pub exposure: f64,
+    /// How the exposure was chosen, in words (written to the extras).
+    pub exposure_rule: String,
+    /// The scene as the user named it (`builtin:cornell`, a path).
+    pub scene_label: String,
+    /// The solver's parameters, if the caller has them (written to the extras).
+    pub params: Option<Value>,
+}
+
+/// Why a solution could not be baked.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    #[error("{path}: a bake is written as .glb or .gltf (the extension chooses which)")]
+    UnknownExtension { path: String },
+    #[error("exposure {0} is not a finite positive number")]
+    BadExposure(f64),
+    #[error("the solution has no elements")]
+    Empty,
+    #[error("element {element} lies on patch {patch}, which the scene does not have")]
+    SceneMismatch { element: usize, patch: usize },
+    #[error("element {element} (patch {patch}) has a non-finite vertex or radiosity")]
+    NonFinite { element: usize, patch: usize },
+    #[error("the bake would be {bytes} bytes, over the 4 GiB a glTF buffer or GLB file can hold")]
+    TooLarge { bytes: u64 },
+}
+
+/// The solution as a GLB file's bytes.
+pub fn glb(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<Vec<u8>, BakeError> {
+    let (doc, bin) = document(scene, solution, opts)?;
+    let mut json = serde_json::to_vec(&doc).expect("a serde_json::Value always serialises");
+    pad(&mut json, b' ');
+    let total = 12 + 8 + json.len() as u64 + 8 + bin.len() as u64;
+    let total32 = u32::try_from(total).map_err(|_| BakeError::TooLarge { bytes: total })?;
+    let mut out = Vec::with_capacity(total as usize);
+    out.extend_from_slice(GLB_MAGIC);
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&total32.to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&GLB_CHUNK_JSON.to_le_bytes());
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(&GLB_CHUNK_BIN.to_le_bytes());
+    out.extend_from_slice(&bin);
+    Ok(out)
+}
+
+/// The solution as self-contained glTF JSON text (the buffer as a base64 `data:` URI).
+pub fn gltf(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<String, BakeError> {
+    let (mut doc, bin) = document(scene, solution, opts)?;
+    doc["buffers"][0]["uri"] = Value::String(format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    ));
+    let mut text = serde_json::to_string_pretty(&doc).expect("a serde_json::Value always serialises");
+    text.push('\n');
+    Ok(text)
+}
+
+/// The bytes of a bake in `format`.
+pub fn bake(
+    scene: &Scene,
+    solution: &Solution,
+    opts: &BakeOptions,
+    format: BakeFormat,
+) -> Result<Vec<u8>, BakeError> {
+    match format {
+        BakeFormat::Glb => glb(scene, solution, opts),
+        BakeFormat::Gltf => gltf(scene, solution, opts).map(String::into_bytes),
+    }
+}
+
+/// One primitive's vertex streams, before packing.
+#[derive(Default)]
+struct Streams {
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    colors: Vec<[f32; 3]>,
+    radiosity: Vec<[f32; 3]>,
+    indices: Vec<u32>,
+}
+
+/// The glTF JSON (without the buffer's URI) and the binary buffer, 4-byte aligned.
+fn document(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<(Value, Vec<u8>), BakeError> {
+    if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
+        return Err(BakeError::BadExposure(opts.exposure));
+    }
+    if solution.elements.is_empty() {
+        return Err(BakeError::Empty);
+    }
+    // Group elements by their patch's mesh name, meshes in patch order.
+    let mut mesh_names: Vec<&str> = Vec::new();
+    let mut mesh_of_name: HashMap<&str, usize> = HashMap::new();
+    let mesh_of_patch: Vec<usize> = scene
+        .patches
+        .iter()
+        .map(|p| {
+            *mesh_of_name.entry(p.mesh.as_str()).or_insert_with(|| {
+                mesh_names.push(p.mesh.as_str());
+                mesh_names.len() - 1
+            })
+        })
+        .collect();
+    let mut streams: Vec<Streams> = mesh_names.iter().map(|_| Streams::default()).collect();
+    let mut clipped = 0usize;
+    let mut b_max = [0.0f64; 3];
+    for (i, e) in solution.elements.iter().enumerate() {
+        let Some(patch) = scene.patches.get(e.patch) else {
+            return Err(BakeError::SceneMismatch { element: i, patch: e.patch });
+        };
+        if !e.radiosity.is_finite() || e.vertices.iter().any(|v| !v.is_finite()) {
+            return Err(BakeError::NonFinite { element: i, patch: e.patch });
+        }
+        let exposed = e.radiosity.0.map(|c| c * opts.exposure);
+        if exposed.iter().any(|c| !(0.0..=1.0).contains(c)) {
+            clipped += 1;
+        }
+        for (m, c) in b_max.iter_mut().zip(e.radiosity.0) {
+            *m = m.max(c);
+        }
+        let color = exposed.map(|c| c.clamp(0.0, 1.0) as f32);
+        let radiosity = e.radiosity.0.map(|c| c as f32);
+        let normal = unit_f32(patch.normal.to_array());
+        let s = &mut streams[mesh_of_patch[e.patch]];
+        let base = s.positions.len() as u32;
+        for v in &e.vertices {
+            s.positions.push(v.to_array().map(|c| c as f32));
+            s.normals.push(normal);
+            s.colors.push(color);
+            s.radiosity.push(radiosity);
+        }
+        // A fan: a triangle once, a quad (planar, convex) as two triangles.
+        for k in 1..e.vertices.len() as u32 - 1 {
+            s.indices.extend([base, base + k, base + k + 1]);
+        }
+    }
+
+    let info = json!({
+        "exposure": opts.exposure,
+        "exposure_rule": opts.exposure_rule,
+        "units": UNITS,
+        "color": COLOR_RULE,
+        "scene": opts.scene_label,
+        "method": solution.method,
+        "elements": solution.elements.len(),
+        "patches": scene.patches.len(),
+        "clipped_elements": clipped,
+        "radiosity_max": b_max,
+        "params": opts.params,
+        "radlab_version": env!("CARGO_PKG_VERSION"),
+    });
+    let mut bin: Vec<u8> = Vec::new();
+    let mut accessors: Vec<Value> = Vec::new();
+    let mut views: Vec<Value> = Vec::new();
+    let mut meshes: Vec<Value> = Vec::new();
+    let mut nodes: Vec<Value> = Vec::new();
+    for (name, s) in mesh_names.iter().zip(&streams) {
+        if s.indices.is_empty() {
+            continue; // a mesh whose patches have no elements (none of radlab's solvers does this)
+        }
+        let (lo, hi) = bounds(&s.positions);
+        let mut vec3 = |data: &[[f32; 3]], min_max: Option<([f32; 3], [f32; 3])>| {
+            let view = push_view(
+                &mut views,
+                &mut bin,
+                data.iter().flatten().flat_map(|f| f.to_le_bytes()),
+                GL_ARRAY_BUFFER,
+            );
+            let mut acc =
+                json!({"bufferView": view, "componentType": GL_FLOAT, "count": data.len(), "type": "VEC3"});
+            if let Some((lo, hi)) = min_max {
+                // As f64 of the f32 values, so the JSON numbers equal the stored floats exactly.
+                acc["min"] = json!(lo.map(f64::from));
+                acc["max"] = json!(hi.map(f64::from));
+            }
+            accessors.push(acc);
+            accessors.len() - 1
+        };
+        let position = vec3(&s.positions, Some((lo, hi)));
+        let normal = vec3(&s.normals, None);
+        let color = vec3(&s.colors, None);
+        let radiosity = vec3(&s.radiosity, None);
+        let view = push_view(
+            &mut views,
+            &mut bin,
+            s.indices.iter().flat_map(|i| i.to_le_bytes()),
+            GL_ELEMENT_ARRAY_BUFFER,
+        );
+        accessors.push(json!({"bufferView": view, "componentType": GL_UNSIGNED_INT, "count": s.indices.len(), "type": "SCALAR"}));
+        let indices = accessors.len() - 1;
+        nodes.push(json!({"name": name, "mesh": meshes.len()}));
+        meshes.push(json!({
+            "name": name,
+            "primitives": [{
+                "attributes": {"POSITION": position, "NORMAL": normal, "COLOR_0": color, "_RADIOSITY": radiosity},
+                "indices": indices,
+                "material": 0,
+                "mode": GL_TRIANGLES,
+            }],
+        }));
+    }
+    let bytes = bin.len() as u64;
+    if u32::try_from(bytes).is_err() {
+        return Err(BakeError::TooLarge { bytes });
+    }
+    let doc = json!({
+        "asset": {
+            "version": "2.0",
+            "generator": concat!("radlab ", env!("CARGO_PKG_VERSION"), " (baked radiosity)"),
+            "extras": {"radlab": info},
+        },
+        "extensionsUsed": ["KHR_materials_unlit"],
+        "scene": 0,
+        "scenes": [{"name": scene.name, "nodes": (0..nodes.len()).collect::<Vec<_>>(), "extras": {"radlab": info}}],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": [{
+            "name": "radlab baked radiosity (unlit, COLOR_0)",
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "doubleSided": false,
+            "extensions": {"KHR_materials_unlit": {}},
+        }],
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}],
+    });
+    Ok((doc, bin))
+}
+
+/// A unit vector in f32 (normalised again after rounding, for the validator's unit-length check).
+fn unit_f32(n: [f64; 3]) -> [f32; 3] {
+    let f = n.map(|c| c as f32);
+    let len = f.iter().map(|c| c * c).sum::<f32>().sqrt();
+    if len > 0.0 { f.map(|c| c / len) } else { [0.0, 0.0, 1.0] }
+}
+
+fn bounds(points: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in points {
+        for c in 0..3 {
+            lo[c] = lo[c].min(p[c]);
+            hi[c] = hi[c].max(p[c]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Append a buffer view (4-byte aligned, as every accessor here is f32 or u32); its index.
+fn push_view(
+    views: &mut Vec<Value>,
+    bin: &mut Vec<u8>,
+    bytes: impl Iterator<Item = u8>,
+    target: u32,
+) -> usize {
+    let start = bin.len();
+    bin.extend(bytes);
+    views.push(json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start, "target": target}));
+    pad(bin, 0);
+    views.len() - 1
+}
+
+fn pad(bytes: &mut Vec<u8>, with: u8) {
+    while !bytes.len().is_multiple_of(4) {
+        bytes.push(with);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Rgb;
+    use crate::scene::builtin;
+    use crate::solver::{EnergyBalance, SolveStats, SolvedElement};
+
+    fn one_element_per_patch(scene: &Scene) -> Solution {
+        let elements: Vec<SolvedElement> = scene
+            .patches
+            .iter()
+            .enumerate()
+            .map(|(i, p)| SolvedElement {
+                patch: i,
+                vertices: p.vertices.clone(),
+                area: p.area,
+                radiosity: Rgb::new(0.5, 1.0, 3.0) * (i as f64 + 1.0),
+                error_estimate: None,
+            })
+            .collect();
+        Solution {
+            method: "test".into(),
+            patch_radiosity: Solution::patch_averages(scene.patches.len(), &elements),
+            elements,
+            energy: EnergyBalance::default(),
+            stats: SolveStats::default(),
+        }
+    }
+
+    fn opts(exposure: f64) -> BakeOptions {
+        BakeOptions {
+            exposure,
+            exposure_rule: "test".into(),
+            scene_label: "builtin:furnace".into(),
+            params: None,
+        }
+    }
+
+    #[test]
+    fn glb_header_and_chunks_are_aligned_and_sized() {
+        let scene = builtin::build("furnace").unwrap();
+        let bytes = glb(&scene, &one_element_per_patch(&scene), &opts(0.25)).unwrap();
+        assert_eq!(&bytes[0..4], b"glTF");
+        assert_eq!(u32::from_le_bytes(bytes[4..8].try_into().unwrap()), 2);
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize, bytes.len());
+        let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        assert_eq!(json_len % 4, 0);
+        let bin_at = 20 + json_len;
+        let bin_len = u32::from_le_bytes(bytes[bin_at..bin_at + 4].try_into().unwrap()) as usize;
+        assert_eq!(bin_len % 4, 0);
+        assert_eq!(bin_at + 8 + bin_len, bytes.len());
+    }
+
+    #[test]
+    fn the_same_solution_gives_the_same_bytes() {
+        let scene = builtin::build("cornell").unwrap();
+        let sol = one_element_per_patch(&scene);
+        assert_eq!(glb(&scene, &sol, &opts(0.1)).unwrap(), glb(&scene, &sol, &opts(0.1)).unwrap());
+    }
+
+    #[test]
+    fn bad_input_is_an_error_not_a_panic() {
+        let scene = builtin::build("furnace").unwrap();
+        let mut sol = one_element_per_patch(&scene);
+        assert!(matches!(glb(&scene, &sol, &opts(0.0)), Err(BakeError::BadExposure(_))));
+        assert!(matches!(glb(&scene, &sol, &opts(f64::NAN)), Err(BakeError::BadExposure(_))));
+        sol.elements[2].radiosity = Rgb::new(f64::NAN, 0.0, 0.0);
+        assert!(matches!(glb(&scene, &sol, &opts(1.0)), Err(BakeError::NonFinite { element: 2, .. })));
+        sol.elements[2].patch = 99;
+        assert!(matches!(glb(&scene, &sol, &opts(1.0)), Err(BakeError::SceneMismatch { patch: 99, .. })));
+        sol.elements.clear();
+        assert!(matches!(glb(&scene, &sol, &opts(1.0)), Err(BakeError::Empty)));
+    }
+
+    #[test]
+    fn the_extension_chooses_the_format() {
+        assert_eq!(BakeFormat::from_path(Path::new("a/b.GLB")).unwrap(), BakeFormat::Glb);
+        assert_eq!(BakeFormat::from_path(Path::new("b.gltf")).unwrap(), BakeFormat::Gltf);
+        assert!(BakeFormat::from_path(Path::new("b.png")).is_err());
+        assert!(BakeFormat::from_path(Path::new("glb")).is_err());
+    }
+}
