@@ -688,3 +688,35 @@ fn the_error_oracle_leaves_the_furnace_alone_and_refines_a_lit_box() {
     let r = sol.energy.relative_residual();
     assert!(r <= BALANCE_TOL, "cube-one-light residual {r:.2e}");
 }
+
+/// The error oracle's field is updated pass by pass only where links changed; recomputing it
+/// everywhere every pass must give the very same mesh and answer.
+#[test]
+fn the_error_oracle_update_changes_nothing() {
+    // cube-one-light: BFeps 0.01 absolute (882 elements); table-room: 20 % of the mean reflected
+    // radiosity (about 270 elements). Both cheap enough for a debug build.
+    for (scene, bf_eps, bf_relative) in
+        [(common::cube_one_light(0.5), 0.01, false), (common::table_room(), 0.2, true)]
+    {
+        let name = scene.name.clone();
+        let p = HierarchicalParams {
+            oracle: Oracle::Error,
+            bf_eps,
+            bf_relative,
+            ..HierarchicalParams::interactive()
+        };
+        let scene = Arc::new(scene);
+        let mut fast = HierarchicalSolver::new(Arc::clone(&scene), p).unwrap();
+        fast.solve(&mut |_, _| {});
+        let mut full = HierarchicalSolver::new(scene, p).unwrap();
+        full.set_full_error_passes(true);
+        full.solve(&mut |_, _| {});
+        let (a, b) = (fast.solution(), full.solution());
+        assert!(a.elements.len() > 20, "{name}: the run must refine ({} elements)", a.elements.len());
+        assert_eq!(a.elements.len(), b.elements.len(), "{name}: elements");
+        assert_eq!(fast.links().len(), full.links().len(), "{name}: links");
+        for (x, y) in a.elements.iter().zip(&b.elements) {
+            assert_eq!(x.radiosity, y.radiosity, "{name}");
+        }
+    }
+}

@@ -58,6 +58,13 @@ pub struct Args {
     /// Visibility seed of --compare hierarchical (default: the preset's).
     #[arg(long)]
     pub solve_seed: Option<u64>,
+    /// Oracle of --compare hierarchical (default: the preset's).
+    #[arg(long, value_enum)]
+    pub solve_oracle: Option<super::solve::OracleArg>,
+    /// BFeps of --compare hierarchical, relative (BF: to the largest emission; error oracle: to
+    /// the mean reflected radiosity). Default: the preset's.
+    #[arg(long)]
+    pub solve_bf_eps_rel: Option<f64>,
     /// Estimate B at the points listed in this JSON file instead of over a mesh: an array of
     /// `{"patch": INDEX, "point": [x, y, z]}` (each point on its patch), `--samples` paths each;
     /// `--json` then writes `{"points": [{"patch", "point", "radiosity", "std_error"}]}`.
@@ -295,7 +302,14 @@ fn solve(
             })?;
             p.rays = args.solve_rays.unwrap_or(p.rays);
             p.seed = args.solve_seed.unwrap_or(p.seed);
-            p.validate().map_err(anyhow::Error::msg).context("invalid --solve-rays")?;
+            if let Some(o) = args.solve_oracle {
+                p.oracle = o.into();
+            }
+            if let Some(e) = args.solve_bf_eps_rel {
+                p.bf_eps = e;
+                p.bf_relative = true;
+            }
+            p.validate().map_err(anyhow::Error::msg).context("invalid --solve-rays / --solve-bf-eps-rel")?;
             let mut s =
                 HierarchicalSolver::new(std::sync::Arc::new(scene.clone()), p).map_err(anyhow::Error::msg)?;
             s.solve(&mut |_, _| {});

@@ -32,6 +32,16 @@ pub enum OracleArg {
     Error,
 }
 
+impl From<OracleArg> for Oracle {
+    fn from(o: OracleArg) -> Oracle {
+        match o {
+            OracleArg::Feps => Oracle::Feps,
+            OracleArg::Bf => Oracle::Bf,
+            OracleArg::Error => Oracle::Error,
+        }
+    }
+}
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Scene: a .gltf/.glb path or builtin:NAME (see `radlab scenes`).
@@ -208,11 +218,7 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
         format!("unknown preset {:?} (one of {})", args.preset, HierarchicalParams::PRESETS.join(", "))
     })?;
     if let Some(o) = args.oracle {
-        p.oracle = match o {
-            OracleArg::Feps => Oracle::Feps,
-            OracleArg::Bf => Oracle::Bf,
-            OracleArg::Error => Oracle::Error,
-        };
+        p.oracle = o.into();
     }
     if let Some(v) = args.feps {
         p.feps = v;

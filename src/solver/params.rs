@@ -59,7 +59,10 @@ pub struct HierarchicalParams {
     /// `bf_relative` is false, else as a fraction of the scene's largest emission E_max
     /// (so one setting behaves the same whatever the scene's radiometric units).
     pub bf_eps: f64,
-    /// Interpret `bf_eps` relative to the scene's largest emission.
+    /// Interpret `bf_eps` relative to the scene's largest emission (BF oracle), or to the
+    /// area-weighted mean reflected radiosity of the current solution (error oracle, whose
+    /// threshold is an error of B: 0.01 = one percent of the scene's mean reflected light; the
+    /// largest emission until anything has been gathered).
     pub bf_relative: bool,
     /// Shadow rays per link for the visible fraction.
     pub rays: u32,

@@ -144,6 +144,10 @@ pub struct HierarchicalStats {
     pub refine_split_s: f64,
     pub refine_links_s: f64,
     pub refine_install_s: f64,
+    /// Refinement passes (decide → split → link → install), over all refinements.
+    pub refine_passes: usize,
+    /// Receivers whose links the oracle examined, over all passes.
+    pub refine_decided: usize,
     pub gather_s: f64,
     pub push_pull_s: f64,
     pub iterations: usize,
@@ -451,6 +455,9 @@ pub struct HierarchicalSolver {
     /// Stop casting a new link's rays once they settle what the next refinement pass does
     /// with it (on by default; off only to check that it changes nothing).
     early_exit: bool,
+    /// Recompute the error oracle's whole field every pass instead of updating it (off; only to
+    /// check that the update changes nothing).
+    full_error_passes: bool,
 }
 
 /// Sums an element inherits in push-pull, its own included.
@@ -517,6 +524,7 @@ impl HierarchicalSolver {
             plan_valid: false,
             oracle_b: Vec::new(),
             early_exit: true,
+            full_error_passes: false,
         };
         s.energy.emitted = s.scene.emitted_power();
         s
@@ -526,6 +534,12 @@ impl HierarchicalSolver {
     /// rays and leave every result the same; turning them off is for checking exactly that.
     pub fn set_early_exit(&mut self, on: bool) {
         self.early_exit = on;
+    }
+
+    /// Recompute the error oracle's field for every element in every refinement pass (`true`)
+    /// instead of only where links changed. The results are identical; for checking exactly that.
+    pub fn set_full_error_passes(&mut self, on: bool) {
+        self.full_error_passes = on;
     }
 
     #[must_use]
@@ -616,6 +630,9 @@ impl HierarchicalSolver {
     fn refine_inner(&mut self) -> StepReport {
         let t = Instant::now();
         let mut new_links = 0;
+        if self.params.oracle == Oracle::Error && self.params.bf_relative {
+            self.bf_eps = self.error_eps();
+        }
         self.oracle_b.clear();
         self.sync_oracle_b();
         self.plan_valid = false;
@@ -634,6 +651,10 @@ impl HierarchicalSolver {
         // The verdicts on the links made by the last pass (None: the first pass, which examines
         // every link, as B has changed since the last refinement).
         let mut pending: Option<Vec<ReceiverDecision>> = None;
+        // The error oracle's field, kept up to date pass by pass (`update_error_field`), and the
+        // receivers whose link lists the last pass changed.
+        let mut err_field: Option<oracle::ErrorField> = None;
+        let mut pass_changed: Vec<u32> = Vec::new();
         while !self.cancelled() {
             if total_links >= self.params.max_links {
                 self.stats.budget_hit = true;
@@ -642,17 +663,35 @@ impl HierarchicalSolver {
             // A: decide, in parallel, read-only (from each link's cached geometry); later passes
             // take the verdicts made with the links.
             let phase = Instant::now();
-            // The error oracle examines every link in every pass: a receiver's error depends on
-            // all its links, own and inherited, which the pass before has just changed.
-            let field = (self.params.oracle == Oracle::Error).then(|| self.error_field());
-            let decisions: Vec<ReceiverDecision> = match pending.take() {
-                Some(d) => d,
-                None => (0..self.hier.len() as u32)
-                    .into_par_iter()
+            // The error oracle examines, after its first pass, the links of the receivers whose
+            // error the last pass changed (their own or an ancestor's links changed) and their
+            // mirrors; the other oracles take the verdicts made with the new links.
+            let decisions: Vec<ReceiverDecision> = if self.params.oracle == Oracle::Error {
+                let ids: Vec<u32> = match err_field.as_mut() {
+                    Some(f) if !self.full_error_passes => self.update_error_field(f, &pass_changed),
+                    _ => {
+                        err_field = Some(self.error_field());
+                        (0..self.hier.len() as u32).collect()
+                    }
+                };
+                let field = err_field.as_ref();
+                ids.into_par_iter()
                     .filter(|&r| !self.links.by_receiver[r as usize].is_empty())
-                    .map(|r| self.decide_receiver(r, field.as_ref()))
-                    .collect(),
+                    .map(|r| self.decide_receiver(r, field))
+                    .collect()
+            } else {
+                match pending.take() {
+                    Some(d) => d,
+                    None => (0..self.hier.len() as u32)
+                        .into_par_iter()
+                        .filter(|&r| !self.links.by_receiver[r as usize].is_empty())
+                        .map(|r| self.decide_receiver(r, None))
+                        .collect(),
+                }
             };
+            pass_changed.clear();
+            self.stats.refine_passes += 1;
+            self.stats.refine_decided += decisions.len();
             if decisions.is_empty() {
                 break;
             }
@@ -707,6 +746,7 @@ impl HierarchicalSolver {
                 let pushed: usize = rep.kids.iter().map(Vec::len).sum();
                 total_links = total_links + rep.own.len() + pushed - self.links.by_receiver[r as usize].len();
                 changed.insert(r);
+                pass_changed.push(r);
                 owns.push((r, rep.own));
                 if pushed > 0 {
                     let first = rep.first_child;
@@ -734,6 +774,7 @@ impl HierarchicalSolver {
                 }
                 next.push((c, v));
                 changed.insert(c);
+                pass_changed.push(c);
             }
             // In receiver order; a child that was a receiver in this pass too has its own list's
             // verdict first (lower indices), then its parent's pushed links'.
@@ -1677,6 +1718,21 @@ fn coupling_in(hier: &Hierarchy, acc: transfer::Accuracy, r: u32, s: u32, stradd
 }
 
 /// BFeps in units of B.
+impl HierarchicalSolver {
+    /// The error oracle's relative threshold in units of B: `bf_eps` × the area-weighted mean
+    /// over the leaves of the reflected radiosity B − E (largest channel); before any gather,
+    /// `bf_eps` × the largest emission.
+    fn error_eps(&self) -> f64 {
+        let (mut sum, mut area) = (0.0, 0.0);
+        for e in self.hier.elements.iter().filter(|e| e.is_leaf()) {
+            sum += (e.radiosity - e.emission).max_channel().max(0.0) * e.area;
+            area += e.area;
+        }
+        let mean = if area > 0.0 { sum / area } else { 0.0 };
+        if mean > 0.0 { self.params.bf_eps * mean } else { resolve_bf_eps(&self.params, &self.scene) }
+    }
+}
+
 fn resolve_bf_eps(p: &HierarchicalParams, scene: &Scene) -> f64 {
     if p.bf_relative {
         let e_max = scene.patches.iter().map(|q| q.emission.max_channel()).fold(0.0, f64::max);

@@ -88,56 +88,105 @@ fn partial_weight(l: &Link) -> f64 {
 impl HierarchicalSolver {
     /// The error field of the current state (parallel over elements, deterministic).
     pub(super) fn error_field(&self) -> ErrorField {
+        let n = self.hier.len();
+        let err: Vec<f64> =
+            (0..n as u32).into_par_iter().with_min_len(64).map(|r| self.element_error(r)).collect();
+        let spread: Vec<f64> =
+            (0..n).into_par_iter().with_min_len(256).map(|i| self.element_spread(i as u32, err[i])).collect();
+        let own = self.links.by_receiver.iter().map(|l| l.len() as u32).collect();
+        ErrorField { err, spread, own }
+    }
+
+    /// Bring `field` up to date after a refinement pass changed the link lists of `changed`
+    /// (and made new elements): only those receivers and their descendants, whose inherited
+    /// links changed, are recomputed (an element's error depends on its own and its ancestors'
+    /// links, and on radiosities, which do not change during a refinement). Returns the
+    /// receivers whose links must be decided again: the recomputed ones with links, and the
+    /// sources of their links (each holds the mirror link, which must get the same verdict).
+    pub(super) fn update_error_field(&self, field: &mut ErrorField, changed: &[u32]) -> Vec<u32> {
+        let hier = &self.hier;
+        let n = hier.len();
+        let old_n = field.err.len();
+        field.err.resize(n, 0.0);
+        field.spread.resize(n, 0.0);
+        field.own.resize(n, 0);
+        let mut dirty = vec![false; n];
+        for &c in changed {
+            dirty[c as usize] = true;
+        }
+        // Parents have smaller ids than their children.
+        for i in 0..n {
+            if i >= old_n || hier.elements[i].parent().is_some_and(|p| dirty[p as usize]) {
+                dirty[i] = true;
+            }
+        }
+        let ids: Vec<u32> = (0..n as u32).filter(|&i| dirty[i as usize]).collect();
+        let fresh: Vec<(f64, f64)> = ids
+            .par_iter()
+            .with_min_len(64)
+            .map(|&r| {
+                let e = self.element_error(r);
+                (e, self.element_spread(r, e))
+            })
+            .collect();
+        let mut decide = super::IdSet::default();
+        for (&r, (e, sp)) in ids.iter().zip(fresh) {
+            field.err[r as usize] = e;
+            field.spread[r as usize] = sp;
+            let own = &self.links.by_receiver[r as usize];
+            field.own[r as usize] = own.len() as u32;
+            if !own.is_empty() {
+                decide.insert(r);
+                for l in own {
+                    decide.insert(l.source);
+                }
+            }
+        }
+        decide.take_sorted()
+    }
+
+    /// e_r of one element (module docs); 0 without own links.
+    fn element_error(&self, r: u32) -> f64 {
         let hier = &self.hier;
         let links = &self.links.by_receiver;
-        let n = hier.len();
-        let err: Vec<f64> = (0..n as u32)
-            .into_par_iter()
-            .with_min_len(64)
-            .map(|r| {
-                let own = &links[r as usize];
-                if own.is_empty() {
-                    return 0.0;
+        let own = &links[r as usize];
+        if own.is_empty() {
+            return 0.0;
+        }
+        let e = hier.get(r);
+        let pts = child_points(e);
+        let mut h = [Rgb::ZERO; 4];
+        let mut partial = Rgb::ZERO;
+        for a in hier.ancestors(r) {
+            for l in &links[a as usize] {
+                let vb = hier.get(l.source).radiosity * f64::from(l.vis).min(1.0);
+                if vb.max_channel() <= 0.0 {
+                    continue;
                 }
-                let e = hier.get(r);
-                let pts = child_points(e);
-                let mut h = [Rgb::ZERO; 4];
-                let mut partial = Rgb::ZERO;
-                for a in hier.ancestors(r) {
-                    for l in &links[a as usize] {
-                        let vb = hier.get(l.source).radiosity * f64::from(l.vis).min(1.0);
-                        if vb.max_channel() <= 0.0 {
-                            continue;
-                        }
-                        let (f, _) = kernel_at(e, &pts, hier.get(l.source));
-                        for (hk, fk) in h.iter_mut().zip(f) {
-                            *hk += vb * fk;
-                        }
-                        if a == r {
-                            partial += hier.get(l.source).radiosity * (f64::from(l.ff) * partial_weight(l));
-                        }
-                    }
+                let (f, _) = kernel_at(e, &pts, hier.get(l.source));
+                for (hk, fk) in h.iter_mut().zip(f) {
+                    *hk += vb * fk;
                 }
-                let mean = (h[0] + h[1] + h[2] + h[3]) * 0.25;
-                let var = h.iter().map(|hk| hk.abs_diff_max(mean)).fold(0.0, f64::max);
-                // ρ per channel: the largest channel of ρ·spread, bounded by ρ_max·spread.
-                let rho = e.reflectance.max_channel();
-                rho * var + e.reflectance.mul_rgb(partial).max_channel()
-            })
-            .collect();
-        let spread: Vec<f64> = (0..n)
-            .into_par_iter()
-            .with_min_len(256)
-            .map(|i| {
-                let e = &hier.elements[i];
-                let kids = e.children().map_or(0.0, |c| {
-                    c.iter().map(|&k| hier.get(k).radiosity.abs_diff_max(e.radiosity)).fold(0.0, f64::max)
-                });
-                kids.max(err[i])
-            })
-            .collect();
-        let own = links.iter().map(|l| l.len() as u32).collect();
-        ErrorField { err, spread, own }
+                if a == r {
+                    partial += hier.get(l.source).radiosity * (f64::from(l.ff) * partial_weight(l));
+                }
+            }
+        }
+        let mean = (h[0] + h[1] + h[2] + h[3]) * 0.25;
+        let var = h.iter().map(|hk| hk.abs_diff_max(mean)).fold(0.0, f64::max);
+        // ρ per channel: the largest channel of ρ·spread, bounded by ρ_max·spread.
+        let rho = e.reflectance.max_channel();
+        rho * var + e.reflectance.mul_rgb(partial).max_channel()
+    }
+
+    /// ΔB of one element: the spread of its children's radiosity about its own, or its error.
+    fn element_spread(&self, i: u32, err: f64) -> f64 {
+        let hier = &self.hier;
+        let e = hier.get(i);
+        let kids = e.children().map_or(0.0, |c| {
+            c.iter().map(|&k| hier.get(k).radiosity.abs_diff_max(e.radiosity)).fold(0.0, f64::max)
+        });
+        kids.max(err)
     }
 
     /// c_rq (module docs) and F̂_rq = mean_k F(x_k → q) of the link r ← q, from r's side.
