@@ -654,7 +654,8 @@ impl HierarchicalSolver {
         // The error oracle's field, kept up to date pass by pass (`update_error_field`), and the
         // receivers whose link lists the last pass changed.
         let mut err_field: Option<oracle::ErrorField> = None;
-        let mut pass_changed: Vec<u32> = Vec::new();
+        let mut pass_changed: Vec<oracle::ListDelta> = Vec::new();
+        let track = self.params.oracle == Oracle::Error;
         while !self.cancelled() {
             if total_links >= self.params.max_links {
                 self.stats.budget_hit = true;
@@ -746,7 +747,9 @@ impl HierarchicalSolver {
                 let pushed: usize = rep.kids.iter().map(Vec::len).sum();
                 total_links = total_links + rep.own.len() + pushed - self.links.by_receiver[r as usize].len();
                 changed.insert(r);
-                pass_changed.push(r);
+                if track {
+                    pass_changed.push(list_delta(r, &self.links.by_receiver[r as usize], &rep.own));
+                }
                 owns.push((r, rep.own));
                 if pushed > 0 {
                     let first = rep.first_child;
@@ -761,6 +764,9 @@ impl HierarchicalSolver {
             let slots = disjoint_mut(&mut self.links.by_receiver, owns.iter().map(|o| o.0));
             slots.into_par_iter().zip(owns).with_min_len(64).for_each(|(slot, (_, own))| *slot = own);
             for (c, ls, mut v) in pushed_down {
+                if track {
+                    pass_changed.push((c, Vec::new(), ls.clone()));
+                }
                 let list = &mut self.links.by_receiver[c as usize];
                 // The child's list may hold links already (its own, just replaced, or earlier ones).
                 let offset = list.len() as u32;
@@ -774,7 +780,6 @@ impl HierarchicalSolver {
                 }
                 next.push((c, v));
                 changed.insert(c);
-                pass_changed.push(c);
             }
             // In receiver order; a child that was a receiver in this pass too has its own list's
             // verdict first (lower indices), then its parent's pushed links'.
@@ -1718,6 +1723,19 @@ fn coupling_in(hier: &Hierarchy, acc: transfer::Accuracy, r: u32, s: u32, stradd
 }
 
 /// BFeps in units of B.
+/// How a receiver's list changed from `old` to `new`: the links removed and the links added
+/// (a link is the same if its source, form factor and visibility are).
+fn list_delta(r: u32, old: &[Link], new: &[Link]) -> oracle::ListDelta {
+    let key = |l: &Link| (l.source, l.ff.to_bits(), l.vis.to_bits());
+    let mut old_keys: Vec<_> = old.iter().map(key).collect();
+    let mut new_keys: Vec<_> = new.iter().map(key).collect();
+    old_keys.sort_unstable();
+    new_keys.sort_unstable();
+    let removed = old.iter().filter(|l| new_keys.binary_search(&key(l)).is_err()).copied().collect();
+    let added = new.iter().filter(|l| old_keys.binary_search(&key(l)).is_err()).copied().collect();
+    (r, removed, added)
+}
+
 impl HierarchicalSolver {
     /// The error oracle's relative threshold in units of B: `bf_eps` × the area-weighted mean
     /// over the leaves of the reflected radiosity B − E (largest channel); before any gather,
