@@ -16,6 +16,7 @@ use radlab::reference::{Cache, ReferenceParams};
 use radlab::render::RgbaImage;
 use radlab::render::snapshot::{self, Thresholds};
 use radlab::scene::{Patch, Scene};
+use radlab::solver::hierarchical::StepKind;
 use radlab::viewer::{RadlabApp, RefSettings, RefState, ViewerOptions};
 use std::sync::Arc;
 
@@ -79,8 +80,16 @@ fn opts() -> ViewerOptions {
     ViewerOptions {
         scene: String::new(),
         reference: RefSettings { cache, ..RefSettings::default() },
+        // These tests step the solver by hand from the input patches.
+        solve_on_start: false,
         ..ViewerOptions::default()
     }
+}
+
+/// The lit leaves' largest mean radiosity on patch `patch` (the floor is patch 0).
+fn brightest_leaf(h: &Harness<'static, RadlabApp>, patch: u32) -> f64 {
+    let v = h.state().view();
+    v.elements.iter().filter(|e| e.leaf && e.patch == patch).map(|e| e.radiosity.mean()).fold(0.0, f64::max)
 }
 
 fn harness(opts: ViewerOptions) -> Harness<'static, RadlabApp> {
@@ -205,6 +214,24 @@ fn drive_the_viewer() {
     h.get_by_label("Reset").click();
     settle(&mut h);
     assert_eq!(h.state().view().leaves.len(), n_patches);
+}
+
+#[test]
+fn a_loaded_scene_opens_solved() {
+    // The default options: every load solves with the current preset on the solver thread.
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    assert!(v.stats.links > 0 && !v.residuals.is_empty(), "solved on load: {:?}", v.stats.links);
+    assert!(brightest_leaf(&h, 0) > 0.0, "the floor is lit without pressing Solve");
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Solve));
+    // Load (the top bar's field and button) solves the new scene too.
+    h.state_mut().load_spec("builtin:parallel");
+    settle(&mut h);
+    assert_eq!(h.state().view().elements[0].patch, 0);
+    assert!(h.state().view().stats.links > 0, "the loaded scene is solved");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
 
 #[test]

@@ -44,7 +44,9 @@ pub struct ViewerOptions {
     pub preset: String,
     /// Overlays on at start.
     pub overlay: Vec<OverlayChoice>,
-    /// Solve as soon as the scene is loaded.
+    /// Solve with the current preset whenever a scene is loaded (at start, Load, Open, a
+    /// dropped file), on the solver thread: the viewer opens on a solved scene. Off: the input
+    /// patches, unsolved, for stepping by hand.
     pub solve_on_start: bool,
     /// Scripted use: write the viewport to this PNG once solved, then close.
     pub screenshot: Option<PathBuf>,
@@ -70,7 +72,7 @@ impl Default for ViewerOptions {
             scene: "builtin:cornell".into(),
             preset: "interactive".into(),
             overlay: Vec::new(),
-            solve_on_start: false,
+            solve_on_start: true,
             screenshot: None,
             bench_frames: None,
             pick: None,
@@ -451,6 +453,12 @@ impl RadlabApp {
     #[must_use]
     pub fn view(&self) -> &Arc<ViewData> {
         &self.view
+    }
+
+    /// What the last solver step on this scene reported (`None` until one has run).
+    #[must_use]
+    pub fn last_report(&self) -> Option<&StepReport> {
+        self.last_report.as_ref()
     }
 
     /// Errors shown in the UI.
