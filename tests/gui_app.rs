@@ -135,15 +135,22 @@ fn drive_the_viewer() {
     assert!(v.leaves.len() > n_patches, "refinement split elements: {}", v.leaves.len());
     assert!(!v.links.is_empty(), "links created");
 
-    // Gather + push-pull: light reaches the floor.
+    // Gather: light reaches the floor at once (the display pushes and pulls for itself).
     h.get_by_label("Gather step").click();
     settle(&mut h);
+    let floor_b = brightest_leaf(&h, 0);
+    assert!(floor_b > 0.0, "the floor shows light right after a gather, before Push-pull");
+    assert!(h.state().view().pushed_for_display);
+    assert!(h.query_by_label_contains("shown pushed-pulled").is_some(), "the status bar says so");
+    // Push-pull: the solver's own state now holds what was shown.
     h.get_by_label("Push-pull").click();
     settle(&mut h);
-    let v = Arc::clone(h.state().view());
-    let floor_b =
-        v.elements.iter().filter(|e| e.leaf && e.patch == 0).map(|e| e.radiosity.mean()).fold(0.0, f64::max);
-    assert!(floor_b > 0.0, "the floor receives light after a gather");
+    assert!(!h.state().view().pushed_for_display);
+    let after = brightest_leaf(&h, 0);
+    assert!(
+        (after - floor_b).abs() <= 1e-9 * floor_b,
+        "push-pull shows what the gather showed: {floor_b} → {after}"
+    );
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
     check(&mut h, "gui_gathered");
 

@@ -1243,6 +1243,13 @@ impl RadlabApp {
                     if r.cancelled { ", cancelled" } else { "" }
                 ));
             }
+            if self.view.pushed_for_display {
+                ui.separator();
+                ui.label("B shown pushed-pulled").on_hover_text(
+                    "The solver has gathered; its own radiosity changes at the next Push-pull. \
+                     The view shows that result already.",
+                );
+            }
             if !self.status.is_empty() {
                 ui.separator();
                 ui.weak(&self.status);
