@@ -197,7 +197,9 @@ fn drive_the_viewer() {
     settle(&mut h);
     check(&mut h, "gui_picked");
 
-    // A slider: Feps restarts the solver with the new value.
+    // A slider: Feps restarts the solver with the new value (without auto-run: from the
+    // input patches, for stepping by hand).
+    h.state_mut().auto_run = false;
     let before = h.state().params().feps;
     h.get_by_label("Feps").set_value_accesskit(0.2);
     settle(&mut h);
@@ -239,6 +241,41 @@ fn a_loaded_scene_opens_solved() {
     assert_eq!(h.state().view().elements[0].patch, 0);
     assert!(h.state().view().stats.links > 0, "the loaded scene is solved");
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+#[test]
+fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let solved = Arc::clone(h.state().view());
+    assert!(solved.stats.links > 0);
+    assert!(h.state().auto_run, "auto-run is on by default");
+    let mut p = h.state().params();
+    p.max_depth = 1;
+    h.state_mut().set_params(p);
+    // The restart has answered and the re-solve is not sent yet: the solved picture stays.
+    h.state_mut().wait_for_solver();
+    assert!(Arc::ptr_eq(h.state().view(), &solved), "the last picture stays while re-solving");
+    settle(&mut h);
+    let resolved = Arc::clone(h.state().view());
+    assert!(!Arc::ptr_eq(&resolved, &solved), "the new solve is shown");
+    assert!(resolved.stats.links > 0, "solved again");
+    assert_ne!((resolved.stats.leaves, resolved.stats.links), (solved.stats.leaves, solved.stats.links));
+    assert_eq!(h.state().params().max_depth, 1);
+
+    // Through the slider, frame by frame: no frame shows the unlit restart.
+    h.get_by_label("Feps").set_value_accesskit(0.2);
+    for _ in 0..2000 {
+        h.run_steps(1);
+        assert!(h.state().view().stats.links > 0, "a frame showed the unsolved restart");
+        if !h.state().busy() && !Arc::ptr_eq(h.state().view(), &resolved) {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    assert!(!Arc::ptr_eq(h.state().view(), &resolved), "the slider's solve arrived");
+    assert!((h.state().params().feps - 0.2).abs() < 1e-9);
 }
 
 #[test]

@@ -178,6 +178,11 @@ pub struct RadlabApp {
     busy_label: String,
     /// Re-solve once the running command finishes (auto-run after a parameter change).
     resolve_pending: bool,
+    /// A parameter change is being re-solved: keep showing the last picture until the new
+    /// solve answers (the restart's unlit state goes to `held_view`, shown only if no solve
+    /// follows, e.g. after Cancel).
+    hold_view: bool,
+    held_view: Option<Arc<ViewData>>,
     pub auto_run: bool,
     view: Arc<ViewData>,
     last_report: Option<StepReport>,
@@ -307,7 +312,9 @@ impl RadlabApp {
             progress: None,
             busy_label: String::new(),
             resolve_pending: false,
-            auto_run: false,
+            hold_view: false,
+            held_view: None,
+            auto_run: true,
             view: Arc::new(ViewData::default()),
             last_report: None,
             runs: Vec::new(),
@@ -407,6 +414,8 @@ impl RadlabApp {
             w.cancel();
         }
         self.resolve_pending = false;
+        self.hold_view = false;
+        self.held_view = None;
         let b = scene.bounds();
         self.origin = b.center();
         // The scene's own camera, else the CPU renderer's default (inside closed rooms, the
@@ -517,6 +526,8 @@ impl RadlabApp {
         self.send(Command::SetParams(p), "restarting");
         if self.auto_run {
             self.resolve_pending = true;
+            // Only when something is shown: a first solve has nothing to keep.
+            self.hold_view = !self.view.elements.is_empty();
         }
     }
 
@@ -561,6 +572,13 @@ impl RadlabApp {
             self.resolve_pending = false;
             self.step(StepKind::Solve);
         }
+        if self.hold_view && !self.resolve_pending && !self.busy() {
+            // No solve follows the restart (cancelled): show the solver's state.
+            self.hold_view = false;
+            if let Some(v) = self.held_view.take() {
+                self.set_view(v);
+            }
+        }
     }
 
     fn apply(&mut self, r: Reply) {
@@ -572,7 +590,13 @@ impl RadlabApp {
                 self.error_samples.clear();
             }
             Reply::Done { report, view } => {
-                self.set_view(view);
+                if report.is_none() && self.hold_view {
+                    self.held_view = Some(view);
+                } else {
+                    self.hold_view = false;
+                    self.held_view = None;
+                    self.set_view(view);
+                }
                 self.progress = None;
                 if report.is_none() {
                     // SetParams / Reset restart the solver: element ids start over.
@@ -605,6 +629,10 @@ impl RadlabApp {
             Reply::Progress { done, total } => self.progress = Some((done, total)),
             Reply::Failed(e) => {
                 self.progress = None;
+                self.hold_view = false;
+                if let Some(v) = self.held_view.take() {
+                    self.set_view(v);
+                }
                 if self.script != Script::None {
                     eprintln!("radlab: error: {e}");
                     self.exit_code = Some(1);
@@ -1017,8 +1045,10 @@ impl RadlabApp {
             }
         });
         ui.horizontal(|ui| {
-            ui.checkbox(&mut self.auto_run, "auto-run")
-                .on_hover_text("Re-solve whenever a parameter changes");
+            ui.checkbox(&mut self.auto_run, "auto-run").on_hover_text(
+                "Re-solve whenever a parameter changes; the last picture stays until the new one is \
+                 ready. Off: a change restarts from the input patches, for stepping by hand.",
+            );
             if busy {
                 if ui.button("Cancel").clicked() {
                     if let Some(w) = &self.worker {
