@@ -370,6 +370,87 @@ fn reference_computation_shows_progress_and_can_be_cancelled() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+#[test]
+fn a_long_solve_shows_its_progress_and_can_be_cancelled() {
+    let mut h = harness(ViewerOptions { preset: "quality".into(), ..opts() });
+    h.state_mut().load_spec("builtin:splash_room");
+    settle(&mut h);
+    assert!(h.query_by_label_contains("idle").is_some(), "the progress line is there before any step");
+    h.get_by_label("Solve").click();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while h.query_by_label_contains("solving · round ").is_none() {
+        assert!(std::time::Instant::now() < deadline, "no progress line in {WAIT_S} s");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    assert!(h.state().busy());
+    // The solver clears its flag as each sub-step starts: press until it answers (as a user would).
+    while h.state().busy() {
+        assert!(std::time::Instant::now() < deadline, "the cancel was not answered");
+        h.get_by_label("Cancel").click();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    settle(&mut h);
+    let r = h.state().last_report().expect("the solve answered");
+    assert!(r.cancelled, "{r:?}");
+    assert!(h.query_by_label_contains("Solve cancelled in").is_some(), "the line says what happened");
+}
+
+#[test]
+fn the_layout_does_not_jump() {
+    let dir = std::env::temp_dir().join(format!("radlab-gui-layout-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let reference = RefSettings {
+        params: ReferenceParams { samples: 1 << 16, ..ReferenceParams::quick() },
+        cache: Cache::at(&dir),
+    };
+    let mut h = harness(ViewerOptions { reference, ..opts() });
+    h.run_steps(2);
+    let at_start = (h.state().viewport_rect(), h.get_by_label("Display").rect());
+    let same = |h: &mut Harness<'static, RadlabApp>, when: &str| {
+        h.run_steps(2);
+        let now = (h.state().viewport_rect(), h.get_by_label("Display").rect());
+        assert_eq!(now, at_start, "the viewport or the Display panel moved: {when}");
+    };
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    same(&mut h, "scene loaded");
+    h.get_by_label("Solve").click();
+    settle(&mut h);
+    same(&mut h, "solved");
+    h.get_by_label("links").click();
+    same(&mut h, "link options folded out");
+    h.get_by_label("Compute reference").click();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while !matches!(h.state().ref_state, RefState::Computing { .. }) {
+        assert!(std::time::Instant::now() < deadline, "the reference did not start");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    same(&mut h, "reference computing");
+    h.get_by_label("Cancel reference").click();
+    settle(&mut h);
+    same(&mut h, "reference cancelled");
+    let at = h.state().viewport_rect().center();
+    h.hover_at(at);
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton {
+            pos: at,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+    }
+    settle(&mut h);
+    assert!(h.state().selected.is_some());
+    same(&mut h, "an element picked (the link table)");
+    h.state_mut()
+        .load_spec("builtin:a-long-name-that-does-not-exist-and-makes-a-long-error-line-in-the-panel");
+    same(&mut h, "an error shown");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Longest wait for the first reference region (a busy 2-core machine, dev profile).
 const WAIT_S: u64 = 60;
 

@@ -128,6 +128,15 @@ impl Default for Display {
     }
 }
 
+/// Width of the solver/display panel and of the inspector, points (fixed: see `ui`).
+const CONTROLS_W: f32 = 290.0;
+const INSPECTOR_W: f32 = 320.0;
+/// Width of the progress bars in the controls panel.
+const PANEL_CONTENT_W: f32 = 260.0;
+/// Height reserved for the Reference panel (its tallest state: heading, a line, a progress bar
+/// and a button).
+const REFERENCE_PANEL_H: f32 = 100.0;
+
 /// Background of the viewport (display space).
 const BACKGROUND: [f32; 4] = [0.08, 0.08, 0.1, 1.0];
 /// Back faces: dull magenta, striped in the shader.
@@ -176,6 +185,8 @@ pub struct RadlabApp {
     worker: Option<Worker>,
     progress: Option<(u64, u64)>,
     busy_label: String,
+    /// When the solver thread last went from idle to busy (the progress line's clock).
+    busy_since: Option<Instant>,
     /// Re-solve once the running command finishes (auto-run after a parameter change).
     resolve_pending: bool,
     /// A parameter change is being re-solved: keep showing the last picture until the new
@@ -311,6 +322,7 @@ impl RadlabApp {
             worker: None,
             progress: None,
             busy_label: String::new(),
+            busy_since: None,
             resolve_pending: false,
             hold_view: false,
             held_view: None,
@@ -447,6 +459,9 @@ impl RadlabApp {
 
     fn send(&mut self, cmd: Command, label: &str) {
         if let Some(w) = &mut self.worker {
+            if !w.busy() {
+                self.busy_since = Some(Instant::now());
+            }
             w.send(cmd);
             label.clone_into(&mut self.busy_label);
         }
@@ -737,7 +752,46 @@ impl RadlabApp {
         }
     }
 
+    /// One line, always shown (nothing below moves as work starts and ends): while the solver
+    /// works, what it does, the solve's round and the time so far; then what the last step did.
+    fn progress_line(&self, ui: &mut egui::Ui) {
+        let busy = self.busy();
+        let elapsed = self.busy_since.map_or(0.0, |t| t.elapsed().as_secs_f64());
+        let (fraction, text) = match (busy, self.progress) {
+            (true, Some((done, total))) => (
+                done as f32 / total.max(1) as f32,
+                format!("{} · round {} of {total} · {elapsed:.1} s", self.busy_label, (done + 1).min(total)),
+            ),
+            (true, None) => (0.0, format!("{} · {elapsed:.1} s", self.busy_label)),
+            (false, _) => match &self.last_report {
+                Some(r) => (
+                    1.0,
+                    format!(
+                        "{:?} {} in {:.3} s",
+                        r.kind,
+                        if r.cancelled { "cancelled" } else { "done" },
+                        r.time_s
+                    ),
+                ),
+                None => (0.0, "idle".to_owned()),
+            },
+        };
+        ui.add(egui::ProgressBar::new(fraction).desired_width(PANEL_CONTENT_W).text(text).animate(busy))
+            .on_hover_text("The solver thread: progress of the running step, else the last step's time");
+        if busy {
+            ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+        }
+    }
+
     fn reference_panel(&mut self, ui: &mut egui::Ui) {
+        // A fixed height: the panels below stay put as the reference's state changes.
+        let top = ui.cursor().top();
+        self.reference_panel_contents(ui);
+        let used = ui.cursor().top() - top;
+        ui.add_space((REFERENCE_PANEL_H - used).max(0.0));
+    }
+
+    fn reference_panel_contents(&mut self, ui: &mut egui::Ui) {
         ui.heading("Reference");
         let compute_button = |ui: &mut egui::Ui| {
             ui.button("Compute reference")
@@ -770,7 +824,7 @@ impl RadlabApp {
                 ui.label(format!("{regions} regions × {samples} paths"));
                 ui.add(
                     egui::ProgressBar::new(done as f32 / total.max(1) as f32)
-                        .desired_width(180.0)
+                        .desired_width(PANEL_CONTENT_W)
                         .text(format!("{done}/{total} · {:.0} s", since.elapsed().as_secs_f64())),
                 );
                 if ui
@@ -1049,20 +1103,19 @@ impl RadlabApp {
                 "Re-solve whenever a parameter changes; the last picture stays until the new one is \
                  ready. Off: a change restarts from the input patches, for stepping by hand.",
             );
-            if busy {
-                if ui.button("Cancel").clicked() {
-                    if let Some(w) = &self.worker {
-                        w.cancel();
-                    }
-                    self.resolve_pending = false;
+            // Always there, enabled while busy: the row does not change as work starts and ends.
+            if ui
+                .add_enabled(busy, egui::Button::new("Cancel"))
+                .on_hover_text("Stop the running step (the state stays consistent)")
+                .clicked()
+            {
+                if let Some(w) = &self.worker {
+                    w.cancel();
                 }
-                ui.spinner();
-                ui.label(&self.busy_label);
+                self.resolve_pending = false;
             }
         });
-        if let Some((d, t)) = self.progress {
-            ui.add(egui::ProgressBar::new(d as f32 / t.max(1) as f32).text(format!("round {d}/{t}")));
-        }
+        self.progress_line(ui);
 
         ui.separator();
         self.reference_panel(ui);
@@ -1686,29 +1739,38 @@ impl eframe::App for RadlabApp {
         }
         egui::Panel::top("top").frame(frame).show(ui, |ui| self.top_bar(ui));
         egui::Panel::bottom("status").frame(frame).show(ui, |ui| self.status_bar(ui));
-        egui::Panel::left("controls").frame(frame).resizable(true).default_size(270.0).show(ui, |ui| {
-            egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+        // Fixed widths: the panels do not widen with their longest line (a long error, a link
+        // table, a folded-out option); text wraps or is cut instead.
+        egui::Panel::left("controls").frame(frame).resizable(false).exact_size(CONTROLS_W).show(ui, |ui| {
+            egui::ScrollArea::vertical().auto_shrink([false, false]).show(ui, |ui| self.controls(ui));
         });
-        egui::Panel::right("inspector").frame(frame).resizable(true).default_size(300.0).show(ui, |ui| {
-            egui::ScrollArea::vertical().id_salt("inspector_scroll").show(ui, |ui| {
-                if !self.errors.is_empty() {
-                    ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
-                    for e in self.errors.iter().rev().take(5) {
-                        ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
-                    }
-                    if ui.small_button("clear").clicked() {
-                        self.errors.clear();
-                    }
-                    ui.separator();
-                }
-                self.inspector(ui);
-                if self.show_plots {
-                    ui.separator();
-                    ui.heading("Convergence plots");
-                    self.plots(ui);
-                }
-            });
-        });
+        egui::Panel::right("inspector").frame(frame).resizable(false).exact_size(INSPECTOR_W).show(
+            ui,
+            |ui| {
+                // Both ways: a wide link table scrolls instead of widening the panel.
+                egui::ScrollArea::both().auto_shrink([false, false]).id_salt("inspector_scroll").show(
+                    ui,
+                    |ui| {
+                        if !self.errors.is_empty() {
+                            ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
+                            for e in self.errors.iter().rev().take(5) {
+                                ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
+                            }
+                            if ui.small_button("clear").clicked() {
+                                self.errors.clear();
+                            }
+                            ui.separator();
+                        }
+                        self.inspector(ui);
+                        if self.show_plots {
+                            ui.separator();
+                            ui.heading("Convergence plots");
+                            self.plots(ui);
+                        }
+                    },
+                );
+            },
+        );
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
 
         self.handle_screenshot(&ctx);
