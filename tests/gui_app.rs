@@ -82,6 +82,8 @@ fn opts() -> ViewerOptions {
         reference: RefSettings { cache, ..RefSettings::default() },
         // These tests step the solver by hand from the input patches.
         solve_on_start: false,
+        // Tests must not depend on (or open) a desktop file dialog.
+        desktop_file_dialog: false,
         ..ViewerOptions::default()
     }
 }
@@ -449,6 +451,65 @@ fn the_layout_does_not_jump() {
         .load_spec("builtin:a-long-name-that-does-not-exist-and-makes-a-long-error-line-in-the-panel");
     same(&mut h, "an error shown");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_in_app_file_dialog_opens_a_scene() {
+    let mut h = harness(opts());
+    h.run_steps(2);
+    h.get_by_label("Open…").click();
+    // A new window is laid out invisibly in its first frame.
+    h.run_steps(4);
+    assert!(h.query_by_label_contains("Open a glTF scene").is_some(), "the in-app dialog is open");
+    // The listing starts in the working folder (the package root under cargo test): enter a
+    // folder from it, then type the rest of the path.
+    h.get_by_label("assets/").click();
+    h.run_steps(2);
+    assert!(h.query_by_label("scenes/").is_some(), "the listing shows the folder entered");
+    h.get_by_label("file path").focus();
+    h.run_steps(1);
+    h.get_by_label("file path").type_text("scenes/parallel.gltf");
+    h.run_steps(1);
+    h.get_by_label("Open").click();
+    h.run_steps(1);
+    settle(&mut h);
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    assert_eq!(h.state().view().leaves.len(), 2, "the chosen two-patch scene is loaded");
+    assert!(h.query_by_label_contains("Open a glTF scene").is_none(), "the dialog closed");
+}
+
+#[test]
+fn export_baked_gltf_writes_a_glb() {
+    let out = std::env::temp_dir().join(format!("radlab-gui-bake-{}.glb", std::process::id()));
+    let _ = std::fs::remove_file(&out);
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let export = |h: &mut Harness<'static, RadlabApp>, path: &str| {
+        h.get_by_label("Export baked glTF…").click();
+        h.run_steps(4);
+        h.get_by_label("file path").focus();
+        h.run_steps(1);
+        h.get_by_label("file path").type_text(path);
+        h.run_steps(1);
+        h.get_by_label("Export").click();
+        h.run_steps(1);
+        settle(h);
+    };
+    export(&mut h, "not-a-gltf.obj");
+    assert!(h.query_by_label_contains("not a .gltf/.glb file").is_some(), "refused in the dialog, one line");
+    h.get_all_by_label("Cancel").last().expect("the dialog's Cancel").click();
+    h.run_steps(2);
+    export(&mut h, &out.to_string_lossy());
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    let bytes = std::fs::read(&out).expect("the bake was written");
+    assert_eq!(&bytes[..4], b"glTF");
+    let leaves = h.state().view().leaves.len();
+    assert!(
+        h.query_by_label_contains(&format!("baked {leaves} elements to")).is_some(),
+        "the status bar says what was written"
+    );
+    let _ = std::fs::remove_file(&out);
 }
 
 /// Longest wait for the first reference region (a busy 2-core machine, dev profile).

@@ -8,6 +8,7 @@
 use super::bench::FrameBench;
 use super::builder::{self, Builder, Built, Coloring};
 use super::camera::OrbitCamera;
+use super::file_dialog::{Answer, FileDialogs, Purpose};
 use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::math::DVec3;
@@ -61,6 +62,8 @@ pub struct ViewerOptions {
     pub show_plots: bool,
     /// Where the reference solution comes from (settings and disk cache).
     pub reference: RefSettings,
+    /// Try the desktop's file dialog (xdg portal) before the in-app one (tests turn it off).
+    pub desktop_file_dialog: bool,
     /// egui's render pass has a [`crate::render::DEPTH_FORMAT`] depth buffer (the native window
     /// asks for one): draw the 3-D view straight into it instead of through an offscreen copy.
     pub direct_viewport: bool,
@@ -79,6 +82,7 @@ impl Default for ViewerOptions {
             screenshot_window: false,
             show_plots: false,
             reference: RefSettings::default(),
+            desktop_file_dialog: true,
             direct_viewport: false,
         }
     }
@@ -240,7 +244,7 @@ pub struct RadlabApp {
     viewport_rect: Rect,
     script: Script,
     shot_rx: Option<Receiver<Arc<egui::ColorImage>>>,
-    open_rx: Option<Receiver<Option<PathBuf>>>,
+    files: FileDialogs,
     status: String,
     show_plots: bool,
     /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
@@ -365,7 +369,7 @@ impl RadlabApp {
             viewport_rect: Rect::NOTHING,
             script: Script::None,
             shot_rx: None,
-            open_rx: None,
+            files: FileDialogs::new(opts.desktop_file_dialog),
             status: String::new(),
             show_plots: opts.show_plots,
             exit_code: None,
@@ -642,6 +646,8 @@ impl RadlabApp {
                 }
             }
             Reply::Progress { done, total } => self.progress = Some((done, total)),
+            Reply::Baked(Ok(what)) => self.status = what,
+            Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => {
                 self.progress = None;
                 self.hold_view = false;
@@ -989,15 +995,16 @@ impl RadlabApp {
                 .on_hover_text("Open a .gltf/.glb file (or drop one on the window)")
                 .clicked()
             {
-                let (tx, rx) = channel();
-                let spawned = std::thread::Builder::new().name("radlab-open".into()).spawn(move || {
-                    let f = rfd::FileDialog::new().add_filter("glTF", &["gltf", "glb"]).pick_file();
-                    let _ = tx.send(f);
-                });
-                match spawned {
-                    Ok(_) => self.open_rx = Some(rx),
-                    Err(e) => self.errors.push(format!("cannot open the file dialog: {e}")),
-                }
+                self.files.choose(Purpose::Open);
+            }
+            let export =
+                ui.add_enabled(self.scene.is_some(), egui::Button::new("Export baked glTF…")).on_hover_text(
+                    "Write the solution shown as a .glb/.gltf: radiosity as vertex colours at the \
+                     viewer's exposure, unlit (docs/bake.md)",
+                );
+            if export.clicked() {
+                let name = self.scene.as_ref().map_or("radlab".to_owned(), |s| s.name.clone());
+                self.files.choose(Purpose::ExportBake { suggested: format!("{name}.glb") });
             }
             let edit = ui.add(
                 egui::TextEdit::singleline(&mut self.spec_edit)
@@ -1561,6 +1568,45 @@ impl RadlabApp {
         }
     }
 
+    fn file_answer(&mut self, answer: Answer) {
+        match answer {
+            Answer::Chosen(Purpose::Open, path) => self.load_spec(&path.to_string_lossy()),
+            Answer::Chosen(Purpose::ExportBake { .. }, path) => self.export_bake(path),
+            Answer::Cancelled(_) => self.status = "no file chosen".into(),
+            Answer::FellBack(note) => self.status = note,
+        }
+    }
+
+    /// Write the solution shown as a baked glTF (on the solver thread), at the display's
+    /// exposure; the answer is one line in the status bar, or an error.
+    pub fn export_bake(&mut self, path: PathBuf) {
+        let Some(scene) = &self.scene else { return };
+        let overwrites_input = std::fs::canonicalize(&path)
+            .is_ok_and(|p| std::fs::canonicalize(&scene.source).is_ok_and(|s| s == p));
+        if overwrites_input {
+            self.errors.push(format!(
+                "export {}: that is the scene shown; refusing to overwrite it",
+                path.display()
+            ));
+            return;
+        }
+        let ev = self.display.exposure_ev;
+        let options = crate::bake::BakeOptions {
+            exposure: 2f64.powf(f64::from(ev)),
+            exposure_rule: format!(
+                "the viewer's exposure 2^EV, EV = {ev:.1}{}",
+                if self.display.auto_exposure {
+                    " (auto: the 95th percentile of the lit surfaces' luminance at 0.8)"
+                } else {
+                    ""
+                }
+            ),
+            scene_label: self.scene_spec.clone(),
+            params: serde_json::to_value(self.params).ok(),
+        };
+        self.send(Command::Bake { path, options }, "baking");
+    }
+
     fn request_screenshot(&mut self, ctx: &egui::Context) {
         let (tx, rx) = channel();
         ctx.request_screenshot(move |img| {
@@ -1709,18 +1755,8 @@ impl eframe::App for RadlabApp {
         let ctx = ui.ctx().clone();
         self.poll_worker();
         self.poll_reference();
-        if let Some(rx) = &self.open_rx
-            && let Ok(res) = rx.try_recv()
-        {
-            self.open_rx = None;
-            match res {
-                Some(path) => self.load_spec(&path.to_string_lossy()),
-                None => {
-                    self.status = "no file chosen (without a desktop file-dialog portal, drop a file on \
-                                   the window or type its path)"
-                        .into();
-                }
-            }
+        if let Some(answer) = self.files.show(&ctx) {
+            self.file_answer(answer);
         }
         let dropped: Vec<PathBuf> =
             ui.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).collect());

@@ -123,6 +123,11 @@ pub enum Command {
     SetParams(HierarchicalParams),
     Reset,
     Step(StepKind),
+    /// Write the current solution as a baked glTF ([`crate::bake`]) to `path` (.glb/.gltf).
+    Bake {
+        path: std::path::PathBuf,
+        options: crate::bake::BakeOptions,
+    },
 }
 
 /// What the solver thread answers.
@@ -141,6 +146,8 @@ pub enum Reply {
         done: u64,
         total: u64,
     },
+    /// A bake was written (what, in one line) or not (why, in one line).
+    Baked(Result<String, String>),
     Failed(String),
 }
 
@@ -193,7 +200,7 @@ impl Worker {
                         self.cancel = Some(Arc::clone(cancel));
                         self.in_flight = self.in_flight.saturating_sub(1);
                     }
-                    Reply::Done { .. } | Reply::Failed(_) => {
+                    Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) => {
                         self.in_flight = self.in_flight.saturating_sub(1)
                     }
                     Reply::Progress { .. } => {}
@@ -221,7 +228,7 @@ impl Worker {
                             self.cancel = Some(Arc::clone(cancel));
                             self.in_flight -= 1;
                         }
-                        Reply::Done { .. } | Reply::Failed(_) => self.in_flight -= 1,
+                        Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) => self.in_flight -= 1,
                         Reply::Progress { .. } => {}
                     }
                     on_reply(r);
@@ -294,6 +301,10 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
                     Reply::Done { report: None, view: Arc::new(ViewData::from_snapshot(s.snapshot())) }
                 }
             },
+            Command::Bake { path, options } => match solver.as_ref() {
+                None => Reply::Failed("no scene loaded".into()),
+                Some(s) => Reply::Baked(bake_to(s, unpushed, &path, &options)),
+            },
             Command::Step(kind) => match solver.as_mut() {
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => {
@@ -326,6 +337,28 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
             break;
         }
     }
+}
+
+/// Bake the solver's leaves (pushed and pulled first if it has gathered since its last
+/// push-pull, as the view shows them) and write the file.
+fn bake_to(
+    s: &HierarchicalSolver,
+    unpushed: bool,
+    path: &std::path::Path,
+    options: &crate::bake::BakeOptions,
+) -> Result<String, String> {
+    let fail = |e: &dyn std::fmt::Display| format!("export {}: {e}", path.display());
+    let format = crate::bake::BakeFormat::from_path(path).map_err(|e| fail(&e))?;
+    let mut solution = s.solution_with(false);
+    if unpushed {
+        let v = ViewData::from_gathered_snapshot(s.snapshot());
+        for (e, &id) in solution.elements.iter_mut().zip(&v.leaves) {
+            e.radiosity = v.elements[id as usize].radiosity;
+        }
+    }
+    let bytes = crate::bake::bake(s.scene(), &solution, options, format).map_err(|e| fail(&e))?;
+    std::fs::write(path, bytes).map_err(|e| fail(&e))?;
+    Ok(format!("baked {} elements to {}", solution.elements.len(), path.display()))
 }
 
 #[cfg(test)]
