@@ -16,6 +16,7 @@ use radlab::reference::{Cache, ReferenceParams};
 use radlab::render::RgbaImage;
 use radlab::render::snapshot::{self, Thresholds};
 use radlab::scene::{Patch, Scene};
+use radlab::solver::hierarchical::StepKind;
 use radlab::viewer::{RadlabApp, RefSettings, RefState, ViewerOptions};
 use std::sync::Arc;
 
@@ -79,8 +80,18 @@ fn opts() -> ViewerOptions {
     ViewerOptions {
         scene: String::new(),
         reference: RefSettings { cache, ..RefSettings::default() },
+        // These tests step the solver by hand from the input patches.
+        solve_on_start: false,
+        // Tests must not depend on (or open) a desktop file dialog.
+        desktop_file_dialog: false,
         ..ViewerOptions::default()
     }
+}
+
+/// The lit leaves' largest mean radiosity on patch `patch` (the floor is patch 0).
+fn brightest_leaf(h: &Harness<'static, RadlabApp>, patch: u32) -> f64 {
+    let v = h.state().view();
+    v.elements.iter().filter(|e| e.leaf && e.patch == patch).map(|e| e.radiosity.mean()).fold(0.0, f64::max)
 }
 
 fn harness(opts: ViewerOptions) -> Harness<'static, RadlabApp> {
@@ -126,15 +137,22 @@ fn drive_the_viewer() {
     assert!(v.leaves.len() > n_patches, "refinement split elements: {}", v.leaves.len());
     assert!(!v.links.is_empty(), "links created");
 
-    // Gather + push-pull: light reaches the floor.
+    // Gather: light reaches the floor at once (the display pushes and pulls for itself).
     h.get_by_label("Gather step").click();
     settle(&mut h);
+    let floor_b = brightest_leaf(&h, 0);
+    assert!(floor_b > 0.0, "the floor shows light right after a gather, before Push-pull");
+    assert!(h.state().view().pushed_for_display);
+    assert!(h.query_by_label_contains("shown pushed-pulled").is_some(), "the status bar says so");
+    // Push-pull: the solver's own state now holds what was shown.
     h.get_by_label("Push-pull").click();
     settle(&mut h);
-    let v = Arc::clone(h.state().view());
-    let floor_b =
-        v.elements.iter().filter(|e| e.leaf && e.patch == 0).map(|e| e.radiosity.mean()).fold(0.0, f64::max);
-    assert!(floor_b > 0.0, "the floor receives light after a gather");
+    assert!(!h.state().view().pushed_for_display);
+    let after = brightest_leaf(&h, 0);
+    assert!(
+        (after - floor_b).abs() <= 1e-9 * floor_b,
+        "push-pull shows what the gather showed: {floor_b} → {after}"
+    );
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
     check(&mut h, "gui_gathered");
 
@@ -181,7 +199,9 @@ fn drive_the_viewer() {
     settle(&mut h);
     check(&mut h, "gui_picked");
 
-    // A slider: Feps restarts the solver with the new value.
+    // A slider: Feps restarts the solver with the new value (without auto-run: from the
+    // input patches, for stepping by hand).
+    h.state_mut().auto_run = false;
     let before = h.state().params().feps;
     h.get_by_label("Feps").set_value_accesskit(0.2);
     settle(&mut h);
@@ -205,6 +225,59 @@ fn drive_the_viewer() {
     h.get_by_label("Reset").click();
     settle(&mut h);
     assert_eq!(h.state().view().leaves.len(), n_patches);
+}
+
+#[test]
+fn a_loaded_scene_opens_solved() {
+    // The default options: every load solves with the current preset on the solver thread.
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    assert!(v.stats.links > 0 && !v.residuals.is_empty(), "solved on load: {:?}", v.stats.links);
+    assert!(brightest_leaf(&h, 0) > 0.0, "the floor is lit without pressing Solve");
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Solve));
+    // Load (the top bar's field and button) solves the new scene too.
+    h.state_mut().load_spec("builtin:parallel");
+    settle(&mut h);
+    assert_eq!(h.state().view().elements[0].patch, 0);
+    assert!(h.state().view().stats.links > 0, "the loaded scene is solved");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+#[test]
+fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let solved = Arc::clone(h.state().view());
+    assert!(solved.stats.links > 0);
+    assert!(h.state().auto_run, "auto-run is on by default");
+    let mut p = h.state().params();
+    p.max_depth = 1;
+    h.state_mut().set_params(p);
+    // The restart has answered and the re-solve is not sent yet: the solved picture stays.
+    h.state_mut().wait_for_solver();
+    assert!(Arc::ptr_eq(h.state().view(), &solved), "the last picture stays while re-solving");
+    settle(&mut h);
+    let resolved = Arc::clone(h.state().view());
+    assert!(!Arc::ptr_eq(&resolved, &solved), "the new solve is shown");
+    assert!(resolved.stats.links > 0, "solved again");
+    assert_ne!((resolved.stats.leaves, resolved.stats.links), (solved.stats.leaves, solved.stats.links));
+    assert_eq!(h.state().params().max_depth, 1);
+
+    // Through the slider, frame by frame: no frame shows the unlit restart.
+    h.get_by_label("Feps").set_value_accesskit(0.2);
+    for _ in 0..2000 {
+        h.run_steps(1);
+        assert!(h.state().view().stats.links > 0, "a frame showed the unsolved restart");
+        if !h.state().busy() && !Arc::ptr_eq(h.state().view(), &resolved) {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    assert!(!Arc::ptr_eq(h.state().view(), &resolved), "the slider's solve arrived");
+    assert!((h.state().params().feps - 0.2).abs() < 1e-9);
 }
 
 #[test]
@@ -297,6 +370,146 @@ fn reference_computation_shows_progress_and_can_be_cancelled() {
     settle(&mut h);
     assert!(h.state().view().stats.links > 0);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_long_solve_shows_its_progress_and_can_be_cancelled() {
+    let mut h = harness(ViewerOptions { preset: "quality".into(), ..opts() });
+    h.state_mut().load_spec("builtin:splash_room");
+    settle(&mut h);
+    assert!(h.query_by_label_contains("idle").is_some(), "the progress line is there before any step");
+    h.get_by_label("Solve").click();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while h.query_by_label_contains("solving · round ").is_none() {
+        assert!(std::time::Instant::now() < deadline, "no progress line in {WAIT_S} s");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    assert!(h.state().busy());
+    // The solver clears its flag as each sub-step starts: press until it answers (as a user would).
+    while h.state().busy() {
+        assert!(std::time::Instant::now() < deadline, "the cancel was not answered");
+        h.get_by_label("Cancel").click();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    settle(&mut h);
+    let r = h.state().last_report().expect("the solve answered");
+    assert!(r.cancelled, "{r:?}");
+    assert!(h.query_by_label_contains("Solve cancelled in").is_some(), "the line says what happened");
+}
+
+#[test]
+fn the_layout_does_not_jump() {
+    let dir = std::env::temp_dir().join(format!("radlab-gui-layout-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let reference = RefSettings {
+        params: ReferenceParams { samples: 1 << 16, ..ReferenceParams::quick() },
+        cache: Cache::at(&dir),
+    };
+    let mut h = harness(ViewerOptions { reference, ..opts() });
+    h.run_steps(2);
+    let at_start = (h.state().viewport_rect(), h.get_by_label("Display").rect());
+    let same = |h: &mut Harness<'static, RadlabApp>, when: &str| {
+        h.run_steps(2);
+        let now = (h.state().viewport_rect(), h.get_by_label("Display").rect());
+        assert_eq!(now, at_start, "the viewport or the Display panel moved: {when}");
+    };
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    same(&mut h, "scene loaded");
+    h.get_by_label("Solve").click();
+    settle(&mut h);
+    same(&mut h, "solved");
+    h.get_by_label("links").click();
+    same(&mut h, "link options folded out");
+    h.get_by_label("Compute reference").click();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while !matches!(h.state().ref_state, RefState::Computing { .. }) {
+        assert!(std::time::Instant::now() < deadline, "the reference did not start");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    same(&mut h, "reference computing");
+    h.get_by_label("Cancel reference").click();
+    settle(&mut h);
+    same(&mut h, "reference cancelled");
+    let at = h.state().viewport_rect().center();
+    h.hover_at(at);
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton {
+            pos: at,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+    }
+    settle(&mut h);
+    assert!(h.state().selected.is_some());
+    same(&mut h, "an element picked (the link table)");
+    h.state_mut()
+        .load_spec("builtin:a-long-name-that-does-not-exist-and-makes-a-long-error-line-in-the-panel");
+    same(&mut h, "an error shown");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_in_app_file_dialog_opens_a_scene() {
+    let mut h = harness(opts());
+    h.run_steps(2);
+    h.get_by_label("Open…").click();
+    // A new window is laid out invisibly in its first frame.
+    h.run_steps(4);
+    assert!(h.query_by_label_contains("Open a glTF scene").is_some(), "the in-app dialog is open");
+    // The listing starts in the working folder (the package root under cargo test): enter a
+    // folder from it, then type the rest of the path.
+    h.get_by_label("assets/").click();
+    h.run_steps(2);
+    assert!(h.query_by_label("scenes/").is_some(), "the listing shows the folder entered");
+    h.get_by_label("file path").focus();
+    h.run_steps(1);
+    h.get_by_label("file path").type_text("scenes/parallel.gltf");
+    h.run_steps(1);
+    h.get_by_label("Open").click();
+    h.run_steps(1);
+    settle(&mut h);
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    assert_eq!(h.state().view().leaves.len(), 2, "the chosen two-patch scene is loaded");
+    assert!(h.query_by_label_contains("Open a glTF scene").is_none(), "the dialog closed");
+}
+
+#[test]
+fn export_baked_gltf_writes_a_glb() {
+    let out = std::env::temp_dir().join(format!("radlab-gui-bake-{}.glb", std::process::id()));
+    let _ = std::fs::remove_file(&out);
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let export = |h: &mut Harness<'static, RadlabApp>, path: &str| {
+        h.get_by_label("Export baked glTF…").click();
+        h.run_steps(4);
+        h.get_by_label("file path").focus();
+        h.run_steps(1);
+        h.get_by_label("file path").type_text(path);
+        h.run_steps(1);
+        h.get_by_label("Export").click();
+        h.run_steps(1);
+        settle(h);
+    };
+    export(&mut h, "not-a-gltf.obj");
+    assert!(h.query_by_label_contains("not a .gltf/.glb file").is_some(), "refused in the dialog, one line");
+    h.get_all_by_label("Cancel").last().expect("the dialog's Cancel").click();
+    h.run_steps(2);
+    export(&mut h, &out.to_string_lossy());
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    let bytes = std::fs::read(&out).expect("the bake was written");
+    assert_eq!(&bytes[..4], b"glTF");
+    let leaves = h.state().view().leaves.len();
+    assert!(
+        h.query_by_label_contains(&format!("baked {leaves} elements to")).is_some(),
+        "the status bar says what was written"
+    );
+    let _ = std::fs::remove_file(&out);
 }
 
 /// Longest wait for the first reference region (a busy 2-core machine, dev profile).

@@ -43,9 +43,12 @@ pub struct Args {
     /// Open the plots panel.
     #[arg(long)]
     pub plots: bool,
-    /// Solve as soon as the scene is loaded.
-    #[arg(long)]
+    /// Solve as soon as the scene is loaded (the default; kept for scripts that pass it).
+    #[arg(long, conflicts_with = "no_solve")]
     pub solve: bool,
+    /// Open on the input patches, unsolved (to step Refine / Gather / Push-pull by hand).
+    #[arg(long)]
+    pub no_solve: bool,
 }
 
 impl Args {
@@ -61,6 +64,7 @@ impl Args {
             window: false,
             plots: false,
             solve: false,
+            no_solve: false,
         }
     }
 }
@@ -101,7 +105,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         scene: args.scene,
         preset: args.preset,
         overlay,
-        solve_on_start: args.solve,
+        solve_on_start: args.solve || !args.no_solve,
         screenshot: args.screenshot,
         bench_frames: args.bench_frames,
         pick: args.pick,

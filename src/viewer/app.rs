@@ -8,6 +8,7 @@
 use super::bench::FrameBench;
 use super::builder::{self, Builder, Built, Coloring};
 use super::camera::OrbitCamera;
+use super::file_dialog::{Answer, FileDialogs, Purpose};
 use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::math::DVec3;
@@ -44,7 +45,9 @@ pub struct ViewerOptions {
     pub preset: String,
     /// Overlays on at start.
     pub overlay: Vec<OverlayChoice>,
-    /// Solve as soon as the scene is loaded.
+    /// Solve with the current preset whenever a scene is loaded (at start, Load, Open, a
+    /// dropped file), on the solver thread: the viewer opens on a solved scene. Off: the input
+    /// patches, unsolved, for stepping by hand.
     pub solve_on_start: bool,
     /// Scripted use: write the viewport to this PNG once solved, then close.
     pub screenshot: Option<PathBuf>,
@@ -59,6 +62,8 @@ pub struct ViewerOptions {
     pub show_plots: bool,
     /// Where the reference solution comes from (settings and disk cache).
     pub reference: RefSettings,
+    /// Try the desktop's file dialog (xdg portal) before the in-app one (tests turn it off).
+    pub desktop_file_dialog: bool,
     /// egui's render pass has a [`crate::render::DEPTH_FORMAT`] depth buffer (the native window
     /// asks for one): draw the 3-D view straight into it instead of through an offscreen copy.
     pub direct_viewport: bool,
@@ -70,13 +75,14 @@ impl Default for ViewerOptions {
             scene: "builtin:cornell".into(),
             preset: "interactive".into(),
             overlay: Vec::new(),
-            solve_on_start: false,
+            solve_on_start: true,
             screenshot: None,
             bench_frames: None,
             pick: None,
             screenshot_window: false,
             show_plots: false,
             reference: RefSettings::default(),
+            desktop_file_dialog: true,
             direct_viewport: false,
         }
     }
@@ -126,6 +132,15 @@ impl Default for Display {
     }
 }
 
+/// Width of the solver/display panel and of the inspector, points (fixed: see `ui`).
+const CONTROLS_W: f32 = 290.0;
+const INSPECTOR_W: f32 = 320.0;
+/// Width of the progress bars in the controls panel.
+const PANEL_CONTENT_W: f32 = 260.0;
+/// Height reserved for the Reference panel (its tallest state: heading, a line, a progress bar
+/// and a button).
+const REFERENCE_PANEL_H: f32 = 100.0;
+
 /// Background of the viewport (display space).
 const BACKGROUND: [f32; 4] = [0.08, 0.08, 0.1, 1.0];
 /// Back faces: dull magenta, striped in the shader.
@@ -174,8 +189,15 @@ pub struct RadlabApp {
     worker: Option<Worker>,
     progress: Option<(u64, u64)>,
     busy_label: String,
+    /// When the solver thread last went from idle to busy (the progress line's clock).
+    busy_since: Option<Instant>,
     /// Re-solve once the running command finishes (auto-run after a parameter change).
     resolve_pending: bool,
+    /// A parameter change is being re-solved: keep showing the last picture until the new
+    /// solve answers (the restart's unlit state goes to `held_view`, shown only if no solve
+    /// follows, e.g. after Cancel).
+    hold_view: bool,
+    held_view: Option<Arc<ViewData>>,
     pub auto_run: bool,
     view: Arc<ViewData>,
     last_report: Option<StepReport>,
@@ -222,7 +244,7 @@ pub struct RadlabApp {
     viewport_rect: Rect,
     script: Script,
     shot_rx: Option<Receiver<Arc<egui::ColorImage>>>,
-    open_rx: Option<Receiver<Option<PathBuf>>>,
+    files: FileDialogs,
     status: String,
     show_plots: bool,
     /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
@@ -304,8 +326,11 @@ impl RadlabApp {
             worker: None,
             progress: None,
             busy_label: String::new(),
+            busy_since: None,
             resolve_pending: false,
-            auto_run: false,
+            hold_view: false,
+            held_view: None,
+            auto_run: true,
             view: Arc::new(ViewData::default()),
             last_report: None,
             runs: Vec::new(),
@@ -344,7 +369,7 @@ impl RadlabApp {
             viewport_rect: Rect::NOTHING,
             script: Script::None,
             shot_rx: None,
-            open_rx: None,
+            files: FileDialogs::new(opts.desktop_file_dialog),
             status: String::new(),
             show_plots: opts.show_plots,
             exit_code: None,
@@ -405,6 +430,8 @@ impl RadlabApp {
             w.cancel();
         }
         self.resolve_pending = false;
+        self.hold_view = false;
+        self.held_view = None;
         let b = scene.bounds();
         self.origin = b.center();
         // The scene's own camera, else the CPU renderer's default (inside closed rooms, the
@@ -436,6 +463,9 @@ impl RadlabApp {
 
     fn send(&mut self, cmd: Command, label: &str) {
         if let Some(w) = &mut self.worker {
+            if !w.busy() {
+                self.busy_since = Some(Instant::now());
+            }
             w.send(cmd);
             label.clone_into(&mut self.busy_label);
         }
@@ -451,6 +481,12 @@ impl RadlabApp {
     #[must_use]
     pub fn view(&self) -> &Arc<ViewData> {
         &self.view
+    }
+
+    /// What the last solver step on this scene reported (`None` until one has run).
+    #[must_use]
+    pub fn last_report(&self) -> Option<&StepReport> {
+        self.last_report.as_ref()
     }
 
     /// Errors shown in the UI.
@@ -509,6 +545,8 @@ impl RadlabApp {
         self.send(Command::SetParams(p), "restarting");
         if self.auto_run {
             self.resolve_pending = true;
+            // Only when something is shown: a first solve has nothing to keep.
+            self.hold_view = !self.view.elements.is_empty();
         }
     }
 
@@ -553,6 +591,13 @@ impl RadlabApp {
             self.resolve_pending = false;
             self.step(StepKind::Solve);
         }
+        if self.hold_view && !self.resolve_pending && !self.busy() {
+            // No solve follows the restart (cancelled): show the solver's state.
+            self.hold_view = false;
+            if let Some(v) = self.held_view.take() {
+                self.set_view(v);
+            }
+        }
     }
 
     fn apply(&mut self, r: Reply) {
@@ -564,7 +609,13 @@ impl RadlabApp {
                 self.error_samples.clear();
             }
             Reply::Done { report, view } => {
-                self.set_view(view);
+                if report.is_none() && self.hold_view {
+                    self.held_view = Some(view);
+                } else {
+                    self.hold_view = false;
+                    self.held_view = None;
+                    self.set_view(view);
+                }
                 self.progress = None;
                 if report.is_none() {
                     // SetParams / Reset restart the solver: element ids start over.
@@ -595,8 +646,14 @@ impl RadlabApp {
                 }
             }
             Reply::Progress { done, total } => self.progress = Some((done, total)),
+            Reply::Baked(Ok(what)) => self.status = what,
+            Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => {
                 self.progress = None;
+                self.hold_view = false;
+                if let Some(v) = self.held_view.take() {
+                    self.set_view(v);
+                }
                 if self.script != Script::None {
                     eprintln!("radlab: error: {e}");
                     self.exit_code = Some(1);
@@ -701,7 +758,46 @@ impl RadlabApp {
         }
     }
 
+    /// One line, always shown (nothing below moves as work starts and ends): while the solver
+    /// works, what it does, the solve's round and the time so far; then what the last step did.
+    fn progress_line(&self, ui: &mut egui::Ui) {
+        let busy = self.busy();
+        let elapsed = self.busy_since.map_or(0.0, |t| t.elapsed().as_secs_f64());
+        let (fraction, text) = match (busy, self.progress) {
+            (true, Some((done, total))) => (
+                done as f32 / total.max(1) as f32,
+                format!("{} · round {} of {total} · {elapsed:.1} s", self.busy_label, (done + 1).min(total)),
+            ),
+            (true, None) => (0.0, format!("{} · {elapsed:.1} s", self.busy_label)),
+            (false, _) => match &self.last_report {
+                Some(r) => (
+                    1.0,
+                    format!(
+                        "{:?} {} in {:.3} s",
+                        r.kind,
+                        if r.cancelled { "cancelled" } else { "done" },
+                        r.time_s
+                    ),
+                ),
+                None => (0.0, "idle".to_owned()),
+            },
+        };
+        ui.add(egui::ProgressBar::new(fraction).desired_width(PANEL_CONTENT_W).text(text).animate(busy))
+            .on_hover_text("The solver thread: progress of the running step, else the last step's time");
+        if busy {
+            ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+        }
+    }
+
     fn reference_panel(&mut self, ui: &mut egui::Ui) {
+        // A fixed height: the panels below stay put as the reference's state changes.
+        let top = ui.cursor().top();
+        self.reference_panel_contents(ui);
+        let used = ui.cursor().top() - top;
+        ui.add_space((REFERENCE_PANEL_H - used).max(0.0));
+    }
+
+    fn reference_panel_contents(&mut self, ui: &mut egui::Ui) {
         ui.heading("Reference");
         let compute_button = |ui: &mut egui::Ui| {
             ui.button("Compute reference")
@@ -734,7 +830,7 @@ impl RadlabApp {
                 ui.label(format!("{regions} regions × {samples} paths"));
                 ui.add(
                     egui::ProgressBar::new(done as f32 / total.max(1) as f32)
-                        .desired_width(180.0)
+                        .desired_width(PANEL_CONTENT_W)
                         .text(format!("{done}/{total} · {:.0} s", since.elapsed().as_secs_f64())),
                 );
                 if ui
@@ -899,15 +995,16 @@ impl RadlabApp {
                 .on_hover_text("Open a .gltf/.glb file (or drop one on the window)")
                 .clicked()
             {
-                let (tx, rx) = channel();
-                let spawned = std::thread::Builder::new().name("radlab-open".into()).spawn(move || {
-                    let f = rfd::FileDialog::new().add_filter("glTF", &["gltf", "glb"]).pick_file();
-                    let _ = tx.send(f);
-                });
-                match spawned {
-                    Ok(_) => self.open_rx = Some(rx),
-                    Err(e) => self.errors.push(format!("cannot open the file dialog: {e}")),
-                }
+                self.files.choose(Purpose::Open);
+            }
+            let export =
+                ui.add_enabled(self.scene.is_some(), egui::Button::new("Export baked glTF…")).on_hover_text(
+                    "Write the solution shown as a .glb/.gltf: radiosity as vertex colours at the \
+                     viewer's exposure, unlit (docs/bake.md)",
+                );
+            if export.clicked() {
+                let name = self.scene.as_ref().map_or("radlab".to_owned(), |s| s.name.clone());
+                self.files.choose(Purpose::ExportBake { suggested: format!("{name}.glb") });
             }
             let edit = ui.add(
                 egui::TextEdit::singleline(&mut self.spec_edit)
@@ -1009,22 +1106,23 @@ impl RadlabApp {
             }
         });
         ui.horizontal(|ui| {
-            ui.checkbox(&mut self.auto_run, "auto-run")
-                .on_hover_text("Re-solve whenever a parameter changes");
-            if busy {
-                if ui.button("Cancel").clicked() {
-                    if let Some(w) = &self.worker {
-                        w.cancel();
-                    }
-                    self.resolve_pending = false;
+            ui.checkbox(&mut self.auto_run, "auto-run").on_hover_text(
+                "Re-solve whenever a parameter changes; the last picture stays until the new one is \
+                 ready. Off: a change restarts from the input patches, for stepping by hand.",
+            );
+            // Always there, enabled while busy: the row does not change as work starts and ends.
+            if ui
+                .add_enabled(busy, egui::Button::new("Cancel"))
+                .on_hover_text("Stop the running step (the state stays consistent)")
+                .clicked()
+            {
+                if let Some(w) = &self.worker {
+                    w.cancel();
                 }
-                ui.spinner();
-                ui.label(&self.busy_label);
+                self.resolve_pending = false;
             }
         });
-        if let Some((d, t)) = self.progress {
-            ui.add(egui::ProgressBar::new(d as f32 / t.max(1) as f32).text(format!("round {d}/{t}")));
-        }
+        self.progress_line(ui);
 
         ui.separator();
         self.reference_panel(ui);
@@ -1234,6 +1332,13 @@ impl RadlabApp {
                     if r.converged { ", converged" } else { "" },
                     if r.cancelled { ", cancelled" } else { "" }
                 ));
+            }
+            if self.view.pushed_for_display {
+                ui.separator();
+                ui.label("B shown pushed-pulled").on_hover_text(
+                    "The solver has gathered; its own radiosity changes at the next Push-pull. \
+                     The view shows that result already.",
+                );
             }
             if !self.status.is_empty() {
                 ui.separator();
@@ -1463,6 +1568,45 @@ impl RadlabApp {
         }
     }
 
+    fn file_answer(&mut self, answer: Answer) {
+        match answer {
+            Answer::Chosen(Purpose::Open, path) => self.load_spec(&path.to_string_lossy()),
+            Answer::Chosen(Purpose::ExportBake { .. }, path) => self.export_bake(path),
+            Answer::Cancelled(_) => self.status = "no file chosen".into(),
+            Answer::FellBack(note) => self.status = note,
+        }
+    }
+
+    /// Write the solution shown as a baked glTF (on the solver thread), at the display's
+    /// exposure; the answer is one line in the status bar, or an error.
+    pub fn export_bake(&mut self, path: PathBuf) {
+        let Some(scene) = &self.scene else { return };
+        let overwrites_input = std::fs::canonicalize(&path)
+            .is_ok_and(|p| std::fs::canonicalize(&scene.source).is_ok_and(|s| s == p));
+        if overwrites_input {
+            self.errors.push(format!(
+                "export {}: that is the scene shown; refusing to overwrite it",
+                path.display()
+            ));
+            return;
+        }
+        let ev = self.display.exposure_ev;
+        let options = crate::bake::BakeOptions {
+            exposure: 2f64.powf(f64::from(ev)),
+            exposure_rule: format!(
+                "the viewer's exposure 2^EV, EV = {ev:.1}{}",
+                if self.display.auto_exposure {
+                    " (auto: the 95th percentile of the lit surfaces' luminance at 0.8)"
+                } else {
+                    ""
+                }
+            ),
+            scene_label: self.scene_spec.clone(),
+            params: serde_json::to_value(self.params).ok(),
+        };
+        self.send(Command::Bake { path, options }, "baking");
+    }
+
     fn request_screenshot(&mut self, ctx: &egui::Context) {
         let (tx, rx) = channel();
         ctx.request_screenshot(move |img| {
@@ -1611,18 +1755,8 @@ impl eframe::App for RadlabApp {
         let ctx = ui.ctx().clone();
         self.poll_worker();
         self.poll_reference();
-        if let Some(rx) = &self.open_rx
-            && let Ok(res) = rx.try_recv()
-        {
-            self.open_rx = None;
-            match res {
-                Some(path) => self.load_spec(&path.to_string_lossy()),
-                None => {
-                    self.status = "no file chosen (without a desktop file-dialog portal, drop a file on \
-                                   the window or type its path)"
-                        .into();
-                }
-            }
+        if let Some(answer) = self.files.show(&ctx) {
+            self.file_answer(answer);
         }
         let dropped: Vec<PathBuf> =
             ui.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).collect());
@@ -1641,29 +1775,38 @@ impl eframe::App for RadlabApp {
         }
         egui::Panel::top("top").frame(frame).show(ui, |ui| self.top_bar(ui));
         egui::Panel::bottom("status").frame(frame).show(ui, |ui| self.status_bar(ui));
-        egui::Panel::left("controls").frame(frame).resizable(true).default_size(270.0).show(ui, |ui| {
-            egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+        // Fixed widths: the panels do not widen with their longest line (a long error, a link
+        // table, a folded-out option); text wraps or is cut instead.
+        egui::Panel::left("controls").frame(frame).resizable(false).exact_size(CONTROLS_W).show(ui, |ui| {
+            egui::ScrollArea::vertical().auto_shrink([false, false]).show(ui, |ui| self.controls(ui));
         });
-        egui::Panel::right("inspector").frame(frame).resizable(true).default_size(300.0).show(ui, |ui| {
-            egui::ScrollArea::vertical().id_salt("inspector_scroll").show(ui, |ui| {
-                if !self.errors.is_empty() {
-                    ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
-                    for e in self.errors.iter().rev().take(5) {
-                        ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
-                    }
-                    if ui.small_button("clear").clicked() {
-                        self.errors.clear();
-                    }
-                    ui.separator();
-                }
-                self.inspector(ui);
-                if self.show_plots {
-                    ui.separator();
-                    ui.heading("Convergence plots");
-                    self.plots(ui);
-                }
-            });
-        });
+        egui::Panel::right("inspector").frame(frame).resizable(false).exact_size(INSPECTOR_W).show(
+            ui,
+            |ui| {
+                // Both ways: a wide link table scrolls instead of widening the panel.
+                egui::ScrollArea::both().auto_shrink([false, false]).id_salt("inspector_scroll").show(
+                    ui,
+                    |ui| {
+                        if !self.errors.is_empty() {
+                            ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
+                            for e in self.errors.iter().rev().take(5) {
+                                ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
+                            }
+                            if ui.small_button("clear").clicked() {
+                                self.errors.clear();
+                            }
+                            ui.separator();
+                        }
+                        self.inspector(ui);
+                        if self.show_plots {
+                            ui.separator();
+                            ui.heading("Convergence plots");
+                            self.plots(ui);
+                        }
+                    },
+                );
+            },
+        );
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
 
         self.handle_screenshot(&ctx);

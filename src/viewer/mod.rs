@@ -5,6 +5,7 @@
 //! - [`bench`]: frame-time statistics of `--bench-frames`.
 //! - [`builder`]: the `radlab-display` thread that builds GPU vertex arrays off the UI thread.
 //! - [`camera`]: orbit / pan / zoom camera.
+//! - [`file_dialog`]: the desktop's file dialog, or an in-app one where none answers.
 //! - [`reference`]: the `radlab-reference` thread: cached/computed reference, true error.
 //! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
 //!
@@ -14,6 +15,7 @@ pub mod app;
 pub mod bench;
 pub mod builder;
 pub mod camera;
+pub mod file_dialog;
 pub mod reference;
 pub mod worker;
 

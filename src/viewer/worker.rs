@@ -6,9 +6,12 @@
 //!  UI ── cancel flag (Arc<AtomicBool>, the solver's own cancel_handle) ──► running step
 //! ```
 
+use crate::math::Rgb;
 use crate::overlay::{ElementView, LinkView};
 use crate::scene::Scene;
-use crate::solver::hierarchical::{HierarchicalSolver, HierarchicalStats, Snapshot, StepKind, StepReport};
+use crate::solver::hierarchical::{
+    ElementInfo, HierarchicalSolver, HierarchicalStats, Snapshot, StepKind, StepReport,
+};
 use crate::solver::params::HierarchicalParams;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -25,6 +28,9 @@ pub struct ViewData {
     pub stats: HierarchicalStats,
     /// Residual after each gather.
     pub residuals: Vec<f64>,
+    /// The radiosity shown was pushed and pulled by the viewer ([`push_pull`]): the solver has
+    /// gathered but its own state waits for a Push-pull step.
+    pub pushed_for_display: bool,
 }
 
 impl ViewData {
@@ -56,7 +62,52 @@ impl ViewData {
             .into_iter()
             .map(|l| LinkView { receiver: l.receiver, source: l.source, ff: l.ff, vis: l.vis })
             .collect();
-        ViewData { elements, leaves, links, stats: s.stats, residuals: s.residuals }
+        ViewData {
+            elements,
+            leaves,
+            links,
+            stats: s.stats,
+            residuals: s.residuals,
+            pushed_for_display: false,
+        }
+    }
+
+    /// Convert a snapshot taken between a gather and its push-pull, showing the radiosity the
+    /// push-pull will give (see [`push_pull`]), so a Gather step shows its result at once.
+    #[must_use]
+    pub fn from_gathered_snapshot(mut s: Snapshot) -> ViewData {
+        push_pull(&mut s.elements);
+        ViewData { pushed_for_display: true, ..ViewData::from_snapshot(s) }
+    }
+}
+
+/// Push-pull on a copy of the elements [Hanrahan, Salzman, Aupperle 1991, §4]: down the
+/// quadtrees, each leaf's irradiance is what it and its ancestors gathered, H = Σ gathered, and
+/// B = E + ρ·H; up, each parent's B is its children's area average. The solver's
+/// `push_pull_step` computes the same values (its sums split by visibility class; equal up to
+/// rounding); the viewer uses this for display only and leaves the solver's state alone.
+pub fn push_pull(elements: &mut [ElementInfo]) {
+    // Ids are indices, and a parent's id is smaller than its children's.
+    let mut irradiance = vec![Rgb::ZERO; elements.len()];
+    for i in 0..elements.len() {
+        let e = &elements[i];
+        debug_assert!(e.parent.is_none_or(|p| (p as usize) < i), "element {i} before its parent");
+        let inherited = e.parent.map_or(Rgb::ZERO, |p| irradiance[p as usize]);
+        irradiance[i] = inherited + e.gathered;
+        if e.children.is_none() {
+            let b = e.emission + e.reflectance.mul_rgb(irradiance[i]);
+            elements[i].radiosity = b;
+        }
+    }
+    for i in (0..elements.len()).rev() {
+        if let Some(kids) = elements[i].children {
+            let area = elements[i].area;
+            let b = kids.iter().fold(Rgb::ZERO, |b, &c| {
+                let child = &elements[c as usize];
+                b + child.radiosity * (child.area / area)
+            });
+            elements[i].radiosity = b;
+        }
     }
 }
 
@@ -72,6 +123,11 @@ pub enum Command {
     SetParams(HierarchicalParams),
     Reset,
     Step(StepKind),
+    /// Write the current solution as a baked glTF ([`crate::bake`]) to `path` (.glb/.gltf).
+    Bake {
+        path: std::path::PathBuf,
+        options: crate::bake::BakeOptions,
+    },
 }
 
 /// What the solver thread answers.
@@ -90,6 +146,8 @@ pub enum Reply {
         done: u64,
         total: u64,
     },
+    /// A bake was written (what, in one line) or not (why, in one line).
+    Baked(Result<String, String>),
     Failed(String),
 }
 
@@ -142,7 +200,7 @@ impl Worker {
                         self.cancel = Some(Arc::clone(cancel));
                         self.in_flight = self.in_flight.saturating_sub(1);
                     }
-                    Reply::Done { .. } | Reply::Failed(_) => {
+                    Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) => {
                         self.in_flight = self.in_flight.saturating_sub(1)
                     }
                     Reply::Progress { .. } => {}
@@ -170,7 +228,7 @@ impl Worker {
                             self.cancel = Some(Arc::clone(cancel));
                             self.in_flight -= 1;
                         }
-                        Reply::Done { .. } | Reply::Failed(_) => self.in_flight -= 1,
+                        Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) => self.in_flight -= 1,
                         Reply::Progress { .. } => {}
                     }
                     on_reply(r);
@@ -193,6 +251,15 @@ impl Drop for Worker {
 
 fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) {
     let mut solver: Option<HierarchicalSolver> = None;
+    // The solver has gathered since its last push-pull: show the pushed-pulled values.
+    let mut unpushed = false;
+    let view_of = |s: &HierarchicalSolver, unpushed: bool| {
+        Arc::new(if unpushed {
+            ViewData::from_gathered_snapshot(s.snapshot())
+        } else {
+            ViewData::from_snapshot(s.snapshot())
+        })
+    };
     let send = |r: Reply| {
         let ok = tx.send(r).is_ok();
         notify();
@@ -202,6 +269,9 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
         // A cancel applies to the command that was running when it was pressed.
         if let Some(s) = &solver {
             s.cancel_handle().store(false, Ordering::Relaxed);
+        }
+        if matches!(cmd, Command::Load { .. } | Command::SetParams(_) | Command::Reset) {
+            unpushed = false;
         }
         let reply = match cmd {
             Command::Load { scene, params } => match HierarchicalSolver::new(scene, params) {
@@ -231,6 +301,10 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
                     Reply::Done { report: None, view: Arc::new(ViewData::from_snapshot(s.snapshot())) }
                 }
             },
+            Command::Bake { path, options } => match solver.as_ref() {
+                None => Reply::Failed("no scene loaded".into()),
+                Some(s) => Reply::Baked(bake_to(s, unpushed, &path, &options)),
+            },
             Command::Step(kind) => match solver.as_mut() {
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => {
@@ -247,10 +321,15 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
                             s.solve(&mut progress)
                         }
                     };
-                    Reply::Done {
-                        report: Some(report),
-                        view: Arc::new(ViewData::from_snapshot(s.snapshot())),
-                    }
+                    unpushed = match kind {
+                        // Gauss-Seidel gathers push and pull patch by patch themselves.
+                        StepKind::Gather => !s.params().gauss_seidel,
+                        StepKind::Refine => unpushed,
+                        StepKind::PushPull => false,
+                        // Both end with a push-pull unless cancelled before gathering.
+                        StepKind::Iterate | StepKind::Solve => unpushed && report.cancelled,
+                    };
+                    Reply::Done { report: Some(report), view: view_of(s, unpushed) }
                 }
             },
         };
@@ -258,6 +337,28 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
             break;
         }
     }
+}
+
+/// Bake the solver's leaves (pushed and pulled first if it has gathered since its last
+/// push-pull, as the view shows them) and write the file.
+fn bake_to(
+    s: &HierarchicalSolver,
+    unpushed: bool,
+    path: &std::path::Path,
+    options: &crate::bake::BakeOptions,
+) -> Result<String, String> {
+    let fail = |e: &dyn std::fmt::Display| format!("export {}: {e}", path.display());
+    let format = crate::bake::BakeFormat::from_path(path).map_err(|e| fail(&e))?;
+    let mut solution = s.solution_with(false);
+    if unpushed {
+        let v = ViewData::from_gathered_snapshot(s.snapshot());
+        for (e, &id) in solution.elements.iter_mut().zip(&v.leaves) {
+            e.radiosity = v.elements[id as usize].radiosity;
+        }
+    }
+    let bytes = crate::bake::bake(s.scene(), &solution, options, format).map_err(|e| fail(&e))?;
+    std::fs::write(path, bytes).map_err(|e| fail(&e))?;
+    Ok(format!("baked {} elements to {}", solution.elements.len(), path.display()))
 }
 
 #[cfg(test)]
@@ -307,6 +408,28 @@ mod tests {
         let mut failed = false;
         w2.wait_idle(|r| failed |= matches!(r, Reply::Failed(_)));
         assert!(failed);
+    }
+
+    #[test]
+    fn the_display_push_pull_matches_the_solvers() {
+        let scene = Arc::new(Scene::load("builtin:cornell").unwrap());
+        let mut s = HierarchicalSolver::new(scene, HierarchicalParams::interactive()).unwrap();
+        s.refine_step();
+        s.gather_step();
+        let stale = ViewData::from_snapshot(s.snapshot());
+        let shown = ViewData::from_gathered_snapshot(s.snapshot());
+        assert!(shown.pushed_for_display && !stale.pushed_for_display);
+        s.push_pull_step();
+        let pushed = ViewData::from_snapshot(s.snapshot());
+        let (mut moved, mut worst) = (0, 0.0f64);
+        for ((a, b), old) in shown.elements.iter().zip(&pushed.elements).zip(&stale.elements) {
+            let scale = b.radiosity.max_channel().max(1e-300);
+            worst = worst.max(a.radiosity.abs_diff_max(b.radiosity) / scale);
+            moved += usize::from(old.radiosity.abs_diff_max(b.radiosity) > 1e-9 * scale);
+        }
+        assert!(moved > 0, "the gather changed what push-pull gives");
+        // Different summation order (the solver splits the sums by visibility class).
+        assert!(worst < 1e-12, "display push-pull off by {worst:e} relative");
     }
 
     #[test]
