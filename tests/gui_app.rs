@@ -399,6 +399,39 @@ fn a_long_solve_shows_its_progress_and_can_be_cancelled() {
     assert!(h.query_by_label_contains("Solve cancelled in").is_some(), "the line says what happened");
 }
 
+/// A long solve shows the picture as it forms: after a round's gathers the viewport gets the
+/// solver's state (refined, lit) while the solve goes on.
+#[test]
+fn a_long_solve_shows_intermediate_pictures() {
+    let mut h = harness(ViewerOptions { preset: "quality".into(), ..opts() });
+    h.state_mut().load_spec("builtin:splash_room");
+    settle(&mut h);
+    // Back to the input patches (auto-run may have solved the scene already).
+    h.get_by_label("Reset").click();
+    settle(&mut h);
+    let roots = h.state().view().elements.len();
+    let before = h.state().partial_pictures();
+    h.get_by_label("Solve").click();
+    h.run_steps(1);
+    assert!(h.state().busy(), "the solve started");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while h.state().partial_pictures() == before {
+        assert!(std::time::Instant::now() < deadline, "no intermediate picture in {WAIT_S} s");
+        assert!(h.state().busy(), "the solve ended before showing a picture of its progress");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    let shown = h.state().view().elements.len();
+    assert!(shown > roots, "the picture shows the refined mesh: {shown} elements, {roots} patches");
+    while h.state().busy() {
+        assert!(std::time::Instant::now() < deadline, "the cancel was not answered");
+        h.get_by_label("Cancel").click();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    settle(&mut h);
+}
+
 #[test]
 fn the_layout_does_not_jump() {
     let dir = std::env::temp_dir().join(format!("radlab-gui-layout-{}", std::process::id()));

@@ -198,6 +198,8 @@ pub struct RadlabApp {
     /// follows, e.g. after Cancel).
     hold_view: bool,
     held_view: Option<Arc<ViewData>>,
+    /// Pictures of solves in progress shown so far (`Reply::Partial`).
+    partial_shown: usize,
     pub auto_run: bool,
     view: Arc<ViewData>,
     last_report: Option<StepReport>,
@@ -329,6 +331,7 @@ impl RadlabApp {
             busy_since: None,
             resolve_pending: false,
             hold_view: false,
+            partial_shown: 0,
             held_view: None,
             auto_run: true,
             view: Arc::new(ViewData::default()),
@@ -469,6 +472,13 @@ impl RadlabApp {
             w.send(cmd);
             label.clone_into(&mut self.busy_label);
         }
+    }
+
+    /// How many pictures of solves in progress have been shown (a long solve sends one after
+    /// a round at most every `worker::PARTIAL_EVERY`).
+    #[must_use]
+    pub fn partial_pictures(&self) -> usize {
+        self.partial_shown
     }
 
     /// True while the solver thread has work.
@@ -646,6 +656,14 @@ impl RadlabApp {
                 }
             }
             Reply::Progress { done, total } => self.progress = Some((done, total)),
+            // A long solve's picture so far; not while a restart holds the last picture back
+            // (that one stays until the solve answers).
+            Reply::Partial { view } => {
+                if !self.hold_view {
+                    self.set_view(view);
+                    self.partial_shown += 1;
+                }
+            }
             Reply::Baked(Ok(what)) => self.status = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => {

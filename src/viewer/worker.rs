@@ -146,10 +146,17 @@ pub enum Reply {
         done: u64,
         total: u64,
     },
+    /// The picture of a solve in progress (after a round's gathers); the solve goes on.
+    Partial {
+        view: Arc<ViewData>,
+    },
     /// A bake was written (what, in one line) or not (why, in one line).
     Baked(Result<String, String>),
     Failed(String),
 }
+
+/// A solve sends its picture after a round at most this often (`Reply::Partial`).
+pub const PARTIAL_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
 
 /// Handle of the solver thread (the thread ends when this is dropped).
 pub struct Worker {
@@ -203,7 +210,7 @@ impl Worker {
                     Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) => {
                         self.in_flight = self.in_flight.saturating_sub(1)
                     }
-                    Reply::Progress { .. } => {}
+                    Reply::Progress { .. } | Reply::Partial { .. } => {}
                 }
                 Some(r)
             }
@@ -229,7 +236,7 @@ impl Worker {
                             self.in_flight -= 1;
                         }
                         Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) => self.in_flight -= 1,
-                        Reply::Progress { .. } => {}
+                        Reply::Progress { .. } | Reply::Partial { .. } => {}
                     }
                     on_reply(r);
                 }
@@ -318,7 +325,20 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
                             let mut progress = move |done: u64, total: u64| {
                                 let _ = ptx.send(Reply::Progress { done, total });
                             };
-                            s.solve(&mut progress)
+                            // Intermediate pictures of a long solve, at most every
+                            // PARTIAL_EVERY (a snapshot copies every element and link).
+                            // The first round's picture at once, then at most every PARTIAL_EVERY.
+                            let mut last: Option<std::time::Instant> = None;
+                            let mut on_round = |s: &HierarchicalSolver| {
+                                let now = std::time::Instant::now();
+                                if last.is_none_or(|t| now.duration_since(t) >= PARTIAL_EVERY) {
+                                    last = Some(now);
+                                    let view = Arc::new(ViewData::from_snapshot(s.snapshot()));
+                                    let _ = tx.send(Reply::Partial { view });
+                                    notify();
+                                }
+                            };
+                            s.solve_observed(&mut progress, &mut on_round)
                         }
                     };
                     unpushed = match kind {

@@ -1493,6 +1493,13 @@ impl HierarchicalSolver {
     /// convergence, or the caps (`max_rounds`, `max_iterations` per round) are reached; the last
     /// allowed round converges fully.
     pub fn solve(&mut self, progress: Progress) -> StepReport {
+        self.solve_observed(progress, &mut |_| {})
+    }
+
+    /// [`solve`](Self::solve), calling `on_round` with the solver after every round's gathers
+    /// and push-pull (a consistent, displayable state: the viewer shows the picture as it
+    /// forms). The result is the same as `solve`'s.
+    pub fn solve_observed(&mut self, progress: Progress, on_round: &mut dyn FnMut(&Self)) -> StepReport {
         self.cancel.store(false, Ordering::Relaxed);
         let t = Instant::now();
         let mut refined_total = 0;
@@ -1544,6 +1551,9 @@ impl HierarchicalSolver {
             self.stats.rounds = round as usize + 1;
             if self.cancelled() || settled || (self.params.oracle == Oracle::Feps && self.converged) {
                 break;
+            }
+            if !self.params.gauss_seidel || iters > 0 {
+                on_round(self);
             }
         }
         if energy_due {
