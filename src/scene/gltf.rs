@@ -51,8 +51,9 @@
 //!   the same way before any is read. Image files are read the same way when a material uses
 //!   them as its base-colour texture, and one that exists must be a regular file inside the
 //!   folder in any case; a texture's size is read from its header and refused above
-//!   [`LoadOptions::max_texture_pixels`] (8192 × 8192) before it is decoded. Nothing is ever
-//!   written.
+//!   [`LoadOptions::max_texture_pixels`] (8192 × 8192) before it is decoded, and a file's
+//!   decoded textures may have `TEXTURE_BUDGET` (4) times that in all (kept at 3 bytes a
+//!   pixel; the image over the budget is refused once decoded). Nothing is ever written.
 //! - **Structure the `gltf` crate assumes** and does not validate is checked first: an image has
 //!   one source (and a MIME type with a buffer view), a camera has the projection its type
 //!   names, and the nodes form disjoint trees, so the walk visits each node once (a node reused
@@ -121,6 +122,10 @@ const MAX_EDGE_CANDIDATES: usize = 8;
 /// Mesh and material names longer than this are shortened (with a warning): every patch carries
 /// its names, so a long name would otherwise cost its length once per triangle instance.
 const MAX_NAME_BYTES: usize = 256;
+
+/// The decoded textures of one file may have at most this many times
+/// [`LoadOptions::max_texture_pixels`] in all (each is 3 bytes a pixel in memory).
+const TEXTURE_BUDGET: u64 = 4;
 
 /// Load a .gltf or .glb file. Relative buffer URIs are resolved in the file's folder. The file
 /// is opened for reading only, and only if it is a regular file (see [`read_regular`]).
@@ -221,6 +226,7 @@ pub fn load_slice(
         warnings: Vec::new(),
         shortened_names: 0,
         textures: HashMap::new(),
+        texture_pixels: 0,
     }
     .run(bytes)
 }
@@ -234,6 +240,8 @@ struct Loader<'a> {
     shortened_names: usize,
     /// Decoded base-colour textures by image index (`None`: unavailable, warned once).
     textures: HashMap<usize, Option<Rc<Texture>>>,
+    /// Pixels decoded so far over all textures (capped at `TEXTURE_BUDGET` × the per-image cap).
+    texture_pixels: u64,
 }
 
 /// What an instance of a mesh adds, found once per mesh.
@@ -871,6 +879,16 @@ impl Loader<'_> {
                         cause: format!("{label}: {cause}"),
                     }
                 })?;
+                let (w, h) = t.size();
+                self.texture_pixels = self.texture_pixels.saturating_add((w * h) as u64);
+                let budget = self.opts.max_texture_pixels.saturating_mul(TEXTURE_BUDGET);
+                if self.texture_pixels > budget {
+                    return Err(SceneError::Image {
+                        file: self.file.clone(),
+                        index: image,
+                        cause: format!("{label}: the textures have more than {budget} pixels in all"),
+                    });
+                }
                 Some(Rc::new(t))
             }
         };

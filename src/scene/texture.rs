@@ -62,17 +62,23 @@ impl Wrap {
     }
 }
 
-/// A decoded texture: linear RGB texels, row 0 at the top (glTF's uv (0, 0) is the image's
-/// top-left corner).
+/// A decoded texture: 8-bit sRGB texels (3 bytes each, row 0 at the top: glTF's uv (0, 0) is
+/// the image's top-left corner), turned linear through a table as they are sampled.
 pub struct Texture {
     width: usize,
     height: usize,
-    texels: Vec<[f32; 3]>,
+    texels: Vec<u8>,
+    linear: [f32; 256],
 }
 
 /// sRGB transfer function inverse (IEC 61966-2-1).
 fn srgb_to_linear(c: f64) -> f64 {
     if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+/// The linear value of each 8-bit sRGB level.
+fn linear_table() -> [f32; 256] {
+    std::array::from_fn(|b| srgb_to_linear(b as f64 / 255.0) as f32)
 }
 
 impl Texture {
@@ -108,9 +114,8 @@ impl Texture {
         limits.max_alloc = Some(pixels.saturating_mul(8 + 3).max(1 << 20));
         r.limits(limits);
         let rgb = r.decode().map_err(|e| format!("cannot decode the image: {e}"))?.into_rgb8();
-        let lut: Vec<f32> = (0..=255u8).map(|b| srgb_to_linear(f64::from(b) / 255.0) as f32).collect();
-        let texels = rgb.pixels().map(|p| p.0.map(|c| lut[c as usize])).collect();
-        Ok(Texture { width: rgb.width() as usize, height: rgb.height() as usize, texels })
+        let (width, height) = (rgb.width() as usize, rgb.height() as usize);
+        Ok(Texture { width, height, texels: rgb.into_raw(), linear: linear_table() })
     }
 
     /// Width and height in texels.
@@ -124,8 +129,13 @@ impl Texture {
         let v = wrap[1].apply(uv[1]);
         let x = ((u * self.width as f64) as usize).min(self.width - 1);
         let y = ((v * self.height as f64) as usize).min(self.height - 1);
-        let t = self.texels[y * self.width + x];
-        Rgb::new(f64::from(t[0]), f64::from(t[1]), f64::from(t[2]))
+        let i = 3 * (y * self.width + x);
+        let t = &self.texels[i..i + 3];
+        Rgb::new(
+            f64::from(self.linear[t[0] as usize]),
+            f64::from(self.linear[t[1] as usize]),
+            f64::from(self.linear[t[2] as usize]),
+        )
     }
 
     /// The texture's mean over the triangle with these texture coordinates (see the module doc).
@@ -155,8 +165,8 @@ mod tests {
     use super::*;
 
     fn checker() -> Texture {
-        // 2×1: left texel linear 1.0 red, right texel 0.
-        Texture { width: 2, height: 1, texels: vec![[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]] }
+        // 2×1: left texel red (linear 1.0), right texel black.
+        Texture { width: 2, height: 1, texels: vec![255, 0, 0, 0, 0, 0], linear: linear_table() }
     }
 
     #[test]
