@@ -6,7 +6,10 @@
 - features.gltf: a small scene using what those files do not (a node hierarchy with TRS and a
   matrix, u8 and u16 indices, a strided view, a camera, images from a data URI and a buffer
   view, a textured double-sided material, KHR_materials_emissive_strength);
-- cornell.glb and features.glb: the same scenes packed as GLB (JSON chunk + BIN chunk).
+- cornell.glb and features.glb: the same scenes packed as GLB (JSON chunk + BIN chunk);
+- blender-*.glb: the scenes Blender's exporter wrote (tests/scenes/blender/, made by
+  scripts/blender_scenes.py): PNG and JPEG textures in the BIN chunk, a node tree, several
+  primitives, KHR_lights_punctual, KHR_materials_transmission, doubleSided.
 """
 import base64
 import glob
@@ -105,3 +108,6 @@ with open("assets/scenes/cornell.gltf") as f:
     cornell = json.load(f)
 with open(f"{OUT}/cornell.glb", "wb") as f:
     f.write(glb(cornell))
+for path in sorted(glob.glob("tests/scenes/blender/*.glb")):
+    if os.path.getsize(path) <= MAX_LEN:
+        shutil.copy(path, f"{OUT}/blender-{os.path.basename(path)}")

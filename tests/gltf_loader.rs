@@ -924,7 +924,7 @@ fn fifo_buffer_or_image_is_refused() {
     let path = write(&dir, "fifo_image.gltf", serde_json::to_string(&d).unwrap().as_bytes());
     let e = within(30, move || load_err(&path));
     assert!(e.to_string().contains("image 0: ") && e.to_string().contains("is a FIFO"), "{e}");
-    // A missing image is only a warning (textures are not used).
+    // A missing image is only a warning (its texture is not used; the factor is).
     d["images"] = json!([{"uri": "missing.png"}]);
     let s = load_ok(&write(&dir, "missing_image.gltf", serde_json::to_string(&d).unwrap().as_bytes()));
     assert!(s.warnings.iter().any(|w| w.contains("image 0") && w.contains("not found")), "{:?}", s.warnings);

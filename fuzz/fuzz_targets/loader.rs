@@ -10,11 +10,17 @@ use libfuzzer_sys::fuzz_target;
 use radlab::scene::gltf::{LoadOptions, gltf_string, load_slice};
 use std::path::Path;
 
-/// The caps are set below the defaults (5 M triangles, 4 GiB) so that a small hostile file that
-/// instances a mesh up to the cap is a quick refusal, not a multi-gigabyte scene under ASan;
-/// the work per output triangle is the same at any cap.
+/// The caps are set below the defaults (5 M triangles, 4 GiB, 2^26-pixel textures) so that a
+/// small hostile file that instances a mesh up to the cap, or whose texture header claims a
+/// huge image, is a quick refusal, not a multi-gigabyte scene under ASan; the work per output
+/// triangle or texel is the same at any cap.
 fn options() -> LoadOptions {
-    LoadOptions { max_triangles: 200_000, max_file_bytes: 1 << 24, ..LoadOptions::default() }
+    LoadOptions {
+        max_triangles: 200_000,
+        max_file_bytes: 1 << 24,
+        max_texture_pixels: 1 << 20,
+        ..LoadOptions::default()
+    }
 }
 
 fn check_error(e: &radlab::scene::SceneError) {

@@ -6,12 +6,19 @@
 //! - **Geometry**: every `TRIANGLES` primitive of every mesh instance, with the node's world
 //!   transform applied (`M = M_root · … · M_node`, f64). A transform with det(M) < 0 mirrors the
 //!   geometry, so each triangle's winding is reversed to keep its front side where it was.
-//! - **Material**: `baseColorFactor.rgb` → ρ (linear RGB), `emissiveFactor ×
+//! - **Material**: `baseColorFactor.rgb` → ρ (linear RGB), times the mean of the base-colour
+//!   texture (PNG or JPEG, sRGB decoded to linear) over each patch when there is one
+//!   ([`super::texture`]: 16 stratified samples per triangle, a merged quad's two triangles
+//!   weighted by area; the product clamped to `RHO_MAX`), `emissiveFactor ×
 //!   KHR_materials_emissive_strength` → E (radiant exitance, the unit of B). No material → ρ = 0.5,
 //!   E = 0. `doubleSided` → two back-to-back patches (the back one right after the front one).
 //!   ρ ∈ [`RHO_MAX`], 1] is clamped to `RHO_MAX` with a warning (the SPLASH-2 lamps have ρ = 1.0,
 //!   which would make an enclosure's system singular); ρ < 0, ρ > 1, or E < 0 / non-finite are
 //!   errors.
+//! - **Extensions**: `KHR_materials_emissive_strength` is read. `KHR_lights_punctual` lights are
+//!   skipped with a one-line warning (radlab is lit by emissive surfaces; a point has no area).
+//!   Every other extension in `extensionsUsed` is named in one warning and ignored; one in
+//!   `extensionsRequired` that is not read is an error.
 //! - **Quads**: two triangles of one primitive that share an edge (same positions, opposite
 //!   directions) and form a planar, strictly convex quadrilateral are merged into one quad patch,
 //!   so a quadtree can subdivide imported quads.
@@ -41,8 +48,12 @@
 //! - **Files**: the scene file and buffer files are read only if they are regular files (a FIFO
 //!   would block, a device never end), opened read-only, and read up to
 //!   [`LoadOptions::max_file_bytes`]; the sum of the buffers' declared byteLengths is capped
-//!   the same way before any is read. Image files are not read (textures are not used); one that
-//!   exists must be a regular file inside the folder too. Nothing is ever written.
+//!   the same way before any is read. Image files are read the same way when a material uses
+//!   them as its base-colour texture, and one that exists must be a regular file inside the
+//!   folder in any case; a texture's size is read from its header and refused above
+//!   [`LoadOptions::max_texture_pixels`] (8192 × 8192) before it is decoded, and a file's
+//!   decoded textures may have `TEXTURE_BUDGET` (4) times that in all (kept at 3 bytes a
+//!   pixel; the image over the budget is refused once decoded). Nothing is ever written.
 //! - **Structure the `gltf` crate assumes** and does not validate is checked first: an image has
 //!   one source (and a MIME type with a buffer view), a camera has the projection its type
 //!   names, and the nodes form disjoint trees, so the walk visits each node once (a node reused
@@ -57,6 +68,7 @@
 //! patches with the same mesh name, one material per distinct (ρ, E), quads as two triangles
 //! `(0 1 2)(0 2 3)` that the loader merges back, and the scene camera as a camera node.
 
+use super::texture::{Texture, Wrap};
 use super::{PLANARITY_TOL, Patch, RHO_MAX, Scene, SceneError, Viewpoint, is_convex};
 use crate::math::{DVec3, Rgb};
 use base64::Engine as _;
@@ -67,6 +79,11 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
+use std::rc::Rc;
+
+/// Extensions the loader reads. `KHR_lights_punctual` is parsed too, but its lights are skipped
+/// with a warning (radlab lights scenes by emissive surfaces only).
+const READ_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength"];
 
 /// Options for loading a glTF file.
 #[derive(Clone, Debug)]
@@ -77,11 +94,15 @@ pub struct LoadOptions {
     /// Refuse a .gltf/.glb file or an external buffer file larger than this many bytes.
     /// Default 4 GiB.
     pub max_file_bytes: u64,
+    /// Refuse base-colour textures with more pixels than this (and wider or taller than
+    /// [`texture::MAX_SIDE`](super::texture::MAX_SIDE)), before decoding them. Default 2^26
+    /// (8192 × 8192).
+    pub max_texture_pixels: u64,
 }
 
 impl Default for LoadOptions {
     fn default() -> Self {
-        LoadOptions { max_triangles: 5_000_000, max_file_bytes: 4 << 30 }
+        LoadOptions { max_triangles: 5_000_000, max_file_bytes: 4 << 30, max_texture_pixels: 1 << 26 }
     }
 }
 
@@ -101,6 +122,10 @@ const MAX_EDGE_CANDIDATES: usize = 8;
 /// Mesh and material names longer than this are shortened (with a warning): every patch carries
 /// its names, so a long name would otherwise cost its length once per triangle instance.
 const MAX_NAME_BYTES: usize = 256;
+
+/// The decoded textures of one file may have at most this many times
+/// [`LoadOptions::max_texture_pixels`] in all (each is 3 bytes a pixel in memory).
+const TEXTURE_BUDGET: u64 = 4;
 
 /// Load a .gltf or .glb file. Relative buffer URIs are resolved in the file's folder. The file
 /// is opened for reading only, and only if it is a regular file (see [`read_regular`]).
@@ -194,8 +219,16 @@ pub fn load_slice(
     file_label: &Path,
     opts: &LoadOptions,
 ) -> Result<Scene, SceneError> {
-    Loader { file: file_label.to_path_buf(), base_dir, opts, warnings: Vec::new(), shortened_names: 0 }
-        .run(bytes)
+    Loader {
+        file: file_label.to_path_buf(),
+        base_dir,
+        opts,
+        warnings: Vec::new(),
+        shortened_names: 0,
+        textures: HashMap::new(),
+        texture_pixels: 0,
+    }
+    .run(bytes)
 }
 
 struct Loader<'a> {
@@ -205,6 +238,10 @@ struct Loader<'a> {
     warnings: Vec<String>,
     /// How many names [`Loader::short_name`] shortened (one warning for all).
     shortened_names: usize,
+    /// Decoded base-colour textures by image index (`None`: unavailable, warned once).
+    textures: HashMap<usize, Option<Rc<Texture>>>,
+    /// Pixels decoded so far over all textures (capped at `TEXTURE_BUDGET` × the per-image cap).
+    texture_pixels: u64,
 }
 
 /// What an instance of a mesh adds, found once per mesh.
@@ -227,6 +264,8 @@ struct PrimGeometry {
     ids: Vec<u32>,
     /// Every triangle in index order (degenerate ones too: their number names the others).
     triangles: Vec<[u32; 3]>,
+    /// The base-colour texture's mean over each triangle (linear), if the material has one.
+    texture_means: Option<Vec<Rgb>>,
 }
 
 /// One mesh instance found while walking the node graph.
@@ -242,6 +281,18 @@ struct Mat {
     rho: Rgb,
     emission: Rgb,
     double_sided: bool,
+    texture: Option<TextureRef>,
+}
+
+/// An image's encoded bytes and where they came from (for errors).
+type ImageBytes<'b> = (Cow<'b, [u8]>, String);
+
+/// A material's base-colour texture: which image, which `TEXCOORD_n`, how uv wraps.
+#[derive(Clone, Copy)]
+struct TextureRef {
+    image: usize,
+    tex_coord: u32,
+    wrap: [Wrap; 2],
 }
 
 impl Loader<'_> {
@@ -253,6 +304,7 @@ impl Loader<'_> {
         let (json, blob) = if bytes.starts_with(b"glTF") { self.split_glb(bytes)? } else { (bytes, None) };
         let document = self.parse(json)?;
         let doc = &document;
+        self.extension_warnings(doc.as_json());
 
         for image in doc.images() {
             // `parse` checked that every image has exactly one source (the crate panics otherwise).
@@ -277,8 +329,13 @@ impl Loader<'_> {
 
         let buffers = self.read_buffers(doc, blob)?;
         let materials = self.materials(doc)?;
-        let default_mat =
-            Mat { name: "default".into(), rho: Rgb::splat(0.5), emission: Rgb::ZERO, double_sided: false };
+        let default_mat = Mat {
+            name: "default".into(),
+            rho: Rgb::splat(0.5),
+            emission: Rgb::ZERO,
+            double_sided: false,
+            texture: None,
+        };
 
         // Each primitive is decoded once, however many nodes instance its mesh: the work per
         // instance is then linear in the triangles it adds (which the cap above bounds).
@@ -294,7 +351,8 @@ impl Loader<'_> {
                 let geom = match geometry.entry((inst.mesh, primitive)) {
                     std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
                     std::collections::hash_map::Entry::Vacant(e) => {
-                        let g = self.decode_primitive(doc, inst.mesh, primitive, &mesh.name, &buffers)?;
+                        let g =
+                            self.decode_primitive(doc, inst.mesh, primitive, &mesh.name, mat, &buffers)?;
                         e.insert(g)
                     }
                 };
@@ -333,6 +391,37 @@ impl Loader<'_> {
         warnings.append(&mut scene.warnings);
         scene.warnings = warnings;
         Ok(scene)
+    }
+
+    /// One line naming the extensions the file uses that are not read (their data is ignored;
+    /// an unsupported one in `extensionsRequired` was refused by `parse`), and one for the
+    /// punctual lights skipped: radlab's light comes from emissive surfaces, and a point has no
+    /// area to emit from.
+    fn extension_warnings(&mut self, root: &gltf::json::Root) {
+        let mut ignored: Vec<&str> = root
+            .extensions_used
+            .iter()
+            .map(String::as_str)
+            .filter(|e| !READ_EXTENSIONS.contains(e) && *e != "KHR_lights_punctual")
+            .collect();
+        ignored.sort_unstable();
+        ignored.dedup();
+        if !ignored.is_empty() {
+            let shown: Vec<String> = ignored.iter().take(8).map(|e| self.short_name(e)).collect();
+            let more =
+                if ignored.len() > 8 { format!(" and {} more", ignored.len() - 8) } else { String::new() };
+            self.warnings.push(format!("extensions not supported (ignored): {}{more}", shown.join(", ")));
+        }
+        let lights = root
+            .nodes
+            .iter()
+            .filter(|n| n.extensions.as_ref().is_some_and(|e| e.khr_lights_punctual.is_some()))
+            .count();
+        if lights > 0 {
+            self.warnings.push(format!(
+                "KHR_lights_punctual: {lights} light(s) skipped (radlab is lit by emissive surfaces only; model the lamp as an emissive mesh)"
+            ));
+        }
     }
 
     /// `name`, cut to at most [`MAX_NAME_BYTES`] (at a character boundary, marked with "…").
@@ -378,6 +467,7 @@ impl Loader<'_> {
         mesh_index: usize,
         primitive: usize,
         mesh_name: &str,
+        mat: &Mat,
         buffers: &[Cow<[u8]>],
     ) -> Result<PrimGeometry, SceneError> {
         let prim = doc
@@ -420,7 +510,13 @@ impl Loader<'_> {
                 *slot
             }));
         }
-        Ok(PrimGeometry { vertices, ids, triangles })
+        let texture_means = match mat.texture {
+            Some(tex) => {
+                self.texture_means(doc, &prim, tex, &mat.name, &indices, positions.len(), buffers)?
+            }
+            None => None,
+        };
+        Ok(PrimGeometry { vertices, ids, triangles, texture_means })
     }
 
     /// Parse and validate the JSON. Every index must be in range (the `gltf` crate's iterators
@@ -668,15 +764,15 @@ impl Loader<'_> {
         })
     }
 
-    /// An image file is not read (textures are not used), but one that exists must be a
-    /// regular file inside the folder, as a buffer must: a FIFO or device is refused here, before
-    /// anything could open it. A missing image is a warning.
+    /// Every image file that exists must be a regular file inside the folder, as a buffer must
+    /// (used as a texture or not): a FIFO or device is refused here, before anything could open
+    /// it. A missing image is a warning (materials using it keep their factor).
     fn check_image_file(&mut self, index: usize, rel: &Path, uri: &str) -> Result<(), SceneError> {
         let Some(base) = self.base_dir else { return Ok(()) };
         let shown = base.join(rel);
         if std::fs::metadata(&shown).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
             self.warnings
-                .push(format!("image {index}: {} not found (textures are not used)", shown.display()));
+                .push(format!("image {index}: {} not found (its texture is not used)", shown.display()));
             return Ok(());
         }
         let err = |cause: String| SceneError::Image { file: self.file.clone(), index, cause };
@@ -690,6 +786,156 @@ impl Loader<'_> {
             )));
         }
         Ok(())
+    }
+
+    /// The base-colour texture's mean over each triangle (`indices` in threes) of a primitive,
+    /// or `None` with a warning when the texture or the texture coordinates are unavailable.
+    fn texture_means(
+        &mut self,
+        doc: &gltf::Document,
+        prim: &gltf::Primitive,
+        tex: TextureRef,
+        material: &str,
+        indices: &[u32],
+        n_vertices: usize,
+        buffers: &[Cow<[u8]>],
+    ) -> Result<Option<Vec<Rgb>>, SceneError> {
+        let Some(acc) = prim.get(&gltf::Semantic::TexCoords(tex.tex_coord)) else {
+            self.warnings.push(format!(
+                "material {material:?}: a primitive has no TEXCOORD_{} (texture not used, factor used)",
+                tex.tex_coord
+            ));
+            return Ok(None);
+        };
+        if acc.count() != n_vertices {
+            return Err(self.invalid(format!(
+                "accessor {}: TEXCOORD_{} has {} elements, POSITION has {n_vertices}",
+                acc.index(),
+                tex.tex_coord,
+                acc.count()
+            )));
+        }
+        let uvs = self.read_uvs(&acc, buffers)?;
+        let Some(texture) = self.texture(doc, tex.image, buffers)? else { return Ok(None) };
+        Ok(Some(
+            indices
+                .chunks_exact(3)
+                .map(|t| {
+                    texture
+                        .triangle_mean([uvs[t[0] as usize], uvs[t[1] as usize], uvs[t[2] as usize]], tex.wrap)
+                })
+                .collect(),
+        ))
+    }
+
+    /// Texture coordinates: float, or normalized unsigned byte/short VEC2 [glTF 2.0 §3.7.2.1].
+    fn read_uvs(&self, acc: &gltf::Accessor, buffers: &[Cow<[u8]>]) -> Result<Vec<[f64; 2]>, SceneError> {
+        let size = match acc.data_type() {
+            DataType::F32 => 4,
+            DataType::U8 if acc.normalized() => 1,
+            DataType::U16 if acc.normalized() => 2,
+            _ => 0,
+        };
+        if size == 0 || acc.dimensions() != Dimensions::Vec2 {
+            return Err(self.invalid(format!(
+                "accessor {}: TEXCOORD must be float or normalized unsigned byte/short VEC2",
+                acc.index()
+            )));
+        }
+        let (bytes, stride) = self.accessor_bytes(acc, buffers, 2 * size)?;
+        let comp = |e: &[u8], k: usize| -> f64 {
+            match size {
+                4 => f64::from(f32::from_le_bytes([e[4 * k], e[4 * k + 1], e[4 * k + 2], e[4 * k + 3]])),
+                2 => f64::from(u16::from_le_bytes([e[2 * k], e[2 * k + 1]])) / 65535.0,
+                _ => f64::from(e[k]) / 255.0,
+            }
+        };
+        Ok((0..acc.count())
+            .map(|i| {
+                let e = &bytes[i * stride..i * stride + 2 * size];
+                [comp(e, 0), comp(e, 1)]
+            })
+            .collect())
+    }
+
+    /// An image decoded as a texture, once per image; `None` (warned) if it cannot be read
+    /// here: a missing file, or a relative URI with no folder to resolve it in.
+    fn texture(
+        &mut self,
+        doc: &gltf::Document,
+        image: usize,
+        buffers: &[Cow<[u8]>],
+    ) -> Result<Option<Rc<Texture>>, SceneError> {
+        if let Some(t) = self.textures.get(&image) {
+            return Ok(t.clone());
+        }
+        let decoded = match self.image_bytes(doc, image, buffers)? {
+            None => None,
+            Some((bytes, label)) => {
+                let t = Texture::decode(&bytes, self.opts.max_texture_pixels).map_err(|cause| {
+                    SceneError::Image {
+                        file: self.file.clone(),
+                        index: image,
+                        cause: format!("{label}: {cause}"),
+                    }
+                })?;
+                let (w, h) = t.size();
+                self.texture_pixels = self.texture_pixels.saturating_add((w * h) as u64);
+                let budget = self.opts.max_texture_pixels.saturating_mul(TEXTURE_BUDGET);
+                if self.texture_pixels > budget {
+                    return Err(SceneError::Image {
+                        file: self.file.clone(),
+                        index: image,
+                        cause: format!("{label}: the textures have more than {budget} pixels in all"),
+                    });
+                }
+                Some(Rc::new(t))
+            }
+        };
+        self.textures.insert(image, decoded.clone());
+        Ok(decoded)
+    }
+
+    /// An image's encoded bytes and a label naming where they came from (its file, a data
+    /// URI, a buffer view).
+    fn image_bytes<'b>(
+        &mut self,
+        doc: &gltf::Document,
+        image: usize,
+        buffers: &'b [Cow<[u8]>],
+    ) -> Result<Option<ImageBytes<'b>>, SceneError> {
+        let err = |cause: String| SceneError::Image { file: self.file.clone(), index: image, cause };
+        let img = doc.images().nth(image).ok_or_else(|| err("does not exist".into()))?;
+        // `parse` checked that every image has exactly one source (the crate panics otherwise).
+        match img.source() {
+            gltf::image::Source::Uri { uri, .. } => match self.check_uri(uri)? {
+                None => Ok(Some((Cow::Owned(decode_data_uri(uri).map_err(err)?), "data: URI".into()))),
+                Some(rel) => {
+                    let Some(base) = self.base_dir else {
+                        self.warnings.push(format!(
+                            "image {image}: {uri:?} not read (no folder to resolve it in; its texture is not used)"
+                        ));
+                        return Ok(None);
+                    };
+                    let shown = base.join(&rel);
+                    if std::fs::metadata(&shown).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
+                        return Ok(None); // warned by `check_image_file`
+                    }
+                    let bytes = self.read_relative(&rel, uri, usize::MAX).map_err(err)?;
+                    Ok(Some((Cow::Owned(bytes), shown.display().to_string())))
+                }
+            },
+            gltf::image::Source::View { view, .. } => {
+                let buf = buffers.get(view.buffer().index()).ok_or_else(|| err("bad buffer".into()))?;
+                let range = view
+                    .offset()
+                    .checked_add(view.length())
+                    .filter(|&end| end <= buf.len())
+                    .map(|end| view.offset()..end)
+                    .ok_or_else(|| err(format!("bufferView {} runs past its buffer", view.index())))?;
+                Ok(Some((Cow::Borrowed(&buf[range]), format!("bufferView {}", view.index()))))
+            }
+        }
     }
 
     fn materials(&mut self, doc: &gltf::Document) -> Result<Vec<Mat>, SceneError> {
@@ -712,15 +958,21 @@ impl Loader<'_> {
                     });
                 }
             }
-            if rho.max_channel() > RHO_MAX {
+            let json = m.index().and_then(|i| doc.as_json().materials.get(i));
+            let texture = json
+                .and_then(|j| j.pbr_metallic_roughness.base_color_texture.as_ref())
+                .and_then(|info| texture_ref(doc.as_json(), info.index.value(), info.tex_coord));
+            // With a texture the factor is a multiplier (1 is the usual value): the product is
+            // clamped per patch instead (`primitive_patches`).
+            if texture.is_none() && rho.max_channel() > RHO_MAX {
                 self.warnings.push(format!(
                     "material {name:?}: reflectance {:?} clamped to {RHO_MAX} (ρ = 1 absorbs nothing: the system would be singular)",
                     rho.0
                 ));
                 rho = rho.map(|c| c.min(RHO_MAX));
             }
-            if pbr.base_color_texture().is_some() {
-                self.warnings.push(format!("material {name:?}: base colour texture ignored (factor used)"));
+            if json.is_some_and(|j| j.emissive_texture.is_some()) {
+                self.warnings.push(format!("material {name:?}: emissive texture ignored (factor used)"));
             }
             let strength = f64::from(m.emissive_strength().unwrap_or(1.0));
             let ef = m.emissive_factor();
@@ -734,7 +986,7 @@ impl Loader<'_> {
                     });
                 }
             }
-            out.push(Mat { name, rho, emission, double_sided: m.double_sided() });
+            out.push(Mat { name, rho, emission, double_sided: m.double_sided(), texture });
         }
         Ok(out)
     }
@@ -990,17 +1242,33 @@ impl Loader<'_> {
                     }
                 }
             }
-            let verts = match best {
+            // ρ = baseColorFactor × the texture's mean over the patch (area-weighted over a
+            // merged quad's two triangles).
+            let tex_mean = |t: usize| geom.texture_means.as_ref().and_then(|m| m.get(t)).copied();
+            let area = |v: &[u32; 3]| {
+                let [a, b, c] = v.map(|i| world[i as usize]);
+                (b - a).cross(c - a).length()
+            };
+            let (verts, texel) = match best {
                 Some((j, quad)) => {
                     used[j] = true;
-                    quad
+                    let (tj, vj) = tris[j];
+                    let texel = tex_mean(t).zip(tex_mean(tj)).map(|(ci, cj)| {
+                        let (ai, aj) = (area(&v), area(&vj));
+                        (ci * ai + cj * aj) / (ai + aj)
+                    });
+                    (quad, texel)
                 }
-                None => p.to_vec(),
+                None => (p.to_vec(), tex_mean(t)),
             };
+            let r = mat.rho.0;
+            let rho = texel
+                .map_or(mat.rho, |c| Rgb::new(r[0] * c.0[0], r[1] * c.0[1], r[2] * c.0[2]))
+                .map(|c| c.min(RHO_MAX));
             let name = format!("{mesh}/{primitive}/{t}");
             let mut push = |verts: Vec<DVec3>, name: String| -> Result<(), SceneError> {
                 let index = out.len();
-                let patch = Patch::new(verts, mat.rho, mat.emission, mesh, primitive, name, mat.name.clone())
+                let patch = Patch::new(verts, rho, mat.emission, mesh, primitive, name, mat.name.clone())
                     .map_err(|cause| SceneError::BadPatch { file: self.file.clone(), index, cause })?;
                 out.push(patch);
                 Ok(())
@@ -1059,6 +1327,19 @@ fn mergeable(quad: &[DVec3]) -> bool {
         let (a, b, c) = (quad[i], quad[(i + 1) % 4], quad[(i + 2) % 4]);
         (b - a).cross(c - b).dot(p.normal) > MERGE_CONVEX_REL * diam * diam
     })
+}
+
+/// A material's base-colour texture from the JSON (indices were validated by `parse`).
+fn texture_ref(root: &gltf::json::Root, texture: usize, tex_coord: u32) -> Option<TextureRef> {
+    use gltf::json::validation::Checked;
+    let t = root.textures.get(texture)?;
+    let wrap = |w: &Checked<gltf::json::texture::WrappingMode>| match w {
+        Checked::Valid(w) => Wrap::from_gl(w.as_gl_enum()),
+        Checked::Invalid => Wrap::Repeat,
+    };
+    let sampler = t.sampler.and_then(|s| root.samplers.get(s.value()));
+    let wrap = sampler.map_or([Wrap::Repeat; 2], |s| [wrap(&s.wrap_s), wrap(&s.wrap_t)]);
+    Some(TextureRef { image: t.source.value(), tex_coord, wrap })
 }
 
 /// Decode `%XX` escapes; `None` on a malformed escape or invalid UTF-8.

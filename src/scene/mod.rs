@@ -8,6 +8,7 @@
 
 pub mod builtin;
 pub mod gltf;
+pub mod texture;
 
 use crate::math::{DVec3, Rgb, polygon_area, polygon_centroid, polygon_normal};
 use serde::Serialize;
