@@ -89,14 +89,15 @@ impl Texture {
         let reader = || -> Result<ImageReader<std::io::Cursor<&[u8]>>, String> {
             let r = ImageReader::new(std::io::Cursor::new(bytes))
                 .with_guessed_format()
-                .map_err(|e| format!("cannot read the image: {e}"))?;
+                .map_err(|e| format!("cannot read the image: {}", one_line(&e)))?;
             match r.format() {
                 Some(ImageFormat::Png | ImageFormat::Jpeg) => Ok(r),
                 Some(f) => Err(format!("{f:?} images are not supported (PNG and JPEG are)")),
                 None => Err("not a PNG or JPEG image".into()),
             }
         };
-        let (w, h) = reader()?.into_dimensions().map_err(|e| format!("bad image header: {e}"))?;
+        let (w, h) =
+            reader()?.into_dimensions().map_err(|e| format!("bad image header: {}", one_line(&e)))?;
         let pixels = u64::from(w) * u64::from(h);
         if w > MAX_SIDE || h > MAX_SIDE || pixels > max_pixels {
             return Err(format!(
@@ -113,7 +114,7 @@ impl Texture {
         // RGBA at 16 bits per channel, plus the 8-bit RGB copy.
         limits.max_alloc = Some(pixels.saturating_mul(8 + 3).max(1 << 20));
         r.limits(limits);
-        let rgb = r.decode().map_err(|e| format!("cannot decode the image: {e}"))?.into_rgb8();
+        let rgb = r.decode().map_err(|e| format!("cannot decode the image: {}", one_line(&e)))?.into_rgb8();
         let (width, height) = (rgb.width() as usize, rgb.height() as usize);
         Ok(Texture { width, height, texels: rgb.into_raw(), linear: linear_table() })
     }
@@ -201,5 +202,23 @@ mod tests {
     fn refuses_what_is_not_png_or_jpeg() {
         assert!(Texture::decode(b"GIF89a\x01\x00\x01\x00", 1 << 20).is_err());
         assert!(Texture::decode(b"", 1 << 20).is_err());
+    }
+}
+
+/// A decoder's message on one line (the `image` crate's errors can span several: a JPEG's
+/// "Format error …\nI/O errors …"), whitespace runs collapsed to one space.
+fn one_line(e: &dyn std::fmt::Display) -> String {
+    e.to_string().split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+#[cfg(test)]
+mod one_line_tests {
+    /// Found by fuzzing (session 9): a truncated JPEG's error spanned two lines.
+    #[test]
+    fn decoder_messages_become_one_line() {
+        assert_eq!(
+            super::one_line(&"Format error decoding Jpeg:\n  I/O errors  Not enough bytes"),
+            "Format error decoding Jpeg: I/O errors Not enough bytes"
+        );
     }
 }
