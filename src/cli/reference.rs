@@ -272,13 +272,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "patch": m.patch, "vertices": m.vertices, "radiosity": e.radiosity, "std_error": e.std_error,
             })).collect::<Vec<_>>(),
         });
-        let text = serde_json::to_string_pretty(&doc)?;
-        if to_stdout {
-            println!("{text}");
-        } else {
-            std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
-            writeln!(log, "wrote {}", path.display())?;
-        }
+        write_doc(&doc, path, to_stdout, &mut log)?;
     }
     Ok(())
 }
@@ -502,13 +496,25 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
                 "radiosity": e.radiosity, "std_error": e.std_error,
             })).collect::<Vec<_>>(),
         });
-        let text = serde_json::to_string_pretty(&doc)?;
-        if to_stdout {
-            println!("{text}");
-        } else {
-            std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
-            writeln!(log, "wrote {}", path.display())?;
-        }
+        write_doc(&doc, path, to_stdout, &mut log)?;
+    }
+    Ok(())
+}
+
+/// Write a `--json` document to `path`, or to stdout when `to_stdout` (`--json -`), saying so in
+/// `log`.
+fn write_doc(
+    doc: &serde_json::Value,
+    path: &std::path::Path,
+    to_stdout: bool,
+    log: &mut dyn std::io::Write,
+) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(doc)?;
+    if to_stdout {
+        println!("{text}");
+    } else {
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+        writeln!(log, "wrote {}", path.display())?;
     }
     Ok(())
 }
