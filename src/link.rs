@@ -15,6 +15,10 @@ pub struct Link {
     pub source: u32,
     /// Form factor receiver → source (fraction of the receiver's hemisphere covered by the source).
     pub ff: f32,
+    /// The pair's Galerkin coupling A_r F_rs = A_s F_sr: the same number in the link and its
+    /// mirror (`ff` is it over each receiver's area, rounded apart), so quantities both
+    /// directions derive from it agree to the bit (the error oracle's decisions).
+    pub g: f32,
     /// Visible fraction in [0, 1].
     pub vis: f32,
     /// The oracle's geometric estimate max(F_pq, F_qp) (disk formula), fixed for the link's life.
@@ -30,7 +34,7 @@ pub struct Link {
     pub unmeasured: bool,
 }
 
-const _: () = assert!(std::mem::size_of::<Link>() == 24);
+const _: () = assert!(std::mem::size_of::<Link>() == 28);
 
 impl Link {
     /// The oracle's error estimate of this link for a source of radiosity `b_source` (units of

@@ -78,7 +78,7 @@ use crate::accel::{Accel, NO_HIT};
 use crate::form_factor;
 use crate::hierarchy::{Element, Hierarchy, NONE, StopReason};
 use crate::link::{Link, LinkStore, VisClass};
-use crate::math::{DVec3, Rgb, newell_normal};
+use crate::math::{DVec3, Rgb, newell_normal, splitmix64};
 use crate::scene::Scene;
 use crate::solver::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
 use crate::visibility::{self, Stop};
@@ -458,6 +458,48 @@ pub struct HierarchicalSolver {
     /// Recompute the error oracle's whole field every pass instead of updating it (off; only to
     /// check that the update changes nothing).
     full_error_passes: bool,
+    /// The new pairs of the current refinement pass (see `make_link`).
+    pair_memo: PairMemo,
+}
+
+/// What a new pair's links share, both directions alike: the Galerkin coupling (NaN when not
+/// yet computed, for a link the next pass replaces), the visibility estimate, whether it is
+/// only the early-exit placeholder, and the rays it cost.
+#[derive(Copy, Clone, Debug)]
+struct PairOutcome {
+    g: f64,
+    vis: f32,
+    unmeasured: bool,
+    rays: u64,
+}
+
+/// Shards of the per-pass memo of new pairs: a split pair is replaced in both receivers' lists
+/// in the same pass (the verdicts are symmetric), and the second receiver reuses the first one's
+/// coupling and visibility instead of computing them again.
+struct PairMemo(Vec<std::sync::Mutex<std::collections::HashMap<u64, PairOutcome>>>);
+
+impl Default for PairMemo {
+    fn default() -> Self {
+        PairMemo((0..64).map(|_| std::sync::Mutex::default()).collect())
+    }
+}
+
+impl PairMemo {
+    fn shard(&self, key: u64) -> std::sync::MutexGuard<'_, std::collections::HashMap<u64, PairOutcome>> {
+        let i = (splitmix64(key) % self.0.len() as u64) as usize;
+        self.0[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+    fn get(&self, key: u64) -> Option<PairOutcome> {
+        self.shard(key).get(&key).copied()
+    }
+    fn put(&self, key: u64, out: PairOutcome) {
+        self.shard(key).insert(key, out);
+    }
+    fn clear(&mut self) {
+        for s in &mut self.0 {
+            s.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner).clear();
+        }
+    }
 }
 
 /// Sums an element inherits in push-pull, its own included.
@@ -525,6 +567,7 @@ impl HierarchicalSolver {
             oracle_b: Vec::new(),
             early_exit: true,
             full_error_passes: false,
+            pair_memo: PairMemo::default(),
         };
         s.energy.emitted = s.scene.emitted_power();
         s
@@ -654,7 +697,7 @@ impl HierarchicalSolver {
         // The error oracle's field, kept up to date pass by pass (`update_error_field`), and the
         // receivers whose link lists the last pass changed.
         let mut err_field: Option<oracle::ErrorField> = None;
-        let mut pass_changed: Vec<oracle::ListDelta> = Vec::new();
+        let mut pass_changed: Vec<u32> = Vec::new();
         let track = self.params.oracle == Oracle::Error;
         while !self.cancelled() {
             if total_links >= self.params.max_links {
@@ -729,6 +772,7 @@ impl HierarchicalSolver {
                 decisions.into_iter().filter(|(_, v)| !v.splits.is_empty()).collect();
             let results: Vec<Replaced> =
                 work.par_iter().map(|(r, v)| self.replace_links(*r, &v.splits)).collect();
+            self.pair_memo.clear();
             self.stats.refine_links_s += phase.elapsed().as_secs_f64();
             let phase = Instant::now();
             // D: install, in receiver order: every receiver's own list first, then the links
@@ -748,7 +792,7 @@ impl HierarchicalSolver {
                 total_links = total_links + rep.own.len() + pushed - self.links.by_receiver[r as usize].len();
                 changed.insert(r);
                 if track {
-                    pass_changed.push(list_delta(r, &self.links.by_receiver[r as usize], &rep.own));
+                    pass_changed.push(r);
                 }
                 owns.push((r, rep.own));
                 if pushed > 0 {
@@ -765,7 +809,7 @@ impl HierarchicalSolver {
             slots.into_par_iter().zip(owns).with_min_len(64).for_each(|(slot, (_, own))| *slot = own);
             for (c, ls, mut v) in pushed_down {
                 if track {
-                    pass_changed.push((c, Vec::new(), ls.clone()));
+                    pass_changed.push(c);
                 }
                 let list = &mut self.links.by_receiver[c as usize];
                 // The child's list may hold links already (its own, just replaced, or earlier ones).
@@ -1029,19 +1073,53 @@ impl HierarchicalSolver {
         if !sides.facing {
             return (None, 0);
         }
+        let key = pair_key(receiver.min(source), receiver.max(source));
+        // The mirror link, made earlier in this pass, settled the pair (its rays are counted
+        // once, by the receiver with the lower id, whichever direction computed them).
+        let canonical = receiver < source;
+        if let Some(out) = self.pair_memo.get(key) {
+            let mut link = new_link(
+                (p, receiver),
+                (q, source),
+                out.g,
+                out.vis,
+                sides.straddle,
+                self.params.conservative,
+            );
+            link.unmeasured = out.unmeasured;
+            return (Some((link, self.decide(receiver, p, &link))), if canonical { out.rays } else { 0 });
+        }
+        let (made, cast, g) = self.make_pair_link(receiver, source, sides, key, last);
+        if let Some((l, _)) = &made {
+            self.pair_memo.put(key, PairOutcome { g, vis: l.vis, unmeasured: l.unmeasured, rays: cast });
+        }
+        (made, if canonical { cast } else { 0 })
+    }
+
+    /// `make_link` of a pair not made yet in this pass; also returns the pair's coupling (NaN
+    /// when left uncomputed).
+    fn make_pair_link(
+        &self,
+        receiver: u32,
+        source: u32,
+        sides: PairSides,
+        key: u64,
+        last: &mut u32,
+    ) -> (Option<(Link, Decision)>, u64, f64) {
+        let p = self.hier.get(receiver);
+        let q = self.hier.get(source);
         // The exact form factor is needed only by links that outlive the next pass, and to
         // know whether the link exists at all, which a pair clearly in front of each other
         // settles (`form_factor_surely_positive`).
         let surely = !sides.straddle && form_factor_surely_positive(p, q);
-        let g = if surely { f64::NAN } else { self.coupling(receiver, source, sides.straddle) };
+        let mut g = if surely { f64::NAN } else { self.coupling(receiver, source, sides.straddle) };
         if g <= 0.0 && !sides.straddle {
-            return (None, 0);
+            return (None, 0, g);
         }
         let rays = self.params.rays;
         // Visibility in the pair's canonical order (lower id first): the mirror link gets the
         // very same estimate.
         let (lo, hi) = if receiver < source { (p, q) } else { (q, p) };
-        let key = pair_key(receiver.min(source), receiver.max(source));
         let mut vis_with = |n: u32, salt: u64, stop: Stop| {
             let (v, cast) = visibility::visibility_sample(
                 &self.accel,
@@ -1090,12 +1168,14 @@ impl HierarchicalSolver {
         if settled {
             link.vis = if stop == Stop::AtVisible { UNMEASURED_VIS } else { vis as f32 };
             link.unmeasured = true;
-            return (Some((link, self.decide(receiver, p, &link))), cast);
+            return (Some((link, self.decide(receiver, p, &link))), cast, g);
         }
         let mut vis = vis;
-        // The error oracle decides per pass, from every link of a receiver: its zeros are
-        // always confirmed (a refined link with a noisy zero would lose its light).
-        let confirm_zero = split_full || (split_partial && self.params.conservative) || error_oracle;
+        // The error oracle's zeros are not confirmed: it never splits a link for its own sake
+        // (a zero estimate does not end a refinement that another estimate would continue), so
+        // a zero is an unbiased estimate, and confirming zeros alone biases bright (splash_room
+        // at 4 rays: its floor 11 % too bright and 6.4 % of the emitted power created).
+        let confirm_zero = split_full || (split_partial && self.params.conservative);
         if vis == 0.0 && confirm_zero && self.params.zero_confirm > 0 {
             // When the next pass splits this link unless V = 0, a zero estimate is the only
             // thing that ends its refinement: accepted as it is, each level would keep only
@@ -1111,15 +1191,17 @@ impl HierarchicalSolver {
             if v2 > 0.0 && confirm == Stop::AtVisible {
                 link.vis = UNMEASURED_VIS;
                 link.unmeasured = true;
-                return (Some((link, self.decide(receiver, p, &link))), cast);
+                return (Some((link, self.decide(receiver, p, &link))), cast, g);
             }
             vis = v2 * f64::from(more) / f64::from(more + rays);
         }
         if surely {
-            link.ff = (self.coupling(receiver, source, false) / p.area) as f32;
+            g = self.coupling(receiver, source, false);
+            link.ff = (g / p.area) as f32;
+            link.g = g as f32;
         }
         link.vis = vis as f32;
-        (Some((link, self.decide(receiver, p, &link))), cast)
+        (Some((link, self.decide(receiver, p, &link))), cast, g)
     }
 
     /// Measure V of the links still marked unmeasured (refinement stopped, by the link
@@ -1139,7 +1221,9 @@ impl HierarchicalSolver {
                 for l in ls.iter_mut().filter(|l| l.unmeasured) {
                     let (r, s) = (r as u32, l.source);
                     let (p, q) = (hier.get(r), hier.get(s));
-                    l.ff = (coupling_in(hier, acc, r, s, pair_sides(p, q).straddle) / p.area) as f32;
+                    let g = coupling_in(hier, acc, r, s, pair_sides(p, q).straddle);
+                    l.ff = (g / p.area) as f32;
+                    l.g = g as f32;
                     // The canonical order, as in `make_link`.
                     let (lo, hi) = if r < s { (p, q) } else { (q, p) };
                     let (v, c) = visibility::visibility_sample(
@@ -1733,19 +1817,6 @@ fn coupling_in(hier: &Hierarchy, acc: transfer::Accuracy, r: u32, s: u32, stradd
 }
 
 /// BFeps in units of B.
-/// How a receiver's list changed from `old` to `new`: the links removed and the links added
-/// (a link is the same if its source, form factor and visibility are).
-fn list_delta(r: u32, old: &[Link], new: &[Link]) -> oracle::ListDelta {
-    let key = |l: &Link| (l.source, l.ff.to_bits(), l.vis.to_bits());
-    let mut old_keys: Vec<_> = old.iter().map(key).collect();
-    let mut new_keys: Vec<_> = new.iter().map(key).collect();
-    old_keys.sort_unstable();
-    new_keys.sort_unstable();
-    let removed = old.iter().filter(|l| new_keys.binary_search(&key(l)).is_err()).copied().collect();
-    let added = new.iter().filter(|l| old_keys.binary_search(&key(l)).is_err()).copied().collect();
-    (r, removed, added)
-}
-
 impl HierarchicalSolver {
     /// The error oracle's relative threshold in units of B: `bf_eps` × the area-weighted mean
     /// over the leaves of the reflected radiosity B − E (largest channel); before any gather,
@@ -1800,6 +1871,7 @@ fn new_link(
     Link {
         source: q_id,
         ff: (g / p.area) as f32,
+        g: g as f32,
         vis,
         fmax: fpq.max(fqp) as f32,
         bound: geometric_variation(p, q) as f32,
@@ -1866,6 +1938,7 @@ fn plane_sides(p: &Element, q: &Element) -> (bool, bool) {
 }
 
 /// How two elements sit relative to each other's planes (computed once per pair).
+#[derive(Copy, Clone)]
 struct PairSides {
     /// Each has some part strictly in front of the other's plane.
     facing: bool,
