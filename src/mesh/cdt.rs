@@ -17,8 +17,10 @@
 //!   critical segments, clipped and snapped (super::ReceiverPlane) ┼─ spade CDT ─ refine ─ keep the
 //!   crossings: spade's add_constraint_and_split inserts them    ┘   faces inside the boundary
 //! ```
-//! Segments that cross or overlap are split at their intersection by `spade`
-//! (`add_constraint_and_split`), so any set of segments is accepted. The faces kept are those
+//! Segments that cross, touch or overlap are split at their intersections first, the points
+//! merged within the tolerance (so several lines through one point make one vertex); anything
+//! rounding still makes cross is split by `spade` (`add_constraint_and_split`), so any set of
+//! segments is accepted. The faces kept are those
 //! not reachable from outside the convex hull without crossing a constraint (the boundary loop):
 //! end points snapped onto the boundary may sit a rounding error outside it, which would make
 //! slivers outside the boundary loop.
@@ -141,6 +143,51 @@ fn boundary_chain(plane: &ReceiverPlane, segments: &[Segment2]) -> Vec<DVec2> {
     chain
 }
 
+/// Each segment's points in order along it: its end points and every point where another
+/// segment crosses or touches it (within `tol`). Inserting these through the merging vertex pool
+/// makes three segments through one point meet at one vertex, where letting `spade` split each
+/// crossing separately leaves clusters of vertices a rounding error apart (and zero-area
+/// triangles between them).
+fn arrangement(segs: &[Segment2], tol: f64) -> Vec<Vec<DVec2>> {
+    let mut points: Vec<Vec<(f64, DVec2)>> = segs.iter().map(|s| vec![(0.0, s.a), (1.0, s.b)]).collect();
+    let param = |s: &Segment2, p: DVec2| (p - s.a).dot(s.b - s.a) / (s.b - s.a).length_squared();
+    let near = |s: &Segment2, p: DVec2| {
+        let t = param(s, p).clamp(0.0, 1.0);
+        p.distance(s.a.lerp(s.b, t)) <= tol
+    };
+    for i in 0..segs.len() {
+        for j in i + 1..segs.len() {
+            let (si, sj) = (&segs[i], &segs[j]);
+            let (di, dj) = (si.b - si.a, sj.b - sj.a);
+            let denom = di.perp_dot(dj);
+            let mut hits: Vec<DVec2> = Vec::new();
+            if denom.abs() > 1e-12 * di.length() * dj.length() {
+                let x = si.a + di * ((sj.a - si.a).perp_dot(dj) / denom);
+                if near(si, x) && near(sj, x) {
+                    hits.push(x);
+                }
+            }
+            // End points of one on the other (T-junctions, collinear overlaps).
+            hits.extend([sj.a, sj.b].into_iter().filter(|p| near(si, *p)));
+            hits.extend([si.a, si.b].into_iter().filter(|p| near(sj, *p)));
+            for x in hits {
+                for (k, s) in [(i, si), (j, sj)] {
+                    if near(s, x) {
+                        points[k].push((param(s, x).clamp(0.0, 1.0), x));
+                    }
+                }
+            }
+        }
+    }
+    points
+        .into_iter()
+        .map(|mut p| {
+            p.sort_by(|a, b| a.0.total_cmp(&b.0));
+            p.into_iter().map(|(_, x)| x).collect()
+        })
+        .collect()
+}
+
 /// Triangulate a receiver (its [`ReceiverPlane`]) with critical segments (3-D end points on or
 /// near its plane; clipped to it here) as constraints.
 pub fn triangulate(
@@ -164,12 +211,17 @@ pub fn triangulate(
             cdt.add_constraint_and_split(a, b, |p| p);
         }
     }
-    // The critical segments.
-    for s in &segs {
-        let a = insert(&mut cdt, &mut pool, s.a, tol)?;
-        let b = insert(&mut cdt, &mut pool, s.b, tol)?;
-        if a != b {
-            cdt.add_constraint_and_split(a, b, |p| p);
+    // The critical segments, split at their crossings first.
+    for points in arrangement(&segs, tol) {
+        let mut previous = None;
+        for p in points {
+            let h = insert(&mut cdt, &mut pool, p, tol)?;
+            if let Some(a) = previous
+                && a != h
+            {
+                cdt.add_constraint_and_split(a, h, |p| p);
+            }
+            previous = Some(h);
         }
     }
 
