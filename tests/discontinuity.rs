@@ -351,3 +351,24 @@ fn built_in_scenes_remesh_without_losing_area_for_both_kinds() {
         }
     }
 }
+
+#[test]
+fn cli_mesh_reports_counts_as_json() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+        .args(["mesh", "builtin:shadow-narrow", "--kind", "bsp", "--json", "-"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let stats = &doc["stats"];
+    // One lamp, one occluder over the receiver: 16 EV + 16 VE segments, all D1 (parallel edges).
+    assert_eq!(stats["segments"]["d1"], 32, "{doc}");
+    assert_eq!(stats["receivers_meshed"], 1);
+    assert!(stats["output_patches"].as_u64().unwrap() > 3);
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+        .args(["mesh", "builtin:shadow-narrow", "--min-angle", "60"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("min-angle"));
+}
