@@ -25,6 +25,8 @@
 //! - [`solver`]: parameters, uniform / progressive / hierarchical solvers, statistics.
 //! - [`reference`](mod@reference): an independent Monte Carlo estimator that shares no kernel with `solver`.
 //! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
+//! - [`mesh`]: meshing given shadows — critical segments (D0, EV/VE → D1/D2) on each receiver,
+//!   Heckbert's constrained Delaunay mesh and Campbell & Fussell's BSP mesh, a scene remeshed.
 //! - [`exact`]: exact single-bounce radiosity (one emitter, black occluders, one receiver):
 //!   a closed-form ruler with no reference noise.
 //! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
@@ -45,6 +47,7 @@ pub mod hierarchy;
 pub mod image;
 pub mod link;
 pub mod math;
+pub mod mesh;
 pub mod metrics;
 pub mod overlay;
 pub mod pointwise;

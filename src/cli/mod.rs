@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod form_factor;
+pub mod mesh;
 pub mod reference;
 pub mod scenes;
 pub mod solve;
@@ -34,6 +35,8 @@ pub enum Command {
     Reference(reference::Args),
     /// Speed-against-error report over methods and settings.
     Bench(bench::Args),
+    /// Discontinuity mesh of a scene (critical segments, CDT or BSP): counts and meshing time.
+    Mesh(mesh::Args),
     /// Hierarchical solver speed benchmark (default: the SPLASH-2 room at SPLASH-2 settings).
     Speed(speed::Args),
 }
@@ -48,5 +51,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Reference(a)) => reference::run(a),
         Some(Command::Bench(a)) => bench::run(a),
         Some(Command::Speed(a)) => speed::run(a),
+        Some(Command::Mesh(a)) => mesh::run(a),
     }
 }

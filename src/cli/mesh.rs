@@ -1,0 +1,115 @@
+//! `radlab mesh SCENE [--kind cdt|bsp] [--min-angle DEG] [--max-area F] [--solve] [--json PATH]`:
+//! the scene's discontinuity mesh (issue 16 §2, `radlab::mesh`): critical segments by kind,
+//! constraints inserted, receivers remeshed, patches before and after, and the meshing time;
+//! with `--solve`, also a uniform p = 0 solve on the mesh and its time (meshing against solving).
+
+use super::solve::load_scene;
+use anyhow::Context as _;
+use radlab::accel::Accel;
+use radlab::mesh::cdt::CdtParams;
+use radlab::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, discontinuity_scene};
+use radlab::solver::uniform::{self, COARSE_FF_TOLERANCE, UniformParams};
+use serde_json::json;
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene (.gltf/.glb or builtin:NAME)
+    pub scene: String,
+    /// Constrained Delaunay (Heckbert) or BSP (Campbell & Fussell)
+    #[arg(long, value_enum, default_value = "cdt")]
+    pub kind: MeshKind,
+    /// CDT refinement: smallest angle in degrees (0: the unrefined CDT)
+    #[arg(long, default_value_t = CdtParams::quality().min_angle_deg)]
+    pub min_angle: f64,
+    /// CDT refinement: largest triangle area as a fraction of its receiver's area
+    #[arg(long, default_value_t = f64::INFINITY)]
+    pub max_area: f64,
+    /// Refuse meshes with more patches than this
+    #[arg(long, default_value_t = RemeshParams::cdt().max_patches)]
+    pub max_patches: usize,
+    /// Also solve on the mesh (uniform solver, one element per piece, 16 rays, --ff-tol 1e-4)
+    #[arg(long)]
+    pub solve: bool,
+    /// Write the figures as JSON to PATH (`-` for stdout)
+    #[arg(long)]
+    pub json: Option<String>,
+}
+
+fn print(spec: &str, kind: MeshKind, s: &RemeshStats) {
+    let c = &s.segments;
+    println!("{spec}: {kind:?} discontinuity mesh");
+    println!(
+        "  segments   {} (D0 {}, D1 {}, D2 {}; EV {}, VE {}); occluder pairs kept {}, culled {}",
+        c.total(),
+        c.d0,
+        c.d1,
+        c.d2,
+        c.ev,
+        c.ve,
+        c.occluders_kept,
+        c.occluders_culled
+    );
+    println!(
+        "  constraints {} (clipped, snapped, deduplicated) on {} receivers",
+        s.constraints, s.receivers_meshed
+    );
+    println!("  patches    {} → {}", s.input_patches, s.output_patches);
+    if s.pieces_dropped > 0 || s.refinement_incomplete > 0 {
+        println!(
+            "  warnings   {} pieces dropped (area {:e}); {} receivers' refinement hit the Steiner cap",
+            s.pieces_dropped, s.area_dropped, s.refinement_incomplete
+        );
+    }
+    println!(
+        "  time       {:.4} s wall (segments {:.4} s + meshing {:.4} s, summed over threads)",
+        s.total_s, s.segments_s, s.mesh_s
+    );
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    // The loader's default triangle cap; the mesh cap (--max-patches) is the one that binds.
+    let scene = load_scene(&args.scene, radlab::scene::gltf::LoadOptions::default().max_triangles)?;
+    let base = match args.kind {
+        MeshKind::Cdt => RemeshParams::cdt(),
+        MeshKind::Bsp => RemeshParams::bsp(),
+    };
+    let params = RemeshParams {
+        cdt: CdtParams { min_angle_deg: args.min_angle, max_area: args.max_area, ..base.cdt },
+        max_patches: args.max_patches,
+        ..base
+    };
+    let meshed = discontinuity_scene(&scene, &params).with_context(|| format!("meshing {}", args.scene))?;
+    let stdout_json = args.json.as_deref() == Some("-");
+    if !stdout_json {
+        print(&args.scene, args.kind, &meshed.stats);
+    }
+    let mut solve = serde_json::Value::Null;
+    if args.solve {
+        let t = Instant::now();
+        let accel = Accel::build(&meshed.scene);
+        let up = UniformParams {
+            element_size: f64::INFINITY,
+            ff_tolerance: COARSE_FF_TOLERANCE,
+            max_elements: args.max_patches,
+            ..UniformParams::default()
+        };
+        let sol = uniform::solve(&meshed.scene, &accel, &up, &mut |_, _| {}).map_err(anyhow::Error::msg)?;
+        let secs = t.elapsed().as_secs_f64();
+        if !stdout_json {
+            println!(
+                "  solve      {:.3} s (uniform, {} elements, {} links)",
+                secs, sol.stats.elements, sol.stats.links
+            );
+        }
+        solve = json!({ "method": "uniform", "elements": sol.stats.elements, "links": sol.stats.links, "time_s": secs });
+    }
+    let doc = json!({ "scene": args.scene, "params": params, "stats": meshed.stats, "solve": solve });
+    match args.json.as_deref() {
+        Some("-") => println!("{}", serde_json::to_string_pretty(&doc)?),
+        Some(path) => std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")
+            .with_context(|| format!("writing {path}"))?,
+        None => {}
+    }
+    Ok(())
+}

@@ -1,0 +1,185 @@
+//! A whole scene on a discontinuity mesh: every patch with critical segments replaced by the
+//! pieces of its constrained Delaunay mesh ([`super::cdt`]) or BSP mesh ([`super::bsp`]), each
+//! piece a new [`Patch`] with the original's material (ρ, E), mesh and material names. Any solver
+//! then runs on the new scene; the uniform solver with `element_size = ∞` (one element per patch)
+//! is the p = 0 Galerkin solve on the discontinuity mesh [Heckbert 1992; Lischinski et al. 1992].
+//!
+//! ```text
+//! patch i ──scene_segments──▶ critical segments ──cdt / bsp──▶ pieces ──▶ patches i/dm0, i/dm1, …
+//! ```
+//!
+//! Patches hold 3 or 4 vertices: BSP pieces with more are fanned into triangles (a convex
+//! polygon's fan from its first vertex). Receivers are meshed in parallel, results kept in patch
+//! order, so the scene is identical for any thread count.
+
+use super::bsp::partition;
+use super::cdt::{CdtParams, triangulate};
+use super::discontinuity::{SegmentCounts, scene_segments};
+use super::{DEFAULT_SNAP, MeshError, ReceiverPlane};
+use crate::math::DVec3;
+use crate::scene::{Patch, Scene};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Which mesh replaces a receiver.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+pub enum MeshKind {
+    /// Heckbert's constrained Delaunay triangulation.
+    Cdt,
+    /// Campbell & Fussell's BSP into convex pieces.
+    Bsp,
+}
+
+/// Settings of [`discontinuity_scene`].
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct RemeshParams {
+    pub kind: MeshKind,
+    /// Refinement of the constrained Delaunay mesh (unused by BSP).
+    pub cdt: CdtParams,
+    /// Snapping length relative to each receiver's diameter ([`super::ReceiverPlane`]).
+    pub snap: f64,
+    /// Refuse scenes with more patches than this after meshing (the uniform solver's default cap).
+    pub max_patches: usize,
+}
+
+impl RemeshParams {
+    /// Constrained Delaunay with 20° refinement ([`CdtParams::quality`]).
+    #[must_use]
+    pub const fn cdt() -> RemeshParams {
+        RemeshParams {
+            kind: MeshKind::Cdt,
+            cdt: CdtParams::quality(),
+            snap: DEFAULT_SNAP,
+            max_patches: 10_000,
+        }
+    }
+
+    /// The BSP mesh.
+    #[must_use]
+    pub const fn bsp() -> RemeshParams {
+        RemeshParams { kind: MeshKind::Bsp, ..RemeshParams::cdt() }
+    }
+}
+
+/// What [`discontinuity_scene`] did.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RemeshStats {
+    pub input_patches: usize,
+    pub output_patches: usize,
+    /// Receivers with at least one critical segment inside them (the ones replaced).
+    pub receivers_meshed: usize,
+    /// Critical segments found, summed over receivers.
+    pub segments: SegmentCounts,
+    /// Segments inserted into the meshes after clipping, snapping and deduplication.
+    pub constraints: usize,
+    /// Receivers whose CDT refinement stopped at the Steiner point cap.
+    pub refinement_incomplete: usize,
+    /// Pieces dropped because `Patch::new` rejected them (zero area), and their total area.
+    pub pieces_dropped: usize,
+    pub area_dropped: f64,
+    /// Wall time: finding segments, meshing, total (s).
+    pub segments_s: f64,
+    pub mesh_s: f64,
+    pub total_s: f64,
+}
+
+/// A scene on a discontinuity mesh, with each new patch's original.
+#[derive(Clone, Debug)]
+pub struct RemeshedScene {
+    pub scene: Scene,
+    /// `origin[i]`: the input patch new patch `i` was cut from.
+    pub origin: Vec<usize>,
+    pub stats: RemeshStats,
+}
+
+/// One receiver's result: pieces (polygons) or `None` (kept whole), counts, constraint count,
+/// refinement complete, seconds finding segments and meshing.
+type ReceiverResult = (Option<Vec<Vec<DVec3>>>, SegmentCounts, usize, bool, f64, f64);
+
+fn mesh_receiver(scene: &Scene, i: usize, params: &RemeshParams) -> Result<ReceiverResult, MeshError> {
+    let t0 = Instant::now();
+    let set = scene_segments(&scene.patches, i, params.snap)?;
+    let t_seg = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let plane = ReceiverPlane::new(&scene.patches[i].vertices, params.snap)?;
+    let ends = set.endpoints();
+    let constraints = plane.prepare(&ends).len();
+    if constraints == 0 {
+        return Ok((None, set.counts, 0, true, t_seg, t1.elapsed().as_secs_f64()));
+    }
+    let (pieces, complete) = match params.kind {
+        MeshKind::Cdt => {
+            let m = triangulate(&plane, &ends, &params.cdt)?;
+            (m.triangles.into_iter().map(|t| t.vertices.to_vec()).collect(), m.refinement_complete)
+        }
+        MeshKind::Bsp => (partition(&plane, &ends).pieces, true),
+    };
+    Ok((Some(pieces), set.counts, constraints, complete, t_seg, t1.elapsed().as_secs_f64()))
+}
+
+/// Polygons of at most 4 vertices: triangles and quads as they are, larger convex polygons
+/// fanned from their first vertex.
+fn patch_polygons(piece: Vec<DVec3>) -> Vec<Vec<DVec3>> {
+    if piece.len() <= 4 {
+        return vec![piece];
+    }
+    (1..piece.len() - 1).map(|k| vec![piece[0], piece[k], piece[k + 1]]).collect()
+}
+
+/// Remesh every receiver of `scene` that has critical segments (see the module docs).
+pub fn discontinuity_scene(scene: &Scene, params: &RemeshParams) -> Result<RemeshedScene, MeshError> {
+    params.cdt.validate()?;
+    let t0 = Instant::now();
+    let results: Vec<ReceiverResult> = (0..scene.patches.len())
+        .into_par_iter()
+        .map(|i| mesh_receiver(scene, i, params))
+        .collect::<Result<_, _>>()?;
+    let mut stats = RemeshStats { input_patches: scene.patches.len(), ..RemeshStats::default() };
+    let (mut patches, mut origin) = (Vec::new(), Vec::new());
+    for (i, (pieces, counts, constraints, complete, t_seg, t_mesh)) in results.into_iter().enumerate() {
+        let p = &scene.patches[i];
+        stats.segments = stats.segments.plus(counts);
+        stats.constraints += constraints;
+        stats.refinement_incomplete += usize::from(!complete);
+        stats.segments_s += t_seg;
+        stats.mesh_s += t_mesh;
+        let Some(pieces) = pieces else {
+            patches.push(p.clone());
+            origin.push(i);
+            continue;
+        };
+        stats.receivers_meshed += 1;
+        for (k, verts) in pieces.into_iter().flat_map(patch_polygons).enumerate() {
+            let area = crate::math::polygon_area(&verts);
+            let name = format!("{}/dm{k}", p.name);
+            match Patch::new(
+                verts,
+                p.reflectance,
+                p.emission,
+                p.mesh.clone(),
+                p.primitive,
+                name,
+                p.material.clone(),
+            ) {
+                Ok(piece) => {
+                    patches.push(piece);
+                    origin.push(i);
+                }
+                Err(_) => {
+                    stats.pieces_dropped += 1;
+                    stats.area_dropped += area;
+                }
+            }
+        }
+        if patches.len() > params.max_patches {
+            return Err(MeshError::TooManyPatches { count: patches.len(), cap: params.max_patches });
+        }
+    }
+    stats.output_patches = patches.len();
+    stats.total_s = t0.elapsed().as_secs_f64();
+    let mut out = Scene::new(scene.name.clone(), scene.source.clone(), patches);
+    out.warnings.clone_from(&scene.warnings);
+    out.camera = scene.camera;
+    Ok(RemeshedScene { scene: out, origin, stats })
+}
