@@ -300,6 +300,10 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
             for (bf, a) in [(2e-3, 1e-4), (5e-4, 2e-5)] {
                 v.push(HierarchicalParams { bf_eps: bf, aeps: AreaEps::Relative(a), rays: 16, ..base });
             }
+            // The error oracle (the quality preset's), halving its threshold, at 16 rays.
+            for eps in [0.4, 0.2, 0.1, 0.05] {
+                v.push(HierarchicalParams { bf_eps: eps, ..HierarchicalParams::quality() });
+            }
             // The lecture's Feps oracle.
             for (f, a) in [(0.1, 1e-3), (0.05, 3e-4), (0.02, 1e-4)] {
                 v.push(HierarchicalParams {
@@ -309,7 +313,11 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
                 });
             }
             if mode == Mode::Full {
-                v.push(HierarchicalParams::quality());
+                v.push(HierarchicalParams {
+                    bf_eps: 0.025,
+                    aeps: AreaEps::Relative(5e-5),
+                    ..HierarchicalParams::quality()
+                });
                 v.push(HierarchicalParams { bf_eps: 2e-4, aeps: AreaEps::Relative(1e-5), rays: 16, ..base });
             }
             v

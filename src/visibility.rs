@@ -241,7 +241,7 @@ pub fn visible_fraction_oriented(
     key: u64,
 ) -> f64 {
     let mut last = crate::accel::NO_HIT;
-    visibility_sample(accel, receiver, source, rays, seed, key, &mut last, Stop::Never).0
+    visibility_sample(accel, receiver, source, rays, seed, key, &mut last, Stop::Never, false).0
 }
 
 /// When [`visibility_sample`] may stop before casting every ray.
@@ -263,6 +263,13 @@ pub enum Stop {
 ///
 /// With a [`Stop`] other than `Never`, the same rays in the same order, stopping as soon as the
 /// answer the caller needs is known (see [`Stop`]).
+///
+/// `weighted`: each ray counts with the point-to-point kernel cos θ_x cos θ_y / r² of its pair,
+/// so the estimate is the transfer-weighted visible fraction ∫∫ K V / ∫∫ K that a link's
+/// coefficient wants (a ratio estimator: consistent, biased by O(1/n)), rather than the plain
+/// fraction of pairs, which is off where the kernel varies across the pair (a large lamp over a
+/// penumbra: shadow-wide's element averages 15 % off with 16 plain rays). Symmetric in the two
+/// regions, as the kernel is.
 #[allow(clippy::too_many_arguments)]
 pub fn visibility_sample(
     accel: &Accel,
@@ -273,6 +280,7 @@ pub fn visibility_sample(
     key: u64,
     last: &mut u32,
     stop: Stop,
+    weighted: bool,
 ) -> (f64, u32) {
     if rays == 0 {
         return (1.0, 0);
@@ -291,6 +299,11 @@ pub fn visibility_sample(
     let (rf, sf) = (Bilinear::new(accel, receiver), Bilinear::new(accel, source));
     let mut visible = 0u32;
     let mut counted = 0u32;
+    // Kernel weights of the visible and of all counted pairs (`weighted`).
+    let (mut w_visible, mut w_all) = (0.0f64, 0.0f64);
+    let fraction = |visible: u32, counted: u32, w_visible: f64, w_all: f64| {
+        if weighted && w_all > 0.0 { w_visible / w_all } else { f64::from(visible) / f64::from(counted) }
+    };
     for (k, c) in pattern.corners.iter().enumerate() {
         // One hash per ray gives the four 16-bit jitters of its two points: independent of the
         // other rays (no serial generator state), so they are computed side by side.
@@ -303,19 +316,27 @@ pub fn visibility_sample(
         if n_r.dot(d) <= 0.0 || n_s.dot(d) >= 0.0 {
             continue;
         }
+        let w = if weighted {
+            let r2 = d.length_squared();
+            n_r.dot(d) * -n_s.dot(d) / (r2 * r2)
+        } else {
+            1.0
+        };
+        w_all += w;
         let (x, y) =
             (Vec3A::new(x.x as f32, x.y as f32, x.z as f32), Vec3A::new(y.x as f32, y.y as f32, y.z as f32));
         counted += 1;
         if accel.occluded_local_cached(x, y, [receiver_patch, source_patch], last) {
             if stop == Stop::AtMixed && visible > 0 {
-                return (f64::from(visible) / f64::from(counted), counted);
+                return (fraction(visible, counted, w_visible, w_all), counted);
             }
         } else {
             visible += 1;
+            w_visible += w;
             match stop {
                 Stop::AtVisible => return (1.0, counted),
                 Stop::AtMixed if visible < counted => {
-                    return (f64::from(visible) / f64::from(counted), counted);
+                    return (fraction(visible, counted, w_visible, w_all), counted);
                 }
                 _ => {}
             }
@@ -326,7 +347,7 @@ pub fn visibility_sample(
         // (which clips exactly) decides, so do not also attenuate.
         return (1.0, 0);
     }
-    (f64::from(visible) / f64::from(counted), counted)
+    (fraction(visible, counted, w_visible, w_all), counted)
 }
 
 #[cfg(test)]

@@ -419,6 +419,38 @@ fn hierarchical_quality_against_the_exact_answer() {
     }
 }
 
+/// The error oracle converges: on both single-bounce scenes, whose answer is exact (no reference
+/// noise), each halving of its threshold lowers the pointwise error, element averages too.
+#[test]
+fn the_error_oracle_converges_as_its_threshold_halves() {
+    use radlab::solver::params::Oracle;
+    for name in ["builtin:shadow-wide", "builtin:shadow-narrow"] {
+        let scene = Arc::new(Scene::load(name).unwrap());
+        let sb = SingleBounce::new(&scene).unwrap();
+        let mut last: Option<Score> = None;
+        for eps in [0.4, 0.2, 0.1, 0.05] {
+            let p =
+                HierarchicalParams { oracle: Oracle::Error, bf_eps: eps, ..HierarchicalParams::quality() };
+            let mut solver = HierarchicalSolver::new(Arc::clone(&scene), p).unwrap();
+            solver.solve(&mut |_, _| {});
+            let sol = solver.solution_with(false);
+            let s = score(&scene, &sb, &sol);
+            println!(
+                "{name} error oracle ε {eps}: {} receiver leaves, {} links, pointwise {:.3} %, penumbra {:.3} %, element averages {:.3} %",
+                s.elements,
+                sol.stats.links,
+                100.0 * s.point_l2,
+                100.0 * s.penumbra_l2,
+                100.0 * s.element_l2
+            );
+            if let Some(prev) = &last {
+                assert!(s.point_l2 < prev.point_l2, "{name} ε {eps}: pointwise {s:?} after {prev:?}");
+            }
+            last = Some(s);
+        }
+    }
+}
+
 /// `radlab reference --point-file` on a single-bounce scene agrees with the exact answer (the Monte
 /// Carlo reference checked against closed form, penumbra points included), and bad input gives
 /// one-line errors.

@@ -372,10 +372,20 @@ impl HierarchicalSolver {
         let wants_recv = |x: u32, c: f64| field.err[x as usize] > eps && c >= field.cause[x as usize];
         // Split lo when its answer is wrong because of this link, or when hi's answer is wrong
         // because lo's radiosity varies across lo.
+        // A partially visible link's V is the plain average over point pairs, where the transfer
+        // wants it weighted by the kernel: where the kernel varies across the source, that
+        // average is off by up to 2 min(V, 1 − V) of the link's transfer (a large lamp over a
+        // penumbra), and only splitting the source resolves it.
+        let vw = 2.0 * v.min(1.0 - v);
+        let weighted = |recv: &Element, src: &Element, var_src: f64| {
+            recv.reflectance.max_channel() * galerkin(recv, link) * src.radiosity.max_channel() * vw * var_src
+        };
         let split_lo = wants_recv(lo, c_lo)
-            || ehi.reflectance.max_channel() * f_hi * v * field.spread[lo as usize] * var_lo > eps;
+            || ehi.reflectance.max_channel() * f_hi * v * field.spread[lo as usize] * var_lo > eps
+            || weighted(ehi, elo, var_lo) > eps;
         let split_hi = wants_recv(hi, c_hi)
-            || elo.reflectance.max_channel() * f_lo * v * field.spread[hi as usize] * var_hi > eps;
+            || elo.reflectance.max_channel() * f_lo * v * field.spread[hi as usize] * var_hi > eps
+            || weighted(elo, ehi, var_hi) > eps;
         let (first, second) = match (split_lo, split_hi) {
             (false, false) => return Err(StopReason::BelowErrorEps),
             (true, false) => (lo, None),
