@@ -30,6 +30,7 @@
 //! - [`exact`]: exact single-bounce radiosity (one emitter, black occluders, one receiver):
 //!   a closed-form ruler with no reference noise.
 //! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
+//! - [`penumbra`]: the penumbra band of a point set (points that see part of the direct light).
 //! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
 //! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
@@ -50,6 +51,7 @@ pub mod math;
 pub mod mesh;
 pub mod metrics;
 pub mod overlay;
+pub mod penumbra;
 pub mod pointwise;
 pub mod reference;
 pub mod scene;

@@ -174,6 +174,44 @@ fn element_averages(
     compare_regions(scene, &regions, &values, &averages, solution.energy.relative_residual())
 }
 
+/// [`compare_points`] over the points where `band` is true (e.g. the penumbra band,
+/// [`crate::penumbra::band`]); the norms are relative to the band's own RMS reflected radiosity.
+/// `None` when the band is empty.
+pub fn compare_points_in(
+    scene: &Scene,
+    points: &[RefPoint],
+    values: &[Rgb],
+    reference: &[Estimate],
+    band: &[bool],
+    energy_residual: f64,
+) -> Result<Option<BandScore>, MetricsError> {
+    if band.len() != points.len() || values.len() != points.len() {
+        return Err(MetricsError::LengthMismatch {
+            solution: band.len().min(values.len()),
+            reference: points.len(),
+        });
+    }
+    let keep: Vec<usize> = (0..points.len()).filter(|&k| band[k]).collect();
+    if keep.is_empty() {
+        return Ok(None);
+    }
+    let pts: Vec<RefPoint> = keep.iter().map(|&k| points[k]).collect();
+    let vals: Vec<Rgb> = keep.iter().map(|&k| values[k]).collect();
+    let refs: Vec<Estimate> = keep.iter().map(|&k| reference[k]).collect();
+    let area = pts.iter().map(|p| p.area).sum();
+    let report = compare_points(scene, &pts, &vals, &refs, energy_residual)?;
+    Ok(Some(BandScore { points: keep.len(), area, report }))
+}
+
+/// The pointwise error over a band of points ([`compare_points_in`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct BandScore {
+    /// Points in the band, and the area they stand for.
+    pub points: usize,
+    pub area: f64,
+    pub report: ErrorReport,
+}
+
 /// Both figures of one solution against a pointwise reference.
 #[derive(Clone, Debug, Serialize)]
 pub struct PointwiseScore {
@@ -183,6 +221,9 @@ pub struct PointwiseScore {
     pub pointwise: ErrorReport,
     /// The error of the element values against the reference's averages over the elements.
     pub element_average: ErrorReport,
+    /// The pointwise error over the penumbra band, when a band was given and is not empty.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub penumbra: Option<BandScore>,
 }
 
 /// [`compare_solution_points`] and [`compare_element_averages`] together.
@@ -192,6 +233,18 @@ pub fn score_solution(
     points: &[RefPoint],
     reference: &[Estimate],
 ) -> Result<PointwiseScore, MetricsError> {
+    score_solution_in_band(scene, solution, points, reference, None)
+}
+
+/// [`score_solution`], and the pointwise error over `band` (one flag per point, e.g.
+/// [`crate::penumbra::band`]) as well when it is given.
+pub fn score_solution_in_band(
+    scene: &Scene,
+    solution: &Solution,
+    points: &[RefPoint],
+    reference: &[Estimate],
+    band: Option<&[bool]>,
+) -> Result<PointwiseScore, MetricsError> {
     if points.len() != reference.len() {
         return Err(MetricsError::LengthMismatch { solution: points.len(), reference: reference.len() });
     }
@@ -200,10 +253,15 @@ pub fn score_solution(
     let owner = pc.owners(points);
     let values: Vec<Rgb> = points.iter().zip(&owner).map(|(p, o)| pc.value_of(p.patch, *o)).collect();
     let residual = solution.energy.relative_residual();
+    let penumbra = match band {
+        Some(b) => compare_points_in(scene, points, &values, reference, b, residual)?,
+        None => None,
+    };
     Ok(PointwiseScore {
         points: points.len(),
         pointwise: compare_points(scene, points, &values, reference, residual)?,
         element_average: element_averages(scene, solution, points, reference, &owner)?,
+        penumbra,
     })
 }
 

@@ -5,12 +5,10 @@
 
 use super::solve::load_scene;
 use anyhow::Context as _;
-use radlab::accel::Accel;
 use radlab::mesh::cdt::CdtParams;
 use radlab::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, discontinuity_scene};
-use radlab::solver::uniform::{self, COARSE_FF_TOLERANCE, UniformParams};
+use radlab::solver::discontinuity::{self, DiscontinuityParams};
 use serde_json::json;
-use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -79,32 +77,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_patches: args.max_patches,
         ..base
     };
-    let meshed = discontinuity_scene(&scene, &params).with_context(|| format!("meshing {}", args.scene))?;
     let stdout_json = args.json.as_deref() == Some("-");
-    if !stdout_json {
-        print(&args.scene, args.kind, &meshed.stats);
-    }
-    let mut solve = serde_json::Value::Null;
-    if args.solve {
-        let t = Instant::now();
-        let accel = Accel::build(&meshed.scene);
-        let up = UniformParams {
-            element_size: f64::INFINITY,
-            ff_tolerance: COARSE_FF_TOLERANCE,
-            max_elements: args.max_patches,
-            ..UniformParams::default()
-        };
-        let sol = uniform::solve(&meshed.scene, &accel, &up, &mut |_, _| {}).map_err(anyhow::Error::msg)?;
-        let secs = t.elapsed().as_secs_f64();
+    let (stats, solve) = if args.solve {
+        let d = discontinuity::solve(&scene, &DiscontinuityParams::with_mesh(params), &mut |_, _| {})
+            .with_context(|| format!("solving {} on its discontinuity mesh", args.scene))?;
+        let s = &d.solution.stats;
         if !stdout_json {
-            println!(
-                "  solve      {:.3} s (uniform, {} elements, {} links)",
-                secs, sol.stats.elements, sol.stats.links
-            );
+            print(&args.scene, args.kind, &d.mesh);
+            println!("  solve      {:.3} s (uniform, {} elements, {} links)", d.solve_s, s.elements, s.links);
         }
-        solve = json!({ "method": "uniform", "elements": sol.stats.elements, "links": sol.stats.links, "time_s": secs });
-    }
-    let doc = json!({ "scene": args.scene, "params": params, "stats": meshed.stats, "solve": solve });
+        let solve =
+            json!({ "method": "uniform", "elements": s.elements, "links": s.links, "time_s": d.solve_s });
+        (d.mesh, solve)
+    } else {
+        let meshed =
+            discontinuity_scene(&scene, &params).with_context(|| format!("meshing {}", args.scene))?;
+        if !stdout_json {
+            print(&args.scene, args.kind, &meshed.stats);
+        }
+        (meshed.stats, serde_json::Value::Null)
+    };
+    let doc = json!({ "scene": args.scene, "params": params, "stats": stats, "solve": solve });
     match args.json.as_deref() {
         Some("-") => println!("{}", serde_json::to_string_pretty(&doc)?),
         Some(path) => std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")

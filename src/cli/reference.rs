@@ -42,10 +42,24 @@ pub struct Args {
     /// Cache folder (default: $RADLAB_CACHE, else .radlab-cache/ in the current directory).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
-    /// Also solve the scene with this method (`hierarchical`, `uniform`, `progressive`) and print
-    /// its error against the reference per patch and for the scene.
+    /// Also solve the scene with this method (`hierarchical`, `uniform`, `progressive`, or
+    /// `dmesh-cdt` / `dmesh-bsp`: the uniform solver at p = 0 on a discontinuity mesh, one element
+    /// per piece) and print its error against the reference per patch, for the scene and, with
+    /// the pointwise ruler, over the penumbra band ([`radlab::penumbra`]).
     #[arg(long)]
     pub compare: Option<String>,
+    /// Smallest angle of the CDT refinement of --compare dmesh-cdt, degrees (0: unrefined).
+    #[arg(long, default_value_t = radlab::mesh::cdt::CdtParams::quality().min_angle_deg)]
+    pub dmesh_min_angle: f64,
+    /// Largest triangle of --compare dmesh-cdt, as a fraction of its receiver's area.
+    #[arg(long, default_value_t = f64::INFINITY)]
+    pub dmesh_max_area: f64,
+    /// Pointwise ruler on a single-bounce scene (`builtin:shadow-wide`, `builtin:shadow-narrow`,
+    /// [`radlab::exact`]): score against the closed-form answer at the reference's points (no
+    /// noise) instead of their Monte Carlo estimates; the points are still placed by the cached
+    /// reference (use a small --samples to place them quickly).
+    #[arg(long)]
+    pub exact: bool,
     /// Hierarchical preset for --compare (interactive, quality, lecture, splash2).
     #[arg(long, default_value = "interactive")]
     pub preset: String,
@@ -213,6 +227,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.ruler == "points" {
         return run_points(&args);
     }
+    anyhow::ensure!(!args.exact, "--exact needs the points ruler");
     let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
     let size = args.element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
     let mesh = reference_mesh(&scene, size)?;
@@ -325,7 +340,42 @@ fn solve(
             };
             progressive::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?
         }
-        other => anyhow::bail!("--compare {other}: expected hierarchical, uniform or progressive"),
+        "dmesh-cdt" | "dmesh-bsp" => {
+            use radlab::mesh::cdt::CdtParams;
+            use radlab::solver::discontinuity::{self, DiscontinuityParams};
+            let base =
+                if method == "dmesh-cdt" { DiscontinuityParams::cdt() } else { DiscontinuityParams::bsp() };
+            let mut p = DiscontinuityParams {
+                mesh: radlab::mesh::remesh::RemeshParams {
+                    cdt: CdtParams {
+                        min_angle_deg: args.dmesh_min_angle,
+                        max_area: args.dmesh_max_area,
+                        ..base.mesh.cdt
+                    },
+                    ..base.mesh
+                },
+                ..base
+            };
+            p.solve.rays = args.solve_rays.unwrap_or(p.solve.rays);
+            p.solve.seed = args.solve_seed.unwrap_or(p.solve.seed);
+            let d = discontinuity::solve(scene, &p, &mut |_, _| {})?;
+            let m = &d.mesh;
+            writeln!(
+                log,
+                "\n{method}: {} segments, {} constraints on {} receivers, {} → {} patches; meshing {:.4} s, solve {:.3} s",
+                m.segments.total(),
+                m.constraints,
+                m.receivers_meshed,
+                m.input_patches,
+                m.output_patches,
+                m.total_s,
+                d.solve_s
+            )?;
+            d.solution
+        }
+        other => anyhow::bail!(
+            "--compare {other}: expected hierarchical, uniform, progressive, dmesh-cdt or dmesh-bsp"
+        ),
     };
     let secs = t0.elapsed().as_secs_f64();
     writeln!(log, "\n{method}: {} elements, {} links, {secs:.3} s", sol.elements.len(), sol.stats.links)?;
@@ -437,7 +487,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         thousands(params.points as usize),
         params.paths.samples
     )?;
-    let (entry, status) = cache.get_or_compute_points(&scene, &accel, &params, &Control::default())?;
+    let (mut entry, status) = cache.get_or_compute_points(&scene, &accel, &params, &Control::default())?;
     let file = match &status {
         CacheStatus::Hit(f) => {
             writeln!(log, "cache: read {}", f.display())?;
@@ -453,6 +503,17 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         }
     };
     let points = &entry.set.points;
+    if args.exact {
+        let sb = radlab::exact::SingleBounce::new(&scene).context("--exact")?;
+        entry.estimates = points
+            .iter()
+            .map(|p| Estimate { radiosity: sb.patch_radiosity_at(p.patch, p.position), std_error: Rgb::ZERO })
+            .collect();
+        writeln!(
+            log,
+            "--exact: the reference values are the closed-form single-bounce answer at the points"
+        )?;
+    }
     let regions = entry.set.weights();
     let values: Vec<Rgb> = entry.estimates.iter().map(|e| e.radiosity).collect();
     let quality = radlab::metrics::compare_regions(&scene, &regions, &values, &entry.estimates, 0.0)?;
@@ -470,9 +531,27 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     let patches = patch_summaries(&scene, cells, "points", &mut log)?;
     if let Some(method) = &args.compare {
         let sol = solve(args, method, &scene, &accel, &mut log)?;
-        let score = radlab::pointwise::score_solution(&scene, &sol, points, &entry.estimates)?;
+        let band_params = radlab::penumbra::BandParams::standard();
+        let band = radlab::penumbra::band(&scene, &accel, points, &entry.estimates, &band_params);
+        let score =
+            radlab::pointwise::score_solution_in_band(&scene, &sol, points, &entry.estimates, Some(&band))?;
         writeln!(log, "{}:", radlab::pointwise::label(&score.pointwise, points.len()))?;
         print_report(&score.pointwise, true, &mut log)?;
+        match &score.penumbra {
+            Some(b) => {
+                let total: f64 = points.iter().map(|p| p.area).sum();
+                writeln!(
+                    log,
+                    "penumbra band ({} points, {:.2} % of the area; lit strictly between {} and {} % of the unoccluded direct light):",
+                    thousands(b.points),
+                    100.0 * b.area / total,
+                    100.0 * band_params.lo,
+                    100.0 * band_params.hi
+                )?;
+                print_report(&b.report, false, &mut log)?;
+            }
+            None => writeln!(log, "penumbra band: no point of the reference is in a penumbra")?,
+        }
         writeln!(
             log,
             "element-average error (element values against the reference averaged over each element's points, {} elements):",

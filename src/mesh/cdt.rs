@@ -229,7 +229,7 @@ pub fn triangulate(
     let mut refinement_complete = true;
     if params.min_angle_deg > 0.0 || params.max_area.is_finite() {
         let mut rp = RefinementParameters::<f64>::new()
-            .exclude_outer_faces(true)
+            .exclude_outer_faces(false)
             .with_angle_limit(AngleLimit::from_deg(params.min_angle_deg))
             .with_max_additional_vertices(params.max_steiner_points);
         if params.max_area.is_finite() {
@@ -319,5 +319,22 @@ mod tests {
             assert!((total_area(&m) - 1.0).abs() < 1e-9, "area {}", total_area(&m));
             assert!(m.triangles.iter().all(|t| polygon_area(&t.vertices) > 0.0));
         }
+    }
+
+    /// A constraint that does not close a loop (a shadow edge ending inside the receiver) must not
+    /// stop refinement around it: spade's `exclude_outer_faces` peels faces by the parity of the
+    /// constraints crossed and skipped every face here (6 triangles for any max-area before).
+    #[test]
+    fn max_area_refines_around_a_dangling_constraint() {
+        let plane = square_plane();
+        let v = |x, z| DVec3::new(x, 0.0, z);
+        let segs = [[v(0.2, 0.2), v(0.8, 0.7)]];
+        let coarse = triangulate(&plane, &segs, &CdtParams::quality()).unwrap();
+        let fine = triangulate(&plane, &segs, &CdtParams { max_area: 0.01, ..CdtParams::quality() }).unwrap();
+        assert!(fine.refinement_complete);
+        assert!(fine.triangles.len() >= 100, "{} triangles", fine.triangles.len());
+        assert!(fine.triangles.iter().all(|t| polygon_area(&t.vertices) <= 0.01 + 1e-12));
+        assert!(fine.triangles.len() > coarse.triangles.len());
+        assert!((total_area(&fine) - 1.0).abs() < 1e-12);
     }
 }

@@ -8,11 +8,14 @@
 //!   (quadrature + visibility, reciprocity), Gauss–Seidel.
 //! - [`progressive`]: Southwell shooting of unshot power [Cohen et al. 1988], ambient term for display.
 //! - [`hierarchical`]: HSA91 — quadtree, Refine (Feps/Aeps or BF oracle), Gather, push-pull.
+//! - [`discontinuity`]: the uniform solver at p = 0 on a discontinuity mesh ([`crate::mesh`]),
+//!   reported on the input scene's patches.
 //!
 //! Every solver returns a [`Solution`]: leaf elements with geometry and radiosity, per-patch
 //! area-weighted radiosity, the energy balance and statistics. The CLI's JSON, the PNG renderer,
 //! the error metrics and the viewer read only this type.
 
+pub mod discontinuity;
 pub mod hierarchical;
 /// The hierarchical solver's own error estimate (kept at its old path).
 pub use hierarchical::estimate;

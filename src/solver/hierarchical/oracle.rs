@@ -41,8 +41,8 @@
 //! estimates of Lischinski, Smits & Greenberg 1994, §5: compare two rules of different order.]
 //!
 //! A link r ← q is split on the receiver's side when r's answer is wrong (e_r > ε) and the link
-//! is one of its causes: its own variation across r, c_rq = ρ_r V B_q (max_k |F(x_k → q) − mean|
-//! + |F_rq − mean|) (+ its visibility term), is among the largest of r's own links, taken largest first until
+//! is one of its causes: its own variation across r, c_rq = ρ_r V B_q (max_k |F(x_k → q) − mean| +
+//! |F_rq − mean|) (+ its visibility term), is among the largest of r's own links, taken largest first until
 //! the rest add up to at most ε/4 (so the rest cannot make r wrong again on their own, and a
 //! receiver with thousands of small links does not split them all: with the earlier rule,
 //! c_rq ≥ e_r / (1 + n_r), table-room at ε = 0.025 made 214 664 links, now 156 600 at ε/2 and

@@ -1,0 +1,150 @@
+//! The p = 0 Galerkin solve on a discontinuity mesh, reported on the **input** scene.
+//!
+//! [`crate::mesh::remesh::discontinuity_scene`] replaces every receiver with critical segments by
+//! its mesh pieces (Heckbert's CDT or Campbell & Fussell's BSP), each a patch; the uniform solver
+//! with one element per patch then solves
+//!
+//! ```text
+//! B_i = E_i + ρ_i Σ_j F_ij V_ij B_j          over the pieces i, j   [Heckbert 1992, §3]
+//! ```
+//!
+//! and [`pull_back`] hands every solved element back to the input patch it was cut from (the
+//! remeshed scene's `origin`), so the solution is a [`Solution`] **of the input scene**: its
+//! elements are the pieces, its patch indices the input's. Anything that scores a solution of the
+//! input scene — the pointwise ruler ([`crate::pointwise`]) at points placed on the input
+//! patches, images, the element-average comparison — then reads it like any other method's:
+//!
+//! ```text
+//! input scene ──remesh──▶ pieces (patch q, origin[q] = p) ──uniform, p = 0──▶ B_q
+//!      ▲                                                                       │
+//!      └─────────────── element (patch p, piece q's polygon, B_q) ◀── pull_back ┘
+//! ```
+
+use super::uniform::{self, COARSE_FF_TOLERANCE, UniformParams};
+use super::{Progress, Solution};
+use crate::accel::Accel;
+use crate::mesh::MeshError;
+use crate::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, discontinuity_scene};
+use crate::scene::Scene;
+use std::time::Instant;
+
+/// Settings of [`solve`]: the mesh, and the uniform solve on it (`element_size` is forced to ∞,
+/// one element per piece).
+#[derive(Copy, Clone, Debug, PartialEq, serde::Serialize)]
+pub struct DiscontinuityParams {
+    pub mesh: RemeshParams,
+    /// Rays, tolerances, seed and element cap of the uniform solve.
+    pub solve: UniformParams,
+}
+
+impl DiscontinuityParams {
+    /// The uniform solve's settings used by `radlab mesh --solve` and `reference --compare
+    /// dmesh-*`: 16 rays per pair, form factors to [`COARSE_FF_TOLERANCE`].
+    #[must_use]
+    pub fn with_mesh(mesh: RemeshParams) -> DiscontinuityParams {
+        DiscontinuityParams {
+            mesh,
+            solve: UniformParams {
+                element_size: f64::INFINITY,
+                ff_tolerance: COARSE_FF_TOLERANCE,
+                max_elements: mesh.max_patches,
+                ..UniformParams::default()
+            },
+        }
+    }
+
+    /// Heckbert's constrained Delaunay mesh ([`RemeshParams::cdt`]).
+    #[must_use]
+    pub fn cdt() -> DiscontinuityParams {
+        Self::with_mesh(RemeshParams::cdt())
+    }
+
+    /// Campbell & Fussell's BSP mesh ([`RemeshParams::bsp`]).
+    #[must_use]
+    pub fn bsp() -> DiscontinuityParams {
+        Self::with_mesh(RemeshParams::bsp())
+    }
+}
+
+/// Why [`solve`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum DiscontinuityError {
+    #[error("discontinuity mesh: {0}")]
+    Mesh(#[from] MeshError),
+    #[error("solve on the discontinuity mesh: {0}")]
+    Solve(String),
+}
+
+/// A solve on a discontinuity mesh: the solution on the input scene, the mesh's statistics and
+/// the two times (meshing is in `mesh.total_s`).
+#[derive(Clone, Debug)]
+pub struct DiscontinuitySolution {
+    /// Elements on the input scene's patches ([`pull_back`]).
+    pub solution: Solution,
+    pub mesh: RemeshStats,
+    /// Wall time of the solve on the mesh (BVH build included), seconds.
+    pub solve_s: f64,
+}
+
+/// Remesh `scene` and solve on the pieces (module docs).
+pub fn solve(
+    scene: &Scene,
+    params: &DiscontinuityParams,
+    progress: Progress,
+) -> Result<DiscontinuitySolution, DiscontinuityError> {
+    let meshed = discontinuity_scene(scene, &params.mesh)?;
+    let t = Instant::now();
+    let accel = Accel::build(&meshed.scene);
+    let solve = UniformParams { element_size: f64::INFINITY, ..params.solve };
+    let on_mesh =
+        uniform::solve(&meshed.scene, &accel, &solve, progress).map_err(DiscontinuityError::Solve)?;
+    let solve_s = t.elapsed().as_secs_f64();
+    let mut solution = pull_back(on_mesh, &meshed.origin, scene.patches.len());
+    solution.method = match params.mesh.kind {
+        MeshKind::Cdt => "discontinuity-cdt",
+        MeshKind::Bsp => "discontinuity-bsp",
+    }
+    .into();
+    Ok(DiscontinuitySolution { solution, mesh: meshed.stats, solve_s })
+}
+
+/// A solution of a remeshed scene as a solution of its input scene: each element's patch `q`
+/// becomes `origin[q]` (the input patch piece `q` was cut from), and the per-patch averages are
+/// taken over the input's `input_patches` patches. Elements, values, energy and statistics are
+/// kept (`stats.patches` becomes the input's count).
+#[must_use]
+pub fn pull_back(mut solution: Solution, origin: &[usize], input_patches: usize) -> Solution {
+    for e in &mut solution.elements {
+        e.patch = origin[e.patch];
+    }
+    solution.patch_radiosity = Solution::patch_averages(input_patches, &solution.elements);
+    solution.stats.patches = input_patches;
+    solution
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Rgb;
+
+    #[test]
+    fn pull_back_maps_pieces_to_their_input_patch() {
+        let scene = Scene::load("builtin:shadow-narrow").unwrap();
+        let meshed = discontinuity_scene(&scene, &RemeshParams::bsp()).unwrap();
+        assert!(meshed.scene.patches.len() > scene.patches.len());
+        let d = solve(&scene, &DiscontinuityParams::bsp(), &mut |_, _| {}).unwrap();
+        let sol = &d.solution;
+        assert_eq!(sol.method, "discontinuity-bsp");
+        assert_eq!(sol.elements.len(), meshed.scene.patches.len(), "one element per piece");
+        assert_eq!(sol.patch_radiosity.len(), scene.patches.len());
+        // Every input patch is covered by its pieces exactly (area).
+        for (p, patch) in scene.patches.iter().enumerate() {
+            let area: f64 = sol.elements.iter().filter(|e| e.patch == p).map(|e| e.area).sum();
+            assert!((area - patch.area).abs() < 1e-9 * patch.area, "patch {p}: {area} vs {}", patch.area);
+        }
+        // The emitter keeps its emission; the lit receiver is positive.
+        let emitter = scene.patches.iter().position(|p| p.emission != Rgb::ZERO).unwrap();
+        assert!(sol.patch_radiosity[emitter].g() >= scene.patches[emitter].emission.g());
+        assert!(sol.is_physical());
+    }
+}

@@ -1,0 +1,113 @@
+//! A solve on a discontinuity mesh scored with the pointwise ruler of the **input** scene (issue
+//! 16 §2/§4): the reference points lie on the input patches, the D-mesh solution is pulled back
+//! to them ([`radlab::solver::discontinuity::pull_back`]), and on the exact single-bounce scenes
+//! its pointwise error — over the scene and over the penumbra band ([`radlab::penumbra`]) — is
+//! compared with a uniform solve of at least as many elements.
+//!
+//! Run with `--nocapture` to see the figures.
+
+use radlab::accel::Accel;
+use radlab::exact::SingleBounce;
+use radlab::math::Rgb;
+use radlab::penumbra::{BandParams, band};
+use radlab::pointwise::{PointwiseScore, score_solution_in_band};
+use radlab::reference::{Control, Estimate, PointParams, PointSet, reference_points};
+use radlab::scene::Scene;
+use radlab::solver::Solution;
+use radlab::solver::discontinuity::{self, DiscontinuityParams};
+use radlab::solver::uniform::{self, COARSE_FF_TOLERANCE, UniformParams};
+
+/// The quick point layout (4 096 points placed by a 64-path reference, refined at the shadow
+/// edges), valued by the closed form: a ruler without noise.
+fn exact_points(scene: &Scene, accel: &Accel) -> (PointSet, Vec<Estimate>) {
+    let sb = SingleBounce::new(scene).unwrap();
+    let (set, _) = reference_points(scene, accel, &PointParams::quick(), &Control::default()).unwrap();
+    let exact = set
+        .points
+        .iter()
+        .map(|p| Estimate { radiosity: sb.patch_radiosity_at(p.patch, p.position), std_error: Rgb::ZERO })
+        .collect();
+    (set, exact)
+}
+
+fn score(scene: &Scene, sol: &Solution, set: &PointSet, exact: &[Estimate], band: &[bool]) -> (f64, f64) {
+    let s: PointwiseScore = score_solution_in_band(scene, sol, &set.points, exact, Some(band)).unwrap();
+    (s.pointwise.scene.l2_debiased, s.penumbra.expect("a penumbra band").report.scene.l2_debiased)
+}
+
+/// The uniform solve with the fewest elements that is at least `count` (element sizes tried
+/// from coarse to fine, 5 % apart).
+fn uniform_at_least(scene: &Scene, accel: &Accel, count: usize) -> Solution {
+    let mut size = scene.bounds().diagonal();
+    loop {
+        let n: f64 = scene.patches.iter().map(|p| uniform::element_count(p, size)).sum();
+        if n >= count as f64 {
+            let p = UniformParams {
+                element_size: size,
+                ff_tolerance: COARSE_FF_TOLERANCE,
+                ..UniformParams::default()
+            };
+            return uniform::solve(scene, accel, &p, &mut |_, _| {}).unwrap();
+        }
+        size *= 0.95;
+    }
+}
+
+/// Measured (release, 4 096 exact points, 16 rays per pair as the CLI; the test prints them):
+///
+/// | scene | method | elements | pointwise rel L2 | penumbra band rel L2 |
+/// |---|---|---|---|---|
+/// | shadow-narrow | dmesh-cdt | 428 | 7.1 % | 44.6 % |
+/// | shadow-narrow | uniform | 440 | 13.3 % | 51.9 % |
+/// | shadow-narrow | dmesh-bsp | 17 | 15.3 % | 47.1 % |
+/// | shadow-narrow | uniform | 18 | 29.1 % | 50.0 % |
+/// | shadow-wide | dmesh-cdt | 160 | 24.0 % | 24.4 % |
+/// | shadow-wide | uniform | 202 | 14.5 % | 14.6 % |
+/// | shadow-wide | dmesh-bsp | 42 | 33.8 % | 33.8 % |
+/// | shadow-wide | uniform | 42 | 30.7 % | 29.6 % |
+///
+/// On shadow-narrow the D-mesh halves the uniform mesh's error at equal element count; its
+/// penumbra stays at ~44 %: the strips (~0.03 wide) are single elements across, and a constant
+/// cannot follow the ramp from umbra to lit inside one (a linear ramp's best constant is off by
+/// half its RMS, ~50 %); that needs elements inside the strip or p = 1.
+///
+/// On shadow-wide the D-mesh **loses** (not asserted): only the receivers are remeshed, so the
+/// 1 × 1 lamp stays one source element, and the uniform solver's unweighted visibility V_ij
+/// (src/solver/uniform.rs) across so large a source is biased in the unit-wide penumbrae — the
+/// D-mesh's element-average error is 17.5 % at 16 rays and still 10 % at 1 024, where the uniform
+/// mesh (lamp in 25 elements) has 2.4 %. Meshing the sources as well is left to do.
+#[test]
+fn discontinuity_mesh_beats_uniform_on_a_narrow_penumbra() {
+    for name in ["builtin:shadow-narrow", "builtin:shadow-wide"] {
+        let scene = Scene::load(name).unwrap();
+        let accel = Accel::build(&scene);
+        let (set, exact) = exact_points(&scene, &accel);
+        let in_band = band(&scene, &accel, &set.points, &exact, &BandParams::standard());
+        for params in [DiscontinuityParams::cdt(), DiscontinuityParams::bsp()] {
+            let d = discontinuity::solve(&scene, &params, &mut |_, _| {}).unwrap();
+            let n = d.solution.elements.len();
+            let uni = uniform_at_least(&scene, &accel, n);
+            let (dm, dm_band) = score(&scene, &d.solution, &set, &exact, &in_band);
+            let (un, un_band) = score(&scene, &uni, &set, &exact, &in_band);
+            println!(
+                "{name} {}: {n} elements, pointwise {:.1} %, penumbra {:.1} % | uniform {} elements: {:.1} %, penumbra {:.1} %",
+                d.solution.method,
+                100.0 * dm,
+                100.0 * dm_band,
+                uni.elements.len(),
+                100.0 * un,
+                100.0 * un_band
+            );
+            assert!(uni.elements.len() >= n);
+            if name.ends_with("wide") {
+                continue; // see above: the unmeshed lamp's visibility bias, measured only
+            }
+            assert!(dm < un, "{name} {}: {dm} vs uniform {un}", d.solution.method);
+            assert!(
+                dm_band < un_band,
+                "{name} {}: penumbra {dm_band} vs uniform {un_band}",
+                d.solution.method
+            );
+        }
+    }
+}
