@@ -25,6 +25,7 @@
 //! - [`solver`]: parameters, uniform / progressive / hierarchical solvers, statistics.
 //! - [`reference`](mod@reference): an independent Monte Carlo estimator that shares no kernel with `solver`.
 //! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
+//! - [`figures`]: the lecture's figures as presets (scene, settings, overlays, camera, caption).
 //! - [`exact`]: exact single-bounce radiosity (one emitter, black occluders, one receiver):
 //!   a closed-form ruler with no reference noise.
 //! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
@@ -39,6 +40,7 @@ pub mod accel;
 pub mod bake;
 pub mod bench;
 pub mod exact;
+pub mod figures;
 pub mod form_factor;
 pub mod hard_cases;
 pub mod hierarchy;

@@ -1,4 +1,4 @@
-//! `radlab` — the command line: `view` (default), `solve`, `form-factor`, `scenes`, `reference`, `bench`.
+//! `radlab` — the command line: `view` (default), `solve`, `form-factor`, `scenes`, `figures`, `reference`, `bench`.
 
 mod cli;
 

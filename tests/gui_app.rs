@@ -595,3 +595,114 @@ fn load_errors_are_shown_not_fatal() {
     h.run_steps(2);
     assert_eq!(h.state().errors().len(), 2);
 }
+
+/// Every lecture figure opens from the Lecture menu, by its slide title: its scene is loaded,
+/// its settings and overlays are set, and its caption is shown (until hidden).
+#[test]
+fn every_lecture_figure_opens_from_the_lecture_menu() {
+    let mut h = harness(opts());
+    h.run_steps(2);
+    for f in radlab::figures::FIGURES {
+        h.get_by_label("Lecture").click();
+        h.run_steps(2);
+        h.get_by_label(f.slide).click();
+        h.run_steps(2);
+        let app = h.state();
+        assert_eq!(app.scene().map(|s| s.source.as_str()), Some(f.scene), "{}", f.name);
+        assert_eq!(app.params(), f.params, "{}", f.name);
+        let d = app.display;
+        assert_eq!(
+            (d.quadtree, d.links, d.error, d.link_filter.full),
+            (f.overlays.quadtree, f.overlays.links, f.overlays.error, !f.overlays.partial_links_only),
+            "{}",
+            f.name
+        );
+        assert_eq!(app.plots_shown(), f.plots, "{}", f.name);
+        assert_eq!(app.lecture.figure().map(|x| x.name), Some(f.name));
+        assert!(h.query_by_label(f.caption).is_some(), "{}: the caption is shown", f.name);
+        assert!(h.state().errors().is_empty(), "{}: {:?}", f.name, h.state().errors());
+    }
+    // The × hides the caption; C shows it again.
+    let last = radlab::figures::FIGURES.last().unwrap();
+    h.get_by_label("×").click();
+    h.run_steps(2);
+    assert!(h.query_by_label(last.caption).is_none(), "the caption is hidden");
+    h.key_press(egui::Key::C);
+    h.run_steps(2);
+    assert!(h.query_by_label(last.caption).is_some(), "C shows the caption again");
+    // Loading another scene by hand drops the figure's caption.
+    h.state_mut().set_scene(Arc::new(cornell()));
+    h.run_steps(2);
+    assert!(h.query_by_label(last.caption).is_none() && h.state().lecture.figure().is_none());
+    settle(&mut h);
+}
+
+/// A stepped figure runs its step; a figure with a pick shows the picked element's links; the
+/// O(n) figure solves once per threshold (points in the plot).
+#[test]
+fn lecture_figures_run_their_steps_pick_and_sweep() {
+    use radlab::figures::find;
+    let mut h = harness(opts());
+    h.run_steps(2);
+    h.state_mut().open_figure(find("perpendicular-refine").unwrap());
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Refine));
+    assert!(v.leaves.len() > 2 && !v.links.is_empty(), "one Refine step: split and linked");
+    assert!(v.residuals.is_empty(), "nothing gathered yet");
+    check(&mut h, "gui_figure_perpendicular");
+
+    h.state_mut().open_figure(find("recursive-gather").unwrap());
+    settle(&mut h);
+    let sel = h.state().selected.expect("the figure picks an element once solved");
+    assert_eq!(h.state().view().elements[sel as usize].patch, 0, "a floor element (cornell's patch 0)");
+    assert!(h.state().display.selected_links_only);
+
+    let runs = h.state().solve_runs();
+    let f = find("linear-links").unwrap();
+    h.state_mut().open_figure(f);
+    settle(&mut h);
+    assert_eq!(h.state().solve_runs() - runs, f.sweep_bf_eps.len() + 1, "one solve per threshold");
+    assert_eq!(h.state().params(), f.params, "the figure's own settings last");
+    assert!(h.query_by_label("Links against elements, runs in this window (log₁₀)").is_some());
+}
+
+/// The keyboard shortcuts act, and the Help menu and window list them.
+#[test]
+fn keyboard_shortcuts_act_and_help_lists_them() {
+    let mut h = harness(opts());
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    h.key_press(egui::Key::Space);
+    settle(&mut h);
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Refine), "Space refines");
+    h.key_press(egui::Key::G);
+    settle(&mut h);
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Gather), "G gathers");
+    h.key_press(egui::Key::S);
+    settle(&mut h);
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Solve), "S solves");
+    type Flag = fn(&RadlabApp) -> bool;
+    let overlays: [(egui::Key, Flag); 2] =
+        [(egui::Key::Q, |a| a.display.quadtree), (egui::Key::L, |a| a.display.links)];
+    for (key, on) in overlays {
+        assert!(!on(h.state()));
+        h.key_press(key);
+        h.run_steps(1);
+        assert!(on(h.state()), "{key:?} toggles its overlay");
+    }
+    let shown = |h: &Harness<'static, RadlabApp>| -> Vec<usize> {
+        radlab::viewer::help::SHORTCUTS.iter().map(|(_, what)| h.query_all_by_label(what).count()).collect()
+    };
+    let before = shown(&h);
+    h.get_by_label("Help").click();
+    h.run_steps(2);
+    for ((b, a), (_, what)) in before.iter().zip(shown(&h)).zip(radlab::viewer::help::SHORTCUTS) {
+        assert_eq!(a, b + 1, "the Help menu lists {what:?}");
+    }
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    h.key_press(egui::Key::F1);
+    h.run_steps(2);
+    assert!(h.query_by_label("Keyboard shortcuts").is_some(), "F1 opens the Help window");
+}

@@ -6,6 +6,8 @@
 //! - [`builder`]: the `radlab-display` thread that builds GPU vertex arrays off the UI thread.
 //! - [`camera`]: orbit / pan / zoom camera.
 //! - [`file_dialog`]: the desktop's file dialog, or an in-app one where none answers.
+//! - [`help`]: keyboard shortcuts, the Help menu and window.
+//! - [`lecture`]: the Lecture menu (the figures of [`crate::figures`]) and the caption panel.
 //! - [`reference`]: the `radlab-reference` thread: cached/computed reference, true error.
 //! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
 //!
@@ -16,6 +18,8 @@ pub mod bench;
 pub mod builder;
 pub mod camera;
 pub mod file_dialog;
+pub mod help;
+pub mod lecture;
 pub mod reference;
 pub mod worker;
 

@@ -1,0 +1,81 @@
+//! The Lecture menu and the caption panel: every figure of [`crate::figures`] one click away,
+//! listed by slide title; the figure shown keeps its caption in a panel under the viewport until
+//! it is hidden (the × button or C) or another scene is opened.
+
+use crate::figures::{FIGURES, Figure};
+use eframe::egui;
+
+/// The figure whose caption is shown.
+#[derive(Clone, Debug, Default)]
+pub struct Lecture {
+    figure: Option<&'static Figure>,
+    caption_open: bool,
+}
+
+impl Lecture {
+    /// Show a figure's caption.
+    pub fn show(&mut self, f: &'static Figure) {
+        self.figure = Some(f);
+        self.caption_open = true;
+    }
+
+    /// Forget the figure (another scene was opened by hand).
+    pub fn clear(&mut self) {
+        self.figure = None;
+        self.caption_open = false;
+    }
+
+    /// Show or hide the caption of the figure opened last.
+    pub fn toggle_caption(&mut self) {
+        self.caption_open = !self.caption_open && self.figure.is_some();
+    }
+
+    /// The figure opened last, if its scene is still shown.
+    #[must_use]
+    pub fn figure(&self) -> Option<&'static Figure> {
+        self.figure
+    }
+
+    /// True while the caption panel is shown.
+    #[must_use]
+    pub fn caption_open(&self) -> bool {
+        self.caption_open && self.figure.is_some()
+    }
+
+    /// The Lecture menu: the figures by slide title; returns the one chosen.
+    pub fn menu(ui: &mut egui::Ui) -> Option<&'static Figure> {
+        let mut chosen = None;
+        ui.menu_button("Lecture", |ui| {
+            for f in FIGURES {
+                let tip = format!("{} ({}, {}): {}", f.name, f.scene, f.method, f.caption);
+                if ui.button(f.slide).on_hover_text(tip).clicked() {
+                    chosen = Some(f);
+                    ui.close();
+                }
+            }
+        })
+        .response
+        .on_hover_text(
+            "Figures of the radiosity lecture: each opens its scene with the slide's settings, \
+             overlays and camera, and a caption saying what to look at",
+        );
+        chosen
+    }
+
+    /// The caption panel at the bottom of the window (call before the central panel).
+    pub fn caption_panel(&mut self, ui: &mut egui::Ui, frame: egui::Frame) {
+        let Some(f) = self.figure.filter(|_| self.caption_open) else { return };
+        egui::Panel::bottom("caption").frame(frame).resizable(false).show(ui, |ui| {
+            ui.horizontal(|ui| {
+                ui.heading(f.slide);
+                ui.weak(format!("figure {} · {} · {}", f.name, f.scene, f.method));
+                ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+                    if ui.button("×").on_hover_text("Hide the caption (C shows it again)").clicked() {
+                        self.caption_open = false;
+                    }
+                });
+            });
+            ui.label(f.caption);
+        });
+    }
+}
