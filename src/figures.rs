@@ -298,6 +298,22 @@ pub const FIGURES: &[Figure] = &[
         )
     },
     Figure {
+        method: "hierarchical, BF oracle",
+        overlays: Overlays { quadtree: true, ..Overlays::NONE },
+        camera: CameraPreset { yaw_deg: 20.0, pitch_deg: -15.0, zoom: 0.5 },
+        caption: "A small lamp high above and an occluder just over the floor: the penumbra is \
+                  only about 0.03 wide, a thin ring around the umbra. The quadtree is deepest \
+                  exactly there, because only the links that straddle the ring are partly visible; \
+                  this scene's answer is known in closed form (tests/exact.rs measures the solvers on it).",
+        ..Figure::base(
+            "narrow-penumbra",
+            "Penumbras and umbras: a narrow penumbra",
+            "builtin:shadow-narrow",
+            "interactive",
+            HierarchicalParams::interactive(),
+        )
+    },
+    Figure {
         method: "hierarchical, Feps oracle with the five-times rule",
         params: HierarchicalParams { five_times: true, feps: 0.005, ..HierarchicalParams::lecture() },
         overlays: Overlays { quadtree: true, ..Overlays::NONE },
@@ -328,6 +344,21 @@ pub const FIGURES: &[Figure] = &[
         ..Figure::base(
             "linear-links",
             "O(n) interactions",
+            "builtin:cornell",
+            "interactive",
+            HierarchicalParams::interactive(),
+        )
+    },
+    Figure {
+        method: "hierarchical, BF oracle, Refine then one Gather",
+        steps: &[StepKind::Refine, StepKind::Gather],
+        caption: "One Refine step and one Gather: every element has collected the light that \
+                  reaches it straight from the lamp, and nothing more. The ceiling is dark and the \
+                  shadows are black, because no light has bounced yet. Press G again to gather the \
+                  next bounce, or S to solve to convergence.",
+        ..Figure::base(
+            "one-gather",
+            "Gather: the first bounce",
             "builtin:cornell",
             "interactive",
             HierarchicalParams::interactive(),
