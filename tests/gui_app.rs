@@ -602,6 +602,11 @@ fn load_errors_are_shown_not_fatal() {
 fn every_lecture_figure_opens_from_the_lecture_menu() {
     let mut h = harness(opts());
     h.run_steps(2);
+    h.get_by_label("Lecture").click();
+    h.run_steps(2);
+    check(&mut h, "gui_lecture_menu");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
     for f in radlab::figures::FIGURES {
         h.get_by_label("Lecture").click();
         h.run_steps(2);

@@ -448,7 +448,6 @@ impl RadlabApp {
         d.link_filter = LinkFilter { full: !o.partial_links_only, ..LinkFilter::default() };
         d.selected_links_only = false;
         self.show_plots = f.plots;
-        self.pending_pick = f.pick;
         f.scene.clone_into(&mut self.spec_edit);
         let solve = std::mem::replace(&mut self.opts.solve_on_start, false);
         self.load_spec(f.scene);
@@ -456,6 +455,7 @@ impl RadlabApp {
         if self.scene.as_ref().is_none_or(|s| s.source != f.scene) {
             return; // the error is shown
         }
+        self.pending_pick = f.pick;
         for &bf_eps in f.sweep_bf_eps {
             self.send(Command::SetParams(HierarchicalParams { bf_eps, ..f.params }), "restarting");
             self.step(StepKind::Solve);
@@ -504,8 +504,11 @@ impl RadlabApp {
 
     /// Show a scene (replaces the current one; the camera is framed on it).
     pub fn set_scene(&mut self, scene: Arc<Scene>) {
-        // A figure's caption belongs to its scene (`open_figure` shows it again).
+        // A figure's caption and pick belong to its scene (`open_figure` sets them again).
         self.lecture.clear();
+        if self.script == Script::None {
+            self.pending_pick = None;
+        }
         // Stop work on the previous scene.
         if let Some(w) = &self.worker {
             w.cancel();
