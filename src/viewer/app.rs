@@ -509,9 +509,9 @@ impl RadlabApp {
         if self.script == Script::None {
             self.pending_pick = None;
         }
-        // Stop work on the previous scene.
+        // Stop work on the previous scene, and drop what was queued for it.
         if let Some(w) = &self.worker {
-            w.cancel();
+            w.cancel_all();
         }
         self.resolve_pending = false;
         self.hold_view = false;
@@ -763,6 +763,7 @@ impl RadlabApp {
                     self.partial_shown += 1;
                 }
             }
+            Reply::Skipped => {}
             Reply::Baked(Ok(what)) => self.status = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => {
