@@ -265,6 +265,8 @@ pub struct RadlabApp {
     /// Pick the element under this viewport point (fractions, y down) once a solve is shown
     /// (`--pick`, a figure's pick).
     pending_pick: Option<[f32; 2]>,
+    /// A Load was sent and its answer has not come yet.
+    loading: bool,
     /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
     last_ui_s: f64,
     /// On-CPU time of the last `ui` call (benchmarks only).
@@ -394,6 +396,7 @@ impl RadlabApp {
             lecture: Lecture::default(),
             show_help: false,
             pending_pick: opts.pick,
+            loading: false,
             exit_code: None,
             last_ui_s: 0.0,
             last_ui_cpu_s: None,
@@ -540,6 +543,7 @@ impl RadlabApp {
         self.scene = Some(Arc::clone(&scene));
         let params = self.params;
         self.send(Command::Load { scene, params }, "loading");
+        self.loading = self.worker.is_some();
         if self.opts.solve_on_start {
             self.send(Command::Step(StepKind::Solve), "solving");
         }
@@ -711,7 +715,10 @@ impl RadlabApp {
 
     fn apply(&mut self, r: Reply) {
         match r {
+            // The previous scene's last answers (its running step, cancelled): not shown.
+            Reply::Done { .. } | Reply::Partial { .. } | Reply::Progress { .. } if self.loading => {}
             Reply::Loaded { view, .. } => {
+                self.loading = false;
                 self.set_view(view);
                 self.progress = None;
                 self.solver_time_s = 0.0;
@@ -767,6 +774,7 @@ impl RadlabApp {
             Reply::Baked(Ok(what)) => self.status = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => {
+                self.loading = false;
                 self.progress = None;
                 self.hold_view = false;
                 if let Some(v) = self.held_view.take() {
