@@ -710,4 +710,5 @@ fn keyboard_shortcuts_act_and_help_lists_them() {
     h.key_press(egui::Key::F1);
     h.run_steps(2);
     assert!(h.query_by_label("Keyboard shortcuts").is_some(), "F1 opens the Help window");
+    check(&mut h, "gui_help_window");
 }
