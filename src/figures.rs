@@ -326,7 +326,8 @@ pub const FIGURES: &[Figure] = &[
                   builtin:parallel --from 0 --to 1 --method disk). With the five-times rule on, \
                   a link's form factor is the disk formula only for pairs at least five diameters \
                   apart, else the exact kernel: here every element has side 1/8, and five \
-                  diameters (0.88) are less than the distance, so every link takes the disk.",
+                  diameters (0.88) are less than the distance, so every link takes the disk. The \
+                  Lecture menu's five-times explorer shows how the error falls with distance.",
         ..Figure::base(
             "five-times",
             "The disk form factor and the five-times rule",

@@ -635,6 +635,16 @@ fn every_lecture_figure_opens_from_the_lecture_menu() {
     h.key_press(egui::Key::C);
     h.run_steps(2);
     assert!(h.query_by_label(last.caption).is_some(), "C shows the caption again");
+    // The five-times explorer, from the same menu.
+    h.get_by_label("Lecture").click();
+    h.run_steps(2);
+    h.get_by_label("Five-times explorer…").click();
+    h.run_steps(4);
+    assert!(h.state().lecture.five_times.open);
+    assert!(h.query_by_label_contains("distance / diameter = 1.41").is_some(), "the explorer's verdict line");
+    assert!(h.query_all_by_label("point source").next().is_some());
+    settle(&mut h);
+    check(&mut h, "gui_five_times");
     // Loading another scene by hand drops the figure's caption.
     h.state_mut().set_scene(Arc::new(cornell()));
     h.run_steps(2);
@@ -710,5 +720,6 @@ fn keyboard_shortcuts_act_and_help_lists_them() {
     h.key_press(egui::Key::F1);
     h.run_steps(2);
     assert!(h.query_by_label("Keyboard shortcuts").is_some(), "F1 opens the Help window");
+    settle(&mut h);
     check(&mut h, "gui_help_window");
 }

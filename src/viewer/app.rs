@@ -1116,7 +1116,7 @@ impl RadlabApp {
 
     fn top_bar(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
-            if let Some(f) = Lecture::menu(ui) {
+            if let Some(f) = self.lecture.menu(ui) {
                 self.open_figure(f);
             }
             help::menu(ui, &mut self.show_help);
@@ -1934,6 +1934,7 @@ impl eframe::App for RadlabApp {
             self.pending_pick = None;
         }
         help::window(&ctx, &mut self.show_help);
+        self.lecture.windows(&ctx);
         if let Some(answer) = self.files.show(&ctx) {
             self.file_answer(answer);
         }

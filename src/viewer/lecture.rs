@@ -1,15 +1,18 @@
 //! The Lecture menu and the caption panel: every figure of [`crate::figures`] one click away,
 //! listed by slide title; the figure shown keeps its caption in a panel under the viewport until
-//! it is hidden (the × button or C) or another scene is opened.
+//! it is hidden (the × button or C) or another scene is opened. The menu also opens the
+//! five-times explorer ([`super::five_times`]).
 
+use super::five_times::FiveTimes;
 use crate::figures::{FIGURES, Figure};
 use eframe::egui;
 
-/// The figure whose caption is shown.
+/// The figure whose caption is shown, and the explorer windows.
 #[derive(Clone, Debug, Default)]
 pub struct Lecture {
     figure: Option<&'static Figure>,
     caption_open: bool,
+    pub five_times: FiveTimes,
 }
 
 impl Lecture {
@@ -42,8 +45,9 @@ impl Lecture {
         self.caption_open && self.figure.is_some()
     }
 
-    /// The Lecture menu: the figures by slide title; returns the one chosen.
-    pub fn menu(ui: &mut egui::Ui) -> Option<&'static Figure> {
+    /// The Lecture menu: the figures by slide title (returns the one chosen), then the
+    /// explorers.
+    pub fn menu(&mut self, ui: &mut egui::Ui) -> Option<&'static Figure> {
         let mut chosen = None;
         ui.menu_button("Lecture", |ui| {
             for f in FIGURES {
@@ -53,6 +57,18 @@ impl Lecture {
                     ui.close();
                 }
             }
+            ui.separator();
+            if ui
+                .button("Five-times explorer…")
+                .on_hover_text(
+                    "A square source over a point receiver: exact, disk and point-source form \
+                     factors as you drag the distance and size",
+                )
+                .clicked()
+            {
+                self.five_times.open = true;
+                ui.close();
+            }
         })
         .response
         .on_hover_text(
@@ -60,6 +76,13 @@ impl Lecture {
              overlays and camera, and a caption saying what to look at",
         );
         chosen
+    }
+
+    /// The explorer windows that are open.
+    pub fn windows(&mut self, ctx: &egui::Context) {
+        if self.five_times.open {
+            self.five_times.window(ctx);
+        }
     }
 
     /// The caption panel at the bottom of the window (call before the central panel).
