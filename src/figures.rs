@@ -81,6 +81,8 @@ pub struct Figure {
     pub pick: Option<[f32; 2]>,
     /// Open the plots panel.
     pub plots: bool,
+    /// Open the blocking form-factor matrix window.
+    pub matrix: bool,
     /// The screenshot shows the whole window (inspector, plots), not only the viewport.
     pub window_shot: bool,
     /// Two to four sentences: what to look at and why.
@@ -109,6 +111,7 @@ impl Figure {
             camera: CameraPreset::HOME,
             pick: None,
             plots: false,
+            matrix: false,
             window_shot: false,
             caption: "",
         }
@@ -332,6 +335,24 @@ pub const FIGURES: &[Figure] = &[
             "five-times",
             "The disk form factor and the five-times rule",
             "builtin:parallel",
+            "lecture",
+            HierarchicalParams::lecture(),
+        )
+    },
+    Figure {
+        method: "hierarchical, form-factor oracle (Feps)",
+        params: HierarchicalParams { feps: 0.05, ..HierarchicalParams::lecture() },
+        matrix: true,
+        window_shot: true,
+        caption: "The two perpendicular squares refined with Feps, and every link drawn as the \
+                  block of the leaf-to-leaf form-factor matrix it stands for (rows receive, columns \
+                  send, leaves in quadtree order). Large blocks are far pairs of large elements \
+                  linked once; the blocks shrink towards the shared edge, where near elements \
+                  must be small. Hover a block to name its link, click it to pick the receiver.",
+        ..Figure::base(
+            "block-matrix",
+            "The blocking form-factor matrix",
+            "builtin:perpendicular",
             "lecture",
             HierarchicalParams::lecture(),
         )

@@ -34,11 +34,13 @@
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
 //! - [`bake`]: a solution as a glTF asset (vertex colours, unlit) that any viewer shows as solved.
 //! - [`overlay`]: CPU-side line/colour lists for quadtree, links and error overlays.
+//! - [`block_matrix`]: links as the blocks of the leaf-to-leaf form-factor matrix they stand for.
 //! - `render`, `viewer` (feature `gui`): wgpu pipelines and the eframe app.
 
 pub mod accel;
 pub mod bake;
 pub mod bench;
+pub mod block_matrix;
 pub mod exact;
 pub mod figures;
 pub mod form_factor;

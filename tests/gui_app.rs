@@ -101,6 +101,19 @@ fn harness(opts: ViewerOptions) -> Harness<'static, RadlabApp> {
         .build_eframe(move |cc| RadlabApp::new(cc, opts))
 }
 
+/// Move the pointer to `at` and click there (primary button, no modifiers).
+fn click_at(h: &mut Harness<'static, RadlabApp>, at: egui::Pos2) {
+    h.hover_at(at);
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton {
+            pos: at,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+    }
+}
+
 /// Let the app apply the solver's replies and draw.
 fn settle(h: &mut Harness<'static, RadlabApp>) {
     h.run_steps(2);
@@ -180,15 +193,7 @@ fn drive_the_viewer() {
     let r = h.state().viewport_rect();
     assert!(r.is_positive());
     let at = r.center();
-    h.hover_at(at);
-    for pressed in [true, false] {
-        h.event(egui::Event::PointerButton {
-            pos: at,
-            button: egui::PointerButton::Primary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
-        });
-    }
+    click_at(&mut h, at);
     settle(&mut h);
     let sel = h.state().selected.expect("an element is picked");
     let v = Arc::clone(h.state().view());
@@ -468,15 +473,7 @@ fn the_layout_does_not_jump() {
     settle(&mut h);
     same(&mut h, "reference cancelled");
     let at = h.state().viewport_rect().center();
-    h.hover_at(at);
-    for pressed in [true, false] {
-        h.event(egui::Event::PointerButton {
-            pos: at,
-            button: egui::PointerButton::Primary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
-        });
-    }
+    click_at(&mut h, at);
     settle(&mut h);
     assert!(h.state().selected.is_some());
     same(&mut h, "an element picked (the link table)");
@@ -672,6 +669,22 @@ fn lecture_figures_run_their_steps_pick_and_sweep() {
     let sel = h.state().selected.expect("the figure picks an element once solved");
     assert_eq!(h.state().view().elements[sel as usize].patch, 0, "a floor element (cornell's patch 0)");
     assert!(h.state().display.selected_links_only);
+
+    // The blocking matrix: one block per link; a click on a block picks its receiver.
+    h.state_mut().open_figure(find("block-matrix").unwrap());
+    settle(&mut h);
+    assert!(h.state().lecture.matrix.open);
+    let links = h.state().view().links.len();
+    assert!(h.query_by_label_contains(&format!("{links} links (blocks) cover")).is_some());
+    // The matrix is the square just above its legend line; its upper-right quarter holds the
+    // blocks of the vertical square's leaves receiving from the floor square's.
+    let legend = h.get_by_label_contains("rows: receiver leaves").rect();
+    let at = egui::pos2(legend.left() + 0.75 * 360.0, legend.top() - 0.75 * 360.0);
+    click_at(&mut h, at);
+    h.run_steps(2);
+    assert!(h.state().selected.is_some(), "a click on a block picks its receiver");
+    assert!(h.state().display.selected_links_only);
+    h.state_mut().lecture.matrix.open = false;
 
     let runs = h.state().solve_runs();
     let f = find("linear-links").unwrap();

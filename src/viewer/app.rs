@@ -451,6 +451,7 @@ impl RadlabApp {
         d.link_filter = LinkFilter { full: !o.partial_links_only, ..LinkFilter::default() };
         d.selected_links_only = false;
         self.show_plots = f.plots;
+        self.lecture.matrix.open = f.matrix;
         f.scene.clone_into(&mut self.spec_edit);
         let solve = std::mem::replace(&mut self.opts.solve_on_start, false);
         self.load_spec(f.scene);
@@ -1934,7 +1935,10 @@ impl eframe::App for RadlabApp {
             self.pending_pick = None;
         }
         help::window(&ctx, &mut self.show_help);
-        self.lecture.windows(&ctx);
+        if let Some(id) = self.lecture.windows(&ctx, &self.view) {
+            self.selected = Some(id);
+            self.display.selected_links_only = true;
+        }
         if let Some(answer) = self.files.show(&ctx) {
             self.file_answer(answer);
         }

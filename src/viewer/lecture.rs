@@ -1,11 +1,15 @@
 //! The Lecture menu and the caption panel: every figure of [`crate::figures`] one click away,
 //! listed by slide title; the figure shown keeps its caption in a panel under the viewport until
 //! it is hidden (the × button or C) or another scene is opened. The menu also opens the
-//! five-times explorer ([`super::five_times`]).
+//! blocking form-factor matrix ([`super::matrix`]) and the five-times explorer
+//! ([`super::five_times`]).
 
 use super::five_times::FiveTimes;
+use super::matrix::MatrixWindow;
+use super::worker::ViewData;
 use crate::figures::{FIGURES, Figure};
 use eframe::egui;
+use std::sync::Arc;
 
 /// The figure whose caption is shown, and the explorer windows.
 #[derive(Clone, Debug, Default)]
@@ -13,6 +17,7 @@ pub struct Lecture {
     figure: Option<&'static Figure>,
     caption_open: bool,
     pub five_times: FiveTimes,
+    pub matrix: MatrixWindow,
 }
 
 impl Lecture {
@@ -59,6 +64,16 @@ impl Lecture {
             }
             ui.separator();
             if ui
+                .button("Blocking form-factor matrix…")
+                .on_hover_text(
+                    "Each link of the solution as the block of leaf-to-leaf form factors it stands for",
+                )
+                .clicked()
+            {
+                self.matrix.open = true;
+                ui.close();
+            }
+            if ui
                 .button("Five-times explorer…")
                 .on_hover_text(
                     "A square source over a point receiver: exact, disk and point-source form \
@@ -78,11 +93,12 @@ impl Lecture {
         chosen
     }
 
-    /// The explorer windows that are open.
-    pub fn windows(&mut self, ctx: &egui::Context) {
+    /// The explorer windows that are open; returns the element a click in the matrix picked.
+    pub fn windows(&mut self, ctx: &egui::Context, view: &Arc<ViewData>) -> Option<u32> {
         if self.five_times.open {
             self.five_times.window(ctx);
         }
+        if self.matrix.open { self.matrix.window(ctx, view) } else { None }
     }
 
     /// The caption panel at the bottom of the window (call before the central panel).

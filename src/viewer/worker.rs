@@ -37,31 +37,9 @@ impl ViewData {
     /// Convert a solver snapshot.
     #[must_use]
     pub fn from_snapshot(s: Snapshot) -> ViewData {
-        let elements: Vec<ElementView> = s
-            .elements
-            .into_iter()
-            .map(|e| ElementView {
-                id: e.id,
-                patch: e.patch,
-                parent: e.parent,
-                depth: e.depth,
-                leaf: e.children.is_none(),
-                vertices: e.vertices,
-                n_vertices: e.n_vertices,
-                area: e.area,
-                reflectance: e.reflectance,
-                emission: e.emission,
-                radiosity: e.radiosity,
-                error_estimate: e.error_estimate,
-                stop: e.stop.label(),
-            })
-            .collect();
+        let elements: Vec<ElementView> = s.elements.iter().map(ElementView::from_info).collect();
         let leaves = elements.iter().filter(|e| e.leaf).map(|e| e.id).collect();
-        let links = s
-            .links
-            .into_iter()
-            .map(|l| LinkView { receiver: l.receiver, source: l.source, ff: l.ff, vis: l.vis })
-            .collect();
+        let links = s.links.iter().map(LinkView::from_info).collect();
         ViewData {
             elements,
             leaves,
