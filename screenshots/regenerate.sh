@@ -12,4 +12,5 @@ out="$(dirname "$0")"
 "$bin" view builtin:cornell --screenshot "$out/cornell-plots.png" --plots --window
 "$bin" view builtin:splash_room --screenshot "$out/splash_room-quadtree.png" --overlay quadtree
 "$bin" view builtin:table-room --screenshot "$out/table-room-error.png" --overlay error
+"$bin" figures --screenshots "$out/figures"
 echo "screenshots written to $out"

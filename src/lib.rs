@@ -27,6 +27,7 @@
 //! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
 //! - [`mesh`]: meshing given shadows — critical segments (D0, EV/VE → D1/D2) on each receiver,
 //!   Heckbert's constrained Delaunay mesh and Campbell & Fussell's BSP mesh, a scene remeshed.
+//! - [`figures`]: the lecture's figures as presets (scene, settings, overlays, camera, caption).
 //! - [`exact`]: exact single-bounce radiosity (one emitter, black occluders, one receiver):
 //!   a closed-form ruler with no reference noise.
 //! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
@@ -36,12 +37,15 @@
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
 //! - [`bake`]: a solution as a glTF asset (vertex colours, unlit) that any viewer shows as solved.
 //! - [`overlay`]: CPU-side line/colour lists for quadtree, links and error overlays.
+//! - [`block_matrix`]: links as the blocks of the leaf-to-leaf form-factor matrix they stand for.
 //! - `render`, `viewer` (feature `gui`): wgpu pipelines and the eframe app.
 
 pub mod accel;
 pub mod bake;
 pub mod bench;
+pub mod block_matrix;
 pub mod exact;
+pub mod figures;
 pub mod form_factor;
 pub mod hard_cases;
 pub mod hierarchy;

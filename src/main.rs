@@ -1,4 +1,4 @@
-//! `radlab` — the command line: `view` (default), `solve`, `form-factor`, `scenes`, `reference`, `bench`, `speed`, `mesh`.
+//! `radlab` — the command line: `view` (default), `solve`, `form-factor`, `scenes`, `figures`, `reference`, `bench`, `speed`, `mesh`.
 
 mod cli;
 

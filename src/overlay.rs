@@ -82,6 +82,36 @@ pub struct LinkView {
     pub vis: f32,
 }
 
+impl ElementView {
+    /// The viewer's copy of a solver element.
+    #[must_use]
+    pub fn from_info(e: &crate::solver::hierarchical::ElementInfo) -> ElementView {
+        ElementView {
+            id: e.id,
+            patch: e.patch,
+            parent: e.parent,
+            depth: e.depth,
+            leaf: e.children.is_none(),
+            vertices: e.vertices,
+            n_vertices: e.n_vertices,
+            area: e.area,
+            reflectance: e.reflectance,
+            emission: e.emission,
+            radiosity: e.radiosity,
+            error_estimate: e.error_estimate,
+            stop: e.stop.label(),
+        }
+    }
+}
+
+impl LinkView {
+    /// The viewer's copy of a solver link.
+    #[must_use]
+    pub fn from_info(l: &crate::solver::hierarchical::LinkInfo) -> LinkView {
+        LinkView { receiver: l.receiver, source: l.source, ff: l.ff, vis: l.vis }
+    }
+}
+
 /// Visibility at or above `1 - VIS_CLASS_EPS` counts as "full", at or below as "none": the
 /// visible fraction is a ray count ratio, so exact 0 and 1 are the natural classes.
 pub const VIS_CLASS_EPS: f32 = 1e-6;

@@ -101,6 +101,19 @@ fn harness(opts: ViewerOptions) -> Harness<'static, RadlabApp> {
         .build_eframe(move |cc| RadlabApp::new(cc, opts))
 }
 
+/// Move the pointer to `at` and click there (primary button, no modifiers).
+fn click_at(h: &mut Harness<'static, RadlabApp>, at: egui::Pos2) {
+    h.hover_at(at);
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton {
+            pos: at,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+    }
+}
+
 /// Let the app apply the solver's replies and draw.
 fn settle(h: &mut Harness<'static, RadlabApp>) {
     h.run_steps(2);
@@ -180,15 +193,7 @@ fn drive_the_viewer() {
     let r = h.state().viewport_rect();
     assert!(r.is_positive());
     let at = r.center();
-    h.hover_at(at);
-    for pressed in [true, false] {
-        h.event(egui::Event::PointerButton {
-            pos: at,
-            button: egui::PointerButton::Primary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
-        });
-    }
+    click_at(&mut h, at);
     settle(&mut h);
     let sel = h.state().selected.expect("an element is picked");
     let v = Arc::clone(h.state().view());
@@ -468,15 +473,7 @@ fn the_layout_does_not_jump() {
     settle(&mut h);
     same(&mut h, "reference cancelled");
     let at = h.state().viewport_rect().center();
-    h.hover_at(at);
-    for pressed in [true, false] {
-        h.event(egui::Event::PointerButton {
-            pos: at,
-            button: egui::PointerButton::Primary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
-        });
-    }
+    click_at(&mut h, at);
     settle(&mut h);
     assert!(h.state().selected.is_some());
     same(&mut h, "an element picked (the link table)");
@@ -594,4 +591,148 @@ fn load_errors_are_shown_not_fatal() {
     h.state_mut().load_spec("builtin:no-such-builtin");
     h.run_steps(2);
     assert_eq!(h.state().errors().len(), 2);
+}
+
+/// Every lecture figure opens from the Lecture menu, by its slide title: its scene is loaded,
+/// its settings and overlays are set, and its caption is shown (until hidden).
+#[test]
+fn every_lecture_figure_opens_from_the_lecture_menu() {
+    let mut h = harness(opts());
+    h.run_steps(2);
+    h.get_by_label("Lecture").click();
+    h.run_steps(2);
+    check(&mut h, "gui_lecture_menu");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    for f in radlab::figures::FIGURES {
+        h.get_by_label("Lecture").click();
+        h.run_steps(2);
+        h.get_by_label(f.slide).click();
+        h.run_steps(2);
+        let app = h.state();
+        assert_eq!(app.scene().map(|s| s.source.as_str()), Some(f.scene), "{}", f.name);
+        assert_eq!(app.params(), f.params, "{}", f.name);
+        let d = app.display;
+        assert_eq!(
+            (d.quadtree, d.links, d.error, d.link_filter.full),
+            (f.overlays.quadtree, f.overlays.links, f.overlays.error, !f.overlays.partial_links_only),
+            "{}",
+            f.name
+        );
+        assert_eq!(app.plots_shown(), f.plots, "{}", f.name);
+        assert_eq!(app.lecture.figure().map(|x| x.name), Some(f.name));
+        assert!(h.query_by_label(f.caption).is_some(), "{}: the caption is shown", f.name);
+        assert!(h.state().errors().is_empty(), "{}: {:?}", f.name, h.state().errors());
+    }
+    // The × hides the caption; C shows it again.
+    let last = radlab::figures::FIGURES.last().unwrap();
+    h.get_by_label("×").click();
+    h.run_steps(2);
+    assert!(h.query_by_label(last.caption).is_none(), "the caption is hidden");
+    h.key_press(egui::Key::C);
+    h.run_steps(2);
+    assert!(h.query_by_label(last.caption).is_some(), "C shows the caption again");
+    // The five-times explorer, from the same menu.
+    h.get_by_label("Lecture").click();
+    h.run_steps(2);
+    h.get_by_label("Five-times explorer…").click();
+    h.run_steps(4);
+    assert!(h.state().lecture.five_times.open);
+    assert!(h.query_by_label_contains("distance / diameter = 1.41").is_some(), "the explorer's verdict line");
+    assert!(h.query_all_by_label("point source").next().is_some());
+    settle(&mut h);
+    check(&mut h, "gui_five_times");
+    // Loading another scene by hand drops the figure's caption.
+    h.state_mut().set_scene(Arc::new(cornell()));
+    h.run_steps(2);
+    assert!(h.query_by_label(last.caption).is_none() && h.state().lecture.figure().is_none());
+    settle(&mut h);
+}
+
+/// A stepped figure runs its step; a figure with a pick shows the picked element's links; the
+/// O(n) figure solves once per threshold (points in the plot).
+#[test]
+fn lecture_figures_run_their_steps_pick_and_sweep() {
+    use radlab::figures::find;
+    let mut h = harness(opts());
+    h.run_steps(2);
+    h.state_mut().open_figure(find("perpendicular-refine").unwrap());
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Refine));
+    assert!(v.leaves.len() > 2 && !v.links.is_empty(), "one Refine step: split and linked");
+    assert!(v.residuals.is_empty(), "nothing gathered yet");
+    check(&mut h, "gui_figure_perpendicular");
+
+    h.state_mut().open_figure(find("recursive-gather").unwrap());
+    settle(&mut h);
+    let sel = h.state().selected.expect("the figure picks an element once solved");
+    assert_eq!(h.state().view().elements[sel as usize].patch, 0, "a floor element (cornell's patch 0)");
+    assert!(h.state().display.selected_links_only);
+
+    // The blocking matrix: one block per link; a click on a block picks its receiver.
+    h.state_mut().open_figure(find("block-matrix").unwrap());
+    settle(&mut h);
+    assert!(h.state().lecture.matrix.open);
+    let links = h.state().view().links.len();
+    assert!(h.query_by_label_contains(&format!("{links} links (blocks) cover")).is_some());
+    // The matrix is the square just above its legend line; its upper-right quarter holds the
+    // blocks of the vertical square's leaves receiving from the floor square's.
+    let legend = h.get_by_label_contains("rows: receiver leaves").rect();
+    let at = egui::pos2(legend.left() + 0.75 * 360.0, legend.top() - 0.75 * 360.0);
+    click_at(&mut h, at);
+    h.run_steps(2);
+    assert!(h.state().selected.is_some(), "a click on a block picks its receiver");
+    assert!(h.state().display.selected_links_only);
+    h.state_mut().lecture.matrix.open = false;
+
+    let runs = h.state().solve_runs();
+    let f = find("linear-links").unwrap();
+    h.state_mut().open_figure(f);
+    settle(&mut h);
+    assert_eq!(h.state().solve_runs() - runs, f.sweep_bf_eps.len() + 1, "one solve per threshold");
+    assert_eq!(h.state().params(), f.params, "the figure's own settings last");
+    assert!(h.query_by_label("Links against elements, runs in this window (log₁₀)").is_some());
+}
+
+/// The keyboard shortcuts act, and the Help menu and window list them.
+#[test]
+fn keyboard_shortcuts_act_and_help_lists_them() {
+    let mut h = harness(opts());
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    h.key_press(egui::Key::Space);
+    settle(&mut h);
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Refine), "Space refines");
+    h.key_press(egui::Key::G);
+    settle(&mut h);
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Gather), "G gathers");
+    h.key_press(egui::Key::S);
+    settle(&mut h);
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Solve), "S solves");
+    type Flag = fn(&RadlabApp) -> bool;
+    let overlays: [(egui::Key, Flag); 2] =
+        [(egui::Key::Q, |a| a.display.quadtree), (egui::Key::L, |a| a.display.links)];
+    for (key, on) in overlays {
+        assert!(!on(h.state()));
+        h.key_press(key);
+        h.run_steps(1);
+        assert!(on(h.state()), "{key:?} toggles its overlay");
+    }
+    let shown = |h: &Harness<'static, RadlabApp>| -> Vec<usize> {
+        radlab::viewer::help::SHORTCUTS.iter().map(|(_, what)| h.query_all_by_label(what).count()).collect()
+    };
+    let before = shown(&h);
+    h.get_by_label("Help").click();
+    h.run_steps(2);
+    for ((b, a), (_, what)) in before.iter().zip(shown(&h)).zip(radlab::viewer::help::SHORTCUTS) {
+        assert_eq!(a, b + 1, "the Help menu lists {what:?}");
+    }
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    h.key_press(egui::Key::F1);
+    h.run_steps(2);
+    assert!(h.query_by_label("Keyboard shortcuts").is_some(), "F1 opens the Help window");
+    settle(&mut h);
+    check(&mut h, "gui_help_window");
 }

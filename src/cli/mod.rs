@@ -1,6 +1,7 @@
 //! Command-line interface. Each subcommand lives in its own file with its `Args` and `run`.
 
 pub mod bench;
+pub mod figures;
 pub mod form_factor;
 pub mod mesh;
 pub mod reference;
@@ -31,6 +32,8 @@ pub enum Command {
     FormFactor(form_factor::Args),
     /// List the built-in scenes.
     Scenes(scenes::Args),
+    /// The lecture's figures: list them, or write one screenshot each.
+    Figures(figures::Args),
     /// Independent Monte Carlo reference solution (cached on disk).
     Reference(reference::Args),
     /// Speed-against-error report over methods and settings.
@@ -48,6 +51,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Solve(a)) => solve::run(a),
         Some(Command::FormFactor(a)) => form_factor::run(a),
         Some(Command::Scenes(a)) => scenes::run(a),
+        Some(Command::Figures(a)) => figures::run(a),
         Some(Command::Reference(a)) => reference::run(a),
         Some(Command::Bench(a)) => bench::run(a),
         Some(Command::Speed(a)) => speed::run(a),

@@ -1,5 +1,5 @@
 //! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error,…] [--preset NAME]
-//! [--bench-frames N]`: the interactive viewer (feature `gui`).
+//! [--bench-frames N] [--figure NAME]`: the interactive viewer (feature `gui`).
 //!
 //! Without the feature, or without a display, it fails with one line suggesting `radlab solve`.
 
@@ -49,6 +49,10 @@ pub struct Args {
     /// Open on the input patches, unsolved (to step Refine / Gather / Push-pull by hand).
     #[arg(long)]
     pub no_solve: bool,
+    /// Open a lecture figure (`radlab figures` lists them): its scene, settings, overlays,
+    /// camera and caption replace SCENE, --preset and --overlay.
+    #[arg(long, value_name = "NAME")]
+    pub figure: Option<String>,
 }
 
 impl Args {
@@ -65,6 +69,7 @@ impl Args {
             plots: false,
             solve: false,
             no_solve: false,
+            figure: None,
         }
     }
 }
@@ -91,6 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.bench_frames == Some(0) {
         anyhow::bail!("--bench-frames must be at least 1");
     }
+    let figure = args.figure.as_deref().map(radlab::figures::find).transpose()?;
     let overlay = args
         .overlay
         .iter()
@@ -109,8 +115,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         screenshot: args.screenshot,
         bench_frames: args.bench_frames,
         pick: args.pick,
-        screenshot_window: args.window,
+        screenshot_window: args.window || figure.is_some_and(|f| f.window_shot),
         show_plots: args.plots,
+        figure,
         ..ViewerOptions::default()
     })?;
     Ok(())
@@ -118,6 +125,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 #[cfg(not(feature = "gui"))]
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let _ = args;
+    if let Some(name) = &args.figure {
+        radlab::figures::find(name)?;
+    }
     anyhow::bail!("this radlab was built without the viewer (feature `gui`); use `radlab solve SCENE`")
 }

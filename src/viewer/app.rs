@@ -9,8 +9,11 @@ use super::bench::FrameBench;
 use super::builder::{self, Builder, Built, Coloring};
 use super::camera::OrbitCamera;
 use super::file_dialog::{Answer, FileDialogs, Purpose};
+use super::help::{self, Action};
+use super::lecture::Lecture;
 use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
 use super::worker::{Command, Reply, ViewData, Worker};
+use crate::figures::Figure;
 use crate::math::DVec3;
 use crate::overlay::{self, Decimation, LinkFilter, LogScale, Palette};
 use crate::render::{
@@ -67,6 +70,8 @@ pub struct ViewerOptions {
     /// egui's render pass has a [`crate::render::DEPTH_FORMAT`] depth buffer (the native window
     /// asks for one): draw the 3-D view straight into it instead of through an offscreen copy.
     pub direct_viewport: bool,
+    /// Open this lecture figure instead of `scene` (its settings, overlays, camera, caption).
+    pub figure: Option<&'static Figure>,
 }
 
 impl Default for ViewerOptions {
@@ -84,6 +89,7 @@ impl Default for ViewerOptions {
             reference: RefSettings::default(),
             desktop_file_dialog: true,
             direct_viewport: false,
+            figure: None,
         }
     }
 }
@@ -253,6 +259,14 @@ pub struct RadlabApp {
     files: FileDialogs,
     status: String,
     show_plots: bool,
+    /// The lecture figure opened last and its caption panel.
+    pub lecture: Lecture,
+    show_help: bool,
+    /// Pick the element under this viewport point (fractions, y down) once a solve is shown
+    /// (`--pick`, a figure's pick).
+    pending_pick: Option<[f32; 2]>,
+    /// A Load was sent and its answer has not come yet.
+    loading: bool,
     /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
     last_ui_s: f64,
     /// On-CPU time of the last `ui` call (benchmarks only).
@@ -379,6 +393,10 @@ impl RadlabApp {
             files: FileDialogs::new(opts.desktop_file_dialog),
             status: String::new(),
             show_plots: opts.show_plots,
+            lecture: Lecture::default(),
+            show_help: false,
+            pending_pick: opts.pick,
+            loading: false,
             exit_code: None,
             last_ui_s: 0.0,
             last_ui_cpu_s: None,
@@ -410,10 +428,68 @@ impl RadlabApp {
             app.script = Script::Solving;
         }
         let spec = app.scene_spec.clone();
-        if !spec.is_empty() {
+        if let Some(f) = app.opts.figure {
+            app.open_figure(f);
+        } else if !spec.is_empty() {
             app.load_spec(&spec);
         }
         app
+    }
+
+    /// Open a lecture figure: its settings, overlays and camera, then its scene, on which the
+    /// figure's solves (BFeps sweep) and steps run; the caption panel shows its caption.
+    pub fn open_figure(&mut self, f: &'static Figure) {
+        self.preset = f.preset.to_owned();
+        // Not `set_params`: the load below starts a solver with these.
+        self.params = f.params;
+        let o = f.overlays;
+        let d = &mut self.display;
+        d.quadtree = o.quadtree;
+        d.links = o.links;
+        d.error = o.error;
+        d.shading = if o.flat { Shading::Flat } else { Shading::Smooth };
+        d.link_filter = LinkFilter { full: !o.partial_links_only, ..LinkFilter::default() };
+        d.selected_links_only = false;
+        self.show_plots = f.plots;
+        self.lecture.matrix.open = f.matrix;
+        f.scene.clone_into(&mut self.spec_edit);
+        let solve = std::mem::replace(&mut self.opts.solve_on_start, false);
+        self.load_spec(f.scene);
+        self.opts.solve_on_start = solve;
+        if self.scene.as_ref().is_none_or(|s| s.source != f.scene) {
+            return; // the error is shown
+        }
+        self.pending_pick = f.pick;
+        for &bf_eps in f.sweep_bf_eps {
+            self.send(Command::SetParams(HierarchicalParams { bf_eps, ..f.params }), "restarting");
+            self.step(StepKind::Solve);
+        }
+        if !f.sweep_bf_eps.is_empty() {
+            self.send(Command::SetParams(f.params), "restarting");
+        }
+        for &k in f.steps {
+            self.step(k);
+        }
+        let c = f.camera;
+        self.camera = self.home;
+        self.camera.orbit(-c.yaw_deg.to_radians(), c.pitch_deg.to_radians());
+        self.camera.zoom(c.zoom);
+        self.lecture.show(f);
+    }
+
+    /// Apply the keyboard shortcuts pressed this frame ([`help::SHORTCUTS`]).
+    fn shortcuts(&mut self, ctx: &egui::Context) {
+        for a in help::pressed(ctx) {
+            match a {
+                Action::Step(k) if !self.busy() => self.step(k),
+                Action::Step(_) => {}
+                Action::ToggleQuadtree => self.display.quadtree ^= true,
+                Action::ToggleLinks => self.display.links ^= true,
+                Action::ToggleError => self.display.error ^= true,
+                Action::ToggleCaption => self.lecture.toggle_caption(),
+                Action::ToggleHelp => self.show_help ^= true,
+            }
+        }
     }
 
     /// Load `builtin:NAME` or a path; errors are shown in the UI.
@@ -432,9 +508,14 @@ impl RadlabApp {
 
     /// Show a scene (replaces the current one; the camera is framed on it).
     pub fn set_scene(&mut self, scene: Arc<Scene>) {
-        // Stop work on the previous scene.
+        // A figure's caption and pick belong to its scene (`open_figure` sets them again).
+        self.lecture.clear();
+        if self.script == Script::None {
+            self.pending_pick = None;
+        }
+        // Stop work on the previous scene, and drop what was queued for it.
         if let Some(w) = &self.worker {
-            w.cancel();
+            w.cancel_all();
         }
         self.resolve_pending = false;
         self.hold_view = false;
@@ -463,6 +544,7 @@ impl RadlabApp {
         self.scene = Some(Arc::clone(&scene));
         let params = self.params;
         self.send(Command::Load { scene, params }, "loading");
+        self.loading = self.worker.is_some();
         if self.opts.solve_on_start {
             self.send(Command::Step(StepKind::Solve), "solving");
         }
@@ -489,6 +571,24 @@ impl RadlabApp {
     #[must_use]
     pub fn busy(&self) -> bool {
         self.worker.as_ref().is_some_and(Worker::busy)
+    }
+
+    /// The scene shown.
+    #[must_use]
+    pub fn scene(&self) -> Option<&Arc<Scene>> {
+        self.scene.as_ref()
+    }
+
+    /// Solves finished in this window (the points of the links-against-elements plot).
+    #[must_use]
+    pub fn solve_runs(&self) -> usize {
+        self.runs.len()
+    }
+
+    /// True while the plots panel is open.
+    #[must_use]
+    pub fn plots_shown(&self) -> bool {
+        self.show_plots
     }
 
     /// The current solver state.
@@ -616,7 +716,10 @@ impl RadlabApp {
 
     fn apply(&mut self, r: Reply) {
         match r {
+            // The previous scene's last answers (its running step, cancelled): not shown.
+            Reply::Done { .. } | Reply::Partial { .. } | Reply::Progress { .. } if self.loading => {}
             Reply::Loaded { view, .. } => {
+                self.loading = false;
                 self.set_view(view);
                 self.progress = None;
                 self.solver_time_s = 0.0;
@@ -668,9 +771,11 @@ impl RadlabApp {
                     self.partial_shown += 1;
                 }
             }
+            Reply::Skipped => {}
             Reply::Baked(Ok(what)) => self.status = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => {
+                self.loading = false;
                 self.progress = None;
                 self.hold_view = false;
                 if let Some(v) = self.held_view.take() {
@@ -1012,6 +1117,11 @@ impl RadlabApp {
 
     fn top_bar(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
+            if let Some(f) = self.lecture.menu(ui) {
+                self.open_figure(f);
+            }
+            help::menu(ui, &mut self.show_help);
+            ui.separator();
             if ui
                 .button("Open…")
                 .on_hover_text("Open a .gltf/.glb file (or drop one on the window)")
@@ -1028,13 +1138,20 @@ impl RadlabApp {
                 let name = self.scene.as_ref().map_or("radlab".to_owned(), |s| s.name.clone());
                 self.files.choose(Purpose::ExportBake { suggested: format!("{name}.glb") });
             }
-            let edit = ui.add(
-                egui::TextEdit::singleline(&mut self.spec_edit)
-                    .desired_width(160.0)
-                    .hint_text("builtin:NAME or path"),
-            );
+            let edit = ui
+                .add(
+                    egui::TextEdit::singleline(&mut self.spec_edit)
+                        .desired_width(160.0)
+                        .hint_text("builtin:NAME or path"),
+                )
+                .on_hover_text("builtin:NAME (radlab scenes lists them) or a .gltf/.glb path");
             let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
-            if ui.button("Load").clicked() || enter {
+            if ui
+                .button("Load")
+                .on_hover_text("Open the scene named on the left (or press Enter there)")
+                .clicked()
+                || enter
+            {
                 let spec = self.spec_edit.trim().to_owned();
                 if !spec.is_empty() {
                     self.load_spec(&spec);
@@ -1043,7 +1160,10 @@ impl RadlabApp {
             if ui.button("Screenshot").on_hover_text("Save the viewport as a PNG").clicked() {
                 self.request_screenshot(ui.ctx());
             }
-            ui.toggle_value(&mut self.show_plots, "Plots");
+            ui.toggle_value(&mut self.show_plots, "Plots").on_hover_text(
+                "Convergence plots under the inspector: residual per gather, links against elements \
+                 (one point per solve), error against solver time",
+            );
             ui.separator();
             let name = self.scene.as_ref().map_or("(no scene)".to_owned(), |s| s.name.clone());
             ui.label(egui::RichText::new(name).strong());
@@ -1055,21 +1175,29 @@ impl RadlabApp {
         let busy = self.busy();
         ui.heading("Solver");
         let mut p = self.params;
-        egui::ComboBox::from_label("preset").selected_text(&self.preset).show_ui(ui, |ui| {
-            for name in HierarchicalParams::PRESETS {
-                if ui.selectable_label(self.preset == name, name).clicked() {
-                    self.preset = name.to_owned();
-                    if let Some(q) = HierarchicalParams::preset(name) {
-                        p = q;
+        egui::ComboBox::from_label("preset")
+            .selected_text(&self.preset)
+            .show_ui(ui, |ui| {
+                for name in HierarchicalParams::PRESETS {
+                    if ui.selectable_label(self.preset == name, name).clicked() {
+                        self.preset = name.to_owned();
+                        if let Some(q) = HierarchicalParams::preset(name) {
+                            p = q;
+                        }
                     }
                 }
-            }
-        });
-        egui::ComboBox::from_label("oracle").selected_text(format!("{:?}", p.oracle)).show_ui(ui, |ui| {
-            ui.selectable_value(&mut p.oracle, Oracle::Feps, "Feps (form factor)");
-            ui.selectable_value(&mut p.oracle, Oracle::Bf, "BF (B × F)");
-            ui.selectable_value(&mut p.oracle, Oracle::Error, "Error (where the answer is wrong)");
-        });
+            })
+            .response
+            .on_hover_text("Named solver settings (all sliders below at once)");
+        egui::ComboBox::from_label("oracle")
+            .selected_text(format!("{:?}", p.oracle))
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut p.oracle, Oracle::Feps, "Feps (form factor)");
+                ui.selectable_value(&mut p.oracle, Oracle::Bf, "BF (B × F)");
+                ui.selectable_value(&mut p.oracle, Oracle::Error, "Error (where the answer is wrong)");
+            })
+            .response
+            .on_hover_text("What decides that a link is accurate enough, or must be split");
         if p.oracle == Oracle::Error && self.params.oracle != Oracle::Error {
             // The error oracle's BFeps is a fraction of the mean reflected radiosity: the BF
             // presets' 2e-3 would refine to the link budget. Start where it converges in seconds.
@@ -1107,7 +1235,8 @@ impl RadlabApp {
             ui.add(egui::Slider::new(&mut p.rays, 1..=256).logarithmic(true).text("rays"))
                 .on_hover_text("Shadow rays per link (visible fraction)");
         });
-        ui.add(egui::Slider::new(&mut p.max_depth, 1..=20).text("max depth"));
+        ui.add(egui::Slider::new(&mut p.max_depth, 1..=20).text("max depth"))
+            .on_hover_text("Deepest quadtree level below an input patch: a hard floor on resolution");
         if p != self.params {
             self.set_params(p);
         }
@@ -1115,11 +1244,15 @@ impl RadlabApp {
         ui.separator();
         ui.horizontal_wrapped(|ui| {
             for (label, kind, tip) in [
-                ("Refine step", StepKind::Refine, "Initial linking, then the oracle over the existing links"),
-                ("Gather step", StepKind::Gather, "One Jacobi gather over all links"),
-                ("Push-pull", StepKind::PushPull, "Push gathered irradiance down, pull radiosity up"),
-                ("Iterate", StepKind::Iterate, "Refine + gather + push-pull"),
-                ("Solve", StepKind::Solve, "The HSA91 loop until converged"),
+                (
+                    "Refine step",
+                    StepKind::Refine,
+                    "Initial linking, then the oracle over the existing links (Space)",
+                ),
+                ("Gather step", StepKind::Gather, "One Jacobi gather over all links (G)"),
+                ("Push-pull", StepKind::PushPull, "Push gathered irradiance down, pull radiosity up (P)"),
+                ("Iterate", StepKind::Iterate, "Refine + gather + push-pull (I)"),
+                ("Solve", StepKind::Solve, "The HSA91 loop until converged (S)"),
             ] {
                 if ui.add_enabled(!busy, egui::Button::new(label)).on_hover_text(tip).clicked() {
                     self.step(kind);
@@ -1159,13 +1292,15 @@ impl RadlabApp {
         ui.heading("Display");
         let d = &mut self.display;
         ui.horizontal(|ui| {
-            ui.selectable_value(&mut d.shading, Shading::Flat, "flat");
+            ui.selectable_value(&mut d.shading, Shading::Flat, "flat")
+                .on_hover_text("Each element one colour: the mesh's resolution shows");
             ui.selectable_value(&mut d.shading, Shading::Smooth, "smooth").on_hover_text(
                 "Gouraud from vertex averages; T-vertices take their big neighbour's edge value",
             );
         });
-        let ev =
-            ui.add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"));
+        let ev = ui
+            .add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"))
+            .on_hover_text("Radiosity × 2^EV before tone mapping; moving it turns auto exposure off");
         if ev.changed() {
             d.auto_exposure = false;
         }
@@ -1173,25 +1308,31 @@ impl RadlabApp {
             .on_hover_text("Map the 95th percentile of the lit surfaces' radiosity to 80 % white");
         ui.horizontal(|ui| {
             ui.label("tone map");
-            ui.selectable_value(&mut d.srgb, true, "sRGB");
-            ui.selectable_value(&mut d.srgb, false, "linear");
+            ui.selectable_value(&mut d.srgb, true, "sRGB").on_hover_text("Display values sRGB-encoded");
+            ui.selectable_value(&mut d.srgb, false, "linear")
+                .on_hover_text("Radiosity shown as is, clamped at 1 (dark mid-tones)");
         });
         ui.label(egui::RichText::new("back faces: striped magenta").small().weak());
         ui.separator();
         ui.heading("Overlays");
-        ui.checkbox(&mut d.quadtree, "quadtree").on_hover_text("Leaf edges coloured by depth; depth-tested");
-        ui.checkbox(&mut d.links, "links").on_hover_text("Element-centre lines coloured by log F");
+        ui.checkbox(&mut d.quadtree, "quadtree")
+            .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
+        ui.checkbox(&mut d.links, "links").on_hover_text("Element-centre lines coloured by log F (L)");
         if d.links || d.selected_links_only {
             ui.indent("links", |ui| {
-                ui.checkbox(&mut d.selected_links_only, "picked element only");
+                ui.checkbox(&mut d.selected_links_only, "picked element only")
+                    .on_hover_text("Only the links the picked element gathers through (click an element)");
                 let mut min_ff = f64::from(d.link_filter.min_ff).max(1e-9);
                 log_slider(ui, "min F", &mut min_ff, 1e-9, 1.0, "Hide links with a smaller form factor");
                 d.link_filter.min_ff = if min_ff <= 1e-9 { 0.0 } else { min_ff as f32 };
                 ui.horizontal(|ui| {
                     ui.label("visibility");
-                    ui.checkbox(&mut d.link_filter.full, "full");
-                    ui.checkbox(&mut d.link_filter.partial, "partial");
-                    ui.checkbox(&mut d.link_filter.none, "none");
+                    ui.checkbox(&mut d.link_filter.full, "full")
+                        .on_hover_text("Links whose shadow rays all passed");
+                    ui.checkbox(&mut d.link_filter.partial, "partial")
+                        .on_hover_text("Links whose shadow rays were partly blocked: the penumbra's");
+                    ui.checkbox(&mut d.link_filter.none, "none")
+                        .on_hover_text("Links whose shadow rays were all blocked (they carry no light)");
                 });
                 ui.add(
                     egui::Slider::new(&mut d.link_filter.max_lines, 100..=200_000)
@@ -1201,14 +1342,19 @@ impl RadlabApp {
                 .on_hover_text("Decimation: beyond this many, a sample is drawn");
                 ui.horizontal(|ui| {
                     ui.label("sample");
-                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::Strided, "every k-th");
-                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::LargestF, "largest F");
+                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::Strided, "every k-th")
+                        .on_hover_text("An even sample of the links");
+                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::LargestF, "largest F")
+                        .on_hover_text("The links with the largest form factors");
                 });
-                ui.add(egui::Slider::new(&mut d.link_alpha, 0.05..=1.0).text("opacity"));
-                ui.checkbox(&mut d.links_xray, "x-ray (no depth test)");
+                ui.add(egui::Slider::new(&mut d.link_alpha, 0.05..=1.0).text("opacity"))
+                    .on_hover_text("Opacity of the link lines");
+                ui.checkbox(&mut d.links_xray, "x-ray (no depth test)")
+                    .on_hover_text("Draw links through surfaces instead of hiding those behind them");
             });
         }
-        ui.checkbox(&mut d.error, "error heatmap").on_hover_text("Per-element error on a log colour scale");
+        ui.checkbox(&mut d.error, "error heatmap")
+            .on_hover_text("Per-element error on a log colour scale (E)");
     }
 
     fn inspector(&mut self, ui: &mut egui::Ui) {
@@ -1279,7 +1425,8 @@ impl RadlabApp {
                 }
             });
         });
-        ui.checkbox(&mut self.display.selected_links_only, "show these links in the viewport");
+        ui.checkbox(&mut self.display.selected_links_only, "show these links in the viewport")
+            .on_hover_text("Draw only these links, from the element and its ancestors");
     }
 
     fn plots(&self, ui: &mut egui::Ui) {
@@ -1704,12 +1851,6 @@ impl RadlabApp {
             }
             Script::Settle(n) => {
                 let n = *n;
-                if n == 1
-                    && let Some([x, y]) = self.opts.pick
-                {
-                    self.pick_relative(x, y);
-                    self.display.selected_links_only = true;
-                }
                 if n == 0 {
                     // The display thread may still be building the last change.
                     if current {
@@ -1783,6 +1924,21 @@ impl eframe::App for RadlabApp {
         let ctx = ui.ctx().clone();
         self.poll_worker();
         self.poll_reference();
+        self.shortcuts(&ctx);
+        if let Some([x, y]) = self.pending_pick
+            && !self.busy()
+            && !self.view.links.is_empty()
+            && self.viewport_rect.is_positive()
+        {
+            self.pick_relative(x, y);
+            self.display.selected_links_only = true;
+            self.pending_pick = None;
+        }
+        help::window(&ctx, &mut self.show_help);
+        if let Some(id) = self.lecture.windows(&ctx, &self.view) {
+            self.selected = Some(id);
+            self.display.selected_links_only = true;
+        }
         if let Some(answer) = self.files.show(&ctx) {
             self.file_answer(answer);
         }
@@ -1803,6 +1959,7 @@ impl eframe::App for RadlabApp {
         }
         egui::Panel::top("top").frame(frame).show(ui, |ui| self.top_bar(ui));
         egui::Panel::bottom("status").frame(frame).show(ui, |ui| self.status_bar(ui));
+        self.lecture.caption_panel(ui, frame);
         // Fixed widths: the panels do not widen with their longest line (a long error, a link
         // table, a folded-out option); text wraps or is cut instead.
         egui::Panel::left("controls").frame(frame).resizable(false).exact_size(CONTROLS_W).show(ui, |ui| {
@@ -1820,7 +1977,7 @@ impl eframe::App for RadlabApp {
                             for e in self.errors.iter().rev().take(5) {
                                 ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
                             }
-                            if ui.small_button("clear").clicked() {
+                            if ui.small_button("clear").on_hover_text("Forget these errors").clicked() {
                                 self.errors.clear();
                             }
                             ui.separator();
@@ -1888,11 +2045,25 @@ fn rgb_text(c: crate::math::Rgb) -> String {
 /// A log slider with a typed value next to it.
 fn log_slider(ui: &mut egui::Ui, label: &str, v: &mut f64, lo: f64, hi: f64, tip: &str) {
     ui.horizontal(|ui| {
-        ui.add(egui::Slider::new(v, lo..=hi).logarithmic(true).show_value(false).text(label))
-            .on_hover_text(tip);
-        let typed = ui.add(
-            egui::DragValue::new(v).speed(0.0).range(lo..=hi).custom_formatter(|x, _| format!("{x:.2e}")),
-        );
+        // Only what the user enters is clamped: a preset's value outside the range (the lecture
+        // preset's BFeps 0, a uniform mesh's Feps 0) stays as it is, and nothing restarts.
+        ui.add(
+            egui::Slider::new(v, lo..=hi)
+                .logarithmic(true)
+                .clamping(egui::SliderClamping::Edits)
+                .show_value(false)
+                .text(label),
+        )
+        .on_hover_text(tip);
+        let typed = ui
+            .add(
+                egui::DragValue::new(v)
+                    .speed(0.0)
+                    .range(lo..=hi)
+                    .clamp_existing_to_range(false)
+                    .custom_formatter(|x, _| format!("{x:.2e}")),
+            )
+            .on_hover_text(format!("{label}: type a value ({lo:.0e} to {hi:.0e})"));
         // The typed field's accessible name (screen readers, UI tests).
         let name = format!("{label} value");
         ui.ctx().accesskit_node_builder(typed.id, |b| b.set_label(name));

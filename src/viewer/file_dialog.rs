@@ -263,7 +263,12 @@ impl InAppDialog {
                             Ok(v) => {
                                 for e in v {
                                     let label = if e.dir { format!("{}/", e.name) } else { e.name.clone() };
-                                    if ui.selectable_label(!e.dir && self.path == e.name, label).clicked() {
+                                    let tip = if e.dir { "Open this folder" } else { "Choose this file" };
+                                    if ui
+                                        .selectable_label(!e.dir && self.path == e.name, label)
+                                        .on_hover_text(tip)
+                                        .clicked()
+                                    {
                                         go = Some(e.clone());
                                     }
                                 }
@@ -282,9 +287,13 @@ impl InAppDialog {
                     Purpose::Open => "file name, or a path".to_owned(),
                     Purpose::ExportBake { suggested } => suggested.clone(),
                 };
-                let field = ui.add(
-                    egui::TextEdit::singleline(&mut self.path).desired_width(f32::INFINITY).hint_text(hint),
-                );
+                let field = ui
+                    .add(
+                        egui::TextEdit::singleline(&mut self.path)
+                            .desired_width(f32::INFINITY)
+                            .hint_text(hint),
+                    )
+                    .on_hover_text("A file name in the folder above, or a path");
                 ui.ctx().accesskit_node_builder(field.id, |b| b.set_label("file path"));
                 let enter = field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
                 // One reserved line: the dialog does not change size when an error shows.
@@ -294,13 +303,14 @@ impl InAppDialog {
                         .truncate(),
                 );
                 ui.horizontal(|ui| {
-                    if ui.button(self.purpose.action()).clicked() || enter {
+                    let act = ui.button(self.purpose.action()).on_hover_text("Use the path typed above");
+                    if act.clicked() || enter {
                         match self.resolve() {
                             Ok(p) => answer = Some(Answer::Chosen(self.purpose.clone(), p)),
                             Err(e) => self.error = Some(e),
                         }
                     }
-                    if ui.button("Cancel").clicked() {
+                    if ui.button("Cancel").on_hover_text("Close without choosing a file").clicked() {
                         answer = Some(Answer::Cancelled(self.purpose.clone()));
                     }
                 });

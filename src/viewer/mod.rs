@@ -6,6 +6,10 @@
 //! - [`builder`]: the `radlab-display` thread that builds GPU vertex arrays off the UI thread.
 //! - [`camera`]: orbit / pan / zoom camera.
 //! - [`file_dialog`]: the desktop's file dialog, or an in-app one where none answers.
+//! - [`five_times`]: the five-times explorer (exact, disk and point-source form factors).
+//! - [`help`]: keyboard shortcuts, the Help menu and window.
+//! - [`matrix`]: the blocking form-factor matrix window.
+//! - [`lecture`]: the Lecture menu (the figures of [`crate::figures`]) and the caption panel.
 //! - [`reference`]: the `radlab-reference` thread: cached/computed reference, true error.
 //! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
 //!
@@ -16,6 +20,10 @@ pub mod bench;
 pub mod builder;
 pub mod camera;
 pub mod file_dialog;
+pub mod five_times;
+pub mod help;
+pub mod lecture;
+pub mod matrix;
 pub mod reference;
 pub mod worker;
 

@@ -14,7 +14,7 @@ use crate::solver::hierarchical::{
 };
 use crate::solver::params::HierarchicalParams;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
 
 /// The solver's state as the viewer shows it.
@@ -37,31 +37,9 @@ impl ViewData {
     /// Convert a solver snapshot.
     #[must_use]
     pub fn from_snapshot(s: Snapshot) -> ViewData {
-        let elements: Vec<ElementView> = s
-            .elements
-            .into_iter()
-            .map(|e| ElementView {
-                id: e.id,
-                patch: e.patch,
-                parent: e.parent,
-                depth: e.depth,
-                leaf: e.children.is_none(),
-                vertices: e.vertices,
-                n_vertices: e.n_vertices,
-                area: e.area,
-                reflectance: e.reflectance,
-                emission: e.emission,
-                radiosity: e.radiosity,
-                error_estimate: e.error_estimate,
-                stop: e.stop.label(),
-            })
-            .collect();
+        let elements: Vec<ElementView> = s.elements.iter().map(ElementView::from_info).collect();
         let leaves = elements.iter().filter(|e| e.leaf).map(|e| e.id).collect();
-        let links = s
-            .links
-            .into_iter()
-            .map(|l| LinkView { receiver: l.receiver, source: l.source, ff: l.ff, vis: l.vis })
-            .collect();
+        let links = s.links.iter().map(LinkView::from_info).collect();
         ViewData {
             elements,
             leaves,
@@ -153,6 +131,8 @@ pub enum Reply {
     /// A bake was written (what, in one line) or not (why, in one line).
     Baked(Result<String, String>),
     Failed(String),
+    /// A command queued before [`Worker::cancel_all`] was dropped unrun.
+    Skipped,
 }
 
 /// A solve sends its picture after a round at most this often (`Reply::Partial`).
@@ -160,29 +140,43 @@ pub const PARTIAL_EVERY: std::time::Duration = std::time::Duration::from_millis(
 
 /// Handle of the solver thread (the thread ends when this is dropped).
 pub struct Worker {
-    tx: Sender<Command>,
+    tx: Sender<(u64, Command)>,
     rx: Receiver<Reply>,
     cancel: Option<Arc<AtomicBool>>,
     /// Commands sent but not answered yet.
     in_flight: usize,
+    /// Commands sent so far (each goes with its number).
+    sent: u64,
+    /// Commands numbered up to this one are dropped unrun ([`Worker::cancel_all`]).
+    skip_through: Arc<AtomicU64>,
 }
 
 impl Worker {
     /// Start the thread; `notify` is called after every reply (the UI's repaint request).
     pub fn spawn(notify: impl Fn() + Send + 'static) -> Result<Worker, String> {
-        let (tx, cmd_rx) = channel::<Command>();
+        let (tx, cmd_rx) = channel::<(u64, Command)>();
         let (reply_tx, rx) = channel::<Reply>();
+        let skip_through = Arc::new(AtomicU64::new(0));
+        let skip = Arc::clone(&skip_through);
         std::thread::Builder::new()
             .name("radlab-solver".into())
-            .spawn(move || run(&cmd_rx, &reply_tx, &notify))
+            .spawn(move || run(&cmd_rx, &skip, &reply_tx, &notify))
             .map_err(|e| format!("cannot start the solver thread: {e}"))?;
-        Ok(Worker { tx, rx, cancel: None, in_flight: 0 })
+        Ok(Worker { tx, rx, cancel: None, in_flight: 0, sent: 0, skip_through })
     }
 
     pub fn send(&mut self, cmd: Command) {
-        if self.tx.send(cmd).is_ok() {
+        if self.tx.send((self.sent + 1, cmd)).is_ok() {
+            self.sent += 1;
             self.in_flight += 1;
         }
+    }
+
+    /// Stop the running step and drop the commands still queued (a new scene replaces the
+    /// old one: a figure's queued solves of the previous scene are not run).
+    pub fn cancel_all(&self) {
+        self.skip_through.store(self.sent, Ordering::Relaxed);
+        self.cancel();
     }
 
     /// True while a command is queued or running.
@@ -207,7 +201,7 @@ impl Worker {
                         self.cancel = Some(Arc::clone(cancel));
                         self.in_flight = self.in_flight.saturating_sub(1);
                     }
-                    Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) => {
+                    Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) | Reply::Skipped => {
                         self.in_flight = self.in_flight.saturating_sub(1)
                     }
                     Reply::Progress { .. } | Reply::Partial { .. } => {}
@@ -235,7 +229,9 @@ impl Worker {
                             self.cancel = Some(Arc::clone(cancel));
                             self.in_flight -= 1;
                         }
-                        Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) => self.in_flight -= 1,
+                        Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) | Reply::Skipped => {
+                            self.in_flight -= 1;
+                        }
                         Reply::Progress { .. } | Reply::Partial { .. } => {}
                     }
                     on_reply(r);
@@ -256,7 +252,12 @@ impl Drop for Worker {
     }
 }
 
-fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) {
+fn run(
+    rx: &Receiver<(u64, Command)>,
+    skip_through: &AtomicU64,
+    tx: &Sender<Reply>,
+    notify: &(impl Fn() + Send),
+) {
     let mut solver: Option<HierarchicalSolver> = None;
     // The solver has gathered since its last push-pull: show the pushed-pulled values.
     let mut unpushed = false;
@@ -272,7 +273,13 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
         notify();
         ok
     };
-    while let Ok(cmd) = rx.recv() {
+    while let Ok((seq, cmd)) = rx.recv() {
+        if seq <= skip_through.load(Ordering::Relaxed) {
+            if !send(Reply::Skipped) {
+                break;
+            }
+            continue;
+        }
         // A cancel applies to the command that was running when it was pressed.
         if let Some(s) = &solver {
             s.cancel_handle().store(false, Ordering::Relaxed);
@@ -330,6 +337,11 @@ fn run(rx: &Receiver<Command>, tx: &Sender<Reply>, notify: &(impl Fn() + Send)) 
                             // The first round's picture at once, then at most every PARTIAL_EVERY.
                             let mut last: Option<std::time::Instant> = None;
                             let mut on_round = |s: &HierarchicalSolver| {
+                                // `cancel_all` while this solve ran: the flag it set may have
+                                // landed between two sub-steps (each clears it); set it again.
+                                if seq <= skip_through.load(Ordering::Relaxed) {
+                                    s.cancel_handle().store(true, Ordering::Relaxed);
+                                }
                                 let now = std::time::Instant::now();
                                 if last.is_none_or(|t| now.duration_since(t) >= PARTIAL_EVERY) {
                                     last = Some(now);
@@ -450,6 +462,34 @@ mod tests {
         assert!(moved > 0, "the gather changed what push-pull gives");
         // Different summation order (the solver splits the sums by visibility class).
         assert!(worst < 1e-12, "display push-pull off by {worst:e} relative");
+    }
+
+    #[test]
+    fn cancel_all_stops_the_running_solve_and_drops_the_queued_commands() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        load(&mut w, "builtin:splash_room", HierarchicalParams::quality());
+        for _ in 0..3 {
+            w.send(Command::Step(StepKind::Solve));
+        }
+        loop {
+            if let Reply::Progress { .. } = w.rx.recv().unwrap() {
+                break;
+            }
+        }
+        w.cancel_all();
+        let (mut done, mut skipped) = (Vec::new(), 0);
+        w.wait_idle(|r| match r {
+            Reply::Done { report, .. } => done.push(report.expect("a step's report")),
+            Reply::Skipped => skipped += 1,
+            _ => {}
+        });
+        assert_eq!((done.len(), skipped), (1, 2), "the running solve answers, the queued ones are dropped");
+        assert!(done[0].cancelled, "the running solve stopped early");
+        // What is sent afterwards runs.
+        w.send(Command::Step(StepKind::Gather));
+        let mut gathered = false;
+        w.wait_idle(|r| gathered |= matches!(r, Reply::Done { report: Some(_), .. }));
+        assert!(gathered);
     }
 
     #[test]

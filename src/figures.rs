@@ -1,0 +1,498 @@
+//! The lecture's figures as data: each [`Figure`] is a named preset — scene, solver settings,
+//! the steps to run, overlays, camera — with a caption that says what to look at and why (the
+//! slide's point, in our words). The viewer's Lecture menu and `radlab view --figure NAME` open
+//! them; `radlab figures` lists them and writes one screenshot each.
+//!
+//! The slides follow the radiosity lecture (CS348b lecture 17, after Hanrahan, Salzman and
+//! Aupperle 1991). Only figures that the tool shows today are listed; the meshing slides
+//! (discontinuity meshes, BSP and Delaunay meshes, h vs p) come with the meshing work.
+//!
+//! ## Uniform meshes
+//! The viewer runs the hierarchical solver only. A uniform mesh is that solver with the
+//! form-factor oracle at Feps = 0 ([`uniform`]): no pair is ever accurate enough, so every
+//! element is split down to the area floor Aeps and every pair of floor-sized elements that see
+//! each other gets a link — the classical method's full n × n matrix, on a mesh whose elements
+//! all have about the same area (within a factor of four: a quadtree halves sides).
+
+use crate::solver::hierarchical::StepKind;
+use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
+use serde::Serialize;
+
+/// Overlays drawn over the shaded scene.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Overlays {
+    /// Leaf edges coloured by quadtree depth.
+    pub quadtree: bool,
+    /// Link lines coloured by log F.
+    pub links: bool,
+    /// Links overlay: only the partially visible links (those crossing a shadow boundary).
+    pub partial_links_only: bool,
+    /// Per-element error heatmap instead of the radiosity.
+    pub error: bool,
+    /// Flat shading (each element one colour) instead of Gouraud.
+    pub flat: bool,
+}
+
+impl Overlays {
+    const NONE: Overlays =
+        Overlays { quadtree: false, links: false, partial_links_only: false, error: false, flat: false };
+}
+
+/// The view, relative to the scene's own camera (the viewer's home view): orbit by `yaw_deg`
+/// (positive: the eye moves left around the target) and `pitch_deg` (positive: up), then dolly
+/// by `zoom` (< 1 moves closer).
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct CameraPreset {
+    pub yaw_deg: f64,
+    pub pitch_deg: f64,
+    pub zoom: f64,
+}
+
+impl CameraPreset {
+    /// The scene's own camera.
+    pub const HOME: CameraPreset = CameraPreset { yaw_deg: 0.0, pitch_deg: 0.0, zoom: 1.0 };
+}
+
+/// One lecture figure.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct Figure {
+    /// Short kebab-case name: `radlab view --figure NAME`.
+    pub name: &'static str,
+    /// The slide's title, as the Lecture menu lists it.
+    pub slide: &'static str,
+    /// `builtin:NAME`.
+    pub scene: &'static str,
+    /// The solver preset the settings start from (shown in the viewer's preset box).
+    pub preset: &'static str,
+    /// What the method is, in a few words (uniform mesh, Feps refinement, BF oracle…).
+    pub method: &'static str,
+    /// The solver settings.
+    pub params: HierarchicalParams,
+    /// Steps run after loading: `[Solve]` for a solved figure, `[Refine]` for the first step of
+    /// a stepped one, `[]` for the input patches.
+    pub steps: &'static [StepKind],
+    /// Before the figure's own solve, solve once at each of these BFeps values (the runs show
+    /// as points in the plots panel's links-against-elements plot).
+    pub sweep_bf_eps: &'static [f64],
+    pub overlays: Overlays,
+    pub camera: CameraPreset,
+    /// Once solved, pick the element under this viewport point (fractions, y down) and show
+    /// only its links; the inspector lists them.
+    pub pick: Option<[f32; 2]>,
+    /// Open the plots panel.
+    pub plots: bool,
+    /// Open the blocking form-factor matrix window.
+    pub matrix: bool,
+    /// The screenshot shows the whole window (inspector, plots), not only the viewport.
+    pub window_shot: bool,
+    /// Two to four sentences: what to look at and why.
+    pub caption: &'static str,
+}
+
+impl Figure {
+    /// The figure's defaults: the scene solved with a preset, no overlay, the scene's camera.
+    const fn base(
+        name: &'static str,
+        slide: &'static str,
+        scene: &'static str,
+        preset: &'static str,
+        params: HierarchicalParams,
+    ) -> Figure {
+        Figure {
+            name,
+            slide,
+            scene,
+            preset,
+            method: "hierarchical",
+            params,
+            steps: &[StepKind::Solve],
+            sweep_bf_eps: &[],
+            overlays: Overlays::NONE,
+            camera: CameraPreset::HOME,
+            pick: None,
+            plots: false,
+            matrix: false,
+            window_shot: false,
+            caption: "",
+        }
+    }
+
+    /// The scene's name without the `builtin:` prefix.
+    #[must_use]
+    pub fn builtin_name(&self) -> &'static str {
+        self.scene.strip_prefix("builtin:").unwrap_or(self.scene)
+    }
+}
+
+/// A uniform mesh with the hierarchical solver (see the module docs): the form-factor oracle at
+/// Feps = 0 refines every pair down to elements of at most `aeps_rel` of the scene's area, and
+/// links every pair of those.
+#[must_use]
+pub const fn uniform(aeps_rel: f64) -> HierarchicalParams {
+    HierarchicalParams {
+        oracle: Oracle::Feps,
+        feps: 0.0,
+        aeps: AreaEps::Relative(aeps_rel),
+        // At the floor, split the other element of the pair, so every link joins two
+        // floor-sized elements (no link between a floor element and a whole patch).
+        split_fallback: true,
+        rays: 4,
+        max_depth: 16,
+        max_rounds: 1,
+        ..HierarchicalParams::lecture()
+    }
+}
+
+/// Area floor of the coarse uniform mesh: about 300 elements on table-room.
+const UNIFORM_COARSE: f64 = 1.0 / 256.0;
+/// Area floor of the fine uniform mesh: four times as many elements as the coarse one.
+const UNIFORM_FINE: f64 = 1.0 / 1024.0;
+
+/// The table room seen a little from above, so the floor under the table shows.
+const TABLE_FROM_ABOVE: CameraPreset = CameraPreset { yaw_deg: 0.0, pitch_deg: 12.0, zoom: 1.0 };
+
+/// Every figure, in the lecture's order.
+pub const FIGURES: &[Figure] = &[
+    Figure {
+        method: "hierarchical, form-factor oracle (Feps), one step",
+        params: HierarchicalParams { feps: 0.05, ..HierarchicalParams::lecture() },
+        steps: &[StepKind::Refine],
+        camera: CameraPreset { yaw_deg: 35.0, pitch_deg: 20.0, zoom: 1.0 },
+        overlays: Overlays { quadtree: true, links: true, ..Overlays::NONE },
+        caption: "Two squares meet at a right angle; the vertical one emits. One Refine step \
+                  splits, in each pair whose form-factor estimates are not both below Feps, the \
+                  element that looks larger from the other (F_pq > F_qp: split q). The mesh is \
+                  finest along the shared edge, where the elements are closest and F varies \
+                  fastest. Press G to gather, P to push-pull, Space to \
+                  refine again.",
+        ..Figure::base(
+            "perpendicular-refine",
+            "Basic refinement: two perpendicular polygons",
+            "builtin:perpendicular",
+            "lecture",
+            HierarchicalParams::lecture(),
+        )
+    },
+    Figure {
+        method: "hierarchical, form-factor oracle (Feps)",
+        overlays: Overlays { quadtree: true, ..Overlays::NONE },
+        caption: "Refine with the form-factor oracle alone: a pair is linked once both of its \
+                  form-factor estimates are below Feps. The mesh follows the geometry, not the \
+                  light: it is finest in the corners and where the blocks stand on the floor, where \
+                  elements are close to each other, and a shadow edge is not refined for being one.",
+        ..Figure::base(
+            "feps-refinement",
+            "Refine: the form-factor oracle",
+            "builtin:cornell",
+            "lecture",
+            HierarchicalParams::lecture(),
+        )
+    },
+    Figure {
+        method: "hierarchical, BF oracle",
+        overlays: Overlays { quadtree: true, ..Overlays::NONE },
+        caption: "The same room refined by B·F: a link is split when the light it carries, the \
+                  source's radiosity times the form factor, is above BFeps. Fine elements go where \
+                  much light arrives and changes: the floor around the blocks' shadows, the back \
+                  wall under the light. The ceiling, which the light does not reach directly, \
+                  stays coarse.",
+        ..Figure::base(
+            "bf-refinement",
+            "Refining by B·F instead of F",
+            "builtin:cornell",
+            "interactive",
+            HierarchicalParams::interactive(),
+        )
+    },
+    Figure {
+        method: "hierarchical, error oracle (quality preset)",
+        camera: TABLE_FROM_ABOVE,
+        caption: "A converged, finely refined solution of the table room: the reference the \
+                  uniform meshes of the next figures are measured against. The shadow under the \
+                  table has a sharp umbra and soft penumbrae from the small ceiling light. The \
+                  Reference panel's Compute reference gives an independent Monte Carlo answer, \
+                  and the error heatmap then shows |B − B_ref|.",
+        ..Figure::base(
+            "reference-table",
+            "Reference solution vs. a uniform mesh",
+            "builtin:table-room",
+            "quality",
+            HierarchicalParams::quality(),
+        )
+    },
+    Figure {
+        method: "uniform mesh (Feps = 0, coarse area floor)",
+        overlays: Overlays { quadtree: true, flat: true, ..Overlays::NONE },
+        camera: TABLE_FROM_ABOVE,
+        caption: "A uniform mesh of about five hundred elements, flat shaded: every element is one \
+                  colour. The shadow under the table comes out as a few blocky elements and \
+                  the legs' shadows are missing, because no element boundary follows them. \
+                  Every pair of elements is linked: n² interactions.",
+        ..Figure::base(
+            "uniform-coarse",
+            "Increasing resolution: a coarse uniform mesh",
+            "builtin:table-room",
+            "lecture",
+            uniform(UNIFORM_COARSE),
+        )
+    },
+    Figure {
+        method: "uniform mesh (Feps = 0, fine area floor)",
+        overlays: Overlays { quadtree: true, flat: true, ..Overlays::NONE },
+        camera: TABLE_FROM_ABOVE,
+        caption: "Four times as many elements: the shadow's outline is sharper, but the error \
+                  falls only about in proportion to the element size, while the links (n²) grow \
+                  sixteen-fold. Most of the new elements sit on walls where the light was \
+                  already smooth.",
+        ..Figure::base(
+            "uniform-fine",
+            "Increasing resolution: a finer uniform mesh",
+            "builtin:table-room",
+            "lecture",
+            uniform(UNIFORM_FINE),
+        )
+    },
+    Figure {
+        method: "uniform mesh (Feps = 0, coarse area floor)",
+        overlays: Overlays { error: true, ..Overlays::NONE },
+        camera: TABLE_FROM_ABOVE,
+        caption: "The coarse uniform mesh coloured by its error on a log scale. The error \
+                  gathers where the light changes within an element — the shadow edges under \
+                  the table and the floor near the legs — and those are the blocky \
+                  shadows and missing features of the shaded image. Without a reference this is \
+                  the solver's own estimate; Compute reference turns it into the true error.",
+        ..Figure::base(
+            "error-image",
+            "The error image: blocky shadows, missing features",
+            "builtin:table-room",
+            "lecture",
+            uniform(UNIFORM_COARSE),
+        )
+    },
+    Figure {
+        method: "hierarchical, BF oracle",
+        overlays: Overlays { quadtree: true, ..Overlays::NONE },
+        camera: TABLE_FROM_ABOVE,
+        caption: "Adaptive meshing puts the elements where the light changes: the quadtree is \
+                  deep along the table's shadow and under the light, and coarse on the walls. \
+                  The status bar says about 800 leaves and 7 000 links: the fine uniform mesh \
+                  needs 2 000 leaves and 2.9 million links for a blurrier shadow.",
+        ..Figure::base(
+            "adaptive-meshing",
+            "Adaptive meshing",
+            "builtin:table-room",
+            "interactive",
+            HierarchicalParams::interactive(),
+        )
+    },
+    Figure {
+        method: "hierarchical, BF oracle",
+        overlays: Overlays { links: true, partial_links_only: true, ..Overlays::NONE },
+        camera: TABLE_FROM_ABOVE,
+        caption: "Only the partially visible links are drawn: those whose shadow rays were \
+                  partly blocked. Their receivers straddle a shadow boundary, in the penumbra, \
+                  where part of the light is seen; in the umbra and in full light every ray \
+                  agrees. Refinement splits these links first, which is why the mesh follows the \
+                  shadow.",
+        ..Figure::base(
+            "penumbra-links",
+            "Penumbras and umbras",
+            "builtin:table-room",
+            "interactive",
+            HierarchicalParams::interactive(),
+        )
+    },
+    Figure {
+        method: "hierarchical, BF oracle",
+        overlays: Overlays { quadtree: true, ..Overlays::NONE },
+        camera: CameraPreset { yaw_deg: 20.0, pitch_deg: -15.0, zoom: 0.5 },
+        caption: "A small lamp high above and an occluder just over the floor: the penumbra is \
+                  only about 0.03 wide, a thin ring around the umbra. The quadtree is deepest \
+                  exactly there, because only the links that straddle the ring are partly visible; \
+                  this scene's answer is known in closed form (tests/exact.rs measures the solvers on it).",
+        ..Figure::base(
+            "narrow-penumbra",
+            "Penumbras and umbras: a narrow penumbra",
+            "builtin:shadow-narrow",
+            "interactive",
+            HierarchicalParams::interactive(),
+        )
+    },
+    Figure {
+        method: "hierarchical, Feps oracle with the five-times rule",
+        params: HierarchicalParams { five_times: true, feps: 0.005, ..HierarchicalParams::lecture() },
+        overlays: Overlays { quadtree: true, ..Overlays::NONE },
+        camera: CameraPreset { yaw_deg: 30.0, pitch_deg: 0.0, zoom: 1.0 },
+        caption: "Two opposed squares one unit apart. The disk formula A cos θ cos θ' / (πr² + A) \
+                  is good only for elements small against their distance: for the two whole \
+                  squares it gives 0.24 against the exact 0.20 (radlab form-factor \
+                  builtin:parallel --from 0 --to 1 --method disk). With the five-times rule on, \
+                  a link's form factor is the disk formula only for pairs at least five diameters \
+                  apart, else the exact kernel: here every element has side 1/8, and five \
+                  diameters (0.88) are less than the distance, so every link takes the disk. The \
+                  Lecture menu's five-times explorer shows how the error falls with distance.",
+        ..Figure::base(
+            "five-times",
+            "The disk form factor and the five-times rule",
+            "builtin:parallel",
+            "lecture",
+            HierarchicalParams::lecture(),
+        )
+    },
+    Figure {
+        method: "hierarchical, form-factor oracle (Feps)",
+        params: HierarchicalParams { feps: 0.05, ..HierarchicalParams::lecture() },
+        matrix: true,
+        window_shot: true,
+        caption: "The two perpendicular squares refined with Feps, and every link drawn as the \
+                  block of the leaf-to-leaf form-factor matrix it stands for (rows receive, columns \
+                  send, leaves in quadtree order). Large blocks are far pairs of large elements \
+                  linked once; the blocks shrink towards the shared edge, where near elements \
+                  must be small. Hover a block to name its link, click it to pick the receiver.",
+        ..Figure::base(
+            "block-matrix",
+            "The blocking form-factor matrix",
+            "builtin:perpendicular",
+            "lecture",
+            HierarchicalParams::lecture(),
+        )
+    },
+    Figure {
+        method: "hierarchical, BF oracle, solved at four BFeps",
+        sweep_bf_eps: &[0.05, 0.02, 0.01],
+        plots: true,
+        window_shot: true,
+        caption: "The room solved at four thresholds, coarse to fine; each solve is a point in \
+                  the plots panel's links-against-elements plot (log-log). The points follow \
+                  the n line, a constant number of links per element, far below the n² line: \
+                  hierarchical radiosity needs O(n) links, where a uniform mesh links every pair. Move BFeps to add points.",
+        ..Figure::base(
+            "linear-links",
+            "O(n) interactions",
+            "builtin:cornell",
+            "interactive",
+            HierarchicalParams::interactive(),
+        )
+    },
+    Figure {
+        method: "hierarchical, BF oracle, Refine then one Gather",
+        steps: &[StepKind::Refine, StepKind::Gather],
+        caption: "One Refine step and one Gather: every element has collected the light that \
+                  reaches it straight from the lamp, and nothing more. The ceiling is dark and the \
+                  shadows are black, because no light has bounced yet. Press G again to gather the \
+                  next bounce, or S to solve to convergence.",
+        ..Figure::base(
+            "one-gather",
+            "Gather: the first bounce",
+            "builtin:cornell",
+            "interactive",
+            HierarchicalParams::interactive(),
+        )
+    },
+    Figure {
+        method: "hierarchical, BF oracle",
+        pick: Some([0.25, 0.93]),
+        window_shot: true,
+        caption: "One floor element is picked and its links drawn. Gather is recursive: an \
+                  element collects light through its own links and through those of every \
+                  ancestor in its quadtree (the inspector's rows not marked self), then push-pull \
+                  hands the ancestors' irradiance down and area-averages radiosity back up. Click any \
+                  element to see its links.",
+        ..Figure::base(
+            "recursive-gather",
+            "Recursive gather and push-pull",
+            "builtin:cornell",
+            "interactive",
+            HierarchicalParams::interactive(),
+        )
+    },
+    Figure {
+        method: "hierarchical, BF oracle (SPLASH-2 settings)",
+        caption: "The test room of Hanrahan, Salzman and Aupperle (the SPLASH-2 radiosity \
+                  program's input), solved with that program's settings. Shadows under the \
+                  tables and chairs and the light pools under the lamps come from a mesh that is \
+                  fine only where they are; press Q for the quadtree.",
+        ..Figure::base(
+            "hsa91-room",
+            "Results: the HSA91 room",
+            "builtin:splash_room",
+            "splash2",
+            HierarchicalParams::splash2(),
+        )
+    },
+];
+
+/// Why a figure name was not found.
+#[derive(Debug, thiserror::Error)]
+#[error("unknown figure {name:?} (one of {})", names().join(", "))]
+pub struct UnknownFigure {
+    pub name: String,
+}
+
+/// The figures' names, in order.
+#[must_use]
+pub fn names() -> Vec<&'static str> {
+    FIGURES.iter().map(|f| f.name).collect()
+}
+
+/// Look a figure up by name.
+pub fn find(name: &str) -> Result<&'static Figure, UnknownFigure> {
+    FIGURES.iter().find(|f| f.name == name).ok_or_else(|| UnknownFigure { name: name.to_owned() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_figure_loads_and_its_settings_are_valid() {
+        for f in FIGURES {
+            let scene = crate::scene::builtin::load(f.builtin_name())
+                .unwrap_or_else(|e| panic!("{}: {} does not load: {e}", f.name, f.scene));
+            assert!(!scene.patches.is_empty(), "{}", f.name);
+            assert!(f.scene.starts_with("builtin:"), "{}: figures use built-in scenes", f.name);
+            f.params.validate().unwrap_or_else(|e| panic!("{}: {e}", f.name));
+            assert!(HierarchicalParams::preset(f.preset).is_some(), "{}: preset {}", f.name, f.preset);
+            for &b in f.sweep_bf_eps {
+                HierarchicalParams { bf_eps: b, ..f.params }.validate().unwrap();
+            }
+        }
+    }
+
+    #[test]
+    fn names_are_unique_kebab_case_and_captions_are_two_to_five_sentences() {
+        let mut seen = std::collections::HashSet::new();
+        for f in FIGURES {
+            assert!(seen.insert(f.name), "{} twice", f.name);
+            assert!(f.name.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-'));
+            let sentences = f.caption.matches(". ").count() + usize::from(f.caption.ends_with('.'));
+            assert!((2..=5).contains(&sentences), "{}: {sentences} sentences", f.name);
+            assert!(!f.slide.is_empty());
+        }
+        assert!(FIGURES.len() >= 10);
+    }
+
+    #[test]
+    fn unknown_names_list_the_valid_ones() {
+        let e = find("nope").unwrap_err().to_string();
+        assert!(e.contains("\"nope\"") && e.contains("adaptive-meshing") && !e.contains('\n'), "{e}");
+        assert_eq!(find("hsa91-room").unwrap().scene, "builtin:splash_room");
+    }
+
+    #[test]
+    fn a_uniform_mesh_links_every_pair_of_floor_sized_leaves() {
+        use crate::solver::hierarchical::HierarchicalSolver;
+        let scene = std::sync::Arc::new(crate::scene::builtin::load("parallel").unwrap());
+        // A floor of 1/12 (1/24 of the two squares' area): each square splits into 16 of 1/16.
+        let mut s = HierarchicalSolver::new(scene, uniform(1.0 / 24.0)).unwrap();
+        s.solve(&mut |_, _| {});
+        let snap = s.snapshot();
+        let leaves: Vec<_> = snap.elements.iter().filter(|e| e.children.is_none()).collect();
+        assert_eq!(leaves.len(), 32);
+        assert!(leaves.iter().all(|e| (e.area - 1.0 / 16.0).abs() < 1e-12));
+        let is_leaf = |id: u32| snap.elements[id as usize].children.is_none();
+        assert!(snap.links.iter().all(|l| is_leaf(l.receiver) && is_leaf(l.source)));
+        // Every leaf of one square gathers from every leaf of the other: 2 × 16 × 16.
+        assert_eq!(snap.links.len(), 2 * 16 * 16);
+    }
+}

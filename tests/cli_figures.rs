@@ -1,0 +1,50 @@
+//! `radlab figures`: the list, its JSON, and the one-line error for a figure that does not exist.
+
+use std::process::Command;
+
+fn radlab(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_radlab")).args(args).output().unwrap()
+}
+
+#[test]
+fn figures_json_lists_every_figure_with_its_scene_settings_and_caption() {
+    let out = radlab(&["figures", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let figs = v.as_array().expect("an array");
+    assert_eq!(figs.len(), radlab::figures::FIGURES.len());
+    assert!(figs.len() >= 10);
+    for (f, want) in figs.iter().zip(radlab::figures::FIGURES) {
+        assert_eq!(f["name"], want.name);
+        assert_eq!(f["slide"], want.slide);
+        assert_eq!(f["scene"], want.scene);
+        assert!(f["caption"].as_str().is_some_and(|c| c.len() > 80), "{f}");
+        assert!(f["params"]["feps"].is_number(), "the solver settings are in the JSON: {f}");
+        assert!(f["overlays"]["quadtree"].is_boolean());
+    }
+    // The table: one row per figure, name and slide title.
+    let out = radlab(&["figures"]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    for f in radlab::figures::FIGURES {
+        assert!(text.lines().any(|l| l.starts_with(f.name) && l.contains(f.slide)), "{}:\n{text}", f.name);
+    }
+}
+
+#[test]
+fn an_unknown_figure_is_one_line_listing_the_valid_names() {
+    for args in [
+        &["view", "--figure", "no-such-figure"][..],
+        &["figures", "--screenshots", "/nonexistent-radlab-dir", "no-such-figure"][..],
+    ] {
+        let out = radlab(args);
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+        assert!(err.contains("\"no-such-figure\""), "{err}");
+        assert!(
+            err.contains("adaptive-meshing") && err.contains("hsa91-room"),
+            "lists the valid names: {err}"
+        );
+    }
+}
