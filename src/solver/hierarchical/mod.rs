@@ -476,7 +476,29 @@ struct PairOutcome {
 /// Shards of the per-pass memo of new pairs: a split pair is replaced in both receivers' lists
 /// in the same pass (the verdicts are symmetric), and the second receiver reuses the first one's
 /// coupling and visibility instead of computing them again.
-struct PairMemo(Vec<std::sync::Mutex<std::collections::HashMap<u64, PairOutcome>>>);
+struct PairMemo(Vec<std::sync::Mutex<PairMap>>);
+
+/// A memo shard: pair keys are already well mixed (`pair_key` packs two ids; the hasher mixes
+/// them once with splitmix64 instead of SipHash, a third of the memo's cost).
+type PairMap = std::collections::HashMap<u64, PairOutcome, std::hash::BuildHasherDefault<KeyHasher>>;
+
+/// splitmix64 of a `u64` key (see `PairMap`).
+#[derive(Default)]
+struct KeyHasher(u64);
+
+impl std::hash::Hasher for KeyHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = splitmix64(self.0 ^ u64::from(b));
+        }
+    }
+    fn write_u64(&mut self, k: u64) {
+        self.0 = splitmix64(self.0 ^ k);
+    }
+}
 
 impl Default for PairMemo {
     fn default() -> Self {
@@ -485,8 +507,8 @@ impl Default for PairMemo {
 }
 
 impl PairMemo {
-    fn shard(&self, key: u64) -> std::sync::MutexGuard<'_, std::collections::HashMap<u64, PairOutcome>> {
-        let i = (splitmix64(key) % self.0.len() as u64) as usize;
+    fn shard(&self, key: u64) -> std::sync::MutexGuard<'_, PairMap> {
+        let i = ((key ^ (key >> 32)) % self.0.len() as u64) as usize;
         self.0[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }
     fn get(&self, key: u64) -> Option<PairOutcome> {
