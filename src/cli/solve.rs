@@ -144,6 +144,10 @@ pub struct Args {
     /// Write every element (vertices, radiosity) and link (receiver, source, F, visibility) as JSON.
     #[arg(long)]
     pub dump_hierarchy: Option<PathBuf>,
+    /// Add the hierarchical solver's own error estimate to the JSON (`error_estimate`: its
+    /// global relative L2, no reference needed); costs about as much again as the solve.
+    #[arg(long)]
+    pub estimate: bool,
     /// Write the solved mesh with its radiosity as vertex colours, unlit (COLOR_0, linear; the
     /// exposure and units in `extras`): PATH.glb, or PATH.gltf with the buffer embedded.
     #[arg(long, value_name = "PATH")]
@@ -302,9 +306,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let p = hierarchical_params(&args)?;
             let mut s = HierarchicalSolver::with_accel(Arc::clone(&scene), Arc::clone(&accel), p, bvh_s);
             s.solve(&mut |d, n| bar.update(d, n));
-            // Per-element error estimates are not part of the output (--dump-hierarchy computes
-            // its own); they would double the time on a refined scene.
-            let sol = s.solution_with(false);
+            // Per-element error estimates only on request (--dump-hierarchy computes its own):
+            // they double the time on a refined scene.
+            let sol = s.solution_with(args.estimate);
             hier = Some(s);
             (sol, serde_json::to_value(p)?)
         }
@@ -507,11 +511,33 @@ pub fn solution_json(
             obj.entry(k.clone()).or_insert_with(|| v.clone());
         }
     }
+    // The solver's own estimate of its global error (issue 15 §4): the per-element estimates
+    // (units of B) against the reflected radiosity, area-weighted, as the pointwise ruler
+    // weighs its points — no reference needed.
+    let estimate = {
+        let (mut num, mut den) = (0.0, 0.0);
+        let mut any = false;
+        for e in &sol.elements {
+            let reflected = (e.radiosity - scene.patches[e.patch].emission).mean();
+            den += e.area * reflected * reflected;
+            if let Some(x) = e.error_estimate {
+                any = true;
+                num += e.area * x * x;
+            }
+        }
+        (any && den > 0.0).then(|| {
+            json!({
+                "global_rel_l2": (num / den).sqrt(),
+                "what": "the solver's own estimate of the relative L2 error of the reflected radiosity (no reference)",
+            })
+        })
+    };
     json!({
         "scene": spec,
         "method": sol.method,
         "params": params,
         "stats": stats,
+        "error_estimate": estimate,
         "energy": {
             "emitted": sol.energy.emitted,
             "absorbed": sol.energy.absorbed,
