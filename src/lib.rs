@@ -41,6 +41,7 @@
 //! - `render`, `viewer` (feature `gui`): wgpu pipelines and the eframe app.
 
 pub mod accel;
+pub mod artifacts;
 pub mod bake;
 pub mod bench;
 pub mod block_matrix;
