@@ -96,3 +96,23 @@ fn furnace_has_no_artifacts() {
     assert_eq!(r.shading_jumps.inappropriate_length, 0.0, "{:?}", r.shading_jumps);
     assert_eq!(r.unresolved.unresolved_length, 0.0, "{:?}", r.unresolved);
 }
+
+/// `radlab reference SCENE --exact --compare METHOD` prints the table; the D-mesh leaves no
+/// critical segment inside an element.
+#[test]
+fn cli_prints_the_artifacts_table() {
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("artifacts-cli-cache");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+        .args(["reference", "builtin:shadow-narrow", "--samples", "16", "--exact", "--compare", "dmesh-bsp"])
+        .arg("--cache-dir")
+        .arg(&cache)
+        .output()
+        .unwrap();
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{text}");
+    for row in ["A blocky shadows", "B missing features", "C Mach bands              not yet measured"] {
+        assert!(text.contains(row), "no row {row:?} in:\n{text}");
+    }
+    assert!(text.contains("D shading discontinuities"), "{text}");
+    assert!(text.contains("E unresolved              0.0 %"), "{text}");
+}
