@@ -48,6 +48,23 @@
 //! x ± δ n (n the segment's in-plane normal, δ = `near` × patch diameter, points off the patch
 //! dropped): `E_err = √(Σ |B(x) − B_ref(x)|²) / √(Σ |B_ref(x)|²)` (channels summed).
 //!
+//! Measured (release, `radlab reference builtin:SCENE --samples 16 --exact --compare METHOD`,
+//! standard settings; B as features missing of all, D and E as fractions of length):
+//!
+//! | scene | method | elements | A | B | D | E | E_err |
+//! |---|---|---|---|---|---|---|---|
+//! | shadow-narrow | uniform | 110 | 76.7 % | 0 of 10 | 86.7 % | 100 % | 56.3 % |
+//! | shadow-narrow | hierarchical | 180 | 82.1 % | 0 of 10 | 73.8 % | 97.0 % | 46.0 % |
+//! | shadow-narrow | dmesh-cdt | 428 | 59.2 % | 4 of 10 (1.3 % of area) | 60.8 % | 0 % | – |
+//! | shadow-narrow | dmesh-bsp | 17 | 56.5 % | 6 of 10 (2.1 % of area) | 92.2 % | 0 % | – |
+//! | shadow-wide | uniform | 157 | 14.6 % | 0 of 4 | 79.4 % | 100 % | 20.4 % |
+//! | shadow-wide | dmesh-cdt | 160 | 24.4 % | 0 of 4 | 73.4 % | 0 % | – |
+//!
+//! The D-mesh resolves every critical segment (E = 0) but, at p = 0, still jumps at most of its
+//! edges (D): its edges lie on D1/D2 segments, where the reference is continuous in value. Its
+//! missing features are small (≤ 2 % of the feature area; which ones was not examined): the count
+//! weighs a fragment of a few grid points as much as a whole shadow, the area fraction does not.
+//!
 //! The lecture's artifacts: Lischinski, Tampieri & Greenberg 1992, "Discontinuity meshing for
 //! accurate radiosity", IEEE CG&A 12(6), Fig. 1 (blocky shadows, missing features, Mach bands,
 //! inappropriate shading discontinuities, unresolved discontinuities).

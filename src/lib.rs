@@ -32,6 +32,7 @@
 //!   a closed-form ruler with no reference noise.
 //! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
 //! - [`penumbra`]: the penumbra band of a point set (points that see part of the direct light).
+//! - [`artifacts`]: the five meshing artifacts of the lecture, one number each, against a reference.
 //! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
 //! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
