@@ -26,10 +26,16 @@
 //! |B̄(x_k) − s_p| > τ m_p / 2. A feature is *missing* when fewer than half its points are shown.
 //! `B = missing features / features` (also reported as a fraction of feature area).
 //!
-//! **C — Mach bands** (jumps in the derivative at element edges where the reference is smooth):
-//! **not yet measured.** A p = 0 solution has no derivative inside elements; C needs the
-//! reconstruction that the viewer draws (Gouraud-interpolated vertex values), which this module
-//! does not build.
+//! **C — Mach bands** (jumps in the derivative at element edges where the reference is
+//! smooth). A p = 0 solution has no slope inside an element; what a viewer shows, and where the
+//! eye sees Mach bands, is its Gouraud reconstruction G ([`Gouraud`]: corner values averaged
+//! over the elements sharing the corner, interpolated linearly). At each interior edge sample of
+//! D (below), with h = 10 ε, the kink
+//! `K = |G(x + 2h n) − G(x + h n) + G(x − 2h n) − G(x − h n)| / h` (mean over channels; the
+//! outward slope minus the inward one, 0 where G is smooth) and K_ref of the reference are
+//! taken; the sample is a *Mach band* when K √a_e > `jump` · m_p (the kink bends the value by
+//! more than the visible jump over the element's size, a_e its area) and K_ref < K / 10.
+//! `C = length of Mach-band samples / interior edge length`.
 //!
 //! **D — inappropriate shading discontinuities.** Every edge of every element is sampled at
 //! `edge_samples` points x (midpoints of equal pieces, each of weight its length ℓ / 2, as an
@@ -49,19 +55,20 @@
 //! dropped): `E_err = √(Σ |B(x) − B_ref(x)|²) / √(Σ |B_ref(x)|²)` (channels summed).
 //!
 //! Measured (release, `radlab reference builtin:SCENE --samples 16 --exact --compare METHOD`,
-//! standard settings; B as features missing of all, D and E as fractions of length):
+//! standard settings; B as features missing of all, C, D and E as fractions of length):
 //!
-//! | scene | method | elements | A | B | D | E | E_err |
-//! |---|---|---|---|---|---|---|---|
-//! | shadow-narrow | uniform | 110 | 76.7 % | 0 of 10 | 86.7 % | 100 % | 56.3 % |
-//! | shadow-narrow | hierarchical | 180 | 82.1 % | 0 of 10 | 73.8 % | 97.0 % | 46.0 % |
-//! | shadow-narrow | dmesh-cdt | 428 | 59.2 % | 4 of 10 (1.3 % of area) | 60.8 % | 0 % | – |
-//! | shadow-narrow | dmesh-bsp | 17 | 56.5 % | 6 of 10 (2.1 % of area) | 92.2 % | 0 % | – |
-//! | shadow-wide | uniform | 157 | 14.6 % | 0 of 4 | 79.4 % | 100 % | 20.4 % |
-//! | shadow-wide | dmesh-cdt | 160 | 24.4 % | 0 of 4 | 73.4 % | 0 % | – |
+//! | scene | method | elements | A | B | C | D | E | E_err |
+//! |---|---|---|---|---|---|---|---|---|
+//! | shadow-narrow | uniform | 110 | 76.7 % | 0 of 10 | 86.5 % | 86.7 % | 100 % | 56.3 % |
+//! | shadow-narrow | hierarchical | 180 | 82.1 % | 0 of 10 | 81.7 % | 73.8 % | 97.0 % | 46.0 % |
+//! | shadow-narrow | dmesh-cdt | 428 | 59.2 % | 4 of 10 (1.3 % of area) | 71.5 % | 60.8 % | 0 % | – |
+//! | shadow-narrow | dmesh-bsp | 17 | 56.5 % | 6 of 10 (2.1 % of area) | 41.0 % | 92.2 % | 0 % | – |
+//! | shadow-wide | uniform | 157 | 14.6 % | 0 of 4 | 86.4 % | 79.4 % | 100 % | 20.4 % |
+//! | shadow-wide | dmesh-cdt | 160 | 24.4 % | 0 of 4 | 66.1 % | 73.4 % | 0 % | – |
 //!
 //! The D-mesh resolves every critical segment (E = 0) but, at p = 0, still jumps at most of its
-//! edges (D): its edges lie on D1/D2 segments, where the reference is continuous in value. Its
+//! edges (D): its edges lie on D1/D2 segments, where the reference is continuous in value; and
+//! Gouraud-shaded it kinks (C) on most edges that are not D1 segments. Its
 //! missing features are small (≤ 2 % of the feature area; which ones was not examined): the count
 //! weighs a fragment of a few grid points as much as a whole shadow, the area fraction does not.
 //!
@@ -174,6 +181,23 @@ impl ShadingJumps {
     }
 }
 
+/// C: interior element edges and the length where the Gouraud reconstruction kinks.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MachBands {
+    /// Interior edge length sampled (as D's).
+    pub edge_length: f64,
+    /// Of which the Gouraud reconstruction's slope jumps visibly where the reference's does not.
+    pub band_length: f64,
+}
+
+impl MachBands {
+    /// band / interior edge length (0 without interior edges).
+    #[must_use]
+    pub fn fraction(&self) -> f64 {
+        if self.edge_length > 0.0 { self.band_length / self.edge_length } else { 0.0 }
+    }
+}
+
 /// E: critical segments and how much of them falls inside elements.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
 pub struct UnresolvedDiscontinuities {
@@ -199,8 +223,7 @@ pub struct ArtifactReport {
     pub blocky_shadows: Option<f64>,
     pub band_points: usize,
     pub missing_features: MissingFeatures,
-    /// C: not yet measured (always `None`).
-    pub mach_bands: Option<f64>,
+    pub mach_bands: MachBands,
     pub shading_jumps: ShadingJumps,
     pub unresolved: UnresolvedDiscontinuities,
 }
@@ -236,12 +259,13 @@ pub fn measure<R: Reconstruction + ?Sized>(
     let blocky_shadows = compare_points_in(scene, &points, &sol, &estimates, &in_band, 0.0)?
         .map(|s| s.report.scene.l2_debiased);
 
+    let samples = interior_edge_samples(scene, solution, &pc, &means, params);
     Ok(ArtifactReport {
         blocky_shadows,
         band_points,
         missing_features: missing_features(&points, &refs, &sol, &means, params),
-        mach_bands: None,
-        shading_jumps: shading_jumps(scene, solution, &pc, reference, &means, params),
+        mach_bands: mach_bands(scene, solution, &samples, reference, &means, params)?,
+        shading_jumps: shading_jumps(solution, &samples, reference, &means, params),
         unresolved: unresolved(scene, solution, &pc, reference, params)?,
     })
 }
@@ -387,68 +411,192 @@ fn inside_convex(verts: &[DVec3], normal: DVec3, x: DVec3) -> bool {
     })
 }
 
-/// D (module docs).
-fn shading_jumps<R: Reconstruction + ?Sized>(
+/// One sample of an interior element edge (module docs, D): the point `x` on the edge of
+/// element `inside`, the in-plane normal `n` pointing into element `outside`, its length weight.
+struct EdgeSample {
+    patch: usize,
+    inside: usize,
+    outside: usize,
+    x: DVec3,
+    n: DVec3,
+    weight: f64,
+    /// ε: the offset of the two located points x ± ε n.
+    eps: f64,
+}
+
+/// Every interior edge sample of the solution's reflecting patches, in element order.
+fn interior_edge_samples(
     scene: &Scene,
     solution: &Solution,
     pc: &PiecewiseConstant,
-    reference: &R,
     means: &[(f64, f64)],
     params: &ArtifactParams,
-) -> ShadingJumps {
+) -> Vec<EdgeSample> {
     let m = params.edge_samples.max(1);
-    // (interior length, inappropriate length, Σ ℓ J / m_p) per element, summed.
-    let sums = solution
+    solution
         .elements
         .par_iter()
         .enumerate()
         .filter(|(_, e)| scene.patches[e.patch].reflectance.mean() > 0.0 && means[e.patch].0 > 0.0)
-        .map(|(index, e)| {
+        .flat_map_iter(|(index, e)| {
             let patch = &scene.patches[e.patch];
             let eps = 1e-6 * patch.diameter();
-            let mean = means[e.patch].0;
             let centre = crate::math::polygon_centroid(&e.vertices);
-            let mut acc = (0.0, 0.0, 0.0);
+            let mut out = Vec::new();
             for k in 0..e.vertices.len() {
                 let (a, b) = (e.vertices[k], e.vertices[(k + 1) % e.vertices.len()]);
                 let mut n = (b - a).cross(patch.normal).normalize_or_zero();
                 if n.dot((a + b) * 0.5 - centre) < 0.0 {
                     n = -n;
                 }
-                let w = 0.5 * a.distance(b) / f64::from(m);
+                let weight = 0.5 * a.distance(b) / f64::from(m);
                 for i in 0..m {
                     let x = a.lerp(b, (f64::from(i) + 0.5) / f64::from(m));
                     if boundary_distance(&patch.vertices, x) < 2.0 * eps {
                         continue;
                     }
-                    let (out, inn) = (x + n * eps, x - n * eps);
-                    let (Some(o), Some(s)) = (pc.element_at(e.patch, out), pc.element_at(e.patch, inn))
-                    else {
-                        continue;
-                    };
-                    if o == s || s != index {
-                        continue;
-                    }
-                    acc.0 += w;
-                    let jump = (solution.elements[o].radiosity - solution.elements[s].radiosity).mean().abs();
-                    let jump_ref = (reference.radiosity_at(e.patch, out)
-                        - reference.radiosity_at(e.patch, inn))
-                    .mean()
-                    .abs();
-                    if jump > params.jump * mean && jump_ref < 0.1 * jump {
-                        acc.1 += w;
-                        acc.2 += w * jump / mean;
+                    let (o, s) = (pc.element_at(e.patch, x + n * eps), pc.element_at(e.patch, x - n * eps));
+                    if let (Some(outside), Some(inside)) = (o, s)
+                        && outside != inside
+                        && inside == index
+                    {
+                        out.push(EdgeSample { patch: e.patch, inside, outside, x, n, weight, eps });
                     }
                 }
             }
-            acc
+            out
         })
-        .reduce(|| (0.0, 0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
-    ShadingJumps {
-        edge_length: sums.0,
-        inappropriate_length: sums.1,
-        mean_jump: if sums.1 > 0.0 { sums.2 / sums.1 } else { 0.0 },
+        .collect()
+}
+
+/// D (module docs).
+fn shading_jumps<R: Reconstruction + ?Sized>(
+    solution: &Solution,
+    samples: &[EdgeSample],
+    reference: &R,
+    means: &[(f64, f64)],
+    params: &ArtifactParams,
+) -> ShadingJumps {
+    let mut out = ShadingJumps::default();
+    let mut sum_jump = 0.0;
+    for s in samples {
+        let mean = means[s.patch].0;
+        out.edge_length += s.weight;
+        let jump =
+            (solution.elements[s.outside].radiosity - solution.elements[s.inside].radiosity).mean().abs();
+        let (out_x, in_x) = (s.x + s.n * s.eps, s.x - s.n * s.eps);
+        let jump_ref =
+            (reference.radiosity_at(s.patch, out_x) - reference.radiosity_at(s.patch, in_x)).mean().abs();
+        if jump > params.jump * mean && jump_ref < 0.1 * jump {
+            out.inappropriate_length += s.weight;
+            sum_jump += s.weight * jump / mean;
+        }
     }
+    out.mean_jump = if out.inappropriate_length > 0.0 { sum_jump / out.inappropriate_length } else { 0.0 };
+    out
+}
+
+/// The reconstruction a viewer draws from constant elements (Gouraud): each element corner takes
+/// the area-weighted mean of the elements of its patch that share that corner (welded within
+/// 10⁻⁹ of the scene's diagonal; a T-junction's corner is not shared by the long edge), and the
+/// value inside an element is the linear (triangle) or bilinear (quad, exact for
+/// parallelograms) interpolation of its corners' values.
+pub struct Gouraud<'a> {
+    elements: &'a [crate::solver::SolvedElement],
+    locate: PiecewiseConstant<'a>,
+    /// Per element, the value at each corner.
+    corners: Vec<Vec<Rgb>>,
+}
+
+impl<'a> Gouraud<'a> {
+    /// Weld the corners of `solution`'s elements and average them.
+    pub fn new(scene: &'a Scene, solution: &'a Solution) -> Result<Self, MetricsError> {
+        let quantum = 1e-9 * scene.bounds().diagonal().max(f64::MIN_POSITIVE);
+        let key = |patch: usize, v: DVec3| {
+            let q = (v / quantum).round();
+            (patch, q.x as i64, q.y as i64, q.z as i64)
+        };
+        let mut sums: std::collections::HashMap<(usize, i64, i64, i64), (Rgb, f64)> =
+            std::collections::HashMap::new();
+        for e in &solution.elements {
+            for &v in &e.vertices {
+                let s = sums.entry(key(e.patch, v)).or_insert((Rgb::ZERO, 0.0));
+                s.0 += e.radiosity * e.area;
+                s.1 += e.area;
+            }
+        }
+        let corners = solution
+            .elements
+            .iter()
+            .map(|e| {
+                e.vertices
+                    .iter()
+                    .map(|&v| {
+                        let (b, a) = sums[&key(e.patch, v)];
+                        if a > 0.0 { b / a } else { e.radiosity }
+                    })
+                    .collect()
+            })
+            .collect();
+        Ok(Gouraud {
+            elements: &solution.elements,
+            locate: PiecewiseConstant::new(scene, &solution.elements)?,
+            corners,
+        })
+    }
+}
+
+impl Reconstruction for Gouraud<'_> {
+    fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
+        let Some(i) = self.locate.element_at(patch, x) else {
+            return self.locate.radiosity_at(patch, x);
+        };
+        let (v, c) = (&self.elements[i].vertices, &self.corners[i]);
+        // x − v0 = s (v1 − v0) + t (v_last − v0), least squares in the element's plane.
+        let (e1, e2, d) = (v[1] - v[0], v[v.len() - 1] - v[0], x - v[0]);
+        let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let det = a11 * a22 - a12 * a12;
+        if det <= 0.0 {
+            return self.elements[i].radiosity;
+        }
+        let (b1, b2) = (e1.dot(d), e2.dot(d));
+        let (s, t) = ((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det);
+        if v.len() == 3 {
+            c[0] * (1.0 - s - t) + c[1] * s + c[2] * t
+        } else {
+            c[0] * ((1.0 - s) * (1.0 - t)) + c[1] * (s * (1.0 - t)) + c[2] * (s * t) + c[3] * ((1.0 - s) * t)
+        }
+    }
+}
+
+/// C (module docs).
+fn mach_bands<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    samples: &[EdgeSample],
+    reference: &R,
+    means: &[(f64, f64)],
+    params: &ArtifactParams,
+) -> Result<MachBands, MetricsError> {
+    let gouraud = Gouraud::new(scene, solution)?;
+    // The change of slope across the edge: outward slope on the far side plus the slope moving
+    // away from the edge on the near side (zero where the function is smooth).
+    let kink = |f: &dyn Fn(DVec3) -> Rgb, s: &EdgeSample| {
+        let h = 10.0 * s.eps;
+        let (x, n) = (s.x, s.n);
+        ((f(x + n * (2.0 * h)) - f(x + n * h)) + (f(x - n * (2.0 * h)) - f(x - n * h))).mean().abs() / h
+    };
+    let mut out = MachBands::default();
+    for s in samples {
+        let mean = means[s.patch].0;
+        out.edge_length += s.weight;
+        let k = kink(&|y| gouraud.radiosity_at(s.patch, y), s);
+        let k_ref = kink(&|y| reference.radiosity_at(s.patch, y), s);
+        if k * solution.elements[s.inside].area.sqrt() > params.jump * mean && k_ref < 0.1 * k {
+            out.band_length += s.weight;
+        }
+    }
+    Ok(out)
 }
 
 /// E (module docs).

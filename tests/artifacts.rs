@@ -6,7 +6,7 @@
 //! Run with `--nocapture` to see the figures.
 
 use radlab::accel::Accel;
-use radlab::artifacts::{ArtifactParams, ArtifactReport, measure};
+use radlab::artifacts::{ArtifactParams, ArtifactReport, Gouraud, measure};
 use radlab::exact::SingleBounce;
 use radlab::math::{DVec3, Rgb};
 use radlab::pointwise::PiecewiseConstant;
@@ -31,7 +31,8 @@ fn against_exact(scene: &Scene, sol: &Solution) -> ArtifactReport {
 
 /// One element a patch: a constant floor shows neither the shadow nor the bright spot under
 /// the lamp (B: every feature missing), is all error in the penumbra (A), and its only element
-/// holds every critical segment (E = 1); with no interior edge it cannot jump (D = 0).
+/// holds every critical segment (E = 1); with no interior edge it can neither jump nor kink
+/// (C = D = 0).
 #[test]
 fn one_element_a_patch_misses_every_feature() {
     let scene = Scene::load("builtin:shadow-narrow").unwrap();
@@ -44,11 +45,11 @@ fn one_element_a_patch_misses_every_feature() {
     assert!(r.unresolved.segments > 0);
     assert!(r.unresolved.fraction() > 0.999, "E = {}", r.unresolved.fraction());
     assert!(r.unresolved.error_beside.unwrap() > 0.1);
-    assert_eq!(r.mach_bands, None, "C is not measured yet");
+    assert_eq!(r.mach_bands.edge_length, 0.0, "no interior edge: no Mach band");
 }
 
-/// A coarse uniform mesh jumps between its elements where the closed form is smooth (D), and
-/// its edges do not follow the shadow's boundaries (E); the discontinuity mesh follows them.
+/// A coarse uniform mesh jumps between its elements where the closed form is smooth (D), kinks
+/// there when Gouraud-shaded (C), and its edges do not follow the shadow's boundaries (E); the discontinuity mesh follows them.
 #[test]
 fn coarse_mesh_jumps_and_leaves_discontinuities_inside_elements() {
     let scene = Scene::load("builtin:shadow-narrow").unwrap();
@@ -56,6 +57,7 @@ fn coarse_mesh_jumps_and_leaves_discontinuities_inside_elements() {
     assert!(coarse.shading_jumps.edge_length > 0.0);
     assert!(coarse.shading_jumps.fraction() > 0.2, "D = {:?}", coarse.shading_jumps);
     assert!(coarse.unresolved.fraction() > 0.5, "E = {:?}", coarse.unresolved);
+    assert!(coarse.mach_bands.fraction() > 0.2, "C = {:?}", coarse.mach_bands);
 
     let d = discontinuity::solve(&scene, &DiscontinuityParams::cdt(), &mut |_, _| {}).unwrap();
     let dm = against_exact(&scene, &d.solution);
@@ -67,7 +69,8 @@ fn coarse_mesh_jumps_and_leaves_discontinuities_inside_elements() {
 
 /// A solution against its own reconstruction: every jump is the reference's own (D = 0), every
 /// feature is shown (B = 0), no error anywhere (A = 0, E's error 0) — the segments still fall
-/// inside elements (E's length is geometry, not error).
+/// inside elements (E's length is geometry, not error); against its own Gouraud reconstruction,
+/// every kink is the reference's own (C = 0).
 #[test]
 fn a_solution_against_itself_has_no_artifacts() {
     let scene = Scene::load("builtin:shadow-narrow").unwrap();
@@ -79,10 +82,16 @@ fn a_solution_against_itself_has_no_artifacts() {
     assert!(r.missing_features.features > 0 && r.missing_features.missing == 0, "{:?}", r.missing_features);
     assert!(r.shading_jumps.edge_length > 0.0 && r.shading_jumps.inappropriate_length == 0.0);
     assert!(r.unresolved.fraction() > 0.0);
+    // Against its own flat reconstruction G's kinks are G's alone: C counts them (it compares
+    // what a viewer draws with the reference), so only the Gouraud reconstruction itself as the
+    // reference has none.
+    let gouraud = Gouraud::new(&scene, &sol).unwrap();
+    let g = measure(&scene, &sol, &gouraud, &ArtifactParams::quick()).unwrap();
+    assert!(g.mach_bands.edge_length > 0.0 && g.mach_bands.band_length == 0.0, "{:?}", g.mach_bands);
     assert!(r.unresolved.error_beside.unwrap_or(0.0) < 1e-12);
 }
 
-/// The furnace: B = E / (1 − ρ) = 2 on every face, no shadow, no highlight, no jump.
+/// The furnace: B = E / (1 − ρ) = 2 on every face, no shadow, no highlight, no jump, no kink.
 #[test]
 fn furnace_has_no_artifacts() {
     let scene = Scene::load("builtin:furnace").unwrap();
@@ -95,6 +104,7 @@ fn furnace_has_no_artifacts() {
     assert!(r.shading_jumps.edge_length > 0.0);
     assert_eq!(r.shading_jumps.inappropriate_length, 0.0, "{:?}", r.shading_jumps);
     assert_eq!(r.unresolved.unresolved_length, 0.0, "{:?}", r.unresolved);
+    assert_eq!(r.mach_bands.band_length, 0.0, "{:?}", r.mach_bands);
 }
 
 /// `radlab reference SCENE --exact --compare METHOD` prints the table; the D-mesh leaves no
@@ -110,7 +120,7 @@ fn cli_prints_the_artifacts_table() {
         .unwrap();
     let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success(), "{text}");
-    for row in ["A blocky shadows", "B missing features", "C Mach bands              not yet measured"] {
+    for row in ["A blocky shadows", "B missing features", "C Mach bands"] {
         assert!(text.contains(row), "no row {row:?} in:\n{text}");
     }
     assert!(text.contains("D shading discontinuities"), "{text}");

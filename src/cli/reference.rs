@@ -613,7 +613,11 @@ fn print_artifacts(
             pct(b.fraction()),
             format!("{} of {} features, {} of their area", b.missing, b.features, pct(b.area_fraction)),
         ),
-        ("C Mach bands", "not yet measured".into(), String::new()),
+        (
+            "C Mach bands",
+            pct(r.mach_bands.fraction()),
+            format!("of the interior edge length, Gouraud-interpolated ({:.3})", r.mach_bands.edge_length),
+        ),
         (
             "D shading discontinuities",
             pct(d.fraction()),
