@@ -32,6 +32,7 @@
 //!   a closed-form ruler with no reference noise.
 //! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
 //! - [`penumbra`]: the penumbra band of a point set (points that see part of the direct light).
+//! - [`artifacts`]: the five meshing artifacts of the lecture, one number each, against a reference.
 //! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
 //! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
@@ -41,6 +42,7 @@
 //! - `render`, `viewer` (feature `gui`): wgpu pipelines and the eframe app.
 
 pub mod accel;
+pub mod artifacts;
 pub mod bake;
 pub mod bench;
 pub mod block_matrix;

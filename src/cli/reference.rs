@@ -57,7 +57,8 @@ pub struct Args {
     /// Pointwise ruler on a single-bounce scene (`builtin:shadow-wide`, `builtin:shadow-narrow`,
     /// [`radlab::exact`]): score against the closed-form answer at the reference's points (no
     /// noise) instead of their Monte Carlo estimates; the points are still placed by the cached
-    /// reference (use a small --samples to place them quickly).
+    /// reference (use a small --samples to place them quickly). With --compare, also prints the
+    /// five meshing artifacts of the solution ([`radlab::artifacts`]).
     #[arg(long)]
     pub exact: bool,
     /// Hierarchical preset for --compare (interactive, quality, lecture, splash2).
@@ -558,6 +559,9 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
             score.element_average.per_element.len()
         )?;
         print_report(&score.element_average, false, &mut log)?;
+        if args.exact {
+            print_artifacts(&scene, &sol, &mut log)?;
+        }
         let cells = entry.set.cell_regions(&scene);
         write_images(args, &sol, &scene, &accel, &cells, &score.pointwise.per_element, &mut log)?;
     } else if args.images.is_some() {
@@ -576,6 +580,67 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
             })).collect::<Vec<_>>(),
         });
         write_doc(&doc, path, to_stdout, &mut log)?;
+    }
+    Ok(())
+}
+
+/// With `--compare METHOD --exact`: the five meshing artifacts ([`radlab::artifacts`]) of the
+/// solution against the closed form, one row each.
+fn print_artifacts(
+    scene: &radlab::scene::Scene,
+    sol: &radlab::solver::Solution,
+    log: &mut dyn std::io::Write,
+) -> anyhow::Result<()> {
+    use radlab::artifacts::{ArtifactParams, measure};
+    let sb = radlab::exact::SingleBounce::new(scene).context("--exact")?;
+    let exact = |p: usize, x: radlab::math::DVec3| sb.patch_radiosity_at(p, x);
+    let r = measure(scene, sol, &exact, &ArtifactParams::standard())?;
+    let pct = |x: f64| format!("{:.1} %", 100.0 * x);
+    writeln!(
+        log,
+        "artifacts (against the closed form, {}² grid points a patch):",
+        ArtifactParams::standard().side
+    )?;
+    let (b, d, e) = (&r.missing_features, &r.shading_jumps, &r.unresolved);
+    let rows = [
+        (
+            "A blocky shadows",
+            r.blocky_shadows.map_or_else(|| "no penumbra".into(), pct),
+            format!("rel L2 in the penumbra band, {} points", r.band_points),
+        ),
+        (
+            "B missing features",
+            pct(b.fraction()),
+            format!("{} of {} features, {} of their area", b.missing, b.features, pct(b.area_fraction)),
+        ),
+        (
+            "C Mach bands",
+            pct(r.mach_bands.fraction()),
+            format!("of the interior edge length, Gouraud-interpolated ({:.3})", r.mach_bands.edge_length),
+        ),
+        (
+            "D shading discontinuities",
+            pct(d.fraction()),
+            format!(
+                "of {:.3} interior edge length; mean jump {} of the patch mean",
+                d.edge_length,
+                pct(d.mean_jump)
+            ),
+        ),
+        (
+            "E unresolved",
+            pct(e.fraction()),
+            format!(
+                "of {:.3} critical-segment length in {} segments; rel L2 beside them {}",
+                e.length,
+                e.segments,
+                e.error_beside.map_or_else(|| "none".into(), pct)
+            ),
+        ),
+    ];
+    for (name, value, detail) in rows {
+        let detail = if detail.is_empty() { detail } else { format!("  ({detail})") };
+        writeln!(log, "  {name:<25} {value}{detail}")?;
     }
     Ok(())
 }

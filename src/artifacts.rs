@@ -1,0 +1,645 @@
+//! The five meshing artifacts of the lecture, measured: for a solution against a reference, one
+//! number per artifact (issue 16 §3).
+//!
+//! The reference is anything that gives B at any point of any patch ([`Reconstruction`]): the
+//! closed form of a single-bounce scene ([`crate::exact::SingleBounce::patch_radiosity_at`]), or
+//! a fine solve's reconstruction. The solution is read through its piecewise-constant
+//! reconstruction ([`PiecewiseConstant`]): B(x) = B_e of the leaf element e holding x. Only
+//! patches that reflect (ρ̄ > 0) are examined: the rest hold B = E, constant by construction.
+//!
+//! Every patch p is sampled on a `side × side` grid of its area-uniform map
+//! ([`crate::reference::area_point`]), cell centres x_k of equal area a_k = A_p / side². With
+//! B̄ the mean over channels, m_p = Σ_k a_k B̄_ref(x_k) / A_p the reference's patch mean and
+//! s_p the same of the solution:
+//!
+//! **A — blocky shadows.** The pointwise rel L2 error ([`crate::pointwise::compare_points_in`])
+//! over the grid points in the penumbra band ([`crate::penumbra::band`], standard settings):
+//! `A = √(Σ_band a_k |B(x_k) − B_ref(x_k)|²) / √(Σ_band a_k |B_ref(x_k) − E|²)`.
+//! `None` when the scene has no penumbra.
+//!
+//! **B — missing features.** A grid point is a *feature point* where the reference departs from
+//! its patch mean by more than `feature` (relative): |B̄_ref(x_k) − m_p| > τ m_p, a shadow when
+//! below, a highlight when above. A *feature* is a 4-connected region of the grid of one patch
+//! whose points are all feature points of one sign, of at least `min_feature_points` points. A
+//! point of a feature is *shown* where the solution departs from its own mean the same way, by
+//! at least half the threshold: sign(B̄(x_k) − s_p) = sign(B̄_ref(x_k) − m_p) and
+//! |B̄(x_k) − s_p| > τ m_p / 2. A feature is *missing* when fewer than half its points are shown.
+//! `B = missing features / features` (also reported as a fraction of feature area).
+//!
+//! **C — Mach bands** (jumps in the derivative at element edges where the reference is
+//! smooth). A p = 0 solution has no slope inside an element; what a viewer shows, and where the
+//! eye sees Mach bands, is its Gouraud reconstruction G ([`Gouraud`]: corner values averaged
+//! over the elements sharing the corner, interpolated linearly). At each interior edge sample of
+//! D (below), with h = 10 ε, the kink
+//! `K = |G(x + 2h n) − G(x + h n) + G(x − 2h n) − G(x − h n)| / h` (mean over channels; the
+//! outward slope minus the inward one, 0 where G is smooth) and K_ref of the reference are
+//! taken; the sample is a *Mach band* when K √a_e > `jump` · m_p (the kink bends the value by
+//! more than the visible jump over the element's size, a_e its area) and K_ref < K / 10.
+//! `C = length of Mach-band samples / interior edge length`.
+//!
+//! **D — inappropriate shading discontinuities.** Every edge of every element is sampled at
+//! `edge_samples` points x (midpoints of equal pieces, each of weight its length ℓ / 2, as an
+//! interior edge is seen from both of its elements); at each, the two points x± = x ± ε n (n the
+//! in-plane edge normal, ε = 10⁻⁶ × patch diameter) are located. Where they lie in two different
+//! elements of the same patch (x not on the patch boundary) the sample is an *interior edge
+//! sample*, with jumps J = |B̄(x₊) − B̄(x₋)| of the solution and J_ref of the reference. It is an
+//! *inappropriate discontinuity* when J > `jump` · m_p (visible) and J_ref < J / 10 (the
+//! reference is continuous there). `D = length of inappropriate samples / interior edge length`.
+//!
+//! **E — unresolved discontinuities.** The critical segments of every reflecting patch
+//! ([`crate::mesh::discontinuity::scene_segments`]: D0 contacts, D1/D2 EV and VE events, counted
+//! with multiplicity) are sampled at `segment_samples` midpoints each. A sample is *resolved* when
+//! it lies within `on_edge` × patch diameter of the boundary of the element holding it.
+//! `E = unresolved segment length / all segment length`; beside them, the error at the points
+//! x ± δ n (n the segment's in-plane normal, δ = `near` × patch diameter, points off the patch
+//! dropped): `E_err = √(Σ |B(x) − B_ref(x)|²) / √(Σ |B_ref(x)|²)` (channels summed).
+//!
+//! Measured (release, `radlab reference builtin:SCENE --samples 16 --exact --compare METHOD`,
+//! standard settings; B as features missing of all, C, D and E as fractions of length):
+//!
+//! | scene | method | elements | A | B | C | D | E | E_err |
+//! |---|---|---|---|---|---|---|---|---|
+//! | shadow-narrow | uniform | 110 | 76.7 % | 0 of 10 | 86.5 % | 86.7 % | 100 % | 56.3 % |
+//! | shadow-narrow | hierarchical | 180 | 82.1 % | 0 of 10 | 81.7 % | 73.8 % | 97.0 % | 46.0 % |
+//! | shadow-narrow | dmesh-cdt | 428 | 59.2 % | 4 of 10 (1.3 % of area) | 71.5 % | 60.8 % | 0 % | – |
+//! | shadow-narrow | dmesh-bsp | 17 | 56.5 % | 6 of 10 (2.1 % of area) | 41.0 % | 92.2 % | 0 % | – |
+//! | shadow-wide | uniform | 157 | 14.6 % | 0 of 4 | 86.4 % | 79.4 % | 100 % | 20.4 % |
+//! | shadow-wide | dmesh-cdt | 160 | 24.4 % | 0 of 4 | 66.1 % | 73.4 % | 0 % | – |
+//!
+//! The D-mesh resolves every critical segment (E = 0) but, at p = 0, still jumps at most of its
+//! edges (D): its edges lie on D1/D2 segments, where the reference is continuous in value; and
+//! Gouraud-shaded it kinks (C) on most edges that are not D1 segments. Its
+//! missing features are small (≤ 2 % of the feature area; which ones was not examined): the count
+//! weighs a fragment of a few grid points as much as a whole shadow, the area fraction does not.
+//!
+//! The lecture's artifacts: Lischinski, Tampieri & Greenberg 1992, "Discontinuity meshing for
+//! accurate radiosity", IEEE CG&A 12(6), Fig. 1 (blocky shadows, missing features, Mach bands,
+//! inappropriate shading discontinuities, unresolved discontinuities).
+
+use crate::accel::Accel;
+use crate::math::{DVec3, Rgb};
+use crate::mesh::DEFAULT_SNAP;
+use crate::mesh::discontinuity::scene_segments;
+use crate::metrics::MetricsError;
+use crate::penumbra::{BandParams, band};
+use crate::pointwise::{PiecewiseConstant, Reconstruction, compare_points_in};
+use crate::reference::{Cell, Estimate, RefPoint, area_point};
+use crate::scene::Scene;
+use crate::solver::Solution;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Settings of [`measure`] (module docs name each).
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct ArtifactParams {
+    /// Grid points per side of every reflecting patch (A and B).
+    pub side: u32,
+    /// The penumbra band of A.
+    pub band: BandParams,
+    /// τ of B: a feature departs from its patch mean by more than this fraction of it.
+    pub feature: f64,
+    /// Features smaller than this many grid points are not counted (B).
+    pub min_feature_points: usize,
+    /// A jump in B̄ larger than this fraction of the patch mean is visible (D).
+    pub jump: f64,
+    /// Samples per element edge (D).
+    pub edge_samples: u32,
+    /// Samples per critical segment (E).
+    pub segment_samples: u32,
+    /// A segment sample this close to an element edge (× patch diameter) is resolved (E).
+    pub on_edge: f64,
+    /// Distance of E's error points from the segment (× patch diameter).
+    pub near: f64,
+}
+
+impl ArtifactParams {
+    /// 64 × 64 points a patch, features at 25 % of the patch mean (a shadow a viewer sees at a
+    /// glance) and at least 4 points, jumps at 2 % (about the Weber fraction of brightness),
+    /// 8 samples an edge, 16 a segment, resolved within 10⁻⁴ of the patch's size (the D-mesh
+    /// snaps far closer), error points 1 % of the patch's size from the segment.
+    #[must_use]
+    pub const fn standard() -> ArtifactParams {
+        ArtifactParams {
+            side: 64,
+            band: BandParams::standard(),
+            feature: 0.25,
+            min_feature_points: 4,
+            jump: 0.02,
+            edge_samples: 8,
+            segment_samples: 16,
+            on_edge: 1e-4,
+            near: 0.01,
+        }
+    }
+
+    /// [`Self::standard`] on a 32 × 32 grid (tests).
+    #[must_use]
+    pub const fn quick() -> ArtifactParams {
+        ArtifactParams { side: 32, ..Self::standard() }
+    }
+}
+
+impl Default for ArtifactParams {
+    fn default() -> Self {
+        Self::standard()
+    }
+}
+
+/// B: features of the reference and how many the solution misses.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MissingFeatures {
+    pub features: usize,
+    pub missing: usize,
+    /// Missing features' area / all features' area.
+    pub area_fraction: f64,
+}
+
+impl MissingFeatures {
+    /// missing / features (0 without features).
+    #[must_use]
+    pub fn fraction(&self) -> f64 {
+        if self.features == 0 { 0.0 } else { self.missing as f64 / self.features as f64 }
+    }
+}
+
+/// D: interior element edges and the length of their inappropriate jumps.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ShadingJumps {
+    /// Interior edge length sampled (each interior edge once).
+    pub edge_length: f64,
+    /// Of which carries a visible jump where the reference is continuous.
+    pub inappropriate_length: f64,
+    /// Length-weighted mean of J / m_p over the inappropriate samples.
+    pub mean_jump: f64,
+}
+
+impl ShadingJumps {
+    /// inappropriate / interior edge length (0 without interior edges).
+    #[must_use]
+    pub fn fraction(&self) -> f64 {
+        if self.edge_length > 0.0 { self.inappropriate_length / self.edge_length } else { 0.0 }
+    }
+}
+
+/// C: interior element edges and the length where the Gouraud reconstruction kinks.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MachBands {
+    /// Interior edge length sampled (as D's).
+    pub edge_length: f64,
+    /// Of which the Gouraud reconstruction's slope jumps visibly where the reference's does not.
+    pub band_length: f64,
+}
+
+impl MachBands {
+    /// band / interior edge length (0 without interior edges).
+    #[must_use]
+    pub fn fraction(&self) -> f64 {
+        if self.edge_length > 0.0 { self.band_length / self.edge_length } else { 0.0 }
+    }
+}
+
+/// E: critical segments and how much of them falls inside elements.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+pub struct UnresolvedDiscontinuities {
+    pub segments: usize,
+    pub length: f64,
+    pub unresolved_length: f64,
+    /// Rel L2 error at the points beside unresolved samples; `None` when there are none.
+    pub error_beside: Option<f64>,
+}
+
+impl UnresolvedDiscontinuities {
+    /// unresolved / all segment length (0 without segments).
+    #[must_use]
+    pub fn fraction(&self) -> f64 {
+        if self.length > 0.0 { self.unresolved_length / self.length } else { 0.0 }
+    }
+}
+
+/// The five artifacts of one solution (module docs).
+#[derive(Clone, Debug, Serialize)]
+pub struct ArtifactReport {
+    /// A: rel L2 in the penumbra band (`None`: no band), and the band's grid points.
+    pub blocky_shadows: Option<f64>,
+    pub band_points: usize,
+    pub missing_features: MissingFeatures,
+    pub mach_bands: MachBands,
+    pub shading_jumps: ShadingJumps,
+    pub unresolved: UnresolvedDiscontinuities,
+}
+
+/// Why [`measure`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ArtifactError {
+    #[error(transparent)]
+    Metrics(#[from] MetricsError),
+    #[error("critical segments: {0}")]
+    Mesh(#[from] crate::mesh::MeshError),
+}
+
+/// Measure the artifacts of `solution` against `reference` (module docs).
+pub fn measure<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    reference: &R,
+    params: &ArtifactParams,
+) -> Result<ArtifactReport, ArtifactError> {
+    let pc = PiecewiseConstant::new(scene, &solution.elements)?;
+    let points = grid_points(scene, params.side);
+    let sol: Vec<Rgb> = crate::pointwise::evaluate(&pc, &points);
+    let refs: Vec<Rgb> = crate::pointwise::evaluate(reference, &points);
+    let means = patch_means(scene, &points, &refs, &sol);
+
+    // A
+    let accel = Accel::build(scene);
+    let estimates: Vec<Estimate> =
+        refs.iter().map(|&radiosity| Estimate { radiosity, std_error: Rgb::ZERO }).collect();
+    let in_band = band(scene, &accel, &points, &estimates, &params.band);
+    let band_points = in_band.iter().filter(|&&b| b).count();
+    let blocky_shadows = compare_points_in(scene, &points, &sol, &estimates, &in_band, 0.0)?
+        .map(|s| s.report.scene.l2_debiased);
+
+    let samples = interior_edge_samples(scene, solution, &pc, &means, params);
+    Ok(ArtifactReport {
+        blocky_shadows,
+        band_points,
+        missing_features: missing_features(&points, &refs, &sol, &means, params),
+        mach_bands: mach_bands(scene, solution, &samples, reference, &means, params)?,
+        shading_jumps: shading_jumps(solution, &samples, reference, &means, params),
+        unresolved: unresolved(scene, solution, &pc, reference, params)?,
+    })
+}
+
+/// Reflecting patches (ρ̄ > 0), in order.
+fn reflecting(scene: &Scene) -> impl Iterator<Item = usize> + '_ {
+    (0..scene.patches.len()).filter(|&p| scene.patches[p].reflectance.mean() > 0.0)
+}
+
+/// The `side × side` cell centres of every reflecting patch's area-uniform map, row by row.
+fn grid_points(scene: &Scene, side: u32) -> Vec<RefPoint> {
+    let n = f64::from(side);
+    let mut out = Vec::new();
+    for p in reflecting(scene) {
+        let patch = &scene.patches[p];
+        let area = patch.area / (n * n);
+        for j in 0..side {
+            for i in 0..side {
+                let position =
+                    area_point(&patch.vertices, (f64::from(i) + 0.5) / n, (f64::from(j) + 0.5) / n);
+                let cell = Cell { patch: p as u32, level: 0, i, j };
+                out.push(RefPoint { patch: p, position, area, cell });
+            }
+        }
+    }
+    out
+}
+
+/// Per patch: (m_p, s_p), the reference's and the solution's mean of B̄ over the grid.
+fn patch_means(scene: &Scene, points: &[RefPoint], refs: &[Rgb], sol: &[Rgb]) -> Vec<(f64, f64)> {
+    let mut acc = vec![(0.0, 0.0, 0.0); scene.patches.len()];
+    for ((pt, r), s) in points.iter().zip(refs).zip(sol) {
+        let a = &mut acc[pt.patch];
+        a.0 += pt.area * r.mean();
+        a.1 += pt.area * s.mean();
+        a.2 += pt.area;
+    }
+    acc.iter().map(|&(r, s, a)| if a > 0.0 { (r / a, s / a) } else { (0.0, 0.0) }).collect()
+}
+
+/// B (module docs). `points` come `side²` per patch, row by row.
+fn missing_features(
+    points: &[RefPoint],
+    refs: &[Rgb],
+    sol: &[Rgb],
+    means: &[(f64, f64)],
+    params: &ArtifactParams,
+) -> MissingFeatures {
+    let side = params.side as usize;
+    let mut out = MissingFeatures::default();
+    let (mut area_all, mut area_missing) = (0.0, 0.0);
+    for start in (0..points.len()).step_by(side * side) {
+        let patch = points[start].patch;
+        let (m, s) = means[patch];
+        if m <= 0.0 {
+            continue;
+        }
+        let tau = params.feature * m;
+        // +1 highlight, −1 shadow, 0 neither; shown: the solution departs the same way.
+        let sign: Vec<i8> = (0..side * side)
+            .map(|k| {
+                let d = refs[start + k].mean() - m;
+                if d > tau {
+                    1
+                } else if d < -tau {
+                    -1
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let shown: Vec<bool> = (0..side * side)
+            .map(|k| {
+                let d = sol[start + k].mean() - s;
+                d.abs() > 0.5 * tau && d.signum() as i8 == sign[k]
+            })
+            .collect();
+        let mut seen = vec![false; side * side];
+        for k0 in 0..side * side {
+            if sign[k0] == 0 || seen[k0] {
+                continue;
+            }
+            // Flood fill one 4-connected region of equal sign.
+            let (mut size, mut shown_n) = (0usize, 0usize);
+            let mut stack = vec![k0];
+            seen[k0] = true;
+            while let Some(k) = stack.pop() {
+                size += 1;
+                shown_n += usize::from(shown[k]);
+                let (i, j) = (k % side, k / side);
+                let mut push = |q: usize| {
+                    if !seen[q] && sign[q] == sign[k0] {
+                        seen[q] = true;
+                        stack.push(q);
+                    }
+                };
+                if i > 0 {
+                    push(k - 1);
+                }
+                if i + 1 < side {
+                    push(k + 1);
+                }
+                if j > 0 {
+                    push(k - side);
+                }
+                if j + 1 < side {
+                    push(k + side);
+                }
+            }
+            if size < params.min_feature_points {
+                continue;
+            }
+            let area = size as f64 * points[start].area;
+            out.features += 1;
+            area_all += area;
+            if 2 * shown_n < size {
+                out.missing += 1;
+                area_missing += area;
+            }
+        }
+    }
+    out.area_fraction = if area_all > 0.0 { area_missing / area_all } else { 0.0 };
+    out
+}
+
+/// Distance from `x` to the boundary of the polygon `verts`.
+fn boundary_distance(verts: &[DVec3], x: DVec3) -> f64 {
+    (0..verts.len())
+        .map(|k| {
+            let (a, b) = (verts[k], verts[(k + 1) % verts.len()]);
+            let ab = b - a;
+            let t = ((x - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+            (a + ab * t).distance(x)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// True if `x` (on the polygon's plane) is inside the convex polygon `verts` of normal `normal`.
+fn inside_convex(verts: &[DVec3], normal: DVec3, x: DVec3) -> bool {
+    (0..verts.len()).all(|k| {
+        let (a, b) = (verts[k], verts[(k + 1) % verts.len()]);
+        (b - a).cross(x - a).dot(normal) >= 0.0
+    })
+}
+
+/// One sample of an interior element edge (module docs, D): the point `x` on the edge of
+/// element `inside`, the in-plane normal `n` pointing into element `outside`, its length weight.
+struct EdgeSample {
+    patch: usize,
+    inside: usize,
+    outside: usize,
+    x: DVec3,
+    n: DVec3,
+    weight: f64,
+    /// ε: the offset of the two located points x ± ε n.
+    eps: f64,
+}
+
+/// Every interior edge sample of the solution's reflecting patches, in element order.
+fn interior_edge_samples(
+    scene: &Scene,
+    solution: &Solution,
+    pc: &PiecewiseConstant,
+    means: &[(f64, f64)],
+    params: &ArtifactParams,
+) -> Vec<EdgeSample> {
+    let m = params.edge_samples.max(1);
+    solution
+        .elements
+        .par_iter()
+        .enumerate()
+        .filter(|(_, e)| scene.patches[e.patch].reflectance.mean() > 0.0 && means[e.patch].0 > 0.0)
+        .flat_map_iter(|(index, e)| {
+            let patch = &scene.patches[e.patch];
+            let eps = 1e-6 * patch.diameter();
+            let centre = crate::math::polygon_centroid(&e.vertices);
+            let mut out = Vec::new();
+            for k in 0..e.vertices.len() {
+                let (a, b) = (e.vertices[k], e.vertices[(k + 1) % e.vertices.len()]);
+                let mut n = (b - a).cross(patch.normal).normalize_or_zero();
+                if n.dot((a + b) * 0.5 - centre) < 0.0 {
+                    n = -n;
+                }
+                let weight = 0.5 * a.distance(b) / f64::from(m);
+                for i in 0..m {
+                    let x = a.lerp(b, (f64::from(i) + 0.5) / f64::from(m));
+                    if boundary_distance(&patch.vertices, x) < 2.0 * eps {
+                        continue;
+                    }
+                    let (o, s) = (pc.element_at(e.patch, x + n * eps), pc.element_at(e.patch, x - n * eps));
+                    if let (Some(outside), Some(inside)) = (o, s)
+                        && outside != inside
+                        && inside == index
+                    {
+                        out.push(EdgeSample { patch: e.patch, inside, outside, x, n, weight, eps });
+                    }
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// D (module docs).
+fn shading_jumps<R: Reconstruction + ?Sized>(
+    solution: &Solution,
+    samples: &[EdgeSample],
+    reference: &R,
+    means: &[(f64, f64)],
+    params: &ArtifactParams,
+) -> ShadingJumps {
+    let mut out = ShadingJumps::default();
+    let mut sum_jump = 0.0;
+    for s in samples {
+        let mean = means[s.patch].0;
+        out.edge_length += s.weight;
+        let jump =
+            (solution.elements[s.outside].radiosity - solution.elements[s.inside].radiosity).mean().abs();
+        let (out_x, in_x) = (s.x + s.n * s.eps, s.x - s.n * s.eps);
+        let jump_ref =
+            (reference.radiosity_at(s.patch, out_x) - reference.radiosity_at(s.patch, in_x)).mean().abs();
+        if jump > params.jump * mean && jump_ref < 0.1 * jump {
+            out.inappropriate_length += s.weight;
+            sum_jump += s.weight * jump / mean;
+        }
+    }
+    out.mean_jump = if out.inappropriate_length > 0.0 { sum_jump / out.inappropriate_length } else { 0.0 };
+    out
+}
+
+/// The reconstruction a viewer draws from constant elements (Gouraud): each element corner takes
+/// the area-weighted mean of the elements of its patch that share that corner (welded within
+/// 10⁻⁹ of the scene's diagonal; a T-junction's corner is not shared by the long edge), and the
+/// value inside an element is the linear (triangle) or bilinear (quad, exact for
+/// parallelograms) interpolation of its corners' values.
+pub struct Gouraud<'a> {
+    elements: &'a [crate::solver::SolvedElement],
+    locate: PiecewiseConstant<'a>,
+    /// Per element, the value at each corner.
+    corners: Vec<Vec<Rgb>>,
+}
+
+impl<'a> Gouraud<'a> {
+    /// Weld the corners of `solution`'s elements and average them.
+    pub fn new(scene: &'a Scene, solution: &'a Solution) -> Result<Self, MetricsError> {
+        let quantum = 1e-9 * scene.bounds().diagonal().max(f64::MIN_POSITIVE);
+        let key = |patch: usize, v: DVec3| {
+            let q = (v / quantum).round();
+            (patch, q.x as i64, q.y as i64, q.z as i64)
+        };
+        let mut sums: std::collections::HashMap<(usize, i64, i64, i64), (Rgb, f64)> =
+            std::collections::HashMap::new();
+        for e in &solution.elements {
+            for &v in &e.vertices {
+                let s = sums.entry(key(e.patch, v)).or_insert((Rgb::ZERO, 0.0));
+                s.0 += e.radiosity * e.area;
+                s.1 += e.area;
+            }
+        }
+        let corners = solution
+            .elements
+            .iter()
+            .map(|e| {
+                e.vertices
+                    .iter()
+                    .map(|&v| {
+                        let (b, a) = sums[&key(e.patch, v)];
+                        if a > 0.0 { b / a } else { e.radiosity }
+                    })
+                    .collect()
+            })
+            .collect();
+        Ok(Gouraud {
+            elements: &solution.elements,
+            locate: PiecewiseConstant::new(scene, &solution.elements)?,
+            corners,
+        })
+    }
+}
+
+impl Reconstruction for Gouraud<'_> {
+    fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
+        let Some(i) = self.locate.element_at(patch, x) else {
+            return self.locate.radiosity_at(patch, x);
+        };
+        let (v, c) = (&self.elements[i].vertices, &self.corners[i]);
+        // x − v0 = s (v1 − v0) + t (v_last − v0), least squares in the element's plane.
+        let (e1, e2, d) = (v[1] - v[0], v[v.len() - 1] - v[0], x - v[0]);
+        let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let det = a11 * a22 - a12 * a12;
+        if det <= 0.0 {
+            return self.elements[i].radiosity;
+        }
+        let (b1, b2) = (e1.dot(d), e2.dot(d));
+        let (s, t) = ((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det);
+        if v.len() == 3 {
+            c[0] * (1.0 - s - t) + c[1] * s + c[2] * t
+        } else {
+            c[0] * ((1.0 - s) * (1.0 - t)) + c[1] * (s * (1.0 - t)) + c[2] * (s * t) + c[3] * ((1.0 - s) * t)
+        }
+    }
+}
+
+/// C (module docs).
+fn mach_bands<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    samples: &[EdgeSample],
+    reference: &R,
+    means: &[(f64, f64)],
+    params: &ArtifactParams,
+) -> Result<MachBands, MetricsError> {
+    let gouraud = Gouraud::new(scene, solution)?;
+    // The change of slope across the edge: outward slope on the far side plus the slope moving
+    // away from the edge on the near side (zero where the function is smooth).
+    let kink = |f: &dyn Fn(DVec3) -> Rgb, s: &EdgeSample| {
+        let h = 10.0 * s.eps;
+        let (x, n) = (s.x, s.n);
+        ((f(x + n * (2.0 * h)) - f(x + n * h)) + (f(x - n * (2.0 * h)) - f(x - n * h))).mean().abs() / h
+    };
+    let mut out = MachBands::default();
+    for s in samples {
+        let mean = means[s.patch].0;
+        out.edge_length += s.weight;
+        let k = kink(&|y| gouraud.radiosity_at(s.patch, y), s);
+        let k_ref = kink(&|y| reference.radiosity_at(s.patch, y), s);
+        if k * solution.elements[s.inside].area.sqrt() > params.jump * mean && k_ref < 0.1 * k {
+            out.band_length += s.weight;
+        }
+    }
+    Ok(out)
+}
+
+/// E (module docs).
+fn unresolved<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    pc: &PiecewiseConstant,
+    reference: &R,
+    params: &ArtifactParams,
+) -> Result<UnresolvedDiscontinuities, ArtifactError> {
+    let m = params.segment_samples.max(1);
+    let mut out = UnresolvedDiscontinuities::default();
+    let (mut err2, mut ref2) = (0.0, 0.0);
+    for p in reflecting(scene) {
+        let patch = &scene.patches[p];
+        let set = scene_segments(&scene.patches, p, DEFAULT_SNAP)?;
+        let (tol, delta) = (params.on_edge * patch.diameter(), params.near * patch.diameter());
+        for seg in &set.segments {
+            let len = seg.a.distance(seg.b);
+            if len <= 0.0 {
+                continue;
+            }
+            out.segments += 1;
+            out.length += len;
+            let n = (seg.b - seg.a).cross(patch.normal).normalize_or_zero();
+            for i in 0..m {
+                let x = seg.a.lerp(seg.b, (f64::from(i) + 0.5) / f64::from(m));
+                let Some(owner) = pc.element_at(p, x) else { continue };
+                if boundary_distance(&solution.elements[owner].vertices, x) <= tol {
+                    continue;
+                }
+                out.unresolved_length += len / f64::from(m);
+                for y in [x + n * delta, x - n * delta] {
+                    if inside_convex(&patch.vertices, patch.normal, y) {
+                        let (b, r) = (pc.radiosity_at(p, y), reference.radiosity_at(p, y));
+                        let d = b - r;
+                        err2 += d.mul_rgb(d).mean();
+                        ref2 += r.mul_rgb(r).mean();
+                    }
+                }
+            }
+        }
+    }
+    out.error_beside = (ref2 > 0.0).then(|| (err2 / ref2).sqrt());
+    Ok(out)
+}

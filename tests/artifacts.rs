@@ -1,0 +1,128 @@
+//! The five meshing artifacts ([`radlab::artifacts`]) on cases built to have each and cases built
+//! not to: shadow-narrow against its closed form, solved coarse (one element a patch, or 4 × 4 on
+//! the floor) and on a discontinuity mesh; the furnace (B = 2 everywhere, nothing to see); and a
+//! solution scored against its own reconstruction (every artifact of the comparison vanishes).
+//!
+//! Run with `--nocapture` to see the figures.
+
+use radlab::accel::Accel;
+use radlab::artifacts::{ArtifactParams, ArtifactReport, Gouraud, measure};
+use radlab::exact::SingleBounce;
+use radlab::math::{DVec3, Rgb};
+use radlab::pointwise::PiecewiseConstant;
+use radlab::scene::Scene;
+use radlab::solver::Solution;
+use radlab::solver::discontinuity::{self, DiscontinuityParams};
+use radlab::solver::uniform::{self, COARSE_FF_TOLERANCE, UniformParams};
+
+fn uniform_solve(scene: &Scene, element_size: f64) -> Solution {
+    let accel = Accel::build(scene);
+    let p = UniformParams { element_size, ff_tolerance: COARSE_FF_TOLERANCE, ..UniformParams::default() };
+    uniform::solve(scene, &accel, &p, &mut |_, _| {}).unwrap()
+}
+
+fn against_exact(scene: &Scene, sol: &Solution) -> ArtifactReport {
+    let sb = SingleBounce::new(scene).unwrap();
+    let exact = |p: usize, x: DVec3| sb.patch_radiosity_at(p, x);
+    let r = measure(scene, sol, &exact, &ArtifactParams::quick()).unwrap();
+    println!("{} ({} elements): {r:?}", sol.method, sol.elements.len());
+    r
+}
+
+/// One element a patch: a constant floor shows neither the shadow nor the bright spot under
+/// the lamp (B: every feature missing), is all error in the penumbra (A), and its only element
+/// holds every critical segment (E = 1); with no interior edge it can neither jump nor kink
+/// (C = D = 0).
+#[test]
+fn one_element_a_patch_misses_every_feature() {
+    let scene = Scene::load("builtin:shadow-narrow").unwrap();
+    let r = against_exact(&scene, &uniform_solve(&scene, f64::INFINITY));
+    let a = r.blocky_shadows.expect("shadow-narrow has a penumbra");
+    assert!(a > 0.3, "A = {a}");
+    let b = r.missing_features;
+    assert!(b.features >= 2 && b.missing == b.features, "B: {b:?}");
+    assert_eq!(r.shading_jumps.edge_length, 0.0);
+    assert!(r.unresolved.segments > 0);
+    assert!(r.unresolved.fraction() > 0.999, "E = {}", r.unresolved.fraction());
+    assert!(r.unresolved.error_beside.unwrap() > 0.1);
+    assert_eq!(r.mach_bands.edge_length, 0.0, "no interior edge: no Mach band");
+}
+
+/// A coarse uniform mesh jumps between its elements where the closed form is smooth (D), kinks
+/// there when Gouraud-shaded (C), and its edges do not follow the shadow's boundaries (E); the discontinuity mesh follows them.
+#[test]
+fn coarse_mesh_jumps_and_leaves_discontinuities_inside_elements() {
+    let scene = Scene::load("builtin:shadow-narrow").unwrap();
+    let coarse = against_exact(&scene, &uniform_solve(&scene, 0.5));
+    assert!(coarse.shading_jumps.edge_length > 0.0);
+    assert!(coarse.shading_jumps.fraction() > 0.2, "D = {:?}", coarse.shading_jumps);
+    assert!(coarse.unresolved.fraction() > 0.5, "E = {:?}", coarse.unresolved);
+    assert!(coarse.mach_bands.fraction() > 0.2, "C = {:?}", coarse.mach_bands);
+
+    let d = discontinuity::solve(&scene, &DiscontinuityParams::cdt(), &mut |_, _| {}).unwrap();
+    let dm = against_exact(&scene, &d.solution);
+    assert!(dm.unresolved.fraction() < 0.05, "D-mesh E = {:?}", dm.unresolved);
+    assert!(dm.unresolved.fraction() < coarse.unresolved.fraction());
+    assert!(dm.blocky_shadows.unwrap() < coarse.blocky_shadows.unwrap());
+    assert!(dm.missing_features.fraction() <= coarse.missing_features.fraction());
+}
+
+/// A solution against its own reconstruction: every jump is the reference's own (D = 0), every
+/// feature is shown (B = 0), no error anywhere (A = 0, E's error 0) — the segments still fall
+/// inside elements (E's length is geometry, not error); against its own Gouraud reconstruction,
+/// every kink is the reference's own (C = 0).
+#[test]
+fn a_solution_against_itself_has_no_artifacts() {
+    let scene = Scene::load("builtin:shadow-narrow").unwrap();
+    let sol = uniform_solve(&scene, 0.5);
+    let own = PiecewiseConstant::new(&scene, &sol.elements).unwrap();
+    let r = measure(&scene, &sol, &own, &ArtifactParams::quick()).unwrap();
+    println!("against itself: {r:?}");
+    assert!(r.blocky_shadows.unwrap_or(0.0) < 1e-12, "A = {:?}", r.blocky_shadows);
+    assert!(r.missing_features.features > 0 && r.missing_features.missing == 0, "{:?}", r.missing_features);
+    assert!(r.shading_jumps.edge_length > 0.0 && r.shading_jumps.inappropriate_length == 0.0);
+    assert!(r.unresolved.fraction() > 0.0);
+    // Against its own flat reconstruction G's kinks are G's alone: C counts them (it compares
+    // what a viewer draws with the reference), so only the Gouraud reconstruction itself as the
+    // reference has none.
+    let gouraud = Gouraud::new(&scene, &sol).unwrap();
+    let g = measure(&scene, &sol, &gouraud, &ArtifactParams::quick()).unwrap();
+    assert!(g.mach_bands.edge_length > 0.0 && g.mach_bands.band_length == 0.0, "{:?}", g.mach_bands);
+    assert!(r.unresolved.error_beside.unwrap_or(0.0) < 1e-12);
+}
+
+/// The furnace: B = E / (1 − ρ) = 2 on every face, no shadow, no highlight, no jump, no kink.
+#[test]
+fn furnace_has_no_artifacts() {
+    let scene = Scene::load("builtin:furnace").unwrap();
+    let sol = uniform_solve(&scene, 0.25);
+    let two = |_: usize, _: DVec3| Rgb::splat(2.0);
+    let r = measure(&scene, &sol, &two, &ArtifactParams::quick()).unwrap();
+    println!("furnace: {r:?}");
+    assert_eq!(r.blocky_shadows, None, "no penumbra");
+    assert_eq!(r.missing_features.features, 0);
+    assert!(r.shading_jumps.edge_length > 0.0);
+    assert_eq!(r.shading_jumps.inappropriate_length, 0.0, "{:?}", r.shading_jumps);
+    assert_eq!(r.unresolved.unresolved_length, 0.0, "{:?}", r.unresolved);
+    assert_eq!(r.mach_bands.band_length, 0.0, "{:?}", r.mach_bands);
+}
+
+/// `radlab reference SCENE --exact --compare METHOD` prints the table; the D-mesh leaves no
+/// critical segment inside an element.
+#[test]
+fn cli_prints_the_artifacts_table() {
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("artifacts-cli-cache");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+        .args(["reference", "builtin:shadow-narrow", "--samples", "16", "--exact", "--compare", "dmesh-bsp"])
+        .arg("--cache-dir")
+        .arg(&cache)
+        .output()
+        .unwrap();
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{text}");
+    for row in ["A blocky shadows", "B missing features", "C Mach bands"] {
+        assert!(text.contains(row), "no row {row:?} in:\n{text}");
+    }
+    assert!(text.contains("D shading discontinuities"), "{text}");
+    assert!(text.contains("E unresolved              0.0 %"), "{text}");
+}
