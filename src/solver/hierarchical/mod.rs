@@ -897,6 +897,12 @@ impl HierarchicalSolver {
         })
     }
 
+    /// Whether links weight their visibility samples by the kernel (`visibility_sample`): the
+    /// error oracle's do; the other oracles keep the plain fraction (SPLASH-2's semantics).
+    fn weighted_visibility(&self) -> bool {
+        self.params.oracle == Oracle::Error
+    }
+
     /// How accurately link coefficients are computed.
     fn accuracy(&self) -> transfer::Accuracy {
         transfer::Accuracy { tol: self.params.link_tol, five_times: self.params.five_times }
@@ -1152,7 +1158,7 @@ impl HierarchicalSolver {
                 key,
                 last,
                 stop,
-                self.params.oracle == Oracle::Error,
+                self.weighted_visibility(),
             );
             (v, u64::from(cast))
         };
@@ -1233,7 +1239,7 @@ impl HierarchicalSolver {
     fn measure_unmeasured(&mut self) {
         let hier = &self.hier;
         let (accel, seed, rays) = (&self.accel, self.params.seed, self.params.rays);
-        let weighted = self.params.oracle == Oracle::Error;
+        let weighted = self.weighted_visibility();
         let acc = self.accuracy();
         let cast: u64 = self
             .links
@@ -1274,12 +1280,7 @@ impl HierarchicalSolver {
 
     /// Link every pair of input patches that face each other and are not fully occluded.
     fn initial_linking(&mut self) -> usize {
-        let key = (
-            self.params.rays,
-            self.params.seed,
-            self.params.conservative,
-            self.params.oracle == Oracle::Error,
-        );
+        let key = (self.params.rays, self.params.seed, self.params.conservative, self.weighted_visibility());
         if let Some((k, cached, skipped)) = &self.initial_cache
             && *k == key
         {
@@ -1294,8 +1295,7 @@ impl HierarchicalSolver {
         let rays = self.params.rays;
         let seed = self.params.seed;
         let conservative = self.params.conservative;
-        // The error oracle's links weight their visibility samples by the kernel.
-        let weighted = self.params.oracle == Oracle::Error;
+        let weighted = self.weighted_visibility();
         // For each p, pairs (p, q > p): visibility once per unordered pair, used both ways.
         // Input patch pairs carry a closed scene's whole answer: to 1e-7 (one point with
         // SPLASH-2's rule), never the disk formula.

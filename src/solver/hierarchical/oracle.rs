@@ -193,7 +193,7 @@ impl HierarchicalSolver {
         field.partial = terms.iter().map(|t| t.partial).collect();
         field.disc = terms.iter().map(|t| t.disc).collect();
         field.cause = terms.iter().map(|t| t.cause).collect();
-        self.sweep(&mut field, &vec![true; n]);
+        self.sweep(&mut field, vec![true; n]);
         field
     }
 
@@ -226,16 +226,15 @@ impl HierarchicalSolver {
             field.disc[r as usize] = t.disc;
             field.cause[r as usize] = t.cause;
         }
-        self.sweep(field, &dirty)
+        self.sweep(field, dirty)
     }
 
-    /// Refit h, and recompute e and ΔB, of every `dirty` element and of all its descendants,
+    /// Refit h, and recompute e and ΔB, of every element marked in `redo` and of all its descendants,
     /// top down (a parent's id is smaller than its children's). Returns the receivers to decide
     /// again (see `update_error_field`).
-    fn sweep(&self, field: &mut ErrorField, dirty: &[bool]) -> Vec<u32> {
+    fn sweep(&self, field: &mut ErrorField, mut redo: Vec<bool>) -> Vec<u32> {
         let hier = &self.hier;
         let n = hier.len();
-        let mut redo = dirty.to_vec();
         for r in 0..n {
             let e = hier.get(r as u32);
             if !redo[r] {
