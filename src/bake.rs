@@ -364,6 +364,7 @@ mod tests {
                 area: p.area,
                 radiosity: Rgb::new(0.5, 1.0, 3.0) * (i as f64 + 1.0),
                 error_estimate: None,
+                slope: None,
             })
             .collect();
         Solution {

@@ -97,6 +97,11 @@ pub struct Element {
     pub gathered: Rgb,
     /// The part of `gathered` that comes through fully visible links (V = 1).
     pub gathered_full: Rgb,
+    /// How `gathered` varies across the element: its gradient Σ slope·B_source over the own
+    /// links (`Link::slope`), in the tangent basis `orthonormal_basis(normal)` (u, v).
+    pub gathered_slope: [Rgb; 2],
+    /// Σ `Link::slope` over the own links: how the element's row of F·V varies across it (u, v).
+    pub fv_slope: [f64; 2],
     pub emission: Rgb,
     pub reflectance: Rgb,
     pub patch: u32,
@@ -171,6 +176,8 @@ fn child(parent: &Element, id: u32, k: usize) -> Element {
         centroid: polygon_centroid(used),
         gathered: Rgb::ZERO,
         gathered_full: Rgb::ZERO,
+        gathered_slope: [Rgb::ZERO; 2],
+        fv_slope: [0.0; 2],
         fv_sum: 0.0,
         f_sum: 0.0,
         fv_partial: 0.0,
@@ -224,6 +231,8 @@ impl Hierarchy {
                     b_max: p.emission.max_channel(),
                     gathered: Rgb::ZERO,
                     gathered_full: Rgb::ZERO,
+                    gathered_slope: [Rgb::ZERO; 2],
+                    fv_slope: [0.0; 2],
                     fv_sum: 0.0,
                     f_sum: 0.0,
                     fv_partial: 0.0,

@@ -673,6 +673,7 @@ mod tests {
                 area: p.area,
                 radiosity: p.emission + Rgb::splat(0.1 * i as f64),
                 error_estimate: None,
+                slope: None,
             })
             .collect()
     }
@@ -689,6 +690,7 @@ mod tests {
                 vertices: verts,
                 radiosity: Rgb::splat(k as f64),
                 error_estimate: None,
+                slope: None,
             });
         };
         for (i, p) in scene.patches.iter().enumerate() {

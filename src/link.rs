@@ -3,7 +3,7 @@
 //! A link records the form factor F (receiver ← source), the visible fraction V and the oracle's
 //! estimate of the link's error [Hanrahan, Salzman, Aupperle 1991, §4]. Links are stored per
 //! receiver (`Vec<Link>` indexed by element id), so the receiver id is implicit and a link takes
-//! 24 bytes: gather runs in parallel over receivers without locks.
+//! 44 bytes: gather runs in parallel over receivers without locks.
 //! In the lecture's notation the receiver is p and the source is q.
 
 use serde::Serialize;
@@ -32,9 +32,24 @@ pub struct Link {
     /// pass replaces the link whatever V's exact value is (see `HierarchicalSolver::make_link`).
     #[serde(skip)]
     pub unmeasured: bool,
+    /// `slope` is computed (the hierarchical solver fills it before a gather reads it).
+    #[serde(skip)]
+    pub slope_set: bool,
+    /// How the link's transfer F(x → source)·V varies across the receiver: the gradient in x,
+    /// per unit length, in the receiver's tangent basis [`crate::math::orthonormal_basis`] of its
+    /// normal. The gather pushes it down with the irradiance, so a descendant of the receiver
+    /// gathers the transfer at its own centroid instead of the receiver's average (see
+    /// `solver::hierarchical`, "push-pull"). Limited so that F + slope·(x − centroid) ≥ 0 over
+    /// the receiver; zero where the solver does not push slopes (SPLASH-2's preset).
+    pub slope: [f32; 2],
+    /// The mirror link's `slope`: how F(y → receiver)·V varies across the source, in the
+    /// source's tangent basis. The gather adds it against the first moment of the source's
+    /// radiosity, so a coarse source sends what its bright and dark parts send, not its average
+    /// through its centroid's coupling (energy conservation, `solver::hierarchical`).
+    pub src_slope: [f32; 2],
 }
 
-const _: () = assert!(std::mem::size_of::<Link>() == 28);
+const _: () = assert!(std::mem::size_of::<Link>() == 44);
 
 impl Link {
     /// The oracle's error estimate of this link for a source of radiosity `b_source` (units of

@@ -461,6 +461,7 @@ pub fn error_image(
             area: crate::math::polygon_area(&r.vertices),
             radiosity: Rgb::ZERO,
             error_estimate: None,
+            slope: None,
         })
         .collect();
     crate::image::value_image(

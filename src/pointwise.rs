@@ -28,6 +28,10 @@
 //! a [`Solution`]'s leaves, or a closure `Fn(patch, point) -> Rgb` (a linear-element
 //! reconstruction plugs in the same way). Evaluation runs in parallel and is a pure function of
 //! its inputs.
+//!
+//! An element that carries a [`crate::solver::Slope`] (the hierarchical solver's leaves, from the
+//! irradiance slopes it pushes down) is reconstructed linearly, B(x) = B_e + ∇B_e·(x − c_e), the
+//! same element average; the others are constant.
 
 use crate::math::{DVec3, Rgb};
 use crate::metrics::{ErrorReport, Locator, MetricsError, compare_regions};
@@ -80,9 +84,12 @@ impl<'a> PiecewiseConstant<'a> {
 
     /// The value of the element that holds a point (`owner`, from [`Self::owners`]), or the
     /// patch's emission where it has no element: [`Reconstruction::radiosity_at`] once located.
-    fn value_of(&self, patch: usize, owner: Option<usize>) -> Rgb {
+    fn value_of(&self, patch: usize, owner: Option<usize>, x: DVec3) -> Rgb {
         match owner {
-            Some(i) => self.elements[i].radiosity,
+            Some(i) => {
+                let e = &self.elements[i];
+                e.slope.map_or(e.radiosity, |s| s.at(e.radiosity, x))
+            }
             None => self.scene.patches.get(patch).map_or(Rgb::ZERO, |p| p.emission),
         }
     }
@@ -90,7 +97,7 @@ impl<'a> PiecewiseConstant<'a> {
 
 impl Reconstruction for PiecewiseConstant<'_> {
     fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
-        self.value_of(patch, self.element_at(patch, x))
+        self.value_of(patch, self.element_at(patch, x), x)
     }
 }
 
@@ -116,7 +123,8 @@ pub fn compare_points(
     compare_regions(scene, &regions, values, reference, energy_residual)
 }
 
-/// Pointwise error of a solution's piecewise-constant reconstruction.
+/// Pointwise error of a solution's own reconstruction (constant, or linear where elements carry a
+/// slope).
 pub fn compare_solution_points(
     scene: &Scene,
     solution: &Solution,
@@ -251,7 +259,8 @@ pub fn score_solution_in_band(
     // Every point is located once and serves both figures.
     let pc = PiecewiseConstant::new(scene, &solution.elements)?;
     let owner = pc.owners(points);
-    let values: Vec<Rgb> = points.iter().zip(&owner).map(|(p, o)| pc.value_of(p.patch, *o)).collect();
+    let values: Vec<Rgb> =
+        points.iter().zip(&owner).map(|(p, o)| pc.value_of(p.patch, *o, p.position)).collect();
     let residual = solution.energy.relative_residual();
     let penumbra = match band {
         Some(b) => compare_points_in(scene, points, &values, reference, b, residual)?,

@@ -120,6 +120,11 @@ pub struct Args {
     /// oracle; 1 is SPLASH-2's criterion).
     #[arg(long)]
     pub partial_bf_factor: Option<f64>,
+    /// Push each link's variation across its receiver (and its source's radiosity moment)
+    /// instead of constants: true in every preset but splash2 (hierarchical; see README,
+    /// "Push-pull with slopes").
+    #[arg(long)]
+    pub push_slopes: Option<bool>,
     /// Seed of the visibility jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -258,6 +263,9 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
     }
     if let Some(v) = args.partial_bf_factor {
         p.partial_bf_factor = v;
+    }
+    if let Some(v) = args.push_slopes {
+        p.push_slopes = v;
     }
     if let Some(v) = args.round_iterations {
         p.round_iterations = v;

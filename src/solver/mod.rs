@@ -26,6 +26,25 @@ pub mod uniform;
 use crate::math::{DVec3, Rgb};
 use serde::Serialize;
 
+/// A linear variation of an element's radiosity across it: B(x) = B + Σ_axis d_axis (x − centroid)_axis
+/// (world axes x, y, z; B the element's average, which an affine function takes at the area
+/// centroid). The hierarchical solver gives its leaves the slope of the irradiance it pushed down
+/// (`solver::hierarchical`, push-pull), times ρ.
+#[derive(Copy, Clone, Debug, Serialize)]
+pub struct Slope {
+    pub centroid: DVec3,
+    pub d: [Rgb; 3],
+}
+
+impl Slope {
+    /// B at `x`, for the element average `b`; never below 0 per channel.
+    #[must_use]
+    pub fn at(&self, b: Rgb, x: DVec3) -> Rgb {
+        let r = x - self.centroid;
+        (b + self.d[0] * r.x + self.d[1] * r.y + self.d[2] * r.z).map(|v| v.max(0.0))
+    }
+}
+
 /// One leaf element of a solution.
 #[derive(Clone, Debug, Serialize)]
 pub struct SolvedElement {
@@ -40,6 +59,9 @@ pub struct SolvedElement {
     /// scalar over channels), where the solver has one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error_estimate: Option<f64>,
+    /// How B varies across the element (its reconstruction is linear where a solver gives one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slope: Option<Slope>,
 }
 
 /// Power balance of a solution, per channel: at convergence `emitted = absorbed + escaped`.

@@ -122,6 +122,13 @@ pub struct HierarchicalParams {
     /// Input patch pairs are always integrated to 1e-7 where they are near. Exactness in
     /// closed scenes (Σ F = 1 per element) needs this at 1e-7 once the mesh is refined.
     pub link_tol: f64,
+    /// Push each link's variation across its receiver down with the irradiance (`Link::slope`):
+    /// a descendant gathers a coarse link's transfer at its own centroid, not the receiver's
+    /// average. Without it an element inherits the average of every coarse link above it, its
+    /// row of form factors no longer sums to its own (up to 1.18 in cube-one-light), and as
+    /// its radiosity follows that row, the solve creates light (splash_room −11 % escaped at
+    /// `interactive`). Off in `splash2` (SPLASH-2 pushes constants).
+    pub push_slopes: bool,
     /// Seed of the visibility jitter.
     pub seed: u64,
 }
@@ -152,16 +159,17 @@ impl HierarchicalParams {
             conservative: true,
             five_times: false,
             link_tol: 1e-3,
+            push_slopes: true,
             seed: 0,
         }
     }
 
     /// Balanced default for the CLI: the error oracle, each element's answer allowed to vary by
     /// 10 % of the scene's mean reflected radiosity across it. Pointwise rel L2 against the
-    /// cached references (65 537 points × 1024 paths; 2 shared threads): cornell 6.6 % (0.9 s),
-    /// table-room 8.4 % (0.12 s), splash_room 6.6 % (19 s), shadow-wide 6.5 % against its exact
-    /// answer; the BF oracle at its old setting (2e-3 of E_max, Aeps 5e-5) read 11.6 %, 8.5 %,
-    /// 15.4 % and 13.3 %, and its error did not fall as BFeps shrank.
+    /// cached references (65 537 points × 1024 paths; 2 shared threads): cornell 4.6 % (0.8 s),
+    /// table-room 6.0 %, splash_room 5.4 % (~20 s) with slopes pushed (`push_slopes`; 6.6 %,
+    /// 8.4 %, 6.6 % without); the BF oracle at its old setting (2e-3 of E_max, Aeps 5e-5) read
+    /// 11.6 %, 8.5 %, 15.4 %, and its error did not fall as BFeps shrank.
     #[must_use]
     pub const fn quality() -> Self {
         HierarchicalParams {
@@ -185,6 +193,7 @@ impl HierarchicalParams {
             conservative: true,
             five_times: false,
             link_tol: 1e-4,
+            push_slopes: true,
             seed: 0,
         }
     }
@@ -213,6 +222,7 @@ impl HierarchicalParams {
             conservative: true,
             five_times: false,
             link_tol: 1e-4,
+            push_slopes: true,
             seed: 0,
         }
     }
@@ -246,6 +256,7 @@ impl HierarchicalParams {
             conservative: false,
             five_times: true,
             link_tol: 0.0,
+            push_slopes: false,
             seed: 0,
         }
     }

@@ -256,6 +256,7 @@ pub fn solve(
             area: e.area,
             radiosity,
             error_estimate: None,
+            slope: None,
         })
         .collect();
     let patch_radiosity = Solution::patch_averages(scene.patches.len(), &elements);

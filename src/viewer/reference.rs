@@ -120,6 +120,7 @@ fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> R
                 area: e.area,
                 radiosity: e.radiosity,
                 error_estimate: None,
+                slope: None,
             }
         })
         .collect();
@@ -140,6 +141,7 @@ fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> R
             area: crate::math::polygon_area(&m.vertices),
             radiosity: est.radiosity,
             error_estimate: None,
+            slope: None,
         })
         .collect();
     let leaf_regions: Vec<RefElement> =

@@ -12,7 +12,8 @@
 //! ## How it works
 //! A leaf x gathers through its own links (form factor exact at its centroid) and through the
 //! links of its proper ancestors a, whose form factor F_l and visibility V_l were evaluated for a,
-//! not for x.
+//! not for x (F_l here includes the link's slope pushed down to x's centroid, `Link::slope`: what
+//! x really gathered).
 //! Re-evaluating those inherited links at x gives the **local residual**
 //!
 //! ```text
@@ -166,13 +167,20 @@ fn local_residual(hier: &Hierarchy, links: &LinkStore, x: u32) -> (Rgb, Rgb) {
         }
     }
     for a in hier.ancestors(x).skip(1) {
+        let ae = hier.get(a);
+        let (t1, t2) = crate::math::orthonormal_basis(ae.normal);
+        let d = leaf.centroid - ae.centroid;
+        let (du, dv) = (d.dot(t1), d.dot(t2));
         for l in &links.by_receiver[a as usize] {
             let v = f64::from(l.vis);
             if v <= 0.0 {
                 continue;
             }
             let src = hier.get(l.source);
-            let f = f64::from(l.ff);
+            // What the leaf gathered through the link: its average plus the pushed-down slope
+            // (`Link::slope`, which includes V), per unit of V.
+            let shift = f64::from(l.slope[0]) * du + f64::from(l.slope[1]) * dv;
+            let f = f64::from(l.ff) + shift / v.min(1.0);
             let fx = form_factor::point_to_polygon_oriented(
                 leaf.centroid,
                 leaf.normal,
@@ -274,9 +282,12 @@ mod tests {
     const FURNACE_RANK: f64 = 0.95;
     /// Measured mean estimate / mean true error 1.008; allow 25 % either way.
     const FURNACE_SIZE: f64 = 1.25;
-    /// The defect-corrected furnace keeps at most this fraction of the error (measured 0.0104:
-    /// what is left is second order).
-    const FURNACE_CORRECTED: f64 = 0.05;
+    /// The defect-corrected furnace keeps at most this fraction of the error. Measured 0.0104
+    /// while leaves inherited their ancestors' links as constants; 0.067 (mean leaf error 1.6e-2
+    /// of B = 2, printed) since they gather them along the links' slopes (`Link::slope`): part
+    /// of the first-order error the correction removes is gone before it, and the second-order
+    /// rest is a larger share of what is left.
+    const FURNACE_CORRECTED: f64 = 0.1;
 
     #[test]
     fn without_normalisation_the_furnace_error_is_estimated_in_size_and_rank() {
@@ -315,7 +326,7 @@ mod tests {
             .map(|&x| (h.get(x).radiosity + delta[x as usize] - Rgb::splat(2.0)).map(f64::abs).mean())
             .collect();
         let gain = mean(&corrected) / mean(&truth);
-        eprintln!("furnace: corrected error / error {gain:.4}");
+        eprintln!("furnace: corrected error / error {gain:.4} (mean error {:.3e})", mean(&truth));
         assert!(gain < FURNACE_CORRECTED, "corrected error / error {gain}");
     }
 

@@ -48,6 +48,28 @@
 //!   stratified point pairs in the pair's canonical order (`visibility::visibility_sample`), so
 //!   a link and its mirror carry the same F·V·A and what a source sends through a pair is what
 //!   the receiver gathers: the power balance closes (`EnergyBalance`).
+//! - **Push-pull with slopes** (`push_slopes`, all presets but `splash2`): a link r ← s also
+//!   carries how its transfer F(x → s)·V varies across r (`Link::slope`, the least-squares
+//!   gradient of the exact point kernel at r's four child points, limited so the transfer stays
+//!   ≥ 0 over r), and its mirror's (`Link::src_slope`, across s). Push moves each ancestor's
+//!   irradiance along its slope to the child's centroid instead of copying its average, and
+//!   the gather adds, per link, the source's first moment of radiosity M_s = Σ_leaves A B
+//!   (c − c_s) / A_s against the source-side slope (a coarse source sends what its bright and
+//!   dark parts send):
+//!   ```text
+//!   H_leaf = Σ_{links a ← s, a = leaf or an ancestor} [ F_as V B_s + slope_as · (c_leaf − c_a)
+//!            + (A_s / A_a) src_slope_as · M_s ]
+//!   ```
+//!   Both corrections integrate to zero over the element they act on (Σ_leaves A (c − c_a) = 0),
+//!   so each link still moves exactly its G·V·B; what changes is *where* it lands and where it
+//!   comes from. With constants, a leaf's row of form factors is its ancestors' averages, not
+//!   its own (Σ F up to 1.18 in cube-one-light at `quality`), its radiosity follows that row,
+//!   and the solve created light (escaped/emitted, cube-one-light `interactive` −2.9 %, the
+//!   furnace at `lecture` −1.6 %; now −0.45 % and −0.08 %). The energy balance uses the same
+//!   rows (`Chain::fv_slope`), so it closes. Leaves keep the slope for their reconstruction
+//!   (`solver::Slope`): the pointwise ruler reads them linearly. Pointwise rel L2 at `quality`
+//!   (cached references, 65 537 points): cornell 6.6 → 4.6 %, table-room 8.4 → 6.0 %,
+//!   splash_room 6.6 → 5.4 %; at `interactive` 11.9 → 8.8 %, 8.9 → 6.2 %, 18.5 → 15.8 %.
 //! - **Zero estimates**: a link the oracle would split at any visibility but 0 is refined unless
 //!   its estimate is 0, so an accepted noisy zero keeps only P(estimate > 0) · V of its light,
 //!   again at every level below. Such zeros are re-tested with `zero_confirm` × rays more rays
@@ -223,6 +245,10 @@ struct GatherPlan {
     start: Vec<u32>,
     source: Vec<u32>,
     weight: Vec<f64>,
+    /// Each link's `slope` (empty when slopes are not pushed).
+    slope: Vec<[f32; 2]>,
+    /// Each link's moment weight (A_source / A_receiver)·`src_slope` (empty likewise).
+    moment: Vec<[f32; 2]>,
 }
 
 const FULL_BIT: u32 = 1 << 31;
@@ -234,7 +260,7 @@ impl GatherPlan {
     /// Rebuild the plan from `links`, reusing its buffers. Built in parallel over blocks of
     /// receivers (counts, prefix sums, then each block fills its own range): the same arrays
     /// as a serial pass in receiver order.
-    fn rebuild(&mut self, links: &LinkStore) {
+    fn rebuild(&mut self, links: &LinkStore, slopes: Option<&Hierarchy>) {
         let lists = &links.by_receiver;
         let weight = |l: &Link| f64::from(l.ff) * f64::from(l.vis);
         self.start.clear();
@@ -251,25 +277,41 @@ impl GatherPlan {
         self.start.push(total);
         self.source.resize(total as usize, 0);
         self.weight.resize(total as usize, 0.0);
+        let n_slopes = if slopes.is_some() { total as usize } else { 0 };
+        self.slope.clear();
+        self.slope.resize(n_slopes, [0.0; 2]);
+        self.moment.clear();
+        self.moment.resize(n_slopes, [0.0; 2]);
         // Disjoint output ranges, one per block of receivers.
         let (mut source, mut weights) = (&mut self.source[..], &mut self.weight[..]);
+        let (mut slope, mut moment) = (&mut self.slope[..], &mut self.moment[..]);
         let mut blocks = Vec::with_capacity(lists.len().div_ceil(PLAN_BLOCK));
         for (k, block) in lists.chunks(PLAN_BLOCK).enumerate() {
             let first = k * PLAN_BLOCK;
             let len = (self.start[first + block.len()] - self.start[first]) as usize;
+            let len_s = if slopes.is_some() { len } else { 0 };
             let (s, s_rest) = std::mem::take(&mut source).split_at_mut(len);
             let (w, w_rest) = std::mem::take(&mut weights).split_at_mut(len);
-            (source, weights) = (s_rest, w_rest);
-            blocks.push((block, s, w));
+            let (g, g_rest) = std::mem::take(&mut slope).split_at_mut(len_s);
+            let (m, m_rest) = std::mem::take(&mut moment).split_at_mut(len_s);
+            (source, weights, slope, moment) = (s_rest, w_rest, g_rest, m_rest);
+            blocks.push((first, block, s, w, g, m));
         }
-        blocks.into_par_iter().for_each(|(block, s, w)| {
+        blocks.into_par_iter().for_each(|(first, block, s, w, g, m)| {
             let mut i = 0;
-            for l in block.iter().flatten() {
+            for (r, l) in block.iter().enumerate().flat_map(|(k, ls)| ls.iter().map(move |l| (first + k, l)))
+            {
                 let wl = weight(l);
                 if wl > 0.0 {
                     debug_assert!(l.source < FULL_BIT, "element ids stay below 2^31");
                     s[i] = l.source | if l.vis >= 1.0 { FULL_BIT } else { 0 };
                     w[i] = wl;
+                    if let Some(hier) = slopes {
+                        debug_assert!(l.slope_set, "slopes are filled before the plan");
+                        g[i] = l.slope;
+                        let ratio = hier.get(l.source).area / hier.get(r as u32).area;
+                        m[i] = l.src_slope.map(|x| (f64::from(x) * ratio) as f32);
+                    }
                     i += 1;
                 }
             }
@@ -277,12 +319,14 @@ impl GatherPlan {
         });
     }
 
-    /// (Σ F·V·B over receiver `r`'s links, the same over the fully visible ones), in list
-    /// order, with source radiosities `b`.
-    fn gather(&self, r: usize, b: impl Fn(u32) -> Rgb) -> (Rgb, Rgb) {
+    /// (Σ F·V·B + moment terms over receiver `r`'s links, the same over the fully visible ones
+    /// without moments, Σ slope·B), in list order, with source radiosities `b` and the sources'
+    /// radiosity moments `mu` (in each source's tangent basis; empty: none).
+    fn gather(&self, r: usize, b: impl Fn(u32) -> Rgb, mu: &[[Rgb; 2]]) -> (Rgb, Rgb, [Rgb; 2]) {
         let (lo, hi) = (self.start[r] as usize, self.start[r + 1] as usize);
         let mut g = Rgb::ZERO;
         let mut full = Rgb::ZERO;
+        let mut slope = [Rgb::ZERO; 2];
         for (&s, &w) in self.source[lo..hi].iter().zip(&self.weight[lo..hi]) {
             let t = b(s & !FULL_BIT) * w;
             g += t;
@@ -290,7 +334,22 @@ impl GatherPlan {
                 full += t;
             }
         }
-        (g, full)
+        if !self.slope.is_empty() {
+            for (&s, &[gu, gv]) in self.source[lo..hi].iter().zip(&self.slope[lo..hi]) {
+                let bs = b(s & !FULL_BIT);
+                slope[0] += bs * f64::from(gu);
+                slope[1] += bs * f64::from(gv);
+            }
+            if !mu.is_empty() {
+                for (&s, &[mu_w, mv_w]) in self.source[lo..hi].iter().zip(&self.moment[lo..hi]) {
+                    // Elements made since the last push-pull have no moment yet (none: 0).
+                    if let Some(&[mu_u, mu_v]) = mu.get((s & !FULL_BIT) as usize) {
+                        g += mu_u * f64::from(mu_w) + mu_v * f64::from(mv_w);
+                    }
+                }
+            }
+        }
+        (g, full, slope)
     }
 }
 
@@ -445,6 +504,11 @@ pub struct HierarchicalSolver {
     /// Scratch for Jacobi gathers: every element's radiosity before the gather (kept between
     /// gathers, so no large allocation per iteration).
     b_prev: Vec<Rgb>,
+    /// Each element's first moment of radiosity about its centroid, Σ_leaves A B (c − c_e) / A_e,
+    /// in its tangent basis (u, v), from the last push-pull (empty without `push_slopes`).
+    moment: Vec<[Rgb; 2]>,
+    /// Scratch: the same moments in world coordinates (x, y, z), while pulling.
+    moment_world: Vec<[Rgb; 3]>,
     /// The links flattened for gathering (buffers kept between rebuilds).
     gather_plan: GatherPlan,
     /// `gather_plan` matches the current links (cleared when links change).
@@ -527,20 +591,48 @@ impl PairMemo {
 /// Sums an element inherits in push-pull, its own included.
 #[derive(Copy, Clone, Debug, Default)]
 struct Chain {
+    /// Irradiance through fully visible links, at `at`.
     full: Rgb,
+    /// The other irradiance, at `at` (with the slopes' shift to `at`).
     rest: Rgb,
+    /// World gradient of the irradiance (x, y, z components, each per channel).
+    slope: [Rgb; 3],
+    /// The point the sums are evaluated at: the centroid of the chain's last element.
+    at: DVec3,
     f: f64,
     fv_partial: f64,
+    /// World gradient of the row Σ F·V (the own links' `fv_slope`s), and the inherited rows'
+    /// shift along it to `at` (included in the energy balance's Σ F·V).
+    fv_slope: DVec3,
+    fv_shift: f64,
 }
 
 impl Chain {
-    /// The sums of element `e`, whose parent's are `self`.
+    /// The sums of element `e`, whose parent's are `self`: the inherited irradiance moved along
+    /// its slope from the parent's centroid to e's, plus e's own.
     fn then(self, e: &Element) -> Chain {
+        let d = e.centroid - self.at;
+        let shift = self.slope[0] * d.x + self.slope[1] * d.y + self.slope[2] * d.z;
+        let [su, sv] = e.gathered_slope;
+        let [fu, fv] = e.fv_slope;
+        let (t1, t2) = if su == Rgb::ZERO && sv == Rgb::ZERO && fu == 0.0 && fv == 0.0 {
+            (DVec3::ZERO, DVec3::ZERO)
+        } else {
+            crate::math::orthonormal_basis(e.normal)
+        };
         Chain {
             full: self.full + e.gathered_full,
-            rest: self.rest + (e.gathered - e.gathered_full),
+            rest: self.rest + shift + (e.gathered - e.gathered_full),
+            slope: [
+                self.slope[0] + su * t1.x + sv * t2.x,
+                self.slope[1] + su * t1.y + sv * t2.y,
+                self.slope[2] + su * t1.z + sv * t2.z,
+            ],
+            at: e.centroid,
             f: self.f + e.f_sum,
             fv_partial: self.fv_partial + e.fv_partial,
+            fv_slope: self.fv_slope + t1 * fu + t2 * fv,
+            fv_shift: self.fv_shift + self.fv_slope.dot(d),
         }
     }
 }
@@ -584,6 +676,8 @@ impl HierarchicalSolver {
             gathered_once: false,
             chain: Vec::new(),
             b_prev: Vec::new(),
+            moment: Vec::new(),
+            moment_world: Vec::new(),
             gather_plan: GatherPlan::default(),
             plan_valid: false,
             oracle_b: Vec::new(),
@@ -644,6 +738,7 @@ impl HierarchicalSolver {
         self.hier = Hierarchy::from_scene(&self.scene);
         self.links = LinkStore::new(self.hier.len());
         self.plan_valid = false;
+        self.moment.clear();
         self.linked = false;
         self.stats = HierarchicalStats::default();
         self.residuals.clear();
@@ -1416,18 +1511,23 @@ impl HierarchicalSolver {
         // The links as one contiguous plan, rebuilt after they change.
         let mut plan = std::mem::take(&mut self.gather_plan);
         if !self.plan_valid {
-            plan.rebuild(&self.links);
+            if self.params.push_slopes {
+                self.fill_slopes();
+            }
+            plan.rebuild(&self.links, self.params.push_slopes.then_some(&self.hier));
             self.plan_valid = true;
         }
         if self.params.gauss_seidel {
             let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
             for root in 0..self.hier.roots as u32 {
                 let ids = self.subtree(root);
-                let g: Vec<(Rgb, Rgb)> =
-                    ids.iter().map(|&r| plan.gather(r as usize, |s| self.hier.get(s).radiosity)).collect();
-                for (&r, (g, full)) in ids.iter().zip(g) {
-                    self.hier.elements[r as usize].gathered = g;
-                    self.hier.elements[r as usize].gathered_full = full;
+                let g: Vec<(Rgb, Rgb, [Rgb; 2])> = ids
+                    .iter()
+                    .map(|&r| plan.gather(r as usize, |s| self.hier.get(s).radiosity, &self.moment))
+                    .collect();
+                for (&r, (g, full, slope)) in ids.iter().zip(g) {
+                    let e = &mut self.hier.elements[r as usize];
+                    (e.gathered, e.gathered_full, e.gathered_slope) = (g, full, slope);
                 }
                 self.push_pull_root(root);
             }
@@ -1444,8 +1544,9 @@ impl HierarchicalSolver {
                 .zip(self.hier.elements.par_iter())
                 .with_min_len(1024)
                 .for_each(|(b, e)| *b = e.radiosity);
+            let mu = &self.moment;
             self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
-                (e.gathered, e.gathered_full) = plan.gather(r, |s| b[s as usize]);
+                (e.gathered, e.gathered_full, e.gathered_slope) = plan.gather(r, |s| b[s as usize], mu);
             });
             self.b_prev = b;
             self.stats.gather_s += t.elapsed().as_secs_f64();
@@ -1468,6 +1569,42 @@ impl HierarchicalSolver {
         out
     }
 
+    /// Fill `Link::slope` of every link that has none yet (parallel over receivers; a link's
+    /// slope depends on its two elements and V only, so it is computed once per link).
+    fn fill_slopes(&mut self) {
+        let hier = &self.hier;
+        let sums: Vec<[f64; 2]> = self
+            .links
+            .by_receiver
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(64)
+            .map(|(r, ls)| {
+                let re = hier.get(r as u32);
+                for l in ls.iter_mut().filter(|l| !l.slope_set) {
+                    let v = f64::from(l.vis).clamp(0.0, 1.0);
+                    let se = hier.get(l.source);
+                    let g = f64::from(l.g);
+                    // Both sides from the same inputs as the mirror link's: bit-identical.
+                    (l.slope, l.src_slope) = if v > 0.0 {
+                        (
+                            oracle::kernel_slope(re, se, v, g / re.area).map(|x| x as f32),
+                            oracle::kernel_slope(se, re, v, g / se.area).map(|x| x as f32),
+                        )
+                    } else {
+                        ([0.0; 2], [0.0; 2])
+                    };
+                    l.slope_set = true;
+                }
+                // Over every own link (a split may have removed some since the last fill).
+                ls.iter().fold([0.0; 2], |[u, v], l| [u + f64::from(l.slope[0]), v + f64::from(l.slope[1])])
+            })
+            .collect();
+        for (e, s) in self.hier.elements.iter_mut().zip(sums) {
+            e.fv_slope = s;
+        }
+    }
+
     /// Push gathered irradiance down to the leaves (B = E + ρ·H), pull area averages up.
     pub fn push_pull_step(&mut self) -> StepReport {
         let t = Instant::now();
@@ -1477,20 +1614,19 @@ impl HierarchicalSolver {
     }
 
     fn push_pull_root(&mut self, root: u32) {
-        self.push_pull_rec(root, Rgb::ZERO, Rgb::ZERO);
+        self.push_pull_rec(root, Chain::default());
     }
 
-    /// `full_down` / `rest_down`: inherited irradiance through fully visible links / the rest.
-    fn push_pull_rec(&mut self, id: u32, full_down: Rgb, rest_down: Rgb) -> Rgb {
+    /// `up`: the irradiance inherited from the ancestors (`Chain`).
+    fn push_pull_rec(&mut self, id: u32, up: Chain) -> Rgb {
         let e = &self.hier.elements[id as usize];
+        let own = up.then(e);
         if let Some(kids) = e.children() {
-            let full = full_down + e.gathered_full;
-            let rest = rest_down + (e.gathered - e.gathered_full);
             let area = e.area;
             let mut b = Rgb::ZERO;
             let mut b_max: f64 = 0.0;
             for c in kids {
-                let bc = self.push_pull_rec(c, full, rest);
+                let bc = self.push_pull_rec(c, own);
                 let child = &self.hier.elements[c as usize];
                 b += bc * (child.area / area);
                 b_max = b_max.max(child.b_max);
@@ -1500,7 +1636,7 @@ impl HierarchicalSolver {
             e.b_max = b_max;
             b
         } else {
-            let b = e.emission + e.reflectance.mul_rgb(full_down + rest_down + e.gathered);
+            let b = e.emission + e.reflectance.mul_rgb(own.full + own.rest);
             let e = &mut self.hier.elements[id as usize];
             e.radiosity = b;
             e.b_max = b.max_channel();
@@ -1527,36 +1663,65 @@ impl HierarchicalSolver {
         let els = &mut self.hier.elements;
         for (i, e) in els.iter_mut().enumerate() {
             let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            chain.push(up.then(e));
+            let own = up.then(e);
+            chain.push(own);
             if e.is_leaf() {
-                let h = up.full + up.rest + e.gathered;
+                let h = own.full + own.rest;
                 let b = e.emission + e.reflectance.mul_rgb(h);
                 let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
                 max_change = max_change.max(b.abs_diff_max(old));
                 max_reflected = max_reflected.max((b - e.emission).max_channel());
                 if energy {
                     absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                    let fv = up.f + up.fv_partial + e.fv_sum;
+                    let fv = up.f + up.fv_partial + e.fv_sum + own.fv_shift;
                     escaped += b * (e.area * (1.0 - fv));
                 }
                 e.radiosity = b;
                 e.b_max = b.max_channel();
             }
         }
+        // World moments Σ_leaves A B (c − c_e) / A_e while pulling (leaves: 0), then each in its
+        // element's tangent basis.
+        let slopes = self.params.push_slopes;
+        let world = &mut self.moment_world;
+        world.clear();
+        world.resize(if slopes { n } else { 0 }, [Rgb::ZERO; 3]);
         for i in (0..n).rev() {
             let first = els[i].first_child;
             if first == NONE {
                 continue;
             }
-            let area = els[i].area;
+            let (area, at) = (els[i].area, els[i].centroid);
             let mut b = Rgb::ZERO;
             let mut b_max: f64 = 0.0;
-            for c in &els[first as usize..first as usize + 4] {
-                b += c.radiosity * (c.area / area);
+            let mut m = [Rgb::ZERO; 3];
+            for (k, c) in els[first as usize..first as usize + 4].iter().enumerate() {
+                let w = c.area / area;
+                b += c.radiosity * w;
                 b_max = b_max.max(c.b_max);
+                if slopes {
+                    let d = (c.centroid - at) * w;
+                    let mc = world[first as usize + k];
+                    m[0] += mc[0] * w + c.radiosity * d.x;
+                    m[1] += mc[1] * w + c.radiosity * d.y;
+                    m[2] += mc[2] * w + c.radiosity * d.z;
+                }
             }
             els[i].radiosity = b;
             els[i].b_max = b_max;
+            if slopes {
+                world[i] = m;
+            }
+        }
+        self.moment.clear();
+        if slopes {
+            self.moment.par_extend(els.par_iter().zip(world.par_iter()).with_min_len(1024).map(|(e, m)| {
+                if e.is_leaf() {
+                    return [Rgb::ZERO; 2];
+                }
+                let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+                [m[0] * t1.x + m[1] * t1.y + m[2] * t1.z, m[0] * t2.x + m[1] * t2.y + m[2] * t2.z]
+            }));
         }
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
         self.residuals.push(residual);
@@ -1578,11 +1743,12 @@ impl HierarchicalSolver {
         chain.reserve(self.hier.len());
         for e in &self.hier.elements {
             let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            chain.push(up.then(e));
+            let own = up.then(e);
+            chain.push(own);
             if e.is_leaf() {
-                let h = up.full + up.rest + e.gathered;
+                let h = own.full + own.rest;
                 absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                let fv = up.f + up.fv_partial + e.fv_sum;
+                let fv = up.f + up.fv_partial + e.fv_sum + own.fv_shift;
                 escaped += e.radiosity * (e.area * (1.0 - fv));
             }
         }
@@ -1770,6 +1936,27 @@ impl HierarchicalSolver {
         Snapshot { elements, links, stats: self.stats(), residuals: self.residuals.clone() }
     }
 
+    /// Each leaf's slope of B, ρ times the irradiance's slope pushed down to it (`Chain`); empty
+    /// without `push_slopes`, None for interior elements and flat leaves.
+    fn leaf_slopes(&self) -> Vec<Option<crate::solver::Slope>> {
+        if !self.params.push_slopes {
+            return Vec::new();
+        }
+        let mut chain: Vec<Chain> = Vec::with_capacity(self.hier.len());
+        let mut out = Vec::with_capacity(self.hier.len());
+        for e in &self.hier.elements {
+            let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
+            let own = up.then(e);
+            chain.push(own);
+            let d = own.slope.map(|g| e.reflectance.mul_rgb(g));
+            out.push(
+                (e.is_leaf() && d.iter().any(|g| *g != Rgb::ZERO))
+                    .then_some(crate::solver::Slope { centroid: e.centroid, d }),
+            );
+        }
+        out
+    }
+
     /// The leaves as a [`Solution`] (with the solver's own error estimates).
     #[must_use]
     pub fn solution(&self) -> Solution {
@@ -1781,6 +1968,7 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn solution_with(&self, estimates: bool) -> Solution {
         let est = if estimates { Some(self.error_estimates()) } else { None };
+        let slopes = self.leaf_slopes();
         let elements: Vec<SolvedElement> = self
             .hier
             .elements
@@ -1793,6 +1981,7 @@ impl HierarchicalSolver {
                 area: e.area,
                 radiosity: e.radiosity,
                 error_estimate: est.as_ref().map(|v| v[i]),
+                slope: slopes.get(i).copied().flatten(),
             })
             .collect();
         let patch_radiosity = Solution::patch_averages(self.scene.patches.len(), &elements);
@@ -1911,6 +2100,9 @@ fn new_link(
         bound: geometric_variation(p, q) as f32,
         split_source: if nearly_equal(fpq, fqp) { q_larger } else { fpq > fqp },
         unmeasured: false,
+        slope_set: false,
+        slope: [0.0; 2],
+        src_slope: [0.0; 2],
     }
 }
 

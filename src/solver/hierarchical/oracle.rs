@@ -110,24 +110,72 @@ fn inherit(from: &[DVec3; 4], normal: DVec3, h: &[Rgb; 4], to: &[DVec3; 4]) -> [
     let c = (from[0] + from[1] + from[2] + from[3]) * 0.25;
     let mean = (h[0] + h[1] + h[2] + h[3]) * 0.25;
     let (t1, t2) = crate::math::orthonormal_basis(normal);
-    let uv = from.map(|x| ((x - c).dot(t1), (x - c).dot(t2)));
-    let (mut suu, mut suv, mut svv) = (0.0, 0.0, 0.0);
-    let (mut bu, mut bv) = (Rgb::ZERO, Rgb::ZERO);
-    for ((u, v), hk) in uv.iter().zip(h) {
-        suu += u * u;
-        suv += u * v;
-        svv += v * v;
-        bu += (*hk - mean) * *u;
-        bv += (*hk - mean) * *v;
-    }
-    let det = suu * svv - suv * suv;
-    if !(det > 1e-12 * (suu + svv) * (suu + svv)) {
+    let Some(w) = FitWeights::new(from, c, t1, t2) else {
         return [mean; 4];
+    };
+    let (mut gu, mut gv) = (Rgb::ZERO, Rgb::ZERO);
+    for ((hk, wu), wv) in h.iter().zip(w.u).zip(w.v) {
+        gu += (*hk - mean) * wu;
+        gv += (*hk - mean) * wv;
     }
-    // Gradient (g_u, g_v) = M⁻¹ (b_u, b_v), M = [[suu, suv], [suv, svv]].
-    let gu = (bu * svv - bv * suv) / det;
-    let gv = (bv * suu - bu * suv) / det;
     to.map(|x| mean + gu * (x - c).dot(t1) + gv * (x - c).dot(t2))
+}
+
+/// The least-squares affine fit of values at four points of a plane, as weights: the fitted
+/// gradient of values h_k is (Σ_k u_k (h_k − mean), Σ_k v_k (h_k − mean)) in the basis (t1, t2).
+struct FitWeights {
+    u: [f64; 4],
+    v: [f64; 4],
+}
+
+impl FitWeights {
+    /// None when the points are (nearly) collinear.
+    fn new(pts: &[DVec3; 4], c: DVec3, t1: DVec3, t2: DVec3) -> Option<FitWeights> {
+        let uv = pts.map(|x| ((x - c).dot(t1), (x - c).dot(t2)));
+        let (mut suu, mut suv, mut svv) = (0.0, 0.0, 0.0);
+        for (u, v) in uv {
+            suu += u * u;
+            suv += u * v;
+            svv += v * v;
+        }
+        let det = suu * svv - suv * suv;
+        if !(det > 1e-12 * (suu + svv) * (suu + svv)) {
+            return None;
+        }
+        // Gradient (g_u, g_v) = M⁻¹ (b_u, b_v), M = [[suu, suv], [suv, svv]], b = Σ (h − mean)·(u, v).
+        Some(FitWeights {
+            u: uv.map(|(u, v)| (u * svv - v * suv) / det),
+            v: uv.map(|(u, v)| (v * suu - u * suv) / det),
+        })
+    }
+}
+
+/// The gradient, across `r` in the basis `orthonormal_basis(r.normal)`, of the transfer
+/// F(x → q) of the link r ← q with visibility `vis` and Galerkin coefficient `f` (r's average):
+/// the least-squares affine fit of the exact point kernel at r's four child points, times V,
+/// limited so that f + gradient·(x − centroid) stays ≥ 0 at r's vertices (so on all of r).
+pub(super) fn kernel_slope(r: &Element, q: &Element, vis: f64, f: f64) -> [f64; 2] {
+    let pts = child_points(r);
+    let c = (pts[0] + pts[1] + pts[2] + pts[3]) * 0.25;
+    let (t1, t2) = crate::math::orthonormal_basis(r.normal);
+    let Some(w) = FitWeights::new(&pts, c, t1, t2) else {
+        return [0.0; 2];
+    };
+    let (k, mean) = kernel_at(r, &pts, q);
+    let (mut gu, mut gv) = (0.0, 0.0);
+    for ((ki, wu), wv) in k.iter().zip(w.u).zip(w.v) {
+        gu += (ki - mean) * wu;
+        gv += (ki - mean) * wv;
+    }
+    let (gu, gv) = (gu * vis, gv * vis);
+    let reach = r
+        .vertices()
+        .iter()
+        .map(|&x| (gu * (x - r.centroid).dot(t1) + gv * (x - r.centroid).dot(t2)).abs())
+        .fold(0.0, f64::max);
+    let fv = f * vis;
+    let limit = if reach > fv { fv / reach } else { 1.0 };
+    if limit.is_finite() { [gu * limit, gv * limit] } else { [0.0; 2] }
 }
 
 /// F(x_k → q) at the four child points of `r`, and their mean.
