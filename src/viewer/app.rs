@@ -1600,6 +1600,7 @@ impl RadlabApp {
                     frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size },
                     geometry: Arc::clone(&self.geometry),
                     generation: self.generation,
+                    slot: 0,
                 },
             ));
         } else {
