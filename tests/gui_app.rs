@@ -744,3 +744,105 @@ fn keyboard_shortcuts_act_and_help_lists_them() {
     settle(&mut h);
     check(&mut h, "gui_help_window");
 }
+
+#[test]
+fn run_history_split_view_and_overlaid_plots() {
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    assert_eq!(h.state().solve_runs(), 1, "the load's solve is a run");
+    // Two more settings (auto-run re-solves each): a coarse tree, then the Feps oracle.
+    let mut coarse = h.state().params();
+    coarse.max_depth = 1;
+    // (Twice: the restart's answer sends the re-solve, then that is waited for.)
+    h.state_mut().set_params(coarse);
+    settle(&mut h);
+    settle(&mut h);
+    let mut feps = radlab::solver::params::HierarchicalParams::lecture();
+    feps.feps = 0.05;
+    h.state_mut().set_params(feps);
+    settle(&mut h);
+    settle(&mut h);
+    let runs = h.state().history.runs().to_vec();
+    assert_eq!(runs.len(), 3, "one run per solve");
+    for r in &runs {
+        assert!(r.elements > 0 && r.links > 0 && r.time_s > 0.0, "{r:?}");
+        assert!(r.estimate.is_some_and(|e| e > 0.0 && e < 1.0), "no reference: the solver's estimate {r:?}");
+    }
+    assert_eq!(runs[1].params.max_depth, 1);
+    assert!(runs[1].elements < runs[0].elements, "the coarse tree has fewer elements");
+    assert_eq!(runs[2].params.oracle, radlab::solver::params::Oracle::Feps);
+
+    // The history window lists the three runs.
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("Run history (H)").click();
+    settle(&mut h);
+    for n in 1..=3 {
+        assert!(h.query_by_label(&format!("#{n} test-box")).is_some(), "run #{n} listed");
+    }
+
+    // The split view (V): the newest two runs, each labelled with its settings, time and error.
+    h.state_mut().history.open = false;
+    h.state_mut().display.quadtree = true; // the meshes differ visibly
+    h.key_press(egui::Key::V);
+    settle(&mut h);
+    assert!(h.state().split.on);
+    let shown: Vec<usize> = h.state().split.shown().iter().map(|s| s.0).collect();
+    assert_eq!(shown, vec![2, 3]);
+    assert!(h.query_by_label("#2 test-box · custom").is_some(), "the coarse run's pane label");
+    assert!(h.query_by_label("#3 test-box · custom").is_some(), "the Feps run's pane label");
+    assert!(h.query_by_label_contains("Feps oracle, Feps 5.0e-2").is_some(), "its thresholds");
+    assert_eq!(
+        h.query_all_by_label_contains("(solver's estimate)").count(),
+        2,
+        "each pane states its error, as an estimate"
+    );
+    // Picks choose the panes: the first and the last run.
+    h.state_mut().history.toggle_pick(1);
+    h.state_mut().history.toggle_pick(3);
+    settle(&mut h);
+    h.remove_cursor();
+    h.run_steps(2);
+    let panes = h.state().split.shown().to_vec();
+    assert_eq!(panes.iter().map(|p| p.0).collect::<Vec<_>>(), vec![1, 3]);
+    // Both panes are drawn (a renderer slot each), and they show different meshes.
+    let img = h.render().expect("render");
+    let (w, hh) = (img.width(), img.height());
+    let img = RgbaImage { width: w, height: hh, pixels: img.into_raw() };
+    let ppp = 1.0; // the harness renders at 1 pixel per point
+    let crops: Vec<RgbaImage> = panes
+        .iter()
+        .map(|(_, r)| {
+            // The lower half: below the label.
+            let r = r.shrink(4.0);
+            let top = r.center().y;
+            img.crop(
+                (r.left() * ppp) as u32,
+                (top * ppp) as u32,
+                (r.width() * ppp) as u32,
+                ((r.bottom() - top) * ppp) as u32,
+            )
+        })
+        .collect();
+    for (c, (n, _)) in crops.iter().zip(&panes) {
+        assert!(c.distinct_colors() > 50, "pane of run #{n} is drawn: {} colours", c.distinct_colors());
+    }
+    let w = crops[0].width.min(crops[1].width);
+    let hh = crops[0].height.min(crops[1].height);
+    let (a, b) = (crops[0].crop(0, 0, w, hh), crops[1].crop(0, 0, w, hh));
+    let (d, _) = snapshot::diff(&a, &b).expect("same size");
+    assert!(d.mean > 2.0, "the two panes show different solutions: mean difference {}", d.mean);
+
+    // The plots overlay the runs: one series per oracle in both run plots, n and n² guides.
+    h.state_mut().split.on = false;
+    h.get_by_label("Plots").click();
+    settle(&mut h);
+    assert!(h.query_by_label("Error against solver time, runs in this window (log₁₀)").is_some());
+    let links = h.state().history.links_series();
+    assert_eq!(links.iter().map(|s| s.points.len()).collect::<Vec<_>>(), vec![2, 1], "{links:?}");
+    for name in ["test-box · BF oracle", "test-box · Feps oracle (estimate)", "n", "n²"] {
+        assert!(h.query_all_by_label(name).next().is_some(), "legend entry {name}");
+    }
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}

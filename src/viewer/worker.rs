@@ -31,6 +31,8 @@ pub struct ViewData {
     /// The radiosity shown was pushed and pulled by the viewer ([`push_pull`]): the solver has
     /// gathered but its own state waits for a Push-pull step.
     pub pushed_for_display: bool,
+    /// The settings of the solver that produced this state (the run history records them).
+    pub params: HierarchicalParams,
 }
 
 impl ViewData {
@@ -47,7 +49,20 @@ impl ViewData {
             stats: s.stats,
             residuals: s.residuals,
             pushed_for_display: false,
+            params: HierarchicalParams::default(),
         }
+    }
+
+    /// The state of a solver (pushed and pulled for display when it has gathered since its last
+    /// push-pull, `unpushed`), with its settings.
+    #[must_use]
+    pub fn of_solver(s: &HierarchicalSolver, unpushed: bool) -> Arc<ViewData> {
+        let view = if unpushed {
+            ViewData::from_gathered_snapshot(s.snapshot())
+        } else {
+            ViewData::from_snapshot(s.snapshot())
+        };
+        Arc::new(ViewData { params: s.params(), ..view })
     }
 
     /// Convert a snapshot taken between a gather and its push-pull, showing the radiosity the
@@ -261,13 +276,7 @@ fn run(
     let mut solver: Option<HierarchicalSolver> = None;
     // The solver has gathered since its last push-pull: show the pushed-pulled values.
     let mut unpushed = false;
-    let view_of = |s: &HierarchicalSolver, unpushed: bool| {
-        Arc::new(if unpushed {
-            ViewData::from_gathered_snapshot(s.snapshot())
-        } else {
-            ViewData::from_snapshot(s.snapshot())
-        })
-    };
+    let view_of = ViewData::of_solver;
     let send = |r: Reply| {
         let ok = tx.send(r).is_ok();
         notify();
@@ -290,10 +299,7 @@ fn run(
         let reply = match cmd {
             Command::Load { scene, params } => match HierarchicalSolver::new(scene, params) {
                 Ok(s) => {
-                    let r = Reply::Loaded {
-                        cancel: s.cancel_handle(),
-                        view: Arc::new(ViewData::from_snapshot(s.snapshot())),
-                    };
+                    let r = Reply::Loaded { cancel: s.cancel_handle(), view: view_of(&s, false) };
                     solver = Some(s);
                     r
                 }
@@ -302,9 +308,7 @@ fn run(
             Command::SetParams(p) => match solver.as_mut() {
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => match s.set_params(p) {
-                    Ok(()) => {
-                        Reply::Done { report: None, view: Arc::new(ViewData::from_snapshot(s.snapshot())) }
-                    }
+                    Ok(()) => Reply::Done { report: None, view: view_of(s, false) },
                     Err(e) => Reply::Failed(e),
                 },
             },
@@ -312,7 +316,7 @@ fn run(
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => {
                     s.reset();
-                    Reply::Done { report: None, view: Arc::new(ViewData::from_snapshot(s.snapshot())) }
+                    Reply::Done { report: None, view: view_of(s, false) }
                 }
             },
             Command::Bake { path, options } => match solver.as_ref() {
@@ -345,8 +349,7 @@ fn run(
                                 let now = std::time::Instant::now();
                                 if last.is_none_or(|t| now.duration_since(t) >= PARTIAL_EVERY) {
                                     last = Some(now);
-                                    let view = Arc::new(ViewData::from_snapshot(s.snapshot()));
-                                    let _ = tx.send(Reply::Partial { view });
+                                    let _ = tx.send(Reply::Partial { view: view_of(s, false) });
                                     notify();
                                 }
                             };
