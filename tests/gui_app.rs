@@ -846,3 +846,69 @@ fn run_history_split_view_and_overlaid_plots() {
     }
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
+
+/// The lower half of the viewport's area (below the sliders and labels), as rendered.
+fn lower_viewport(h: &mut Harness<'static, RadlabApp>) -> RgbaImage {
+    h.remove_cursor();
+    h.run_steps(2);
+    let img = h.render().expect("render");
+    let (w, hh) = (img.width(), img.height());
+    let r = h.state().viewport_rect();
+    RgbaImage { width: w, height: hh, pixels: img.into_raw() }.crop(
+        r.left() as u32,
+        r.center().y as u32,
+        r.width() as u32,
+        (r.height() / 2.0) as u32,
+    )
+}
+
+#[test]
+fn refinement_replay_scrubs_the_last_solve_and_the_depth_slider_cuts_the_tree() {
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let n = h.state().replay.frames();
+    assert!(n >= 3, "the start, a frame per round but the last, the result: {n}");
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("Refinement replay").click();
+    settle(&mut h);
+    assert!(h.state().replay.on);
+    let result = Arc::clone(h.state().replay.frame().expect("a frame"));
+    assert!(Arc::ptr_eq(&result, h.state().view()), "the slider starts at the result");
+    assert!(h.query_by_label_contains("result: ").is_some());
+    let end = lower_viewport(&mut h);
+    assert!(end.distinct_colors() > 50, "the replay draws its frame");
+
+    // Scrub to the start: the input patches, unlit, no links; the frames between refine.
+    let mut leaves = Vec::new();
+    for i in 0..n {
+        h.state_mut().replay.position = i;
+        h.run_steps(1);
+        leaves.push(h.state().replay.frame().unwrap().stats.leaves);
+    }
+    assert_eq!(leaves[0], 11, "{leaves:?}");
+    assert!(
+        leaves.windows(2).all(|w| w[0] <= w[1]) && leaves[n - 1] > 11,
+        "refinement only splits: {leaves:?}"
+    );
+    h.state_mut().replay.position = 0;
+    settle(&mut h);
+    assert_eq!(h.state().replay.frame().unwrap().stats.links, 0);
+    assert!(h.query_by_label_contains("start: 11 elements · 0 links").is_some());
+    let start = lower_viewport(&mut h);
+    let (d, _) = snapshot::diff(&start, &end).expect("same size");
+    assert!(d.mean > 5.0, "the unlit start looks different from the result: {}", d.mean);
+
+    // The depth slider: cut at depth 0, the result is drawn as its input patches.
+    h.state_mut().replay.position = n - 1;
+    h.state_mut().replay.depth = Some(0);
+    settle(&mut h);
+    assert_eq!(radlab::viewer::builder::cut_at_depth(&result.elements, 0).len(), 11);
+    let deepest = result.stats.depth_histogram.len() as u8;
+    assert_eq!(radlab::viewer::builder::cut_at_depth(&result.elements, deepest), result.leaves);
+    let cut = lower_viewport(&mut h);
+    let (d, _) = snapshot::diff(&cut, &end).expect("same size");
+    assert!(d.mean > 1.0, "depth 0 shows one colour per patch: {}", d.mean);
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}

@@ -12,7 +12,9 @@ use super::file_dialog::{Answer, FileDialogs, Purpose};
 use super::help::{self, Action};
 use super::history::{HistoryAction, RunHistory};
 use super::lecture::Lecture;
+use super::pane::PaneStyle;
 use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
+use super::replay::{Replay, ReplayInput};
 use super::split::{SplitAction, SplitInput, SplitView};
 use super::view::View;
 use super::worker::{Command, Reply, ViewData, Worker};
@@ -219,6 +221,10 @@ pub struct RadlabApp {
     pub history: RunHistory,
     /// Two or three runs side by side in place of the viewport.
     pub split: SplitView,
+    /// The last solve round by round, and the depth cut, in place of the viewport.
+    pub replay: Replay,
+    /// The frames of the solve running now (they come just before its `Done`).
+    replay_frames: Option<Vec<Arc<ViewData>>>,
     camera: OrbitCamera,
     home: OrbitCamera,
     origin: DVec3,
@@ -360,7 +366,9 @@ impl RadlabApp {
             view: Arc::new(ViewData::default()),
             last_report: None,
             history: RunHistory::default(),
-            split: SplitView::new(),
+            split: SplitView::default(),
+            replay: Replay::default(),
+            replay_frames: None,
             camera: OrbitCamera::frame_all(&crate::scene::Bounds {
                 min: DVec3::splat(-1.0),
                 max: DVec3::splat(1.0),
@@ -499,7 +507,10 @@ impl RadlabApp {
                 Action::ToggleError => self.display.error ^= true,
                 Action::ToggleCaption => self.lecture.toggle_caption(),
                 Action::ToggleHelp => self.show_help ^= true,
-                Action::ToggleSplit => self.split.on ^= true,
+                Action::ToggleSplit => {
+                    self.split.on ^= true;
+                    self.replay.on &= !self.split.on;
+                }
                 Action::ToggleHistory => self.history.open ^= true,
             }
         }
@@ -542,6 +553,8 @@ impl RadlabApp {
         self.home = OrbitCamera::from_viewpoint(&v, &b);
         self.camera = self.home;
         self.scene_spec.clone_from(&scene.source);
+        self.replay.clear();
+        self.replay_frames = None;
         self.selected = None;
         self.true_error = None;
         self.error_samples.clear();
@@ -703,6 +716,7 @@ impl RadlabApp {
             self.apply_built(b);
         }
         self.split.wait();
+        self.replay.wait();
     }
 
     fn poll_worker(&mut self) {
@@ -731,7 +745,9 @@ impl RadlabApp {
     fn apply(&mut self, r: Reply) {
         match r {
             // The previous scene's last answers (its running step, cancelled): not shown.
-            Reply::Done { .. } | Reply::Partial { .. } | Reply::Progress { .. } if self.loading => {}
+            Reply::Done { .. } | Reply::Partial { .. } | Reply::Progress { .. } | Reply::Replay { .. }
+                if self.loading => {}
+            Reply::Replay { frames } => self.replay_frames = Some(frames),
             Reply::Loaded { view, .. } => {
                 self.loading = false;
                 self.set_view(view);
@@ -757,6 +773,11 @@ impl RadlabApp {
                 if let Some(rep) = report {
                     self.solver_time_s += rep.time_s;
                     self.last_report = Some(rep);
+                    if rep.kind == StepKind::Solve
+                        && let Some(frames) = self.replay_frames.take()
+                    {
+                        self.replay.set_frames(frames, Arc::clone(&self.view));
+                    }
                     if rep.kind == StepKind::Solve && !rep.cancelled {
                         let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
                         self.history.record(name, self.solver_time_s, self.view_seq, Arc::clone(&self.view));
@@ -1048,6 +1069,7 @@ impl RadlabApp {
             link_alpha: d.link_alpha,
             links_xray: d.links_xray,
             origin: self.origin,
+            depth_limit: None,
         }
     }
 
@@ -1193,10 +1215,17 @@ impl RadlabApp {
     /// The View menu: the split view and the run history.
     fn view_menu(&mut self, ui: &mut egui::Ui) {
         ui.menu_button("View", |ui| {
-            ui.checkbox(&mut self.split.on, "Split view (V)").on_hover_text(
-                "Two or three runs side by side with one camera and one exposure, each labelled with \
-                 its settings, time and error: the runs picked in the run history, else the newest",
-            );
+            if ui
+                .checkbox(&mut self.split.on, "Split view (V)")
+                .on_hover_text(
+                    "Two or three runs side by side with one camera and one exposure, each labelled \
+                     with its settings, time and error: the runs picked in the run history, else the \
+                     newest of this scene",
+                )
+                .changed()
+            {
+                self.replay.on &= !self.split.on;
+            }
             ui.horizontal(|ui| {
                 ui.label("panes");
                 for n in [2, 3] {
@@ -1208,6 +1237,17 @@ impl RadlabApp {
                 "Every solve of this window: settings, elements, links, time, error; pick the runs \
                  of the split view there",
             );
+            ui.separator();
+            if ui
+                .checkbox(&mut self.replay.on, "Refinement replay")
+                .on_hover_text(
+                    "The last solve round by round (mesh, links, radiosity as they were), with a \
+                     slider; and a depth slider that cuts the quadtrees at a level",
+                )
+                .changed()
+            {
+                self.split.on &= !self.replay.on;
+            }
         })
         .response
         .on_hover_text("Split view and run history: compare solves side by side");
@@ -1665,27 +1705,43 @@ impl RadlabApp {
         });
     }
 
+    /// Name of the scene shown ("" without one).
+    fn scene_name(&self) -> &str {
+        self.scene.as_ref().map_or("", |s| s.name.as_str())
+    }
+
+    /// Before a pane view (split, replay) draws in place of the viewport: the camera's keys, and
+    /// the current solution's build, which sets the auto exposure every pane shares. Returns how
+    /// the panes draw.
+    fn pane_frame(&mut self, ui: &egui::Ui) -> PaneStyle {
+        self.viewport_rect = ui.available_rect_before_wrap();
+        self.camera_keys(ui);
+        self.request_geometry();
+        self.poll_geometry();
+        PaneStyle {
+            uniforms: self.uniforms(1.0, ui.ctx().pixels_per_point()),
+            origin: self.origin,
+            has_wgpu: self.has_wgpu,
+        }
+    }
+
     /// The split view in place of the viewport: the runs of the history side by side, with the
     /// viewport's camera (its keys too) and exposure.
     fn split_view(&mut self, ui: &mut egui::Ui) {
-        self.viewport_rect = ui.available_rect_before_wrap();
-        self.camera_keys(ui);
-        // The current solution's build sets the auto exposure all panes share.
-        self.request_geometry();
-        self.poll_geometry();
+        let style = self.pane_frame(ui);
         let settings = self.build_settings();
-        let uniforms = self.uniforms(1.0, ui.ctx().pixels_per_point());
-        let input = SplitInput {
-            history: &self.history,
-            camera: &mut self.camera,
-            settings,
-            uniforms,
-            origin: self.origin,
-            has_wgpu: self.has_wgpu,
-        };
+        let scene = self.scene.as_ref().map_or("", |s| s.name.as_str());
+        let input = SplitInput { history: &self.history, scene, camera: &mut self.camera, settings, style };
         if self.split.ui(ui, input) == Some(SplitAction::OpenHistory) {
             self.history.open = true;
         }
+    }
+
+    /// The refinement replay in place of the viewport.
+    fn replay_view(&mut self, ui: &mut egui::Ui) {
+        let style = self.pane_frame(ui);
+        let settings = self.build_settings();
+        self.replay.ui(ui, ReplayInput { camera: &mut self.camera, settings, style });
     }
 
     /// Where the viewport was drawn in the last frame (points).
@@ -1916,6 +1972,7 @@ impl RadlabApp {
         // nothing left to report (its look-up or a score changes the error overlay).
         let current = self.geometry_current()
             && !self.split.building()
+            && !self.replay.building()
             && !self.reference.as_ref().is_some_and(RefThread::busy);
         match &mut self.script {
             Script::None | Script::Done | Script::WaitingShot => {}
@@ -2074,7 +2131,9 @@ impl eframe::App for RadlabApp {
             },
         );
         egui::CentralPanel::no_frame().show(ui, |ui| {
-            if self.split.active(&self.history) {
+            if self.replay.on {
+                self.replay_view(ui);
+            } else if self.split.active(&self.history, self.scene_name()) {
                 self.split_view(ui);
             } else {
                 self.viewport(ui);

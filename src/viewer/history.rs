@@ -302,13 +302,13 @@ impl RunHistory {
     }
 
     /// The runs the split view shows: the picked ones when two or more are picked (in the order
-    /// solved), else the pick and the newest runs with a solution, up to `panes`.
+    /// solved), else the pick and the newest runs of `scene` with a solution, up to `panes`.
     #[must_use]
-    pub fn split_runs(&self, panes: usize) -> Vec<&Run> {
+    pub fn split_runs(&self, panes: usize, scene: &str) -> Vec<&Run> {
         let with_view = |n: usize| self.runs.iter().find(|r| r.number == n && r.view.is_some());
         let mut out: Vec<&Run> = self.picked.iter().filter_map(|&n| with_view(n)).collect();
         if out.len() < 2 {
-            for r in self.runs.iter().rev().filter(|r| r.view.is_some()) {
+            for r in self.runs.iter().rev().filter(|r| r.view.is_some() && r.scene == scene) {
                 if out.len() >= panes {
                     break;
                 }
@@ -436,7 +436,7 @@ impl View for RunHistory {
             self.toggle_pick(n);
         }
         ui.horizontal(|ui| {
-            let shown = self.split_runs(MAX_PICKED).len();
+            let shown = self.split_runs(MAX_PICKED, self.runs.last().map_or("", |r| r.scene.as_str())).len();
             if ui
                 .add_enabled(shown >= 2, egui::Button::new("Show in split view"))
                 .on_hover_text(
@@ -516,16 +516,18 @@ mod tests {
             h.record("box", 1.0, i, view(p, 10, 1.0, 0.02));
         }
         let numbers = |rs: Vec<&Run>| rs.iter().map(|r| r.number).collect::<Vec<_>>();
-        assert_eq!(numbers(h.split_runs(2)), vec![3, 4], "the newest two");
-        assert_eq!(numbers(h.split_runs(3)), vec![2, 3, 4]);
+        h.record("other", 1.0, 9, view(p, 10, 1.0, 0.02));
+        assert_eq!(numbers(h.split_runs(2, "box")), vec![3, 4], "the newest two of the scene");
+        assert_eq!(numbers(h.split_runs(3, "box")), vec![2, 3, 4]);
+        assert_eq!(numbers(h.split_runs(3, "other")), vec![5], "one run of that scene");
         h.toggle_pick(1);
-        assert_eq!(numbers(h.split_runs(2)), vec![1, 4], "one pick and the newest");
-        h.toggle_pick(2);
-        assert_eq!(numbers(h.split_runs(3)), vec![1, 2], "two picks: those");
+        assert_eq!(numbers(h.split_runs(2, "box")), vec![1, 4], "one pick and the newest");
+        h.toggle_pick(5);
+        assert_eq!(numbers(h.split_runs(3, "box")), vec![1, 5], "two picks: those, whatever the scene");
         for n in [3, 4] {
             h.toggle_pick(n);
         }
-        assert_eq!(h.picked(), &[2, 3, 4], "at most three, the oldest pick goes");
+        assert_eq!(h.picked(), &[5, 3, 4], "at most three, the oldest pick goes");
     }
 
     #[test]

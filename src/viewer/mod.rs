@@ -11,6 +11,8 @@
 //! - [`history`]: the run history: every solve kept (settings, size, time, error), the table and
 //!   the runs overlaid in the plots.
 //! - [`matrix`]: the blocking form-factor matrix window.
+//! - [`pane`]: one solver state drawn beside the viewport (the split view's and replay's panes).
+//! - [`replay`]: the refinement replay: the last solve round by round, and the depth slider.
 //! - [`lecture`]: the Lecture menu (the figures of [`crate::figures`]) and the caption panel.
 //! - [`reference`]: the `radlab-reference` thread: cached/computed reference, true error.
 //! - [`split`]: the split view: two or three runs side by side, one camera, one exposure.
@@ -29,7 +31,9 @@ pub mod help;
 pub mod history;
 pub mod lecture;
 pub mod matrix;
+pub mod pane;
 pub mod reference;
+pub mod replay;
 pub mod split;
 pub mod view;
 pub mod worker;
