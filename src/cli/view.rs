@@ -1,6 +1,6 @@
 //! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error,…] [--preset NAME]
-//! [--bench-frames N] [--figure NAME] [--split N] [--history]`: the interactive viewer (feature
-//! `gui`).
+//! [--bench-frames N] [--figure NAME] [--split N] [--history] [--replay FRAME [--depth-cut D]]`:
+//! the interactive viewer (feature `gui`).
 //!
 //! Without the feature, or without a display, it fails with one line suggesting `radlab solve`.
 
@@ -61,6 +61,13 @@ pub struct Args {
     /// Open the run history window (every solve: settings, elements, links, time, error).
     #[arg(long)]
     pub history: bool,
+    /// Open the refinement replay of the first solve at this frame (0: where it starts, then
+    /// one per round; past the last: the result).
+    #[arg(long, value_name = "FRAME")]
+    pub replay: Option<usize>,
+    /// With --replay: draw the quadtrees down to this depth only (0: the input patches).
+    #[arg(long, value_name = "D", requires = "replay")]
+    pub depth_cut: Option<u8>,
 }
 
 impl Args {
@@ -80,6 +87,8 @@ impl Args {
             figure: None,
             split: None,
             history: false,
+            replay: None,
+            depth_cut: None,
         }
     }
 }
@@ -130,6 +139,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         figure,
         split: args.split.map(usize::from),
         show_history: args.history,
+        replay: args.replay,
+        depth_cut: args.depth_cut,
         ..ViewerOptions::default()
     })?;
     Ok(())

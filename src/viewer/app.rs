@@ -81,6 +81,10 @@ pub struct ViewerOptions {
     pub split: Option<usize>,
     /// Open the run history window.
     pub show_history: bool,
+    /// Open the refinement replay at this frame of the first solve (0: its start).
+    pub replay: Option<usize>,
+    /// Cut the quadtrees at this depth in the refinement replay.
+    pub depth_cut: Option<u8>,
 }
 
 impl Default for ViewerOptions {
@@ -101,6 +105,8 @@ impl Default for ViewerOptions {
             figure: None,
             split: None,
             show_history: false,
+            replay: None,
+            depth_cut: None,
         }
     }
 }
@@ -434,6 +440,11 @@ impl RadlabApp {
             app.split.panes = n.clamp(2, 3);
         }
         app.history.open = app.opts.show_history;
+        if let Some(frame) = app.opts.replay {
+            app.replay.on = true;
+            app.replay.start_at = Some(frame);
+        }
+        app.replay.depth = app.opts.depth_cut;
         for o in &app.opts.overlay {
             match o {
                 OverlayChoice::None => {}

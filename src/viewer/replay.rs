@@ -50,6 +50,8 @@ pub struct Replay {
     pub position: usize,
     /// Show the quadtrees down to this depth (`None`: to the leaves).
     pub depth: Option<u8>,
+    /// Where the slider goes when the next frames arrive (`radlab view --replay`); else the result.
+    pub start_at: Option<usize>,
     /// Bumped by every new set of frames (with `position`, it names the state the pane shows).
     epoch: u64,
     pane: Pane,
@@ -62,6 +64,7 @@ impl Default for Replay {
             frames: Vec::new(),
             position: 0,
             depth: None,
+            start_at: None,
             epoch: 0,
             pane: Pane::new(REPLAY_SLOT),
         }
@@ -69,10 +72,11 @@ impl Default for Replay {
 }
 
 impl Replay {
-    /// The frames of a finished solve and its result; the slider goes to the result.
+    /// The frames of a finished solve and its result; the slider goes to the result (or to
+    /// `start_at`, once).
     pub fn set_frames(&mut self, mut frames: Vec<Arc<ViewData>>, result: Arc<ViewData>) {
         frames.push(result);
-        self.position = frames.len() - 1;
+        self.position = self.start_at.take().unwrap_or(usize::MAX).min(frames.len() - 1);
         self.frames = frames;
         self.epoch += 1;
     }
