@@ -17,6 +17,7 @@ use radlab::render::RgbaImage;
 use radlab::render::snapshot::{self, Thresholds};
 use radlab::scene::{Patch, Scene};
 use radlab::solver::hierarchical::StepKind;
+use radlab::viewer::history::RunKind;
 use radlab::viewer::{RadlabApp, RefSettings, RefState, ViewerOptions};
 use std::sync::Arc;
 
@@ -321,6 +322,23 @@ fn reference_feeds_the_true_error_and_the_error_plot() {
     h.get_by_label("Plots").click();
     settle(&mut h);
     assert!(h.query_by_label_contains("Error against the reference").is_some());
+    // The reference is a run of the history, shown beside the solve in the split view; the
+    // solve's error is the one against it.
+    let runs = h.state().history.runs().to_vec();
+    assert_eq!(runs.len(), 2, "{runs:?}");
+    assert!(
+        matches!(runs[0].kind, RunKind::Reference { samples: 16, noise: Some(n), .. } if n > 0.0),
+        "{:?}",
+        runs[0].kind
+    );
+    assert!(runs[1].reference.is_some_and(|e| e > 0.0 && e < 0.5), "{:?}", runs[1]);
+    h.key_press(egui::Key::V);
+    settle(&mut h);
+    let shown: Vec<usize> = h.state().split.shown().iter().map(|s| s.0).collect();
+    assert_eq!(shown, vec![1, 2]);
+    assert!(h.query_by_label("#1 test-box · reference").is_some());
+    assert!(h.query_by_label_contains("(Monte Carlo noise)").is_some());
+    assert!(h.query_by_label_contains("(vs reference)").is_some());
 
     // A second window finds the reference in the cache by itself.
     let mut h2 = harness(ViewerOptions { reference, ..opts() });

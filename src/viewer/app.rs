@@ -905,6 +905,11 @@ impl RadlabApp {
                 self.ref_state = RefState::Missing;
                 self.status = "reference computation cancelled".into();
             }
+            RefReply::Solution { source, view } if current(&source, self) => {
+                let samples = self.opts.reference.params.samples;
+                let name = self.scene_name().to_owned();
+                self.history.record_reference(&name, samples, view);
+            }
             RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
                 self.ref_state = RefState::Ready { regions, samples, how };
                 self.evaluated_seq = 0; // score the current state
@@ -926,6 +931,7 @@ impl RadlabApp {
             RefReply::Computing { .. }
             | RefReply::Missing { .. }
             | RefReply::Ready { .. }
+            | RefReply::Solution { .. }
             | RefReply::Cancelled { .. } => {}
         }
     }

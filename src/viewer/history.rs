@@ -39,6 +39,8 @@ pub enum RunError {
     Reference(f64),
     /// The solver's own estimate of its relative L2 error (no reference).
     Estimate(f64),
+    /// The reference's own Monte Carlo noise: its relative standard error.
+    Noise(f64),
     /// Neither (nothing reflected yet, or no estimate).
     Unknown,
 }
@@ -48,7 +50,7 @@ impl RunError {
     #[must_use]
     pub fn value(self) -> Option<f64> {
         match self {
-            RunError::Reference(e) | RunError::Estimate(e) => Some(e),
+            RunError::Reference(e) | RunError::Estimate(e) | RunError::Noise(e) => Some(e),
             RunError::Unknown => None,
         }
     }
@@ -59,6 +61,7 @@ impl RunError {
         match self {
             RunError::Reference(e) => format!("error {:.2} % (vs reference)", 100.0 * e),
             RunError::Estimate(e) => format!("error ≈ {:.2} % (solver's estimate)", 100.0 * e),
+            RunError::Noise(e) => format!("standard error {:.2} % (Monte Carlo noise)", 100.0 * e),
             RunError::Unknown => "error unknown".to_owned(),
         }
     }
@@ -69,16 +72,34 @@ impl RunError {
         match self {
             RunError::Reference(e) => format!("{:.2} %", 100.0 * e),
             RunError::Estimate(e) => format!("≈ {:.2} % est.", 100.0 * e),
+            RunError::Noise(e) => format!("± {:.2} % noise", 100.0 * e),
             RunError::Unknown => "–".to_owned(),
         }
     }
 }
 
-/// One finished solve.
+/// What made a run.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum RunKind {
+    /// A Solve of the hierarchical solver.
+    Solve,
+    /// The scene's Monte Carlo reference (`radlab reference --ruler regions`), shown as a run so
+    /// that the split view can set it beside solves; left out of the plots.
+    Reference {
+        regions: usize,
+        /// Paths per region.
+        samples: u32,
+        /// Its relative standard error (area-weighted, against the reflected radiosity).
+        noise: Option<f64>,
+    },
+}
+
+/// One finished solve (or the scene's reference).
 #[derive(Clone, Debug)]
 pub struct Run {
     /// 1, 2, … in the order solved (shown as "#n").
     pub number: usize,
+    pub kind: RunKind,
     /// Name of the scene solved.
     pub scene: String,
     /// The preset's name, or "custom" when the settings differ from every preset.
@@ -100,9 +121,13 @@ pub struct Run {
 }
 
 impl Run {
-    /// The error shown: against the reference if known, else the estimate.
+    /// The error shown: against the reference if known, else the estimate (a reference: its
+    /// noise).
     #[must_use]
     pub fn error(&self) -> RunError {
+        if let RunKind::Reference { noise, .. } = self.kind {
+            return noise.map_or(RunError::Unknown, RunError::Noise);
+        }
         match (self.reference, self.estimate) {
             (Some(e), _) => RunError::Reference(e),
             (None, Some(e)) => RunError::Estimate(e),
@@ -119,12 +144,20 @@ impl Run {
     /// The oracle and its thresholds, e.g. "BF oracle, BFeps 2.0e-3, Feps 5.0e-2 · Aeps 1e-4 A".
     #[must_use]
     pub fn thresholds(&self) -> String {
-        thresholds(&self.params)
+        match self.kind {
+            RunKind::Solve => thresholds(&self.params),
+            RunKind::Reference { regions, samples, .. } => {
+                format!("Monte Carlo reference: {regions} regions × {samples} paths (radlab reference)")
+            }
+        }
     }
 
     /// "761 elements · 5321 links · 0.42 s · error ≈ 3.20 % (solver's estimate)".
     #[must_use]
     pub fn numbers(&self) -> String {
+        if let RunKind::Reference { .. } = self.kind {
+            return format!("{} regions · {}", self.elements, self.error().label());
+        }
         format!(
             "{} elements · {} links · {:.2} s · {}",
             self.elements,
@@ -218,9 +251,9 @@ impl RunHistory {
     /// older solutions are dropped past [`KEEP_SOLUTIONS`].
     pub fn record(&mut self, scene: &str, time_s: f64, view_seq: u64, view: Arc<ViewData>) {
         let params = view.params;
-        let number = self.runs.last().map_or(1, |r| r.number + 1);
-        self.runs.push(Run {
-            number,
+        self.push(Run {
+            number: 0,
+            kind: RunKind::Solve,
             scene: scene.to_owned(),
             preset: preset_name(&params),
             params,
@@ -232,11 +265,47 @@ impl RunHistory {
             view_seq,
             view: Some(view),
         });
+    }
+
+    /// Add a run, numbered after the last one; the oldest goes past [`MAX_RUNS`], older
+    /// solutions past [`KEEP_SOLUTIONS`].
+    fn push(&mut self, run: Run) {
+        let number = self.runs.last().map_or(1, |r| r.number + 1);
+        self.runs.push(Run { number, ..run });
         if self.runs.len() > MAX_RUNS {
             let gone = self.runs.remove(0).number;
             self.picked.retain(|&n| n != gone);
         }
         self.evict();
+    }
+
+    /// Keep the scene's reference as a run (once per scene and reference settings).
+    pub fn record_reference(&mut self, scene: &str, samples: u32, view: Arc<ViewData>) {
+        let regions = view.leaves.len();
+        let same = |r: &Run| {
+            r.scene == scene
+                && matches!(r.kind, RunKind::Reference { regions: n, samples: s, .. } if n == regions && s == samples)
+        };
+        if let Some(r) = self.runs.iter_mut().find(|r| same(r)) {
+            r.view.get_or_insert(view);
+            return;
+        }
+        // The noise: its standard errors, weighed as the solver's estimates are.
+        let noise = estimate_of(&view);
+        self.push(Run {
+            number: 0,
+            kind: RunKind::Reference { regions, samples, noise },
+            scene: scene.to_owned(),
+            preset: "reference".to_owned(),
+            params: view.params,
+            elements: regions,
+            links: 0,
+            time_s: 0.0,
+            estimate: None,
+            reference: None,
+            view_seq: 0,
+            view: Some(view),
+        });
     }
 
     /// Drop the solutions of runs that are neither among the newest [`KEEP_SOLUTIONS`] nor picked.
@@ -359,7 +428,7 @@ impl RunHistory {
     /// sorted by x.
     fn series_of(&self, point: impl Fn(&Run) -> Option<[f64; 2]>) -> Vec<Series> {
         let mut out: Vec<Series> = Vec::new();
-        for r in &self.runs {
+        for r in self.runs.iter().filter(|r| r.kind == RunKind::Solve) {
             let Some(p) = point(r) else { continue };
             let name = r.series();
             match out.iter_mut().find(|s| s.name == name) {
@@ -426,7 +495,10 @@ impl View for RunHistory {
                     ui.label(&r.preset).on_hover_text(r.thresholds());
                     ui.monospace(r.elements.to_string());
                     ui.monospace(r.links.to_string());
-                    ui.monospace(format!("{:.2} s", r.time_s));
+                    match r.kind {
+                        RunKind::Solve => ui.monospace(format!("{:.2} s", r.time_s)),
+                        RunKind::Reference { .. } => ui.monospace("–"),
+                    };
                     ui.label(r.error().short()).on_hover_text(r.error().label());
                     ui.end_row();
                 }
@@ -558,6 +630,15 @@ mod tests {
         assert_eq!(names, ["box · BF oracle", "box · Feps oracle (estimate)", "box · BF oracle (estimate)"]);
         assert_eq!(err[0].points, vec![[0.5, 0.04f64.log10()]]);
         assert_eq!(h.runs()[1].title(), "#2 box · custom");
+        // The reference: one run per scene and settings, its noise as its error, not plotted.
+        for _ in 0..2 {
+            h.record_reference("box", 64, view(HierarchicalParams::default(), 0, 2.0, 0.02));
+        }
+        assert_eq!(h.len(), 4);
+        let r = &h.runs()[3];
+        assert_eq!(r.error(), RunError::Noise(0.01));
+        assert!(r.thresholds().contains("× 64 paths") && r.numbers().contains("Monte Carlo noise"));
+        assert_eq!(h.links_series(), links, "the reference is not plotted");
         assert!(
             h.runs()[1].thresholds().starts_with("Feps oracle, Feps 1.0e-2"),
             "{}",
