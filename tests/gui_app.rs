@@ -801,7 +801,6 @@ fn run_history_split_view_and_overlaid_plots() {
     }
 
     // The split view (V): the newest two runs, each labelled with its settings, time and error.
-    h.state_mut().history.open = false;
     h.state_mut().display.quadtree = true; // the meshes differ visibly
     h.key_press(egui::Key::V);
     settle(&mut h);
@@ -816,9 +815,13 @@ fn run_history_split_view_and_overlaid_plots() {
         2,
         "each pane states its error, as an estimate"
     );
-    // Picks choose the panes: the first and the last run.
-    h.state_mut().history.toggle_pick(1);
-    h.state_mut().history.toggle_pick(3);
+    // Picks in the history choose the panes: the first and the last run.
+    h.get_by_label("pick run #1 for the split view").click();
+    h.run_steps(1);
+    h.get_by_label("pick run #3 for the split view").click();
+    h.run_steps(1);
+    assert_eq!(h.state().history.picked(), &[1, 3]);
+    h.state_mut().history.open = false;
     settle(&mut h);
     h.remove_cursor();
     h.run_steps(2);

@@ -488,6 +488,9 @@ impl View for RunHistory {
                         .add_enabled(r.view.is_some(), egui::Checkbox::without_text(&mut on))
                         .on_hover_text(tip)
                         .on_disabled_hover_text(tip);
+                    // Its accessible name (screen readers, UI tests): the box has no text.
+                    let name = format!("pick run #{} for the split view", r.number);
+                    ui.ctx().accesskit_node_builder(pick.id, |b| b.set_label(name));
                     if pick.changed() {
                         toggle = Some(r.number);
                     }
