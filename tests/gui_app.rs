@@ -933,3 +933,35 @@ fn refinement_replay_scrubs_the_last_solve_and_the_depth_slider_cuts_the_tree() 
     assert!(d.mean > 1.0, "depth 0 shows one colour per patch: {}", d.mean);
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
+
+#[test]
+fn earlier_runs_are_scored_once_the_reference_exists() {
+    let dir = std::env::temp_dir().join(format!("radlab-gui-ref-runs-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let reference = RefSettings {
+        params: ReferenceParams { samples: 16, ..ReferenceParams::quick() },
+        cache: Cache::at(&dir),
+    };
+    let mut h = harness(ViewerOptions { reference, solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let mut coarse = h.state().params();
+    coarse.max_depth = 1;
+    h.state_mut().set_params(coarse);
+    settle(&mut h);
+    settle(&mut h);
+    let runs = h.state().history.runs().to_vec();
+    assert_eq!(runs.len(), 2);
+    assert!(runs.iter().all(|r| r.reference.is_none() && r.estimate.is_some()), "no reference yet");
+    h.get_by_label("Compute reference").click();
+    settle(&mut h);
+    assert!(matches!(h.state().ref_state, RefState::Ready { .. }), "{:?}", h.state().ref_state);
+    let runs = h.state().history.runs().to_vec();
+    assert!(matches!(runs[2].kind, RunKind::Reference { .. }), "{:?}", runs[2].kind);
+    for r in &runs[..2] {
+        assert!(r.reference.is_some_and(|e| e > 0.0 && e < 1.0), "run #{} scored: {r:?}", r.number);
+    }
+    assert!(runs[0].reference != runs[1].reference, "each run its own error");
+    assert_eq!(h.state().error_samples().len(), 1, "the earlier run is not a point of this restart's plot");
+    let _ = std::fs::remove_dir_all(&dir);
+}

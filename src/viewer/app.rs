@@ -231,6 +231,8 @@ pub struct RadlabApp {
     pub replay: Replay,
     /// The frames of the solve running now (they come just before its `Done`).
     replay_frames: Option<Vec<Arc<ViewData>>>,
+    /// Earlier runs sent to the reference thread for their error only (not the plot's points).
+    scoring_runs: Vec<u64>,
     camera: OrbitCamera,
     home: OrbitCamera,
     origin: DVec3,
@@ -375,6 +377,7 @@ impl RadlabApp {
             split: SplitView::default(),
             replay: Replay::default(),
             replay_frames: None,
+            scoring_runs: Vec::new(),
             camera: OrbitCamera::frame_all(&crate::scene::Bounds {
                 min: DVec3::splat(-1.0),
                 max: DVec3::splat(1.0),
@@ -913,6 +916,11 @@ impl RadlabApp {
             RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
                 self.ref_state = RefState::Ready { regions, samples, how };
                 self.evaluated_seq = 0; // score the current state
+                self.score_runs();
+            }
+            RefReply::Evaluated(e) if self.scoring_runs.contains(&e.view_seq) => {
+                self.scoring_runs.retain(|&s| s != e.view_seq);
+                self.history.set_reference_error(e.view_seq, e.rel_l2);
             }
             RefReply::Evaluated(e) => {
                 self.history.set_reference_error(e.view_seq, e.rel_l2);
@@ -933,6 +941,19 @@ impl RadlabApp {
             | RefReply::Ready { .. }
             | RefReply::Solution { .. }
             | RefReply::Cancelled { .. } => {}
+        }
+    }
+
+    /// Send the earlier runs of this scene that still keep their solution to the reference thread,
+    /// so that their error, too, is the one against the reference (the split view compares them).
+    fn score_runs(&mut self) {
+        let Some(r) = &mut self.reference else { return };
+        let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
+        for (view_seq, solver_time_s, view) in self.history.unscored(name) {
+            if view_seq != self.view_seq && !self.scoring_runs.contains(&view_seq) {
+                r.send(RefCommand::Evaluate { view, view_seq, solver_time_s });
+                self.scoring_runs.push(view_seq);
+            }
         }
     }
 
@@ -1267,7 +1288,7 @@ impl RadlabApp {
             }
         })
         .response
-        .on_hover_text("Split view and run history: compare solves side by side");
+        .on_hover_text("Split view, run history and refinement replay: compare solves, watch one form");
     }
 
     fn controls(&mut self, ui: &mut egui::Ui) {

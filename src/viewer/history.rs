@@ -327,6 +327,18 @@ impl RunHistory {
         }
     }
 
+    /// Solves of `scene` that keep their solution but have no error against the reference yet:
+    /// (view number, solver time, solution), for the reference thread to score once the scene
+    /// has a reference.
+    #[must_use]
+    pub fn unscored(&self, scene: &str) -> Vec<(u64, f64, Arc<ViewData>)> {
+        self.runs
+            .iter()
+            .filter(|r| r.kind == RunKind::Solve && r.scene == scene && r.reference.is_none())
+            .filter_map(|r| r.view.as_ref().map(|v| (r.view_seq, r.time_s, Arc::clone(v))))
+            .collect()
+    }
+
     /// All runs, oldest first.
     #[must_use]
     pub fn runs(&self) -> &[Run] {
@@ -618,7 +630,9 @@ mod tests {
         assert!((h.runs()[0].estimate.unwrap() - 0.05).abs() < 1e-12);
         assert_eq!(h.runs()[1].preset, "custom");
         assert!(matches!(h.runs()[0].error(), RunError::Estimate(_)));
+        assert_eq!(h.unscored("box").len(), 3);
         h.set_reference_error(7, 0.04);
+        assert_eq!(h.unscored("box").iter().map(|u| u.0).collect::<Vec<_>>(), vec![8, 9]);
         assert_eq!(h.runs()[0].error(), RunError::Reference(0.04));
         assert!(h.runs()[0].error().label().contains("vs reference"));
         assert!(h.runs()[1].error().label().contains("estimate"));
