@@ -286,16 +286,18 @@ fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
     assert!((h.state().params().feps - 0.2).abs() < 1e-9);
 }
 
+/// Reference settings for a test: a rough reference (16 paths per region) keeps it fast; it is
+/// seeded, so snapshots are stable. Its cache is an empty folder of its own (returned).
+fn quick_reference(name: &str) -> (std::path::PathBuf, RefSettings) {
+    let dir = std::env::temp_dir().join(format!("radlab-gui-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let params = ReferenceParams { samples: 16, ..ReferenceParams::quick() };
+    (dir.clone(), RefSettings { params, cache: Cache::at(dir) })
+}
+
 #[test]
 fn reference_feeds_the_true_error_and_the_error_plot() {
-    let dir = std::env::temp_dir().join(format!("radlab-gui-ref-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    // A rough reference (16 paths per region) keeps the test fast; it is seeded, so the
-    // snapshot is stable.
-    let reference = RefSettings {
-        params: ReferenceParams { samples: 16, ..ReferenceParams::quick() },
-        cache: Cache::at(&dir),
-    };
+    let (dir, reference) = quick_reference("ref");
     let mut h = harness(ViewerOptions { reference: reference.clone(), ..opts() });
     h.state_mut().set_scene(Arc::new(cornell()));
     settle(&mut h);
@@ -936,12 +938,7 @@ fn refinement_replay_scrubs_the_last_solve_and_the_depth_slider_cuts_the_tree() 
 
 #[test]
 fn earlier_runs_are_scored_once_the_reference_exists() {
-    let dir = std::env::temp_dir().join(format!("radlab-gui-ref-runs-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let reference = RefSettings {
-        params: ReferenceParams { samples: 16, ..ReferenceParams::quick() },
-        cache: Cache::at(&dir),
-    };
+    let (dir, reference) = quick_reference("ref-runs");
     let mut h = harness(ViewerOptions { reference, solve_on_start: true, ..opts() });
     h.state_mut().set_scene(Arc::new(cornell()));
     settle(&mut h);
