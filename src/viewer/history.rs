@@ -186,6 +186,7 @@ fn oracle_name(o: Oracle) -> &'static str {
 #[must_use]
 pub fn thresholds(p: &HierarchicalParams) -> String {
     let oracle = match p.oracle {
+        Oracle::Feps if p.feps == 0.0 => "Feps 0 (every pair refined to the floor)".to_owned(),
         Oracle::Feps => format!("Feps {:.1e}", p.feps),
         Oracle::Bf => format!(
             "BFeps {:.1e}{}, Feps {:.1e}",
@@ -204,9 +205,14 @@ pub fn thresholds(p: &HierarchicalParams) -> String {
     format!("{}, {oracle} · {aeps} · {} rays", oracle_name(p.oracle), p.rays)
 }
 
-/// The name of the preset `p` is, or "custom".
+/// The name of the preset `p` is, "uniform mesh" for the form-factor oracle at Feps = 0 (no pair
+/// is ever accurate enough: every element is split to the area floor and every pair of leaves
+/// linked, as the lecture figures' uniform meshes, [`crate::figures::uniform`]), or "custom".
 #[must_use]
 pub fn preset_name(p: &HierarchicalParams) -> String {
+    if p.oracle == Oracle::Feps && p.feps == 0.0 {
+        return "uniform mesh".to_owned();
+    }
     HierarchicalParams::PRESETS
         .iter()
         .find(|name| HierarchicalParams::preset(name).as_ref() == Some(p))
@@ -647,6 +653,7 @@ mod tests {
         assert_eq!(names, ["box · BF oracle", "box · Feps oracle (estimate)", "box · BF oracle (estimate)"]);
         assert_eq!(err[0].points, vec![[0.5, 0.04f64.log10()]]);
         assert_eq!(h.runs()[1].title(), "#2 box · custom");
+        assert_eq!(preset_name(&crate::figures::uniform(1e-3)), "uniform mesh");
         // The reference: one run per scene and settings, its noise as its error, not plotted.
         for _ in 0..2 {
             h.record_reference("box", 64, view(HierarchicalParams::default(), 0, 2.0, 0.02));

@@ -158,17 +158,17 @@ fn label(ui: &mut egui::Ui, rect: Rect, run: &Run) -> (f32, bool) {
         .show(&mut child, |ui| {
             ui.set_width(ui.available_width());
             let white = |t: String| egui::RichText::new(t).color(Color32::WHITE);
-            ui.horizontal(|ui| {
-                ui.add(
-                    egui::Label::new(white(run.title()).strong())
-                        .selectable(false)
-                        .wrap_mode(egui::TextWrapMode::Truncate),
-                );
-                clicked = ui
-                    .small_button("runs…")
-                    .on_hover_text("Pick the runs shown side by side (the run history)")
-                    .clicked();
-            });
+            // The title shrinks (truncated) before the button does.
+            egui::Sides::new().shrink_left().truncate().show(
+                ui,
+                |ui| ui.add(egui::Label::new(white(run.title()).strong()).selectable(false)),
+                |ui| {
+                    clicked = ui
+                        .small_button("runs…")
+                        .on_hover_text("Pick the runs shown side by side (the run history)")
+                        .clicked();
+                },
+            );
             for line in [run.thresholds(), run.numbers()] {
                 ui.add(
                     egui::Label::new(white(line).small())
