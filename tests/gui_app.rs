@@ -17,6 +17,7 @@ use radlab::render::RgbaImage;
 use radlab::render::snapshot::{self, Thresholds};
 use radlab::scene::{Patch, Scene};
 use radlab::solver::hierarchical::StepKind;
+use radlab::viewer::history::RunKind;
 use radlab::viewer::{RadlabApp, RefSettings, RefState, ViewerOptions};
 use std::sync::Arc;
 
@@ -285,16 +286,18 @@ fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
     assert!((h.state().params().feps - 0.2).abs() < 1e-9);
 }
 
+/// Reference settings for a test: a rough reference (16 paths per region) keeps it fast; it is
+/// seeded, so snapshots are stable. Its cache is an empty folder of its own (returned).
+fn quick_reference(name: &str) -> (std::path::PathBuf, RefSettings) {
+    let dir = std::env::temp_dir().join(format!("radlab-gui-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let params = ReferenceParams { samples: 16, ..ReferenceParams::quick() };
+    (dir.clone(), RefSettings { params, cache: Cache::at(dir) })
+}
+
 #[test]
 fn reference_feeds_the_true_error_and_the_error_plot() {
-    let dir = std::env::temp_dir().join(format!("radlab-gui-ref-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    // A rough reference (16 paths per region) keeps the test fast; it is seeded, so the
-    // snapshot is stable.
-    let reference = RefSettings {
-        params: ReferenceParams { samples: 16, ..ReferenceParams::quick() },
-        cache: Cache::at(&dir),
-    };
+    let (dir, reference) = quick_reference("ref");
     let mut h = harness(ViewerOptions { reference: reference.clone(), ..opts() });
     h.state_mut().set_scene(Arc::new(cornell()));
     settle(&mut h);
@@ -321,6 +324,23 @@ fn reference_feeds_the_true_error_and_the_error_plot() {
     h.get_by_label("Plots").click();
     settle(&mut h);
     assert!(h.query_by_label_contains("Error against the reference").is_some());
+    // The reference is a run of the history, shown beside the solve in the split view; the
+    // solve's error is the one against it.
+    let runs = h.state().history.runs().to_vec();
+    assert_eq!(runs.len(), 2, "{runs:?}");
+    assert!(
+        matches!(runs[0].kind, RunKind::Reference { samples: 16, noise: Some(n), .. } if n > 0.0),
+        "{:?}",
+        runs[0].kind
+    );
+    assert!(runs[1].reference.is_some_and(|e| e > 0.0 && e < 0.5), "{:?}", runs[1]);
+    h.key_press(egui::Key::V);
+    settle(&mut h);
+    let shown: Vec<usize> = h.state().split.shown().iter().map(|s| s.0).collect();
+    assert_eq!(shown, vec![1, 2]);
+    assert!(h.query_by_label("#1 test-box · reference").is_some());
+    assert!(h.query_by_label_contains("(Monte Carlo noise)").is_some());
+    assert!(h.query_by_label_contains("(vs reference)").is_some());
 
     // A second window finds the reference in the cache by itself.
     let mut h2 = harness(ViewerOptions { reference, ..opts() });
@@ -743,4 +763,202 @@ fn keyboard_shortcuts_act_and_help_lists_them() {
     assert!(h.query_by_label("Keyboard shortcuts").is_some(), "F1 opens the Help window");
     settle(&mut h);
     check(&mut h, "gui_help_window");
+}
+
+#[test]
+fn run_history_split_view_and_overlaid_plots() {
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    assert_eq!(h.state().solve_runs(), 1, "the load's solve is a run");
+    // Two more settings (auto-run re-solves each): a coarse tree, then the Feps oracle.
+    let mut coarse = h.state().params();
+    coarse.max_depth = 1;
+    // (Twice: the restart's answer sends the re-solve, then that is waited for.)
+    h.state_mut().set_params(coarse);
+    settle(&mut h);
+    settle(&mut h);
+    let mut feps = radlab::solver::params::HierarchicalParams::lecture();
+    feps.feps = 0.05;
+    h.state_mut().set_params(feps);
+    settle(&mut h);
+    settle(&mut h);
+    let runs = h.state().history.runs().to_vec();
+    assert_eq!(runs.len(), 3, "one run per solve");
+    for r in &runs {
+        assert!(r.elements > 0 && r.links > 0 && r.time_s > 0.0, "{r:?}");
+        assert!(r.estimate.is_some_and(|e| e > 0.0 && e < 1.0), "no reference: the solver's estimate {r:?}");
+    }
+    assert_eq!(runs[1].params.max_depth, 1);
+    assert!(runs[1].elements < runs[0].elements, "the coarse tree has fewer elements");
+    assert_eq!(runs[2].params.oracle, radlab::solver::params::Oracle::Feps);
+
+    // The history window lists the three runs.
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("Run history (H)").click();
+    settle(&mut h);
+    for n in 1..=3 {
+        assert!(h.query_by_label(&format!("#{n} test-box")).is_some(), "run #{n} listed");
+    }
+
+    // The split view (V): the newest two runs, each labelled with its settings, time and error.
+    h.state_mut().display.quadtree = true; // the meshes differ visibly
+    h.key_press(egui::Key::V);
+    settle(&mut h);
+    assert!(h.state().split.on);
+    let shown: Vec<usize> = h.state().split.shown().iter().map(|s| s.0).collect();
+    assert_eq!(shown, vec![2, 3]);
+    assert!(h.query_by_label("#2 test-box · custom").is_some(), "the coarse run's pane label");
+    assert!(h.query_by_label("#3 test-box · custom").is_some(), "the Feps run's pane label");
+    assert!(h.query_by_label_contains("Feps oracle, Feps 5.0e-2").is_some(), "its thresholds");
+    assert_eq!(
+        h.query_all_by_label_contains("(solver's estimate)").count(),
+        2,
+        "each pane states its error, as an estimate"
+    );
+    // Picks in the history choose the panes: the first and the last run.
+    h.get_by_label("pick run #1 for the split view").click();
+    h.run_steps(1);
+    h.get_by_label("pick run #3 for the split view").click();
+    h.run_steps(1);
+    assert_eq!(h.state().history.picked(), &[1, 3]);
+    h.state_mut().history.open = false;
+    settle(&mut h);
+    h.remove_cursor();
+    h.run_steps(2);
+    let panes = h.state().split.shown().to_vec();
+    assert_eq!(panes.iter().map(|p| p.0).collect::<Vec<_>>(), vec![1, 3]);
+    // Both panes are drawn (a renderer slot each), and they show different meshes.
+    let img = h.render().expect("render");
+    let (w, hh) = (img.width(), img.height());
+    let img = RgbaImage { width: w, height: hh, pixels: img.into_raw() };
+    let ppp = 1.0; // the harness renders at 1 pixel per point
+    let crops: Vec<RgbaImage> = panes
+        .iter()
+        .map(|(_, r)| {
+            // The lower half: below the label.
+            let r = r.shrink(4.0);
+            let top = r.center().y;
+            img.crop(
+                (r.left() * ppp) as u32,
+                (top * ppp) as u32,
+                (r.width() * ppp) as u32,
+                ((r.bottom() - top) * ppp) as u32,
+            )
+        })
+        .collect();
+    for (c, (n, _)) in crops.iter().zip(&panes) {
+        assert!(c.distinct_colors() > 50, "pane of run #{n} is drawn: {} colours", c.distinct_colors());
+    }
+    let w = crops[0].width.min(crops[1].width);
+    let hh = crops[0].height.min(crops[1].height);
+    let (a, b) = (crops[0].crop(0, 0, w, hh), crops[1].crop(0, 0, w, hh));
+    let (d, _) = snapshot::diff(&a, &b).expect("same size");
+    assert!(d.mean > 2.0, "the two panes show different solutions: mean difference {}", d.mean);
+
+    // The plots overlay the runs: one series per oracle in both run plots, n and n² guides.
+    h.state_mut().split.on = false;
+    h.get_by_label("Plots").click();
+    settle(&mut h);
+    assert!(h.query_by_label("Error against solver time, runs in this window (log₁₀)").is_some());
+    let links = h.state().history.links_series();
+    assert_eq!(links.iter().map(|s| s.points.len()).collect::<Vec<_>>(), vec![2, 1], "{links:?}");
+    for name in ["test-box · BF oracle", "test-box · Feps oracle (estimate)", "n", "n²"] {
+        assert!(h.query_all_by_label(name).next().is_some(), "legend entry {name}");
+    }
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+/// The lower half of the viewport's area (below the sliders and labels), as rendered.
+fn lower_viewport(h: &mut Harness<'static, RadlabApp>) -> RgbaImage {
+    h.remove_cursor();
+    h.run_steps(2);
+    let img = h.render().expect("render");
+    let (w, hh) = (img.width(), img.height());
+    let r = h.state().viewport_rect();
+    RgbaImage { width: w, height: hh, pixels: img.into_raw() }.crop(
+        r.left() as u32,
+        r.center().y as u32,
+        r.width() as u32,
+        (r.height() / 2.0) as u32,
+    )
+}
+
+#[test]
+fn refinement_replay_scrubs_the_last_solve_and_the_depth_slider_cuts_the_tree() {
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let n = h.state().replay.frames();
+    assert!(n >= 3, "the start, a frame per round but the last, the result: {n}");
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("Refinement replay").click();
+    settle(&mut h);
+    assert!(h.state().replay.on);
+    let result = Arc::clone(h.state().replay.frame().expect("a frame"));
+    assert!(Arc::ptr_eq(&result, h.state().view()), "the slider starts at the result");
+    assert!(h.query_by_label_contains("result: ").is_some());
+    let end = lower_viewport(&mut h);
+    assert!(end.distinct_colors() > 50, "the replay draws its frame");
+
+    // Scrub to the start: the input patches, unlit, no links; the frames between refine.
+    let mut leaves = Vec::new();
+    for i in 0..n {
+        h.state_mut().replay.position = i;
+        h.run_steps(1);
+        leaves.push(h.state().replay.frame().unwrap().stats.leaves);
+    }
+    assert_eq!(leaves[0], 11, "{leaves:?}");
+    assert!(
+        leaves.windows(2).all(|w| w[0] <= w[1]) && leaves[n - 1] > 11,
+        "refinement only splits: {leaves:?}"
+    );
+    h.state_mut().replay.position = 0;
+    settle(&mut h);
+    assert_eq!(h.state().replay.frame().unwrap().stats.links, 0);
+    assert!(h.query_by_label_contains("start: 11 elements · 0 links").is_some());
+    let start = lower_viewport(&mut h);
+    let (d, _) = snapshot::diff(&start, &end).expect("same size");
+    assert!(d.mean > 5.0, "the unlit start looks different from the result: {}", d.mean);
+
+    // The depth slider: cut at depth 0, the result is drawn as its input patches.
+    h.state_mut().replay.position = n - 1;
+    h.state_mut().replay.depth = Some(0);
+    settle(&mut h);
+    assert_eq!(radlab::viewer::builder::cut_at_depth(&result.elements, 0).len(), 11);
+    let deepest = result.stats.depth_histogram.len() as u8;
+    assert_eq!(radlab::viewer::builder::cut_at_depth(&result.elements, deepest), result.leaves);
+    let cut = lower_viewport(&mut h);
+    let (d, _) = snapshot::diff(&cut, &end).expect("same size");
+    assert!(d.mean > 1.0, "depth 0 shows one colour per patch: {}", d.mean);
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+#[test]
+fn earlier_runs_are_scored_once_the_reference_exists() {
+    let (dir, reference) = quick_reference("ref-runs");
+    let mut h = harness(ViewerOptions { reference, solve_on_start: true, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let mut coarse = h.state().params();
+    coarse.max_depth = 1;
+    h.state_mut().set_params(coarse);
+    settle(&mut h);
+    settle(&mut h);
+    let runs = h.state().history.runs().to_vec();
+    assert_eq!(runs.len(), 2);
+    assert!(runs.iter().all(|r| r.reference.is_none() && r.estimate.is_some()), "no reference yet");
+    h.get_by_label("Compute reference").click();
+    settle(&mut h);
+    assert!(matches!(h.state().ref_state, RefState::Ready { .. }), "{:?}", h.state().ref_state);
+    let runs = h.state().history.runs().to_vec();
+    assert!(matches!(runs[2].kind, RunKind::Reference { .. }), "{:?}", runs[2].kind);
+    for r in &runs[..2] {
+        assert!(r.reference.is_some_and(|e| e > 0.0 && e < 1.0), "run #{} scored: {r:?}", r.number);
+    }
+    assert!(runs[0].reference != runs[1].reference, "each run its own error");
+    assert_eq!(h.state().error_samples().len(), 1, "the earlier run is not a point of this restart's plot");
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -522,24 +522,15 @@ pub fn solution_json(
     // The solver's own estimate of its global error (issue 15 §4): the per-element estimates
     // (units of B) against the reflected radiosity, area-weighted, as the pointwise ruler
     // weighs its points — no reference needed.
-    let estimate = {
-        let (mut num, mut den) = (0.0, 0.0);
-        let mut any = false;
-        for e in &sol.elements {
-            let reflected = (e.radiosity - scene.patches[e.patch].emission).mean();
-            den += e.area * reflected * reflected;
-            if let Some(x) = e.error_estimate {
-                any = true;
-                num += e.area * x * x;
-            }
-        }
-        (any && den > 0.0).then(|| {
-            json!({
-                "global_rel_l2": (num / den).sqrt(),
-                "what": "the solver's own estimate of the relative L2 error of the reflected radiosity (no reference)",
-            })
+    let estimate = radlab::solver::hierarchical::estimate::global_relative_l2(sol.elements.iter().map(|e| {
+        (e.area, (e.radiosity - scene.patches[e.patch].emission).mean(), e.error_estimate)
+    }))
+    .map(|global| {
+        json!({
+            "global_rel_l2": global,
+            "what": "the solver's own estimate of the relative L2 error of the reflected radiosity (no reference)",
         })
-    };
+    });
     json!({
         "scene": spec,
         "method": sol.method,

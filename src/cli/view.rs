@@ -1,5 +1,6 @@
 //! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error,…] [--preset NAME]
-//! [--bench-frames N] [--figure NAME]`: the interactive viewer (feature `gui`).
+//! [--bench-frames N] [--figure NAME] [--split N] [--history] [--replay FRAME [--depth-cut D]]`:
+//! the interactive viewer (feature `gui`).
 //!
 //! Without the feature, or without a display, it fails with one line suggesting `radlab solve`.
 
@@ -53,6 +54,20 @@ pub struct Args {
     /// camera and caption replace SCENE, --preset and --overlay.
     #[arg(long, value_name = "NAME")]
     pub figure: Option<String>,
+    /// Open the split view with N panes (2 or 3): the newest solves side by side, one camera,
+    /// one exposure (with --figure, e.g. the solves of its threshold sweep).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(2..=3))]
+    pub split: Option<u8>,
+    /// Open the run history window (every solve: settings, elements, links, time, error).
+    #[arg(long)]
+    pub history: bool,
+    /// Open the refinement replay of the first solve at this frame (0: where it starts, then
+    /// one per round; past the last: the result).
+    #[arg(long, value_name = "FRAME")]
+    pub replay: Option<usize>,
+    /// With --replay: draw the quadtrees down to this depth only (0: the input patches).
+    #[arg(long, value_name = "D", requires = "replay")]
+    pub depth_cut: Option<u8>,
 }
 
 impl Args {
@@ -70,6 +85,10 @@ impl Args {
             solve: false,
             no_solve: false,
             figure: None,
+            split: None,
+            history: false,
+            replay: None,
+            depth_cut: None,
         }
     }
 }
@@ -118,6 +137,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         screenshot_window: args.window || figure.is_some_and(|f| f.window_shot),
         show_plots: args.plots,
         figure,
+        split: args.split.map(usize::from),
+        show_history: args.history,
+        replay: args.replay,
+        depth_cut: args.depth_cut,
         ..ViewerOptions::default()
     })?;
     Ok(())

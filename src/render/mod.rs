@@ -21,6 +21,9 @@
 //! it shades only the pixels the mesh left empty instead of clearing every pixel first.
 //!
 //! Pipelines are built once and kept in egui's `CallbackResources` (the egui custom-3D pattern).
+//! Each view drawn has its own slot of uniforms, buffers and offscreen target
+//! ([`ViewportCallback::slot`]): slot 0 is the viewport, 1, 2, … the split view's panes, which
+//! share the pipelines and draw side by side in one frame.
 //! The offscreen target serves the tests (which read the exact viewport pixels back,
 //! [`SceneRenderer::read_pixels`]) and egui passes without depth (egui_kittest). Screenshots
 //! (the button, `--screenshot`) capture egui's whole frame either way and crop the viewport.
@@ -94,17 +97,12 @@ struct GpuBuffer {
     count: u32,
 }
 
-/// The viewport's pipelines, buffers and offscreen target.
-pub struct SceneRenderer {
-    /// Into the offscreen Rgba8Unorm + Depth32Float target.
-    offscreen: ScenePipelines,
-    /// Straight into egui's pass, when it has a [`DEPTH_FORMAT`] depth buffer.
-    direct: Option<ScenePipelines>,
-    blit_pipeline: wgpu::RenderPipeline,
+/// What one view of the scene owns: its uniforms, the buffers of its geometry and its offscreen
+/// target. Slot 0 is the main viewport; the split view's panes draw into slots 1, 2, …
+/// (each pane its own uniforms: in the direct path all of them are written before egui's pass).
+struct Slot {
     uniform_buffer: wgpu::Buffer,
     uniform_group: wgpu::BindGroup,
-    blit_layout: wgpu::BindGroupLayout,
-    sampler: wgpu::Sampler,
     mesh: Option<GpuBuffer>,
     mesh_indices: Option<GpuBuffer>,
     links: Option<GpuBuffer>,
@@ -112,11 +110,51 @@ pub struct SceneRenderer {
     target: Option<Target>,
     /// Generation of the uploaded geometry (see [`ViewportCallback`]).
     generation: u64,
-    /// Wall time of the last [`SceneRenderer::set_geometry`] (seconds), for the benchmark.
-    pub last_upload_s: f64,
     /// The settings of the image in the target; a frame with the same settings and geometry
     /// reuses it instead of rasterising the scene again (a still camera costs only the blit).
     drawn: Option<FrameParams>,
+}
+
+impl Slot {
+    fn new(device: &wgpu::Device, uniform_layout: &wgpu::BindGroupLayout) -> Slot {
+        let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("radlab uniforms"),
+            contents: bytemuck::bytes_of(&Uniforms::zeroed()),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let uniform_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("radlab uniforms"),
+            layout: uniform_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform_buffer.as_entire_binding() }],
+        });
+        Slot {
+            uniform_buffer,
+            uniform_group,
+            mesh: None,
+            mesh_indices: None,
+            links: None,
+            links_xray: false,
+            target: None,
+            generation: u64::MAX,
+            drawn: None,
+        }
+    }
+}
+
+/// The viewport's pipelines, and the buffers and offscreen target of each view drawn ([`Slot`]).
+pub struct SceneRenderer {
+    /// Into the offscreen Rgba8Unorm + Depth32Float target.
+    offscreen: ScenePipelines,
+    /// Straight into egui's pass, when it has a [`DEPTH_FORMAT`] depth buffer.
+    direct: Option<ScenePipelines>,
+    blit_pipeline: wgpu::RenderPipeline,
+    uniform_layout: wgpu::BindGroupLayout,
+    blit_layout: wgpu::BindGroupLayout,
+    sampler: wgpu::Sampler,
+    /// Slot 0: the main viewport; then the split view's panes (created on first use).
+    slots: Vec<Slot>,
+    /// Wall time of the last [`SceneRenderer::set_geometry`] (seconds), for the benchmark.
+    pub last_upload_s: f64,
 }
 
 fn shader(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
@@ -271,16 +309,7 @@ impl SceneRenderer {
                 count: None,
             }],
         });
-        let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("radlab uniforms"),
-            contents: bytemuck::bytes_of(&Uniforms::zeroed()),
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        });
-        let uniform_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("radlab uniforms"),
-            layout: &uniform_layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform_buffer.as_entire_binding() }],
-        });
+        let main_view = Slot::new(device, &uniform_layout);
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("radlab scene"),
             bind_group_layouts: &[Some(&uniform_layout)],
@@ -352,24 +381,30 @@ impl SceneRenderer {
             offscreen,
             direct,
             blit_pipeline,
-            uniform_buffer,
-            uniform_group,
+            uniform_layout,
             blit_layout,
             sampler,
-            mesh: None,
-            mesh_indices: None,
-            links: None,
-            links_xray: false,
-            target: None,
-            generation: u64::MAX,
+            slots: vec![main_view],
             last_upload_s: 0.0,
-            drawn: None,
         }
+    }
+
+    /// The slot of view `slot`, created (with those before it) on first use.
+    fn slot_mut(&mut self, device: &wgpu::Device, slot: usize) -> &mut Slot {
+        while self.slots.len() <= slot {
+            self.slots.push(Slot::new(device, &self.uniform_layout));
+        }
+        &mut self.slots[slot]
     }
 
     /// Upload new geometry (replaces the previous buffers). Called only when the geometry
     /// changes (a new solution, display settings, the picked element), never per frame.
     pub fn set_geometry(&mut self, device: &wgpu::Device, geometry: &Geometry) {
+        self.set_slot_geometry(device, 0, geometry);
+    }
+
+    /// [`SceneRenderer::set_geometry`] of view `slot` (0: the main viewport).
+    pub fn set_slot_geometry(&mut self, device: &wgpu::Device, slot: usize, geometry: &Geometry) {
         fn upload<T: bytemuck::Pod>(
             device: &wgpu::Device,
             label: &str,
@@ -386,16 +421,17 @@ impl SceneRenderer {
             })
         }
         let (vertex, index) = (wgpu::BufferUsages::VERTEX, wgpu::BufferUsages::INDEX);
-        self.mesh = upload(device, "radlab mesh", &geometry.mesh.vertices, vertex);
-        self.mesh_indices = upload(device, "radlab mesh indices", &geometry.mesh.indices, index);
-        self.links = upload(device, "radlab links", &geometry.links, vertex);
-        self.links_xray = geometry.links_xray;
-        self.drawn = None;
+        let s = self.slot_mut(device, slot);
+        s.mesh = upload(device, "radlab mesh", &geometry.mesh.vertices, vertex);
+        s.mesh_indices = upload(device, "radlab mesh indices", &geometry.mesh.indices, index);
+        s.links = upload(device, "radlab links", &geometry.links, vertex);
+        s.links_xray = geometry.links_xray;
+        s.drawn = None;
     }
 
-    fn ensure_target(&mut self, device: &wgpu::Device, size: [u32; 2]) {
+    fn ensure_target(&mut self, device: &wgpu::Device, slot: usize, size: [u32; 2]) {
         let size = [size[0].max(1), size[1].max(1)];
-        if self.target.as_ref().is_some_and(|t| t.size == size) {
+        if self.slot_mut(device, slot).target.as_ref().is_some_and(|t| t.size == size) {
             return;
         }
         let extent = wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 };
@@ -434,8 +470,9 @@ impl SceneRenderer {
                 wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&self.sampler) },
             ],
         });
-        self.target = Some(Target { size, color, color_view, depth_view, blit_group });
-        self.drawn = None;
+        let s = &mut self.slots[slot];
+        s.target = Some(Target { size, color, color_view, depth_view, blit_group });
+        s.drawn = None;
     }
 
     /// Render the scene into the offscreen target (created or resized to `frame.size`).
@@ -446,13 +483,27 @@ impl SceneRenderer {
         encoder: &mut wgpu::CommandEncoder,
         frame: &FrameParams,
     ) {
-        self.ensure_target(device, frame.size);
-        if self.drawn.as_ref() == Some(frame) && self.target.is_some() {
+        self.render_slot(device, queue, encoder, 0, frame);
+    }
+
+    /// [`SceneRenderer::render`] of view `slot` into its own target.
+    pub fn render_slot(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        slot: usize,
+        frame: &FrameParams,
+    ) {
+        self.ensure_target(device, slot, frame.size);
+        let s = &mut self.slots[slot];
+        if s.drawn.as_ref() == Some(frame) && s.target.is_some() {
             return;
         }
-        queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&frame.uniforms));
-        let Some(target) = &self.target else { return };
-        self.drawn = Some(*frame);
+        queue.write_buffer(&s.uniform_buffer, 0, bytemuck::bytes_of(&frame.uniforms));
+        s.drawn = Some(*frame);
+        let s = &self.slots[slot];
+        let Some(target) = &s.target else { return };
         let [r, g, b, a] = frame.uniforms.background.map(f64::from);
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("radlab viewport"),
@@ -477,27 +528,7 @@ impl SceneRenderer {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        self.draw(&mut pass, &self.offscreen, false);
-    }
-
-    /// Mesh, then (without a clear behind it) the background, then the link lines.
-    fn draw(&self, pass: &mut wgpu::RenderPass<'_>, pipelines: &ScenePipelines, background: bool) {
-        pass.set_bind_group(0, &self.uniform_group, &[]);
-        if let (Some(m), Some(i)) = (&self.mesh, &self.mesh_indices) {
-            pass.set_pipeline(&pipelines.mesh);
-            pass.set_vertex_buffer(0, m.buffer.slice(..));
-            pass.set_index_buffer(i.buffer.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(0..i.count, 0, 0..1);
-        }
-        if background {
-            pass.set_pipeline(&pipelines.background);
-            pass.draw(0..3, 0..1);
-        }
-        if let Some(l) = &self.links {
-            pass.set_pipeline(if self.links_xray { &pipelines.xray } else { &pipelines.lines });
-            pass.set_vertex_buffer(0, l.buffer.slice(..));
-            pass.draw(0..l.count, 0..1);
-        }
+        draw(s, &mut pass, &self.offscreen, false);
     }
 
     /// True when the scene is drawn straight into egui's pass ([`SceneRenderer::paint_direct`]).
@@ -508,9 +539,15 @@ impl SceneRenderer {
 
     /// Before [`SceneRenderer::paint_direct`]: write this frame's uniforms.
     pub fn prepare_direct(&mut self, queue: &wgpu::Queue, frame: &FrameParams) {
-        if self.drawn.as_ref() != Some(frame) {
-            queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&frame.uniforms));
-            self.drawn = Some(*frame);
+        self.prepare_direct_slot(queue, 0, frame);
+    }
+
+    /// [`SceneRenderer::prepare_direct`] of view `slot` (which must exist: its geometry was set).
+    fn prepare_direct_slot(&mut self, queue: &wgpu::Queue, slot: usize, frame: &FrameParams) {
+        let Some(s) = self.slots.get_mut(slot) else { return };
+        if s.drawn.as_ref() != Some(frame) {
+            queue.write_buffer(&s.uniform_buffer, 0, bytemuck::bytes_of(&frame.uniforms));
+            s.drawn = Some(*frame);
         }
     }
 
@@ -519,14 +556,24 @@ impl SceneRenderer {
     /// callback rect): the mesh, the background where the mesh left pixels empty, the lines.
     /// Returns false (drawing nothing) without direct pipelines.
     pub fn paint_direct(&self, pass: &mut wgpu::RenderPass<'_>) -> bool {
+        self.paint_direct_slot(pass, 0)
+    }
+
+    fn paint_direct_slot(&self, pass: &mut wgpu::RenderPass<'_>, slot: usize) -> bool {
         let Some(p) = &self.direct else { return false };
-        self.draw(pass, p, true);
+        if let Some(s) = self.slots.get(slot) {
+            draw(s, pass, p, true);
+        }
         true
     }
 
     /// Draw the offscreen image into egui's pass (its viewport already set to the callback rect).
     pub fn blit(&self, pass: &mut wgpu::RenderPass<'_>) {
-        if let Some(t) = &self.target {
+        self.blit_slot(pass, 0);
+    }
+
+    fn blit_slot(&self, pass: &mut wgpu::RenderPass<'_>, slot: usize) {
+        if let Some(t) = self.slots.get(slot).and_then(|s| s.target.as_ref()) {
             pass.set_pipeline(&self.blit_pipeline);
             pass.set_bind_group(0, &t.blit_group, &[]);
             pass.draw(0..3, 0..1);
@@ -536,13 +583,33 @@ impl SceneRenderer {
     /// Size of the current offscreen target.
     #[must_use]
     pub fn target_size(&self) -> Option<[u32; 2]> {
-        self.target.as_ref().map(|t| t.size)
+        self.slots[0].target.as_ref().map(|t| t.size)
     }
 
     /// Read the offscreen image back: `(width, height, RGBA8 rows)`. Blocks until the GPU is done.
     pub fn read_pixels(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<RgbaImage, String> {
-        let t = self.target.as_ref().ok_or("nothing rendered yet")?;
+        let t = self.slots[0].target.as_ref().ok_or("nothing rendered yet")?;
         read_texture(device, queue, &t.color)
+    }
+}
+
+/// Draw one view: the mesh, then (without a clear behind it) the background, then the link lines.
+fn draw(s: &Slot, pass: &mut wgpu::RenderPass<'_>, pipelines: &ScenePipelines, background: bool) {
+    pass.set_bind_group(0, &s.uniform_group, &[]);
+    if let (Some(m), Some(i)) = (&s.mesh, &s.mesh_indices) {
+        pass.set_pipeline(&pipelines.mesh);
+        pass.set_vertex_buffer(0, m.buffer.slice(..));
+        pass.set_index_buffer(i.buffer.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..i.count, 0, 0..1);
+    }
+    if background {
+        pass.set_pipeline(&pipelines.background);
+        pass.draw(0..3, 0..1);
+    }
+    if let Some(l) = &s.links {
+        pass.set_pipeline(if s.links_xray { &pipelines.xray } else { &pipelines.lines });
+        pass.set_vertex_buffer(0, l.buffer.slice(..));
+        pass.draw(0..l.count, 0..1);
     }
 }
 
@@ -691,6 +758,9 @@ pub struct ViewportCallback {
     pub geometry: Arc<Geometry>,
     /// Bumped by the viewer whenever `geometry` changes; uploads happen only then.
     pub generation: u64,
+    /// Which view this is: 0 the main viewport, 1, 2, … the split view's panes (each keeps its
+    /// own buffers and target in the renderer).
+    pub slot: usize,
 }
 
 impl egui_wgpu::CallbackTrait for ViewportCallback {
@@ -703,16 +773,16 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
         resources: &mut egui_wgpu::CallbackResources,
     ) -> Vec<wgpu::CommandBuffer> {
         if let Some(r) = resources.get_mut::<SceneRenderer>() {
-            if r.generation != self.generation {
+            if r.slot_mut(device, self.slot).generation != self.generation {
                 let started = std::time::Instant::now();
-                r.set_geometry(device, &self.geometry);
-                r.generation = self.generation;
+                r.set_slot_geometry(device, self.slot, &self.geometry);
+                r.slots[self.slot].generation = self.generation;
                 r.last_upload_s = started.elapsed().as_secs_f64();
             }
             if r.draws_direct() {
-                r.prepare_direct(queue, &self.frame);
+                r.prepare_direct_slot(queue, self.slot, &self.frame);
             } else {
-                r.render(device, queue, encoder, &self.frame);
+                r.render_slot(device, queue, encoder, self.slot, &self.frame);
             }
         }
         Vec::new()
@@ -725,9 +795,9 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
         resources: &egui_wgpu::CallbackResources,
     ) {
         if let Some(r) = resources.get::<SceneRenderer>()
-            && !r.paint_direct(pass)
+            && !r.paint_direct_slot(pass, self.slot)
         {
-            r.blit(pass);
+            r.blit_slot(pass, self.slot);
         }
     }
 }

@@ -10,8 +10,13 @@ use super::builder::{self, Builder, Built, Coloring};
 use super::camera::OrbitCamera;
 use super::file_dialog::{Answer, FileDialogs, Purpose};
 use super::help::{self, Action};
+use super::history::{HistoryAction, RunHistory};
 use super::lecture::Lecture;
+use super::pane::PaneStyle;
 use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
+use super::replay::{Replay, ReplayInput};
+use super::split::{SplitAction, SplitInput, SplitView};
+use super::view::View;
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
@@ -72,6 +77,14 @@ pub struct ViewerOptions {
     pub direct_viewport: bool,
     /// Open this lecture figure instead of `scene` (its settings, overlays, camera, caption).
     pub figure: Option<&'static Figure>,
+    /// Open the split view with this many panes (2 or 3).
+    pub split: Option<usize>,
+    /// Open the run history window.
+    pub show_history: bool,
+    /// Open the refinement replay at this frame of the first solve (0: its start).
+    pub replay: Option<usize>,
+    /// Cut the quadtrees at this depth in the refinement replay.
+    pub depth_cut: Option<u8>,
 }
 
 impl Default for ViewerOptions {
@@ -90,6 +103,10 @@ impl Default for ViewerOptions {
             desktop_file_dialog: true,
             direct_viewport: false,
             figure: None,
+            split: None,
+            show_history: false,
+            replay: None,
+            depth_cut: None,
         }
     }
 }
@@ -155,13 +172,6 @@ const BACK_COLOR: [f32; 4] = [0.55, 0.1, 0.45, 1.0];
 /// shared edge shows both sides' depth colours, 1.5 px together).
 const QUADTREE_LINE_PX: f32 = 0.75;
 
-/// One run made in this window, for the links-against-elements plot.
-#[derive(Copy, Clone, Debug)]
-struct RunPoint {
-    elements: usize,
-    links: usize,
-}
-
 /// What a scripted run (`--screenshot`, `--bench-frames`) is waiting for.
 #[derive(Clone, Debug, PartialEq)]
 enum Script {
@@ -213,7 +223,16 @@ pub struct RadlabApp {
     pub auto_run: bool,
     view: Arc<ViewData>,
     last_report: Option<StepReport>,
-    runs: Vec<RunPoint>,
+    /// Every solve of this window (the plots overlay them; the split view shows them).
+    pub history: RunHistory,
+    /// Two or three runs side by side in place of the viewport.
+    pub split: SplitView,
+    /// The last solve round by round, and the depth cut, in place of the viewport.
+    pub replay: Replay,
+    /// The frames of the solve running now (they come just before its `Done`).
+    replay_frames: Option<Vec<Arc<ViewData>>>,
+    /// Earlier runs sent to the reference thread for their error only (not the plot's points).
+    scoring_runs: Vec<u64>,
     camera: OrbitCamera,
     home: OrbitCamera,
     origin: DVec3,
@@ -354,7 +373,11 @@ impl RadlabApp {
             auto_run: true,
             view: Arc::new(ViewData::default()),
             last_report: None,
-            runs: Vec::new(),
+            history: RunHistory::default(),
+            split: SplitView::default(),
+            replay: Replay::default(),
+            replay_frames: None,
+            scoring_runs: Vec::new(),
             camera: OrbitCamera::frame_all(&crate::scene::Bounds {
                 min: DVec3::splat(-1.0),
                 max: DVec3::splat(1.0),
@@ -415,6 +438,16 @@ impl RadlabApp {
             Ok(t) => app.reference = Some(t),
             Err(e) => app.errors.push(e),
         }
+        if let Some(n) = app.opts.split {
+            app.split.on = true;
+            app.split.panes = n.clamp(2, 3);
+        }
+        app.history.open = app.opts.show_history;
+        if let Some(frame) = app.opts.replay {
+            app.replay.on = true;
+            app.replay.start_at = Some(frame);
+        }
+        app.replay.depth = app.opts.depth_cut;
         for o in &app.opts.overlay {
             match o {
                 OverlayChoice::None => {}
@@ -488,6 +521,11 @@ impl RadlabApp {
                 Action::ToggleError => self.display.error ^= true,
                 Action::ToggleCaption => self.lecture.toggle_caption(),
                 Action::ToggleHelp => self.show_help ^= true,
+                Action::ToggleSplit => {
+                    self.split.on ^= true;
+                    self.replay.on &= !self.split.on;
+                }
+                Action::ToggleHistory => self.history.open ^= true,
             }
         }
     }
@@ -529,6 +567,8 @@ impl RadlabApp {
         self.home = OrbitCamera::from_viewpoint(&v, &b);
         self.camera = self.home;
         self.scene_spec.clone_from(&scene.source);
+        self.replay.clear();
+        self.replay_frames = None;
         self.selected = None;
         self.true_error = None;
         self.error_samples.clear();
@@ -579,10 +619,10 @@ impl RadlabApp {
         self.scene.as_ref()
     }
 
-    /// Solves finished in this window (the points of the links-against-elements plot).
+    /// Solves finished in this window (the runs of the history and of the plots).
     #[must_use]
     pub fn solve_runs(&self) -> usize {
-        self.runs.len()
+        self.history.len()
     }
 
     /// True while the plots panel is open.
@@ -689,6 +729,8 @@ impl RadlabApp {
         if let Some(b) = self.builder.as_mut().and_then(Builder::wait) {
             self.apply_built(b);
         }
+        self.split.wait();
+        self.replay.wait();
     }
 
     fn poll_worker(&mut self) {
@@ -717,7 +759,9 @@ impl RadlabApp {
     fn apply(&mut self, r: Reply) {
         match r {
             // The previous scene's last answers (its running step, cancelled): not shown.
-            Reply::Done { .. } | Reply::Partial { .. } | Reply::Progress { .. } if self.loading => {}
+            Reply::Done { .. } | Reply::Partial { .. } | Reply::Progress { .. } | Reply::Replay { .. }
+                if self.loading => {}
+            Reply::Replay { frames } => self.replay_frames = Some(frames),
             Reply::Loaded { view, .. } => {
                 self.loading = false;
                 self.set_view(view);
@@ -743,11 +787,14 @@ impl RadlabApp {
                 if let Some(rep) = report {
                     self.solver_time_s += rep.time_s;
                     self.last_report = Some(rep);
+                    if rep.kind == StepKind::Solve
+                        && let Some(frames) = self.replay_frames.take()
+                    {
+                        self.replay.set_frames(frames, Arc::clone(&self.view));
+                    }
                     if rep.kind == StepKind::Solve && !rep.cancelled {
-                        self.runs.push(RunPoint {
-                            elements: self.view.stats.leaves,
-                            links: self.view.stats.links,
-                        });
+                        let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
+                        self.history.record(name, self.solver_time_s, self.view_seq, Arc::clone(&self.view));
                     }
                 }
                 if self.selected.is_some_and(|s| s as usize >= self.view.elements.len()) {
@@ -861,11 +908,22 @@ impl RadlabApp {
                 self.ref_state = RefState::Missing;
                 self.status = "reference computation cancelled".into();
             }
+            RefReply::Solution { source, view } if current(&source, self) => {
+                let samples = self.opts.reference.params.samples;
+                let name = self.scene_name().to_owned();
+                self.history.record_reference(&name, samples, view);
+            }
             RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
                 self.ref_state = RefState::Ready { regions, samples, how };
                 self.evaluated_seq = 0; // score the current state
+                self.score_runs();
+            }
+            RefReply::Evaluated(e) if self.scoring_runs.contains(&e.view_seq) => {
+                self.scoring_runs.retain(|&s| s != e.view_seq);
+                self.history.set_reference_error(e.view_seq, e.rel_l2);
             }
             RefReply::Evaluated(e) => {
+                self.history.set_reference_error(e.view_seq, e.rel_l2);
                 if e.view_seq == self.view_seq {
                     self.true_error = Some(Arc::new(e.per_element));
                 }
@@ -881,7 +939,21 @@ impl RadlabApp {
             RefReply::Computing { .. }
             | RefReply::Missing { .. }
             | RefReply::Ready { .. }
+            | RefReply::Solution { .. }
             | RefReply::Cancelled { .. } => {}
+        }
+    }
+
+    /// Send the earlier runs of this scene that still keep their solution to the reference thread,
+    /// so that their error, too, is the one against the reference (the split view compares them).
+    fn score_runs(&mut self) {
+        let Some(r) = &mut self.reference else { return };
+        let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
+        for (view_seq, solver_time_s, view) in self.history.unscored(name) {
+            if view_seq != self.view_seq && !self.scoring_runs.contains(&view_seq) {
+                r.send(RefCommand::Evaluate { view, view_seq, solver_time_s });
+                self.scoring_runs.push(view_seq);
+            }
         }
     }
 
@@ -1009,10 +1081,8 @@ impl RadlabApp {
         }
     }
 
-    /// Ask for a display build when the solver state or a display setting it depends on
-    /// changed. The build runs on the `radlab-display` thread; the UI keeps showing the previous
-    /// geometry until [`RadlabApp::poll_geometry`] picks the new one up.
-    fn request_geometry(&mut self) {
+    /// What the display settings ask of a geometry build (the split view's panes use them too).
+    fn build_settings(&self) -> builder::Settings {
         let d = &self.display;
         let show_links = d.links || (self.selected.is_some() && d.selected_links_only);
         let links = show_links.then(|| {
@@ -1025,7 +1095,7 @@ impl RadlabApp {
             };
             filter
         });
-        let settings = builder::Settings {
+        builder::Settings {
             coloring: if d.error {
                 Coloring::Error
             } else if d.shading == Shading::Smooth {
@@ -1037,7 +1107,15 @@ impl RadlabApp {
             link_alpha: d.link_alpha,
             links_xray: d.links_xray,
             origin: self.origin,
-        };
+            depth_limit: None,
+        }
+    }
+
+    /// Ask for a display build when the solver state or a display setting it depends on
+    /// changed. The build runs on the `radlab-display` thread; the UI keeps showing the previous
+    /// geometry until [`RadlabApp::poll_geometry`] picks the new one up.
+    fn request_geometry(&mut self) {
+        let settings = self.build_settings();
         let key = BuildKey {
             view_seq: self.view_seq,
             true_error: self.true_error().map(|e| Arc::as_ptr(e) as usize),
@@ -1120,6 +1198,7 @@ impl RadlabApp {
             if let Some(f) = self.lecture.menu(ui) {
                 self.open_figure(f);
             }
+            self.view_menu(ui);
             help::menu(ui, &mut self.show_help);
             ui.separator();
             if ui
@@ -1169,6 +1248,47 @@ impl RadlabApp {
             ui.label(egui::RichText::new(name).strong());
             ui.weak(&self.scene_spec);
         });
+    }
+
+    /// The View menu: the split view and the run history.
+    fn view_menu(&mut self, ui: &mut egui::Ui) {
+        ui.menu_button("View", |ui| {
+            if ui
+                .checkbox(&mut self.split.on, "Split view (V)")
+                .on_hover_text(
+                    "Two or three runs side by side with one camera and one exposure, each labelled \
+                     with its settings, time and error: the runs picked in the run history, else the \
+                     newest of this scene",
+                )
+                .changed()
+            {
+                self.replay.on &= !self.split.on;
+            }
+            ui.horizontal(|ui| {
+                ui.label("panes");
+                for n in [2, 3] {
+                    ui.selectable_value(&mut self.split.panes, n, n.to_string())
+                        .on_hover_text(format!("Show the newest {n} runs when fewer than two are picked"));
+                }
+            });
+            ui.checkbox(&mut self.history.open, "Run history (H)").on_hover_text(
+                "Every solve of this window: settings, elements, links, time, error; pick the runs \
+                 of the split view there",
+            );
+            ui.separator();
+            if ui
+                .checkbox(&mut self.replay.on, "Refinement replay")
+                .on_hover_text(
+                    "The last solve round by round (mesh, links, radiosity as they were), with a \
+                     slider; and a depth slider that cuts the quadtrees at a level",
+                )
+                .changed()
+            {
+                self.split.on &= !self.replay.on;
+            }
+        })
+        .response
+        .on_hover_text("Split view, run history and refinement replay: compare solves, watch one form");
     }
 
     fn controls(&mut self, ui: &mut egui::Ui) {
@@ -1446,15 +1566,19 @@ impl RadlabApp {
                 p.line(Line::new("residual", PlotPoints::from(res)));
             },
         );
+        // The runs of the history, one series per scene and oracle (line and points each).
+        let overlay = |p: &mut egui_plot::PlotUi<'_>, series: Vec<super::history::Series>| {
+            for s in series {
+                p.line(Line::new(s.name.clone(), PlotPoints::from(s.points.clone())));
+                p.points(Points::new(s.name, PlotPoints::from(s.points)).radius(3.5));
+            }
+        };
         ui.label("Links against elements, runs in this window (log₁₀)");
-        let pts: Vec<[f64; 2]> = self
-            .runs
+        let links = self.history.links_series();
+        let (lo, hi) = links
             .iter()
-            .filter(|r| r.elements > 0 && r.links > 0)
-            .map(|r| [(r.elements as f64).log10(), (r.links as f64).log10()])
-            .collect();
-        let (lo, hi) =
-            pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[0]), b.max(p[0])));
+            .flat_map(|s| &s.points)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[0]), b.max(p[0])));
         let (lo, hi) = if lo.is_finite() { (lo - 0.5, hi + 0.5) } else { (1.0, 5.0) };
         Plot::new("links_vs_elements")
             .height(150.0)
@@ -1462,14 +1586,24 @@ impl RadlabApp {
             .x_axis_label("log₁₀ elements")
             .y_axis_label("log₁₀ links")
             .show(ui, |p| {
-                p.points(Points::new("runs", PlotPoints::from(pts)).radius(4.0));
+                overlay(p, links);
                 p.line(Line::new("n", PlotPoints::from(vec![[lo, lo], [hi, hi]])));
                 p.line(Line::new("n²", PlotPoints::from(vec![[lo, 2.0 * lo], [hi, 2.0 * hi]])));
             });
+        ui.label("Error against solver time, runs in this window (log₁₀)").on_hover_text(
+            "Relative L2 error against the reference when the scene has one, else the solver's own \
+             estimate (series marked \"estimate\"); one point per solve",
+        );
+        Plot::new("runs_error_vs_time")
+            .height(150.0)
+            .legend(Legend::default())
+            .x_axis_label("solver time (s)")
+            .y_axis_label("log₁₀ rel. L2 error")
+            .show(ui, |p| overlay(p, self.history.error_series()));
         if self.error_samples.is_empty() {
             ui.weak("Error against time appears when a reference solution is loaded.");
         } else {
-            ui.label("Error against the reference (rel L2, log₁₀) vs solver time");
+            ui.label("Error against the reference (rel L2, log₁₀) vs solver time since the last restart");
             let pts: Vec<[f64; 2]> =
                 self.error_samples.iter().filter(|p| p[1] > 0.0).map(|p| [p[0], p[1].log10()]).collect();
             Plot::new("error_vs_time")
@@ -1532,55 +1666,8 @@ impl RadlabApp {
         let aspect = f64::from(rect.width() / rect.height().max(1.0));
 
         // Camera: left-drag orbit, right/middle-drag or shift-drag pan, wheel zoom, keys.
-        let shift = ui.input(|i| i.modifiers.shift);
-        let d = response.drag_delta();
-        if response.dragged_by(egui::PointerButton::Primary) && !shift {
-            self.camera.orbit(f64::from(d.x) * 0.01, f64::from(d.y) * 0.01);
-        } else if response.dragged_by(egui::PointerButton::Secondary)
-            || response.dragged_by(egui::PointerButton::Middle)
-            || (response.dragged_by(egui::PointerButton::Primary) && shift)
-        {
-            let h = f64::from(rect.height().max(1.0));
-            self.camera.pan(-f64::from(d.x) / h, f64::from(d.y) / h);
-        }
-        if response.hovered() {
-            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-            if scroll != 0.0 {
-                self.camera.zoom((-f64::from(scroll) * 0.002).exp());
-            }
-        }
-        if !ui.ctx().egui_wants_keyboard_input() {
-            ui.input(|i| {
-                let step = 0.05;
-                let pan = i.modifiers.shift;
-                for (key, dx, dy) in [
-                    (egui::Key::ArrowLeft, -1.0, 0.0),
-                    (egui::Key::ArrowRight, 1.0, 0.0),
-                    (egui::Key::ArrowUp, 0.0, -1.0),
-                    (egui::Key::ArrowDown, 0.0, 1.0),
-                ] {
-                    if i.key_down(key) {
-                        if pan {
-                            self.camera.pan(dx * step * 0.5, -dy * step * 0.5);
-                        } else {
-                            self.camera.orbit(dx * step, dy * step);
-                        }
-                    }
-                }
-                if i.key_pressed(egui::Key::Plus) || i.key_pressed(egui::Key::Equals) {
-                    self.camera.zoom(0.85);
-                }
-                if i.key_pressed(egui::Key::Minus) {
-                    self.camera.zoom(1.0 / 0.85);
-                }
-                if i.key_pressed(egui::Key::F) {
-                    self.frame_all();
-                }
-                if i.key_pressed(egui::Key::R) {
-                    self.camera = self.home;
-                }
-            });
-        }
+        self.camera.interact(ui, &response, rect);
+        self.camera_keys(ui);
         if response.clicked()
             && let Some(pos) = response.interact_pointer_pos()
         {
@@ -1600,6 +1687,7 @@ impl RadlabApp {
                     frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size },
                     geometry: Arc::clone(&self.geometry),
                     generation: self.generation,
+                    slot: 0,
                 },
             ));
         } else {
@@ -1615,6 +1703,83 @@ impl RadlabApp {
         self.legends(&painter, rect);
         ui.horizontal(|_| {});
         let _ = response;
+    }
+
+    /// The camera's keys (arrows orbit, shift + arrows pan, + / − zoom, F frames the scene, R goes
+    /// back to the scene's camera), unless a text field has the keyboard.
+    fn camera_keys(&mut self, ui: &egui::Ui) {
+        if ui.ctx().egui_wants_keyboard_input() {
+            return;
+        }
+        ui.input(|i| {
+            let step = 0.05;
+            let pan = i.modifiers.shift;
+            for (key, dx, dy) in [
+                (egui::Key::ArrowLeft, -1.0, 0.0),
+                (egui::Key::ArrowRight, 1.0, 0.0),
+                (egui::Key::ArrowUp, 0.0, -1.0),
+                (egui::Key::ArrowDown, 0.0, 1.0),
+            ] {
+                if i.key_down(key) {
+                    if pan {
+                        self.camera.pan(dx * step * 0.5, -dy * step * 0.5);
+                    } else {
+                        self.camera.orbit(dx * step, dy * step);
+                    }
+                }
+            }
+            if i.key_pressed(egui::Key::Plus) || i.key_pressed(egui::Key::Equals) {
+                self.camera.zoom(0.85);
+            }
+            if i.key_pressed(egui::Key::Minus) {
+                self.camera.zoom(1.0 / 0.85);
+            }
+            if i.key_pressed(egui::Key::F) {
+                self.frame_all();
+            }
+            if i.key_pressed(egui::Key::R) {
+                self.camera = self.home;
+            }
+        });
+    }
+
+    /// Name of the scene shown ("" without one).
+    fn scene_name(&self) -> &str {
+        self.scene.as_ref().map_or("", |s| s.name.as_str())
+    }
+
+    /// Before a pane view (split, replay) draws in place of the viewport: the camera's keys, and
+    /// the current solution's build, which sets the auto exposure every pane shares. Returns how
+    /// the panes draw.
+    fn pane_frame(&mut self, ui: &egui::Ui) -> PaneStyle {
+        self.viewport_rect = ui.available_rect_before_wrap();
+        self.camera_keys(ui);
+        self.request_geometry();
+        self.poll_geometry();
+        PaneStyle {
+            uniforms: self.uniforms(1.0, ui.ctx().pixels_per_point()),
+            origin: self.origin,
+            has_wgpu: self.has_wgpu,
+        }
+    }
+
+    /// The split view in place of the viewport: the runs of the history side by side, with the
+    /// viewport's camera (its keys too) and exposure.
+    fn split_view(&mut self, ui: &mut egui::Ui) {
+        let style = self.pane_frame(ui);
+        let settings = self.build_settings();
+        let scene = self.scene.as_ref().map_or("", |s| s.name.as_str());
+        let input = SplitInput { history: &self.history, scene, camera: &mut self.camera, settings, style };
+        if self.split.ui(ui, input) == Some(SplitAction::OpenHistory) {
+            self.history.open = true;
+        }
+    }
+
+    /// The refinement replay in place of the viewport.
+    fn replay_view(&mut self, ui: &mut egui::Ui) {
+        let style = self.pane_frame(ui);
+        let settings = self.build_settings();
+        self.replay.ui(ui, ReplayInput { camera: &mut self.camera, settings, style });
     }
 
     /// Where the viewport was drawn in the last frame (points).
@@ -1733,13 +1898,18 @@ impl RadlabApp {
             painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, font, Color32::LIGHT_GRAY);
         } else if self.view.links.is_empty() && !self.busy() {
             // A freshly loaded scene: only the lamps are lit. Say what to do next.
-            let at = Pos2::new(rect.center().x, rect.bottom() - 28.0);
-            let msg =
-                "Only the lamps are lit: press Solve, or Refine step then Gather step to watch it converge.";
-            let galley = painter.layout_no_wrap(msg.to_owned(), font, Color32::WHITE);
-            let box_r = Rect::from_center_size(at, galley.size() + Vec2::new(16.0, 8.0));
-            painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
-            painter.galley(box_r.min + Vec2::new(8.0, 4.0), galley, Color32::WHITE);
+            bottom_note(
+                painter,
+                rect,
+                "Only the lamps are lit: press Solve, or Refine step then Gather step to watch it converge.",
+            );
+        } else if self.split.on {
+            bottom_note(
+                painter,
+                rect,
+                "Split view: it needs two solved runs. Solve again with other settings (auto-run \
+                 re-solves on every change), or pick runs in View ▸ Run history.",
+            );
         }
     }
 
@@ -1838,7 +2008,10 @@ impl RadlabApp {
     fn run_script(&mut self, ctx: &egui::Context) {
         // The display is final when the newest build is shown and the reference thread has
         // nothing left to report (its look-up or a score changes the error overlay).
-        let current = self.geometry_current() && !self.reference.as_ref().is_some_and(RefThread::busy);
+        let current = self.geometry_current()
+            && !self.split.building()
+            && !self.replay.building()
+            && !self.reference.as_ref().is_some_and(RefThread::busy);
         match &mut self.script {
             Script::None | Script::Done | Script::WaitingShot => {}
             Script::Solving => {
@@ -1935,6 +2108,9 @@ impl eframe::App for RadlabApp {
             self.pending_pick = None;
         }
         help::window(&ctx, &mut self.show_help);
+        if self.history.open && self.history.window(&ctx) == Some(HistoryAction::ShowSplit) {
+            self.split.on = true;
+        }
         if let Some(id) = self.lecture.windows(&ctx, &self.view) {
             self.selected = Some(id);
             self.display.selected_links_only = true;
@@ -1992,7 +2168,15 @@ impl eframe::App for RadlabApp {
                 );
             },
         );
-        egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
+        egui::CentralPanel::no_frame().show(ui, |ui| {
+            if self.replay.on {
+                self.replay_view(ui);
+            } else if self.split.active(&self.history, self.scene_name()) {
+                self.split_view(ui);
+            } else {
+                self.viewport(ui);
+            }
+        });
 
         self.handle_screenshot(&ctx);
         self.run_script(&ctx);
@@ -2068,6 +2252,15 @@ fn log_slider(ui: &mut egui::Ui, label: &str, v: &mut f64, lo: f64, hi: f64, tip
         let name = format!("{label} value");
         ui.ctx().accesskit_node_builder(typed.id, |b| b.set_label(name));
     });
+}
+
+/// A one-line note in a dark box at the bottom centre of the viewport.
+fn bottom_note(painter: &egui::Painter, rect: Rect, msg: &str) {
+    let at = Pos2::new(rect.center().x, rect.bottom() - 28.0);
+    let galley = painter.layout_no_wrap(msg.to_owned(), egui::FontId::proportional(12.0), Color32::WHITE);
+    let box_r = Rect::from_center_size(at, galley.size() + Vec2::new(16.0, 8.0));
+    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+    painter.galley(box_r.min + Vec2::new(8.0, 4.0), galley, Color32::WHITE);
 }
 
 /// Draw a horizontal colour bar with its end values; returns the bottom y.

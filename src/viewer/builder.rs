@@ -37,6 +37,10 @@ pub struct Settings {
     pub links_xray: bool,
     /// Scene centre subtracted from every position.
     pub origin: DVec3,
+    /// Draw the quadtree down to this depth only: deeper leaves are drawn as their ancestor at
+    /// this depth (its pulled radiosity), links between deeper elements are left out. `None`:
+    /// the leaves.
+    pub depth_limit: Option<u8>,
 }
 
 /// One build job.
@@ -85,10 +89,26 @@ pub fn build(req: &Request) -> Built {
         Coloring::Smooth => MeshColors::Smooth,
         Coloring::Flat => MeshColors::Flat,
     };
-    let mesh = geometry::mesh(&v.elements, &v.leaves, colors, s.origin);
+    // Cut at a depth: the elements that tile the scene there, the links between them and above.
+    let (cut_leaves, cut_links);
+    let (leaves, links): (&[u32], &[_]) = match s.depth_limit {
+        Some(d) => {
+            cut_leaves = cut_at_depth(&v.elements, d);
+            let within = |id: u32| v.elements.get(id as usize).is_some_and(|e| e.depth <= d);
+            cut_links = v
+                .links
+                .iter()
+                .filter(|l| within(l.receiver) && within(l.source))
+                .copied()
+                .collect::<Vec<_>>();
+            (&cut_leaves, &cut_links)
+        }
+        None => (&v.leaves, &v.links),
+    };
+    let mesh = geometry::mesh(&v.elements, leaves, colors, s.origin);
     let (links, link_stats, link_scale) = match &s.links {
         Some(filter) => {
-            let ll = overlay::link_lines(&v.elements, &v.links, filter, s.link_alpha);
+            let ll = overlay::link_lines(&v.elements, links, filter, s.link_alpha);
             (geometry::lines(&ll.lines, s.origin), (ll.shown, ll.matched), ll.scale)
         }
         None => (Vec::new(), (0, 0), None),
@@ -103,6 +123,13 @@ pub fn build(req: &Request) -> Built {
         auto_ev: super::app::auto_exposure(v),
         build_s: started.elapsed().as_secs_f64(),
     }
+}
+
+/// The elements that tile the scene when the quadtrees are cut at depth `d`: those at depth `d`
+/// and the leaves above it (ascending ids).
+#[must_use]
+pub fn cut_at_depth(elements: &[crate::overlay::ElementView], d: u8) -> Vec<u32> {
+    elements.iter().filter(|e| e.depth == d || (e.leaf && e.depth < d)).map(|e| e.id).collect()
 }
 
 /// Handle of the builder thread (it ends when this is dropped).
@@ -224,6 +251,7 @@ mod tests {
             link_alpha: 1.0,
             links_xray: false,
             origin: DVec3::ZERO,
+            depth_limit: None,
         }
     }
 

@@ -8,6 +8,7 @@
 
 use crate::math::DVec3;
 use crate::scene::{Bounds, Viewpoint};
+use eframe::egui;
 use glam::{DMat4, DVec4};
 
 /// Closest the pitch gets to ±90° (radians), so the up vector never aligns with the view.
@@ -129,6 +130,29 @@ impl OrbitCamera {
             DVec4::new(0.0, 0.0, n * fa / (n - fa), 0.0),
         );
         proj * view
+    }
+
+    /// Drive the camera from a view's response: left-drag orbits, right/middle-drag or
+    /// shift-drag pans, the wheel zooms (while hovered). The viewport and every split-view pane
+    /// call this with the one camera they share.
+    pub fn interact(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+        let shift = ui.input(|i| i.modifiers.shift);
+        let d = response.drag_delta();
+        if response.dragged_by(egui::PointerButton::Primary) && !shift {
+            self.orbit(f64::from(d.x) * 0.01, f64::from(d.y) * 0.01);
+        } else if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+            || (response.dragged_by(egui::PointerButton::Primary) && shift)
+        {
+            let h = f64::from(rect.height().max(1.0));
+            self.pan(-f64::from(d.x) / h, f64::from(d.y) / h);
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                self.zoom((-f64::from(scroll) * 0.002).exp());
+            }
+        }
     }
 
     /// The world-space ray through normalised device coordinates (x right, y up, both −1..1).

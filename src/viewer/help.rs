@@ -15,6 +15,8 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("L", "links overlay on / off"),
     ("E", "error heatmap on / off"),
     ("C", "caption of the lecture figure shown / hidden"),
+    ("V", "split view on / off (runs side by side, one camera)"),
+    ("H", "run history window shown / hidden"),
     ("F1", "this help"),
     ("left drag, arrows", "orbit the camera"),
     ("right / middle drag, shift + left drag, shift + arrows", "pan"),
@@ -33,6 +35,8 @@ pub enum Action {
     ToggleError,
     ToggleCaption,
     ToggleHelp,
+    ToggleSplit,
+    ToggleHistory,
 }
 
 /// The actions of the keys pressed this frame (none while a text field has the keyboard).
@@ -52,6 +56,8 @@ pub fn pressed(ctx: &egui::Context) -> Vec<Action> {
         (egui::Key::E, Action::ToggleError),
         (egui::Key::C, Action::ToggleCaption),
         (egui::Key::F1, Action::ToggleHelp),
+        (egui::Key::V, Action::ToggleSplit),
+        (egui::Key::H, Action::ToggleHistory),
     ];
     ctx.input(|i| {
         let plain = i.modifiers.is_none();

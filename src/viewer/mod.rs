@@ -8,9 +8,15 @@
 //! - [`file_dialog`]: the desktop's file dialog, or an in-app one where none answers.
 //! - [`five_times`]: the five-times explorer (exact, disk and point-source form factors).
 //! - [`help`]: keyboard shortcuts, the Help menu and window.
+//! - [`history`]: the run history: every solve kept (settings, size, time, error), the table and
+//!   the runs overlaid in the plots.
 //! - [`matrix`]: the blocking form-factor matrix window.
+//! - [`pane`]: one solver state drawn beside the viewport (the split view's and replay's panes).
+//! - [`replay`]: the refinement replay: the last solve round by round, and the depth slider.
 //! - [`lecture`]: the Lecture menu (the figures of [`crate::figures`]) and the caption panel.
 //! - [`reference`]: the `radlab-reference` thread: cached/computed reference, true error.
+//! - [`split`]: the split view: two or three runs side by side, one camera, one exposure.
+//! - [`view`]: the small `View` trait the panels implement (one type per panel).
 //! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
 //!
 //! Rendering is in [`crate::render`]; display lists in [`crate::overlay`].
@@ -22,9 +28,14 @@ pub mod camera;
 pub mod file_dialog;
 pub mod five_times;
 pub mod help;
+pub mod history;
 pub mod lecture;
 pub mod matrix;
+pub mod pane;
 pub mod reference;
+pub mod replay;
+pub mod split;
+pub mod view;
 pub mod worker;
 
 pub use app::{OverlayChoice, RadlabApp, RefState, ViewerOptions};

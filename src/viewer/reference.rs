@@ -26,6 +26,7 @@
 use super::worker::ViewData;
 use crate::accel::Accel;
 use crate::metrics;
+use crate::overlay::ElementView;
 use crate::reference::{
     Cache, CacheStatus, Control, Estimate, RefElement, ReferenceError, ReferenceParams, cache_key,
     reference_mesh,
@@ -84,6 +85,12 @@ pub enum RefReply {
     /// The computation was cancelled (nothing cached; the scene has no reference).
     Cancelled {
         source: String,
+    },
+    /// The reference as a solver state to draw (its regions the leaves, their estimates the
+    /// radiosity, the standard error the error estimate; no links): sent just before `Ready`.
+    Solution {
+        source: String,
+        view: Arc<ViewData>,
     },
     Evaluated(Evaluation),
     Failed(String),
@@ -181,6 +188,10 @@ impl RefThread {
                                 let _ = reply_tx.send(r);
                                 notify();
                             });
+                            if let Some(l) = &l {
+                                let source = l.scene.source.clone();
+                                let _ = reply_tx.send(RefReply::Solution { source, view: solution_view(l) });
+                            }
                             loaded = l;
                             reply
                         }
@@ -244,7 +255,7 @@ impl RefThread {
     /// Next reply, if any (never blocks).
     pub fn poll(&mut self) -> Option<RefReply> {
         let r = self.rx.try_recv().ok()?;
-        if !matches!(r, RefReply::Computing { .. }) {
+        if !matches!(r, RefReply::Computing { .. } | RefReply::Solution { .. }) {
             self.pending = self.pending.saturating_sub(1);
         }
         Some(r)
@@ -255,7 +266,7 @@ impl RefThread {
         while self.pending > 0 {
             match self.rx.recv() {
                 Ok(r) => {
-                    if !matches!(r, RefReply::Computing { .. }) {
+                    if !matches!(r, RefReply::Computing { .. } | RefReply::Solution { .. }) {
                         self.pending -= 1;
                     }
                     on_reply(r);
@@ -267,6 +278,44 @@ impl RefThread {
             }
         }
     }
+}
+
+/// The reference as a solver state: one leaf per region (at depth 0 of its patch), the region's
+/// estimate as its radiosity and the mean of its standard error as its error estimate.
+fn solution_view(r: &Loaded) -> Arc<ViewData> {
+    let elements: Vec<ElementView> = r
+        .mesh
+        .iter()
+        .zip(&r.estimates)
+        .enumerate()
+        .map(|(i, (m, est))| {
+            let patch = &r.scene.patches[m.patch];
+            let n = m.vertices.len().min(4);
+            let mut vertices = [m.vertices[0]; 4];
+            vertices[..n].copy_from_slice(&m.vertices[..n]);
+            ElementView {
+                id: i as u32,
+                patch: m.patch as u32,
+                parent: None,
+                depth: 0,
+                leaf: true,
+                vertices,
+                n_vertices: n as u8,
+                area: crate::math::polygon_area(&m.vertices),
+                reflectance: patch.reflectance,
+                emission: patch.emission,
+                radiosity: est.radiosity,
+                error_estimate: est.std_error.mean(),
+                stop: "reference region",
+            }
+        })
+        .collect();
+    let n = elements.len();
+    let mut view = ViewData { leaves: (0..n as u32).collect(), elements, ..ViewData::default() };
+    view.stats.elements = n;
+    view.stats.leaves = n;
+    view.stats.depth_histogram = vec![n];
+    Arc::new(view)
 }
 
 fn load(
@@ -325,7 +374,6 @@ fn load(
 mod tests {
     use super::*;
     use crate::math::{DVec3, Rgb};
-    use crate::overlay::ElementView;
 
     #[test]
     fn cache_miss_compute_hit_and_evaluation() {
@@ -348,6 +396,12 @@ mod tests {
             matches!(replies.last(), Some(RefReply::Ready { how, .. }) if how.starts_with("computed")),
             "{replies:?}"
         );
+        // The reference to draw came with it: a leaf per region, lit.
+        let Some(RefReply::Solution { view, .. }) = replies.iter().rev().nth(1) else {
+            panic!("{replies:?}")
+        };
+        assert!(view.leaves.len() >= 6 && view.links.is_empty());
+        assert!(view.elements.iter().any(|e| e.radiosity.mean() > 0.0 && e.emission.is_zero()));
         t.load(Arc::clone(&scene), false);
         t.wait_idle(|r| replies.push(r));
         assert!(

@@ -31,6 +31,8 @@ pub struct ViewData {
     /// The radiosity shown was pushed and pulled by the viewer ([`push_pull`]): the solver has
     /// gathered but its own state waits for a Push-pull step.
     pub pushed_for_display: bool,
+    /// The settings of the solver that produced this state (the run history records them).
+    pub params: HierarchicalParams,
 }
 
 impl ViewData {
@@ -47,7 +49,34 @@ impl ViewData {
             stats: s.stats,
             residuals: s.residuals,
             pushed_for_display: false,
+            params: HierarchicalParams::default(),
         }
+    }
+
+    /// The state of a solver (pushed and pulled for display when it has gathered since its last
+    /// push-pull, `unpushed`), with its settings.
+    #[must_use]
+    pub fn of_solver(s: &HierarchicalSolver, unpushed: bool) -> Arc<ViewData> {
+        Self::of_solver_with(s, unpushed, true)
+    }
+
+    /// [`ViewData::of_solver`], without the error estimates (every estimate 0) when
+    /// `estimates` is false: the refinement replay's frames, which show radiosity only.
+    #[must_use]
+    pub fn of_solver_with(s: &HierarchicalSolver, unpushed: bool, estimates: bool) -> Arc<ViewData> {
+        let snapshot = s.snapshot_with(estimates);
+        let view = if unpushed {
+            ViewData::from_gathered_snapshot(snapshot)
+        } else {
+            ViewData::from_snapshot(snapshot)
+        };
+        Arc::new(ViewData { params: s.params(), ..view })
+    }
+
+    /// Bytes this state holds (elements and links), about.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        self.elements.len() * size_of::<ElementView>() + self.links.len() * size_of::<LinkView>()
     }
 
     /// Convert a snapshot taken between a gather and its push-pull, showing the radiosity the
@@ -128,6 +157,12 @@ pub enum Reply {
     Partial {
         view: Arc<ViewData>,
     },
+    /// A solve's states as it went, for the refinement replay: the state it started from, then
+    /// the state after each round but the last (whose state is the `Done` that follows), without
+    /// error estimates, while they fit in [`REPLAY_BUDGET_BYTES`]. Sent just before that `Done`.
+    Replay {
+        frames: Vec<Arc<ViewData>>,
+    },
     /// A bake was written (what, in one line) or not (why, in one line).
     Baked(Result<String, String>),
     Failed(String),
@@ -137,6 +172,10 @@ pub enum Reply {
 
 /// A solve sends its picture after a round at most this often (`Reply::Partial`).
 pub const PARTIAL_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
+
+/// Most memory the frames of one refinement replay take (`Reply::Replay`); past it a solve
+/// records no more frames (a 2 000-element Cornell box takes about 0.5 MB a frame).
+pub const REPLAY_BUDGET_BYTES: usize = 64 << 20;
 
 /// Handle of the solver thread (the thread ends when this is dropped).
 pub struct Worker {
@@ -204,7 +243,7 @@ impl Worker {
                     Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) | Reply::Skipped => {
                         self.in_flight = self.in_flight.saturating_sub(1)
                     }
-                    Reply::Progress { .. } | Reply::Partial { .. } => {}
+                    Reply::Progress { .. } | Reply::Partial { .. } | Reply::Replay { .. } => {}
                 }
                 Some(r)
             }
@@ -232,7 +271,7 @@ impl Worker {
                         Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) | Reply::Skipped => {
                             self.in_flight -= 1;
                         }
-                        Reply::Progress { .. } | Reply::Partial { .. } => {}
+                        Reply::Progress { .. } | Reply::Partial { .. } | Reply::Replay { .. } => {}
                     }
                     on_reply(r);
                 }
@@ -261,13 +300,7 @@ fn run(
     let mut solver: Option<HierarchicalSolver> = None;
     // The solver has gathered since its last push-pull: show the pushed-pulled values.
     let mut unpushed = false;
-    let view_of = |s: &HierarchicalSolver, unpushed: bool| {
-        Arc::new(if unpushed {
-            ViewData::from_gathered_snapshot(s.snapshot())
-        } else {
-            ViewData::from_snapshot(s.snapshot())
-        })
-    };
+    let view_of = ViewData::of_solver;
     let send = |r: Reply| {
         let ok = tx.send(r).is_ok();
         notify();
@@ -290,10 +323,7 @@ fn run(
         let reply = match cmd {
             Command::Load { scene, params } => match HierarchicalSolver::new(scene, params) {
                 Ok(s) => {
-                    let r = Reply::Loaded {
-                        cancel: s.cancel_handle(),
-                        view: Arc::new(ViewData::from_snapshot(s.snapshot())),
-                    };
+                    let r = Reply::Loaded { cancel: s.cancel_handle(), view: view_of(&s, false) };
                     solver = Some(s);
                     r
                 }
@@ -302,9 +332,7 @@ fn run(
             Command::SetParams(p) => match solver.as_mut() {
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => match s.set_params(p) {
-                    Ok(()) => {
-                        Reply::Done { report: None, view: Arc::new(ViewData::from_snapshot(s.snapshot())) }
-                    }
+                    Ok(()) => Reply::Done { report: None, view: view_of(s, false) },
                     Err(e) => Reply::Failed(e),
                 },
             },
@@ -312,7 +340,7 @@ fn run(
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => {
                     s.reset();
-                    Reply::Done { report: None, view: Arc::new(ViewData::from_snapshot(s.snapshot())) }
+                    Reply::Done { report: None, view: view_of(s, false) }
                 }
             },
             Command::Bake { path, options } => match solver.as_ref() {
@@ -336,7 +364,17 @@ fn run(
                             // PARTIAL_EVERY (a snapshot copies every element and link).
                             // The first round's picture at once, then at most every PARTIAL_EVERY.
                             let mut last: Option<std::time::Instant> = None;
+                            // The replay's frames: where the solve starts, then each round.
+                            let mut frames = vec![ViewData::of_solver_with(s, unpushed, false)];
+                            let mut budget = REPLAY_BUDGET_BYTES.saturating_sub(frames[0].bytes());
                             let mut on_round = |s: &HierarchicalSolver| {
+                                if budget > 0 {
+                                    let frame = ViewData::of_solver_with(s, false, false);
+                                    budget = budget.saturating_sub(frame.bytes());
+                                    if budget > 0 {
+                                        frames.push(frame);
+                                    }
+                                }
                                 // `cancel_all` while this solve ran: the flag it set may have
                                 // landed between two sub-steps (each clears it); set it again.
                                 if seq <= skip_through.load(Ordering::Relaxed) {
@@ -345,12 +383,13 @@ fn run(
                                 let now = std::time::Instant::now();
                                 if last.is_none_or(|t| now.duration_since(t) >= PARTIAL_EVERY) {
                                     last = Some(now);
-                                    let view = Arc::new(ViewData::from_snapshot(s.snapshot()));
-                                    let _ = tx.send(Reply::Partial { view });
+                                    let _ = tx.send(Reply::Partial { view: view_of(s, false) });
                                     notify();
                                 }
                             };
-                            s.solve_observed(&mut progress, &mut on_round)
+                            let report = s.solve_observed(&mut progress, &mut on_round);
+                            let _ = tx.send(Reply::Replay { frames });
+                            report
                         }
                     };
                     unpushed = match kind {

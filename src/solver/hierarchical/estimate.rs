@@ -121,6 +121,30 @@ pub fn error_estimates(solver: &HierarchicalSolver) -> Vec<f64> {
     est
 }
 
+/// The solver's estimate of its **global** error: the per-leaf estimates (units of B) against the
+/// reflected radiosity, both area-weighted,
+///
+/// ```text
+/// est = sqrt( Σ A_x est_x² / Σ A_x (B_x − E_x)² )      (B, E: mean over channels)
+/// ```
+///
+/// the relative L2 error of the reflected radiosity that the pointwise ruler measures against a
+/// reference, estimated without one. Takes (area, reflected radiosity, estimate) per leaf;
+/// `None` without any estimate or without reflected light. `radlab solve --estimate` writes it
+/// (`error_estimate.global_rel_l2`), the viewer's run history shows it.
+#[must_use]
+pub fn global_relative_l2(leaves: impl IntoIterator<Item = (f64, f64, Option<f64>)>) -> Option<f64> {
+    let (mut num, mut den, mut any) = (0.0, 0.0, false);
+    for (area, reflected, estimate) in leaves {
+        den += area * reflected * reflected;
+        if let Some(x) = estimate {
+            any = true;
+            num += area * x * x;
+        }
+    }
+    (any && den > 0.0).then(|| (num / den).sqrt())
+}
+
 /// The signed, transported residual δ of every leaf (per channel, units of B; zero on interior
 /// elements): the first-order change of the leaf's radiosity if its inherited links were
 /// evaluated at the leaf itself. `B + δ` is a defect-corrected solution. Measured on the

@@ -1888,7 +1888,14 @@ impl HierarchicalSolver {
     /// A copy of the elements, links and statistics.
     #[must_use]
     pub fn snapshot(&self) -> Snapshot {
-        let est = self.error_estimates();
+        self.snapshot_with(true)
+    }
+
+    /// [`HierarchicalSolver::snapshot`], with the error estimates (their cost is a good part of a
+    /// solve's) or with every estimate 0 (the viewer's refinement replay records one per round).
+    #[must_use]
+    pub fn snapshot_with(&self, estimates: bool) -> Snapshot {
+        let est = if estimates { self.error_estimates() } else { vec![0.0; self.hier.elements.len()] };
         let elements = self
             .hier
             .elements

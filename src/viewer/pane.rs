@@ -1,0 +1,139 @@
+//! A pane: one solver state drawn in a rectangle of its own, beside (or instead of) the viewport,
+//! with the viewport's camera and exposure. The split view ([`super::split`]) shows two or three,
+//! the refinement replay ([`super::replay`]) one.
+//!
+//! A pane builds its geometry on its own `radlab-display` thread ([`super::builder`]) whenever the
+//! state or the display settings change, and draws through the viewport's renderer into a slot
+//! of its own ([`crate::render::ViewportCallback::slot`]).
+
+use super::builder::{self, Builder, Settings};
+use super::camera::OrbitCamera;
+use super::worker::ViewData;
+use crate::math::DVec3;
+use crate::render::{FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, Uniforms, ViewportCallback};
+use eframe::egui::{self, Color32, Rect};
+use eframe::egui_wgpu;
+use std::sync::Arc;
+
+/// What a pane draws with, besides its geometry: lent by the app each frame.
+#[derive(Copy, Clone, Debug)]
+pub struct PaneStyle {
+    /// The main view's uniforms (exposure, tone map, overlays); the pane sets its own
+    /// view-projection (its aspect) and no picked element (ids differ between solutions).
+    pub uniforms: Uniforms,
+    /// Scene centre subtracted from positions (as in the build settings).
+    pub origin: DVec3,
+    /// A wgpu renderer is there to draw with.
+    pub has_wgpu: bool,
+}
+
+/// The geometry of one pane and the thread that builds it.
+pub struct Pane {
+    /// Renderer slot (0 is the viewport's).
+    slot: usize,
+    /// (what is shown, settings) the newest build was requested for; "what" is the caller's key.
+    key: Option<(u64, Settings)>,
+    builder: Option<Builder>,
+    seq: u64,
+    geometry: Arc<Geometry>,
+    /// Bumped when `geometry` changes (the renderer uploads only then).
+    generation: u64,
+    /// Sequence number of the build shown.
+    shown_seq: Option<u64>,
+}
+
+impl Pane {
+    /// A pane that draws into renderer slot `slot` (≥ 1).
+    #[must_use]
+    pub fn new(slot: usize) -> Pane {
+        Pane {
+            slot,
+            key: None,
+            builder: None,
+            seq: 0,
+            geometry: Arc::new(Geometry::default()),
+            generation: 0,
+            shown_seq: None,
+        }
+    }
+
+    fn show(&mut self, seq: u64, geometry: Arc<Geometry>) {
+        self.geometry = geometry;
+        self.generation += 1;
+        self.shown_seq = Some(seq);
+    }
+
+    /// Ask for the geometry of `view` (identified by `key`) with `settings` if it is not the one
+    /// asked for last, and pick up a finished build.
+    pub fn update(&mut self, ctx: &egui::Context, key: u64, view: &Arc<ViewData>, settings: Settings) {
+        if self.key != Some((key, settings)) {
+            self.seq += 1;
+            let req = builder::Request {
+                seq: self.seq,
+                view: Arc::clone(view),
+                view_seq: key,
+                true_error: None,
+                settings,
+            };
+            self.key = Some((key, settings));
+            if self.builder.is_none() {
+                let ctx = ctx.clone();
+                self.builder = Builder::spawn(move || ctx.request_repaint()).ok();
+            }
+            match &mut self.builder {
+                Some(b) => b.request(req),
+                // No thread: build here (slower, correct).
+                None => self.show(req.seq, builder::build(&req).geometry),
+            }
+        }
+        if let Some(b) = self.builder.as_mut().and_then(Builder::poll) {
+            self.show(b.seq, b.geometry);
+        }
+    }
+
+    /// Block until the newest geometry is built (tests and scripted runs only).
+    pub fn wait(&mut self) {
+        if let Some(b) = self.builder.as_mut().and_then(Builder::wait) {
+            self.show(b.seq, b.geometry);
+        }
+    }
+
+    /// True while the newest geometry asked for is not shown yet.
+    #[must_use]
+    pub fn building(&self) -> bool {
+        self.builder.as_ref().is_some_and(|b| b.requested > self.shown_seq)
+    }
+
+    /// Draw the geometry into `rect` through `camera`.
+    pub fn paint(&self, ui: &egui::Ui, rect: Rect, camera: &OrbitCamera, style: PaneStyle) {
+        let painter = ui.painter_at(rect);
+        if !style.has_wgpu {
+            painter.rect_filled(rect, 0.0, Color32::from_gray(20));
+            return;
+        }
+        let ppp = ui.ctx().pixels_per_point();
+        let aspect = f64::from(rect.width() / rect.height().max(1.0));
+        let m = camera.view_proj(aspect, style.origin).to_cols_array_2d();
+        let frame = FrameParams {
+            uniforms: Uniforms {
+                view_proj: m.map(|c| c.map(|x| x as f32)),
+                selected: NO_SELECTION,
+                overlay: style.uniforms.overlay & !OVERLAY_PICKED,
+                ..style.uniforms
+            },
+            size: [
+                (rect.width() * ppp).round().max(1.0) as u32,
+                (rect.height() * ppp).round().max(1.0) as u32,
+            ],
+        };
+        painter.add(egui_wgpu::Callback::new_paint_callback(
+            rect,
+            ViewportCallback {
+                frame,
+                geometry: Arc::clone(&self.geometry),
+                generation: self.generation,
+                slot: self.slot,
+            },
+        ));
+    }
+}

@@ -1,0 +1,22 @@
+//! The small interface of the viewer's panels (issue 18 §4, after the egui demo's `View`): a
+//! panel is one type that keeps its own state, draws itself each frame from what the app lends
+//! it, and answers with what it asks the app to do. The app only lays the panels out and routes
+//! those answers, so a panel never reaches into the app (no import cycle) and can be tested alone.
+//!
+//! ```text
+//!  RadlabApp ── Input (borrowed, this frame) ──► panel.ui(ui, input) ── Option<Action> ──► app
+//! ```
+//!
+//! Implemented by [`super::history::RunHistory`] and [`super::split::SplitView`].
+
+use eframe::egui;
+
+/// One panel of the viewer.
+pub trait View {
+    /// What the app lends the panel for one frame.
+    type Input<'a>;
+    /// What the panel asks the app to do.
+    type Action;
+    /// Draw the panel into `ui`.
+    fn ui(&mut self, ui: &mut egui::Ui, input: Self::Input<'_>) -> Option<Self::Action>;
+}
