@@ -353,6 +353,10 @@ impl GatherPlan {
     }
 }
 
+/// A solve gathers on until its power balance closes to this (`EnergyBalance::relative_residual`;
+/// issue 15 §2 asks for 1e-3 at every preset).
+pub const ENERGY_TOLERANCE: f64 = 1e-3;
+
 /// V of a link the next refinement pass replaces whatever its V (one ray found it positive):
 /// above 1, so "fully visible" for the oracle, and never read otherwise (see `make_link`).
 const UNMEASURED_VIS: f32 = 2.0;
@@ -1844,6 +1848,23 @@ impl HierarchicalSolver {
             let te = Instant::now();
             self.energy_pass();
             self.stats.push_pull_s += te.elapsed().as_secs_f64();
+        }
+        // The power balance closes as far as the gathers converged: a preset whose stopping
+        // tolerance leaves it open (splash2's 0.005 of B left table-room's at 1.1e-2) gathers on,
+        // without refining, until it closes to ENERGY_TOLERANCE (a bounded number of sweeps).
+        let mut extra = 0;
+        while self.gathered_once
+            && self.energy.relative_residual() > ENERGY_TOLERANCE
+            && extra < self.params.max_iterations
+            && !self.cancelled()
+        {
+            self.gather_inner();
+            if !self.params.gauss_seidel {
+                let t = Instant::now();
+                self.push_pull_flat(None, true);
+                self.stats.push_pull_s += t.elapsed().as_secs_f64();
+            }
+            extra += 1;
         }
         progress(u64::from(rounds), u64::from(rounds));
         self.report(StepKind::Solve, t, refined_total, links_total)

@@ -52,8 +52,10 @@ pub(super) const ROOT_ABS_TOL: f64 = 1e-10;
 /// With SPLASH-2's one-point rule (`link_tol` 0), near input patch pairs are still integrated
 /// adaptively (one point at a centroid next to a shared edge can exceed the whole pair's F and
 /// create light), but only to this: the rest of that preset is accurate to a few percent, and
-/// 1e-7 made its initial linking 18× slower on splash_room (0.007 → 0.129 s).
-const ONE_POINT_ROOT_TOL: f64 = 1e-3;
+/// 1e-7 made its initial linking 18× slower on splash_room (0.007 → 0.129 s). 1e-3 left the
+/// white furnace's Σ F a little above 1 and the solve created light (escaped/emitted −0.115 %,
+/// cube-one-light −0.105 %; now −0.007 % each).
+const ONE_POINT_ROOT_TOL: f64 = 1e-4;
 pub(super) const ELEMENT_ABS_TOL: f64 = 1e-8;
 /// Largest Gauss–Legendre order per axis; a pair that needs more is integrated adaptively.
 const MAX_GAUSS: usize = 8;
