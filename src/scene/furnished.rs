@@ -19,9 +19,9 @@
 //!                  count(h) is non-increasing in h: bisect log h until count(h) ≈ SIZE
 //! ```
 //!
-//! The number of bays grows as SIZE^0.75 (1 bay at 10 k, 3 at 30 k, 8 at 100 k, 49 at 1 M: a
-//! 3.2 m square each, plus a 0.7 m strip along the walls for bookcases), the tessellation makes
-//! up the rest. The room shell is tiled at fixed sizes (0.5 m floor boards in two woods, 1 m
+//! The number of bays grows as SIZE^0.75 (1 bay up to 10 k, 3 at 30 k, 8 at 100 k, 49 at 1 M:
+//! a 3.2 m square each, plus a 0.7 m strip along the walls for bookcases, which rooms under
+//! 8 000 triangles have fewer of), the tessellation makes up the rest. The room shell is tiled at fixed sizes (0.5 m floor boards in two woods, 1 m
 //! wall and ceiling panels) whatever SIZE is. Every patch is a triangle (a cut quad's two
 //! halves), one-sided, facing out of its piece; closed rooms face inward. Reflectances are
 //! 0.2–0.8 (woods, fabrics, book covers, metal); the emitters are the ceiling panels (facing
@@ -32,8 +32,9 @@ use super::{Patch, Scene, SceneError, Viewpoint};
 use crate::math::{DVec3, Pcg32, Rgb};
 use std::f64::consts::PI;
 
-/// The smallest room: one bay at the coarsest tessellation is about 5 000 triangles.
-pub const MIN_TRIANGLES: usize = 8_000;
+/// The smallest room: one bay with its lamps, shell and (below 8 000 triangles, fewer)
+/// bookcases at the coarsest tessellation is about 1 300 triangles.
+pub const MIN_TRIANGLES: usize = 2_000;
 /// The largest room (the loader's default triangle cap).
 pub const MAX_TRIANGLES: usize = 5_000_000;
 
@@ -672,6 +673,8 @@ fn plan(params: FurnishedParams) -> Plan {
         }
     }
     // Bookcases along the walls, in 1 m slots clear of the corners; each wall's front faces in.
+    // A bookcase is about 700 triangles at the coarsest: small rooms get fewer.
+    let case_chance = 0.45 * (params.triangles as f64 / 8000.0).min(1.0).powi(2);
     let walls = [
         (DVec3::new(0.0, 0.0, d), DVec3::X, w, -DVec3::Z),
         (DVec3::new(w, 0.0, 0.0), -DVec3::X, w, DVec3::Z),
@@ -682,7 +685,7 @@ fn plan(params: FurnishedParams) -> Plan {
     for (start, along, len, inward) in walls {
         let slots = ((len - 1.6) / 1.0).floor().max(0.0) as usize;
         for s in 0..slots {
-            if p.chance(0.45) {
+            if p.chance(case_chance) {
                 let at = start + along * (0.8 + s as f64 + 0.5) + inward * (0.17 + 0.01);
                 p.bookcase(&format!("case{case}"), Xf::facing(at, inward));
                 case += 1;
