@@ -41,6 +41,22 @@ fn triangle_count_is_within_ten_percent_of_the_target() {
     }
 }
 
+/// Where the nearest tessellation misses by more than 2 % (many like pieces crossing a step
+/// together), floor planks make up the difference: every seed lands within 2 %.
+#[test]
+fn every_seed_lands_within_two_percent() {
+    for target in [2_000, 3_000, 6_000] {
+        for seed in 0..20 {
+            let s = room(target, seed);
+            assert!(
+                relative_miss(&s, target) <= 0.02,
+                "{target} (seed {seed}): {} triangles",
+                s.patches.len()
+            );
+        }
+    }
+}
+
 #[test]
 fn same_seed_same_room_other_seed_other_room() {
     let (a, b, c) = (room(10_000, 5), room(10_000, 5), room(10_000, 6));
