@@ -751,12 +751,16 @@ fn plan(params: FurnishedParams) -> Plan {
 /// all facing in.
 fn shell(p: &mut Planner, w: f64, d: f64, h: f64) {
     let origin = Xf::at(DVec3::ZERO);
+    // Boards of 0.5 m, the last in each row shorter and ending at the wall (a room 11 m wide,
+    // 11.000000000000002 in floating point, has 22 boards, not a 23rd of width 2e-15).
     let board = 0.5;
-    let (nx, nz) = ((w / board).ceil() as usize, (d / board).ceil() as usize);
+    let count = |len: f64| ((len / board - 1e-6).ceil() as usize).max(1);
+    let edge = |k: usize, n: usize, len: f64| if k == n { len } else { k as f64 * board };
+    let (nx, nz) = (count(w), count(d));
     for i in 0..nx {
         for j in 0..nz {
             let (x0, z0) = (i as f64 * board, j as f64 * board);
-            let (x1, z1) = (((i + 1) as f64 * board).min(w), ((j + 1) as f64 * board).min(d));
+            let (x1, z1) = (edge(i + 1, nx, w), edge(j + 1, nz, d));
             let o = DVec3::new(x0, 0.0, z0);
             let planks =
                 Shape::Planks { o, u: DVec3::new(0.0, 0.0, z1 - z0), v: DVec3::new(x1 - x0, 0.0, 0.0), n: 1 };
