@@ -12,5 +12,7 @@ out="$(dirname "$0")"
 "$bin" view builtin:cornell --screenshot "$out/cornell-plots.png" --plots --window
 "$bin" view builtin:splash_room --screenshot "$out/splash_room-quadtree.png" --overlay quadtree
 "$bin" view builtin:table-room --screenshot "$out/table-room-error.png" --overlay error
+"$bin" solve builtin:furnished-9000 --method progressive --max-shots 300 --element-size 100 \
+  --png "$out/furnished-9k.png" --width 800 --height 500 --quiet
 "$bin" figures --screenshots "$out/figures"
 echo "screenshots written to $out"

@@ -948,6 +948,74 @@ fn device_or_fifo_as_the_scene_file_is_refused() {
     assert!(matches!(e, SceneError::NotRegularFile { kind: "a folder", .. }), "{e}");
 }
 
+/// A device given as a buffer or image URI is refused before it is opened (`/dev/zero` would be
+/// read until the byte limit, `/dev/tty` could block). A symbolic link to a device resolves
+/// outside the scene's folder; a device node inside the folder (made where `mknod` is
+/// permitted, as root in CI's container) is not a regular file.
+#[cfg(unix)]
+#[test]
+fn device_as_buffer_or_image_is_refused() {
+    let dir = tmpdir("device");
+    std::os::unix::fs::symlink("/dev/zero", dir.join("zero.bin")).unwrap();
+    let node = std::process::Command::new("mknod")
+        .arg(dir.join("node.bin"))
+        .args(["c", "1", "5"])
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    let mut uris = vec![("zero.bin", "resolves outside the scene's folder")];
+    if node {
+        uris.push(("node.bin", "node.bin is a character device, not a regular file"));
+    } else {
+        eprintln!("mknod not permitted here: only the symbolic link to /dev/zero is tested");
+    }
+    for (uri, cause) in uris {
+        let mut d = lit_square();
+        d["buffers"][0] = json!({"byteLength": 72, "uri": uri});
+        let path = write(&dir, "device_buffer.gltf", serde_json::to_string(&d).unwrap().as_bytes());
+        let e = within(30, move || load_err(&path));
+        assert!(
+            matches!(e, SceneError::Buffer { index: 0, .. }) && e.to_string().contains(cause),
+            "{uri}: {e}"
+        );
+
+        let mut d = lit_square();
+        d["images"] = json!([{"uri": uri}]);
+        let path = write(&dir, "device_image.gltf", serde_json::to_string(&d).unwrap().as_bytes());
+        let e = within(30, move || load_err(&path));
+        assert!(
+            matches!(e, SceneError::Image { index: 0, .. }) && e.to_string().contains(cause),
+            "{uri}: {e}"
+        );
+    }
+}
+
+/// A texture whose header declares a huge image (PNG 100 000 × 100 000, JPEG 65 500 × 65 500:
+/// 30 and 12.9 GB as 8-bit RGB), in a file of 1–2 KB, is refused from its header, before any
+/// pixel buffer is allocated: a one-line error naming the file, the image and the size. The
+/// files are in tests/fuzz_regressions/ (a textured square; the JPEG is the Blender scene's
+/// wall.jpg with its frame header's size rewritten). The fuzz target's lower pixel cap gives the
+/// same refusal.
+#[test]
+fn huge_texture_headers_are_refused_before_decoding() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
+    let fuzz_caps = LoadOptions { max_texture_pixels: 1 << 20, ..LoadOptions::default() };
+    for (name, size) in [("huge_png_header.gltf", "100000×100000"), ("huge_jpeg_header.gltf", "65500×65500")]
+    {
+        let path = dir.join(name);
+        for opts in [LoadOptions::default(), fuzz_caps.clone()] {
+            let (p, o) = (path.clone(), opts.clone());
+            let e = within(30, move || load_err_with(&p, &o));
+            let msg = e.to_string();
+            assert!(matches!(e, SceneError::Image { index: 0, .. }), "{name}: {msg}");
+            assert!(msg.contains(&format!("image is {size}, more than the limit")), "{name}: {msg}");
+            let bytes = std::fs::read(&path).unwrap();
+            let e = load_slice(&bytes, None, Path::new(name), &opts).unwrap_err().to_string();
+            assert!(e.contains(name) && e.contains(size) && !e.contains('\n'), "{name}: {e}");
+        }
+    }
+}
+
 /// Loading reads and never writes: the file's bytes and modification time are unchanged, and a
 /// read-only file loads.
 #[test]

@@ -497,6 +497,14 @@ fn same_file(a: &Path, b: &Path) -> bool {
     false
 }
 
+/// The whole process's peak resident set size so far (Linux: `VmHWM` in `/proc/self/status`);
+/// `None` (JSON null) where that is not available.
+fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kb = status.lines().find_map(|l| l.strip_prefix("VmHWM:"))?.trim().strip_suffix("kB")?;
+    kb.trim().parse::<u64>().ok().map(|kb| kb * 1024)
+}
+
 /// The stable JSON document of `radlab solve`.
 pub fn solution_json(
     spec: &str,
@@ -511,6 +519,7 @@ pub fn solution_json(
         "iterations": sol.stats.iterations,
         "rays": sol.stats.rays,
         "time_s": sol.stats.time_s,
+        "peak_rss_bytes": peak_rss_bytes(),
     });
     if let (Some(e), Some(obj)) =
         (sol.stats.extra.as_ref().and_then(|x| x.as_object()), stats.as_object_mut())

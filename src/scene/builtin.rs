@@ -78,8 +78,12 @@ fn asset(name: &str) -> Option<&'static [u8]> {
     })
 }
 
-/// Load a built-in scene by name from its embedded glTF (the same loader as files use).
+/// Load a built-in scene by name from its embedded glTF (the same loader as files use), or
+/// generate a furnished room (`furnished-SIZE[-sSEED]`, [`super::furnished`]).
 pub fn load(name: &str) -> Result<Scene, SceneError> {
+    if let Some(params) = super::furnished::parse(name) {
+        return super::furnished::load(name, params);
+    }
     let bytes = asset(name).ok_or_else(|| SceneError::UnknownBuiltin { name: name.into() })?;
     let label = format!("builtin:{name}");
     let mut scene = load_slice(bytes, None, Path::new(&label), &LoadOptions::default())?;
@@ -116,11 +120,11 @@ struct Builder {
 }
 
 /// A material: name, ρ, E.
-#[derive(Clone, Copy)]
-struct Mat {
-    name: &'static str,
-    rho: Rgb,
-    emission: Rgb,
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Mat {
+    pub(super) name: &'static str,
+    pub(super) rho: Rgb,
+    pub(super) emission: Rgb,
 }
 
 const fn grey(name: &'static str, rho: f64) -> Mat {

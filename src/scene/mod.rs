@@ -4,9 +4,11 @@
 //! Front = right-hand rule on the vertex order. A patch radiates and receives only on its
 //! front side; `doubleSided` glTF materials become two back-to-back patches.
 //!
-//! Submodules: [`gltf`] (import), [`builtin`] (the built-in scenes), and validation lives here.
+//! Submodules: [`gltf`] (import), [`builtin`] (the built-in scenes), [`furnished`] (generated
+//! furnished rooms), [`texture`]; validation lives here.
 
 pub mod builtin;
+pub mod furnished;
 pub mod gltf;
 pub mod texture;
 
@@ -56,6 +58,8 @@ pub enum SceneError {
     TooLarge { file: PathBuf, cap: usize },
     #[error("{file}: patch {index}: {cause}")]
     BadPatch { file: PathBuf, index: usize, cause: String },
+    #[error("builtin:{name}: {cause}")]
+    BadGenerated { name: String, cause: String },
     #[error("unknown built-in scene {name:?} (try `radlab scenes`)")]
     UnknownBuiltin { name: String },
 }
