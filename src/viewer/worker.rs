@@ -28,7 +28,7 @@ pub struct ViewData {
     pub stats: HierarchicalStats,
     /// Residual after each gather.
     pub residuals: Vec<f64>,
-    /// The radiosity shown was pushed and pulled by the viewer ([`push_pull`]): the solver has
+    /// The radiosity shown is what push-pull will give (`push_pull_preview`): the solver has
     /// gathered but its own state waits for a Push-pull step.
     pub pushed_for_display: bool,
     /// The settings of the solver that produced this state (the run history records them).
@@ -66,7 +66,7 @@ impl ViewData {
     pub fn of_solver_with(s: &HierarchicalSolver, unpushed: bool, estimates: bool) -> Arc<ViewData> {
         let snapshot = s.snapshot_with(estimates);
         let view = if unpushed {
-            ViewData::from_gathered_snapshot(snapshot)
+            ViewData::from_gathered_snapshot(snapshot, &s.push_pull_preview())
         } else {
             ViewData::from_snapshot(snapshot)
         };
@@ -80,41 +80,14 @@ impl ViewData {
     }
 
     /// Convert a snapshot taken between a gather and its push-pull, showing the radiosity the
-    /// push-pull will give (see [`push_pull`]), so a Gather step shows its result at once.
+    /// push-pull will give (`pushed`: [`HierarchicalSolver::push_pull_preview`], by element id),
+    /// so a Gather step shows its result at once.
     #[must_use]
-    pub fn from_gathered_snapshot(mut s: Snapshot) -> ViewData {
-        push_pull(&mut s.elements);
+    pub fn from_gathered_snapshot(mut s: Snapshot, pushed: &[Rgb]) -> ViewData {
+        for (e, &b) in s.elements.iter_mut().zip(pushed) {
+            e.radiosity = b;
+        }
         ViewData { pushed_for_display: true, ..ViewData::from_snapshot(s) }
-    }
-}
-
-/// Push-pull on a copy of the elements [Hanrahan, Salzman, Aupperle 1991, §4]: down the
-/// quadtrees, each leaf's irradiance is what it and its ancestors gathered, H = Σ gathered, and
-/// B = E + ρ·H; up, each parent's B is its children's area average. The solver's
-/// `push_pull_step` computes the same values (its sums split by visibility class; equal up to
-/// rounding); the viewer uses this for display only and leaves the solver's state alone.
-pub fn push_pull(elements: &mut [ElementInfo]) {
-    // Ids are indices, and a parent's id is smaller than its children's.
-    let mut irradiance = vec![Rgb::ZERO; elements.len()];
-    for i in 0..elements.len() {
-        let e = &elements[i];
-        debug_assert!(e.parent.is_none_or(|p| (p as usize) < i), "element {i} before its parent");
-        let inherited = e.parent.map_or(Rgb::ZERO, |p| irradiance[p as usize]);
-        irradiance[i] = inherited + e.gathered;
-        if e.children.is_none() {
-            let b = e.emission + e.reflectance.mul_rgb(irradiance[i]);
-            elements[i].radiosity = b;
-        }
-    }
-    for i in (0..elements.len()).rev() {
-        if let Some(kids) = elements[i].children {
-            let area = elements[i].area;
-            let b = kids.iter().fold(Rgb::ZERO, |b, &c| {
-                let child = &elements[c as usize];
-                b + child.radiosity * (child.area / area)
-            });
-            elements[i].radiosity = b;
-        }
     }
 }
 
@@ -422,7 +395,7 @@ fn bake_to(
     let format = crate::bake::BakeFormat::from_path(path).map_err(|e| fail(&e))?;
     let mut solution = s.solution_with(false);
     if unpushed {
-        let v = ViewData::from_gathered_snapshot(s.snapshot());
+        let v = ViewData::from_gathered_snapshot(s.snapshot(), &s.push_pull_preview());
         for (e, &id) in solution.elements.iter_mut().zip(&v.leaves) {
             e.radiosity = v.elements[id as usize].radiosity;
         }
@@ -488,7 +461,7 @@ mod tests {
         s.refine_step();
         s.gather_step();
         let stale = ViewData::from_snapshot(s.snapshot());
-        let shown = ViewData::from_gathered_snapshot(s.snapshot());
+        let shown = ViewData::from_gathered_snapshot(s.snapshot(), &s.push_pull_preview());
         assert!(shown.pushed_for_display && !stale.pushed_for_display);
         s.push_pull_step();
         let pushed = ViewData::from_snapshot(s.snapshot());

@@ -1573,6 +1573,35 @@ impl HierarchicalSolver {
         out
     }
 
+    /// The radiosity of every element (indexed by id) that `push_pull_step` would give now, the
+    /// solver's state untouched: what a viewer shows right after a gather. The same chain sums
+    /// (with the links' slopes) and area averages as `push_pull_flat`.
+    #[must_use]
+    pub fn push_pull_preview(&self) -> Vec<Rgb> {
+        let els = &self.hier.elements;
+        let mut chain: Vec<Chain> = Vec::with_capacity(els.len());
+        let mut b: Vec<Rgb> = Vec::with_capacity(els.len());
+        for e in els {
+            let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
+            let own = up.then(e);
+            chain.push(own);
+            b.push(if e.is_leaf() {
+                e.emission + e.reflectance.mul_rgb(own.full + own.rest)
+            } else {
+                Rgb::ZERO
+            });
+        }
+        for i in (0..els.len()).rev() {
+            let first = els[i].first_child;
+            if first != NONE {
+                let area = els[i].area;
+                b[i] = (first as usize..first as usize + 4)
+                    .fold(Rgb::ZERO, |s, c| s + b[c] * (els[c].area / area));
+            }
+        }
+        b
+    }
+
     /// Fill `Link::slope` of every link that has none yet (parallel over receivers; a link's
     /// slope depends on its two elements and V only, so it is computed once per link).
     fn fill_slopes(&mut self) {
