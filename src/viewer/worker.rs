@@ -9,9 +9,7 @@
 use crate::math::Rgb;
 use crate::overlay::{ElementView, LinkView};
 use crate::scene::Scene;
-use crate::solver::hierarchical::{
-    ElementInfo, HierarchicalSolver, HierarchicalStats, Snapshot, StepKind, StepReport,
-};
+use crate::solver::hierarchical::{HierarchicalSolver, HierarchicalStats, Snapshot, StepKind, StepReport};
 use crate::solver::params::HierarchicalParams;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
