@@ -76,7 +76,10 @@
 //!   (the first that passes settles the split). Measured on splash_room (preset `splash2`,
 //!   4 rays): without the test the floor came out 14 % and the whole room 2.6 % darker than the
 //!   reference, with 1 ray 40 % darker; with 2 × 4 more rays the floor is 2 % dark at
-//!   `partial_bf_factor` 1/4, 4 % at 1 (the preset's).
+//!   `partial_bf_factor` 1/4, 4 % at 1 (the preset's). Symmetrically, with `conservative`, an
+//!   all-visible estimate of a link split only when partial (and of an input patch pair) is
+//!   confirmed with more rays, a blocked one making it partial: accepted false ones made
+//!   splash_room's floor gather 11 % too much (escaped/emitted at `interactive` −11 % → +0.1 %).
 //! - **No per-leaf normalisation**: until session 9 an option scaled each leaf's inherited
 //!   irradiance so that its total form factor matched the point kernel at its centroid. It made
 //!   the white furnace exact with centroid links, but one scalar per leaf mixes sources of
@@ -112,7 +115,8 @@ use std::time::Instant;
 
 pub use crate::hierarchy::StopReason as ElementStopReason;
 
-/// Rays used to confirm that an input patch pair is fully occluded before it is left unlinked.
+/// Rays used to confirm that an input patch pair is fully occluded before it is left unlinked,
+/// and (conservative oracles) that an all-visible estimate is not partial.
 const ROOT_CONFIRM_RAYS: u32 = 32;
 
 /// Which step a report describes.
@@ -1319,10 +1323,28 @@ impl HierarchicalSolver {
                 link.unmeasured = true;
                 return (Some((link, self.decide(receiver, p, &link))), cast, g);
             }
-            // The error oracle keeps the fresh estimate alone: E[V] = P(V̂ > 0) V (the split
-            // links' new estimates) + P(V̂ = 0) E[V̂₂] = V, unbiased (shadow-wide at 16 rays: the
-            // receiver was 12 % dark keeping the zeros, 0.4 % with the fresh estimate).
-            vis = if error_oracle { v2 } else { v2 * f64::from(more) / f64::from(more + rays) };
+            // The fresh estimate alone: E[V] = P(V̂ > 0) V (the split links' new estimates) +
+            // P(V̂ = 0) E[V̂₂] = V, unbiased (shadow-wide at 16 rays, error oracle: the receiver
+            // was 12 % dark keeping the zeros, 0.4 % with the fresh estimate).
+            vis = v2;
+        } else if vis == 1.0 && split_partial && self.params.conservative && self.params.zero_confirm > 0 {
+            // Symmetrically, an all-visible estimate ends a refinement that any partial one
+            // continues (the next pass splits this link only if partially visible): accepted as
+            // it is, each level keeps P(V̂ = 1) · 1 of the link where V is due, a compounding
+            // bright bias that created light (splash_room `interactive`: the floor's rows of
+            // F·V summed to 1.11 with the solver's V, 1.00 with 256 weighted rays; escaped/
+            // emitted −11 %). Confirmed the same way: a blocked ray settles the split, else the
+            // fresh estimate stands (unbiased, as for the zeros).
+            let more = self.params.zero_confirm.saturating_mul(rays);
+            let confirm = if self.early_exit { Stop::AtMixed } else { Stop::Never };
+            let (v2, c2) = vis_with(more, 0x0DE5, confirm);
+            cast += c2;
+            if v2 > 0.0 && v2 < 1.0 && confirm == Stop::AtMixed {
+                link.vis = v2 as f32;
+                link.unmeasured = true;
+                return (Some((link, self.decide(receiver, p, &link))), cast, g);
+            }
+            vis = v2;
         }
         if surely {
             g = self.coupling(receiver, source, false);
@@ -1448,6 +1470,18 @@ impl HierarchicalSolver {
                             continue;
                         }
                         v = 1.0 / f64::from(ROOT_CONFIRM_RAYS + rays);
+                    } else if v == 1.0 && conservative {
+                        // All rays passed: the oracle keeps a fully visible link and splits a
+                        // partially visible one, whose children are estimated afresh, so an
+                        // accepted false 1 is a bright bias that only grows (splash_room
+                        // `interactive`: the floor–wall pairs at V 0.65 read 1 with 4 rays, the
+                        // floor's F·V summed to 1.11, and the solve created 11 % of its light).
+                        // Confirmed with more rays; the first blocked one makes it partial.
+                        let v2 = vis(ROOT_CONFIRM_RAYS, 0x0DE5);
+                        if v2 < 1.0 {
+                            v = (f64::from(rays) + v2 * f64::from(ROOT_CONFIRM_RAYS))
+                                / f64::from(rays + ROOT_CONFIRM_RAYS);
+                        }
                     }
                     let v = v as f32;
                     out.push((
