@@ -32,6 +32,7 @@
 //!   a closed-form ruler with no reference noise.
 //! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
 //! - [`basis`]: element basis functions (p = 0 constant, p = 1 linear / bilinear), quadrature on an element.
+//! - [`order_study`]: h- against p-refinement measured on exact single-bounce scenes (slopes, table, plot).
 //! - [`reconstruction`]: flat, Gouraud-from-vertex-averages and nodal p = 1 reconstructions.
 //! - [`penumbra`]: the penumbra band of a point set (points that see part of the direct light).
 //! - [`artifacts`]: the five meshing artifacts of the lecture, one number each, against a reference.
@@ -59,6 +60,7 @@ pub mod link;
 pub mod math;
 pub mod mesh;
 pub mod metrics;
+pub mod order_study;
 pub mod overlay;
 pub mod penumbra;
 pub mod pointwise;

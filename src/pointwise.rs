@@ -265,6 +265,36 @@ pub fn score_solution_in_band(
     })
 }
 
+/// [`score_solution_in_band`] with the pointwise figures read through `reconstruction` (e.g. a
+/// p = 1 solution's own functions, or Gouraud shading, [`crate::reconstruction`]) instead of
+/// the elements' constant values; the element-average figure is the solution's elements', as
+/// there.
+pub fn score_reconstruction_in_band<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    reconstruction: &R,
+    points: &[RefPoint],
+    reference: &[Estimate],
+    band: Option<&[bool]>,
+) -> Result<PointwiseScore, MetricsError> {
+    if points.len() != reference.len() {
+        return Err(MetricsError::LengthMismatch { solution: points.len(), reference: reference.len() });
+    }
+    let owner = PiecewiseConstant::new(scene, &solution.elements)?.owners(points);
+    let values = evaluate(reconstruction, points);
+    let residual = solution.energy.relative_residual();
+    let penumbra = match band {
+        Some(b) => compare_points_in(scene, points, &values, reference, b, residual)?,
+        None => None,
+    };
+    Ok(PointwiseScore {
+        points: points.len(),
+        pointwise: compare_points(scene, points, &values, reference, residual)?,
+        element_average: element_averages(scene, solution, points, reference, &owner)?,
+        penumbra,
+    })
+}
+
 /// A one-line label of a pointwise figure: "pointwise rel L2 4.21 % (65 536 points, noise 0.31 %)".
 #[must_use]
 pub fn label(report: &ErrorReport, points: usize) -> String {
