@@ -380,12 +380,15 @@ fn percent(x: f64) -> String {
     format!("{p:.decimals$}")
 }
 
+/// One plotted point: method, h, error.
+type Point = (&'static str, f64, f64);
+
 /// Log-log PNG: error against h, one panel per scene (and one for the penumbra band where there
 /// is one), one line per method, its fitted slope in the legend.
 pub fn plot_png(rows: &[StudyRow], path: &Path) -> Result<(), String> {
     use plotters::prelude::*;
     crate::bench::register_font();
-    let mut panels: Vec<(String, Vec<(&'static str, f64, f64)>)> = Vec::new();
+    let mut panels: Vec<(String, Vec<Point>)> = Vec::new();
     let mut scenes: Vec<&str> = rows.iter().map(|r| r.scene).collect();
     scenes.dedup();
     for scene in &scenes {

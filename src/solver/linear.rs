@@ -273,7 +273,7 @@ pub fn solve_mesh(
     let (mut evaluations, mut rays) = (0u64, 0u64);
     const CHUNK: usize = 64;
     for start in (0..n).step_by(CHUNK) {
-        let chunk: Vec<(Vec<(usize, Block)>, u64, u64)> = (start..(start + CHUNK).min(n))
+        let chunk: Vec<RowBlocks> = (start..(start + CHUNK).min(n))
             .into_par_iter()
             .map(|a| {
                 let (mut evals, mut rays) = (0u64, 0u64);
@@ -453,6 +453,10 @@ fn mass_solve(mass: &[Vec<(u32, f64)>], rhs: &[Rgb], start: Option<&[Rgb]>) -> V
 
 /// `G_ab`: rows the basis of element a, columns b's.
 type Block = [[f64; MAX_FUNCTIONS]; MAX_FUNCTIONS];
+
+/// The blocks of one element's pairs with later elements, and the kernel evaluations and rays
+/// they cost.
+type RowBlocks = (Vec<(usize, Block)>, u64, u64);
 
 /// How a pair's visibility enters its integral.
 #[derive(Copy, Clone)]
