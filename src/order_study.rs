@@ -84,6 +84,17 @@ impl StudyScene {
         }
     }
 
+    /// The width of the narrowest feature of B on the receiver, where there is one: the penumbra
+    /// of shadow-narrow, lamp width × occluder height / (lamp height − occluder height) =
+    /// 0.2 × 0.25 / 1.75.
+    #[must_use]
+    pub fn feature_width(self) -> Option<f64> {
+        match self {
+            StudyScene::ParallelSquares => None,
+            StudyScene::ShadowNarrow => Some(0.2 * 0.25 / 1.75),
+        }
+    }
+
     /// Elements per side of the emitter (module docs).
     fn emitter_divisions(self) -> u32 {
         match self {
@@ -251,7 +262,7 @@ pub fn run(study: StudyScene, params: &StudyParams) -> Result<Vec<StudyRow>, Str
             let methods: Vec<(Method, Vec<Vec<Rgb>>)> = match (order, continuous) {
                 (Order::Constant, _) => vec![
                     (Method::P0Flat, sol.coefficients.clone()),
-                    (Method::P0Gouraud, gouraud(&sol.solution.elements)),
+                    (Method::P0Gouraud, gouraud(&scene, &sol.solution.elements)),
                 ],
                 (Order::Linear, false) => vec![(Method::P1Discontinuous, sol.coefficients.clone())],
                 (Order::Linear, true) => vec![(Method::P1Continuous, sol.coefficients.clone())],
@@ -263,7 +274,7 @@ pub fn run(study: StudyScene, params: &StudyParams) -> Result<Vec<StudyRow>, Str
                     lat.points.iter().map(|x| flat.radiosity_at(sb.receiver, *x).g()).collect()
                 } else {
                     let nodal =
-                        Nodal::new(&scene, &sol.solution.elements, &coef).map_err(|e| e.to_string())?;
+                        Nodal::new(&scene, &sol.solution.elements, coef).map_err(|e| e.to_string())?;
                     lat.points.iter().map(|x| nodal.radiosity_at(sb.receiver, *x).g()).collect()
                 };
                 rows.push(StudyRow {
@@ -388,17 +399,25 @@ type Point = (&'static str, f64, f64);
 pub fn plot_png(rows: &[StudyRow], path: &Path) -> Result<(), String> {
     use plotters::prelude::*;
     crate::bench::register_font();
-    let mut panels: Vec<(String, Vec<Point>)> = Vec::new();
+    let mut panels: Vec<(String, Vec<Point>, Option<f64>)> = Vec::new();
     let mut scenes: Vec<&str> = rows.iter().map(|r| r.scene).collect();
     scenes.dedup();
     for scene in &scenes {
         let mine: Vec<&StudyRow> = rows.iter().filter(|r| r.scene == *scene).collect();
-        panels
-            .push((format!("{scene}: whole receiver"), mine.iter().map(|r| (r.method, r.h, r.l2)).collect()));
+        let width = [StudyScene::ParallelSquares, StudyScene::ShadowNarrow]
+            .into_iter()
+            .find(|s| s.name() == *scene)
+            .and_then(StudyScene::feature_width);
+        panels.push((
+            format!("{scene}: whole receiver"),
+            mine.iter().map(|r| (r.method, r.h, r.l2)).collect(),
+            width,
+        ));
         if mine.iter().all(|r| r.band_l2.is_some()) {
             panels.push((
                 format!("{scene}: penumbra band"),
                 mine.iter().map(|r| (r.method, r.h, r.band_l2.unwrap_or(0.0))).collect(),
+                width,
             ));
         }
     }
@@ -412,9 +431,10 @@ pub fn plot_png(rows: &[StudyRow], path: &Path) -> Result<(), String> {
         let areas = root.split_evenly((1, panels.len().max(1)));
         let colours =
             [RGBColor(31, 119, 180), RGBColor(148, 103, 189), RGBColor(255, 127, 14), RGBColor(44, 160, 44)];
-        for ((title, pts), area) in panels.iter().zip(areas) {
+        for ((title, pts, width), area) in panels.iter().zip(areas) {
             let pos: Vec<&(&str, f64, f64)> = pts.iter().filter(|p| p.2 > 0.0 && p.1 > 0.0).collect();
             let (h0, h1) = pos.iter().fold((f64::INFINITY, 0.0f64), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+            let (h0, h1) = width.map_or((h0, h1), |w| (h0.min(w), h1.max(w)));
             let (e0, e1) = pos.iter().fold((f64::INFINITY, 0.0f64), |a, p| (a.0.min(p.2), a.1.max(p.2)));
             if pos.is_empty() {
                 continue;
@@ -431,11 +451,26 @@ pub fn plot_png(rows: &[StudyRow], path: &Path) -> Result<(), String> {
                 .x_desc("element size h")
                 .y_desc("pointwise relative L2 error")
                 .light_line_style(WHITE.mix(0.0))
-                .y_label_formatter(&|y| format!("{:.2}%", 100.0 * y))
+                .y_label_formatter(&|y| format!("{}%", percent(*y)))
                 .x_label_formatter(&|x| format!("{x:.3}"))
+                .y_labels(8)
                 .label_style(("sans-serif", 13))
                 .draw()
                 .map_err(|e| err(&e))?;
+            if let Some(w) = *width {
+                chart
+                    .draw_series(DashedLineSeries::new(
+                        [(w, e0 / 2.0), (w, e1 * 2.0)],
+                        6,
+                        4,
+                        BLACK.mix(0.5).stroke_width(1),
+                    ))
+                    .map_err(|e| err(&e))?
+                    .label(format!("h = penumbra width {w:.3}"))
+                    .legend(|(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5).stroke_width(1))
+                    });
+            }
             for (m, col) in Method::ALL.iter().zip(colours) {
                 let line: Vec<(f64, f64)> =
                     pos.iter().filter(|p| p.0 == m.name()).map(|p| (p.1, p.2)).collect();

@@ -14,6 +14,8 @@
 //! B(x) = Σ_k c_k φ_k(local(x))        on the element e of x's patch that contains x
 //! ```
 //!
+//! [`crate::artifacts::Gouraud`] (the Mach-band measure's reconstruction) is this one.
+//!
 //! T-vertices: a vertex of one element lying inside another's edge is averaged like any other,
 //! but the element with the long edge does not interpolate it, so a non-conforming mesh (the
 //! hierarchical quadtree) shows cracks; the uniform mesh of a patch and the CDT are conforming.
@@ -31,7 +33,7 @@ use std::collections::HashMap;
 pub struct Nodal<'a> {
     flat: PiecewiseConstant<'a>,
     elements: &'a [SolvedElement],
-    coefficients: &'a [Vec<Rgb>],
+    coefficients: Vec<Vec<Rgb>>,
 }
 
 impl<'a> Nodal<'a> {
@@ -40,7 +42,7 @@ impl<'a> Nodal<'a> {
     pub fn new(
         scene: &'a Scene,
         elements: &'a [SolvedElement],
-        coefficients: &'a [Vec<Rgb>],
+        coefficients: Vec<Vec<Rgb>>,
     ) -> Result<Self, MetricsError> {
         if coefficients.len() != elements.len() {
             return Err(MetricsError::LengthMismatch {
@@ -50,7 +52,7 @@ impl<'a> Nodal<'a> {
         }
         if let Some((i, _)) = elements
             .iter()
-            .zip(coefficients)
+            .zip(&coefficients)
             .enumerate()
             .find(|(_, (e, c))| c.len() != 1 && c.len() != e.vertices.len())
         {
@@ -72,18 +74,27 @@ impl Reconstruction for Nodal<'_> {
         if coef.len() == 1 {
             return coef[0];
         }
+        if coef.len() > basis::MAX_FUNCTIONS {
+            // A polygon of more than 4 vertices has no p = 1 basis here: its average.
+            return self.elements[i].radiosity;
+        }
         let phi = basis::values(Order::Linear, verts.len(), basis::local_coordinates(verts, x));
         coef.iter().zip(phi).map(|(c, p)| *c * p).sum()
     }
 }
 
 /// Gouraud coefficients of a solution's elements: per element, per vertex, the area-weighted
-/// average of the values of the elements of the same patch that share that vertex (exactly:
-/// meshes here put shared vertices at bit-identical positions).
+/// average of the values of the elements of the same patch that share that vertex (vertices
+/// welded within 10⁻⁹ of the scene's diagonal; a T-junction's vertex is not shared by the long
+/// edge).
 #[must_use]
-pub fn gouraud(elements: &[SolvedElement]) -> Vec<Vec<Rgb>> {
-    let key = |patch: usize, v: DVec3| (patch, [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()]);
-    let mut sums: HashMap<(usize, [u64; 3]), (Rgb, f64)> = HashMap::new();
+pub fn gouraud(scene: &Scene, elements: &[SolvedElement]) -> Vec<Vec<Rgb>> {
+    let quantum = 1e-9 * scene.bounds().diagonal().max(f64::MIN_POSITIVE);
+    let key = |patch: usize, v: DVec3| {
+        let q = (v / quantum).round();
+        (patch, [q.x as i64, q.y as i64, q.z as i64])
+    };
+    let mut sums: HashMap<(usize, [i64; 3]), (Rgb, f64)> = HashMap::new();
     for e in elements {
         for v in &e.vertices {
             let s = sums.entry(key(e.patch, *v)).or_insert((Rgb::ZERO, 0.0));
@@ -135,10 +146,10 @@ mod tests {
             el(vec![v(0., 0.), v(0., 1.), v(1., 1.), v(1., 0.)], 1.0),
             el(vec![v(1., 0.), v(1., 1.), v(2., 1.), v(2., 0.)], 3.0),
         ];
-        let coef = gouraud(&elements);
+        let coef = gouraud(&scene, &elements);
         assert_eq!(coef[0][2], Rgb::splat(2.0), "shared vertex: the average");
         assert_eq!(coef[0][0], Rgb::splat(1.0), "own vertex: the element's value");
-        let nodal = Nodal::new(&scene, &elements, &coef).unwrap();
+        let nodal = Nodal::new(&scene, &elements, coef).unwrap();
         // Continuous across the shared edge, linear in x.
         let at = |x: f64| nodal.radiosity_at(0, v(x, 0.5)).g();
         assert!((at(1.0 - 1e-9) - 2.0).abs() < 1e-6 && (at(1.0 + 1e-9) - 2.0).abs() < 1e-6);

@@ -134,7 +134,7 @@ fn linear_elements_on_the_discontinuity_mesh() {
     let lp = LinearParams { continuous: true, ..LinearParams::default() };
     let (p1, coef) = discontinuity::solve_galerkin(&scene, &params, &lp, &mut |_, _| {}).unwrap();
     assert_eq!(p1.solution.elements.len(), p0.solution.elements.len(), "the same mesh");
-    let nodal = Nodal::new(&scene, &p1.solution.elements, &coef).unwrap();
+    let nodal = Nodal::new(&scene, &p1.solution.elements, coef).unwrap();
     let s1 = score_reconstruction_in_band(&scene, &p1.solution, &nodal, &set.points, &exact, Some(&in_band))
         .unwrap();
     let (e0, e1) = (s0.pointwise.scene.l2_debiased, s1.pointwise.scene.l2_debiased);

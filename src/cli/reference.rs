@@ -603,14 +603,14 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         let kind =
             args.reconstruction.as_deref().unwrap_or(if coefficients.is_some() { "nodal" } else { "flat" });
         let nodal_coefficients = match (kind, coefficients) {
-            ("gouraud", _) => Some(radlab::reconstruction::gouraud(&sol.elements)),
+            ("gouraud", _) => Some(radlab::reconstruction::gouraud(&scene, &sol.elements)),
             ("nodal", c) => c,
             _ => None,
         };
         writeln!(log, "reconstruction: {kind}")?;
         let score = match &nodal_coefficients {
             Some(c) => {
-                let r = radlab::reconstruction::Nodal::new(&scene, &sol.elements, c)?;
+                let r = radlab::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?;
                 radlab::pointwise::score_reconstruction_in_band(
                     &scene,
                     &sol,
