@@ -414,7 +414,8 @@ fn solve(
     let secs = t0.elapsed().as_secs_f64();
     writeln!(log, "\n{method}: {} elements, {} links, {secs:.3} s", sol.elements.len(), sol.stats.links)?;
     if let Some(lp) = linear {
-        writeln!(log, "order 1 ({}), Galerkin", lp.label())?;
+        let unknowns = sol.stats.extra.as_ref().and_then(|x| x["unknowns"].as_u64()).unwrap_or(0);
+        writeln!(log, "order 1 ({}), Galerkin: {unknowns} unknowns", lp.label())?;
     }
     Ok((sol, coefficients))
 }

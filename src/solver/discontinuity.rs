@@ -19,6 +19,9 @@
 //!      ▲                                                                       │
 //!      └─────────────── element (patch p, piece q's polygon, B_q) ◀── pull_back ┘
 //! ```
+//!
+//! [`solve_galerkin`] does the same with the Galerkin solver of [`super::linear`] (p = 0 or
+//! p = 1, continuous across the pieces of one input patch) and returns the coefficients too.
 
 use super::linear::LinearParams;
 use super::uniform::{self, COARSE_FF_TOLERANCE, UniformParams, mesh_scene};
