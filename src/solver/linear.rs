@@ -372,12 +372,7 @@ pub fn solve_mesh(
                 links: entries,
                 iterations,
                 rays,
-                time_s: PhaseTimes {
-                    form_factors: t_ff,
-                    solve: t_solve,
-                    total: t_ff + t_solve,
-                    ..PhaseTimes::default()
-                },
+                time_s: PhaseTimes::of_solve(t_ff, t_solve),
                 extra: Some(serde_json::json!({
                     "order": params.order.degree(),
                     "continuity": if params.continuous { "continuous" } else { "discontinuous" },

@@ -79,6 +79,14 @@ pub struct PhaseTimes {
     pub total: f64,
 }
 
+impl PhaseTimes {
+    /// A solver's own two phases (load and BVH are the caller's): form factors, then the solve.
+    #[must_use]
+    pub fn of_solve(form_factors: f64, solve: f64) -> PhaseTimes {
+        PhaseTimes { form_factors, solve, total: form_factors + solve, ..PhaseTimes::default() }
+    }
+}
+
 /// Statistics common to every solver (the hierarchical solver adds its own in `extra`).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct SolveStats {
