@@ -475,6 +475,8 @@ fn pair_block(
         return None;
     }
     let behind = |of: &Prepared, other: &Prepared| {
+        // Rounding of a vertex that lies in the plane (coplanar pieces of one receiver, shared
+        // edges) is ~1e-16 relative: 1e-12 of the pair's size counts as in the plane.
         let eps = 1e-12 * (of.radius + other.radius);
         other.verts.iter().all(|v| of.normal.dot(*v - of.centroid) <= eps)
     };
