@@ -37,11 +37,11 @@ fn row<'a>(rows: &'a [StudyRow], method: &str, n: u32) -> &'a StudyRow {
 
 /// On parallel squares B = ρE·F(x) is smooth (analytic on the receiver), so the pointwise error
 /// falls as h^(p+1). Measured slopes over n = 2 … 16 (release, this lattice): p0 flat 0.97,
-/// p1 discontinuous 2.02, p1 continuous 2.02 (docs/meshing.md's table goes to n = 128: 1.01 and
-/// 2.0). Tolerances: ±0.1 on p = 0 and [1.85, 2.25] on p = 1 — the fit includes the coarsest
+/// p1 discontinuous 2.00, p1 continuous 2.00 (docs/meshing.md's table goes to n = 128: 1.00 and
+/// 1.97). Tolerances: ±0.1 on p = 0 and [1.85, 2.25] on p = 1 — the fit includes the coarsest
 /// mesh (2 × 2), where the error is not yet in its asymptotic regime (the successive ratios go
-/// 1.90, 1.98, 2.01 for p = 0); the quadrature error (< 1e-6 relative, module docs of
-/// solver::linear) is far below the finest p = 1 error (4e-4), so it cannot bend the line.
+/// 1.93, 1.94, 2.01 for p = 0); the quadrature error is far below the finest p = 1 error here
+/// (0.039 %): the docs' table keeps the slope down to 0.00073 % at n = 128.
 #[test]
 fn smooth_scene_converges_at_order_p_plus_one() {
     let rows = order_study::run(StudyScene::ParallelSquares, &quick(61)).unwrap();
@@ -65,10 +65,11 @@ fn smooth_scene_converges_at_order_p_plus_one() {
 /// inside elements of size h ≥ 4w here: no polynomial follows it, so raising p helps little
 /// there while it helps a lot where B is smooth. Measured (release, n = 2 … 16): over the whole
 /// receiver the slopes are 0.5–0.7 for every method (not p + 1); at n = 16 going from p = 0 to
-/// p = 1 divides the penumbra band's error by 1.6 (67.7 % → 43.2 %) where on the smooth scene it
-/// divides the error by 40 (1.5 % → 0.037 %). Bounds: slopes < 1.2 (p = 1 would be 2 on a
-/// smooth solution; they are below 1 on this range), band gain < 3 (measured 1.6), smooth
-/// gain > 10 (measured 40) — each with a margin of about 2 for the lattice and jitter.
+/// p = 1 divides the penumbra band's error by 1.6 (this lattice: 64.3 % → 39.0 %) where on the
+/// smooth scene it divides the error by 38 (1.51 % → 0.039 %). Bounds: slopes < 1.2 (p = 1
+/// would be 2 on a smooth solution; they are below 1 on this range), band gain < 3 (measured
+/// 1.6), smooth gain > 10 (measured 38) — margins of about 2 against the lattice's sampling of
+/// the narrow band (a few hundred points).
 #[test]
 fn near_a_shadow_raising_p_helps_little() {
     let rows = order_study::run(StudyScene::ShadowNarrow, &quick(127)).unwrap();

@@ -20,8 +20,8 @@
 //! ## How it works
 //! - **Couplings** (`pair_block`): for each unordered element pair {a, b} facing each other,
 //!   the block `G_ab` (rows a's basis, columns b's) is integrated once — the outer integral over
-//!   the smaller element with a 3 × 3 Gauss rule, the inner one over the other element
-//!   adaptively — and `G_ba = G_abᵀ` (K and V are symmetric), so G is exactly symmetric:
+//!   the smaller element with a 3 × 3 Gauss rule (6 × 6 on near pairs), the inner one over the
+//!   other element adaptively — and `G_ba = G_abᵀ` (K and V are symmetric), so G is exactly symmetric:
 //!
 //!   ```text
 //!   inner(x, piece):  piece far from x (distance > 3 × its radius)  →  4 × 4 Gauss, point kernel
@@ -60,9 +60,10 @@ use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::time::Instant;
 
-/// Gauss points per direction of the outer rule (over the smaller element of a pair): the outer
-/// integrand is smooth on far pairs, and the parallel-squares study (docs/meshing.md) moves by
-/// < 1e-6 relative from 3 to 5.
+/// Gauss points per direction of the outer rule (over the smaller element of a pair) on far
+/// pairs, where the outer integrand is smooth: exact for the p = 1 mass-like part (degree ≤ 5 a
+/// direction), and the parallel-squares study (docs/meshing.md) keeps its slope 2 down to a
+/// 7e-6 relative error, so the rule's error is below that.
 const OUTER_ORDER: usize = 3;
 /// Outer Gauss points per direction on a near pair (centroids closer than [`FAR_RATIO`] × the
 /// sum of the radii): there the inner integral, as a function of x, has a log-singular
@@ -615,9 +616,9 @@ mod tests {
     /// At p = 0 the Galerkin system is the classical one times the areas: on cornell (adjacent
     /// walls: the contact quadrature) the element values agree with the uniform solver's to the
     /// two quadratures' accuracy. Both without occlusion rays (rays = 0) so that only the
-    /// kernels are compared. Tolerance: 0.5 % of the largest reflected value; the uniform
-    /// solver's form factors are to 1e-4 relative, this one's inner rule to ~1e-4 and its 3 × 3
-    /// outer rule is what dominates along the walls' contact edges.
+    /// kernels are compared. Tolerance: 0.5 % of the largest value; the uniform solver's form
+    /// factors are to 1e-4 relative, this one's inner rule to ~1e-4, and its outer Gauss rule
+    /// across the contact edges (where the inner integral is log-singular) is what dominates.
     #[test]
     fn constant_elements_match_the_uniform_solver() {
         let scene = Scene::load("builtin:cornell").unwrap();
