@@ -496,76 +496,24 @@ fn shading_jumps<R: Reconstruction + ?Sized>(
     out
 }
 
-/// The reconstruction a viewer draws from constant elements (Gouraud): each element corner takes
-/// the area-weighted mean of the elements of its patch that share that corner (welded within
-/// 10⁻⁹ of the scene's diagonal; a T-junction's corner is not shared by the long edge), and the
-/// value inside an element is the linear (triangle) or bilinear (quad, exact for
-/// parallelograms) interpolation of its corners' values.
-pub struct Gouraud<'a> {
-    elements: &'a [crate::solver::SolvedElement],
-    locate: PiecewiseConstant<'a>,
-    /// Per element, the value at each corner.
-    corners: Vec<Vec<Rgb>>,
-}
+/// The reconstruction a viewer draws from constant elements (Gouraud,
+/// [`crate::reconstruction::gouraud`]): each element corner takes the area-weighted mean of the
+/// elements of its patch that share that corner (welded within 10⁻⁹ of the scene's diagonal; a
+/// T-junction's corner is not shared by the long edge), and the value inside an element is the
+/// linear (triangle) or bilinear (quad) interpolation of its corners' values.
+pub struct Gouraud<'a>(crate::reconstruction::Nodal<'a>);
 
 impl<'a> Gouraud<'a> {
     /// Weld the corners of `solution`'s elements and average them.
     pub fn new(scene: &'a Scene, solution: &'a Solution) -> Result<Self, MetricsError> {
-        let quantum = 1e-9 * scene.bounds().diagonal().max(f64::MIN_POSITIVE);
-        let key = |patch: usize, v: DVec3| {
-            let q = (v / quantum).round();
-            (patch, q.x as i64, q.y as i64, q.z as i64)
-        };
-        let mut sums: std::collections::HashMap<(usize, i64, i64, i64), (Rgb, f64)> =
-            std::collections::HashMap::new();
-        for e in &solution.elements {
-            for &v in &e.vertices {
-                let s = sums.entry(key(e.patch, v)).or_insert((Rgb::ZERO, 0.0));
-                s.0 += e.radiosity * e.area;
-                s.1 += e.area;
-            }
-        }
-        let corners = solution
-            .elements
-            .iter()
-            .map(|e| {
-                e.vertices
-                    .iter()
-                    .map(|&v| {
-                        let (b, a) = sums[&key(e.patch, v)];
-                        if a > 0.0 { b / a } else { e.radiosity }
-                    })
-                    .collect()
-            })
-            .collect();
-        Ok(Gouraud {
-            elements: &solution.elements,
-            locate: PiecewiseConstant::new(scene, &solution.elements)?,
-            corners,
-        })
+        let corners = crate::reconstruction::gouraud(scene, &solution.elements);
+        Ok(Gouraud(crate::reconstruction::Nodal::new(scene, &solution.elements, corners)?))
     }
 }
 
 impl Reconstruction for Gouraud<'_> {
     fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
-        let Some(i) = self.locate.element_at(patch, x) else {
-            return self.locate.radiosity_at(patch, x);
-        };
-        let (v, c) = (&self.elements[i].vertices, &self.corners[i]);
-        // x − v0 = s (v1 − v0) + t (v_last − v0), least squares in the element's plane.
-        let (e1, e2, d) = (v[1] - v[0], v[v.len() - 1] - v[0], x - v[0]);
-        let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-        let det = a11 * a22 - a12 * a12;
-        if det <= 0.0 {
-            return self.elements[i].radiosity;
-        }
-        let (b1, b2) = (e1.dot(d), e2.dot(d));
-        let (s, t) = ((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det);
-        if v.len() == 3 {
-            c[0] * (1.0 - s - t) + c[1] * s + c[2] * t
-        } else {
-            c[0] * ((1.0 - s) * (1.0 - t)) + c[1] * (s * (1.0 - t)) + c[2] * (s * t) + c[3] * ((1.0 - s) * t)
-        }
+        self.0.radiosity_at(patch, x)
     }
 }
 

@@ -812,7 +812,7 @@ pub fn markdown(report: &BenchReport) -> String {
 /// DejaVu Sans (Bitstream Vera licence, assets/fonts/LICENSE-DejaVu.txt), registered with plotters.
 static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 
-fn register_font() {
+pub(crate) fn register_font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         // Registering fails only for a malformed font, and this one is shipped with the crate.
@@ -929,7 +929,7 @@ pub fn plot_png(report: &BenchReport, path: &Path) -> Result<(), BenchError> {
     write_png_rgb(path, w, h, &buf)
 }
 
-fn write_png_rgb(path: &Path, w: u32, h: u32, rgb: &[u8]) -> Result<(), BenchError> {
+pub(crate) fn write_png_rgb(path: &Path, w: u32, h: u32, rgb: &[u8]) -> Result<(), BenchError> {
     let err = |e: &dyn std::fmt::Display| BenchError::Output(format!("{}: {e}", path.display()));
     let file = std::fs::File::create(path).map_err(|e| err(&e))?;
     let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);

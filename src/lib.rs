@@ -31,6 +31,9 @@
 //! - [`exact`]: exact single-bounce radiosity (one emitter, black occluders, one receiver):
 //!   a closed-form ruler with no reference noise.
 //! - [`pointwise`]: the pointwise ruler — a solution's reconstruction at the reference's points.
+//! - [`basis`]: element basis functions (p = 0 constant, p = 1 linear / bilinear), quadrature on an element.
+//! - [`order_study`]: h- against p-refinement measured on exact single-bounce scenes (slopes, table, plot).
+//! - [`reconstruction`]: flat, Gouraud-from-vertex-averages and nodal p = 1 reconstructions.
 //! - [`penumbra`]: the penumbra band of a point set (points that see part of the direct light).
 //! - [`artifacts`]: the five meshing artifacts of the lecture, one number each, against a reference.
 //! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
@@ -44,6 +47,7 @@
 pub mod accel;
 pub mod artifacts;
 pub mod bake;
+pub mod basis;
 pub mod bench;
 pub mod block_matrix;
 pub mod exact;
@@ -56,9 +60,11 @@ pub mod link;
 pub mod math;
 pub mod mesh;
 pub mod metrics;
+pub mod order_study;
 pub mod overlay;
 pub mod penumbra;
 pub mod pointwise;
+pub mod reconstruction;
 pub mod reference;
 pub mod scene;
 pub mod solver;

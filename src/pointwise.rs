@@ -25,9 +25,9 @@
 //! pointwise error includes both.
 //!
 //! A reconstruction is anything that implements [`Reconstruction`] — [`PiecewiseConstant`] for
-//! a [`Solution`]'s leaves, or a closure `Fn(patch, point) -> Rgb` (a linear-element
-//! reconstruction plugs in the same way). Evaluation runs in parallel and is a pure function of
-//! its inputs.
+//! a [`Solution`]'s leaves, a closure `Fn(patch, point) -> Rgb`, or the Gouraud and p = 1 views
+//! of [`crate::reconstruction`] ([`score_reconstruction_in_band`] scores them). Evaluation runs
+//! in parallel and is a pure function of its inputs.
 //!
 //! An element that carries a [`crate::solver::Slope`] (the hierarchical solver's leaves, from the
 //! irradiance slopes it pushes down) is reconstructed linearly, B(x) = B_e + ∇B_e·(x − c_e), the
@@ -253,25 +253,56 @@ pub fn score_solution_in_band(
     reference: &[Estimate],
     band: Option<&[bool]>,
 ) -> Result<PointwiseScore, MetricsError> {
-    if points.len() != reference.len() {
-        return Err(MetricsError::LengthMismatch { solution: points.len(), reference: reference.len() });
-    }
     // Every point is located once and serves both figures.
     let pc = PiecewiseConstant::new(scene, &solution.elements)?;
     let owner = pc.owners(points);
     let values: Vec<Rgb> =
         points.iter().zip(&owner).map(|(p, o)| pc.value_of(p.patch, *o, p.position)).collect();
+    score_values(scene, solution, points, reference, band, &values, &owner)
+}
+
+/// Both figures (and the band's) from the reconstruction's `values` at the points and each
+/// point's element (`owner`).
+fn score_values(
+    scene: &Scene,
+    solution: &Solution,
+    points: &[RefPoint],
+    reference: &[Estimate],
+    band: Option<&[bool]>,
+    values: &[Rgb],
+    owner: &[Option<usize>],
+) -> Result<PointwiseScore, MetricsError> {
+    if points.len() != reference.len() {
+        return Err(MetricsError::LengthMismatch { solution: points.len(), reference: reference.len() });
+    }
     let residual = solution.energy.relative_residual();
     let penumbra = match band {
-        Some(b) => compare_points_in(scene, points, &values, reference, b, residual)?,
+        Some(b) => compare_points_in(scene, points, values, reference, b, residual)?,
         None => None,
     };
     Ok(PointwiseScore {
         points: points.len(),
-        pointwise: compare_points(scene, points, &values, reference, residual)?,
-        element_average: element_averages(scene, solution, points, reference, &owner)?,
+        pointwise: compare_points(scene, points, values, reference, residual)?,
+        element_average: element_averages(scene, solution, points, reference, owner)?,
         penumbra,
     })
+}
+
+/// [`score_solution_in_band`] with the pointwise figures read through `reconstruction` (e.g. a
+/// p = 1 solution's own functions, or Gouraud shading, [`crate::reconstruction`]) instead of
+/// the elements' constant values; the element-average figure is the solution's elements', as
+/// there.
+pub fn score_reconstruction_in_band<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    reconstruction: &R,
+    points: &[RefPoint],
+    reference: &[Estimate],
+    band: Option<&[bool]>,
+) -> Result<PointwiseScore, MetricsError> {
+    let owner = PiecewiseConstant::new(scene, &solution.elements)?.owners(points);
+    let values = evaluate(reconstruction, points);
+    score_values(scene, solution, points, reference, band, &values, &owner)
 }
 
 /// A one-line label of a pointwise figure: "pointwise rel L2 4.21 % (65 536 points, noise 0.31 %)".

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod figures;
 pub mod form_factor;
+pub mod h_vs_p;
 pub mod mesh;
 pub mod reference;
 pub mod scenes;
@@ -40,6 +41,9 @@ pub enum Command {
     Bench(bench::Args),
     /// Discontinuity mesh of a scene (critical segments, CDT or BSP): counts and meshing time.
     Mesh(mesh::Args),
+    /// h- against p-refinement: Galerkin p = 0 / p = 1 on exact single-bounce scenes (table,
+    /// slopes, log-log plot).
+    HVsP(h_vs_p::Args),
     /// Hierarchical solver speed benchmark (default: the SPLASH-2 room at SPLASH-2 settings).
     Speed(speed::Args),
 }
@@ -56,5 +60,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Bench(a)) => bench::run(a),
         Some(Command::Speed(a)) => speed::run(a),
         Some(Command::Mesh(a)) => mesh::run(a),
+        Some(Command::HVsP(a)) => h_vs_p::run(a),
     }
 }

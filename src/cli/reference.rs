@@ -64,6 +64,18 @@ pub struct Args {
     /// Hierarchical preset for --compare (interactive, quality, lecture, splash2).
     #[arg(long, default_value = "interactive")]
     pub preset: String,
+    /// Element order of --compare uniform / dmesh-cdt / dmesh-bsp: 0 constant (the classical
+    /// solver), 1 linear / bilinear with a Galerkin solve (src/solver/linear.rs).
+    #[arg(long, default_value_t = 0)]
+    pub order: u32,
+    /// With --order 1: vertex values shared by the elements of a patch (continuous basis).
+    #[arg(long)]
+    pub continuous: bool,
+    /// How the pointwise ruler reads the --compare solution: `flat` (element values), `gouraud`
+    /// (vertex averages, interpolated), `nodal` (the elements' own p = 1 functions; needs
+    /// --order 1). Default: flat at order 0, nodal at order 1.
+    #[arg(long, value_parser = ["flat", "gouraud", "nodal"])]
+    pub reconstruction: Option<String>,
     /// Element size of --compare uniform/progressive (default: scene diagonal / 16).
     #[arg(long)]
     pub solve_element_size: Option<f64>,
@@ -270,7 +282,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         writeln!(log, "mean relative standard error per element: {:.2} %", 100.0 * mean)?;
     }
     if let Some(method) = &args.compare {
-        let sol = solve(&args, method, &scene, &accel, &mut log)?;
+        let (sol, _) = solve(&args, method, &scene, &accel, &mut log)?;
         compare(&args, &sol, &scene, &accel, &mesh, &entry.estimates, &mut log)?;
     } else if args.images.is_some() {
         anyhow::bail!("--images needs --compare METHOD");
@@ -300,11 +312,13 @@ fn solve(
     scene: &radlab::scene::Scene,
     accel: &Accel,
     log: &mut Box<dyn Write>,
-) -> anyhow::Result<radlab::solver::Solution> {
+) -> anyhow::Result<(radlab::solver::Solution, Option<Vec<Vec<Rgb>>>)> {
     use radlab::solver::params::HierarchicalParams;
     use radlab::solver::{hierarchical::HierarchicalSolver, progressive, uniform};
     let h = args.solve_element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
     let t0 = std::time::Instant::now();
+    let linear = linear_params(args, method)?;
+    let mut coefficients = None;
     let sol = match method {
         "hierarchical" => {
             let mut p = HierarchicalParams::preset(&args.preset).with_context(|| {
@@ -324,6 +338,13 @@ fn solve(
                 HierarchicalSolver::new(std::sync::Arc::new(scene.clone()), p).map_err(anyhow::Error::msg)?;
             s.solve(&mut |_, _| {});
             s.solution()
+        }
+        "uniform" if linear.is_some() => {
+            let p = radlab::solver::linear::LinearParams { element_size: h, ..linear.unwrap_or_default() };
+            let s = radlab::solver::linear::solve(scene, accel, &p, &mut |_, _| {})
+                .map_err(anyhow::Error::msg)?;
+            coefficients = Some(s.coefficients);
+            s.solution
         }
         "uniform" => {
             let p = uniform::UniformParams {
@@ -359,7 +380,19 @@ fn solve(
             };
             p.solve.rays = args.solve_rays.unwrap_or(p.solve.rays);
             p.solve.seed = args.solve_seed.unwrap_or(p.solve.seed);
-            let d = discontinuity::solve(scene, &p, &mut |_, _| {})?;
+            let d = match &linear {
+                Some(lp) => {
+                    let lp = radlab::solver::linear::LinearParams {
+                        rays: p.solve.rays,
+                        seed: p.solve.seed,
+                        ..*lp
+                    };
+                    let (d, c) = discontinuity::solve_galerkin(scene, &p, &lp, &mut |_, _| {})?;
+                    coefficients = Some(c);
+                    d
+                }
+                None => discontinuity::solve(scene, &p, &mut |_, _| {})?,
+            };
             let m = &d.mesh;
             writeln!(
                 log,
@@ -380,7 +413,41 @@ fn solve(
     };
     let secs = t0.elapsed().as_secs_f64();
     writeln!(log, "\n{method}: {} elements, {} links, {secs:.3} s", sol.elements.len(), sol.stats.links)?;
-    Ok(sol)
+    if let Some(lp) = linear {
+        let unknowns = sol.stats.extra.as_ref().and_then(|x| x["unknowns"].as_u64()).unwrap_or(0);
+        writeln!(log, "order 1 ({}), Galerkin: {unknowns} unknowns", lp.label())?;
+    }
+    Ok((sol, coefficients))
+}
+
+/// The Galerkin settings of `--order 1` (None at order 0), refusing the unsupported combinations.
+fn linear_params(args: &Args, method: &str) -> anyhow::Result<Option<radlab::solver::linear::LinearParams>> {
+    use radlab::basis::Order;
+    match args.order {
+        0 => {
+            anyhow::ensure!(!args.continuous, "--continuous needs --order 1");
+            anyhow::ensure!(
+                args.reconstruction.as_deref() != Some("nodal"),
+                "--reconstruction nodal needs --order 1 (use flat or gouraud at order 0)"
+            );
+            Ok(None)
+        }
+        1 => {
+            anyhow::ensure!(
+                matches!(method, "uniform" | "dmesh-cdt" | "dmesh-bsp"),
+                "--order 1 is implemented for --compare uniform, dmesh-cdt and dmesh-bsp (not {method})"
+            );
+            let p = radlab::solver::linear::LinearParams {
+                order: Order::Linear,
+                continuous: args.continuous,
+                rays: args.solve_rays.unwrap_or(16),
+                seed: args.solve_seed.unwrap_or(0),
+                ..radlab::solver::linear::LinearParams::default()
+            };
+            Ok(Some(p))
+        }
+        p => anyhow::bail!("--order {p}: supported orders are 0 and 1"),
+    }
 }
 
 /// Print the error of a solution against the element-average reference per patch and for the scene.
@@ -531,11 +598,37 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     let cells = points.iter().zip(&entry.estimates).map(|(p, e)| (p.patch, p.area, e));
     let patches = patch_summaries(&scene, cells, "points", &mut log)?;
     if let Some(method) = &args.compare {
-        let sol = solve(args, method, &scene, &accel, &mut log)?;
+        let (sol, coefficients) = solve(args, method, &scene, &accel, &mut log)?;
         let band_params = radlab::penumbra::BandParams::standard();
         let band = radlab::penumbra::band(&scene, &accel, points, &entry.estimates, &band_params);
-        let score =
-            radlab::pointwise::score_solution_in_band(&scene, &sol, points, &entry.estimates, Some(&band))?;
+        let kind =
+            args.reconstruction.as_deref().unwrap_or(if coefficients.is_some() { "nodal" } else { "flat" });
+        let nodal_coefficients = match (kind, coefficients) {
+            ("gouraud", _) => Some(radlab::reconstruction::gouraud(&scene, &sol.elements)),
+            ("nodal", c) => c,
+            _ => None,
+        };
+        writeln!(log, "reconstruction: {kind}")?;
+        let score = match &nodal_coefficients {
+            Some(c) => {
+                let r = radlab::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?;
+                radlab::pointwise::score_reconstruction_in_band(
+                    &scene,
+                    &sol,
+                    &r,
+                    points,
+                    &entry.estimates,
+                    Some(&band),
+                )?
+            }
+            None => radlab::pointwise::score_solution_in_band(
+                &scene,
+                &sol,
+                points,
+                &entry.estimates,
+                Some(&band),
+            )?,
+        };
         writeln!(log, "{}:", radlab::pointwise::label(&score.pointwise, points.len()))?;
         print_report(&score.pointwise, true, &mut log)?;
         match &score.penumbra {

@@ -5,7 +5,9 @@
 use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use radlab::accel::Accel;
+use radlab::basis::Order;
 use radlab::solver::hierarchical::HierarchicalSolver;
+use radlab::solver::linear::{self, LinearParams};
 use radlab::solver::params::{AreaEps, HierarchicalParams, Oracle};
 use radlab::solver::progressive::{self, ProgressiveParams};
 use radlab::solver::uniform::{self, UniformParams};
@@ -97,6 +99,14 @@ pub struct Args {
     /// bounding-box diagonal.
     #[arg(long)]
     pub element_size: Option<f64>,
+    /// Element order (uniform): 0 constant elements (the classical solver), 1 linear triangles /
+    /// bilinear quads with a Galerkin solve (src/solver/linear.rs).
+    #[arg(long, default_value_t = 0)]
+    pub order: u32,
+    /// With --order 1: one value per mesh vertex shared by the elements of a patch (continuous
+    /// basis) instead of per-element vertex values.
+    #[arg(long)]
+    pub continuous: bool,
     /// Largest number of shots (progressive).
     #[arg(long)]
     pub max_shots: Option<u32>,
@@ -302,6 +312,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bvh_s = t.elapsed().as_secs_f64();
     let default_size = scene.bounds().diagonal() / 8.0;
 
+    check_order(&args)?;
     let mut bar = LazyBar::new(&format!("{:?}", args.method).to_lowercase(), args.quiet);
     let mut hier: Option<HierarchicalSolver> = None;
     let (mut solution, params_json) = match args.method {
@@ -319,6 +330,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let sol = s.solution_with(args.estimate);
             hier = Some(s);
             (sol, serde_json::to_value(p)?)
+        }
+        Method::Uniform if args.order == 1 => {
+            let mut p = LinearParams {
+                seed: args.seed,
+                element_size: args.element_size.unwrap_or(default_size),
+                order: Order::Linear,
+                continuous: args.continuous,
+                ..LinearParams::default()
+            };
+            if let Some(v) = args.rays {
+                p.rays = v;
+            }
+            if let Some(v) = args.tolerance {
+                p.tolerance = v;
+            }
+            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
+            let sol = linear::solve(&scene, &accel, &p, &mut |d, n| bar.update(d, n))
+                .map_err(anyhow::Error::msg)
+                .with_context(|| format!("solving {}", args.scene))?;
+            (sol.solution, serde_json::to_value(p)?)
         }
         Method::Uniform => {
             let mut p =
@@ -438,7 +469,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))?;
         baked = Some((path, exposure));
     }
-    let doc = solution_json(&args.scene, &scene, &solution, params_json);
+    let mut doc = solution_json(&args.scene, &scene, &solution, params_json);
+    doc["order"] = json!(args.order);
     match args.json.as_deref() {
         Some("-") => println!("{}", serde_json::to_string_pretty(&doc)?),
         Some(path) => std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")
@@ -456,6 +488,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `--order` and `--continuous` against the method: p = 1 exists for the uniform mesh only.
+fn check_order(args: &Args) -> anyhow::Result<()> {
+    match args.order {
+        0 if args.continuous => bail!("--continuous needs --order 1 (constant elements share no values)"),
+        0 => Ok(()),
+        1 if args.method != Method::Uniform => bail!(
+            "--order 1 is implemented for --method uniform only (and for `radlab reference --compare uniform|dmesh-cdt|dmesh-bsp`); {:?} solves with constant elements",
+            args.method
+        ),
+        1 if args.ff_tol.is_some() => bail!(
+            "--ff-tol applies to the order-0 solver; --order 1 integrates its couplings with a fixed Gauss rule (src/solver/linear.rs)"
+        ),
+        1 => Ok(()),
+        p => bail!("--order {p}: supported orders are 0 (constant) and 1 (linear / bilinear)"),
+    }
 }
 
 /// Check `--bake PATH` before the solve, so a bad path fails at once: a known extension, an

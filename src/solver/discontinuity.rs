@@ -19,10 +19,15 @@
 //!      ▲                                                                       │
 //!      └─────────────── element (patch p, piece q's polygon, B_q) ◀── pull_back ┘
 //! ```
+//!
+//! [`solve_galerkin`] does the same with the Galerkin solver of [`super::linear`] (p = 0 or
+//! p = 1, continuous across the pieces of one input patch) and returns the coefficients too.
 
-use super::uniform::{self, COARSE_FF_TOLERANCE, UniformParams};
+use super::linear::LinearParams;
+use super::uniform::{self, COARSE_FF_TOLERANCE, UniformParams, mesh_scene};
 use super::{Progress, Solution};
 use crate::accel::Accel;
+use crate::math::Rgb;
 use crate::mesh::MeshError;
 use crate::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, discontinuity_scene};
 use crate::scene::Scene;
@@ -108,6 +113,35 @@ pub fn solve(
     Ok(DiscontinuitySolution { solution, mesh: meshed.stats, solve_s })
 }
 
+/// [`solve`] with the Galerkin solver of [`super::linear`] on the pieces (order and continuity
+/// from `linear`; its element size is not used: one element per piece). Continuous coefficients
+/// are shared between the pieces of one input patch (the CDT is conforming). Returns the solution
+/// on the input scene and each element's coefficients ([`crate::reconstruction::Nodal`]).
+pub fn solve_galerkin(
+    scene: &Scene,
+    params: &DiscontinuityParams,
+    linear: &LinearParams,
+    progress: Progress,
+) -> Result<(DiscontinuitySolution, Vec<Vec<Rgb>>), DiscontinuityError> {
+    let meshed = discontinuity_scene(scene, &params.mesh)?;
+    let t = Instant::now();
+    let accel = Accel::build(&meshed.scene);
+    let per_element = linear.order.functions(4);
+    let elems = mesh_scene(&meshed.scene, f64::INFINITY, linear.max_unknowns / per_element.max(1))
+        .map_err(DiscontinuityError::Solve)?;
+    let groups: Vec<usize> = elems.iter().map(|e| meshed.origin[e.patch]).collect();
+    let on_mesh = super::linear::solve_mesh(&meshed.scene, &accel, elems, &groups, linear, progress)
+        .map_err(DiscontinuityError::Solve)?;
+    let solve_s = t.elapsed().as_secs_f64();
+    let mut solution = pull_back(on_mesh.solution, &meshed.origin, scene.patches.len());
+    solution.method = match params.mesh.kind {
+        MeshKind::Cdt => "discontinuity-cdt",
+        MeshKind::Bsp => "discontinuity-bsp",
+    }
+    .into();
+    Ok((DiscontinuitySolution { solution, mesh: meshed.stats, solve_s }, on_mesh.coefficients))
+}
+
 /// A solution of a remeshed scene as a solution of its input scene: each element's patch `q`
 /// becomes `origin[q]` (the input patch piece `q` was cut from), and the per-patch averages are
 /// taken over the input's `input_patches` patches. Elements, values, energy and statistics are
@@ -125,7 +159,6 @@ pub fn pull_back(mut solution: Solution, origin: &[usize], input_patches: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Rgb;
 
     #[test]
     fn pull_back_maps_pieces_to_their_input_patch() {

@@ -10,6 +10,8 @@
 //! - [`hierarchical`]: HSA91 — quadtree, Refine (Feps/Aeps or BF oracle), Gather, push-pull.
 //! - [`discontinuity`]: the uniform solver at p = 0 on a discontinuity mesh ([`crate::mesh`]),
 //!   reported on the input scene's patches.
+//! - [`linear`]: Galerkin radiosity with p = 0 or p = 1 elements (linear / bilinear),
+//!   discontinuous or continuous, mass matrix on the left [Zatz 1993; Troutman & Max 1993].
 //!
 //! Every solver returns a [`Solution`]: leaf elements with geometry and radiosity, per-patch
 //! area-weighted radiosity, the energy balance and statistics. The CLI's JSON, the PNG renderer,
@@ -17,6 +19,7 @@
 
 pub mod discontinuity;
 pub mod hierarchical;
+pub mod linear;
 /// The hierarchical solver's own error estimate (kept at its old path).
 pub use hierarchical::estimate;
 pub mod params;
@@ -96,6 +99,14 @@ pub struct PhaseTimes {
     pub form_factors: f64,
     pub solve: f64,
     pub total: f64,
+}
+
+impl PhaseTimes {
+    /// A solver's own two phases (load and BVH are the caller's): form factors, then the solve.
+    #[must_use]
+    pub fn of_solve(form_factors: f64, solve: f64) -> PhaseTimes {
+        PhaseTimes { form_factors, solve, total: form_factors + solve, ..PhaseTimes::default() }
+    }
 }
 
 /// Statistics common to every solver (the hierarchical solver adds its own in `extra`).

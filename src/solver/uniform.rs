@@ -469,12 +469,7 @@ pub fn solve(
             links,
             iterations,
             rays,
-            time_s: PhaseTimes {
-                form_factors: t_ff,
-                solve: t_solve,
-                total: t_ff + t_solve,
-                ..PhaseTimes::default()
-            },
+            time_s: PhaseTimes::of_solve(t_ff, t_solve),
             extra: Some(serde_json::json!({
                 "converged": converged,
                 "final_change": last_change,
