@@ -30,6 +30,8 @@ pub struct Block {
     pub receiver: u32,
     pub source: u32,
     pub ff: f32,
+    /// Visible fraction of the link.
+    pub vis: f32,
 }
 
 /// The matrix: `n` leaves on each side, one block per link.
@@ -83,6 +85,7 @@ impl BlockMatrix {
                 receiver: l.receiver,
                 source: l.source,
                 ff: l.ff,
+                vis: l.vis,
             })
             .collect();
         BlockMatrix { n: next, blocks, runs }

@@ -835,6 +835,56 @@ pub fn heatmap_colors(values: &[f64]) -> (Vec<[f32; 3]>, Option<LogScale>) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Hover highlight
+
+/// What the viewer highlights in 3-D and in the blocking matrix: one link (a block of the
+/// matrix hovered) or one element (hovered or picked in the viewport).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Highlight {
+    /// Receiver p gathers from source q.
+    Link {
+        receiver: u32,
+        source: u32,
+    },
+    Element(u32),
+}
+
+/// Outline colour of a highlighted receiver (orange).
+pub const HIGHLIGHT_RECEIVER: [f32; 4] = [1.0, 0.55, 0.1, 1.0];
+/// Outline colour of a highlighted source (cyan).
+pub const HIGHLIGHT_SOURCE: [f32; 4] = [0.2, 0.85, 1.0, 1.0];
+/// Colour of a highlighted link's line.
+pub const HIGHLIGHT_LINK: [f32; 4] = [1.0, 1.0, 1.0, 1.0];
+
+/// The lines of a highlight: each element's outline (receiver orange, source cyan, a lone
+/// element orange), then for a link the line between the two centroids (white). Ids outside
+/// `elements` draw nothing.
+#[must_use]
+pub fn highlight_lines(elements: &[ElementView], h: Highlight) -> LineList {
+    let mut out = LineList::default();
+    let mut outline = |id: u32, color: [f32; 4]| {
+        let Some(e) = elements.get(id as usize) else { return false };
+        let v = e.verts();
+        for i in 0..v.len() {
+            out.push(v[i], v[(i + 1) % v.len()], color);
+        }
+        true
+    };
+    match h {
+        Highlight::Element(id) => {
+            outline(id, HIGHLIGHT_RECEIVER);
+        }
+        Highlight::Link { receiver, source } => {
+            if outline(receiver, HIGHLIGHT_RECEIVER) & outline(source, HIGHLIGHT_SOURCE) {
+                let (r, s) = (&elements[receiver as usize], &elements[source as usize]);
+                out.push(r.centroid(), s.centroid(), HIGHLIGHT_LINK);
+            }
+        }
+    }
+    out
+}
+
+// ---------------------------------------------------------------------------------------------
 // Picking
 
 /// Relative tolerance of the inside test (fraction of the element's edge length), so a ray
@@ -874,6 +924,24 @@ pub fn pick(elements: &[ElementView], leaves: &[u32], origin: DVec3, dir: DVec3)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn highlight_outlines_both_elements_and_draws_the_link() {
+        let e = vec![quad(0, 0, 0.0, 0.0, 1.0, 0.5), quad(1, 0, 2.0, 0.0, 1.0, 0.5)];
+        let l = highlight_lines(&e, Highlight::Link { receiver: 0, source: 1 });
+        assert_eq!(l.segments(), 4 + 4 + 1, "two quads' edges and the link");
+        assert_eq!(l.colors[0], HIGHLIGHT_RECEIVER);
+        assert_eq!(l.colors[8], HIGHLIGHT_SOURCE);
+        let n = l.points.len();
+        assert_eq!((l.points[n - 2], l.points[n - 1]), (e[0].centroid(), e[1].centroid()));
+        assert_eq!(l.colors[n - 1], HIGHLIGHT_LINK);
+        assert_eq!(highlight_lines(&e, Highlight::Element(1)).segments(), 4);
+        assert_eq!(
+            highlight_lines(&e, Highlight::Link { receiver: 0, source: 7 }).segments(),
+            4,
+            "no link line to a missing element"
+        );
+    }
 
     fn quad(id: u32, depth: u8, x0: f64, y0: f64, s: f64, b: f64) -> ElementView {
         ElementView {

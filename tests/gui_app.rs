@@ -723,6 +723,70 @@ fn lecture_figures_run_their_steps_pick_and_sweep() {
     assert!(h.query_by_label("Links against elements, runs in this window (log₁₀)").is_some());
 }
 
+/// The matrix and the viewport highlight each other: hovering a block highlights its link and
+/// its two elements in 3-D; hovering an element in the viewport (or picking it) highlights its
+/// row, column and blocks in the matrix.
+#[test]
+fn matrix_block_and_viewport_element_highlight_each_other() {
+    use radlab::figures::find;
+    use radlab::overlay::{Highlight, highlight_lines};
+    let mut h = harness(opts());
+    h.run_steps(2);
+    h.state_mut().open_figure(find("block-matrix").unwrap());
+    settle(&mut h);
+    assert_eq!(h.state().highlight(), None, "nothing hovered yet");
+    let v = Arc::clone(h.state().view());
+    // The upper-right quarter of the matrix: the vertical square's leaves receiving from the
+    // floor square's.
+    let legend = h.get_by_label_contains("rows: receiver leaves").rect();
+    h.hover_at(egui::pos2(legend.left() + 0.75 * 360.0, legend.top() - 0.75 * 360.0));
+    h.run_steps(2);
+    let hl = h.state().highlight();
+    let Some(Highlight::Link { receiver, source }) = hl else {
+        panic!("a hovered block highlights its link: {hl:?}")
+    };
+    assert!(v.links.iter().any(|l| l.receiver == receiver && l.source == source), "a link of the solution");
+    let (r, s) = (&v.elements[receiver as usize], &v.elements[source as usize]);
+    assert_ne!(r.patch, s.patch, "across the two squares");
+    let lines = highlight_lines(&v.elements, hl.unwrap());
+    let n = lines.points.len();
+    assert_eq!(lines.segments(), usize::from(r.n_vertices + s.n_vertices) + 1, "two outlines and the link");
+    assert_eq!((lines.points[n - 2], lines.points[n - 1]), (r.centroid(), s.centroid()));
+
+    // The reverse: the pointer over an element in the viewport (left of the matrix window).
+    let vp = h.state().viewport_rect();
+    let mut hovered = None;
+    'scan: for fy in [0.5, 0.6, 0.7, 0.8, 0.4, 0.3] {
+        for fx in [0.1, 0.2, 0.3, 0.05] {
+            let at = egui::pos2(vp.left() + fx * vp.width(), vp.top() + fy * vp.height());
+            h.hover_at(at);
+            h.run_steps(2);
+            if let Some(id) = h.state().viewport_hover() {
+                hovered = Some((id, at));
+                break 'scan;
+            }
+        }
+    }
+    let (id, at) = hovered.expect("some viewport point left of the matrix shows an element");
+    assert!(v.elements[id as usize].leaf);
+    assert_eq!(h.state().highlight(), Some(Highlight::Element(id)), "outlined in the viewport too");
+    let row = h.state().lecture.matrix.highlighted().expect("the hovered element's row is highlighted");
+    assert_eq!(row.element, id);
+    assert_eq!(row.run.1 - row.run.0, 1, "a leaf: one row, one column");
+    let own = v.links.iter().filter(|l| l.receiver == id || l.source == id).count();
+    assert!(row.blocks >= own && row.blocks > 0, "its blocks outlined: {} of at least {own}", row.blocks);
+    assert!(h.query_by_label_contains(&format!("element {id}: its row")).is_some());
+    // Picked, then the pointer leaves the viewport: the picked element stays highlighted.
+    click_at(&mut h, at);
+    h.run_steps(2);
+    assert_eq!(h.state().selected, Some(id));
+    h.hover_at(egui::pos2(5.0, 5.0));
+    h.run_steps(2);
+    assert_eq!(h.state().viewport_hover(), None);
+    assert_eq!(h.state().highlight(), None);
+    assert_eq!(h.state().lecture.matrix.highlighted().map(|r| r.element), Some(id));
+}
+
 /// The keyboard shortcuts act, and the Help menu and window list them.
 #[test]
 fn keyboard_shortcuts_act_and_help_lists_them() {

@@ -12,6 +12,7 @@ use super::file_dialog::{Answer, FileDialogs, Purpose};
 use super::help::{self, Action};
 use super::history::{HistoryAction, RunHistory};
 use super::lecture::Lecture;
+use super::matrix::MatrixAction;
 use super::pane::PaneStyle;
 use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
 use super::replay::{Replay, ReplayInput};
@@ -20,7 +21,7 @@ use super::view::View;
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
-use crate::overlay::{self, Decimation, LinkFilter, LogScale, Palette};
+use crate::overlay::{self, Decimation, Highlight, LinkFilter, LogScale, Palette};
 use crate::render::{
     FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, RgbaImage, SceneRenderer,
     Uniforms, ViewportCallback,
@@ -271,6 +272,11 @@ pub struct RadlabApp {
     link_scale: Option<LogScale>,
     error_scale: Option<LogScale>,
     pub selected: Option<u32>,
+    /// The link of the matrix block hovered this frame (highlighted in the viewport).
+    matrix_hover: Option<Highlight>,
+    /// The leaf under the pointer in the viewport, while the matrix window is open (its row and
+    /// column are highlighted there).
+    viewport_hover: Option<u32>,
     has_wgpu: bool,
     viewport_rect: Rect,
     script: Script,
@@ -409,6 +415,8 @@ impl RadlabApp {
             link_scale: None,
             error_scale: None,
             selected: None,
+            matrix_hover: None,
+            viewport_hover: None,
             has_wgpu,
             viewport_rect: Rect::NOTHING,
             script: Script::None,
@@ -1673,6 +1681,12 @@ impl RadlabApp {
         {
             self.pick_at(pos, rect);
         }
+        // While the matrix is open, the leaf under the pointer is highlighted there.
+        self.viewport_hover = if self.lecture.matrix.open {
+            response.hover_pos().and_then(|pos| self.pick_id(pos, rect))
+        } else {
+            None
+        };
 
         self.request_geometry();
         self.poll_geometry();
@@ -1700,6 +1714,7 @@ impl RadlabApp {
                 Color32::GRAY,
             );
         }
+        self.draw_highlight(&painter, rect, aspect);
         self.legends(&painter, rect);
         ui.horizontal(|_| {});
         let _ = response;
@@ -1753,6 +1768,7 @@ impl RadlabApp {
     /// the panes draw.
     fn pane_frame(&mut self, ui: &egui::Ui) -> PaneStyle {
         self.viewport_rect = ui.available_rect_before_wrap();
+        self.viewport_hover = None;
         self.camera_keys(ui);
         self.request_geometry();
         self.poll_geometry();
@@ -1804,11 +1820,77 @@ impl RadlabApp {
     }
 
     fn pick_at(&mut self, pos: Pos2, rect: Rect) {
+        self.selected = self.pick_id(pos, rect);
+    }
+
+    /// The leaf under a viewport point.
+    fn pick_id(&self, pos: Pos2, rect: Rect) -> Option<u32> {
         let aspect = f64::from(rect.width() / rect.height().max(1.0));
         let nx = f64::from((pos.x - rect.left()) / rect.width()) * 2.0 - 1.0;
         let ny = 1.0 - f64::from((pos.y - rect.top()) / rect.height()) * 2.0;
         let (o, dir) = self.camera.ray(nx, ny, aspect);
-        self.selected = overlay::pick(&self.view.elements, &self.view.leaves, o, dir).map(|(id, _)| id);
+        overlay::pick(&self.view.elements, &self.view.leaves, o, dir).map(|(id, _)| id)
+    }
+
+    /// What the viewport highlights this frame: the link of the matrix block hovered, else (while
+    /// the matrix is open) the element under the pointer.
+    #[must_use]
+    pub fn highlight(&self) -> Option<Highlight> {
+        self.matrix_hover.or(self.viewport_hover.map(Highlight::Element))
+    }
+
+    /// The leaf under the pointer in the viewport (tracked while the matrix window is open).
+    #[must_use]
+    pub fn viewport_hover(&self) -> Option<u32> {
+        self.viewport_hover
+    }
+
+    /// Draw [`RadlabApp::highlight`] over the viewport: the elements' outlines and the link's
+    /// line ([`overlay::highlight_lines`], not depth-tested, so they show through surfaces) and a
+    /// label naming them.
+    fn draw_highlight(&self, painter: &egui::Painter, rect: Rect, aspect: f64) {
+        let Some(h) = self.highlight() else { return };
+        let lines = overlay::highlight_lines(&self.view.elements, h);
+        if lines.points.is_empty() {
+            return;
+        }
+        let vp = self.camera.view_proj(aspect, self.origin);
+        let project = |p: DVec3| {
+            let c = vp * (p - self.origin).extend(1.0);
+            (c.w > 1e-9).then(|| {
+                let (x, y) = ((c.x / c.w) as f32, (c.y / c.w) as f32);
+                Pos2::new(
+                    rect.left() + (0.5 + 0.5 * x) * rect.width(),
+                    rect.top() + (0.5 - 0.5 * y) * rect.height(),
+                )
+            })
+        };
+        for (p, c) in lines.points.chunks_exact(2).zip(lines.colors.chunks_exact(2)) {
+            if let (Some(a), Some(b)) = (project(p[0]), project(p[1])) {
+                let [r, g, bl, al] = c[0].map(|x| (x.clamp(0.0, 1.0) * 255.0) as u8);
+                painter.line_segment(
+                    [a, b],
+                    egui::Stroke::new(2.0, Color32::from_rgba_unmultiplied(r, g, bl, al)),
+                );
+            }
+        }
+        // The label sits in the viewport's lower-left corner: the matrix window often covers
+        // the middle of the link.
+        let text = match h {
+            Highlight::Link { receiver, source } => {
+                let l = self.view.links.iter().find(|l| l.receiver == receiver && l.source == source);
+                let fv = l.map_or(String::new(), |l| format!(" · F = {:.3e} · V = {:.2}", l.ff, l.vis));
+                format!("receiver {receiver} (orange) gathers from source {source} (cyan){fv}")
+            }
+            Highlight::Element(id) => format!("element {id} (orange): its row and column in the matrix"),
+        };
+        let galley = painter.layout_no_wrap(text, egui::FontId::proportional(12.0), Color32::WHITE);
+        let box_r = Rect::from_min_size(
+            Pos2::new(rect.left() + 8.0, rect.bottom() - 56.0),
+            galley.size() + Vec2::new(8.0, 4.0),
+        );
+        painter.rect_filled(box_r, 3.0, Color32::from_black_alpha(190));
+        painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
     }
 
     /// Pick the element under a point given in viewport-relative coordinates (0..1, y down).
@@ -2111,9 +2193,16 @@ impl eframe::App for RadlabApp {
         if self.history.open && self.history.window(&ctx) == Some(HistoryAction::ShowSplit) {
             self.split.on = true;
         }
-        if let Some(id) = self.lecture.windows(&ctx, &self.view) {
-            self.selected = Some(id);
-            self.display.selected_links_only = true;
+        // The matrix ↔ viewport link: the element hovered in the viewport (else the picked one)
+        // is highlighted in the matrix; a hovered block's link is highlighted in the viewport.
+        self.matrix_hover = None;
+        match self.lecture.windows(&ctx, &self.view, self.viewport_hover.or(self.selected)) {
+            Some(MatrixAction::Pick(id)) => {
+                self.selected = Some(id);
+                self.display.selected_links_only = true;
+            }
+            Some(MatrixAction::Hover(h)) => self.matrix_hover = Some(h),
+            None => {}
         }
         if let Some(answer) = self.files.show(&ctx) {
             self.file_answer(answer);

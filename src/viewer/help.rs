@@ -24,6 +24,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("F", "frame the whole scene"),
     ("R", "back to the scene's camera"),
     ("click", "pick an element: the inspector shows it and its links"),
+    ("hover, matrix open", "a block: its link in 3-D; an element: its row and column in the matrix"),
 ];
 
 /// What a key asks for.

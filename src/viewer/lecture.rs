@@ -5,7 +5,7 @@
 //! ([`super::five_times`]).
 
 use super::five_times::FiveTimes;
-use super::matrix::MatrixWindow;
+use super::matrix::{MatrixAction, MatrixInput, MatrixWindow};
 use super::worker::ViewData;
 use crate::figures::{FIGURES, Figure};
 use eframe::egui;
@@ -93,12 +93,19 @@ impl Lecture {
         chosen
     }
 
-    /// The explorer windows that are open; returns the element a click in the matrix picked.
-    pub fn windows(&mut self, ctx: &egui::Context, view: &Arc<ViewData>) -> Option<u32> {
+    /// The explorer windows that are open; returns what the matrix asks (a hovered block's
+    /// link to highlight, a clicked block's receiver to pick). `element` is the element to
+    /// highlight in the matrix (hovered or picked in the viewport).
+    pub fn windows(
+        &mut self,
+        ctx: &egui::Context,
+        view: &Arc<ViewData>,
+        element: Option<u32>,
+    ) -> Option<MatrixAction> {
         if self.five_times.open {
             self.five_times.window(ctx);
         }
-        if self.matrix.open { self.matrix.window(ctx, view) } else { None }
+        if self.matrix.open { self.matrix.window(ctx, MatrixInput { view, element }) } else { None }
     }
 
     /// The caption panel at the bottom of the window (call before the central panel).

@@ -1,11 +1,17 @@
 //! The blocking form-factor matrix window ([`crate::block_matrix`]): every link of the current
 //! solution drawn as the block of leaf-to-leaf entries it stands for, coloured by log F.
-//! Hovering a block names its link; clicking it picks the receiver in the viewport and shows its
-//! links there.
+//!
+//! It is linked to the 3-D viewport both ways. Hovering a block names its link and asks the app
+//! to highlight that link and its two elements in the viewport
+//! ([`crate::overlay::Highlight::Link`]); clicking it picks the receiver. The element hovered
+//! (or else picked) in the viewport comes back as [`MatrixInput::element`]: its row (as
+//! receiver, orange) and column (as source, cyan) are tinted and the blocks it gathers or shoots
+//! through (its own links and its ancestors') outlined.
 
+use super::view::View;
 use super::worker::ViewData;
 use crate::block_matrix::BlockMatrix;
-use crate::overlay::{LogScale, Palette};
+use crate::overlay::{Highlight, LogScale, Palette, ancestors};
 use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
 use std::sync::Arc;
 
@@ -13,6 +19,41 @@ use std::sync::Arc;
 const SIDE: f32 = 360.0;
 /// Most blocks drawn (the largest first, so the coarse structure always shows).
 const MAX_BLOCKS: usize = 40_000;
+/// Most blocks of a highlighted element outlined.
+const MAX_OUTLINED: usize = 4_000;
+/// Thinnest highlighted row or column band, points (a leaf's row of a fine mesh is sub-pixel).
+const MIN_BAND: f32 = 2.0;
+/// Tint of a highlighted element's row (as receiver; the viewport's receiver orange).
+const ROW_TINT: Color32 = Color32::from_rgba_premultiplied(90, 50, 9, 90);
+/// Tint of a highlighted element's column (as source; the viewport's source cyan).
+const COL_TINT: Color32 = Color32::from_rgba_premultiplied(18, 77, 90, 90);
+
+/// What the app lends the matrix for one frame.
+pub struct MatrixInput<'a> {
+    /// The solution shown.
+    pub view: &'a Arc<ViewData>,
+    /// The element to highlight (hovered or picked in the viewport).
+    pub element: Option<u32>,
+}
+
+/// What the matrix asks of the app.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum MatrixAction {
+    /// A block is hovered: highlight this link and its two elements in the viewport.
+    Hover(Highlight),
+    /// A block was clicked: pick its receiver.
+    Pick(u32),
+}
+
+/// The row and column highlighted last frame (for tests and the status line).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct RowHighlight {
+    pub element: u32,
+    /// The element's leaf run: its rows and its columns.
+    pub run: (u32, u32),
+    /// Blocks of its own links and its ancestors'.
+    pub blocks: usize,
+}
 
 /// The window's state: open or not, and the matrix of the solution last shown.
 #[derive(Clone, Debug, Default)]
@@ -20,11 +61,39 @@ pub struct MatrixWindow {
     pub open: bool,
     /// (address of the `ViewData` it was built from, the matrix, its colour scale).
     cache: Option<(usize, Arc<BlockMatrix>, Option<LogScale>)>,
+    highlighted: Option<RowHighlight>,
 }
 
 impl MatrixWindow {
-    /// The window (when open); returns the receiver element of a clicked block.
-    pub fn window(&mut self, ctx: &egui::Context, view: &Arc<ViewData>) -> Option<u32> {
+    /// The window (when open).
+    pub fn window(&mut self, ctx: &egui::Context, input: MatrixInput<'_>) -> Option<MatrixAction> {
+        let mut open = self.open;
+        let mut action = None;
+        egui::Window::new("Blocking form-factor matrix")
+            .open(&mut open)
+            .resizable(false)
+            .default_pos([560.0, 60.0])
+            .show(ctx, |ui| action = self.ui(ui, input));
+        self.open = open;
+        if !open {
+            self.highlighted = None;
+        }
+        action
+    }
+
+    /// The element whose row and column were highlighted in the last frame drawn.
+    #[must_use]
+    pub fn highlighted(&self) -> Option<RowHighlight> {
+        self.highlighted
+    }
+}
+
+impl View for MatrixWindow {
+    type Input<'a> = MatrixInput<'a>;
+    type Action = MatrixAction;
+
+    fn ui(&mut self, ui: &mut egui::Ui, input: MatrixInput<'_>) -> Option<MatrixAction> {
+        let view = input.view;
         let key = Arc::as_ptr(view) as usize;
         if self.cache.as_ref().is_none_or(|c| c.0 != key) {
             let mut m = BlockMatrix::build(&view.elements, &view.links);
@@ -36,19 +105,22 @@ impl MatrixWindow {
             self.cache = Some((key, Arc::new(m), scale));
         }
         let (m, scale) = self.cache.as_ref().map(|c| (Arc::clone(&c.1), c.2))?;
-        let mut open = self.open;
-        let mut clicked = None;
-        egui::Window::new("Blocking form-factor matrix")
-            .open(&mut open)
-            .resizable(false)
-            .default_pos([560.0, 60.0])
-            .show(ctx, |ui| clicked = draw(ui, &m, scale));
-        self.open = open;
-        clicked
+        let chain = input
+            .element
+            .filter(|&id| (id as usize) < view.elements.len() && (id as usize) < m.runs.len())
+            .map(|id| (id, ancestors(&view.elements, id)));
+        let (action, highlighted) = draw(ui, &m, scale, chain.as_ref());
+        self.highlighted = highlighted;
+        action
     }
 }
 
-fn draw(ui: &mut egui::Ui, m: &BlockMatrix, scale: Option<LogScale>) -> Option<u32> {
+fn draw(
+    ui: &mut egui::Ui,
+    m: &BlockMatrix,
+    scale: Option<LogScale>,
+    element: Option<&(u32, Vec<u32>)>,
+) -> (Option<MatrixAction>, Option<RowHighlight>) {
     let n = m.n.max(1) as f32;
     ui.label(format!(
         "{} leaves: n² = {} entries; {} links (blocks) cover {:.0} % of them",
@@ -71,16 +143,44 @@ fn draw(ui: &mut egui::Ui, m: &BlockMatrix, scale: Option<LogScale>) -> Option<u
         let t = scale.map_or(0.5, |s| s.t(f64::from(b.ff)));
         let [r, g, bl] = Palette::Viridis.at(t);
         let c = Color32::from_rgb((r * 255.0) as u8, (g * 255.0) as u8, (bl * 255.0) as u8);
-        painter.rect_filled(to_rect(b.rows, b.cols).expand(0.0), 0.0, c);
+        painter.rect_filled(to_rect(b.rows, b.cols), 0.0, c);
     }
+    let highlighted = element.map(|(id, chain)| {
+        let run = m.runs[*id as usize];
+        let band = |r: Rect| {
+            let grow = Vec2::new((MIN_BAND - r.width()).max(0.0), (MIN_BAND - r.height()).max(0.0)) * 0.5;
+            r.expand2(grow)
+        };
+        painter.rect_filled(band(to_rect(run, (0, m.n))), 0.0, ROW_TINT);
+        painter.rect_filled(band(to_rect((0, m.n), run)), 0.0, COL_TINT);
+        let mut blocks = 0;
+        for b in m.blocks.iter().filter(|b| chain.contains(&b.receiver) || chain.contains(&b.source)) {
+            if blocks < MAX_OUTLINED {
+                let stroke = egui::Stroke::new(1.0, Color32::from_rgb(255, 230, 120));
+                painter.rect_stroke(band(to_rect(b.rows, b.cols)), 0.0, stroke, egui::StrokeKind::Inside);
+            }
+            blocks += 1;
+        }
+        RowHighlight { element: *id, run, blocks }
+    });
     if m.blocks.len() > MAX_BLOCKS {
         ui.weak(format!("the {MAX_BLOCKS} largest of {} blocks drawn", m.blocks.len()));
     }
     ui.weak("rows: receiver leaves, columns: source leaves, in quadtree order; colour: log F");
-    let pos = response.hover_pos()?;
+    if let Some(h) = highlighted {
+        ui.weak(format!(
+            "element {}: its row (receiving) and column (shooting) tinted, its {} blocks outlined",
+            h.element, h.blocks
+        ))
+        .on_hover_text(
+            "The element hovered in the viewport (else the picked one): its leaves' row and \
+             column, and the blocks of its own links and its ancestors'",
+        );
+    }
+    let Some(pos) = response.hover_pos() else { return (None, highlighted) };
     let row = ((pos.y - rect.top()) / cell).floor().clamp(0.0, n - 1.0) as u32;
     let col = ((pos.x - rect.left()) / cell).floor().clamp(0.0, n - 1.0) as u32;
-    let b = m.at(row, col)?;
+    let Some(b) = m.at(row, col) else { return (None, highlighted) };
     painter.rect_stroke(
         to_rect(b.rows, b.cols),
         0.0,
@@ -89,13 +189,20 @@ fn draw(ui: &mut egui::Ui, m: &BlockMatrix, scale: Option<LogScale>) -> Option<u
     );
     let clicked = response.clicked();
     response.on_hover_text(format!(
-        "link: receiver {} ← source {}, F = {:.3e}; {} × {} leaf entries share this one number. \
-         Click: pick the receiver in the viewport.",
+        "link: receiver {} gathers from source {}, F = {:.3e}, V = {:.2}; {} × {} leaf entries share this one \
+         number. The viewport outlines the receiver (orange) and the source (cyan) and draws the \
+         link. Click: pick the receiver.",
         b.receiver,
         b.source,
         b.ff,
+        b.vis,
         b.rows.1 - b.rows.0,
         b.cols.1 - b.cols.0
     ));
-    clicked.then_some(b.receiver)
+    let action = if clicked {
+        MatrixAction::Pick(b.receiver)
+    } else {
+        MatrixAction::Hover(Highlight::Link { receiver: b.receiver, source: b.source })
+    };
+    (Some(action), highlighted)
 }

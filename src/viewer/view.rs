@@ -7,7 +7,8 @@
 //!  RadlabApp ── Input (borrowed, this frame) ──► panel.ui(ui, input) ── Option<Action> ──► app
 //! ```
 //!
-//! Implemented by [`super::history::RunHistory`] and [`super::split::SplitView`].
+//! Implemented by [`super::history::RunHistory`], [`super::split::SplitView`],
+//! [`super::replay::Replay`] and [`super::matrix::MatrixWindow`].
 
 use eframe::egui;
 
