@@ -141,6 +141,7 @@ mod tests {
             vertices: verts,
             radiosity: Rgb::splat(b),
             error_estimate: None,
+            slope: None,
         };
         let elements = vec![
             el(vec![v(0., 0.), v(0., 1.), v(1., 1.), v(1., 0.)], 1.0),
