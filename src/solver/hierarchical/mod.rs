@@ -616,6 +616,23 @@ struct Chain {
 }
 
 impl Chain {
+    /// `then` without slopes (`push_slopes` off: SPLASH-2's constants), at the cost it had
+    /// before slopes existed.
+    fn then_flat(self, e: &Element) -> Chain {
+        Chain {
+            full: self.full + e.gathered_full,
+            rest: self.rest + (e.gathered - e.gathered_full),
+            f: self.f + e.f_sum,
+            fv_partial: self.fv_partial + e.fv_partial,
+            ..Chain::default()
+        }
+    }
+
+    /// `then` or `then_flat`.
+    fn step(self, e: &Element, slopes: bool) -> Chain {
+        if slopes { self.then(e) } else { self.then_flat(e) }
+    }
+
     /// The sums of element `e`, whose parent's are `self`: the inherited irradiance moved along
     /// its slope from the parent's centroid to e's, plus e's own.
     fn then(self, e: &Element) -> Chain {
@@ -1613,18 +1630,13 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn push_pull_preview(&self) -> Vec<Rgb> {
         let els = &self.hier.elements;
-        let mut chain: Vec<Chain> = Vec::with_capacity(els.len());
-        let mut b: Vec<Rgb> = Vec::with_capacity(els.len());
-        for e in els {
-            let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            let own = up.then(e);
-            chain.push(own);
-            b.push(if e.is_leaf() {
-                e.emission + e.reflectance.mul_rgb(own.full + own.rest)
-            } else {
-                Rgb::ZERO
-            });
-        }
+        let mut b: Vec<Rgb> =
+            els.iter()
+                .zip(self.chains())
+                .map(|(e, c)| {
+                    if e.is_leaf() { e.emission + e.reflectance.mul_rgb(c.full + c.rest) } else { Rgb::ZERO }
+                })
+                .collect();
         for i in (0..els.len()).rev() {
             let first = els[i].first_child;
             if first != NONE {
@@ -1687,7 +1699,7 @@ impl HierarchicalSolver {
     /// `up`: the irradiance inherited from the ancestors (`Chain`).
     fn push_pull_rec(&mut self, id: u32, up: Chain) -> Rgb {
         let e = &self.hier.elements[id as usize];
-        let own = up.then(e);
+        let own = up.step(e, self.params.push_slopes);
         if let Some(kids) = e.children() {
             let area = e.area;
             let mut b = Rgb::ZERO;
@@ -1722,6 +1734,7 @@ impl HierarchicalSolver {
         let mut absorbed = Rgb::ZERO;
         let mut escaped = Rgb::ZERO;
         let n = self.hier.len();
+        let slopes = self.params.push_slopes;
         // Per element: its own and inherited sums (full-visibility irradiance, other irradiance,
         // full-visibility F, other F·V).
         let chain = &mut self.chain;
@@ -1730,7 +1743,7 @@ impl HierarchicalSolver {
         let els = &mut self.hier.elements;
         for (i, e) in els.iter_mut().enumerate() {
             let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            let own = up.then(e);
+            let own = up.step(e, slopes);
             chain.push(own);
             if e.is_leaf() {
                 let h = own.full + own.rest;
@@ -1749,7 +1762,6 @@ impl HierarchicalSolver {
         }
         // World moments Σ_leaves A B (c − c_e) / A_e while pulling (leaves: 0), then each in its
         // element's tangent basis.
-        let slopes = self.params.push_slopes;
         let world = &mut self.moment_world;
         world.clear();
         world.resize(if slopes { n } else { 0 }, [Rgb::ZERO; 3]);
@@ -1803,6 +1815,7 @@ impl HierarchicalSolver {
     /// summed them (the same terms in the same order, with each leaf's B as it left them): for
     /// `solve`, whose iterations skip these sums until the end.
     fn energy_pass(&mut self) {
+        let slopes = self.params.push_slopes;
         let mut absorbed = Rgb::ZERO;
         let mut escaped = Rgb::ZERO;
         let chain = &mut self.chain;
@@ -1810,7 +1823,7 @@ impl HierarchicalSolver {
         chain.reserve(self.hier.len());
         for e in &self.hier.elements {
             let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            let own = up.then(e);
+            let own = up.step(e, slopes);
             chain.push(own);
             if e.is_leaf() {
                 let h = own.full + own.rest;
@@ -2033,19 +2046,26 @@ impl HierarchicalSolver {
         if !self.params.push_slopes {
             return Vec::new();
         }
+        self.hier
+            .elements
+            .iter()
+            .zip(self.chains())
+            .map(|(e, own)| {
+                let d = own.slope.map(|g| e.reflectance.mul_rgb(g));
+                (e.is_leaf() && d.iter().any(|g| *g != Rgb::ZERO))
+                    .then_some(crate::solver::Slope { centroid: e.centroid, d })
+            })
+            .collect()
+    }
+
+    /// Every element's `Chain` (its own sums and those it inherits), by id: parents first.
+    fn chains(&self) -> Vec<Chain> {
         let mut chain: Vec<Chain> = Vec::with_capacity(self.hier.len());
-        let mut out = Vec::with_capacity(self.hier.len());
         for e in &self.hier.elements {
             let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            let own = up.then(e);
-            chain.push(own);
-            let d = own.slope.map(|g| e.reflectance.mul_rgb(g));
-            out.push(
-                (e.is_leaf() && d.iter().any(|g| *g != Rgb::ZERO))
-                    .then_some(crate::solver::Slope { centroid: e.centroid, d }),
-            );
+            chain.push(up.step(e, self.params.push_slopes));
         }
-        out
+        chain
     }
 
     /// The leaves as a [`Solution`] (with the solver's own error estimates).
