@@ -92,6 +92,9 @@ pub struct Args {
     /// the mean reflected radiosity). Default: the preset's.
     #[arg(long)]
     pub solve_bf_eps_rel: Option<f64>,
+    /// Clustering of --compare hierarchical (off, auto, on). Default: the preset's (auto).
+    #[arg(long, value_enum)]
+    pub solve_cluster: Option<radlab::solver::params::Clustering>,
     /// Estimate B at the points listed in this JSON file instead of over a mesh: an array of
     /// `{"patch": INDEX, "point": [x, y, z]}` (each point on its patch), `--samples` paths each;
     /// `--json` then writes `{"points": [{"patch", "point", "radiosity", "std_error"}]}`.
@@ -333,6 +336,7 @@ fn solve(
                 p.bf_eps = e;
                 p.bf_relative = true;
             }
+            p.cluster = args.solve_cluster.unwrap_or(p.cluster);
             p.validate().map_err(anyhow::Error::msg).context("invalid --solve-rays / --solve-bf-eps-rel")?;
             let mut s =
                 HierarchicalSolver::new(std::sync::Arc::new(scene.clone()), p).map_err(anyhow::Error::msg)?;

