@@ -393,18 +393,7 @@ fn solve(
                 }
                 None => discontinuity::solve(scene, &p, &mut |_, _| {})?,
             };
-            let m = &d.mesh;
-            writeln!(
-                log,
-                "\n{method}: {} segments, {} constraints on {} receivers, {} → {} patches; meshing {:.4} s, solve {:.3} s",
-                m.segments.total(),
-                m.constraints,
-                m.receivers_meshed,
-                m.input_patches,
-                m.output_patches,
-                m.total_s,
-                d.solve_s
-            )?;
+            writeln!(log, "\n{method}: {}, solve {:.3} s", d.mesh.describe(), d.solve_s)?;
             d.solution
         }
         other => anyhow::bail!(
