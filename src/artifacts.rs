@@ -245,8 +245,28 @@ pub fn measure<R: Reconstruction + ?Sized>(
     params: &ArtifactParams,
 ) -> Result<ArtifactReport, ArtifactError> {
     let pc = PiecewiseConstant::new(scene, &solution.elements)?;
+    let gouraud = Gouraud::new(scene, solution)?;
+    Ok(measure_views(scene, solution, &pc, &gouraud, reference, params)?.0)
+}
+
+/// [`measure`] with the solution read through given views, and where each artifact lies
+/// ([`ArtifactMaps`], for pictures): `values` is what A, B, D and E read (the flat view of a
+/// p = 0 solution, [`PiecewiseConstant`]; a p = 1 solution's own functions,
+/// [`crate::reconstruction::Nodal`]), `shaded` what C reads for kinks ([`Gouraud`] for p = 0, the
+/// same p = 1 functions for p = 1). The elements of `solution` give the edges and locate the
+/// points. D's jump is `values` on both sides of the edge (for constant elements without slope:
+/// the two element values, as in [`measure`]).
+pub fn measure_views<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    values: &dyn Reconstruction,
+    shaded: &dyn Reconstruction,
+    reference: &R,
+    params: &ArtifactParams,
+) -> Result<(ArtifactReport, ArtifactMaps), ArtifactError> {
+    let pc = PiecewiseConstant::new(scene, &solution.elements)?;
     let points = grid_points(scene, params.side);
-    let sol: Vec<Rgb> = crate::pointwise::evaluate(&pc, &points);
+    let sol: Vec<Rgb> = crate::pointwise::evaluate(values, &points);
     let refs: Vec<Rgb> = crate::pointwise::evaluate(reference, &points);
     let means = patch_means(scene, &points, &refs, &sol);
 
@@ -260,14 +280,76 @@ pub fn measure<R: Reconstruction + ?Sized>(
         .map(|s| s.report.scene.l2_debiased);
 
     let samples = interior_edge_samples(scene, solution, &pc, &means, params);
-    Ok(ArtifactReport {
+    let (missing_features, features) = missing_features(&points, &refs, &sol, &means, params);
+    let (mach_bands, mach) = mach_bands(solution, &samples, shaded, reference, &means, params);
+    let (shading_jumps, jumps) = shading_jumps(&samples, values, reference, &means, params);
+    let (unresolved, segments) = unresolved(scene, solution, &pc, values, reference, params)?;
+    let edges = samples
+        .iter()
+        .zip(mach.iter().zip(&jumps))
+        .map(|(s, (&mach_band, &jump))| EdgeMark {
+            patch: s.patch,
+            x: s.x,
+            along: s.n.cross(scene.patches[s.patch].normal),
+            length: 2.0 * s.weight,
+            mach_band,
+            jump,
+        })
+        .collect();
+    let report = ArtifactReport {
         blocky_shadows,
         band_points,
-        missing_features: missing_features(&points, &refs, &sol, &means, params),
-        mach_bands: mach_bands(scene, solution, &samples, reference, &means, params)?,
-        shading_jumps: shading_jumps(solution, &samples, reference, &means, params),
-        unresolved: unresolved(scene, solution, &pc, reference, params)?,
-    })
+        missing_features,
+        mach_bands,
+        shading_jumps,
+        unresolved,
+    };
+    let maps =
+        ArtifactMaps { points, solution: sol, reference: refs, means, in_band, features, edges, segments };
+    Ok((report, maps))
+}
+
+/// One interior element-edge sample (C, D): its point, the edge's direction, the length it
+/// stands for, and whether it is a Mach band (C) or an inappropriate jump (D).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct EdgeMark {
+    pub patch: usize,
+    pub x: DVec3,
+    pub along: DVec3,
+    pub length: f64,
+    pub mach_band: bool,
+    pub jump: bool,
+}
+
+/// One critical-segment sample (E): its point, the segment's direction, the length it stands
+/// for, and whether it lies inside an element.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct SegmentMark {
+    pub patch: usize,
+    pub x: DVec3,
+    pub along: DVec3,
+    pub length: f64,
+    pub unresolved: bool,
+}
+
+/// Where the artifacts of [`measure_views`] lie.
+#[derive(Clone, Debug)]
+pub struct ArtifactMaps {
+    /// The `side × side` grid of every reflecting patch, in patch order, row by row (A, B).
+    pub points: Vec<RefPoint>,
+    /// The solution's (`values`) and the reference's B at the grid points.
+    pub solution: Vec<Rgb>,
+    pub reference: Vec<Rgb>,
+    /// Per patch: (m_p, s_p), the reference's and the solution's mean of B̄ over the grid.
+    pub means: Vec<(f64, f64)>,
+    /// Grid points in the penumbra band (A).
+    pub in_band: Vec<bool>,
+    /// Per grid point (B): 0 no counted feature, +1 a point of a feature shown, −1 of a missing one.
+    pub features: Vec<i8>,
+    /// Interior edge samples (C, D).
+    pub edges: Vec<EdgeMark>,
+    /// Critical-segment samples (E).
+    pub segments: Vec<SegmentMark>,
 }
 
 /// Reflecting patches (ρ̄ > 0), in order.
@@ -313,9 +395,10 @@ fn missing_features(
     sol: &[Rgb],
     means: &[(f64, f64)],
     params: &ArtifactParams,
-) -> MissingFeatures {
+) -> (MissingFeatures, Vec<i8>) {
     let side = params.side as usize;
     let mut out = MissingFeatures::default();
+    let mut marks = vec![0i8; points.len()];
     let (mut area_all, mut area_missing) = (0.0, 0.0);
     for start in (0..points.len()).step_by(side * side) {
         let patch = points[start].patch;
@@ -351,9 +434,11 @@ fn missing_features(
             // Flood fill one 4-connected region of equal sign.
             let (mut size, mut shown_n) = (0usize, 0usize);
             let mut stack = vec![k0];
+            let mut region = Vec::new();
             seen[k0] = true;
             while let Some(k) = stack.pop() {
                 size += 1;
+                region.push(k);
                 shown_n += usize::from(shown[k]);
                 let (i, j) = (k % side, k / side);
                 let mut push = |q: usize| {
@@ -381,14 +466,18 @@ fn missing_features(
             let area = size as f64 * points[start].area;
             out.features += 1;
             area_all += area;
-            if 2 * shown_n < size {
+            let missing = 2 * shown_n < size;
+            if missing {
                 out.missing += 1;
                 area_missing += area;
+            }
+            for k in region {
+                marks[start + k] = if missing { -1 } else { 1 };
             }
         }
     }
     out.area_fraction = if area_all > 0.0 { area_missing / area_all } else { 0.0 };
-    out
+    (out, marks)
 }
 
 /// Distance from `x` to the boundary of the polygon `verts`.
@@ -412,11 +501,11 @@ fn inside_convex(verts: &[DVec3], normal: DVec3, x: DVec3) -> bool {
 }
 
 /// One sample of an interior element edge (module docs, D): the point `x` on the edge of
-/// element `inside`, the in-plane normal `n` pointing into element `outside`, its length weight.
+/// element `inside`, the in-plane normal `n` pointing into the neighbouring element, its length
+/// weight.
 struct EdgeSample {
     patch: usize,
     inside: usize,
-    outside: usize,
     x: DVec3,
     n: DVec3,
     weight: f64,
@@ -460,7 +549,7 @@ fn interior_edge_samples(
                         && outside != inside
                         && inside == index
                     {
-                        out.push(EdgeSample { patch: e.patch, inside, outside, x, n, weight, eps });
+                        out.push(EdgeSample { patch: e.patch, inside, x, n, weight, eps });
                     }
                 }
             }
@@ -469,31 +558,33 @@ fn interior_edge_samples(
         .collect()
 }
 
-/// D (module docs).
+/// D (module docs), and which samples are inappropriate jumps.
 fn shading_jumps<R: Reconstruction + ?Sized>(
-    solution: &Solution,
     samples: &[EdgeSample],
+    values: &dyn Reconstruction,
     reference: &R,
     means: &[(f64, f64)],
     params: &ArtifactParams,
-) -> ShadingJumps {
+) -> (ShadingJumps, Vec<bool>) {
     let mut out = ShadingJumps::default();
     let mut sum_jump = 0.0;
+    let mut marks = Vec::with_capacity(samples.len());
     for s in samples {
         let mean = means[s.patch].0;
         out.edge_length += s.weight;
-        let jump =
-            (solution.elements[s.outside].radiosity - solution.elements[s.inside].radiosity).mean().abs();
         let (out_x, in_x) = (s.x + s.n * s.eps, s.x - s.n * s.eps);
+        let jump = (values.radiosity_at(s.patch, out_x) - values.radiosity_at(s.patch, in_x)).mean().abs();
         let jump_ref =
             (reference.radiosity_at(s.patch, out_x) - reference.radiosity_at(s.patch, in_x)).mean().abs();
-        if jump > params.jump * mean && jump_ref < 0.1 * jump {
+        let flagged = jump > params.jump * mean && jump_ref < 0.1 * jump;
+        if flagged {
             out.inappropriate_length += s.weight;
             sum_jump += s.weight * jump / mean;
         }
+        marks.push(flagged);
     }
     out.mean_jump = if out.inappropriate_length > 0.0 { sum_jump / out.inappropriate_length } else { 0.0 };
-    out
+    (out, marks)
 }
 
 /// The reconstruction a viewer draws from constant elements (Gouraud,
@@ -517,16 +608,15 @@ impl Reconstruction for Gouraud<'_> {
     }
 }
 
-/// C (module docs).
+/// C (module docs), read on `shaded`, and which samples are Mach bands.
 fn mach_bands<R: Reconstruction + ?Sized>(
-    scene: &Scene,
     solution: &Solution,
     samples: &[EdgeSample],
+    shaded: &dyn Reconstruction,
     reference: &R,
     means: &[(f64, f64)],
     params: &ArtifactParams,
-) -> Result<MachBands, MetricsError> {
-    let gouraud = Gouraud::new(scene, solution)?;
+) -> (MachBands, Vec<bool>) {
     // The change of slope across the edge: outward slope on the far side plus the slope moving
     // away from the edge on the near side (zero where the function is smooth).
     let kink = |f: &dyn Fn(DVec3) -> Rgb, s: &EdgeSample| {
@@ -535,28 +625,33 @@ fn mach_bands<R: Reconstruction + ?Sized>(
         ((f(x + n * (2.0 * h)) - f(x + n * h)) + (f(x - n * (2.0 * h)) - f(x - n * h))).mean().abs() / h
     };
     let mut out = MachBands::default();
+    let mut marks = Vec::with_capacity(samples.len());
     for s in samples {
         let mean = means[s.patch].0;
         out.edge_length += s.weight;
-        let k = kink(&|y| gouraud.radiosity_at(s.patch, y), s);
+        let k = kink(&|y| shaded.radiosity_at(s.patch, y), s);
         let k_ref = kink(&|y| reference.radiosity_at(s.patch, y), s);
-        if k * solution.elements[s.inside].area.sqrt() > params.jump * mean && k_ref < 0.1 * k {
+        let flagged = k * solution.elements[s.inside].area.sqrt() > params.jump * mean && k_ref < 0.1 * k;
+        if flagged {
             out.band_length += s.weight;
         }
+        marks.push(flagged);
     }
-    Ok(out)
+    (out, marks)
 }
 
-/// E (module docs).
+/// E (module docs), and every segment sample.
 fn unresolved<R: Reconstruction + ?Sized>(
     scene: &Scene,
     solution: &Solution,
     pc: &PiecewiseConstant,
+    values: &dyn Reconstruction,
     reference: &R,
     params: &ArtifactParams,
-) -> Result<UnresolvedDiscontinuities, ArtifactError> {
+) -> Result<(UnresolvedDiscontinuities, Vec<SegmentMark>), ArtifactError> {
     let m = params.segment_samples.max(1);
     let mut out = UnresolvedDiscontinuities::default();
+    let mut marks = Vec::new();
     let (mut err2, mut ref2) = (0.0, 0.0);
     for p in reflecting(scene) {
         let patch = &scene.patches[p];
@@ -573,13 +668,22 @@ fn unresolved<R: Reconstruction + ?Sized>(
             for i in 0..m {
                 let x = seg.a.lerp(seg.b, (f64::from(i) + 0.5) / f64::from(m));
                 let Some(owner) = pc.element_at(p, x) else { continue };
-                if boundary_distance(&solution.elements[owner].vertices, x) <= tol {
+                let resolved = boundary_distance(&solution.elements[owner].vertices, x) <= tol;
+                let along = (seg.b - seg.a) / len;
+                marks.push(SegmentMark {
+                    patch: p,
+                    x,
+                    along,
+                    length: len / f64::from(m),
+                    unresolved: !resolved,
+                });
+                if resolved {
                     continue;
                 }
                 out.unresolved_length += len / f64::from(m);
                 for y in [x + n * delta, x - n * delta] {
                     if inside_convex(&patch.vertices, patch.normal, y) {
-                        let (b, r) = (pc.radiosity_at(p, y), reference.radiosity_at(p, y));
+                        let (b, r) = (values.radiosity_at(p, y), reference.radiosity_at(p, y));
                         let d = b - r;
                         err2 += d.mul_rgb(d).mean();
                         ref2 += r.mul_rgb(r).mean();
@@ -589,5 +693,5 @@ fn unresolved<R: Reconstruction + ?Sized>(
         }
     }
     out.error_beside = (ref2 > 0.0).then(|| (err2 / ref2).sqrt());
-    Ok(out)
+    Ok((out, marks))
 }
