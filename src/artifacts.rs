@@ -246,7 +246,7 @@ pub fn measure<R: Reconstruction + ?Sized>(
 ) -> Result<ArtifactReport, ArtifactError> {
     let pc = PiecewiseConstant::new(scene, &solution.elements)?;
     let gouraud = Gouraud::new(scene, solution)?;
-    Ok(measure_views(scene, solution, &pc, &gouraud, reference, params)?.0)
+    Ok(measure_all(scene, solution, &pc, None, &gouraud, reference, params)?.0)
 }
 
 /// [`measure`] with the solution read through given views, and where each artifact lies
@@ -254,12 +254,25 @@ pub fn measure<R: Reconstruction + ?Sized>(
 /// p = 0 solution, [`PiecewiseConstant`]; a p = 1 solution's own functions,
 /// [`crate::reconstruction::Nodal`]), `shaded` what C reads for kinks ([`Gouraud`] for p = 0, the
 /// same p = 1 functions for p = 1). The elements of `solution` give the edges and locate the
-/// points. D's jump is `values` on both sides of the edge (for constant elements without slope:
-/// the two element values, as in [`measure`]).
+/// points. D's jump is `values` on both sides of the edge ([`measure`] takes the two elements'
+/// averages: the same for constant elements, not for leaves that carry a slope).
 pub fn measure_views<R: Reconstruction + ?Sized>(
     scene: &Scene,
     solution: &Solution,
     values: &dyn Reconstruction,
+    shaded: &dyn Reconstruction,
+    reference: &R,
+    params: &ArtifactParams,
+) -> Result<(ArtifactReport, ArtifactMaps), ArtifactError> {
+    measure_all(scene, solution, values, Some(values), shaded, reference, params)
+}
+
+/// [`measure_views`], D's jumps read on `jumps` (`None`: the element averages).
+fn measure_all<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    values: &dyn Reconstruction,
+    jumps: Option<&dyn Reconstruction>,
     shaded: &dyn Reconstruction,
     reference: &R,
     params: &ArtifactParams,
@@ -282,11 +295,11 @@ pub fn measure_views<R: Reconstruction + ?Sized>(
     let samples = interior_edge_samples(scene, solution, &pc, &means, params);
     let (missing_features, features) = missing_features(&points, &refs, &sol, &means, params);
     let (mach_bands, mach) = mach_bands(solution, &samples, shaded, reference, &means, params);
-    let (shading_jumps, jumps) = shading_jumps(&samples, values, reference, &means, params);
+    let (shading_jumps, jump_marks) = shading_jumps(solution, &samples, jumps, reference, &means, params);
     let (unresolved, segments) = unresolved(scene, solution, &pc, values, reference, params)?;
     let edges = samples
         .iter()
-        .zip(mach.iter().zip(&jumps))
+        .zip(mach.iter().zip(&jump_marks))
         .map(|(s, (&mach_band, &jump))| EdgeMark {
             patch: s.patch,
             x: s.x,
@@ -501,11 +514,11 @@ fn inside_convex(verts: &[DVec3], normal: DVec3, x: DVec3) -> bool {
 }
 
 /// One sample of an interior element edge (module docs, D): the point `x` on the edge of
-/// element `inside`, the in-plane normal `n` pointing into the neighbouring element, its length
-/// weight.
+/// element `inside`, the in-plane normal `n` pointing into element `outside`, its length weight.
 struct EdgeSample {
     patch: usize,
     inside: usize,
+    outside: usize,
     x: DVec3,
     n: DVec3,
     weight: f64,
@@ -549,7 +562,7 @@ fn interior_edge_samples(
                         && outside != inside
                         && inside == index
                     {
-                        out.push(EdgeSample { patch: e.patch, inside, x, n, weight, eps });
+                        out.push(EdgeSample { patch: e.patch, inside, outside, x, n, weight, eps });
                     }
                 }
             }
@@ -558,10 +571,12 @@ fn interior_edge_samples(
         .collect()
 }
 
-/// D (module docs), and which samples are inappropriate jumps.
+/// D (module docs), and which samples are inappropriate jumps: the jump of `values` across the
+/// edge, or (`None`) of the two elements' average values.
 fn shading_jumps<R: Reconstruction + ?Sized>(
+    solution: &Solution,
     samples: &[EdgeSample],
-    values: &dyn Reconstruction,
+    values: Option<&dyn Reconstruction>,
     reference: &R,
     means: &[(f64, f64)],
     params: &ArtifactParams,
@@ -573,7 +588,12 @@ fn shading_jumps<R: Reconstruction + ?Sized>(
         let mean = means[s.patch].0;
         out.edge_length += s.weight;
         let (out_x, in_x) = (s.x + s.n * s.eps, s.x - s.n * s.eps);
-        let jump = (values.radiosity_at(s.patch, out_x) - values.radiosity_at(s.patch, in_x)).mean().abs();
+        let jump = match values {
+            Some(v) => (v.radiosity_at(s.patch, out_x) - v.radiosity_at(s.patch, in_x)).mean().abs(),
+            None => {
+                (solution.elements[s.outside].radiosity - solution.elements[s.inside].radiosity).mean().abs()
+            }
+        };
         let jump_ref =
             (reference.radiosity_at(s.patch, out_x) - reference.radiosity_at(s.patch, in_x)).mean().abs();
         let flagged = jump > params.jump * mean && jump_ref < 0.1 * jump;
