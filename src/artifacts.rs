@@ -4,8 +4,11 @@
 //! The reference is anything that gives B at any point of any patch ([`Reconstruction`]): the
 //! closed form of a single-bounce scene ([`crate::exact::SingleBounce::patch_radiosity_at`]), or
 //! a fine solve's reconstruction. The solution is read through its piecewise-constant
-//! reconstruction ([`PiecewiseConstant`]): B(x) = B_e of the leaf element e holding x. Only
-//! patches that reflect (ρ̄ > 0) are examined: the rest hold B = E, constant by construction.
+//! reconstruction ([`PiecewiseConstant`]): B(x) = B_e of the leaf element e holding x;
+//! [`measure_views`] reads it through given views instead (a p = 1 solution's own functions) and
+//! also returns where each artifact lies ([`ArtifactMaps`], drawn by
+//! [`crate::artifact_pictures`]; `radlab artifacts`). Only patches that reflect (ρ̄ > 0) are
+//! examined: the rest hold B = E, constant by construction.
 //!
 //! Every patch p is sampled on a `side × side` grid of its area-uniform map
 //! ([`crate::reference::area_point`]), cell centres x_k of equal area a_k = A_p / side². With

@@ -117,7 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let label = format!(
                 "the cached path-traced reference ({} points, {} paths each), linearly interpolated",
                 thousands(entry.set.points.len()),
-                entry.params.paths.samples
+                thousands(entry.params.paths.samples as usize)
             );
             Ruler::Points { interpolant, label }
         }
