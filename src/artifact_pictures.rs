@@ -199,3 +199,63 @@ pub fn write_pictures(scene: &Scene, maps: &ArtifactMaps, dir: &Path) -> std::io
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::artifacts::{ArtifactParams, Gouraud, measure_views};
+    use crate::pointwise::PiecewiseConstant;
+    use crate::solver::Solution;
+
+    /// Pixels of `img` equal to `c`.
+    fn count(img: &Image, c: [f32; 3]) -> usize {
+        img.pixels.iter().filter(|p| **p == c).count()
+    }
+
+    fn pictures_of(scene: &Scene, sol: &Solution) -> [Image; 5] {
+        let sb = crate::exact::SingleBounce::new(scene).unwrap();
+        let exact = |p: usize, x: DVec3| sb.patch_radiosity_at(p, x);
+        let pc = PiecewiseConstant::new(scene, &sol.elements).unwrap();
+        let g = Gouraud::new(scene, sol).unwrap();
+        let (_, maps) = measure_views(scene, sol, &pc, &g, &exact, &ArtifactParams::quick()).unwrap();
+        pictures(scene, &maps)
+    }
+
+    /// shadow-narrow as one element a patch: every critical segment lies inside the floor's one
+    /// element (E red, no green), every feature is missing (B red, no green), no interior edge
+    /// (C, D without blue). On the CDT the segments are resolved (E green, no red).
+    #[test]
+    fn pictures_mark_what_the_numbers_count() {
+        let scene = Scene::load("builtin:shadow-narrow").unwrap();
+        let accel = crate::accel::Accel::build(&scene);
+        let p = crate::solver::uniform::UniformParams {
+            element_size: f64::INFINITY,
+            ff_tolerance: crate::solver::uniform::COARSE_FF_TOLERANCE,
+            ..Default::default()
+        };
+        let one = crate::solver::uniform::solve(&scene, &accel, &p, &mut |_, _| {}).unwrap();
+        let [_, b, c, d, e] = pictures_of(&scene, &one);
+        assert!(
+            count(&e, RED) > 100 && count(&e, GREEN) == 0,
+            "E: {} red, {} green",
+            count(&e, RED),
+            count(&e, GREEN)
+        );
+        assert!(count(&b, RED) > 100 && count(&b, GREEN) == 0, "B: {} red", count(&b, RED));
+        assert_eq!(count(&c, BLUE) + count(&d, BLUE), 0, "no interior edges");
+        let cdt = crate::solver::discontinuity::solve(
+            &scene,
+            &crate::solver::discontinuity::DiscontinuityParams::cdt(),
+            &mut |_, _| {},
+        )
+        .unwrap();
+        let [_, _, _, d, e] = pictures_of(&scene, &cdt.solution);
+        assert!(
+            count(&e, GREEN) > 100 && count(&e, RED) == 0,
+            "E: {} green, {} red",
+            count(&e, GREEN),
+            count(&e, RED)
+        );
+        assert!(count(&d, BLUE) > 100 && count(&d, RED) > 0, "D: the CDT's edges, some jumping");
+    }
+}
