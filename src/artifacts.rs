@@ -58,14 +58,15 @@
 //! dropped): `E_err = √(Σ |B(x) − B_ref(x)|²) / √(Σ |B_ref(x)|²)` (channels summed).
 //!
 //! Measured (release, `radlab reference builtin:SCENE --samples 16 --exact --compare METHOD`,
-//! standard settings; B as features missing of all, C, D and E as fractions of length):
+//! standard settings, branch meshcli: the Gouraud view with T-vertices anchored; B as features
+//! missing of all, C, D and E as fractions of length):
 //!
 //! | scene | method | elements | A | B | C | D | E | E_err |
 //! |---|---|---|---|---|---|---|---|---|
 //! | shadow-narrow | uniform | 110 | 76.7 % | 0 of 10 | 86.5 % | 86.7 % | 100 % | 56.3 % |
-//! | shadow-narrow | hierarchical | 180 | 82.1 % | 0 of 10 | 81.7 % | 73.8 % | 97.0 % | 46.0 % |
+//! | shadow-narrow | hierarchical | 180 | 78.0 % | 0 of 10 | 82.1 % | 73.8 % | 97.0 % | 45.7 % |
 //! | shadow-narrow | dmesh-cdt | 428 | 59.2 % | 4 of 10 (1.3 % of area) | 71.5 % | 60.8 % | 0 % | – |
-//! | shadow-narrow | dmesh-bsp | 17 | 56.5 % | 6 of 10 (2.1 % of area) | 41.0 % | 92.2 % | 0 % | – |
+//! | shadow-narrow | dmesh-bsp | 17 | 56.5 % | 6 of 10 (2.1 % of area) | 41.6 % | 92.2 % | 0 % | – |
 //! | shadow-wide | uniform | 157 | 14.6 % | 0 of 4 | 86.4 % | 79.4 % | 100 % | 20.4 % |
 //! | shadow-wide | dmesh-cdt | 160 | 24.4 % | 0 of 4 | 66.1 % | 73.4 % | 0 % | – |
 //!
