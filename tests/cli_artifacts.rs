@@ -79,12 +79,12 @@ fn bad_input_is_one_line() {
         (&["builtin:shadow-narrow", "--side", "2"][..], "--side"),
         (&["builtin:no-such-scene"][..], "no-such-scene"),
         (&["builtin:shadow-narrow", "--mesh", "quadtree", "--order", "1"][..], "--order 1"),
+        (&["builtin:shadow-narrow", "--out", "/proc/radlab-cannot-create"][..], "--out"),
     ] {
         let o = Command::new(env!("CARGO_BIN_EXE_radlab"))
             .arg("artifacts")
             .args(args)
-            .arg("--out")
-            .arg(temp("bad"))
+            .args(if args.contains(&"--out") { vec![] } else { vec!["--out".into(), temp("bad")] })
             .output()
             .unwrap();
         assert!(!o.status.success(), "{args:?} accepted");

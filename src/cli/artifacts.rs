@@ -72,6 +72,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     set_threads(a.threads)?;
     anyhow::ensure!((4..=1024).contains(&args.side), "--side {}: must be in 4..=1024", args.side);
     super::solve::plan(a)?;
+    // The output folder first: a bad --out fails before the reference and the solve.
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("--out {}: cannot create the folder", args.out.display()))?;
     let scene = Arc::new(load_scene(&args.scene, a.max_triangles)?);
     let to_stdout = args.json.as_deref() == Some("-");
     let mut log: Box<dyn Write> =
