@@ -342,7 +342,7 @@ impl spade::HasPosition for InterpolationVertex {
 
 impl<'a> PointInterpolant<'a> {
     /// Triangulate `points` (with `values`, same order) patch by patch. Errors if the lengths
-    /// differ or a point names a patch the scene lacks; points at one position keep the last.
+    /// differ or a point names a patch the scene lacks; of points at one position, one is kept.
     pub fn new(scene: &'a Scene, points: &[RefPoint], values: &[Rgb]) -> Result<Self, MetricsError> {
         if points.len() != values.len() {
             return Err(MetricsError::LengthMismatch { solution: values.len(), reference: points.len() });

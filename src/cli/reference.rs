@@ -54,7 +54,7 @@ pub struct Args {
     /// Largest triangle of --compare dmesh-cdt, as a fraction of its receiver's area.
     #[arg(long, default_value_t = f64::INFINITY)]
     pub dmesh_max_area: f64,
-    /// Pointwise ruler on a single-bounce scene (`builtin:shadow-wide`, `builtin:shadow-narrow`,
+    /// Pointwise ruler on a single-bounce scene (`builtin:shadow-wide`, `builtin:shadow-narrow`, `builtin:thin-pole`,
     /// [`radlab::exact`]): score against the closed-form answer at the reference's points (no
     /// noise) instead of their Monte Carlo estimates; the points are still placed by the cached
     /// reference (use a small --samples to place them quickly). With --compare, also prints the
