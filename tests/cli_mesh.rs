@@ -65,6 +65,26 @@ fn every_mesh_solves_and_dumps_its_elements_with_coefficients() {
             let n = e["vertices"].as_array().unwrap().len();
             assert!((3..=4).contains(&n), "{mesh}: {n} vertices");
         }
+        // The hierarchy's interior elements hold the area average of their children (push-pull).
+        let interior: Vec<_> = elements.iter().filter(|e| !e["children"].is_null()).collect();
+        assert_eq!(interior.is_empty(), mesh != "quadtree", "{mesh}: {} interior elements", interior.len());
+        for e in interior {
+            assert_eq!(e["id"], elements[e["id"].as_u64().unwrap() as usize]["id"], "ids are positions");
+            let kids: Vec<&serde_json::Value> = e["children"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|c| &elements[c.as_u64().unwrap() as usize])
+                .collect();
+            let area: f64 = kids.iter().map(|k| f(&k["area"])).sum();
+            let mean = kids.iter().map(|k| f(&k["area"]) * f(&k["radiosity"][1])).sum::<f64>() / area;
+            let b = f(&e["radiosity"][1]);
+            assert!(
+                (mean - b).abs() <= 1e-9 * b.abs().max(1e-12),
+                "{mesh}: element {}: {b} vs children {mean}",
+                e["id"]
+            );
+        }
         let links = dump["links"].as_array().unwrap();
         assert_eq!(links.is_empty(), mesh != "quadtree", "{mesh}: links are the hierarchy's");
         if mesh.starts_with("discontinuity") {
