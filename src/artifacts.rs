@@ -4,8 +4,11 @@
 //! The reference is anything that gives B at any point of any patch ([`Reconstruction`]): the
 //! closed form of a single-bounce scene ([`crate::exact::SingleBounce::patch_radiosity_at`]), or
 //! a fine solve's reconstruction. The solution is read through its piecewise-constant
-//! reconstruction ([`PiecewiseConstant`]): B(x) = B_e of the leaf element e holding x. Only
-//! patches that reflect (ρ̄ > 0) are examined: the rest hold B = E, constant by construction.
+//! reconstruction ([`PiecewiseConstant`]): B(x) = B_e of the leaf element e holding x;
+//! [`measure_views`] reads it through given views instead (a p = 1 solution's own functions) and
+//! also returns where each artifact lies ([`ArtifactMaps`], drawn by
+//! [`crate::artifact_pictures`]; `radlab artifacts`). Only patches that reflect (ρ̄ > 0) are
+//! examined: the rest hold B = E, constant by construction.
 //!
 //! Every patch p is sampled on a `side × side` grid of its area-uniform map
 //! ([`crate::reference::area_point`]), cell centres x_k of equal area a_k = A_p / side². With
@@ -55,14 +58,15 @@
 //! dropped): `E_err = √(Σ |B(x) − B_ref(x)|²) / √(Σ |B_ref(x)|²)` (channels summed).
 //!
 //! Measured (release, `radlab reference builtin:SCENE --samples 16 --exact --compare METHOD`,
-//! standard settings; B as features missing of all, C, D and E as fractions of length):
+//! standard settings, branch meshcli: the Gouraud view with T-vertices anchored; B as features
+//! missing of all, C, D and E as fractions of length):
 //!
 //! | scene | method | elements | A | B | C | D | E | E_err |
 //! |---|---|---|---|---|---|---|---|---|
 //! | shadow-narrow | uniform | 110 | 76.7 % | 0 of 10 | 86.5 % | 86.7 % | 100 % | 56.3 % |
-//! | shadow-narrow | hierarchical | 180 | 82.1 % | 0 of 10 | 81.7 % | 73.8 % | 97.0 % | 46.0 % |
+//! | shadow-narrow | hierarchical | 180 | 78.0 % | 0 of 10 | 82.1 % | 73.8 % | 97.0 % | 45.7 % |
 //! | shadow-narrow | dmesh-cdt | 428 | 59.2 % | 4 of 10 (1.3 % of area) | 71.5 % | 60.8 % | 0 % | – |
-//! | shadow-narrow | dmesh-bsp | 17 | 56.5 % | 6 of 10 (2.1 % of area) | 41.0 % | 92.2 % | 0 % | – |
+//! | shadow-narrow | dmesh-bsp | 17 | 56.5 % | 6 of 10 (2.1 % of area) | 41.6 % | 92.2 % | 0 % | – |
 //! | shadow-wide | uniform | 157 | 14.6 % | 0 of 4 | 86.4 % | 79.4 % | 100 % | 20.4 % |
 //! | shadow-wide | dmesh-cdt | 160 | 24.4 % | 0 of 4 | 66.1 % | 73.4 % | 0 % | – |
 //!
@@ -245,8 +249,41 @@ pub fn measure<R: Reconstruction + ?Sized>(
     params: &ArtifactParams,
 ) -> Result<ArtifactReport, ArtifactError> {
     let pc = PiecewiseConstant::new(scene, &solution.elements)?;
+    let gouraud = Gouraud::new(scene, solution)?;
+    Ok(measure_all(scene, solution, &pc, None, &gouraud, reference, params)?.0)
+}
+
+/// [`measure`] with the solution read through given views, and where each artifact lies
+/// ([`ArtifactMaps`], for pictures): `values` is what A, B, D and E read (the flat view of a
+/// p = 0 solution, [`PiecewiseConstant`]; a p = 1 solution's own functions,
+/// [`crate::reconstruction::Nodal`]), `shaded` what C reads for kinks ([`Gouraud`] for p = 0, the
+/// same p = 1 functions for p = 1). The elements of `solution` give the edges and locate the
+/// points. D's jump is `values` on both sides of the edge ([`measure`] takes the two elements'
+/// averages: the same for constant elements, not for leaves that carry a slope).
+pub fn measure_views<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    values: &dyn Reconstruction,
+    shaded: &dyn Reconstruction,
+    reference: &R,
+    params: &ArtifactParams,
+) -> Result<(ArtifactReport, ArtifactMaps), ArtifactError> {
+    measure_all(scene, solution, values, Some(values), shaded, reference, params)
+}
+
+/// [`measure_views`], D's jumps read on `jumps` (`None`: the element averages).
+fn measure_all<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    values: &dyn Reconstruction,
+    jumps: Option<&dyn Reconstruction>,
+    shaded: &dyn Reconstruction,
+    reference: &R,
+    params: &ArtifactParams,
+) -> Result<(ArtifactReport, ArtifactMaps), ArtifactError> {
+    let pc = PiecewiseConstant::new(scene, &solution.elements)?;
     let points = grid_points(scene, params.side);
-    let sol: Vec<Rgb> = crate::pointwise::evaluate(&pc, &points);
+    let sol: Vec<Rgb> = crate::pointwise::evaluate(values, &points);
     let refs: Vec<Rgb> = crate::pointwise::evaluate(reference, &points);
     let means = patch_means(scene, &points, &refs, &sol);
 
@@ -260,14 +297,76 @@ pub fn measure<R: Reconstruction + ?Sized>(
         .map(|s| s.report.scene.l2_debiased);
 
     let samples = interior_edge_samples(scene, solution, &pc, &means, params);
-    Ok(ArtifactReport {
+    let (missing_features, features) = missing_features(&points, &refs, &sol, &means, params);
+    let (mach_bands, mach) = mach_bands(solution, &samples, shaded, reference, &means, params);
+    let (shading_jumps, jump_marks) = shading_jumps(solution, &samples, jumps, reference, &means, params);
+    let (unresolved, segments) = unresolved(scene, solution, &pc, values, reference, params)?;
+    let edges = samples
+        .iter()
+        .zip(mach.iter().zip(&jump_marks))
+        .map(|(s, (&mach_band, &jump))| EdgeMark {
+            patch: s.patch,
+            x: s.x,
+            along: s.n.cross(scene.patches[s.patch].normal),
+            length: 2.0 * s.weight,
+            mach_band,
+            jump,
+        })
+        .collect();
+    let report = ArtifactReport {
         blocky_shadows,
         band_points,
-        missing_features: missing_features(&points, &refs, &sol, &means, params),
-        mach_bands: mach_bands(scene, solution, &samples, reference, &means, params)?,
-        shading_jumps: shading_jumps(solution, &samples, reference, &means, params),
-        unresolved: unresolved(scene, solution, &pc, reference, params)?,
-    })
+        missing_features,
+        mach_bands,
+        shading_jumps,
+        unresolved,
+    };
+    let maps =
+        ArtifactMaps { points, solution: sol, reference: refs, means, in_band, features, edges, segments };
+    Ok((report, maps))
+}
+
+/// One interior element-edge sample (C, D): its point, the edge's direction, the length it
+/// stands for, and whether it is a Mach band (C) or an inappropriate jump (D).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct EdgeMark {
+    pub patch: usize,
+    pub x: DVec3,
+    pub along: DVec3,
+    pub length: f64,
+    pub mach_band: bool,
+    pub jump: bool,
+}
+
+/// One critical-segment sample (E): its point, the segment's direction, the length it stands
+/// for, and whether it lies inside an element.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct SegmentMark {
+    pub patch: usize,
+    pub x: DVec3,
+    pub along: DVec3,
+    pub length: f64,
+    pub unresolved: bool,
+}
+
+/// Where the artifacts of [`measure_views`] lie.
+#[derive(Clone, Debug)]
+pub struct ArtifactMaps {
+    /// The `side × side` grid of every reflecting patch, in patch order, row by row (A, B).
+    pub points: Vec<RefPoint>,
+    /// The solution's (`values`) and the reference's B at the grid points.
+    pub solution: Vec<Rgb>,
+    pub reference: Vec<Rgb>,
+    /// Per patch: (m_p, s_p), the reference's and the solution's mean of B̄ over the grid.
+    pub means: Vec<(f64, f64)>,
+    /// Grid points in the penumbra band (A).
+    pub in_band: Vec<bool>,
+    /// Per grid point (B): 0 no counted feature, +1 a point of a feature shown, −1 of a missing one.
+    pub features: Vec<i8>,
+    /// Interior edge samples (C, D).
+    pub edges: Vec<EdgeMark>,
+    /// Critical-segment samples (E).
+    pub segments: Vec<SegmentMark>,
 }
 
 /// Reflecting patches (ρ̄ > 0), in order.
@@ -313,9 +412,10 @@ fn missing_features(
     sol: &[Rgb],
     means: &[(f64, f64)],
     params: &ArtifactParams,
-) -> MissingFeatures {
+) -> (MissingFeatures, Vec<i8>) {
     let side = params.side as usize;
     let mut out = MissingFeatures::default();
+    let mut marks = vec![0i8; points.len()];
     let (mut area_all, mut area_missing) = (0.0, 0.0);
     for start in (0..points.len()).step_by(side * side) {
         let patch = points[start].patch;
@@ -351,9 +451,11 @@ fn missing_features(
             // Flood fill one 4-connected region of equal sign.
             let (mut size, mut shown_n) = (0usize, 0usize);
             let mut stack = vec![k0];
+            let mut region = Vec::new();
             seen[k0] = true;
             while let Some(k) = stack.pop() {
                 size += 1;
+                region.push(k);
                 shown_n += usize::from(shown[k]);
                 let (i, j) = (k % side, k / side);
                 let mut push = |q: usize| {
@@ -381,14 +483,18 @@ fn missing_features(
             let area = size as f64 * points[start].area;
             out.features += 1;
             area_all += area;
-            if 2 * shown_n < size {
+            let missing = 2 * shown_n < size;
+            if missing {
                 out.missing += 1;
                 area_missing += area;
+            }
+            for k in region {
+                marks[start + k] = if missing { -1 } else { 1 };
             }
         }
     }
     out.area_fraction = if area_all > 0.0 { area_missing / area_all } else { 0.0 };
-    out
+    (out, marks)
 }
 
 /// Distance from `x` to the boundary of the polygon `verts`.
@@ -469,31 +575,40 @@ fn interior_edge_samples(
         .collect()
 }
 
-/// D (module docs).
+/// D (module docs), and which samples are inappropriate jumps: the jump of `values` across the
+/// edge, or (`None`) of the two elements' average values.
 fn shading_jumps<R: Reconstruction + ?Sized>(
     solution: &Solution,
     samples: &[EdgeSample],
+    values: Option<&dyn Reconstruction>,
     reference: &R,
     means: &[(f64, f64)],
     params: &ArtifactParams,
-) -> ShadingJumps {
+) -> (ShadingJumps, Vec<bool>) {
     let mut out = ShadingJumps::default();
     let mut sum_jump = 0.0;
+    let mut marks = Vec::with_capacity(samples.len());
     for s in samples {
         let mean = means[s.patch].0;
         out.edge_length += s.weight;
-        let jump =
-            (solution.elements[s.outside].radiosity - solution.elements[s.inside].radiosity).mean().abs();
         let (out_x, in_x) = (s.x + s.n * s.eps, s.x - s.n * s.eps);
+        let jump = match values {
+            Some(v) => (v.radiosity_at(s.patch, out_x) - v.radiosity_at(s.patch, in_x)).mean().abs(),
+            None => {
+                (solution.elements[s.outside].radiosity - solution.elements[s.inside].radiosity).mean().abs()
+            }
+        };
         let jump_ref =
             (reference.radiosity_at(s.patch, out_x) - reference.radiosity_at(s.patch, in_x)).mean().abs();
-        if jump > params.jump * mean && jump_ref < 0.1 * jump {
+        let flagged = jump > params.jump * mean && jump_ref < 0.1 * jump;
+        if flagged {
             out.inappropriate_length += s.weight;
             sum_jump += s.weight * jump / mean;
         }
+        marks.push(flagged);
     }
     out.mean_jump = if out.inappropriate_length > 0.0 { sum_jump / out.inappropriate_length } else { 0.0 };
-    out
+    (out, marks)
 }
 
 /// The reconstruction a viewer draws from constant elements (Gouraud,
@@ -517,16 +632,15 @@ impl Reconstruction for Gouraud<'_> {
     }
 }
 
-/// C (module docs).
+/// C (module docs), read on `shaded`, and which samples are Mach bands.
 fn mach_bands<R: Reconstruction + ?Sized>(
-    scene: &Scene,
     solution: &Solution,
     samples: &[EdgeSample],
+    shaded: &dyn Reconstruction,
     reference: &R,
     means: &[(f64, f64)],
     params: &ArtifactParams,
-) -> Result<MachBands, MetricsError> {
-    let gouraud = Gouraud::new(scene, solution)?;
+) -> (MachBands, Vec<bool>) {
     // The change of slope across the edge: outward slope on the far side plus the slope moving
     // away from the edge on the near side (zero where the function is smooth).
     let kink = |f: &dyn Fn(DVec3) -> Rgb, s: &EdgeSample| {
@@ -535,28 +649,33 @@ fn mach_bands<R: Reconstruction + ?Sized>(
         ((f(x + n * (2.0 * h)) - f(x + n * h)) + (f(x - n * (2.0 * h)) - f(x - n * h))).mean().abs() / h
     };
     let mut out = MachBands::default();
+    let mut marks = Vec::with_capacity(samples.len());
     for s in samples {
         let mean = means[s.patch].0;
         out.edge_length += s.weight;
-        let k = kink(&|y| gouraud.radiosity_at(s.patch, y), s);
+        let k = kink(&|y| shaded.radiosity_at(s.patch, y), s);
         let k_ref = kink(&|y| reference.radiosity_at(s.patch, y), s);
-        if k * solution.elements[s.inside].area.sqrt() > params.jump * mean && k_ref < 0.1 * k {
+        let flagged = k * solution.elements[s.inside].area.sqrt() > params.jump * mean && k_ref < 0.1 * k;
+        if flagged {
             out.band_length += s.weight;
         }
+        marks.push(flagged);
     }
-    Ok(out)
+    (out, marks)
 }
 
-/// E (module docs).
+/// E (module docs), and every segment sample.
 fn unresolved<R: Reconstruction + ?Sized>(
     scene: &Scene,
     solution: &Solution,
     pc: &PiecewiseConstant,
+    values: &dyn Reconstruction,
     reference: &R,
     params: &ArtifactParams,
-) -> Result<UnresolvedDiscontinuities, ArtifactError> {
+) -> Result<(UnresolvedDiscontinuities, Vec<SegmentMark>), ArtifactError> {
     let m = params.segment_samples.max(1);
     let mut out = UnresolvedDiscontinuities::default();
+    let mut marks = Vec::new();
     let (mut err2, mut ref2) = (0.0, 0.0);
     for p in reflecting(scene) {
         let patch = &scene.patches[p];
@@ -573,13 +692,22 @@ fn unresolved<R: Reconstruction + ?Sized>(
             for i in 0..m {
                 let x = seg.a.lerp(seg.b, (f64::from(i) + 0.5) / f64::from(m));
                 let Some(owner) = pc.element_at(p, x) else { continue };
-                if boundary_distance(&solution.elements[owner].vertices, x) <= tol {
+                let resolved = boundary_distance(&solution.elements[owner].vertices, x) <= tol;
+                let along = (seg.b - seg.a) / len;
+                marks.push(SegmentMark {
+                    patch: p,
+                    x,
+                    along,
+                    length: len / f64::from(m),
+                    unresolved: !resolved,
+                });
+                if resolved {
                     continue;
                 }
                 out.unresolved_length += len / f64::from(m);
                 for y in [x + n * delta, x - n * delta] {
                     if inside_convex(&patch.vertices, patch.normal, y) {
-                        let (b, r) = (pc.radiosity_at(p, y), reference.radiosity_at(p, y));
+                        let (b, r) = (values.radiosity_at(p, y), reference.radiosity_at(p, y));
                         let d = b - r;
                         err2 += d.mul_rgb(d).mean();
                         ref2 += r.mul_rgb(r).mean();
@@ -589,5 +717,5 @@ fn unresolved<R: Reconstruction + ?Sized>(
         }
     }
     out.error_beside = (ref2 > 0.0).then(|| (err2 / ref2).sqrt());
-    Ok(out)
+    Ok((out, marks))
 }

@@ -36,6 +36,7 @@
 //! - [`reconstruction`]: flat, Gouraud-from-vertex-averages and nodal p = 1 reconstructions.
 //! - [`penumbra`]: the penumbra band of a point set (points that see part of the direct light).
 //! - [`artifacts`]: the five meshing artifacts of the lecture, one number each, against a reference.
+//! - [`artifact_pictures`]: one picture per artifact, every reflecting patch drawn in its plane.
 //! - [`bench`](mod@bench): the speed-against-error sweep behind `radlab bench`.
 //! - [`hard_cases`]: generated numerically hard scenes (assets/scenes/hard/).
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
@@ -45,6 +46,7 @@
 //! - `render`, `viewer` (feature `gui`): wgpu pipelines and the eframe app.
 
 pub mod accel;
+pub mod artifact_pictures;
 pub mod artifacts;
 pub mod bake;
 pub mod basis;

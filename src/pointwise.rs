@@ -305,6 +305,126 @@ pub fn score_reconstruction_in_band<R: Reconstruction + ?Sized>(
     score_values(scene, solution, points, reference, band, &values, &owner)
 }
 
+/// The reference as a function of position: the piecewise-linear interpolant of point values
+/// (e.g. a cached Monte Carlo reference's estimates) over the Delaunay triangulation of each
+/// patch's points in the patch's plane (`spade`); a query outside the points' convex hull (near
+/// the patch's boundary) takes the nearest point's value, a patch without points its emission.
+///
+/// It is continuous everywhere, exact at the points and linear between them, so it resolves
+/// what the points resolve (the adaptive reference places more points where B varies fast) and
+/// no finer: a discontinuity of the true B (a D0 contact) is a steep ramp across one triangle, and
+/// the points' noise is carried along (not smoothed).
+pub struct PointInterpolant<'a> {
+    scene: &'a Scene,
+    patches: Vec<Option<PatchInterpolant>>,
+}
+
+struct PatchInterpolant {
+    plane: crate::mesh::ReceiverPlane,
+    triangulation:
+        spade::DelaunayTriangulation<InterpolationVertex, (), (), (), spade::HierarchyHintGenerator<f64>>,
+}
+
+#[derive(Copy, Clone, Debug)]
+struct InterpolationVertex {
+    position: spade::Point2<f64>,
+    value: Rgb,
+    /// Index of the point in the list given to [`PointInterpolant::new`].
+    index: usize,
+}
+
+impl spade::HasPosition for InterpolationVertex {
+    type Scalar = f64;
+    fn position(&self) -> spade::Point2<f64> {
+        self.position
+    }
+}
+
+impl<'a> PointInterpolant<'a> {
+    /// Triangulate `points` (with `values`, same order) patch by patch. Errors if the lengths
+    /// differ or a point names a patch the scene lacks; of points at one position, one is kept.
+    pub fn new(scene: &'a Scene, points: &[RefPoint], values: &[Rgb]) -> Result<Self, MetricsError> {
+        if points.len() != values.len() {
+            return Err(MetricsError::LengthMismatch { solution: values.len(), reference: points.len() });
+        }
+        let mut per_patch: Vec<Vec<(DVec3, Rgb, usize)>> = vec![Vec::new(); scene.patches.len()];
+        let patches = scene.patches.len();
+        for (index, (p, v)) in points.iter().zip(values).enumerate() {
+            per_patch
+                .get_mut(p.patch)
+                .ok_or(MetricsError::BadPatch { index, patch: p.patch, patches })?
+                .push((p.position, *v, index));
+        }
+        let patches = per_patch
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, pts)| {
+                if pts.is_empty() {
+                    return None;
+                }
+                let plane = crate::mesh::ReceiverPlane::new(&scene.patches[i].vertices, 0.0).ok()?;
+                let vertices: Vec<InterpolationVertex> = pts
+                    .iter()
+                    .filter(|(x, v, _)| x.is_finite() && v.is_finite())
+                    .map(|&(x, value, index)| {
+                        let q = plane.to_2d(x);
+                        InterpolationVertex { position: spade::Point2::new(q.x, q.y), value, index }
+                    })
+                    .collect();
+                let triangulation = spade::Triangulation::bulk_load(vertices).ok()?;
+                Some(PatchInterpolant { plane, triangulation })
+            })
+            .collect();
+        Ok(PointInterpolant { scene, patches })
+    }
+}
+
+impl PointInterpolant<'_> {
+    /// Index (in the list given to [`Self::new`]) of the point of `patch` nearest to `x`;
+    /// `None` when the patch has no points.
+    #[must_use]
+    pub fn nearest(&self, patch: usize, x: DVec3) -> Option<usize> {
+        let pi = self.patches.get(patch)?.as_ref()?;
+        let q = pi.plane.to_2d(x);
+        pi.triangulation.nearest_neighbor(spade::Point2::new(q.x, q.y)).map(|v| v.data().index)
+    }
+}
+
+impl Reconstruction for PointInterpolant<'_> {
+    fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
+        use spade::{PositionInTriangulation as At, Triangulation as _};
+        let Some(Some(pi)) = self.patches.get(patch) else {
+            return self.scene.patches.get(patch).map_or(Rgb::ZERO, |p| p.emission);
+        };
+        let t = &pi.triangulation;
+        let q = pi.plane.to_2d(x);
+        let at = spade::Point2::new(q.x, q.y);
+        let weigh = |vs: &[(spade::Point2<f64>, Rgb)]| -> Rgb {
+            // Barycentric weights of `at` in the triangle (or on the segment) `vs`.
+            let p = |v: spade::Point2<f64>| glam::DVec2::new(v.x, v.y);
+            if vs.len() == 2 {
+                let (a, b) = (p(vs[0].0), p(vs[1].0));
+                let t = ((q - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+                return vs[0].1 * (1.0 - t) + vs[1].1 * t;
+            }
+            let (a, b, c) = (p(vs[0].0), p(vs[1].0), p(vs[2].0));
+            let area = (b - a).perp_dot(c - a);
+            let wa = (b - q).perp_dot(c - q) / area;
+            let wb = (c - q).perp_dot(a - q) / area;
+            vs[0].1 * wa + vs[1].1 * wb + vs[2].1 * (1.0 - wa - wb)
+        };
+        let data = |v: spade::handles::VertexHandle<'_, InterpolationVertex>| (v.position(), v.data().value);
+        match t.locate(at) {
+            At::OnVertex(v) => t.vertex(v).data().value,
+            At::OnEdge(e) => weigh(&t.directed_edge(e).vertices().map(data)),
+            At::OnFace(f) => weigh(&t.face(f).vertices().map(data)),
+            At::OutsideOfConvexHull(_) | At::NoTriangulation => {
+                t.nearest_neighbor(at).map_or(Rgb::ZERO, |v| v.data().value)
+            }
+        }
+    }
+}
+
 /// A one-line label of a pointwise figure: "pointwise rel L2 4.21 % (65 536 points, noise 0.31 %)".
 #[must_use]
 pub fn label(report: &ErrorReport, points: usize) -> String {
@@ -339,5 +459,40 @@ mod tests {
         assert_eq!(thousands(65_536), "65 536");
         assert_eq!(thousands(999), "999");
         assert_eq!(thousands(1_000_000), "1 000 000");
+    }
+
+    #[test]
+    fn point_interpolant_is_exact_at_points_and_linear_between() {
+        use crate::reference::Cell;
+        let scene = Scene::load("builtin:parallel").unwrap();
+        let patch = &scene.patches[0];
+        // B = 1 + 2 s + 3 t over a 9 × 9 lattice of the patch (s, t its bilinear parameters):
+        // linear in position on a parallelogram, so the interpolant reproduces it everywhere
+        // inside the lattice's hull, and the nearest lattice value outside.
+        let v = &patch.vertices;
+        let at = |s: f64, t: f64| v[0] + (v[1] - v[0]) * s + (v[3] - v[0]) * t;
+        let f = |s: f64, t: f64| Rgb::splat(1.0 + 2.0 * s + 3.0 * t);
+        let (mut points, mut values) = (Vec::new(), Vec::new());
+        for j in 0..9 {
+            for i in 0..9 {
+                let (s, t) = ((0.5 + f64::from(i)) / 9.0, (0.5 + f64::from(j)) / 9.0);
+                let cell = Cell { patch: 0, level: 0, i, j };
+                points.push(RefPoint { patch: 0, position: at(s, t), area: patch.area / 81.0, cell });
+                values.push(f(s, t));
+            }
+        }
+        let r = PointInterpolant::new(&scene, &points, &values).unwrap();
+        for (s, t) in [(0.3, 0.7), (0.5, 0.5), (0.11, 0.85), (0.5 / 9.0, 0.5)] {
+            let got = r.radiosity_at(0, at(s, t)).g();
+            assert!((got - f(s, t).g()).abs() < 1e-9, "({s}, {t}): {got} vs {}", f(s, t).g());
+        }
+        // Outside the hull: the nearest point's value (the corner point).
+        let corner = r.radiosity_at(0, at(0.001, 0.001)).g();
+        assert!((corner - f(0.5 / 9.0, 0.5 / 9.0).g()).abs() < 1e-9, "{corner}");
+        assert_eq!(r.nearest(0, at(0.001, 0.001)), Some(0));
+        assert_eq!(r.nearest(0, at(0.99, 0.99)), Some(80));
+        // A patch without points reads its emission; mismatched lengths are an error.
+        assert_eq!(r.radiosity_at(1, scene.patches[1].vertices[0]), scene.patches[1].emission);
+        assert!(PointInterpolant::new(&scene, &points, &values[1..]).is_err());
     }
 }

@@ -27,6 +27,7 @@ const CODE_BUILT: &[&str] = &[
     "table-room",
     "shadow-wide",
     "shadow-narrow",
+    "thin-pole",
 ];
 
 fn asset_path(name: &str) -> PathBuf {

@@ -191,7 +191,7 @@ fn cli_order_flag() {
     for (args, needle) in [
         (
             vec!["solve", "builtin:shadow-narrow", "--method", "hierarchical", "--order", "1"],
-            "--method uniform only",
+            "not implemented on --mesh quadtree",
         ),
         (vec!["solve", "builtin:shadow-narrow", "--method", "uniform", "--order", "2"], "supported orders"),
         (vec!["solve", "builtin:shadow-narrow", "--method", "uniform", "--continuous"], "needs --order 1"),

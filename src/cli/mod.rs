@@ -1,5 +1,6 @@
 //! Command-line interface. Each subcommand lives in its own file with its `Args` and `run`.
 
+pub mod artifacts;
 pub mod bench;
 pub mod figures;
 pub mod form_factor;
@@ -44,6 +45,9 @@ pub enum Command {
     /// h- against p-refinement: Galerkin p = 0 / p = 1 on exact single-bounce scenes (table,
     /// slopes, log-log plot).
     HVsP(h_vs_p::Args),
+    /// The five meshing artifacts (A–E) of a solution against the scene's reference: table,
+    /// pictures, JSON.
+    Artifacts(artifacts::Args),
     /// Hierarchical solver speed benchmark (default: the SPLASH-2 room at SPLASH-2 settings).
     Speed(speed::Args),
 }
@@ -61,5 +65,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Speed(a)) => speed::run(a),
         Some(Command::Mesh(a)) => mesh::run(a),
         Some(Command::HVsP(a)) => h_vs_p::run(a),
+        Some(Command::Artifacts(a)) => artifacts::run(a),
     }
 }

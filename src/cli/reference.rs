@@ -54,7 +54,7 @@ pub struct Args {
     /// Largest triangle of --compare dmesh-cdt, as a fraction of its receiver's area.
     #[arg(long, default_value_t = f64::INFINITY)]
     pub dmesh_max_area: f64,
-    /// Pointwise ruler on a single-bounce scene (`builtin:shadow-wide`, `builtin:shadow-narrow`,
+    /// Pointwise ruler on a single-bounce scene (`builtin:shadow-wide`, `builtin:shadow-narrow`, `builtin:thin-pole`,
     /// [`radlab::exact`]): score against the closed-form answer at the reference's points (no
     /// noise) instead of their Monte Carlo estimates; the points are still placed by the cached
     /// reference (use a small --samples to place them quickly). With --compare, also prints the
@@ -397,18 +397,7 @@ fn solve(
                 }
                 None => discontinuity::solve(scene, &p, &mut |_, _| {})?,
             };
-            let m = &d.mesh;
-            writeln!(
-                log,
-                "\n{method}: {} segments, {} constraints on {} receivers, {} → {} patches; meshing {:.4} s, solve {:.3} s",
-                m.segments.total(),
-                m.constraints,
-                m.receivers_meshed,
-                m.input_patches,
-                m.output_patches,
-                m.total_s,
-                d.solve_s
-            )?;
+            writeln!(log, "\n{method}: {}, solve {:.3} s", d.mesh.describe(), d.solve_s)?;
             d.solution
         }
         other => anyhow::bail!(
@@ -692,54 +681,8 @@ fn print_artifacts(
     let sb = radlab::exact::SingleBounce::new(scene).context("--exact")?;
     let exact = |p: usize, x: radlab::math::DVec3| sb.patch_radiosity_at(p, x);
     let r = measure(scene, sol, &exact, &ArtifactParams::standard())?;
-    let pct = |x: f64| format!("{:.1} %", 100.0 * x);
-    writeln!(
-        log,
-        "artifacts (against the closed form, {}² grid points a patch):",
-        ArtifactParams::standard().side
-    )?;
-    let (b, d, e) = (&r.missing_features, &r.shading_jumps, &r.unresolved);
-    let rows = [
-        (
-            "A blocky shadows",
-            r.blocky_shadows.map_or_else(|| "no penumbra".into(), pct),
-            format!("rel L2 in the penumbra band, {} points", r.band_points),
-        ),
-        (
-            "B missing features",
-            pct(b.fraction()),
-            format!("{} of {} features, {} of their area", b.missing, b.features, pct(b.area_fraction)),
-        ),
-        (
-            "C Mach bands",
-            pct(r.mach_bands.fraction()),
-            format!("of the interior edge length, Gouraud-interpolated ({:.3})", r.mach_bands.edge_length),
-        ),
-        (
-            "D shading discontinuities",
-            pct(d.fraction()),
-            format!(
-                "of {:.3} interior edge length; mean jump {} of the patch mean",
-                d.edge_length,
-                pct(d.mean_jump)
-            ),
-        ),
-        (
-            "E unresolved",
-            pct(e.fraction()),
-            format!(
-                "of {:.3} critical-segment length in {} segments; rel L2 beside them {}",
-                e.length,
-                e.segments,
-                e.error_beside.map_or_else(|| "none".into(), pct)
-            ),
-        ),
-    ];
-    for (name, value, detail) in rows {
-        let detail = if detail.is_empty() { detail } else { format!("  ({detail})") };
-        writeln!(log, "  {name:<25} {value}{detail}")?;
-    }
-    Ok(())
+    writeln!(log, "against the closed form:")?;
+    super::artifacts::print_table(&r, ArtifactParams::standard().side, log)
 }
 
 /// Write a `--json` document to `path`, or to stdout when `to_stdout` (`--json -`), saying so in

@@ -6,6 +6,10 @@ use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use radlab::accel::Accel;
 use radlab::basis::Order;
+use radlab::math::Rgb;
+use radlab::mesh::remesh::{MeshKind, RemeshStats};
+use radlab::scene::Scene;
+use radlab::solver::discontinuity::{self, DiscontinuityParams};
 use radlab::solver::hierarchical::HierarchicalSolver;
 use radlab::solver::linear::{self, LinearParams};
 use radlab::solver::params::{AreaEps, HierarchicalParams, Oracle};
@@ -44,12 +48,53 @@ impl From<OracleArg> for Oracle {
     }
 }
 
+/// The mesh a solve runs on (`--mesh`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MeshArg {
+    /// The hierarchical solver's adaptive quadtree of the input patches (--method hierarchical).
+    Quadtree,
+    /// Every patch cut into elements of --element-size (--method uniform or progressive).
+    Uniform,
+    /// Heckbert's constrained Delaunay discontinuity mesh, one element per piece.
+    DiscontinuityCdt,
+    /// Campbell & Fussell's BSP discontinuity mesh, one element per piece.
+    DiscontinuityBsp,
+}
+
+impl MeshArg {
+    /// The flag's spelling.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            MeshArg::Quadtree => "quadtree",
+            MeshArg::Uniform => "uniform",
+            MeshArg::DiscontinuityCdt => "discontinuity-cdt",
+            MeshArg::DiscontinuityBsp => "discontinuity-bsp",
+        }
+    }
+}
+
+/// What solves a scene: method, mesh, order and their settings — shared by `radlab solve` and
+/// `radlab artifacts`.
 #[derive(clap::Args, Debug)]
-pub struct Args {
-    /// Scene: a .gltf/.glb path or builtin:NAME (see `radlab scenes`).
-    pub scene: String,
-    #[arg(long, value_enum, default_value = "hierarchical")]
-    pub method: Method,
+pub struct SolverArgs {
+    /// Solver; default: hierarchical, or the one --mesh implies (uniform for the uniform and the
+    /// discontinuity meshes).
+    #[arg(long, value_enum)]
+    pub method: Option<Method>,
+    /// Mesh: quadtree (the hierarchical solver's, the default), uniform, discontinuity-cdt or
+    /// discontinuity-bsp (docs/meshing.md).
+    #[arg(long, value_enum)]
+    pub mesh: Option<MeshArg>,
+    /// Smallest angle of the CDT refinement, degrees, 0..=34 (--mesh discontinuity-cdt;
+    /// default 20, 0: the unrefined CDT).
+    #[arg(long)]
+    pub dmesh_min_angle: Option<f64>,
+    /// Largest CDT triangle as a fraction of its receiver's area (--mesh discontinuity-cdt;
+    /// default: no limit).
+    #[arg(long)]
+    pub dmesh_max_area: Option<f64>,
 
     /// Hierarchical preset the flags below modify: interactive, quality, lecture, splash2.
     #[arg(long, default_value = "quality")]
@@ -99,7 +144,7 @@ pub struct Args {
     /// bounding-box diagonal.
     #[arg(long)]
     pub element_size: Option<f64>,
-    /// Element order (uniform): 0 constant elements (the classical solver), 1 linear triangles /
+    /// Element order (uniform and discontinuity meshes): 0 constant elements, 1 linear triangles /
     /// bilinear quads with a Galerkin solve (src/solver/linear.rs).
     #[arg(long, default_value_t = 0)]
     pub order: u32,
@@ -149,6 +194,19 @@ pub struct Args {
     #[arg(long, default_value_t = 5_000_000)]
     pub max_triangles: usize,
 
+    /// Add the hierarchical solver's own error estimate to the JSON (`error_estimate`: its
+    /// global relative L2, no reference needed); costs about as much again as the solve.
+    #[arg(long)]
+    pub estimate: bool,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene: a .gltf/.glb path or builtin:NAME (see `radlab scenes`).
+    pub scene: String,
+    #[command(flatten)]
+    pub solver: SolverArgs,
+
     /// Write the JSON result to PATH (`-` for stdout).
     #[arg(long)]
     pub json: Option<String>,
@@ -163,10 +221,6 @@ pub struct Args {
     /// Write every element (vertices, radiosity) and link (receiver, source, F, visibility) as JSON.
     #[arg(long)]
     pub dump_hierarchy: Option<PathBuf>,
-    /// Add the hierarchical solver's own error estimate to the JSON (`error_estimate`: its
-    /// global relative L2, no reference needed); costs about as much again as the solve.
-    #[arg(long)]
-    pub estimate: bool,
     /// Write the solved mesh with its radiosity as vertex colours, unlit (COLOR_0, linear; the
     /// exposure and units in `extras`): PATH.glb, or PATH.gltf with the buffer embedded.
     #[arg(long, value_name = "PATH")]
@@ -236,7 +290,7 @@ impl LazyBar {
     }
 }
 
-pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
+pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalParams> {
     let mut p = HierarchicalParams::preset(&args.preset).with_context(|| {
         format!("unknown preset {:?} (one of {})", args.preset, HierarchicalParams::PRESETS.join(", "))
     })?;
@@ -299,15 +353,261 @@ pub fn hierarchical_params(args: &Args) -> anyhow::Result<HierarchicalParams> {
     Ok(p)
 }
 
+/// What `--method` and `--mesh` resolve to.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Plan {
+    Hierarchical,
+    Uniform,
+    Progressive,
+    /// The uniform (p = 0) or Galerkin (p = 1) solve on a discontinuity mesh.
+    Discontinuity(MeshKind),
+}
+
+/// Resolve `--method`, `--mesh`, `--order` and the mesh flags, refusing the combinations that
+/// make no sense with a one-line reason.
+pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
+    let mesh = a.mesh.unwrap_or(match a.method {
+        None | Some(Method::Hierarchical) => MeshArg::Quadtree,
+        Some(Method::Uniform | Method::Progressive) => MeshArg::Uniform,
+    });
+    let plan = match (mesh, a.method) {
+        (MeshArg::Quadtree, None | Some(Method::Hierarchical)) => Plan::Hierarchical,
+        (MeshArg::Uniform, None | Some(Method::Uniform)) => Plan::Uniform,
+        (MeshArg::Uniform, Some(Method::Progressive)) => Plan::Progressive,
+        (MeshArg::DiscontinuityCdt, None | Some(Method::Uniform)) => Plan::Discontinuity(MeshKind::Cdt),
+        (MeshArg::DiscontinuityBsp, None | Some(Method::Uniform)) => Plan::Discontinuity(MeshKind::Bsp),
+        (MeshArg::Quadtree, Some(m)) => bail!(
+            "--mesh quadtree is the hierarchical solver's own mesh; --method {} meshes uniformly (use --mesh uniform)",
+            format!("{m:?}").to_lowercase()
+        ),
+        (MeshArg::Uniform, Some(Method::Hierarchical)) => bail!(
+            "--method hierarchical refines its own quadtree (--mesh quadtree); --mesh uniform needs --method uniform or progressive"
+        ),
+        (m, Some(other)) => bail!(
+            "--mesh {} is solved by the uniform solver (one element per piece); not by --method {}",
+            m.name(),
+            format!("{other:?}").to_lowercase()
+        ),
+    };
+    let discontinuity = matches!(plan, Plan::Discontinuity(_));
+    if a.element_size.is_some() && !matches!(plan, Plan::Uniform | Plan::Progressive) {
+        bail!(
+            "--element-size applies to --mesh uniform; --mesh {} sizes its own elements{}",
+            mesh.name(),
+            if discontinuity { " (one per piece; refine the CDT with --dmesh-max-area)" } else { "" }
+        );
+    }
+    if (a.dmesh_min_angle.is_some() || a.dmesh_max_area.is_some()) && mesh != MeshArg::DiscontinuityCdt {
+        bail!(
+            "--dmesh-min-angle and --dmesh-max-area apply to --mesh discontinuity-cdt (not {})",
+            mesh.name()
+        );
+    }
+    if a.ff_tol.is_some() && plan == Plan::Hierarchical {
+        bail!(
+            "--ff-tol applies to --mesh uniform and the discontinuity meshes (the hierarchical solver's links use their own kernel)"
+        );
+    }
+    match a.order {
+        0 if a.continuous => bail!("--continuous needs --order 1 (constant elements share no values)"),
+        0 => {}
+        1 if plan == Plan::Hierarchical => bail!(
+            "--order 1 is not implemented on --mesh quadtree (the hierarchical solver's elements are constant); use --mesh uniform, discontinuity-cdt or discontinuity-bsp"
+        ),
+        1 if plan == Plan::Progressive => {
+            bail!(
+                "--order 1 needs the Galerkin solver (--method uniform); progressive shoots constant elements"
+            )
+        }
+        1 if a.ff_tol.is_some() => bail!(
+            "--ff-tol applies to the order-0 solver; --order 1 integrates its couplings with a fixed Gauss rule (src/solver/linear.rs)"
+        ),
+        1 => {}
+        p => bail!("--order {p}: supported orders are 0 (constant) and 1 (linear / bilinear)"),
+    }
+    Ok((plan, mesh))
+}
+
+/// A solved scene and what made it.
+pub struct Solved {
+    pub solution: Solution,
+    /// The solver's settings, as JSON.
+    pub params: serde_json::Value,
+    pub mesh: MeshArg,
+    pub order: u32,
+    /// Order 1 with one value per mesh vertex shared by the elements of a patch.
+    pub continuous: bool,
+    /// The hierarchical solver, for its hierarchy and links.
+    pub hierarchical: Option<HierarchicalSolver>,
+    /// Each element's basis coefficients at order 1 (vertex values, in vertex order); `None` at
+    /// order 0 (one coefficient per element: its radiosity).
+    pub coefficients: Option<Vec<Vec<Rgb>>>,
+    /// On a discontinuity mesh: what meshing did (its times) and the solve's wall time (s).
+    pub remesh: Option<(RemeshStats, f64)>,
+}
+
+impl Solved {
+    /// Every element's basis coefficients: its order-1 vertex values, or its one constant.
+    #[must_use]
+    pub fn element_coefficients(&self) -> Vec<Vec<Rgb>> {
+        self.coefficients
+            .clone()
+            .unwrap_or_else(|| self.solution.elements.iter().map(|e| vec![e.radiosity]).collect())
+    }
+}
+
+/// Solve `scene` as `a` says ([`plan`]); `spec` names the scene in errors.
+pub fn solve_scene(
+    a: &SolverArgs,
+    spec: &str,
+    scene: &Arc<Scene>,
+    accel: &Arc<Accel>,
+    bvh_s: f64,
+    progress: radlab::solver::Progress,
+) -> anyhow::Result<Solved> {
+    let (plan, mesh) = plan(a)?;
+    let default_size = scene.bounds().diagonal() / 8.0;
+    let solving = || format!("solving {spec}");
+    let linear = |element_size: f64| -> anyhow::Result<LinearParams> {
+        let mut p = LinearParams {
+            seed: a.seed,
+            element_size,
+            order: Order::Linear,
+            continuous: a.continuous,
+            ..LinearParams::default()
+        };
+        if let Some(v) = a.rays {
+            p.rays = v;
+        }
+        if let Some(v) = a.tolerance {
+            p.tolerance = v;
+        }
+        p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
+        Ok(p)
+    };
+    let (mut hierarchical, mut coefficients, mut remesh) = (None, None, None);
+    let (solution, params) = match plan {
+        Plan::Hierarchical => {
+            let p = hierarchical_params(a)?;
+            let mut s = HierarchicalSolver::with_accel(Arc::clone(scene), Arc::clone(accel), p, bvh_s);
+            s.solve(progress);
+            // Per-element error estimates only on request (--dump-hierarchy computes its own):
+            // they double the time on a refined scene.
+            let sol = s.solution_with(a.estimate);
+            hierarchical = Some(s);
+            (sol, serde_json::to_value(p)?)
+        }
+        Plan::Uniform if a.order == 1 => {
+            let p = linear(a.element_size.unwrap_or(default_size))?;
+            let sol = linear::solve(scene, accel, &p, progress)
+                .map_err(anyhow::Error::msg)
+                .with_context(solving)?;
+            coefficients = Some(sol.coefficients);
+            (sol.solution, serde_json::to_value(p)?)
+        }
+        Plan::Uniform => {
+            let mut p = UniformParams {
+                seed: a.seed,
+                element_size: a.element_size.unwrap_or(default_size),
+                ..UniformParams::default()
+            };
+            if let Some(v) = a.rays {
+                p.rays = v;
+            }
+            if let Some(v) = a.tolerance {
+                p.tolerance = v;
+            }
+            if let Some(v) = a.ff_tol {
+                p.ff_tolerance = v;
+            }
+            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
+            let sol = uniform::solve(scene, accel, &p, progress)
+                .map_err(anyhow::Error::msg)
+                .with_context(solving)?;
+            (sol, serde_json::to_value(p)?)
+        }
+        Plan::Progressive => {
+            let mut p = ProgressiveParams {
+                seed: a.seed,
+                element_size: a.element_size.unwrap_or(default_size),
+                ..ProgressiveParams::default()
+            };
+            if let Some(v) = a.rays {
+                p.rays = v;
+            }
+            if let Some(v) = a.tolerance {
+                p.tolerance = v;
+            }
+            if let Some(v) = a.max_shots {
+                p.max_shots = v;
+            }
+            if let Some(v) = a.ff_tol {
+                p.ff_tolerance = v;
+            }
+            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
+            let sol = progressive::solve(scene, accel, &p, progress)
+                .map_err(anyhow::Error::msg)
+                .with_context(solving)?;
+            (sol, serde_json::to_value(p)?)
+        }
+        Plan::Discontinuity(kind) => {
+            let mut p = match kind {
+                MeshKind::Cdt => DiscontinuityParams::cdt(),
+                MeshKind::Bsp => DiscontinuityParams::bsp(),
+            };
+            if let Some(v) = a.dmesh_min_angle {
+                p.mesh.cdt.min_angle_deg = v;
+            }
+            if let Some(v) = a.dmesh_max_area {
+                p.mesh.cdt.max_area = v;
+            }
+            p.mesh.cdt.validate().context("invalid --dmesh-min-angle / --dmesh-max-area")?;
+            p.solve.seed = a.seed;
+            if let Some(v) = a.rays {
+                p.solve.rays = v;
+            }
+            if let Some(v) = a.tolerance {
+                p.solve.tolerance = v;
+            }
+            if let Some(v) = a.ff_tol {
+                p.solve.ff_tolerance = v;
+            }
+            p.solve.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
+            let (d, params) = if a.order == 1 {
+                let lp = linear(f64::INFINITY)?;
+                let (d, c) = discontinuity::solve_galerkin(scene, &p, &lp, progress).with_context(solving)?;
+                coefficients = Some(c);
+                (d, json!({ "mesh": p.mesh, "solve": lp }))
+            } else {
+                (discontinuity::solve(scene, &p, progress).with_context(solving)?, serde_json::to_value(p)?)
+            };
+            remesh = Some((d.mesh, d.solve_s));
+            (d.solution, params)
+        }
+    };
+    Ok(Solved {
+        solution,
+        params,
+        mesh,
+        order: a.order,
+        continuous: a.continuous,
+        hierarchical,
+        coefficients,
+        remesh,
+    })
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
-    set_threads(args.threads)?;
+    let a = &args.solver;
+    set_threads(a.threads)?;
     let bake_format = match &args.bake {
         Some(out) => Some(check_bake_path(out, &args.scene, args.bake_exposure)?),
         None => None,
     };
+    plan(a)?;
     let t_total = Instant::now();
     let t = Instant::now();
-    let scene = Arc::new(load_scene(&args.scene, args.max_triangles)?);
+    let scene = Arc::new(load_scene(&args.scene, a.max_triangles)?);
     let load_s = t.elapsed().as_secs_f64();
     if !args.quiet {
         for w in &scene.warnings {
@@ -317,119 +617,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let t = Instant::now();
     let accel = Arc::new(Accel::build(&scene));
     let bvh_s = t.elapsed().as_secs_f64();
-    let default_size = scene.bounds().diagonal() / 8.0;
 
-    check_order(&args)?;
-    let mut bar = LazyBar::new(&format!("{:?}", args.method).to_lowercase(), args.quiet);
-    let mut hier: Option<HierarchicalSolver> = None;
-    let (mut solution, params_json) = match args.method {
-        Method::Hierarchical => {
-            if args.ff_tol.is_some() {
-                bail!(
-                    "--ff-tol applies to --method uniform and progressive (the hierarchical solver's links use their own kernel)"
-                );
-            }
-            let p = hierarchical_params(&args)?;
-            let mut s = HierarchicalSolver::with_accel(Arc::clone(&scene), Arc::clone(&accel), p, bvh_s);
-            s.solve(&mut |d, n| bar.update(d, n));
-            // Per-element error estimates only on request (--dump-hierarchy computes its own):
-            // they double the time on a refined scene.
-            let sol = s.solution_with(args.estimate);
-            hier = Some(s);
-            (sol, serde_json::to_value(p)?)
-        }
-        Method::Uniform if args.order == 1 => {
-            let mut p = LinearParams {
-                seed: args.seed,
-                element_size: args.element_size.unwrap_or(default_size),
-                order: Order::Linear,
-                continuous: args.continuous,
-                ..LinearParams::default()
-            };
-            if let Some(v) = args.rays {
-                p.rays = v;
-            }
-            if let Some(v) = args.tolerance {
-                p.tolerance = v;
-            }
-            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
-            let sol = linear::solve(&scene, &accel, &p, &mut |d, n| bar.update(d, n))
-                .map_err(anyhow::Error::msg)
-                .with_context(|| format!("solving {}", args.scene))?;
-            (sol.solution, serde_json::to_value(p)?)
-        }
-        Method::Uniform => {
-            let mut p =
-                UniformParams { seed: args.seed, element_size: default_size, ..UniformParams::default() };
-            if let Some(v) = args.element_size {
-                p.element_size = v;
-            }
-            if let Some(v) = args.rays {
-                p.rays = v;
-            }
-            if let Some(v) = args.tolerance {
-                p.tolerance = v;
-            }
-            if let Some(v) = args.ff_tol {
-                p.ff_tolerance = v;
-            }
-            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
-            let sol = uniform::solve(&scene, &accel, &p, &mut |d, n| bar.update(d, n))
-                .map_err(anyhow::Error::msg)
-                .with_context(|| format!("solving {}", args.scene))?;
-            (sol, serde_json::to_value(p)?)
-        }
-        Method::Progressive => {
-            let mut p = ProgressiveParams {
-                seed: args.seed,
-                element_size: default_size,
-                ..ProgressiveParams::default()
-            };
-            if let Some(v) = args.element_size {
-                p.element_size = v;
-            }
-            if let Some(v) = args.rays {
-                p.rays = v;
-            }
-            if let Some(v) = args.tolerance {
-                p.tolerance = v;
-            }
-            if let Some(v) = args.max_shots {
-                p.max_shots = v;
-            }
-            if let Some(v) = args.ff_tol {
-                p.ff_tolerance = v;
-            }
-            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
-            let sol = progressive::solve(&scene, &accel, &p, &mut |d, n| bar.update(d, n))
-                .map_err(anyhow::Error::msg)
-                .with_context(|| format!("solving {}", args.scene))?;
-            (sol, serde_json::to_value(p)?)
-        }
+    let (plan, mesh) = plan(a)?;
+    let label = match plan {
+        Plan::Discontinuity(_) => mesh.name().to_string(),
+        _ => format!("{plan:?}").to_lowercase(),
     };
+    let mut bar = LazyBar::new(&label, args.quiet);
+    let mut solved = solve_scene(a, &args.scene, &scene, &accel, bvh_s, &mut |d, n| bar.update(d, n))?;
     bar.finish();
+    let solution = &mut solved.solution;
     solution.stats.time_s = PhaseTimes {
         load: load_s,
         bvh: bvh_s,
         total: t_total.elapsed().as_secs_f64(),
         ..solution.stats.time_s
     };
-
+    let params_json = solved.params.clone();
     if let Some(path) = &args.dump_hierarchy {
-        let Some(s) = &hier else { bail!("--dump-hierarchy needs --method hierarchical") };
-        let snap = s.snapshot();
         let f = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-        serde_json::to_writer(std::io::BufWriter::new(f), &json!({
-            "scene": args.scene,
-            "elements": snap.elements.iter().map(|e| json!({
-                "id": e.id, "patch": e.patch, "parent": e.parent, "children": e.children, "depth": e.depth,
-                "vertices": &e.vertices[..e.n_vertices as usize], "area": e.area, "radiosity": e.radiosity,
-                "error_estimate": e.error_estimate, "stop": e.stop,
-            })).collect::<Vec<_>>(),
-            "links": snap.links,
-        }))
-        .with_context(|| format!("writing {}", path.display()))?;
+        serde_json::to_writer(std::io::BufWriter::new(f), &dump_json(&args.scene, &solved))
+            .with_context(|| format!("writing {}", path.display()))?;
     }
+    let solution = &solved.solution;
     let cam = radlab::image::Camera::for_scene(&scene);
     let mut png_exposure = None;
     if let Some(path) = &args.png {
@@ -471,13 +681,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             scene_label: args.scene.clone(),
             params: Some(params_json.clone()),
         };
-        let bytes = radlab::bake::bake(&scene, &solution, &opts, format)
+        let bytes = radlab::bake::bake(&scene, solution, &opts, format)
             .with_context(|| format!("baking {}", path.display()))?;
         std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))?;
         baked = Some((path, exposure));
     }
-    let mut doc = solution_json(&args.scene, &scene, &solution, params_json);
-    doc["order"] = json!(args.order);
+    let mut doc = solution_json(&args.scene, &scene, solution, params_json);
+    doc["order"] = json!(a.order);
+    doc["mesh"] = json!(mesh.name());
+    doc["continuous"] = json!(a.continuous);
+    if let Some((m, solve_s)) = &solved.remesh {
+        doc["meshing"] = json!({ "stats": m, "meshing_s": m.total_s, "solve_s": solve_s });
+    }
     match args.json.as_deref() {
         Some("-") => println!("{}", serde_json::to_string_pretty(&doc)?),
         Some(path) => std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")
@@ -485,7 +700,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => {}
     }
     if !args.quiet && args.json.as_deref() != Some("-") {
-        print_summary(&args.scene, &solution);
+        print_summary(&args.scene, solution);
+        if let Some((m, solve_s)) = &solved.remesh {
+            println!("  mesh {}: {}, solve {solve_s:.3} s", mesh.name(), m.describe());
+        }
         if let Some((path, exposure)) = baked {
             println!(
                 "  baked {} elements to {} (COLOR_0 = B × {exposure:.6e}, clamped to [0, 1])",
@@ -497,21 +715,52 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--order` and `--continuous` against the method: p = 1 exists for the uniform mesh only.
-fn check_order(args: &Args) -> anyhow::Result<()> {
-    match args.order {
-        0 if args.continuous => bail!("--continuous needs --order 1 (constant elements share no values)"),
-        0 => Ok(()),
-        1 if args.method != Method::Uniform => bail!(
-            "--order 1 is implemented for --method uniform only (and for `radlab reference --compare uniform|dmesh-cdt|dmesh-bsp`); {:?} solves with constant elements",
-            args.method
-        ),
-        1 if args.ff_tol.is_some() => bail!(
-            "--ff-tol applies to the order-0 solver; --order 1 integrates its couplings with a fixed Gauss rule (src/solver/linear.rs)"
-        ),
-        1 => Ok(()),
-        p => bail!("--order {p}: supported orders are 0 (constant) and 1 (linear / bilinear)"),
+/// The `--dump-hierarchy` document (format: docs/meshing.md, "The element dump").
+fn dump_json(spec: &str, solved: &Solved) -> serde_json::Value {
+    let basis = match (solved.order, solved.continuous) {
+        (1, true) => "p1-continuous",
+        (1, false) => "p1-discontinuous",
+        _ => "p0",
+    };
+    let mut doc = json!({
+        "format": "radlab-elements-1",
+        "scene": spec,
+        "method": solved.solution.method,
+        "mesh": solved.mesh.name(),
+        "order": solved.order,
+        "basis": basis,
+    });
+    if let Some(s) = &solved.hierarchical {
+        let snap = s.snapshot();
+        doc["elements"] = snap
+            .elements
+            .iter()
+            .map(|e| json!({
+                "id": e.id, "patch": e.patch, "parent": e.parent, "children": e.children, "depth": e.depth,
+                "vertices": &e.vertices[..e.n_vertices as usize], "area": e.area, "radiosity": e.radiosity,
+                "coefficients": [e.radiosity],
+                "error_estimate": e.error_estimate, "stop": e.stop,
+            }))
+            .collect();
+        doc["links"] = json!(snap.links);
+    } else {
+        let coefficients = solved.element_coefficients();
+        doc["elements"] = solved
+            .solution
+            .elements
+            .iter()
+            .zip(&coefficients)
+            .enumerate()
+            .map(|(id, (e, c))| {
+                json!({
+                    "id": id, "patch": e.patch, "vertices": e.vertices, "area": e.area,
+                    "radiosity": e.radiosity, "coefficients": c,
+                })
+            })
+            .collect();
+        doc["links"] = json!([]);
     }
+    doc
 }
 
 /// Check `--bake PATH` before the solve, so a bad path fails at once: a known extension, an

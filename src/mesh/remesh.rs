@@ -84,6 +84,22 @@ pub struct RemeshStats {
     pub total_s: f64,
 }
 
+impl RemeshStats {
+    /// One line for logs: segments, constraints, receivers, patch counts and meshing time.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        format!(
+            "{} critical segments, {} constraints on {} receivers, {} → {} patches; meshing {:.4} s",
+            self.segments.total(),
+            self.constraints,
+            self.receivers_meshed,
+            self.input_patches,
+            self.output_patches,
+            self.total_s
+        )
+    }
+}
+
 /// A scene on a discontinuity mesh, with each new patch's original.
 #[derive(Clone, Debug)]
 pub struct RemeshedScene {

@@ -32,6 +32,11 @@
 //!   height 2 and two overlapping occluders at heights 1 and 0.6: penumbrae about a unit wide,
 //!   overlapping shadows (inclusion–exclusion). `shadow-narrow`: a 0.2 × 0.2 lamp (E = 250) at
 //!   height 2 and one occluder at height 0.25, near the receiver: a penumbra about 0.03 wide.
+//! - `thin-pole`: a single-bounce scene with a thin occluder (issue 16 §4): the 2 × 2 receiver,
+//!   a 0.06 × 0.06 lamp (E = 3 000) at height 2 over its centre, and a black pole 0.02 × 0.02 ×
+//!   1.2 standing on the floor at x = 0.35 (four sides and a top). Its shadow is a dark streak
+//!   from the foot outward, about 0.02–0.05 wide and 0.4 long, with narrow penumbrae: a
+//!   feature one or two cells of a 64 × 64 grid wide that a mesh must place edges on to see.
 //! - `splash_room`, `splash_largeroom`: the HSA91 / SPLASH-2 `radiosity` test rooms (216 and
 //!   305 polygons) converted to glTF, shipped unchanged; their lamps have ρ = 1.0, clamped by the
 //!   loader with a warning. They have no code version (`build` returns `None`).
@@ -57,6 +62,7 @@ pub const BUILTINS: &[(&str, &str)] = &[
     ("table-room", "a table under a small ceiling light in a room: sharp shadows"),
     ("shadow-wide", "single bounce with an exact answer: a large lamp, two occluders, broad penumbrae"),
     ("shadow-narrow", "single bounce with an exact answer: a small lamp, an occluder near the floor"),
+    ("thin-pole", "single bounce with an exact answer: a small lamp, a thin pole standing on the floor"),
     ("splash_room", "the HSA91 / SPLASH-2 test room (216 polygons, lamps rho = 1 clamped)"),
     ("splash_largeroom", "the larger SPLASH-2 room (305 polygons, lamps rho = 1 clamped)"),
 ];
@@ -72,6 +78,7 @@ fn asset(name: &str) -> Option<&'static [u8]> {
         "table-room" => include_bytes!("../../assets/scenes/table-room.gltf"),
         "shadow-wide" => include_bytes!("../../assets/scenes/shadow-wide.gltf"),
         "shadow-narrow" => include_bytes!("../../assets/scenes/shadow-narrow.gltf"),
+        "thin-pole" => include_bytes!("../../assets/scenes/thin-pole.gltf"),
         "splash_room" => include_bytes!("../../assets/scenes/splash_room.gltf"),
         "splash_largeroom" => include_bytes!("../../assets/scenes/splash_largeroom.gltf"),
         _ => return None,
@@ -107,6 +114,7 @@ pub fn build(name: &str) -> Option<Scene> {
         "table-room" => table_room(&mut b),
         "shadow-wide" => shadow_wide(&mut b),
         "shadow-narrow" => shadow_narrow(&mut b),
+        "thin-pole" => thin_pole(&mut b),
         _ => return None,
     };
     let mut scene = Scene::new(name, format!("builtin:{name}"), b.patches);
@@ -382,7 +390,9 @@ fn single_bounce(
     let light = Mat { name: "light", rho: Rgb::ZERO, emission: Rgb::splat(e) };
     b.mesh("light", light, vec![level_rect(y, rect, false)]);
     let black = grey("black", 0.0);
-    b.mesh("occluders", black, occluders.iter().map(|&(y, r)| level_rect(y, r, true)).collect());
+    if !occluders.is_empty() {
+        b.mesh("occluders", black, occluders.iter().map(|&(y, r)| level_rect(y, r, true)).collect());
+    }
     Some(Viewpoint { eye: v(2.2, 2.4, 2.8), target: v(0.0, 0.4, 0.0), up: DVec3::Y, fov_y_deg: 50.0 })
 }
 
@@ -392,6 +402,15 @@ fn shadow_wide(b: &mut Builder) -> Option<Viewpoint> {
         (2.0, [-0.5, 0.5, -0.5, 0.5], 10.0),
         &[(1.0, [-0.6, 0.2, -0.4, 0.4]), (0.6, [0.0, 0.7, -0.2, 0.6])],
     )
+}
+
+fn thin_pole(b: &mut Builder) -> Option<Viewpoint> {
+    let camera = single_bounce(b, (2.0, [-0.03, 0.03, -0.03, 0.03], 3000.0), &[]);
+    let (x, z, w, h) = (0.34, -0.01, 0.02, 1.2);
+    let mut pole = box_faces(v(x, 0.0, z), v(x + w, h, z + w), false);
+    pole.remove(2); // the bottom rests on the floor
+    b.mesh("pole", grey("black", 0.0), pole);
+    camera
 }
 
 fn shadow_narrow(b: &mut Builder) -> Option<Viewpoint> {

@@ -1,0 +1,289 @@
+//! `radlab artifacts SCENE [solve flags]`: solve as `radlab solve` would, measure the five
+//! meshing artifacts ([`radlab::artifacts`]) against the scene's best ruler, print the table,
+//! write one picture per artifact ([`radlab::artifact_pictures`]) and optionally JSON.
+//!
+//! The ruler (the reference B at any point): on a single-bounce scene ([`radlab::exact`]) the
+//! closed form; otherwise the cached path-traced pointwise reference ([`radlab::reference`],
+//! `radlab reference SCENE`, computed and cached on first use) read through its piecewise-linear
+//! interpolant ([`radlab::pointwise::PointInterpolant`]). With the cached reference the pointwise
+//! error at its own points (debiased by its noise) is printed too.
+
+use super::solve::{LazyBar, SolverArgs, load_scene, set_threads, solve_scene};
+use anyhow::Context as _;
+use radlab::accel::Accel;
+use radlab::artifacts::{ArtifactParams, ArtifactReport, Gouraud, measure_views};
+use radlab::math::{DVec3, Rgb};
+use radlab::pointwise::{PiecewiseConstant, PointInterpolant, Reconstruction, thousands};
+use radlab::reference::{Cache, Control, PointParams, ReferenceParams};
+use serde_json::json;
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene: a .gltf/.glb path or builtin:NAME (see `radlab scenes`).
+    pub scene: String,
+    #[command(flatten)]
+    pub solver: SolverArgs,
+    /// Folder for the five pictures (A-blocky-shadows.png … E-unresolved-discontinuities.png).
+    #[arg(long, default_value = "artifacts")]
+    pub out: PathBuf,
+    /// Write the table and the settings as JSON to PATH (`-` for stdout).
+    #[arg(long)]
+    pub json: Option<String>,
+    /// Grid points per side of every reflecting patch (A, B; default 64).
+    #[arg(long, default_value_t = ArtifactParams::standard().side)]
+    pub side: u32,
+    /// Reference cache folder (scenes without a closed form; default: $RADLAB_CACHE, else
+    /// .radlab-cache/).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// Paths per reference point, when the reference must be computed or looked up (default:
+    /// `radlab reference`'s, 1 024).
+    #[arg(long, default_value_t = PointParams::standard().paths.samples)]
+    pub samples: u32,
+    /// Score against the cached path-traced reference even on a single-bounce scene.
+    #[arg(long)]
+    pub path_traced: bool,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// The reference of the measurement and how to name it.
+enum Ruler<'a> {
+    Exact(radlab::exact::SingleBounce),
+    Points { interpolant: PointInterpolant<'a>, label: String },
+}
+
+impl Reconstruction for Ruler<'_> {
+    fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
+        match self {
+            Ruler::Exact(sb) => sb.patch_radiosity_at(patch, x),
+            Ruler::Points { interpolant, .. } => interpolant.radiosity_at(patch, x),
+        }
+    }
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let a = &args.solver;
+    set_threads(a.threads)?;
+    anyhow::ensure!((4..=1024).contains(&args.side), "--side {}: must be in 4..=1024", args.side);
+    super::solve::plan(a)?;
+    // The output folder first: a bad --out fails before the reference and the solve.
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("--out {}: cannot create the folder", args.out.display()))?;
+    let scene = Arc::new(load_scene(&args.scene, a.max_triangles)?);
+    let to_stdout = args.json.as_deref() == Some("-");
+    let mut log: Box<dyn Write> =
+        if to_stdout { Box::new(std::io::stderr()) } else { Box::new(std::io::stdout()) };
+    let t = Instant::now();
+    let accel = Arc::new(Accel::build(&scene));
+    let bvh_s = t.elapsed().as_secs_f64();
+
+    // The ruler first: a missing cache fails before the solve.
+    let exact = if args.path_traced { None } else { radlab::exact::SingleBounce::new(&scene).ok() };
+    let cached = match exact {
+        Some(_) => None,
+        None => {
+            let params = PointParams {
+                paths: ReferenceParams { samples: args.samples, ..ReferenceParams::standard() },
+                ..PointParams::standard()
+            };
+            let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
+            writeln!(log, "reference: looking up (or computing) the pointwise reference of {}", args.scene)?;
+            let (entry, status) = cache
+                .get_or_compute_points(&scene, &accel, &params, &Control::default())
+                .with_context(|| format!("reference of {}", args.scene))?;
+            if let radlab::reference::CacheStatus::Computed(f) = &status {
+                writeln!(log, "reference: computed in {:.1} s, cached in {}", entry.compute_s, f.display())?;
+            }
+            Some(entry)
+        }
+    };
+
+    let mut bar = LazyBar::new("solve", args.quiet);
+    let t = Instant::now();
+    let solved = solve_scene(a, &args.scene, &scene, &accel, bvh_s, &mut |d, n| bar.update(d, n))?;
+    bar.finish();
+    let solve_s = t.elapsed().as_secs_f64();
+    let sol = &solved.solution;
+
+    let t = Instant::now();
+    let ruler = match (exact, &cached) {
+        (Some(sb), _) => Ruler::Exact(sb),
+        (None, Some(entry)) => {
+            let values: Vec<Rgb> = entry.estimates.iter().map(|e| e.radiosity).collect();
+            let interpolant = PointInterpolant::new(&scene, &entry.set.points, &values)?;
+            let label = format!(
+                "the cached path-traced reference ({} points, {} paths each), linearly interpolated",
+                thousands(entry.set.points.len()),
+                thousands(entry.params.paths.samples as usize)
+            );
+            Ruler::Points { interpolant, label }
+        }
+        (None, None) => unreachable!("a reference is looked up when there is no closed form"),
+    };
+    let ruler_label = match &ruler {
+        Ruler::Exact(_) => "the closed form (exact single-bounce scene)".to_string(),
+        Ruler::Points { label, .. } => label.clone(),
+    };
+    let params = ArtifactParams { side: args.side, ..ArtifactParams::standard() };
+    let nodal = match &solved.coefficients {
+        Some(c) => Some(radlab::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?),
+        None => None,
+    };
+    let flat = PiecewiseConstant::new(&scene, &sol.elements)?;
+    let gouraud = Gouraud::new(&scene, sol)?;
+    let (values, shaded): (&dyn Reconstruction, &dyn Reconstruction) = match &nodal {
+        Some(n) => (n, n),
+        None => (&flat, &gouraud),
+    };
+    let (report, maps) = measure_views(&scene, sol, values, shaded, &ruler, &params)?;
+    // The pointwise error where the reference was estimated (debiased by its noise).
+    let pointwise = match &cached {
+        Some(entry) => {
+            let band = radlab::penumbra::band(
+                &scene,
+                &accel,
+                &entry.set.points,
+                &entry.estimates,
+                &radlab::penumbra::BandParams::standard(),
+            );
+            let s = radlab::pointwise::score_reconstruction_in_band(
+                &scene,
+                sol,
+                values,
+                &entry.set.points,
+                &entry.estimates,
+                Some(&band),
+            )?;
+            Some((
+                s.pointwise.scene.l2_debiased,
+                s.pointwise.scene.reference_noise,
+                s.penumbra.map(|b| b.report.scene.l2_debiased),
+            ))
+        }
+        None => None,
+    };
+    let measure_s = t.elapsed().as_secs_f64();
+    let pictures = radlab::artifact_pictures::write_pictures(&scene, &maps, &args.out)
+        .with_context(|| format!("writing the pictures into {}", args.out.display()))?;
+
+    let unknowns =
+        sol.stats.extra.as_ref().and_then(|x| x.get("unknowns")).and_then(serde_json::Value::as_u64);
+    let order = match (solved.order, solved.continuous) {
+        (0, _) => "p0".to_string(),
+        (_, true) => "p1-continuous".to_string(),
+        _ => "p1-discontinuous".to_string(),
+    };
+    writeln!(
+        log,
+        "{}: {} on the {} mesh, {order}, {} elements{}; ruler: {ruler_label}",
+        args.scene,
+        sol.method,
+        solved.mesh.name(),
+        thousands(sol.elements.len()),
+        unknowns.map_or_else(String::new, |u| format!(", {} unknowns", thousands(u as usize)))
+    )?;
+    if let Some((scene_l2, noise, band)) = pointwise {
+        writeln!(
+            log,
+            "pointwise rel L2 at the reference's points {:.2} % (noise {:.2} %), penumbra band {}",
+            100.0 * scene_l2,
+            100.0 * noise,
+            band.map_or_else(|| "none".into(), |b| format!("{:.2} %", 100.0 * b))
+        )?;
+    }
+    print_table(&report, args.side, &mut log)?;
+    let meshing_s = solved.remesh.as_ref().map(|(m, _)| m.total_s);
+    writeln!(
+        log,
+        "times: {}solve {solve_s:.3} s, artifacts {measure_s:.3} s",
+        meshing_s.map_or_else(String::new, |m| format!("meshing {m:.4} s (inside the solve), "))
+    )?;
+    for p in &pictures {
+        writeln!(log, "wrote {}", p.display())?;
+    }
+    if let Some(path) = &args.json {
+        let doc = json!({
+            "scene": args.scene,
+            "method": sol.method,
+            "mesh": solved.mesh.name(),
+            "order": solved.order,
+            "basis": order,
+            "elements": sol.elements.len(),
+            "unknowns": unknowns,
+            "ruler": ruler_label,
+            "params": params,
+            "solver_params": solved.params,
+            "pointwise": pointwise.map(|(l2, noise, band)| json!({"rel_l2": l2, "noise": noise, "penumbra_band_rel_l2": band})),
+            "artifacts": report,
+            "fractions": {
+                "A": report.blocky_shadows,
+                "B": report.missing_features.fraction(),
+                "C": report.mach_bands.fraction(),
+                "D": report.shading_jumps.fraction(),
+                "E": report.unresolved.fraction(),
+            },
+            "times_s": {"solve": solve_s, "meshing": meshing_s, "artifacts": measure_s},
+            "pictures": pictures,
+        });
+        let text = serde_json::to_string_pretty(&doc)?;
+        if to_stdout {
+            println!("{text}");
+        } else {
+            std::fs::write(path, text + "\n").with_context(|| format!("writing {path}"))?;
+        }
+    }
+    Ok(())
+}
+
+/// The five-artifact table, one row each (shared with `radlab reference --exact --compare`).
+pub fn print_table(r: &ArtifactReport, side: u32, log: &mut dyn Write) -> anyhow::Result<()> {
+    let pct = |x: f64| format!("{:.1} %", 100.0 * x);
+    writeln!(log, "artifacts ({side}² grid points a patch):")?;
+    let (b, d, e) = (&r.missing_features, &r.shading_jumps, &r.unresolved);
+    let rows = [
+        (
+            "A blocky shadows",
+            r.blocky_shadows.map_or_else(|| "no penumbra".into(), pct),
+            format!("rel L2 in the penumbra band, {} points", r.band_points),
+        ),
+        (
+            "B missing features",
+            pct(b.fraction()),
+            format!("{} of {} features, {} of their area", b.missing, b.features, pct(b.area_fraction)),
+        ),
+        (
+            "C Mach bands",
+            pct(r.mach_bands.fraction()),
+            format!("of the interior edge length ({:.3})", r.mach_bands.edge_length),
+        ),
+        (
+            "D shading discontinuities",
+            pct(d.fraction()),
+            format!(
+                "of {:.3} interior edge length; mean jump {} of the patch mean",
+                d.edge_length,
+                pct(d.mean_jump)
+            ),
+        ),
+        (
+            "E unresolved",
+            pct(e.fraction()),
+            format!(
+                "of {:.3} critical-segment length in {} segments; rel L2 beside them {}",
+                e.length,
+                e.segments,
+                e.error_beside.map_or_else(|| "none".into(), pct)
+            ),
+        ),
+    ];
+    for (name, value, detail) in rows {
+        writeln!(log, "  {name:<25} {value}  ({detail})")?;
+    }
+    Ok(())
+}

@@ -1,0 +1,157 @@
+//! `radlab solve --mesh quadtree|uniform|discontinuity-cdt|discontinuity-bsp --order 0|1`: every
+//! mesh solves, `--dump-hierarchy` writes its elements with vertices and basis coefficients
+//! (docs/meshing.md, "The element dump"), and the combinations that make no sense are refused
+//! with one line.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::process::Command;
+
+fn radlab(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_radlab")).args(args).output().unwrap()
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("radlab-cli-mesh-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// Solve shadow-narrow with `flags`, dumping the elements; returns (solve JSON, dump).
+fn solve_and_dump(flags: &[&str], tag: &str) -> (serde_json::Value, serde_json::Value) {
+    let (json, dump) = (temp(&format!("{tag}.json")), temp(&format!("{tag}-dump.json")));
+    let mut args = vec!["solve", "builtin:shadow-narrow", "-q", "--json"];
+    args.push(json.to_str().unwrap());
+    args.extend(["--dump-hierarchy", dump.to_str().unwrap()]);
+    args.extend(flags);
+    let out = radlab(&args);
+    assert!(out.status.success(), "{flags:?}: {}", String::from_utf8_lossy(&out.stderr));
+    let read = |p: &PathBuf| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+    (read(&json), read(&dump))
+}
+
+fn f(v: &serde_json::Value) -> f64 {
+    v.as_f64().unwrap()
+}
+
+#[test]
+fn every_mesh_solves_and_dumps_its_elements_with_coefficients() {
+    // shadow-narrow: receiver 2 × 2, lamp 0.2 × 0.2, occluder 0.6 × 0.6 (one-sided quads).
+    let total_area = 4.0 + 0.04 + 0.36;
+    for (mesh, method, extra) in [
+        ("quadtree", "hierarchical", &["--preset", "interactive"][..]),
+        ("uniform", "uniform", &["--element-size", "0.25"][..]),
+        ("discontinuity-cdt", "discontinuity-cdt", &[][..]),
+        ("discontinuity-bsp", "discontinuity-bsp", &[][..]),
+    ] {
+        let mut flags = vec!["--mesh", mesh];
+        flags.extend(extra);
+        let (doc, dump) = solve_and_dump(&flags, mesh);
+        assert_eq!(doc["mesh"], mesh);
+        assert_eq!(doc["method"], method);
+        assert_eq!(dump["mesh"], mesh);
+        assert_eq!(dump["basis"], "p0");
+        assert_eq!(dump["format"], "radlab-elements-1");
+        let elements = dump["elements"].as_array().unwrap();
+        assert!(elements.len() > 3, "{mesh}: {} elements", elements.len());
+        // Leaves (every element but the hierarchy's interior nodes) tile the scene.
+        let leaves: Vec<_> = elements.iter().filter(|e| e["children"].is_null()).collect();
+        let area: f64 = leaves.iter().map(|e| f(&e["area"])).sum();
+        assert!((area - total_area).abs() < 1e-6, "{mesh}: leaves cover {area}, scene {total_area}");
+        for e in elements {
+            let c = e["coefficients"].as_array().unwrap();
+            assert_eq!(c.len(), 1, "{mesh}: p = 0 has one coefficient per element");
+            assert_eq!(c[0], e["radiosity"], "{mesh}: the constant is the element's radiosity");
+            let n = e["vertices"].as_array().unwrap().len();
+            assert!((3..=4).contains(&n), "{mesh}: {n} vertices");
+        }
+        // The hierarchy's interior elements hold the area average of their children (push-pull).
+        let interior: Vec<_> = elements.iter().filter(|e| !e["children"].is_null()).collect();
+        assert_eq!(interior.is_empty(), mesh != "quadtree", "{mesh}: {} interior elements", interior.len());
+        for e in interior {
+            assert_eq!(e["id"], elements[e["id"].as_u64().unwrap() as usize]["id"], "ids are positions");
+            let kids: Vec<&serde_json::Value> = e["children"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|c| &elements[c.as_u64().unwrap() as usize])
+                .collect();
+            let area: f64 = kids.iter().map(|k| f(&k["area"])).sum();
+            let mean = kids.iter().map(|k| f(&k["area"]) * f(&k["radiosity"][1])).sum::<f64>() / area;
+            let b = f(&e["radiosity"][1]);
+            assert!(
+                (mean - b).abs() <= 1e-9 * b.abs().max(1e-12),
+                "{mesh}: element {}: {b} vs children {mean}",
+                e["id"]
+            );
+        }
+        let links = dump["links"].as_array().unwrap();
+        assert_eq!(links.is_empty(), mesh != "quadtree", "{mesh}: links are the hierarchy's");
+        if mesh.starts_with("discontinuity") {
+            let m = &doc["meshing"];
+            assert!(f(&m["meshing_s"]) >= 0.0 && f(&m["solve_s"]) > 0.0, "{m}");
+            assert_eq!(m["stats"]["output_patches"].as_u64().unwrap() as usize, leaves.len());
+        }
+    }
+}
+
+#[test]
+fn order_one_on_the_cdt_dumps_vertex_values_shared_when_continuous() {
+    // Per vertex position (rounded), the spread of the coefficient values there.
+    let spread = |dump: &serde_json::Value| {
+        let mut at: HashMap<[i64; 3], (f64, f64)> = HashMap::new();
+        for e in dump["elements"].as_array().unwrap() {
+            let (vs, cs) = (e["vertices"].as_array().unwrap(), e["coefficients"].as_array().unwrap());
+            assert_eq!(vs.len(), cs.len(), "one coefficient per vertex at p = 1");
+            // A linear triangle's (a bilinear parallelogram's) average is its vertex values' mean.
+            let mean: f64 = cs.iter().map(|c| f(&c[1])).sum::<f64>() / cs.len() as f64;
+            let b = f(&e["radiosity"][1]);
+            assert!((mean - b).abs() <= 1e-9 * b.abs().max(1e-9), "average {b} against vertex mean {mean}");
+            for (v, c) in vs.iter().zip(cs) {
+                let key = [0, 1, 2].map(|k| (f(&v[k]) * 1e7).round() as i64);
+                let s = at.entry(key).or_insert((f64::INFINITY, f64::NEG_INFINITY));
+                *s = (s.0.min(f(&c[1])), s.1.max(f(&c[1])));
+            }
+        }
+        at.values().map(|(lo, hi)| hi - lo).fold(0.0, f64::max)
+    };
+    let (doc, cont) = solve_and_dump(&["--mesh", "discontinuity-cdt", "--order", "1", "--continuous"], "p1c");
+    assert_eq!(doc["order"], 1);
+    assert_eq!(cont["basis"], "p1-continuous");
+    assert!(spread(&cont) < 1e-12, "continuous: one value per vertex, spread {}", spread(&cont));
+    let (_, disc) = solve_and_dump(&["--mesh", "discontinuity-cdt", "--order", "1"], "p1d");
+    assert_eq!(disc["basis"], "p1-discontinuous");
+    assert!(spread(&disc) > 1e-4, "discontinuous: vertex values differ between elements");
+}
+
+#[test]
+fn nonsense_combinations_are_refused_with_one_line() {
+    for (flags, needle) in [
+        (&["--mesh", "quadtree", "--order", "1"][..], "--order 1"),
+        (&["--mesh", "discontinuity-bsp", "--method", "hierarchical"][..], "--mesh discontinuity-bsp"),
+        (&["--mesh", "uniform", "--method", "hierarchical"][..], "--mesh uniform"),
+        (&["--mesh", "quadtree", "--method", "progressive"][..], "--mesh quadtree"),
+        (&["--mesh", "discontinuity-cdt", "--element-size", "0.1"][..], "--element-size"),
+        (&["--mesh", "discontinuity-bsp", "--dmesh-min-angle", "10"][..], "--dmesh-min-angle"),
+        (&["--mesh", "discontinuity-cdt", "--dmesh-min-angle", "80"][..], "min-angle"),
+        (&["--mesh", "uniform", "--continuous"][..], "--continuous"),
+        (&["--mesh", "discontinuity-cdt", "--order", "2"][..], "--order 2"),
+        (&["--method", "progressive", "--order", "1"][..], "--order 1"),
+        (&["--mesh", "discontinuity-cdt", "--order", "1", "--ff-tol", "1e-4"][..], "--ff-tol"),
+    ] {
+        let mut args = vec!["solve", "builtin:shadow-narrow", "-q"];
+        args.extend(flags);
+        let out = radlab(&args);
+        assert!(!out.status.success(), "{flags:?} was accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle) && err.trim().lines().count() == 1, "{flags:?}: {err}");
+    }
+    // Today's defaults are unchanged: --method alone picks its mesh.
+    let out = radlab(&["solve", "builtin:parallel", "--method", "uniform", "--json", "-"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((doc["method"].as_str(), doc["mesh"].as_str()), (Some("uniform"), Some("uniform")));
+    let out = radlab(&["solve", "builtin:parallel", "--json", "-"]);
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((doc["method"].as_str(), doc["mesh"].as_str()), (Some("hierarchical"), Some("quadtree")));
+}
