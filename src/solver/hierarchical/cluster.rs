@@ -235,9 +235,18 @@ impl ClusterTree {
     }
 
     /// Visible fraction between nodes `a` and `b`: `rays` point pairs that face each other,
-    /// weighted by their two cosines (at most 4 × `rays` tries; none facing: 1).
+    /// weighted by their two cosines (at most 4 × `rays` tries; none facing: 1); and the rays
+    /// cast.
     #[must_use]
-    pub fn visibility(&self, hier: &Hierarchy, accel: &Accel, a: u32, b: u32, rays: u32, seed: u64) -> f32 {
+    pub fn visibility(
+        &self,
+        hier: &Hierarchy,
+        accel: &Accel,
+        a: u32,
+        b: u32,
+        rays: u32,
+        seed: u64,
+    ) -> (f32, u32) {
         let key = splitmix64((u64::from(a.min(b)) << 32 | u64::from(a.max(b))) ^ 0xC1_u64.rotate_left(56));
         let mut rng = Pcg32::keyed(seed, key);
         let (lo, hi) = if a < b { (a, b) } else { (b, a) };
@@ -266,7 +275,7 @@ impl ClusterTree {
                 wvis += w;
             }
         }
-        if wsum > 0.0 { (wvis / wsum) as f32 } else { 1.0 }
+        (if wsum > 0.0 { (wvis / wsum) as f32 } else { 1.0 }, found)
     }
 }
 
@@ -384,13 +393,27 @@ pub fn link_frame(a: &ClusterNode, b: &ClusterNode, w: DVec3) -> u8 {
     (1..FRAMES.len()).fold(0, |best, f| if excess(f) < excess(best) { f } else { best }) as u8
 }
 
-/// The clusters' radiosity moments (pulled from the patches) and the pushed irradiance.
+/// One direction of a cluster link, as its receiver gathers it.
+#[derive(Copy, Clone, Debug)]
+struct Incoming {
+    src: u32,
+    vis: f32,
+    frame: u8,
+}
+
+/// The cluster links grouped by receiving node (both directions of each), the clusters'
+/// radiosity moments (pulled from the patches) and the pushed irradiance.
 #[derive(Clone, Debug, Default)]
 pub struct ClusterTransfer {
+    /// Node r receives `incoming[start[r]..start[r + 1]]`, in link order.
+    start: Vec<u32>,
+    incoming: Vec<Incoming>,
     s: Vec<Vec3Rgb>,
     t: Vec<[Vec3Rgb; FRAMES.len()]>,
     u: Vec<Vec3Rgb>,
     w: Vec<[Vec3Rgb; FRAMES.len()]>,
+    /// What a leaf node gathers from its own links.
+    direct: Vec<Rgb>,
 }
 
 fn axpy(v: &mut Vec3Rgb, d: DVec3, x: Rgb) {
@@ -408,16 +431,48 @@ fn clamp0(c: Rgb) -> Rgb {
 }
 
 impl ClusterTransfer {
-    /// Irradiance of every patch (indexed by patch) through the cluster `links`, with patch
+    /// The transfer through `links` (grouped by receiver once; the gathers then run in parallel
+    /// over receiving nodes).
+    #[must_use]
+    pub fn new(tree: &ClusterTree, links: &[ClusterLink]) -> ClusterTransfer {
+        let n = tree.len();
+        let mut count = vec![0u32; n + 1];
+        for l in links {
+            count[l.a as usize] += 1;
+            count[l.b as usize] += 1;
+        }
+        let mut start = Vec::with_capacity(n + 1);
+        let mut total = 0u32;
+        for c in &count[..n] {
+            start.push(total);
+            total += c;
+        }
+        start.push(total);
+        let mut next = start.clone();
+        let mut incoming = vec![Incoming { src: 0, vis: 0.0, frame: 0 }; total as usize];
+        for l in links {
+            for (r, src) in [(l.a, l.b), (l.b, l.a)] {
+                let slot = &mut next[r as usize];
+                incoming[*slot as usize] = Incoming { src, vis: l.vis, frame: l.frame };
+                *slot += 1;
+            }
+        }
+        ClusterTransfer { start, incoming, ..ClusterTransfer::default() }
+    }
+
+    /// Irradiance of every patch (indexed by patch) through the cluster links, with patch
     /// radiosities `b` (one per patch).
     pub fn irradiance(
         &mut self,
         tree: &ClusterTree,
         hier: &Hierarchy,
-        links: &[ClusterLink],
         b: &(impl Fn(u32) -> Rgb + Sync),
     ) -> Vec<Rgb> {
         let n = tree.len();
+        if self.start.len() != n + 1 {
+            // No links (or a tree of another scene): nothing is gathered.
+            return vec![Rgb::ZERO; hier.roots];
+        }
         // Pull S and T up the tree (children have larger ids).
         self.s.clear();
         self.s.resize(n, [Rgb::ZERO; 3]);
@@ -444,6 +499,7 @@ impl ClusterTransfer {
             }
         }
         // Intensity of node x towards the unit direction `dir` (cosines in frame f).
+        let (s_moment, t_moment) = (&self.s, &self.t);
         let intensity = |x: u32, dir: DVec3, f: usize| -> Rgb {
             let node = &tree.nodes[x as usize];
             if node.is_leaf() {
@@ -452,42 +508,46 @@ impl ClusterTransfer {
                 b(p) * (e.area * e.normal.dot(dir).max(0.0))
             } else {
                 let i = x as usize;
-                clamp0((dot(&self.s[i], dir) + dot(&self.t[i][f], abs_in(f, dir))) * 0.5)
+                clamp0((dot(&s_moment[i], dir) + dot(&t_moment[i][f], abs_in(f, dir))) * 0.5)
             }
         };
-        // Each directed transfer, in parallel; summed in link order.
-        let deliveries: Vec<[(u32, Rgb, DVec3, u8); 2]> = links
-            .par_iter()
-            .with_min_len(256)
-            .map(|l| {
-                let (ca, cb) = (tree.nodes[l.a as usize].center, tree.nodes[l.b as usize].center);
-                let d = cb - ca;
-                let d2 = d.length_squared();
-                let omega = d / d2.sqrt();
-                let k = f64::from(l.vis) / (std::f64::consts::PI * d2);
-                // a ← b arrives from ω; b ← a from −ω.
-                let f = usize::from(l.frame);
-                [
-                    (l.a, intensity(l.b, -omega, f) * k, omega, l.frame),
-                    (l.b, intensity(l.a, omega, f) * k, -omega, l.frame),
-                ]
-            })
-            .collect();
-        let mut h = vec![Rgb::ZERO; hier.roots];
+        // Each receiving node sums its incoming links in parallel (in link order).
         self.u.clear();
         self.u.resize(n, [Rgb::ZERO; 3]);
         self.w.clear();
         self.w.resize(n, [[Rgb::ZERO; 3]; FRAMES.len()]);
-        for (r, phi, omega, f) in deliveries.into_iter().flatten() {
-            let node = &tree.nodes[r as usize];
-            if node.is_leaf() {
-                let p = tree.patch(r);
-                h[p as usize] += phi * hier.get(p).normal.dot(omega).max(0.0);
-            } else {
-                axpy(&mut self.u[r as usize], omega, phi);
-                let f = usize::from(f);
-                axpy(&mut self.w[r as usize][f], abs_in(f, omega), phi);
-            }
+        self.direct.clear();
+        self.direct.resize(n, Rgb::ZERO);
+        let (start, incoming) = (&self.start, &self.incoming);
+        self.u
+            .par_iter_mut()
+            .zip(self.w.par_iter_mut())
+            .zip(self.direct.par_iter_mut())
+            .enumerate()
+            .with_min_len(256)
+            .for_each(|(r, ((u, w), direct))| {
+                let node = &tree.nodes[r];
+                let recv_normal = node.is_leaf().then(|| hier.get(tree.patch(r as u32)).normal);
+                for inc in &incoming[start[r] as usize..start[r + 1] as usize] {
+                    let d = tree.nodes[inc.src as usize].center - node.center;
+                    let d2 = d.length_squared();
+                    let omega = d / d2.sqrt();
+                    let f = usize::from(inc.frame);
+                    // r gathers from the direction ω what the source sends towards −ω.
+                    let phi =
+                        intensity(inc.src, -omega, f) * (f64::from(inc.vis) / (std::f64::consts::PI * d2));
+                    match recv_normal {
+                        Some(nrm) => *direct += phi * nrm.dot(omega).max(0.0),
+                        None => {
+                            axpy(u, omega, phi);
+                            axpy(&mut w[f], abs_in(f, omega), phi);
+                        }
+                    }
+                }
+            });
+        let mut h = vec![Rgb::ZERO; hier.roots];
+        if n > 0 && tree.nodes[0].is_leaf() {
+            h[tree.patch(0) as usize] = self.direct[0];
         }
         // Push U and W down (parents first); leaves read them with their normal.
         for i in 1..n {
@@ -508,7 +568,7 @@ impl ClusterTransfer {
                 for f in 0..FRAMES.len() {
                     hw += dot(&self.w[i][f], abs_in(f, nrm));
                 }
-                h[p as usize] += clamp0(hw * 0.5);
+                h[p as usize] = self.direct[i] + clamp0(hw * 0.5);
             }
         }
         h
@@ -652,11 +712,10 @@ mod tests {
         let in_a = members(&tree, a);
         let in_b = members(&tree, b);
         let bs = |p: u32| Rgb::new(0.1 + 0.07 * f64::from(p % 5), 0.3, 0.05 * f64::from(p % 3));
-        let mut x = ClusterTransfer::default();
-        let h = x.irradiance(&tree, &hier, &links, &|p| if in_b.contains(&p) { bs(p) } else { Rgb::ZERO });
+        let mut x = ClusterTransfer::new(&tree, &links);
+        let h = x.irradiance(&tree, &hier, &|p| if in_b.contains(&p) { bs(p) } else { Rgb::ZERO });
         let received: Rgb = in_a.iter().fold(Rgb::ZERO, |s, &p| s + h[p as usize] * hier.get(p).area);
-        let rows =
-            x.irradiance(&tree, &hier, &links, &|p| if in_a.contains(&p) { Rgb::ONE } else { Rgb::ZERO });
+        let rows = x.irradiance(&tree, &hier, &|p| if in_a.contains(&p) { Rgb::ONE } else { Rgb::ZERO });
         let sent: Rgb =
             in_b.iter().fold(Rgb::ZERO, |s, &p| s + bs(p) * (hier.get(p).area * rows[p as usize].0[0]));
         assert!(received.max_channel() > 0.0);
@@ -674,8 +733,8 @@ mod tests {
         links[0].vis = 1.0;
         let in_a = members(&tree, a);
         let in_b = members(&tree, b);
-        let mut x = ClusterTransfer::default();
-        let h = x.irradiance(&tree, &hier, &links, &|p| if in_b.contains(&p) { Rgb::ONE } else { Rgb::ZERO });
+        let mut x = ClusterTransfer::new(&tree, &links);
+        let h = x.irradiance(&tree, &hier, &|p| if in_b.contains(&p) { Rgb::ONE } else { Rgb::ZERO });
         let (mut tot_exact, mut tot) = (0.0, 0.0);
         for &i in &in_a {
             let e = hier.get(i);

@@ -1558,10 +1558,10 @@ impl HierarchicalSolver {
             .with_min_len(16)
             .map(|pair| match *pair {
                 Pairing::Cluster(a, b) => {
-                    let vis = tree.visibility(&self.hier, &self.accel, a, b, rays, seed);
+                    let (vis, cast) = tree.visibility(&self.hier, &self.accel, a, b, rays, seed);
                     let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
                     let frame = cluster::link_frame(na, nb, (nb.center - na.center).normalize());
-                    (Some(ClusterLink { a, b, vis, frame }), None, u64::from(4 * rays))
+                    (Some(ClusterLink { a, b, vis, frame }), None, u64::from(cast))
                 }
                 Pairing::Patches(p, q) => {
                     let (links, cast) = self.root_pair(p, q, acc, false);
@@ -1587,7 +1587,8 @@ impl HierarchicalSolver {
         }
         self.stats.pairs_skipped += skipped;
         // Each patch's Σ F·V through the cluster links: the transfer with B = 1.
-        let ones = self.cluster_xfer.irradiance(tree, &self.hier, &self.cluster_links, &|_| Rgb::ONE);
+        self.cluster_xfer = ClusterTransfer::new(tree, &self.cluster_links);
+        let ones = self.cluster_xfer.irradiance(tree, &self.hier, &|_| Rgb::ONE);
         self.cluster_fv = ones.iter().map(|h| h.0[0]).collect();
         created
     }
@@ -1599,7 +1600,7 @@ impl HierarchicalSolver {
             return None;
         }
         let hier = &self.hier;
-        Some(self.cluster_xfer.irradiance(tree, hier, &self.cluster_links, &|p| hier.get(p).radiosity))
+        Some(self.cluster_xfer.irradiance(tree, hier, &|p| hier.get(p).radiosity))
     }
 
     /// The form-factor accuracy of input patch pairs: they carry a closed scene's whole
