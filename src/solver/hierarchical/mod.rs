@@ -1655,24 +1655,27 @@ impl HierarchicalSolver {
             cast += u64::from(c);
             v
         };
+        // Input pairs of an unclustered scene are confirmed with ROOT_CONFIRM_RAYS; the small
+        // patches a clustered scene links pair by pair as refined links are (`zero_confirm` ×
+        // rays: the 32 rays were a third of a 100 k-patch room's rays).
+        let confirm = if root { ROOT_CONFIRM_RAYS } else { self.params.zero_confirm * rays };
         let mut v = vis(rays, 0);
         if v == 0.0 {
             // Confirm full occlusion with more rays before dropping the pair.
-            if vis(ROOT_CONFIRM_RAYS, 0x5EED) == 0.0 {
+            if confirm == 0 || vis(confirm, 0x5EED) == 0.0 {
                 return (None, cast);
             }
-            v = 1.0 / f64::from(ROOT_CONFIRM_RAYS + rays);
-        } else if v == 1.0 && conservative {
+            v = 1.0 / f64::from(confirm + rays);
+        } else if v == 1.0 && conservative && confirm > 0 {
             // All rays passed: the oracle keeps a fully visible link and splits a
             // partially visible one, whose children are estimated afresh, so an
             // accepted false 1 is a bright bias that only grows (splash_room
             // `interactive`: the floor–wall pairs at V 0.65 read 1 with 4 rays, the
             // floor's F·V summed to 1.11, and the solve created 11 % of its light).
             // Confirmed with more rays; the first blocked one makes it partial.
-            let v2 = vis(ROOT_CONFIRM_RAYS, 0x0DE5);
+            let v2 = vis(confirm, 0x0DE5);
             if v2 < 1.0 {
-                v = (f64::from(rays) + v2 * f64::from(ROOT_CONFIRM_RAYS))
-                    / f64::from(rays + ROOT_CONFIRM_RAYS);
+                v = (f64::from(rays) + v2 * f64::from(confirm)) / f64::from(rays + confirm);
             }
         }
         let v = v as f32;
