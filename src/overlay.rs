@@ -825,6 +825,38 @@ pub fn link_lines(
     LinkLines { shown: kept.len(), lines, matched, scale }
 }
 
+/// The twelve edges of every cluster's bounding box whose depth is in `depths` (inclusive),
+/// coloured by depth (viridis over the range shown): the cluster overlay (issue 17 §1).
+#[must_use]
+pub fn cluster_lines(
+    clusters: &[crate::solver::hierarchical::ClusterInfo],
+    depths: std::ops::RangeInclusive<u8>,
+    alpha: f32,
+) -> LineList {
+    let mut lines = LineList::default();
+    let span = f64::from(depths.end().saturating_sub(*depths.start()).max(1));
+    for c in clusters.iter().filter(|c| depths.contains(&c.depth)) {
+        let t = f64::from(c.depth - depths.start()) / span;
+        let [r, g, b] = Palette::Viridis.at(t);
+        let corner = |k: usize| {
+            DVec3::new(
+                if k & 1 == 0 { c.bmin.x } else { c.bmax.x },
+                if k & 2 == 0 { c.bmin.y } else { c.bmax.y },
+                if k & 4 == 0 { c.bmin.z } else { c.bmax.z },
+            )
+        };
+        // Corners differing in one bit share an edge.
+        for k in 0..8 {
+            for bit in [1, 2, 4] {
+                if k & bit == 0 {
+                    lines.push(corner(k), corner(k | bit), [r, g, b, alpha]);
+                }
+            }
+        }
+    }
+    lines
+}
+
 /// Heatmap colours of per-element error values (indexed like `values`) on a robust log scale
 /// ([`LogScale::robust`]); zero or negative error gets the scale's bottom colour.
 #[must_use]
@@ -924,6 +956,31 @@ pub fn pick(elements: &[ElementView], leaves: &[u32], origin: DVec3, dir: DVec3)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cluster_boxes_draw_twelve_edges_in_the_depths_asked_for() {
+        use crate::solver::hierarchical::ClusterInfo;
+        let c = |depth: u8, lo: f64| ClusterInfo {
+            depth,
+            bmin: DVec3::splat(lo),
+            bmax: DVec3::splat(lo + 1.0),
+            patches: 2,
+            links: 0,
+        };
+        let clusters = [c(0, 0.0), c(1, 2.0), c(2, 4.0), c(2, 6.0)];
+        let all = cluster_lines(&clusters, 0..=2, 1.0);
+        assert_eq!(all.segments(), 4 * 12);
+        // Every edge is axis-aligned and one box side long.
+        for seg in all.points.chunks(2) {
+            let d = (seg[1] - seg[0]).abs();
+            assert!((d.x + d.y + d.z - 1.0).abs() < 1e-12 && d.max_element() == 1.0, "{seg:?}");
+        }
+        let deep = cluster_lines(&clusters, 2..=2, 1.0);
+        assert_eq!(deep.segments(), 2 * 12);
+        assert!(deep.points.iter().all(|p| p.x >= 4.0));
+        // Colour by depth: the root and the deepest level differ.
+        assert_ne!(all.colors[0], all.colors[all.colors.len() - 1]);
+    }
 
     #[test]
     fn highlight_outlines_both_elements_and_draws_the_link() {

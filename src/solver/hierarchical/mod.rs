@@ -222,11 +222,27 @@ pub struct LinkInfo {
     pub err: f32,
 }
 
+/// Read-only view of one node of the cluster tree ([`cluster`]).
+#[derive(Copy, Clone, Debug, Serialize)]
+pub struct ClusterInfo {
+    /// Depth in the cluster tree (0: the root).
+    pub depth: u8,
+    /// Bounding box of the members.
+    pub bmin: DVec3,
+    pub bmax: DVec3,
+    /// Input patches in the cluster.
+    pub patches: u32,
+    /// Cluster links with this node at one end.
+    pub links: u32,
+}
+
 /// A copy of the solver's state after a step.
 #[derive(Clone, Debug, Serialize)]
 pub struct Snapshot {
     pub elements: Vec<ElementInfo>,
     pub links: Vec<LinkInfo>,
+    /// The cluster tree's nodes of two patches or more (empty when the solve does not cluster).
+    pub clusters: Vec<ClusterInfo>,
     pub stats: HierarchicalStats,
     /// Residual after each gather, in order.
     pub residuals: Vec<f64>,
@@ -1593,6 +1609,29 @@ impl HierarchicalSolver {
         created
     }
 
+    /// The cluster tree's nodes of two patches or more, in tree order, with their link counts.
+    #[must_use]
+    pub fn cluster_infos(&self) -> Vec<ClusterInfo> {
+        let Some(tree) = &self.clusters else { return Vec::new() };
+        let mut links = vec![0u32; tree.len()];
+        for l in &self.cluster_links {
+            links[l.a as usize] += 1;
+            links[l.b as usize] += 1;
+        }
+        tree.nodes
+            .iter()
+            .zip(links)
+            .filter(|(n, _)| !n.is_leaf())
+            .map(|(n, links)| ClusterInfo {
+                depth: n.depth,
+                bmin: n.bmin,
+                bmax: n.bmax,
+                patches: n.hi - n.lo,
+                links,
+            })
+            .collect()
+    }
+
     /// Every input patch's irradiance through the cluster links (None: no cluster links).
     fn cluster_irradiance(&mut self) -> Option<Vec<Rgb>> {
         let tree = self.clusters.as_ref()?;
@@ -2270,7 +2309,13 @@ impl HierarchicalSolver {
                 })
             })
             .collect();
-        Snapshot { elements, links, stats: self.stats(), residuals: self.residuals.clone() }
+        Snapshot {
+            elements,
+            links,
+            clusters: self.cluster_infos(),
+            stats: self.stats(),
+            residuals: self.residuals.clone(),
+        }
     }
 
     /// Each leaf's slope of B, ρ times the irradiance's slope pushed down to it (`Chain`); empty
