@@ -15,6 +15,7 @@
 //! all have about the same area (within a factor of four: a quadtree halves sides).
 
 use crate::solver::hierarchical::StepKind;
+use crate::solver::meshed::{DisplayReconstruction, MeshMethod, MeshSolveParams};
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
 use serde::Serialize;
 
@@ -66,8 +67,12 @@ pub struct Figure {
     pub preset: &'static str,
     /// What the method is, in a few words (uniform mesh, Feps refinement, BF oracle…).
     pub method: &'static str,
-    /// The solver settings.
+    /// The solver settings (of the hierarchical solver: the quadtree mesh).
     pub params: HierarchicalParams,
+    /// The mesh solved on: the quadtree (`params`) or a uniform / discontinuity mesh.
+    pub mesh: MeshSolveParams,
+    /// How the solution is drawn (unless `overlays.flat`).
+    pub reconstruction: DisplayReconstruction,
     /// Steps run after loading: `[Solve]` for a solved figure, `[Refine]` for the first step of
     /// a stepped one, `[]` for the input patches.
     pub steps: &'static [StepKind],
@@ -105,6 +110,8 @@ impl Figure {
             preset,
             method: "hierarchical",
             params,
+            mesh: MeshSolveParams::new(MeshMethod::Quadtree),
+            reconstruction: DisplayReconstruction::Gouraud,
             steps: &[StepKind::Solve],
             sweep_bf_eps: &[],
             overlays: Overlays::NONE,

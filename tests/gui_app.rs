@@ -1026,3 +1026,58 @@ fn earlier_runs_are_scored_once_the_reference_exists() {
     assert_eq!(h.state().error_samples().len(), 1, "the earlier run is not a point of this restart's plot");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// True when the widget labelled `label` is greyed out.
+fn disabled(h: &Harness<'static, RadlabApp>, label: &str) -> bool {
+    use egui_kittest::kittest::NodeT;
+    h.get_by_label(label).accesskit_node().is_disabled()
+}
+
+/// The mesh, order and display reconstruction are picked in the Solver and Display panels; a
+/// mesh solve runs on the solver thread and is shown; the quadtree-only overlays say they do
+/// not apply (greyed out).
+#[test]
+fn mesh_kind_order_and_reconstruction_are_selectable() {
+    use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
+    let mut h = harness(opts());
+    h.state_mut().load_spec("builtin:shadow-narrow");
+    settle(&mut h);
+    assert!(!disabled(&h, "links"), "links apply to the quadtree");
+    // The Mesh menu: pick the constrained Delaunay mesh; auto-run solves on it.
+    h.get_by_label("Mesh: quadtree").click();
+    h.run_steps(2);
+    h.get_by_label("discontinuity-cdt").click();
+    settle(&mut h);
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    let m = v.mesh.as_ref().expect("a mesh solve is shown");
+    assert_eq!(m.params.method, MeshMethod::DiscontinuityCdt);
+    assert!(v.leaves.len() > 100, "the CDT's pieces: {}", v.leaves.len());
+    assert!(v.elements.iter().any(|e| e.radiosity.mean() > 0.0));
+    assert!(m.coefficients.is_none(), "p = 0 keeps no vertex values");
+    assert!(disabled(&h, "links"), "no links on a mesh solve");
+    assert!(disabled(&h, "error heatmap"), "no estimate and no reference");
+    assert!(disabled(&h, "true p = 1"), "no p = 1 values to draw");
+    // Order 1, continuous, drawn as the true p = 1 function.
+    h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::DiscontinuityCdt).linear(true));
+    settle(&mut h);
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    let c = v.mesh.as_ref().and_then(|m| m.coefficients.clone()).expect("p = 1 vertex values");
+    assert_eq!(c.len(), v.elements.len());
+    let shaded = lower_viewport(&mut h);
+    h.get_by_label("flat").click();
+    settle(&mut h);
+    let flat = lower_viewport(&mut h);
+    assert_ne!(shaded.pixels, flat.pixels, "flat and p = 1 draw differently");
+    h.get_by_label("true p = 1").click();
+    settle(&mut h);
+    assert!(!disabled(&h, "true p = 1"));
+    check(&mut h, "gui_mesh_cdt_p1");
+    // Back to the quadtree: the hierarchical solve is shown again, links apply.
+    h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::Quadtree));
+    settle(&mut h);
+    settle(&mut h);
+    assert!(h.state().view().mesh.is_none() && h.state().view().stats.links > 0);
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}

@@ -28,6 +28,7 @@ use crate::render::{
 };
 use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
+use crate::solver::meshed::{DisplayReconstruction, MeshMethod, MeshSolveParams};
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
 use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
 use eframe::egui_wgpu;
@@ -86,6 +87,10 @@ pub struct ViewerOptions {
     pub replay: Option<usize>,
     /// Cut the quadtrees at this depth in the refinement replay.
     pub depth_cut: Option<u8>,
+    /// The mesh solved on (`None`: the quadtree, the hierarchical solver).
+    pub mesh: Option<MeshSolveParams>,
+    /// How the solution is drawn (`None`: Gouraud).
+    pub reconstruction: Option<DisplayReconstruction>,
 }
 
 impl Default for ViewerOptions {
@@ -108,15 +113,32 @@ impl Default for ViewerOptions {
             show_history: false,
             replay: None,
             depth_cut: None,
+            mesh: None,
+            reconstruction: None,
         }
     }
 }
 
-/// Shading of the radiosity mesh.
+/// Shading of the radiosity mesh (the display reconstruction).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Shading {
     Flat,
+    /// Gouraud from vertex averages.
     Smooth,
+    /// The element's own p = 1 function (a p = 1 mesh solve's vertex values).
+    Nodal,
+}
+
+impl Shading {
+    /// The shading that draws a display reconstruction.
+    #[must_use]
+    pub fn of(r: DisplayReconstruction) -> Shading {
+        match r {
+            DisplayReconstruction::Flat => Shading::Flat,
+            DisplayReconstruction::Gouraud => Shading::Smooth,
+            DisplayReconstruction::Nodal => Shading::Nodal,
+        }
+    }
 }
 
 /// What is shown (no solver state).
@@ -207,6 +229,9 @@ pub struct RadlabApp {
     errors: Vec<String>,
     params: HierarchicalParams,
     preset: String,
+    /// The mesh solved on: `method` [`MeshMethod::Quadtree`] is the hierarchical solver (with
+    /// `params`), anything else a mesh solve with these settings.
+    mesh: MeshSolveParams,
     worker: Option<Worker>,
     progress: Option<(u64, u64)>,
     busy_label: String,
@@ -368,6 +393,7 @@ impl RadlabApp {
             errors: Vec::new(),
             params: HierarchicalParams::preset(&preset).unwrap_or_else(HierarchicalParams::interactive),
             preset,
+            mesh: opts.mesh.unwrap_or(MeshSolveParams::new(MeshMethod::Quadtree)),
             worker: None,
             progress: None,
             busy_label: String::new(),
@@ -456,6 +482,9 @@ impl RadlabApp {
             app.replay.start_at = Some(frame);
         }
         app.replay.depth = app.opts.depth_cut;
+        if let Some(r) = app.opts.reconstruction {
+            app.display.shading = Shading::of(r);
+        }
         for o in &app.opts.overlay {
             match o {
                 OverlayChoice::None => {}
@@ -483,12 +512,13 @@ impl RadlabApp {
         self.preset = f.preset.to_owned();
         // Not `set_params`: the load below starts a solver with these.
         self.params = f.params;
+        self.mesh = f.mesh;
         let o = f.overlays;
         let d = &mut self.display;
         d.quadtree = o.quadtree;
         d.links = o.links;
         d.error = o.error;
-        d.shading = if o.flat { Shading::Flat } else { Shading::Smooth };
+        d.shading = if o.flat { Shading::Flat } else { Shading::of(f.reconstruction) };
         d.link_filter = LinkFilter { full: !o.partial_links_only, ..LinkFilter::default() };
         d.selected_links_only = false;
         self.show_plots = f.plots;
@@ -594,7 +624,7 @@ impl RadlabApp {
         self.send(Command::Load { scene, params }, "loading");
         self.loading = self.worker.is_some();
         if self.opts.solve_on_start {
-            self.send(Command::Step(StepKind::Solve), "solving");
+            self.step(StepKind::Solve);
         }
     }
 
@@ -677,8 +707,17 @@ impl RadlabApp {
         }
     }
 
-    /// Run a solver step (as the buttons do).
+    /// Run a solver step (as the buttons do). On a mesh other than the quadtree, Solve is the
+    /// mesh solve and the hierarchical steps are refused (a status line says so).
     pub fn step(&mut self, kind: StepKind) {
+        if self.mesh.method != MeshMethod::Quadtree {
+            if kind == StepKind::Solve {
+                self.send(Command::SolveMesh(self.mesh), "solving on the mesh");
+            } else {
+                self.status = format!("{kind:?} steps the quadtree: pick the quadtree mesh first");
+            }
+            return;
+        }
         let label = match kind {
             StepKind::Refine => "refining",
             StepKind::Gather => "gathering",
@@ -710,6 +749,36 @@ impl RadlabApp {
             // Only when something is shown: a first solve has nothing to keep.
             self.hold_view = !self.view.elements.is_empty();
         }
+    }
+
+    /// The mesh solved on and its settings.
+    #[must_use]
+    pub fn mesh(&self) -> MeshSolveParams {
+        self.mesh
+    }
+
+    /// Solve on another mesh (or order): re-solve at once with auto-run, keeping the last
+    /// picture until the new one comes. Bad settings are shown, not applied.
+    pub fn set_mesh(&mut self, m: MeshSolveParams) {
+        if m == self.mesh {
+            return;
+        }
+        if m.method != MeshMethod::Quadtree
+            && let Err(e) = m.validate()
+        {
+            self.errors.push(e);
+            return;
+        }
+        self.mesh = m;
+        if self.auto_run && self.scene.is_some() {
+            self.resolve_pending = true;
+        }
+    }
+
+    /// True when the state shown is a mesh solve (not the quadtree's).
+    #[must_use]
+    pub fn mesh_view(&self) -> bool {
+        self.view.mesh.is_some()
     }
 
     /// Block until the solver thread is idle and apply its replies, then until the reference
@@ -800,7 +869,8 @@ impl RadlabApp {
                     {
                         self.replay.set_frames(frames, Arc::clone(&self.view));
                     }
-                    if rep.kind == StepKind::Solve && !rep.cancelled {
+                    // Mesh solves are not runs of the history (its rows are hierarchical settings).
+                    if rep.kind == StepKind::Solve && !rep.cancelled && self.view.mesh.is_none() {
                         let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
                         self.history.record(name, self.solver_time_s, self.view_seq, Arc::clone(&self.view));
                     }
@@ -1075,6 +1145,13 @@ impl RadlabApp {
         self.true_error.as_ref().filter(|e| e.len() == self.view.elements.len())
     }
 
+    /// The error heatmap has something to show: the solver's estimate (quadtree), or the true
+    /// error against a reference (any mesh; a mesh solve has no estimate of its own).
+    #[must_use]
+    pub fn error_applies(&self) -> bool {
+        !self.mesh_view() || self.true_error().is_some()
+    }
+
     /// What the error heatmap shows.
     #[must_use]
     pub fn error_label(&self) -> &'static str {
@@ -1092,7 +1169,8 @@ impl RadlabApp {
     /// What the display settings ask of a geometry build (the split view's panes use them too).
     fn build_settings(&self) -> builder::Settings {
         let d = &self.display;
-        let show_links = d.links || (self.selected.is_some() && d.selected_links_only);
+        let mesh_view = self.mesh_view();
+        let show_links = !mesh_view && (d.links || (self.selected.is_some() && d.selected_links_only));
         let links = show_links.then(|| {
             let mut filter = d.link_filter;
             filter.element = if d.selected_links_only {
@@ -1104,12 +1182,14 @@ impl RadlabApp {
             filter
         });
         builder::Settings {
-            coloring: if d.error {
+            coloring: if d.error && self.error_applies() {
                 Coloring::Error
-            } else if d.shading == Shading::Smooth {
-                Coloring::Smooth
             } else {
-                Coloring::Flat
+                match d.shading {
+                    Shading::Smooth => Coloring::Smooth,
+                    Shading::Flat => Coloring::Flat,
+                    Shading::Nodal => Coloring::Nodal,
+                }
             },
             links,
             link_alpha: d.link_alpha,
@@ -1187,7 +1267,7 @@ impl RadlabApp {
             view_proj: m.map(|c| c.map(|x| x as f32)),
             exposure: 2f32.powf(self.display.exposure_ev),
             tone: u32::from(self.display.srgb),
-            mode: u32::from(self.display.error),
+            mode: u32::from(self.display.error && self.error_applies()),
             selected: self.selected.unwrap_or(NO_SELECTION),
             back_color: BACK_COLOR,
             overlay: if self.display.quadtree { OVERLAY_QUADTREE } else { 0 }
@@ -1251,6 +1331,7 @@ impl RadlabApp {
                 "Convergence plots under the inspector: residual per gather, links against elements \
                  (one point per solve), error against solver time",
             );
+            self.mesh_menu(ui);
             ui.separator();
             let name = self.scene.as_ref().map_or("(no scene)".to_owned(), |s| s.name.clone());
             ui.label(egui::RichText::new(name).strong());
@@ -1299,9 +1380,127 @@ impl RadlabApp {
         .on_hover_text("Split view, run history and refinement replay: compare solves, watch one form");
     }
 
+    /// The Mesh menu of the top bar: the mesh, and the settings of a solve on a uniform or
+    /// discontinuity mesh (greyed out on the quadtree, whose settings are the Solver panel's).
+    fn mesh_menu(&mut self, ui: &mut egui::Ui) {
+        let title = match self.mesh.method {
+            MeshMethod::Quadtree => "Mesh: quadtree".to_owned(),
+            _ => format!("Mesh: {}", self.mesh.label()),
+        };
+        ui.menu_button(title, |ui| self.mesh_controls(ui)).response.on_hover_text(
+            "What the solution is computed on: the hierarchical quadtree, a uniform mesh, or a \
+             discontinuity mesh whose edges follow the shadow boundaries; element order p = 0 / 1",
+        );
+    }
+
+    fn mesh_controls(&mut self, ui: &mut egui::Ui) {
+        let mut m = self.mesh;
+        for method in MeshMethod::ALL {
+            ui.radio_value(&mut m.method, method, method.name()).on_hover_text(method.description());
+        }
+        ui.separator();
+        let on_mesh = m.method != MeshMethod::Quadtree;
+        ui.add_enabled_ui(on_mesh, |ui| {
+            ui.horizontal(|ui| {
+                ui.label("order");
+                ui.selectable_value(&mut m.order, crate::basis::Order::Constant, "p = 0")
+                    .on_hover_text("Constant elements: one value each")
+                    .on_disabled_hover_text("The quadtree's elements are constant (p = 0)");
+                ui.selectable_value(&mut m.order, crate::basis::Order::Linear, "p = 1")
+                    .on_hover_text(
+                        "Linear (triangles) / bilinear (quads) elements, a Galerkin solve of their \
+                         vertex values: slower, follows a smooth ramp inside an element",
+                    )
+                    .on_disabled_hover_text("p = 1 exists on the uniform and discontinuity meshes");
+            });
+            ui.add_enabled_ui(m.order == crate::basis::Order::Linear, |ui| {
+                ui.horizontal(|ui| {
+                    ui.selectable_value(&mut m.continuous, false, "discontinuous").on_hover_text(
+                        "Each element its own vertex values: jumps can remain at element edges",
+                    );
+                    ui.selectable_value(&mut m.continuous, true, "continuous").on_hover_text(
+                        "One value per mesh vertex, shared by the elements around it: no jumps, \
+                         fewer unknowns",
+                    );
+                })
+                .response
+                .on_disabled_hover_text("Continuity applies to p = 1 elements");
+            });
+            ui.add_enabled_ui(m.method == MeshMethod::Uniform, |ui| {
+                log_slider(
+                    ui,
+                    "size",
+                    &mut m.element_size_rel,
+                    1e-3,
+                    1.0,
+                    "Uniform mesh: longest element side, as a fraction of the scene's diagonal",
+                );
+            });
+            ui.add_enabled_ui(m.method == MeshMethod::DiscontinuityCdt, |ui| {
+                ui.add(
+                    egui::Slider::new(&mut m.cdt_min_angle_deg, 0.0..=30.0)
+                        .step_by(5.0)
+                        .text("CDT min angle"),
+                )
+                .on_hover_text(
+                    "Delaunay refinement of the constrained triangulation to this smallest angle \
+                         (degrees; 0: the constraints' triangulation as it is, fewest elements)",
+                );
+            });
+            ui.add(egui::Slider::new(&mut m.rays, 1..=64).logarithmic(true).text("rays / pair"))
+                .on_hover_text("Shadow rays per element pair (the visible fraction)");
+        })
+        .response
+        .on_disabled_hover_text("Mesh settings: pick a uniform or discontinuity mesh above");
+        if m != self.mesh {
+            self.set_mesh(m);
+        }
+    }
+
     fn controls(&mut self, ui: &mut egui::Ui) {
         let busy = self.busy();
         ui.heading("Solver");
+        let quadtree = self.mesh.method == MeshMethod::Quadtree;
+        ui.add_enabled_ui(quadtree, |ui| self.quadtree_controls(ui))
+            .response
+            .on_disabled_hover_text("The hierarchical solver's settings: pick the quadtree mesh to use them");
+        let mesh_tip = "Steps the quadtree; on this mesh only Solve runs (the whole mesh solve)";
+        ui.separator();
+        ui.horizontal_wrapped(|ui| {
+            for (label, kind, tip) in [
+                (
+                    "Refine step",
+                    StepKind::Refine,
+                    "Initial linking, then the oracle over the existing links (Space)",
+                ),
+                ("Gather step", StepKind::Gather, "One Jacobi gather over all links (G)"),
+                ("Push-pull", StepKind::PushPull, "Push gathered irradiance down, pull radiosity up (P)"),
+                ("Iterate", StepKind::Iterate, "Refine + gather + push-pull (I)"),
+                ("Solve", StepKind::Solve, "The HSA91 loop until converged, or the mesh solve (S)"),
+            ] {
+                let enabled = !busy && (quadtree || kind == StepKind::Solve);
+                if ui
+                    .add_enabled(enabled, egui::Button::new(label))
+                    .on_hover_text(tip)
+                    .on_disabled_hover_text(if busy { "The solver is busy" } else { mesh_tip })
+                    .clicked()
+                {
+                    self.step(kind);
+                }
+            }
+            if ui
+                .add_enabled(!busy && quadtree, egui::Button::new("Reset"))
+                .on_hover_text("Back to the input patches")
+                .clicked()
+            {
+                self.send(Command::Reset, "resetting");
+            }
+        });
+        self.controls_below(ui);
+    }
+
+    /// The hierarchical solver's settings (preset, oracle, thresholds).
+    fn quadtree_controls(&mut self, ui: &mut egui::Ui) {
         let mut p = self.params;
         egui::ComboBox::from_label("preset")
             .selected_text(&self.preset)
@@ -1368,32 +1567,11 @@ impl RadlabApp {
         if p != self.params {
             self.set_params(p);
         }
+    }
 
-        ui.separator();
-        ui.horizontal_wrapped(|ui| {
-            for (label, kind, tip) in [
-                (
-                    "Refine step",
-                    StepKind::Refine,
-                    "Initial linking, then the oracle over the existing links (Space)",
-                ),
-                ("Gather step", StepKind::Gather, "One Jacobi gather over all links (G)"),
-                ("Push-pull", StepKind::PushPull, "Push gathered irradiance down, pull radiosity up (P)"),
-                ("Iterate", StepKind::Iterate, "Refine + gather + push-pull (I)"),
-                ("Solve", StepKind::Solve, "The HSA91 loop until converged (S)"),
-            ] {
-                if ui.add_enabled(!busy, egui::Button::new(label)).on_hover_text(tip).clicked() {
-                    self.step(kind);
-                }
-            }
-            if ui
-                .add_enabled(!busy, egui::Button::new("Reset"))
-                .on_hover_text("Back to the input patches")
-                .clicked()
-            {
-                self.send(Command::Reset, "resetting");
-            }
-        });
+    /// Auto-run and Cancel, the progress line, the reference, display and overlays.
+    fn controls_below(&mut self, ui: &mut egui::Ui) {
+        let busy = self.busy();
         ui.horizontal(|ui| {
             ui.checkbox(&mut self.auto_run, "auto-run").on_hover_text(
                 "Re-solve whenever a parameter changes; the last picture stays until the new one is \
@@ -1418,14 +1596,31 @@ impl RadlabApp {
 
         ui.separator();
         ui.heading("Display");
+        let mesh_view = self.mesh_view();
+        let has_p1 = self.view.mesh.as_ref().is_some_and(|m| m.coefficients.is_some());
+        let error_applies = self.error_applies();
         let d = &mut self.display;
         ui.horizontal(|ui| {
             ui.selectable_value(&mut d.shading, Shading::Flat, "flat")
-                .on_hover_text("Each element one colour: the mesh's resolution shows");
-            ui.selectable_value(&mut d.shading, Shading::Smooth, "smooth").on_hover_text(
-                "Gouraud from vertex averages; T-vertices take their big neighbour's edge value",
+                .on_hover_text("Each element one colour (its average): the mesh's resolution shows");
+            ui.selectable_value(&mut d.shading, Shading::Smooth, "Gouraud").on_hover_text(
+                "Gouraud from vertex averages, what most systems show; T-vertices take their big \
+                 neighbour's edge value",
             );
+            ui.add_enabled_ui(has_p1, |ui| {
+                ui.selectable_value(&mut d.shading, Shading::Nodal, "true p = 1")
+                    .on_hover_text(
+                        "Each element's own p = 1 function: the vertex values the Galerkin solve computed",
+                    )
+                    .on_disabled_hover_text(
+                        "The true p = 1 reconstruction needs a p = 1 solve (a uniform or \
+                         discontinuity mesh at order 1)",
+                    );
+            });
         });
+        if d.shading == Shading::Nodal && !has_p1 {
+            ui.weak("no p = 1 values in this solution: shown Gouraud");
+        }
         let ev = ui
             .add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"))
             .on_hover_text("Radiosity × 2^EV before tone mapping; moving it turns auto exposure off");
@@ -1443,10 +1638,18 @@ impl RadlabApp {
         ui.label(egui::RichText::new("back faces: striped magenta").small().weak());
         ui.separator();
         ui.heading("Overlays");
-        ui.checkbox(&mut d.quadtree, "quadtree")
-            .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
-        ui.checkbox(&mut d.links, "links").on_hover_text("Element-centre lines coloured by log F (L)");
-        if d.links || d.selected_links_only {
+        if mesh_view {
+            ui.checkbox(&mut d.quadtree, "mesh edges").on_hover_text("The elements' edges; depth-tested (Q)");
+        } else {
+            ui.checkbox(&mut d.quadtree, "quadtree")
+                .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
+        }
+        ui.add_enabled(!mesh_view, egui::Checkbox::new(&mut d.links, "links"))
+            .on_hover_text("Element-centre lines coloured by log F (L)")
+            .on_disabled_hover_text(
+                "A mesh solve keeps no links: every pair of its elements is coupled (n² interactions)",
+            );
+        if !mesh_view && (d.links || d.selected_links_only) {
             ui.indent("links", |ui| {
                 ui.checkbox(&mut d.selected_links_only, "picked element only")
                     .on_hover_text("Only the links the picked element gathers through (click an element)");
@@ -1481,8 +1684,12 @@ impl RadlabApp {
                     .on_hover_text("Draw links through surfaces instead of hiding those behind them");
             });
         }
-        ui.checkbox(&mut d.error, "error heatmap")
-            .on_hover_text("Per-element error on a log colour scale (E)");
+        ui.add_enabled(error_applies, egui::Checkbox::new(&mut d.error, "error heatmap"))
+            .on_hover_text("Per-element error on a log colour scale (E)")
+            .on_disabled_hover_text(
+                "A mesh solve has no error estimate of its own: Compute reference (above) gives the \
+                 true error, then the heatmap shows it",
+            );
     }
 
     fn inspector(&mut self, ui: &mut egui::Ui) {
@@ -1906,7 +2113,26 @@ impl RadlabApp {
         let x = rect.left() + 8.0;
         let font = egui::FontId::proportional(12.0);
         let bg = Color32::from_black_alpha(170);
-        if self.display.quadtree {
+        if self.display.quadtree
+            && let Some(m) = &self.view.mesh
+        {
+            let text = format!(
+                "mesh edges: {} · {} elements · solve {:.2} s{}",
+                m.params.label(),
+                self.view.leaves.len(),
+                m.solve_s,
+                if m.meshing_s > 0.0 {
+                    format!(" (meshing {:.0} ms)", m.meshing_s * 1e3)
+                } else {
+                    String::new()
+                }
+            );
+            let galley = painter.layout_no_wrap(text, font.clone(), Color32::WHITE);
+            let box_r = Rect::from_min_size(Pos2::new(x, y), galley.size() + Vec2::new(8.0, 4.0));
+            painter.rect_filled(box_r, 4.0, bg);
+            painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
+            y = box_r.bottom() + 6.0;
+        } else if self.display.quadtree {
             let max_depth = self.view.stats.depth_histogram.len().max(1);
             let shown = max_depth.min(12);
             let box_r =
@@ -1934,7 +2160,8 @@ impl RadlabApp {
             }
             y = box_r.bottom() + 6.0;
         }
-        let show_links = self.display.links || (self.display.selected_links_only && self.selected.is_some());
+        let show_links = !self.mesh_view()
+            && (self.display.links || (self.display.selected_links_only && self.selected.is_some()));
         if show_links {
             let title = format!(
                 "links: F (log), {} of {} shown{}",
@@ -1960,7 +2187,7 @@ impl RadlabApp {
             );
             y += 18.0;
         }
-        if self.display.error {
+        if self.display.error && self.error_applies() {
             let what = self.error_label();
             colour_bar(
                 painter,
@@ -1978,7 +2205,7 @@ impl RadlabApp {
                 "No scene. Open… a .gltf/.glb, drop one here, or type builtin:NAME above and press Load."
             };
             painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, font, Color32::LIGHT_GRAY);
-        } else if self.view.links.is_empty() && !self.busy() {
+        } else if self.view.links.is_empty() && !self.busy() && !self.mesh_view() {
             // A freshly loaded scene: only the lamps are lit. Say what to do next.
             bottom_note(
                 painter,

@@ -23,6 +23,9 @@ use std::time::Instant;
 pub enum Coloring {
     Flat,
     Smooth,
+    /// The element's own p = 1 function where the state has vertex values (a p = 1 mesh
+    /// solve), else as `Smooth`.
+    Nodal,
     /// Error heatmap (true error when given, else the solver's estimate).
     Error,
 }
@@ -88,6 +91,10 @@ pub fn build(req: &Request) -> Built {
         Coloring::Error => MeshColors::Display(&heat),
         Coloring::Smooth => MeshColors::Smooth,
         Coloring::Flat => MeshColors::Flat,
+        Coloring::Nodal => match v.mesh.as_ref().and_then(|m| m.coefficients.as_deref()) {
+            Some(c) => MeshColors::Nodal(c),
+            None => MeshColors::Smooth,
+        },
     };
     // Cut at a depth: the elements that tile the scene there, the links between them and above.
     let (cut_leaves, cut_links);
