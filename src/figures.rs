@@ -32,11 +32,19 @@ pub struct Overlays {
     pub error: bool,
     /// Flat shading (each element one colour) instead of Gouraud.
     pub flat: bool,
+    /// The critical edges (D0/D1/D2 segments).
+    pub critical: bool,
 }
 
 impl Overlays {
-    const NONE: Overlays =
-        Overlays { quadtree: false, links: false, partial_links_only: false, error: false, flat: false };
+    const NONE: Overlays = Overlays {
+        quadtree: false,
+        links: false,
+        partial_links_only: false,
+        error: false,
+        flat: false,
+        critical: false,
+    };
 }
 
 /// The view, relative to the scene's own camera (the viewer's home view): orbit by `yaw_deg`

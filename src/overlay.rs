@@ -181,7 +181,8 @@ pub struct LineList {
 }
 
 impl LineList {
-    fn push(&mut self, a: DVec3, b: DVec3, color: [f32; 4]) {
+    /// Add one segment.
+    pub fn push(&mut self, a: DVec3, b: DVec3, color: [f32; 4]) {
         self.points.extend([a, b]);
         self.colors.extend([color, color]);
     }

@@ -1081,3 +1081,38 @@ fn mesh_kind_order_and_reconstruction_are_selectable() {
     assert!(h.state().view().mesh.is_none() && h.state().view().stats.links > 0);
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
+
+/// Pixels of the lower half of the viewport within 40 of `rgb` on every channel.
+fn pixels_near(img: &RgbaImage, rgb: [u8; 3]) -> usize {
+    img.pixels.chunks_exact(4).filter(|p| (0..3).all(|c| p[c].abs_diff(rgb[c]) <= 40)).count()
+}
+
+/// The critical-edges overlay draws the D0/D1/D2 segments in their colours, over the quadtree
+/// and over a discontinuity mesh alike, with its legend's counts.
+#[test]
+fn critical_edges_overlay_draws_d0_d1_d2() {
+    use radlab::mesh_overlay::CRITICAL_COLORS;
+    use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().load_spec("builtin:table-room");
+    settle(&mut h);
+    let amber = CRITICAL_COLORS[1].map(|c| (c * 255.0) as u8);
+    let amber = [amber[0], amber[1], amber[2]];
+    let before = pixels_near(&lower_viewport(&mut h), amber);
+    assert!(h.state().critical_counts().is_none());
+    h.get_by_label("critical edges (D0/D1/D2)").click();
+    settle(&mut h);
+    let c = h.state().critical_counts().expect("the overlay's counts");
+    assert!(c.d0 > 0 && c.d1 > 0 && c.d2 > 0, "table-room has all three kinds: {c:?}");
+    let after = pixels_near(&lower_viewport(&mut h), amber);
+    assert!(after > before + 200, "the D1 lines are drawn under the table: {before} → {after} amber pixels");
+    check(&mut h, "gui_critical_edges");
+    // Over the BSP mesh too: its element edges follow the same lines.
+    h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::DiscontinuityBsp));
+    settle(&mut h);
+    settle(&mut h);
+    assert!(h.state().mesh_view());
+    assert_eq!(h.state().critical_counts(), Some(c), "the scene's segments, whatever the mesh");
+    assert!(pixels_near(&lower_viewport(&mut h), amber) > before + 200);
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}

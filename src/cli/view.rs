@@ -1,4 +1,4 @@
-//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error,…] [--preset NAME]
+//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error|critical,…] [--preset NAME]
 //! [--bench-frames N] [--figure NAME] [--split N] [--history] [--replay FRAME [--depth-cut D]]
 //! [--mesh KIND] [--order 0|1 [--continuous]] [--reconstruction flat|gouraud|nodal]`:
 //! the interactive viewer (feature `gui`).
@@ -16,6 +16,8 @@ pub enum Overlay {
     Quadtree,
     Links,
     Error,
+    /// The critical edges (D0/D1/D2 segments) coloured by kind.
+    Critical,
 }
 
 #[derive(clap::Args, Debug)]
@@ -177,6 +179,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Overlay::Quadtree => OverlayChoice::Quadtree,
             Overlay::Links => OverlayChoice::Links,
             Overlay::Error => OverlayChoice::Error,
+            Overlay::Critical => OverlayChoice::Critical,
         })
         .collect();
     radlab::viewer::run(ViewerOptions {

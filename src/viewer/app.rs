@@ -45,6 +45,8 @@ pub enum OverlayChoice {
     Quadtree,
     Links,
     Error,
+    /// The critical edges (D0/D1/D2 segments).
+    Critical,
 }
 
 /// How the viewer starts.
@@ -153,6 +155,8 @@ pub struct Display {
     pub quadtree: bool,
     pub links: bool,
     pub error: bool,
+    /// The critical edges: every receiver's D0/D1/D2 segments, coloured by kind.
+    pub critical: bool,
     pub link_filter: LinkFilter,
     /// Links of the picked element only.
     pub selected_links_only: bool,
@@ -170,6 +174,7 @@ impl Default for Display {
             quadtree: false,
             links: false,
             error: false,
+            critical: false,
             link_filter: LinkFilter::default(),
             selected_links_only: false,
             links_xray: false,
@@ -294,6 +299,8 @@ pub struct RadlabApp {
     /// Cached inspector rows: (view_seq, element, rows).
     inspector_rows: Option<(u64, u32, Arc<Vec<LinkRow>>)>,
     link_stats: (usize, usize),
+    /// The critical edges drawn, by kind (from the last build).
+    critical_counts: Option<crate::mesh::discontinuity::SegmentCounts>,
     link_scale: Option<LogScale>,
     error_scale: Option<LogScale>,
     pub selected: Option<u32>,
@@ -438,6 +445,7 @@ impl RadlabApp {
             ref_state: RefState::None,
             evaluated_seq: 0,
             link_stats: (0, 0),
+            critical_counts: None,
             link_scale: None,
             error_scale: None,
             selected: None,
@@ -491,6 +499,7 @@ impl RadlabApp {
                 OverlayChoice::Quadtree => app.display.quadtree = true,
                 OverlayChoice::Links => app.display.links = true,
                 OverlayChoice::Error => app.display.error = true,
+                OverlayChoice::Critical => app.display.critical = true,
             }
         }
         if app.opts.screenshot.is_some() || app.opts.bench_frames.is_some() {
@@ -518,6 +527,7 @@ impl RadlabApp {
         d.quadtree = o.quadtree;
         d.links = o.links;
         d.error = o.error;
+        d.critical = o.critical;
         d.shading = if o.flat { Shading::Flat } else { Shading::of(f.reconstruction) };
         d.link_filter = LinkFilter { full: !o.partial_links_only, ..LinkFilter::default() };
         d.selected_links_only = false;
@@ -773,6 +783,12 @@ impl RadlabApp {
         if self.auto_run && self.scene.is_some() {
             self.resolve_pending = true;
         }
+    }
+
+    /// The critical edges drawn by kind (`None` while the overlay is off or not built yet).
+    #[must_use]
+    pub fn critical_counts(&self) -> Option<crate::mesh::discontinuity::SegmentCounts> {
+        self.critical_counts.filter(|_| self.display.critical)
     }
 
     /// True when the state shown is a mesh solve (not the quadtree's).
@@ -1196,6 +1212,7 @@ impl RadlabApp {
             links_xray: d.links_xray,
             origin: self.origin,
             depth_limit: None,
+            critical: d.critical,
         }
     }
 
@@ -1219,6 +1236,7 @@ impl RadlabApp {
             view_seq: self.view_seq,
             true_error: self.true_error().cloned(),
             settings,
+            scene: self.scene.clone(),
         };
         self.build_key = Some(key);
         match &mut self.builder {
@@ -1244,6 +1262,7 @@ impl RadlabApp {
         self.geometry = b.geometry;
         self.generation += 1;
         self.link_stats = b.link_stats;
+        self.critical_counts = b.critical;
         self.link_scale = b.link_scale;
         self.error_scale = b.error_scale;
         self.rebuild_s = b.build_s;
@@ -1690,6 +1709,11 @@ impl RadlabApp {
                 "A mesh solve has no error estimate of its own: Compute reference (above) gives the \
                  true error, then the heatmap shows it",
             );
+        ui.checkbox(&mut d.critical, "critical edges (D0/D1/D2)").on_hover_text(
+            "Where the radiosity is discontinuous: D0 where surfaces touch (a jump in value), D1 / D2 \
+             where a shadow's umbra or penumbra begins (a jump in the first / second derivative), \
+             from the emitters' EV and VE events; on any mesh",
+        );
     }
 
     fn inspector(&mut self, ui: &mut egui::Ui) {
@@ -2187,6 +2211,9 @@ impl RadlabApp {
             );
             y += 18.0;
         }
+        if let Some(c) = self.critical_counts.filter(|_| self.display.critical) {
+            y = critical_legend(painter, Pos2::new(x, y), c) + 6.0;
+        }
         if self.display.error && self.error_applies() {
             let what = self.error_label();
             colour_bar(
@@ -2577,6 +2604,33 @@ fn bottom_note(painter: &egui::Painter, rect: Rect, msg: &str) {
     let box_r = Rect::from_center_size(at, galley.size() + Vec2::new(16.0, 8.0));
     painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
     painter.galley(box_r.min + Vec2::new(8.0, 4.0), galley, Color32::WHITE);
+}
+
+/// The critical edges' legend: a swatch and a count per kind; returns the bottom y.
+fn critical_legend(painter: &egui::Painter, at: Pos2, c: crate::mesh::discontinuity::SegmentCounts) -> f32 {
+    use crate::mesh_overlay::CRITICAL_COLORS;
+    let font = egui::FontId::proportional(12.0);
+    let rows = [
+        (CRITICAL_COLORS[0], format!("D0 value jumps (contact): {}", c.d0)),
+        (CRITICAL_COLORS[1], format!("D1 slope jumps: {}", c.d1)),
+        (CRITICAL_COLORS[2], format!("D2 curvature jumps: {}", c.d2)),
+    ];
+    let box_r = Rect::from_min_size(at, Vec2::new(230.0, 20.0 + 18.0 * rows.len() as f32));
+    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+    painter.text(
+        at + Vec2::new(4.0, 2.0),
+        egui::Align2::LEFT_TOP,
+        "critical edges",
+        font.clone(),
+        Color32::WHITE,
+    );
+    for (i, (color, text)) in rows.into_iter().enumerate() {
+        let top = at.y + 20.0 + 18.0 * i as f32;
+        let swatch = Rect::from_min_size(Pos2::new(at.x + 6.0, top + 6.0), Vec2::new(18.0, 4.0));
+        painter.rect_filled(swatch, 0.0, rgb32([color[0], color[1], color[2]]));
+        painter.text(Pos2::new(at.x + 30.0, top), egui::Align2::LEFT_TOP, text, font.clone(), Color32::WHITE);
+    }
+    box_r.bottom()
 }
 
 /// Draw a horizontal colour bar with its end values; returns the bottom y.

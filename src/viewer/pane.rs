@@ -74,6 +74,7 @@ impl Pane {
                 view_seq: key,
                 true_error: None,
                 settings,
+                scene: None,
             };
             self.key = Some((key, settings));
             if self.builder.is_none() {
