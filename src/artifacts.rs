@@ -244,6 +244,75 @@ pub fn measure<R: Reconstruction + ?Sized>(
     reference: &R,
     params: &ArtifactParams,
 ) -> Result<ArtifactReport, ArtifactError> {
+    analyse(scene, solution, reference, params).map(|(report, _)| report)
+}
+
+/// A grid point of A or B, for an overlay.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct PointMark {
+    pub patch: usize,
+    pub x: DVec3,
+    /// Side of the grid cell around it (√ of its area).
+    pub size: f64,
+    /// A: |B̄ − B̄_ref| / the band's RMS reflected radiosity; B: 0.
+    pub value: f64,
+    /// B: the feature holding this point is missing; A: always false.
+    pub flagged: bool,
+}
+
+/// One interior edge sample of C and D: the piece of edge `x ± along` and what it shows.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct EdgeMark {
+    pub patch: usize,
+    pub x: DVec3,
+    /// Half the sampled piece of edge, along the edge.
+    pub along: DVec3,
+    /// C: a Mach band here.
+    pub mach_band: bool,
+    /// D: an inappropriate shading discontinuity here.
+    pub inappropriate: bool,
+}
+
+/// One critical-segment sample of E: the piece `x ± along` of the segment.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct SegmentMark {
+    pub patch: usize,
+    pub x: DVec3,
+    pub along: DVec3,
+    /// Inside an element (not on an element edge).
+    pub unresolved: bool,
+}
+
+/// Where [`measure`] found each artifact, sample by sample (the viewer's overlays): the points,
+/// edge pieces and segment pieces its numbers are sums over.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ArtifactSamples {
+    /// A: the grid points in the penumbra band.
+    pub band: Vec<PointMark>,
+    /// B: the grid points of the reference's features (of at least `min_feature_points`).
+    pub features: Vec<PointMark>,
+    /// C and D: every interior edge sample.
+    pub edges: Vec<EdgeMark>,
+    /// E: every critical-segment sample that lies in an element.
+    pub segments: Vec<SegmentMark>,
+}
+
+/// [`measure`], with the samples behind each number (the report is the same).
+pub fn measure_samples<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    reference: &R,
+    params: &ArtifactParams,
+) -> Result<(ArtifactReport, ArtifactSamples), ArtifactError> {
+    analyse(scene, solution, reference, params)
+}
+
+fn analyse<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    reference: &R,
+    params: &ArtifactParams,
+) -> Result<(ArtifactReport, ArtifactSamples), ArtifactError> {
     let pc = PiecewiseConstant::new(scene, &solution.elements)?;
     let points = grid_points(scene, params.side);
     let sol: Vec<Rgb> = crate::pointwise::evaluate(&pc, &points);
@@ -260,14 +329,54 @@ pub fn measure<R: Reconstruction + ?Sized>(
         .map(|s| s.report.scene.l2_debiased);
 
     let samples = interior_edge_samples(scene, solution, &pc, &means, params);
-    Ok(ArtifactReport {
+    let found = features(&points, &refs, &sol, &means, params);
+    let mach = mach_flags(scene, solution, &samples, reference, &means, params)?;
+    let jumps: Vec<Option<f64>> = samples
+        .iter()
+        .map(|s| inappropriate_jump(solution, s, reference, means[s.patch].0, params))
+        .collect();
+    let (unresolved, segments) = unresolved(scene, solution, &pc, reference, params)?;
+    let report = ArtifactReport {
         blocky_shadows,
         band_points,
-        missing_features: missing_features(&points, &refs, &sol, &means, params),
-        mach_bands: mach_bands(scene, solution, &samples, reference, &means, params)?,
-        shading_jumps: shading_jumps(solution, &samples, reference, &means, params),
-        unresolved: unresolved(scene, solution, &pc, reference, params)?,
-    })
+        missing_features: missing_features(&points, &found),
+        mach_bands: mach_bands(&samples, &mach),
+        shading_jumps: shading_jumps(&samples, &jumps),
+        unresolved,
+    };
+
+    // The same, point by point.
+    let reflected = |k: usize| refs[k] - scene.patches[points[k].patch].emission;
+    let band_area: f64 = (0..points.len()).filter(|&k| in_band[k]).map(|k| points[k].area).sum();
+    let band_rms = ((0..points.len())
+        .filter(|&k| in_band[k])
+        .map(|k| points[k].area * reflected(k).mul_rgb(reflected(k)).mean())
+        .sum::<f64>()
+        / band_area.max(f64::MIN_POSITIVE))
+    .sqrt();
+    let mark = |k: usize, value: f64, flagged: bool| PointMark {
+        patch: points[k].patch,
+        x: points[k].position,
+        size: points[k].area.sqrt(),
+        value,
+        flagged,
+    };
+    let band_marks = (0..points.len())
+        .filter(|&k| in_band[k])
+        .map(|k| mark(k, (sol[k] - refs[k]).map(f64::abs).mean() / band_rms.max(f64::MIN_POSITIVE), false))
+        .collect();
+    let feature_marks =
+        found.iter().flat_map(|f| f.points.iter().map(|&k| mark(k, 0.0, f.missing))).collect();
+    let edges = samples
+        .iter()
+        .zip(mach.iter().zip(&jumps))
+        .map(|(s, (&mach_band, jump))| {
+            let along = s.n.cross(scene.patches[s.patch].normal).normalize_or_zero() * s.weight;
+            EdgeMark { patch: s.patch, x: s.x, along, mach_band, inappropriate: jump.is_some() }
+        })
+        .collect();
+    let marks = ArtifactSamples { band: band_marks, features: feature_marks, edges, segments };
+    Ok((report, marks))
 }
 
 /// Reflecting patches (ρ̄ > 0), in order.
@@ -306,17 +415,39 @@ fn patch_means(scene: &Scene, points: &[RefPoint], refs: &[Rgb], sol: &[Rgb]) ->
     acc.iter().map(|&(r, s, a)| if a > 0.0 { (r / a, s / a) } else { (0.0, 0.0) }).collect()
 }
 
-/// B (module docs). `points` come `side²` per patch, row by row.
-fn missing_features(
+/// One feature of B: its grid points (indices into the points) and whether it is missing.
+struct Feature {
+    points: Vec<usize>,
+    missing: bool,
+}
+
+/// B (module docs) from the features found.
+fn missing_features(points: &[RefPoint], found: &[Feature]) -> MissingFeatures {
+    let mut out = MissingFeatures::default();
+    let (mut area_all, mut area_missing) = (0.0, 0.0);
+    for f in found {
+        let area: f64 = f.points.iter().map(|&k| points[k].area).sum();
+        out.features += 1;
+        area_all += area;
+        if f.missing {
+            out.missing += 1;
+            area_missing += area;
+        }
+    }
+    out.area_fraction = if area_all > 0.0 { area_missing / area_all } else { 0.0 };
+    out
+}
+
+/// The features of B (module docs). `points` come `side²` per patch, row by row.
+fn features(
     points: &[RefPoint],
     refs: &[Rgb],
     sol: &[Rgb],
     means: &[(f64, f64)],
     params: &ArtifactParams,
-) -> MissingFeatures {
+) -> Vec<Feature> {
     let side = params.side as usize;
-    let mut out = MissingFeatures::default();
-    let (mut area_all, mut area_missing) = (0.0, 0.0);
+    let mut out = Vec::new();
     for start in (0..points.len()).step_by(side * side) {
         let patch = points[start].patch;
         let (m, s) = means[patch];
@@ -349,11 +480,11 @@ fn missing_features(
                 continue;
             }
             // Flood fill one 4-connected region of equal sign.
-            let (mut size, mut shown_n) = (0usize, 0usize);
+            let (mut members, mut shown_n) = (Vec::new(), 0usize);
             let mut stack = vec![k0];
             seen[k0] = true;
             while let Some(k) = stack.pop() {
-                size += 1;
+                members.push(start + k);
                 shown_n += usize::from(shown[k]);
                 let (i, j) = (k % side, k / side);
                 let mut push = |q: usize| {
@@ -375,19 +506,13 @@ fn missing_features(
                     push(k + side);
                 }
             }
-            if size < params.min_feature_points {
+            if members.len() < params.min_feature_points {
                 continue;
             }
-            let area = size as f64 * points[start].area;
-            out.features += 1;
-            area_all += area;
-            if 2 * shown_n < size {
-                out.missing += 1;
-                area_missing += area;
-            }
+            let missing = 2 * shown_n < members.len();
+            out.push(Feature { points: members, missing });
         }
     }
-    out.area_fraction = if area_all > 0.0 { area_missing / area_all } else { 0.0 };
     out
 }
 
@@ -469,27 +594,30 @@ fn interior_edge_samples(
         .collect()
 }
 
-/// D (module docs).
-fn shading_jumps<R: Reconstruction + ?Sized>(
+/// D at one edge sample (module docs): J / m_p where the jump is inappropriate, else `None`.
+fn inappropriate_jump<R: Reconstruction + ?Sized>(
     solution: &Solution,
-    samples: &[EdgeSample],
+    s: &EdgeSample,
     reference: &R,
-    means: &[(f64, f64)],
+    mean: f64,
     params: &ArtifactParams,
-) -> ShadingJumps {
+) -> Option<f64> {
+    let jump = (solution.elements[s.outside].radiosity - solution.elements[s.inside].radiosity).mean().abs();
+    let (out_x, in_x) = (s.x + s.n * s.eps, s.x - s.n * s.eps);
+    let jump_ref =
+        (reference.radiosity_at(s.patch, out_x) - reference.radiosity_at(s.patch, in_x)).mean().abs();
+    (jump > params.jump * mean && jump_ref < 0.1 * jump).then(|| jump / mean)
+}
+
+/// D (module docs) from each sample's [`inappropriate_jump`].
+fn shading_jumps(samples: &[EdgeSample], jumps: &[Option<f64>]) -> ShadingJumps {
     let mut out = ShadingJumps::default();
     let mut sum_jump = 0.0;
-    for s in samples {
-        let mean = means[s.patch].0;
+    for (s, j) in samples.iter().zip(jumps) {
         out.edge_length += s.weight;
-        let jump =
-            (solution.elements[s.outside].radiosity - solution.elements[s.inside].radiosity).mean().abs();
-        let (out_x, in_x) = (s.x + s.n * s.eps, s.x - s.n * s.eps);
-        let jump_ref =
-            (reference.radiosity_at(s.patch, out_x) - reference.radiosity_at(s.patch, in_x)).mean().abs();
-        if jump > params.jump * mean && jump_ref < 0.1 * jump {
+        if let Some(j) = j {
             out.inappropriate_length += s.weight;
-            sum_jump += s.weight * jump / mean;
+            sum_jump += s.weight * j;
         }
     }
     out.mean_jump = if out.inappropriate_length > 0.0 { sum_jump / out.inappropriate_length } else { 0.0 };
@@ -517,15 +645,27 @@ impl Reconstruction for Gouraud<'_> {
     }
 }
 
-/// C (module docs).
-fn mach_bands<R: Reconstruction + ?Sized>(
+/// C (module docs) from each sample's flag.
+fn mach_bands(samples: &[EdgeSample], flags: &[bool]) -> MachBands {
+    let mut out = MachBands::default();
+    for (s, &f) in samples.iter().zip(flags) {
+        out.edge_length += s.weight;
+        if f {
+            out.band_length += s.weight;
+        }
+    }
+    out
+}
+
+/// C at every edge sample (module docs): a Mach band there.
+fn mach_flags<R: Reconstruction + ?Sized>(
     scene: &Scene,
     solution: &Solution,
     samples: &[EdgeSample],
     reference: &R,
     means: &[(f64, f64)],
     params: &ArtifactParams,
-) -> Result<MachBands, MetricsError> {
+) -> Result<Vec<bool>, MetricsError> {
     let gouraud = Gouraud::new(scene, solution)?;
     // The change of slope across the edge: outward slope on the far side plus the slope moving
     // away from the edge on the near side (zero where the function is smooth).
@@ -534,29 +674,28 @@ fn mach_bands<R: Reconstruction + ?Sized>(
         let (x, n) = (s.x, s.n);
         ((f(x + n * (2.0 * h)) - f(x + n * h)) + (f(x - n * (2.0 * h)) - f(x - n * h))).mean().abs() / h
     };
-    let mut out = MachBands::default();
-    for s in samples {
-        let mean = means[s.patch].0;
-        out.edge_length += s.weight;
-        let k = kink(&|y| gouraud.radiosity_at(s.patch, y), s);
-        let k_ref = kink(&|y| reference.radiosity_at(s.patch, y), s);
-        if k * solution.elements[s.inside].area.sqrt() > params.jump * mean && k_ref < 0.1 * k {
-            out.band_length += s.weight;
-        }
-    }
-    Ok(out)
+    Ok(samples
+        .iter()
+        .map(|s| {
+            let mean = means[s.patch].0;
+            let k = kink(&|y| gouraud.radiosity_at(s.patch, y), s);
+            let k_ref = kink(&|y| reference.radiosity_at(s.patch, y), s);
+            k * solution.elements[s.inside].area.sqrt() > params.jump * mean && k_ref < 0.1 * k
+        })
+        .collect())
 }
 
-/// E (module docs).
+/// E (module docs), and its samples.
 fn unresolved<R: Reconstruction + ?Sized>(
     scene: &Scene,
     solution: &Solution,
     pc: &PiecewiseConstant,
     reference: &R,
     params: &ArtifactParams,
-) -> Result<UnresolvedDiscontinuities, ArtifactError> {
+) -> Result<(UnresolvedDiscontinuities, Vec<SegmentMark>), ArtifactError> {
     let m = params.segment_samples.max(1);
     let mut out = UnresolvedDiscontinuities::default();
+    let mut marks = Vec::new();
     let (mut err2, mut ref2) = (0.0, 0.0);
     for p in reflecting(scene) {
         let patch = &scene.patches[p];
@@ -573,7 +712,10 @@ fn unresolved<R: Reconstruction + ?Sized>(
             for i in 0..m {
                 let x = seg.a.lerp(seg.b, (f64::from(i) + 0.5) / f64::from(m));
                 let Some(owner) = pc.element_at(p, x) else { continue };
-                if boundary_distance(&solution.elements[owner].vertices, x) <= tol {
+                let along = (seg.b - seg.a) * (0.5 / f64::from(m));
+                let resolved = boundary_distance(&solution.elements[owner].vertices, x) <= tol;
+                marks.push(SegmentMark { patch: p, x, along, unresolved: !resolved });
+                if resolved {
                     continue;
                 }
                 out.unresolved_length += len / f64::from(m);
@@ -589,5 +731,41 @@ fn unresolved<R: Reconstruction + ?Sized>(
         }
     }
     out.error_beside = (ref2 > 0.0).then(|| (err2 / ref2).sqrt());
-    Ok(out)
+    Ok((out, marks))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::exact::SingleBounce;
+
+    /// The samples are where the numbers come from: their lengths and counts add up to the
+    /// report's, and the report is `measure`'s.
+    #[test]
+    fn samples_add_up_to_the_report() {
+        let scene = Scene::load("builtin:shadow-narrow").unwrap();
+        let accel = Accel::build(&scene);
+        let p = crate::solver::uniform::UniformParams { element_size: 0.5, ..Default::default() };
+        let sol = crate::solver::uniform::solve(&scene, &accel, &p, &mut |_, _| {}).unwrap();
+        let sb = SingleBounce::new(&scene).unwrap();
+        let exact = |patch: usize, x: DVec3| sb.patch_radiosity_at(patch, x);
+        let params = ArtifactParams::quick();
+        let (r, s) = measure_samples(&scene, &sol, &exact, &params).unwrap();
+        assert_eq!(r.blocky_shadows, measure(&scene, &sol, &exact, &params).unwrap().blocky_shadows);
+        assert_eq!(s.band.len(), r.band_points);
+        assert!(s.band.iter().any(|m| m.value > 0.1), "the coarse mesh errs in the penumbra");
+        let feature_points = s.features.len();
+        assert!(feature_points > 0 && s.features.iter().all(|m| m.patch == sb.receiver));
+        let length = |pick: &dyn Fn(&EdgeMark) -> bool| -> f64 {
+            s.edges.iter().filter(|e| pick(e)).map(|e| e.along.length()).sum()
+        };
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.max(1.0);
+        assert!(close(length(&|_| true), r.shading_jumps.edge_length));
+        assert!(close(length(&|e| e.inappropriate), r.shading_jumps.inappropriate_length));
+        assert!(close(length(&|e| e.mach_band), r.mach_bands.band_length));
+        let unresolved: f64 =
+            s.segments.iter().filter(|m| m.unresolved).map(|m| 2.0 * m.along.length()).sum();
+        assert!(close(unresolved, r.unresolved.unresolved_length), "{unresolved} vs {:?}", r.unresolved);
+        assert!(s.segments.iter().any(|m| m.unresolved), "a 0.5 mesh leaves segments inside elements");
+    }
 }
