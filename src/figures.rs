@@ -14,6 +14,7 @@
 //! each other gets a link — the classical method's full n × n matrix, on a mesh whose elements
 //! all have about the same area (within a factor of four: a quadtree halves sides).
 
+use crate::mesh_overlay::Artifact;
 use crate::solver::hierarchical::StepKind;
 use crate::solver::meshed::{DisplayReconstruction, MeshMethod, MeshSolveParams};
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
@@ -34,6 +35,8 @@ pub struct Overlays {
     pub flat: bool,
     /// The critical edges (D0/D1/D2 segments).
     pub critical: bool,
+    /// An artifact overlay.
+    pub artifact: Option<Artifact>,
 }
 
 impl Overlays {
@@ -44,6 +47,7 @@ impl Overlays {
         error: false,
         flat: false,
         critical: false,
+        artifact: None,
     };
 }
 

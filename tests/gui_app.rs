@@ -1116,3 +1116,62 @@ fn critical_edges_overlay_draws_d0_d1_d2() {
     assert!(pixels_near(&lower_viewport(&mut h), amber) > before + 200);
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
+
+/// An artifact overlay is measured off the UI thread against the closed form, drawn where its
+/// samples lie, and says why when there is no reference.
+#[test]
+fn artifact_overlays_mark_their_samples() {
+    use radlab::mesh_overlay::Artifact;
+    use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
+    let mut h = harness(ViewerOptions {
+        solve_on_start: true,
+        mesh: Some(MeshSolveParams { element_size_rel: 0.1, ..MeshSolveParams::new(MeshMethod::Uniform) }),
+        ..opts()
+    });
+    h.state_mut().load_spec("builtin:shadow-narrow");
+    settle(&mut h);
+    assert!(h.state().artifacts().is_none(), "nothing measured while no artifact overlay is on");
+    let lime = Artifact::UnresolvedDiscontinuities.color().map(|c| (c * 255.0) as u8);
+    let lime = [lime[0], lime[1], lime[2]];
+    let before = pixels_near(&lower_viewport(&mut h), lime);
+    // The combo box: E.
+    h.get_by_value("none").click();
+    h.run_steps(2);
+    h.get_by_label(Artifact::UnresolvedDiscontinuities.name()).click();
+    settle(&mut h);
+    let m = match h.state().artifacts() {
+        Some(Ok(m)) => m.clone(),
+        other => panic!("measured: {other:?}"),
+    };
+    assert_eq!(m.against, "the closed form");
+    assert!(
+        m.report.unresolved.fraction() > 0.9,
+        "a uniform mesh resolves no segment: {:?}",
+        m.report.unresolved
+    );
+    assert!(m.samples.segments.iter().any(|s| s.unresolved));
+    let after = pixels_near(&lower_viewport(&mut h), lime);
+    assert!(after > before + 100, "unresolved segments drawn in lime: {before} → {after}");
+    h.state_mut().display.artifact = Some(Artifact::All);
+    settle(&mut h);
+    check(&mut h, "gui_artifacts_all");
+    // On the CDT the segments lie on element edges: nothing unresolved.
+    h.state_mut().set_mesh(MeshSolveParams {
+        cdt_min_angle_deg: 0.0,
+        ..MeshSolveParams::new(MeshMethod::DiscontinuityCdt)
+    });
+    settle(&mut h);
+    settle(&mut h);
+    match h.state().artifacts() {
+        Some(Ok(m)) => assert!(m.report.unresolved.fraction() < 0.01, "{:?}", m.report.unresolved),
+        other => panic!("measured: {other:?}"),
+    }
+    // A scene without closed form or reference: the legend says what to do.
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    match h.state().artifacts() {
+        Some(Err(e)) => assert!(e.contains("Compute reference"), "{e}"),
+        other => panic!("no reference: {other:?}"),
+    }
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}

@@ -1,4 +1,4 @@
-//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error|critical,…] [--preset NAME]
+//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error|critical|artifacts,…] [--preset NAME]
 //! [--bench-frames N] [--figure NAME] [--split N] [--history] [--replay FRAME [--depth-cut D]]
 //! [--mesh KIND] [--order 0|1 [--continuous]] [--reconstruction flat|gouraud|nodal]`:
 //! the interactive viewer (feature `gui`).
@@ -18,6 +18,8 @@ pub enum Overlay {
     Error,
     /// The critical edges (D0/D1/D2 segments) coloured by kind.
     Critical,
+    /// The five meshing artifacts' marked samples (against the closed form or the reference).
+    Artifacts,
 }
 
 #[derive(clap::Args, Debug)]
@@ -180,6 +182,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Overlay::Links => OverlayChoice::Links,
             Overlay::Error => OverlayChoice::Error,
             Overlay::Critical => OverlayChoice::Critical,
+            Overlay::Artifacts => OverlayChoice::Artifacts,
         })
         .collect();
     radlab::viewer::run(ViewerOptions {

@@ -5,6 +5,7 @@
 //! an immutable `Arc<ViewData>` after each step; GPU geometry is rebuilt from those only when
 //! one of them changes.
 
+use super::artifacts::{ArtifactThread, Measured};
 use super::bench::FrameBench;
 use super::builder::{self, Builder, Built, Coloring};
 use super::camera::OrbitCamera;
@@ -21,6 +22,7 @@ use super::view::View;
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
+use crate::mesh_overlay::Artifact;
 use crate::overlay::{self, Decimation, Highlight, LinkFilter, LogScale, Palette};
 use crate::render::{
     FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, RgbaImage, SceneRenderer,
@@ -47,6 +49,8 @@ pub enum OverlayChoice {
     Error,
     /// The critical edges (D0/D1/D2 segments).
     Critical,
+    /// The five artifacts' marked samples.
+    Artifacts,
 }
 
 /// How the viewer starts.
@@ -157,6 +161,8 @@ pub struct Display {
     pub error: bool,
     /// The critical edges: every receiver's D0/D1/D2 segments, coloured by kind.
     pub critical: bool,
+    /// An artifact overlay (measured against the best reference there is).
+    pub artifact: Option<Artifact>,
     pub link_filter: LinkFilter,
     /// Links of the picked element only.
     pub selected_links_only: bool,
@@ -175,6 +181,7 @@ impl Default for Display {
             links: false,
             error: false,
             critical: false,
+            artifact: None,
             link_filter: LinkFilter::default(),
             selected_links_only: false,
             links_xray: false,
@@ -299,6 +306,15 @@ pub struct RadlabApp {
     /// Cached inspector rows: (view_seq, element, rows).
     inspector_rows: Option<(u64, u32, Arc<Vec<LinkRow>>)>,
     link_stats: (usize, usize),
+    /// The artifact measurements' thread, and its newest answer: (state measured, with a
+    /// reference, the measurement or why not).
+    artifact_thread: Option<ArtifactThread>,
+    artifacts: Option<(u64, bool, Result<Measured, String>)>,
+    /// The (state, with a reference) of the newest job sent, and its number.
+    artifact_job: Option<(u64, bool)>,
+    artifact_seq: u64,
+    /// The scene's Monte Carlo reference as flat leaves (once the reference thread has it).
+    reference_view: Option<Arc<ViewData>>,
     /// The critical edges drawn, by kind (from the last build).
     critical_counts: Option<crate::mesh::discontinuity::SegmentCounts>,
     link_scale: Option<LogScale>,
@@ -366,6 +382,8 @@ struct BuildKey {
     view_seq: u64,
     /// Address of the true-error list (`Arc` identity), if any.
     true_error: Option<usize>,
+    /// The artifact overlay drawn and the address of its samples (`Arc` identity), if any.
+    artifacts: Option<(Artifact, usize)>,
     settings: builder::Settings,
 }
 
@@ -446,6 +464,11 @@ impl RadlabApp {
             evaluated_seq: 0,
             link_stats: (0, 0),
             critical_counts: None,
+            artifact_thread: None,
+            artifacts: None,
+            artifact_job: None,
+            artifact_seq: 0,
+            reference_view: None,
             link_scale: None,
             error_scale: None,
             selected: None,
@@ -476,6 +499,11 @@ impl RadlabApp {
         // Without the display thread the geometry is built on the UI thread (slower, correct).
         app.builder = display_builder.ok();
         let ctx = cc.egui_ctx.clone();
+        match ArtifactThread::spawn(move || ctx.request_repaint()) {
+            Ok(t) => app.artifact_thread = Some(t),
+            Err(e) => app.errors.push(e),
+        }
+        let ctx = cc.egui_ctx.clone();
         match RefThread::spawn(app.opts.reference.clone(), move || ctx.request_repaint()) {
             Ok(t) => app.reference = Some(t),
             Err(e) => app.errors.push(e),
@@ -500,6 +528,7 @@ impl RadlabApp {
                 OverlayChoice::Links => app.display.links = true,
                 OverlayChoice::Error => app.display.error = true,
                 OverlayChoice::Critical => app.display.critical = true,
+                OverlayChoice::Artifacts => app.display.artifact = Some(Artifact::All),
             }
         }
         if app.opts.screenshot.is_some() || app.opts.bench_frames.is_some() {
@@ -528,6 +557,7 @@ impl RadlabApp {
         d.links = o.links;
         d.error = o.error;
         d.critical = o.critical;
+        d.artifact = o.artifact;
         d.shading = if o.flat { Shading::Flat } else { Shading::of(f.reconstruction) };
         d.link_filter = LinkFilter { full: !o.partial_links_only, ..LinkFilter::default() };
         d.selected_links_only = false;
@@ -621,6 +651,9 @@ impl RadlabApp {
         self.true_error = None;
         self.error_samples.clear();
         self.last_report = None;
+        self.reference_view = None;
+        self.artifacts = None;
+        self.artifact_job = None;
         if let Some(r) = &mut self.reference {
             r.load(Arc::clone(&scene), false);
             self.ref_state = RefState::Looking;
@@ -785,6 +818,58 @@ impl RadlabApp {
         }
     }
 
+    /// The artifact overlay to draw and its samples, when they were measured on the state shown.
+    fn artifact_samples(&self) -> Option<(Artifact, Arc<crate::artifacts::ArtifactSamples>)> {
+        let which = self.display.artifact?;
+        match &self.artifacts {
+            Some((seq, _, Ok(m))) if *seq == self.view_seq => Some((which, Arc::clone(&m.samples))),
+            _ => None,
+        }
+    }
+
+    /// The newest artifact measurement of the state shown (`None`: not asked, or not answered
+    /// yet), or why there is none.
+    #[must_use]
+    pub fn artifacts(&self) -> Option<&Result<Measured, String>> {
+        match &self.artifacts {
+            Some((seq, _, r)) if *seq == self.view_seq => Some(r),
+            _ => None,
+        }
+    }
+
+    /// Ask the artifacts thread to measure the state shown, once per state and reference (only
+    /// while an artifact overlay is on, and not a solve's intermediate picture).
+    fn request_artifacts(&mut self) {
+        if self.display.artifact.is_none() || self.view.elements.is_empty() || self.busy() || self.loading {
+            return;
+        }
+        let key = (self.view_seq, self.reference_view.is_some());
+        if self.artifact_job == Some(key) {
+            return;
+        }
+        let (Some(t), Some(scene)) = (&mut self.artifact_thread, &self.scene) else { return };
+        self.artifact_seq += 1;
+        t.request(super::artifacts::Job {
+            seq: self.artifact_seq,
+            scene: Arc::clone(scene),
+            view: Arc::clone(&self.view),
+            reference: self.reference_view.clone(),
+        });
+        self.artifact_job = Some(key);
+    }
+
+    /// Pick up the artifacts thread's answer (`wait`: block for it; tests, scripted runs).
+    fn poll_artifacts(&mut self, wait: bool) {
+        let Some(t) = &mut self.artifact_thread else { return };
+        let reply = if wait { t.wait() } else { t.poll() };
+        if let Some(r) = reply
+            && r.seq == self.artifact_seq
+            && let Some((view_seq, with_ref)) = self.artifact_job
+        {
+            self.artifacts = Some((view_seq, with_ref, r.result));
+        }
+    }
+
     /// The critical edges drawn by kind (`None` while the overlay is off or not built yet).
     #[must_use]
     pub fn critical_counts(&self) -> Option<crate::mesh::discontinuity::SegmentCounts> {
@@ -818,6 +903,8 @@ impl RadlabApp {
                 self.apply_ref(r);
             }
         }
+        self.request_artifacts();
+        self.poll_artifacts(true);
         self.request_geometry();
         if let Some(b) = self.builder.as_mut().and_then(Builder::wait) {
             self.apply_built(b);
@@ -1003,6 +1090,7 @@ impl RadlabApp {
                 self.status = "reference computation cancelled".into();
             }
             RefReply::Solution { source, view } if current(&source, self) => {
+                self.reference_view = Some(Arc::clone(&view));
                 let samples = self.opts.reference.params.samples;
                 let name = self.scene_name().to_owned();
                 self.history.record_reference(&name, samples, view);
@@ -1224,6 +1312,7 @@ impl RadlabApp {
         let key = BuildKey {
             view_seq: self.view_seq,
             true_error: self.true_error().map(|e| Arc::as_ptr(e) as usize),
+            artifacts: self.artifact_samples().map(|(a, s)| (a, Arc::as_ptr(&s) as usize)),
             settings,
         };
         if self.build_key.as_ref() == Some(&key) {
@@ -1237,6 +1326,7 @@ impl RadlabApp {
             true_error: self.true_error().cloned(),
             settings,
             scene: self.scene.clone(),
+            artifacts: self.artifact_samples(),
         };
         self.build_key = Some(key);
         match &mut self.builder {
@@ -1708,6 +1798,19 @@ impl RadlabApp {
             .on_disabled_hover_text(
                 "A mesh solve has no error estimate of its own: Compute reference (above) gives the \
                  true error, then the heatmap shows it",
+            );
+        egui::ComboBox::from_label("artifact")
+            .selected_text(d.artifact.map_or("none", Artifact::name))
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut d.artifact, None, "none");
+                for a in Artifact::ALL.into_iter().chain([Artifact::All]) {
+                    ui.selectable_value(&mut d.artifact, Some(a), a.name()).on_hover_text(a.description());
+                }
+            })
+            .response
+            .on_hover_text(
+                "The lecture's five meshing artifacts, where they are: measured against the closed \
+                 form (single-bounce scenes) or the scene's reference, on a background thread",
             );
         ui.checkbox(&mut d.critical, "critical edges (D0/D1/D2)").on_hover_text(
             "Where the radiosity is discontinuous: D0 where surfaces touch (a jump in value), D1 / D2 \
@@ -2214,6 +2317,9 @@ impl RadlabApp {
         if let Some(c) = self.critical_counts.filter(|_| self.display.critical) {
             y = critical_legend(painter, Pos2::new(x, y), c) + 6.0;
         }
+        if let Some(which) = self.display.artifact {
+            y = self.artifact_legend(painter, Pos2::new(x, y), which) + 6.0;
+        }
         if self.display.error && self.error_applies() {
             let what = self.error_label();
             colour_bar(
@@ -2247,6 +2353,41 @@ impl RadlabApp {
                  re-solves on every change), or pick runs in View ▸ Run history.",
             );
         }
+    }
+
+    /// The artifact overlay's legend: what it shows, its numbers and what it was measured
+    /// against (or that it is being measured, or why it cannot be); returns the bottom y.
+    fn artifact_legend(&self, painter: &egui::Painter, at: Pos2, which: Artifact) -> f32 {
+        let font = egui::FontId::proportional(12.0);
+        let mut rows: Vec<(Option<[f32; 4]>, String)> = Vec::new();
+        match self.artifacts() {
+            None => rows.push((None, format!("artifact {}: measuring…", which.name()))),
+            Some(Err(e)) => rows.push((None, e.clone())),
+            Some(Ok(m)) => {
+                rows.push((None, format!("artifacts against {} ({:.1} s)", m.against, m.time_s)));
+                let shown: Vec<Artifact> =
+                    if which == Artifact::All { Artifact::ALL.to_vec() } else { vec![which] };
+                for a in shown {
+                    rows.push((Some(a.color()), a.summary(&m.report)));
+                }
+            }
+        }
+        let galleys: Vec<_> = rows
+            .into_iter()
+            .map(|(c, t)| (c, painter.layout_no_wrap(t, font.clone(), Color32::WHITE)))
+            .collect();
+        let w = galleys.iter().map(|(_, g)| g.size().x).fold(0.0, f32::max) + 36.0;
+        let box_r = Rect::from_min_size(at, Vec2::new(w, 4.0 + 18.0 * galleys.len() as f32));
+        painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+        for (i, (color, galley)) in galleys.into_iter().enumerate() {
+            let top = at.y + 2.0 + 18.0 * i as f32;
+            if let Some(c) = color {
+                let swatch = Rect::from_min_size(Pos2::new(at.x + 6.0, top + 6.0), Vec2::new(18.0, 4.0));
+                painter.rect_filled(swatch, 0.0, rgb32([c[0], c[1], c[2]]));
+            }
+            painter.galley(Pos2::new(at.x + 30.0, top), galley, Color32::WHITE);
+        }
+        box_r.bottom()
     }
 
     fn file_answer(&mut self, answer: Answer) {
@@ -2347,7 +2488,8 @@ impl RadlabApp {
         let current = self.geometry_current()
             && !self.split.building()
             && !self.replay.building()
-            && !self.reference.as_ref().is_some_and(RefThread::busy);
+            && !self.reference.as_ref().is_some_and(RefThread::busy)
+            && !self.artifact_thread.as_ref().is_some_and(ArtifactThread::busy);
         match &mut self.script {
             Script::None | Script::Done | Script::WaitingShot => {}
             Script::Solving => {
@@ -2433,6 +2575,8 @@ impl eframe::App for RadlabApp {
         let ctx = ui.ctx().clone();
         self.poll_worker();
         self.poll_reference();
+        self.request_artifacts();
+        self.poll_artifacts(false);
         self.shortcuts(&ctx);
         if let Some([x, y]) = self.pending_pick
             && !self.busy()

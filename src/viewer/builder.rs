@@ -10,9 +10,10 @@
 //! ```
 
 use super::worker::ViewData;
+use crate::artifacts::ArtifactSamples;
 use crate::math::DVec3;
 use crate::mesh::discontinuity::SegmentCounts;
-use crate::mesh_overlay::{CriticalEdges, critical_edges, critical_lines};
+use crate::mesh_overlay::{Artifact, CriticalEdges, artifact_lines, critical_edges, critical_lines};
 use crate::overlay::{self, LinkFilter, LogScale};
 use crate::render::Geometry;
 use crate::render::geometry::{self, MeshColors};
@@ -62,8 +63,11 @@ pub struct Request {
     /// Per-element true error (indexed like `view.elements`), when a reference exists.
     pub true_error: Option<Arc<Vec<f64>>>,
     pub settings: Settings,
-    /// The scene, for the overlays that read it (critical edges); `None`: none of them.
+    /// The scene, for the overlays that read it (critical edges, artifacts); `None`: none of
+    /// them.
     pub scene: Option<Arc<Scene>>,
+    /// An artifact overlay and the samples measured on `view`.
+    pub artifacts: Option<(Artifact, Arc<ArtifactSamples>)>,
 }
 
 /// What the UI receives.
@@ -139,7 +143,7 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
         }
         None => (Vec::new(), (0, 0), None),
     };
-    let (overlay, critical) = match (&req.scene, s.critical) {
+    let (mut overlay, critical) = match (&req.scene, s.critical) {
         (Some(scene), true) => {
             let key = Arc::as_ptr(scene) as usize;
             let edges = match cache {
@@ -154,6 +158,9 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
         }
         _ => (Vec::new(), None),
     };
+    if let (Some(scene), Some((which, samples))) = (&req.scene, &req.artifacts) {
+        overlay.extend(geometry::lines(&artifact_lines(scene, samples, *which), s.origin));
+    }
     Built {
         seq: req.seq,
         view_seq: req.view_seq,
@@ -311,6 +318,7 @@ mod tests {
                 true_error: None,
                 settings: settings(),
                 scene: None,
+                artifacts: None,
             });
         }
         let built = b.wait().unwrap();
@@ -327,8 +335,15 @@ mod tests {
         let mut s = settings();
         s.coloring = Coloring::Error;
         s.links = None;
-        let est =
-            build(&Request { seq: 0, view: view(), view_seq: 0, true_error: None, settings: s, scene: None });
+        let est = build(&Request {
+            seq: 0,
+            view: view(),
+            view_seq: 0,
+            true_error: None,
+            settings: s,
+            scene: None,
+            artifacts: None,
+        });
         let err = build(&Request {
             seq: 0,
             view: view(),
@@ -336,6 +351,7 @@ mod tests {
             true_error: Some(Arc::new(vec![1.0, 100.0])),
             settings: s,
             scene: None,
+            artifacts: None,
         });
         assert!(est.error_scale.is_some() && err.error_scale.is_some());
         assert_ne!(est.error_scale, err.error_scale, "the true error sets the scale");
@@ -347,6 +363,7 @@ mod tests {
             true_error: Some(Arc::new(vec![1.0])),
             settings: s,
             scene: None,
+            artifacts: None,
         });
         assert_eq!(bad.error_scale, est.error_scale);
         assert!(err.geometry.links.is_empty());

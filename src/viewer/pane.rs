@@ -75,6 +75,7 @@ impl Pane {
                 true_error: None,
                 settings,
                 scene: None,
+                artifacts: None,
             };
             self.key = Some((key, settings));
             if self.builder.is_none() {

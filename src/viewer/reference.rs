@@ -116,21 +116,7 @@ struct Loaded {
 
 /// Score a solver state against a reference.
 fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> Result<Evaluation, String> {
-    let leaves: Vec<SolvedElement> = view
-        .leaves
-        .iter()
-        .map(|&l| {
-            let e = &view.elements[l as usize];
-            SolvedElement {
-                patch: e.patch as usize,
-                vertices: e.verts().to_vec(),
-                area: e.area,
-                radiosity: e.radiosity,
-                error_estimate: None,
-                slope: None,
-            }
-        })
-        .collect();
+    let leaves = view.solved_leaves();
     // Scene norm: the solution resampled onto the reference regions.
     let values = metrics::resample(&r.scene, &leaves, &r.mesh).map_err(|e| e.to_string())?;
     let regions: Vec<(usize, f64)> =

@@ -112,6 +112,25 @@ impl ViewData {
         view
     }
 
+    /// The leaves as solved elements (the metrics' and the artifacts' input).
+    #[must_use]
+    pub fn solved_leaves(&self) -> Vec<crate::solver::SolvedElement> {
+        self.leaves
+            .iter()
+            .map(|&l| {
+                let e = &self.elements[l as usize];
+                crate::solver::SolvedElement {
+                    patch: e.patch as usize,
+                    vertices: e.verts().to_vec(),
+                    area: e.area,
+                    radiosity: e.radiosity,
+                    error_estimate: None,
+                    slope: None,
+                }
+            })
+            .collect()
+    }
+
     /// A state whose elements are all leaves of depth 0 (`elements[i].id == i`): a mesh solve,
     /// a reference.
     #[must_use]
