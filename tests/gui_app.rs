@@ -635,15 +635,27 @@ fn every_lecture_figure_opens_from_the_lecture_menu() {
     for f in radlab::figures::FIGURES {
         h.get_by_label("Lecture").click();
         h.run_steps(2);
+        if let Some(sub) = f.submenu {
+            h.get_by_label(sub).hover();
+            h.run_steps(2);
+        }
         h.get_by_label(f.slide).click();
         h.run_steps(2);
         let app = h.state();
         assert_eq!(app.scene().map(|s| s.source.as_str()), Some(f.scene), "{}", f.name);
         assert_eq!(app.params(), f.params, "{}", f.name);
+        assert_eq!(app.mesh(), f.mesh, "{}", f.name);
         let d = app.display;
         assert_eq!(
-            (d.quadtree, d.links, d.error, d.link_filter.full),
-            (f.overlays.quadtree, f.overlays.links, f.overlays.error, !f.overlays.partial_links_only),
+            (d.quadtree, d.links, d.error, d.link_filter.full, d.critical, d.artifact),
+            (
+                f.overlays.quadtree,
+                f.overlays.links,
+                f.overlays.error,
+                !f.overlays.partial_links_only,
+                f.overlays.critical,
+                f.overlays.artifact
+            ),
             "{}",
             f.name
         );
@@ -1174,4 +1186,49 @@ fn artifact_overlays_mark_their_samples() {
         other => panic!("no reference: {other:?}"),
     }
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+/// Every meshing figure opens solved on its own mesh, with its overlays measured and drawn and
+/// its caption shown.
+#[test]
+fn meshing_figures_open_solved_on_their_mesh() {
+    use radlab::figures::{FIGURES, MESHING};
+    use radlab::solver::meshed::MeshMethod;
+    let mut h = harness(opts());
+    h.run_steps(2);
+    let mut opened = 0;
+    for f in FIGURES.iter().filter(|f| f.submenu == Some(MESHING)) {
+        h.state_mut().open_figure(f);
+        settle(&mut h);
+        settle(&mut h);
+        let v = Arc::clone(h.state().view());
+        match f.mesh.method {
+            MeshMethod::Quadtree => assert!(v.mesh.is_none() && v.stats.links > 0, "{}", f.name),
+            _ => {
+                let m = v.mesh.as_ref().unwrap_or_else(|| panic!("{}: a mesh solve", f.name));
+                assert_eq!(m.params, f.mesh, "{}", f.name);
+                assert_eq!(
+                    m.coefficients.is_some(),
+                    f.mesh.order == radlab::basis::Order::Linear,
+                    "{}",
+                    f.name
+                );
+            }
+        }
+        assert!(v.elements.iter().any(|e| e.radiosity.mean() > 0.0), "{}: lit", f.name);
+        if f.overlays.critical {
+            let c = h.state().critical_counts().unwrap_or_else(|| panic!("{}: critical edges", f.name));
+            assert!(c.d1 + c.d2 > 0, "{}", f.name);
+        }
+        if f.overlays.artifact.is_some() {
+            assert!(matches!(h.state().artifacts(), Some(Ok(_))), "{}: {:?}", f.name, h.state().artifacts());
+        }
+        assert!(h.query_by_label(f.caption).is_some(), "{}: the caption is shown", f.name);
+        assert!(h.state().errors().is_empty(), "{}: {:?}", f.name, h.state().errors());
+        if f.name == "h-vs-p-linear" {
+            check(&mut h, "gui_figure_h_vs_p_linear");
+        }
+        opened += 1;
+    }
+    assert!(opened >= 6, "the meshing slides: {opened}");
 }

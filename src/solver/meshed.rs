@@ -50,7 +50,7 @@ impl MeshMethod {
 
     /// The CLI's spelling.
     #[must_use]
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             MeshMethod::Quadtree => "quadtree",
             MeshMethod::Uniform => "uniform",

@@ -2684,22 +2684,36 @@ impl eframe::App for RadlabApp {
 const AUTO_EXPOSURE_TARGET: f64 = 0.8;
 
 /// Exposure (EV) that maps the 95th percentile of the non-emitting leaves' luminance to
-/// `AUTO_EXPOSURE_TARGET`; `None` while everything is dark (before the first gather).
+/// `AUTO_EXPOSURE_TARGET`; `None` while everything is dark (before the first gather). On a mesh
+/// solve the percentile is of area (a discontinuity mesh packs its many small pieces into the
+/// shadows, so a count would over-expose); on the quadtree, of leaves.
 #[must_use]
 pub fn auto_exposure(view: &ViewData) -> Option<f32> {
-    let mut lum: Vec<f64> = view
+    let by_area = view.mesh.is_some();
+    let mut lum: Vec<(f64, f64)> = view
         .leaves
         .iter()
         .map(|&l| &view.elements[l as usize])
         .filter(|e| e.emission.is_zero())
-        .map(|e| e.radiosity.luminance())
-        .filter(|l| *l > 0.0 && l.is_finite())
+        .map(|e| (e.radiosity.luminance(), if by_area { e.area } else { 1.0 }))
+        .filter(|(l, _)| *l > 0.0 && l.is_finite())
         .collect();
     if lum.is_empty() {
         return None;
     }
-    lum.sort_by(f64::total_cmp);
-    let p95 = lum[(lum.len() - 1) * 95 / 100];
+    lum.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let p95 = if by_area {
+        let total: f64 = lum.iter().map(|x| x.1).sum();
+        let mut acc = 0.0;
+        lum.iter()
+            .find(|x| {
+                acc += x.1;
+                acc >= 0.95 * total
+            })
+            .map_or(lum[lum.len() - 1].0, |x| x.0)
+    } else {
+        lum[(lum.len() - 1) * 95 / 100].0
+    };
     // Rounded to the exposure slider's 0.1 EV step, so the slider does not see a change.
     let ev = ((AUTO_EXPOSURE_TARGET / p95).log2() * 10.0).round() / 10.0;
     Some((ev as f32).clamp(-12.0, 12.0))

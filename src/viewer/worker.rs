@@ -71,8 +71,8 @@ impl ViewData {
         }
     }
 
-    /// The state of a solve on a uniform or discontinuity mesh: every element a leaf of depth 0
-    /// on its input patch (materials from `scene`), no links (every pair was coupled), no error
+    /// The state of a solve on a uniform or discontinuity mesh: every element a leaf on its
+    /// input patch (depth 0 where it is the whole patch, 1 where it is a piece) (materials from `scene`), no links (every pair was coupled), no error
     /// estimate.
     #[must_use]
     pub fn of_mesh_solution(
@@ -101,6 +101,17 @@ impl ViewData {
             })
             .collect();
         let mut view = ViewData::of_flat_leaves(elements);
+        // A patch cut into pieces: its pieces are one level below it (their edges draw in the
+        // quadtree overlay's depth-1 colour, apart from whole patches' white).
+        let mut per_patch = vec![0usize; scene.patches.len()];
+        for e in &view.elements {
+            per_patch[e.patch as usize] += 1;
+        }
+        for e in &mut view.elements {
+            e.depth = u8::from(per_patch[e.patch as usize] > 1);
+        }
+        let pieces = view.elements.iter().filter(|e| e.depth == 1).count();
+        view.stats.depth_histogram = vec![view.elements.len() - pieces, pieces];
         view.stats.links = m.solution.stats.links;
         view.mesh = Some(MeshInfo {
             params,
