@@ -971,6 +971,9 @@ impl RadlabApp {
                         && let Some(frames) = self.replay_frames.take()
                     {
                         self.replay.set_frames(frames, Arc::clone(&self.view));
+                    } else if self.view.mesh.is_some() {
+                        // A mesh solve has no rounds: the replay of an earlier solve is stale.
+                        self.replay.clear();
                     }
                     // Mesh solves are not runs of the history (its rows are hierarchical settings).
                     if rep.kind == StepKind::Solve && !rep.cancelled && self.view.mesh.is_none() {

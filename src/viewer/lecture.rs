@@ -1,5 +1,5 @@
 //! The Lecture menu and the caption panel: every figure of [`crate::figures`] one click away,
-//! listed by slide title; the figure shown keeps its caption in a panel under the viewport until
+//! listed by slide title (the meshing slides in their submenu, [`crate::figures::MESHING`]); the figure shown keeps its caption in a panel under the viewport until
 //! it is hidden (the × button or C) or another scene is opened. The menu also opens the
 //! blocking form-factor matrix ([`super::matrix`]) and the five-times explorer
 //! ([`super::five_times`]).
