@@ -1086,6 +1086,11 @@ fn mesh_kind_order_and_reconstruction_are_selectable() {
     settle(&mut h);
     assert!(!disabled(&h, "true p = 1"));
     check(&mut h, "gui_mesh_cdt_p1");
+    // The blocking matrix says why it has no blocks rather than showing none.
+    h.state_mut().lecture.matrix.open = true;
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("A mesh solve keeps no links").is_some());
+    h.state_mut().lecture.matrix.open = false;
     // Back to the quadtree: the hierarchical solve is shown again, links apply.
     h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::Quadtree));
     settle(&mut h);
