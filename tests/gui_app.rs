@@ -1068,6 +1068,14 @@ fn mesh_kind_order_and_reconstruction_are_selectable() {
     assert!(v.elements.iter().any(|e| e.radiosity.mean() > 0.0));
     assert!(m.coefficients.is_none(), "p = 0 keeps no vertex values");
     assert!(disabled(&h, "links"), "no links on a mesh solve");
+    // The status bar and the inspector speak of the mesh, not of links and refinement.
+    assert!(h.query_by_label_contains("discontinuity-cdt p0: ").is_some(), "the status bar names the mesh");
+    h.state_mut().pick_relative(0.5, 0.8);
+    h.run_steps(2);
+    assert!(h.state().selected.is_some(), "a floor piece is picked");
+    assert!(h.query_by_label_contains("no links — this element is coupled").is_some());
+    assert!(h.query_by_label("none (a mesh solve has no estimate)").is_some());
+    h.state_mut().selected = None;
     assert!(disabled(&h, "error heatmap"), "no estimate and no reference");
     assert!(disabled(&h, "true p = 1"), "no p = 1 values to draw");
     // Order 1, continuous, drawn as the true p = 1 function.

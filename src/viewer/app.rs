@@ -1862,10 +1862,23 @@ impl RadlabApp {
             row(ui, "E", rgb_text(e.emission));
             row(ui, "ρ", rgb_text(e.reflectance));
             row(ui, "B", rgb_text(e.radiosity));
-            row(ui, "error", format!("{error:.3e} ({err_label})"));
+            if self.mesh_view() && self.true_error().is_none() {
+                row(ui, "error", "none (a mesh solve has no estimate)".to_owned());
+            } else {
+                row(ui, "error", format!("{error:.3e} ({err_label})"));
+            }
             row(ui, "stopped", e.stop.to_owned());
         });
         ui.separator();
+        if let Some(m) = &v.mesh {
+            ui.label(format!(
+                "{}: no links — this element is coupled to every element it sees ({} form-factor \
+                 entries in all).",
+                m.params.label(),
+                v.stats.links
+            ));
+            return;
+        }
         // Links through which this element gathers: its own and its ancestors' (computed once
         // per solver state and element, not every frame).
         let rows = match &self.inspector_rows {
@@ -1981,6 +1994,21 @@ impl RadlabApp {
         ui.horizontal(|ui| {
             ui.label(format!("{} elements ({} leaves)", s.elements, s.leaves));
             ui.separator();
+            if let Some(m) = &self.view.mesh {
+                // A mesh solve: no links, no refine / gather / push-pull phases.
+                ui.label(format!(
+                    "{}: {} form-factor entries · solve {:.3}s (meshing {:.3}s)",
+                    m.params.label(),
+                    s.links,
+                    m.solve_s,
+                    m.meshing_s
+                ));
+                if !self.status.is_empty() {
+                    ui.separator();
+                    ui.weak(&self.status);
+                }
+                return;
+            }
             ui.label(format!(
                 "{} links (full {}, partial {}, none {})",
                 s.links, s.links_full, s.links_partial, s.links_none
