@@ -1094,6 +1094,16 @@ fn mesh_kind_order_and_reconstruction_are_selectable() {
     settle(&mut h);
     assert!(!disabled(&h, "true p = 1"));
     check(&mut h, "gui_mesh_cdt_p1");
+    // Both mesh solves are runs: side by side in the split view, h vs p, each labelled.
+    let presets: Vec<String> = h.state().history.runs().iter().map(|r| r.preset.clone()).collect();
+    assert_eq!(presets, ["discontinuity-cdt p0", "discontinuity-cdt p1-continuous"]);
+    assert!(h.state().history.runs().iter().all(|r| r.estimate.is_none()), "no estimate of their own");
+    h.state_mut().split.on = true;
+    settle(&mut h);
+    assert!(h.query_by_label_contains("discontinuity-cdt, refined to 20° · p = 1 continuous").is_some());
+    assert!(h.query_by_label_contains("discontinuity-cdt, refined to 20° · p = 0").is_some());
+    check(&mut h, "gui_split_h_vs_p");
+    h.state_mut().split.on = false;
     // The blocking matrix says why it has no blocks rather than showing none.
     h.state_mut().lecture.matrix.open = true;
     h.run_steps(2);

@@ -978,8 +978,7 @@ impl RadlabApp {
                         // A mesh solve has no rounds: the replay of an earlier solve is stale.
                         self.replay.clear();
                     }
-                    // Mesh solves are not runs of the history (its rows are hierarchical settings).
-                    if rep.kind == StepKind::Solve && !rep.cancelled && self.view.mesh.is_none() {
+                    if rep.kind == StepKind::Solve && !rep.cancelled {
                         let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
                         self.history.record(name, self.solver_time_s, self.view_seq, Arc::clone(&self.view));
                     }
