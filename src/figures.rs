@@ -106,6 +106,11 @@ pub struct Figure {
     pub window_shot: bool,
     /// The Lecture menu's submenu that lists the figure (`None`: the menu itself).
     pub submenu: Option<&'static str>,
+    /// Before the figure's own solve, solve on each of these meshes (runs of the history).
+    pub mesh_sweep: &'static [MeshSolveParams],
+    /// Open the split view: the newest two runs of the scene side by side (the sweep's and the
+    /// figure's own).
+    pub split: bool,
     /// Two to four sentences: what to look at and why.
     pub caption: &'static str,
 }
@@ -137,6 +142,8 @@ impl Figure {
             matrix: false,
             window_shot: false,
             submenu: None,
+            mesh_sweep: &[],
+            split: false,
             caption: "",
         }
     }
@@ -428,17 +435,18 @@ pub const FIGURES: &[Figure] = &[
         )
     },
     Figure {
-        overlays: Overlays { quadtree: true, ..Overlays::NONE },
         reconstruction: DisplayReconstruction::Nodal,
         camera: NARROW_CLOSE,
-        caption: "The same mesh with linear elements, continuous across edges, drawn as the true \
-                  p = 1 function. Inside each strip the radiosity is a smooth ramp, which a linear \
-                  element follows: the band's error falls from 44 % to 4 % with fewer unknowns \
-                  (231 against 428). Raising p pays near a shadow once the mesh's edges follow its \
-                  discontinuities.",
+        mesh_sweep: &[CDT],
+        split: true,
+        caption: "The same mesh solved twice, side by side, each drawn as its elements' own \
+                  functions: left constant elements, right linear ones, continuous across edges. Inside each \
+                  strip the radiosity is a smooth ramp, which a linear element follows: the band's \
+                  error falls from 44 % to 4 % with fewer unknowns (231 against 428). Raising p \
+                  pays near a shadow once the mesh's edges follow its discontinuities.",
         ..meshing(
             "h-vs-p-linear",
-            "h vs p: linear elements on the same mesh",
+            "h vs p: constant beside linear elements on the same mesh",
             "builtin:shadow-narrow",
             CDT.linear(true),
         )

@@ -550,6 +550,10 @@ impl RadlabApp {
     /// Open a lecture figure: its settings, overlays and camera, then its scene, on which the
     /// figure's solves (BFeps sweep) and steps run; the caption panel shows its caption.
     pub fn open_figure(&mut self, f: &'static Figure) {
+        // A split figure's split view does not outlive it.
+        if self.lecture.figure().is_some_and(|p| p.split) && !f.split {
+            self.split.on = false;
+        }
         self.preset = f.preset.to_owned();
         // Not `set_params`: the load below starts a solver with these.
         self.params = f.params;
@@ -581,8 +585,16 @@ impl RadlabApp {
         if !f.sweep_bf_eps.is_empty() {
             self.send(Command::SetParams(f.params), "restarting");
         }
+        for &m in f.mesh_sweep {
+            self.send(Command::SolveMesh(m), MESH_SOLVE_LABEL);
+        }
         for &k in f.steps {
             self.step(k);
+        }
+        if f.split {
+            self.split.on = true;
+            self.split.panes = 2;
+            self.replay.on = false;
         }
         let c = f.camera;
         self.camera = self.home;
@@ -1744,7 +1756,7 @@ impl RadlabApp {
             });
         });
         if d.shading == Shading::Nodal && !has_p1 {
-            ui.weak("no p = 1 values in this solution: shown Gouraud");
+            ui.weak("no p = 1 values in this solution: each element's constant");
         }
         let ev = ui
             .add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"))
@@ -2394,7 +2406,7 @@ impl RadlabApp {
                 painter,
                 rect,
                 "Split view: it needs two solved runs. Solve again with other settings (auto-run \
-                 re-solves on every change), or pick runs in View ▸ Run history.",
+                 re-solves on every change), or pick runs in the View menu's Run history.",
             );
         }
     }

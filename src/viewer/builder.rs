@@ -27,8 +27,8 @@ use std::time::Instant;
 pub enum Coloring {
     Flat,
     Smooth,
-    /// The element's own p = 1 function where the state has vertex values (a p = 1 mesh
-    /// solve), else as `Smooth`.
+    /// The element's own function: p = 1 where the state has vertex values (a p = 1 mesh
+    /// solve), else its constant (as `Flat`).
     Nodal,
     /// Error heatmap (true error when given, else the solver's estimate).
     Error,
@@ -114,9 +114,10 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
         Coloring::Error => MeshColors::Display(&heat),
         Coloring::Smooth => MeshColors::Smooth,
         Coloring::Flat => MeshColors::Flat,
+        // Without vertex values each element's own function is its constant.
         Coloring::Nodal => match v.mesh.as_ref().and_then(|m| m.coefficients.as_deref()) {
             Some(c) => MeshColors::Nodal(c),
-            None => MeshColors::Smooth,
+            None => MeshColors::Flat,
         },
     };
     // Cut at a depth: the elements that tile the scene there, the links between them and above.
