@@ -218,7 +218,8 @@ pub fn solve(scene: &Scene, params: &MeshSolveParams, progress: Progress) -> Res
     let dmesh =
         DiscontinuityParams { solve: uniform_params, ..DiscontinuityParams::with_mesh(params.remesh()) };
     let (solution, coefficients, meshing_s) = match (params.method, params.order) {
-        (MeshMethod::Quadtree, _) => unreachable!("validate refuses the quadtree"),
+        // `validate` refused it already; an error, not a panic, if that ever changes.
+        (MeshMethod::Quadtree, _) => return Err("the quadtree is not a mesh solve".into()),
         (MeshMethod::Uniform, Order::Constant) => {
             (uniform::solve(scene, &Accel::build(scene), &uniform_params, progress)?, None, 0.0)
         }
