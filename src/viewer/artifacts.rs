@@ -196,7 +196,22 @@ mod tests {
         assert!(!t.busy());
         // No closed form and no reference: one line saying what to do.
         let cornell = Arc::new(Scene::load("builtin:cornell").unwrap());
-        let e = measure(&Job { seq: 4, scene: cornell, view, reference: None }).unwrap_err();
+        let e = measure(&Job { seq: 4, scene: Arc::clone(&cornell), view, reference: None }).unwrap_err();
         assert!(e.contains("Compute reference") && !e.contains('\n'), "{e}");
+        // The quadtree's leaves, against a reference given as flat leaves (here a finer uniform
+        // solve standing in for the Monte Carlo one): measured, and the coarse quadtree errs.
+        let mut h = crate::solver::hierarchical::HierarchicalSolver::new(
+            Arc::clone(&cornell),
+            crate::solver::params::HierarchicalParams::interactive(),
+        )
+        .unwrap();
+        h.solve(&mut |_, _| {});
+        let quadtree = ViewData::of_solver(&h, false);
+        let fine = MeshSolveParams { element_size_rel: 0.08, ..MeshSolveParams::new(MeshMethod::Uniform) };
+        let solved = crate::solver::meshed::solve(&cornell, &fine, &mut |_, _| {}).unwrap();
+        let reference = Arc::new(ViewData::of_mesh_solution(&cornell, fine, solved, 0.0));
+        let m = measure(&Job { seq: 5, scene: cornell, view: quadtree, reference: Some(reference) }).unwrap();
+        assert_eq!(m.against, "the Monte Carlo reference");
+        assert!(m.report.unresolved.segments > 0 && !m.samples.edges.is_empty(), "{:?}", m.report);
     }
 }
