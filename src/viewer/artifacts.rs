@@ -90,9 +90,7 @@ pub fn measure(job: &Job) -> Result<Measured, String> {
         let (r, s) = measure_samples(scene, &solution, &pc, &params).map_err(|e| fail(&e))?;
         (r, s, "the Monte Carlo reference")
     } else {
-        return Err("artifacts need a reference: Compute reference (Reference panel), or open a \
-                    single-bounce scene such as builtin:shadow-narrow (closed form)"
-            .into());
+        return Err("artifacts need a reference: Compute reference, or a single-bounce scene".into());
     };
     Ok(Measured { report, samples: Arc::new(samples), against, time_s: t.elapsed().as_secs_f64() })
 }
