@@ -1830,7 +1830,7 @@ impl RadlabApp {
         egui::ComboBox::from_label("artifact")
             .selected_text(d.artifact.map_or("none", Artifact::name))
             .show_ui(ui, |ui| {
-                ui.selectable_value(&mut d.artifact, None, "none");
+                ui.selectable_value(&mut d.artifact, None, "none").on_hover_text("No artifact overlay");
                 for a in Artifact::ALL.into_iter().chain([Artifact::All]) {
                     ui.selectable_value(&mut d.artifact, Some(a), a.name()).on_hover_text(a.description());
                 }
