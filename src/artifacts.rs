@@ -369,6 +369,85 @@ pub struct ArtifactMaps {
     pub segments: Vec<SegmentMark>,
 }
 
+/// A grid point of A or B, for an overlay.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct PointMark {
+    pub patch: usize,
+    pub x: DVec3,
+    /// Side of the grid cell around it (√ of its area).
+    pub size: f64,
+    /// A: |B̄ − B̄_ref| / the band's RMS reflected radiosity; B: 0.
+    pub value: f64,
+    /// B: the feature holding this point is missing; A: always false.
+    pub flagged: bool,
+}
+
+/// Where [`measure`] found each artifact, sample by sample (the viewer's overlays): the points,
+/// edge samples and segment samples its numbers are sums over.
+#[derive(Clone, Debug, Default)]
+pub struct ArtifactSamples {
+    /// A: the grid points in the penumbra band.
+    pub band: Vec<PointMark>,
+    /// B: the grid points of the reference's features (of at least `min_feature_points`).
+    pub features: Vec<PointMark>,
+    /// C and D: every interior edge sample (`x ± along · length / 2`).
+    pub edges: Vec<EdgeMark>,
+    /// E: every critical-segment sample (`x ± along · length / 2`).
+    pub segments: Vec<SegmentMark>,
+}
+
+/// [`measure`], with the samples behind each number (the report is the same).
+pub fn measure_samples<R: Reconstruction + ?Sized>(
+    scene: &Scene,
+    solution: &Solution,
+    reference: &R,
+    params: &ArtifactParams,
+) -> Result<(ArtifactReport, ArtifactSamples), ArtifactError> {
+    let pc = PiecewiseConstant::new(scene, &solution.elements)?;
+    let gouraud = Gouraud::new(scene, solution)?;
+    let (report, maps) = measure_all(scene, solution, &pc, None, &gouraud, reference, params)?;
+    Ok((report, maps.samples(scene)))
+}
+
+impl ArtifactMaps {
+    /// The maps as overlay samples ([`ArtifactSamples`]).
+    #[must_use]
+    pub fn samples(&self, scene: &Scene) -> ArtifactSamples {
+        let pts = &self.points;
+        let reflected = |k: usize| self.reference[k] - scene.patches[pts[k].patch].emission;
+        let in_band = |k: &usize| self.in_band[*k];
+        let band_area: f64 = (0..pts.len()).filter(in_band).map(|k| pts[k].area).sum();
+        let band_rms = ((0..pts.len())
+            .filter(in_band)
+            .map(|k| pts[k].area * reflected(k).mul_rgb(reflected(k)).mean())
+            .sum::<f64>()
+            / band_area.max(f64::MIN_POSITIVE))
+        .sqrt();
+        let mark = |k: usize, value: f64, flagged: bool| PointMark {
+            patch: pts[k].patch,
+            x: pts[k].position,
+            size: pts[k].area.sqrt(),
+            value,
+            flagged,
+        };
+        ArtifactSamples {
+            band: (0..pts.len())
+                .filter(in_band)
+                .map(|k| {
+                    let err = (self.solution[k] - self.reference[k]).map(f64::abs).mean();
+                    mark(k, err / band_rms.max(f64::MIN_POSITIVE), false)
+                })
+                .collect(),
+            features: (0..pts.len())
+                .filter(|&k| self.features[k] != 0)
+                .map(|k| mark(k, 0.0, self.features[k] < 0))
+                .collect(),
+            edges: self.edges.clone(),
+            segments: self.segments.clone(),
+        }
+    }
+}
+
 /// Reflecting patches (ρ̄ > 0), in order.
 fn reflecting(scene: &Scene) -> impl Iterator<Item = usize> + '_ {
     (0..scene.patches.len()).filter(|&p| scene.patches[p].reflectance.mean() > 0.0)

@@ -4,8 +4,10 @@
 //! them; `radlab figures` lists them and writes one screenshot each.
 //!
 //! The slides follow the radiosity lecture (CS348b lecture 17, after Hanrahan, Salzman and
-//! Aupperle 1991). Only figures that the tool shows today are listed; the meshing slides
-//! (discontinuity meshes, BSP and Delaunay meshes, h vs p) come with the meshing work.
+//! Aupperle 1991). The meshing slides — irradiance discontinuities, Campbell's BSP mesh,
+//! Heckbert's constrained Delaunay mesh, h vs p, meshing options, the five artifacts — solve on
+//! a uniform or discontinuity mesh ([`Figure::mesh`], [`crate::solver::meshed`]) and sit in the
+//! Lecture menu's [`MESHING`] submenu.
 //!
 //! ## Uniform meshes
 //! The viewer runs the hierarchical solver only. A uniform mesh is that solver with the
@@ -14,7 +16,9 @@
 //! each other gets a link — the classical method's full n × n matrix, on a mesh whose elements
 //! all have about the same area (within a factor of four: a quadtree halves sides).
 
+use crate::mesh_overlay::Artifact;
 use crate::solver::hierarchical::StepKind;
+use crate::solver::meshed::{DisplayReconstruction, MeshMethod, MeshSolveParams};
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
 use serde::Serialize;
 
@@ -31,11 +35,22 @@ pub struct Overlays {
     pub error: bool,
     /// Flat shading (each element one colour) instead of Gouraud.
     pub flat: bool,
+    /// The critical edges (D0/D1/D2 segments).
+    pub critical: bool,
+    /// An artifact overlay.
+    pub artifact: Option<Artifact>,
 }
 
 impl Overlays {
-    const NONE: Overlays =
-        Overlays { quadtree: false, links: false, partial_links_only: false, error: false, flat: false };
+    const NONE: Overlays = Overlays {
+        quadtree: false,
+        links: false,
+        partial_links_only: false,
+        error: false,
+        flat: false,
+        critical: false,
+        artifact: None,
+    };
 }
 
 /// The view, relative to the scene's own camera (the viewer's home view): orbit by `yaw_deg`
@@ -66,8 +81,12 @@ pub struct Figure {
     pub preset: &'static str,
     /// What the method is, in a few words (uniform mesh, Feps refinement, BF oracle…).
     pub method: &'static str,
-    /// The solver settings.
+    /// The solver settings (of the hierarchical solver: the quadtree mesh).
     pub params: HierarchicalParams,
+    /// The mesh solved on: the quadtree (`params`) or a uniform / discontinuity mesh.
+    pub mesh: MeshSolveParams,
+    /// How the solution is drawn (unless `overlays.flat`).
+    pub reconstruction: DisplayReconstruction,
     /// Steps run after loading: `[Solve]` for a solved figure, `[Refine]` for the first step of
     /// a stepped one, `[]` for the input patches.
     pub steps: &'static [StepKind],
@@ -85,6 +104,13 @@ pub struct Figure {
     pub matrix: bool,
     /// The screenshot shows the whole window (inspector, plots), not only the viewport.
     pub window_shot: bool,
+    /// The Lecture menu's submenu that lists the figure (`None`: the menu itself).
+    pub submenu: Option<&'static str>,
+    /// Before the figure's own solve, solve on each of these meshes (runs of the history).
+    pub mesh_sweep: &'static [MeshSolveParams],
+    /// Open the split view: the newest two runs of the scene side by side (the sweep's and the
+    /// figure's own).
+    pub split: bool,
     /// Two to four sentences: what to look at and why.
     pub caption: &'static str,
 }
@@ -105,6 +131,8 @@ impl Figure {
             preset,
             method: "hierarchical",
             params,
+            mesh: MeshSolveParams::new(MeshMethod::Quadtree),
+            reconstruction: DisplayReconstruction::Gouraud,
             steps: &[StepKind::Solve],
             sweep_bf_eps: &[],
             overlays: Overlays::NONE,
@@ -113,6 +141,9 @@ impl Figure {
             plots: false,
             matrix: false,
             window_shot: false,
+            submenu: None,
+            mesh_sweep: &[],
+            split: false,
             caption: "",
         }
     }
@@ -123,6 +154,29 @@ impl Figure {
         self.scene.strip_prefix("builtin:").unwrap_or(self.scene)
     }
 }
+
+/// The Lecture menu's submenu of the meshing slides.
+pub const MESHING: &str = "Meshing given shadows";
+
+/// A meshing figure's defaults: `scene` solved on `mesh`, listed in the [`MESHING`] submenu.
+const fn meshing(
+    name: &'static str,
+    slide: &'static str,
+    scene: &'static str,
+    mesh: MeshSolveParams,
+) -> Figure {
+    Figure {
+        method: mesh.method.name(),
+        mesh,
+        submenu: Some(MESHING),
+        ..Figure::base(name, slide, scene, "interactive", HierarchicalParams::interactive())
+    }
+}
+
+/// Heckbert's constrained Delaunay mesh refined to 20°.
+const CDT: MeshSolveParams = MeshSolveParams::new(MeshMethod::DiscontinuityCdt);
+/// The narrow penumbra seen from above, close.
+const NARROW_CLOSE: CameraPreset = CameraPreset { yaw_deg: 20.0, pitch_deg: 10.0, zoom: 0.55 };
 
 /// A uniform mesh with the hierarchical solver (see the module docs): the form-factor oracle at
 /// Feps = 0 refines every pair down to elements of at most `aeps_rel` of the scene's area, and
@@ -319,6 +373,121 @@ pub const FIGURES: &[Figure] = &[
         )
     },
     Figure {
+        overlays: Overlays { critical: true, quadtree: true, ..Overlays::NONE },
+        camera: TABLE_FROM_ABOVE,
+        method: "hierarchical, BF oracle, critical edges",
+        caption: "Where the radiosity is not smooth: D0 (red) where the legs stand on the floor and \
+                  the value jumps, D1 (amber) and D2 (cyan) where a shadow's umbra or penumbra \
+                  begins, found from the lamp's vertices and edges against the occluders' (EV and \
+                  VE events). The quadtree cuts the floor along its own axes and crosses these \
+                  lines instead of following them. The legend counts each kind.",
+        ..meshing(
+            "irradiance-discontinuities",
+            "Irradiance discontinuities: D0, D1, D2",
+            "builtin:table-room",
+            MeshSolveParams::new(MeshMethod::Quadtree),
+        )
+    },
+    Figure {
+        overlays: Overlays { quadtree: true, critical: true, flat: true, ..Overlays::NONE },
+        camera: TABLE_FROM_ABOVE,
+        caption: "Campbell and Fussell split each receiver by the lines of its critical segments, \
+                  recursively, into convex pieces: the floor becomes about a thousand pieces whose \
+                  edges lie on every shadow boundary, solved with one value a piece (p = 0, drawn \
+                  flat). A line runs on past the shadow it bounds, so pieces are long and thin \
+                  and the floor is cut where nothing changes.",
+        ..meshing(
+            "bsp-mesh",
+            "Campbell's BSP mesh",
+            "builtin:table-room",
+            MeshSolveParams::new(MeshMethod::DiscontinuityBsp),
+        )
+    },
+    Figure {
+        overlays: Overlays { quadtree: true, critical: true, ..Overlays::NONE },
+        camera: TABLE_FROM_ABOVE,
+        caption: "Heckbert triangulates each receiver with its critical segments as constraints, \
+                  so every shadow boundary (the critical edges, drawn over it) is an edge of the \
+                  mesh and between them the triangles are as fat as Delaunay allows. The Mesh menu's CDT \
+                  min angle adds points until no angle is smaller (here none: the \
+                  constraints' own triangulation). Unlike the BSP mesh it is conforming, so vertex \
+                  values can be shared (continuous p = 1).",
+        ..meshing(
+            "cdt-mesh",
+            "Heckbert's constrained Delaunay mesh with its critical edges",
+            "builtin:table-room",
+            MeshSolveParams { cdt_min_angle_deg: 0.0, ..CDT },
+        )
+    },
+    Figure {
+        overlays: Overlays { quadtree: true, flat: true, ..Overlays::NONE },
+        camera: NARROW_CLOSE,
+        caption: "The narrow penumbra on Heckbert's mesh with constant elements, drawn flat: the \
+                  mesh's edges bound each penumbra strip, but one value a triangle cannot follow \
+                  the ramp from umbra to light across it, and the band's pointwise error is 44 % \
+                  (docs/meshing.md). Subdividing (h) helps only once elements are narrower than \
+                  the penumbra.",
+        ..meshing(
+            "h-vs-p-constant",
+            "h vs p: constant elements on a discontinuity mesh",
+            "builtin:shadow-narrow",
+            CDT,
+        )
+    },
+    Figure {
+        reconstruction: DisplayReconstruction::Nodal,
+        camera: NARROW_CLOSE,
+        mesh_sweep: &[CDT],
+        split: true,
+        caption: "The same mesh solved twice, side by side, each drawn as its elements' own \
+                  functions: left constant elements, right linear ones, continuous across edges. Inside each \
+                  strip the radiosity is a smooth ramp, which a linear element follows: the band's \
+                  error falls from 44 % to 4 % with fewer unknowns (231 against 428). Raising p \
+                  pays near a shadow once the mesh's edges follow its discontinuities.",
+        ..meshing(
+            "h-vs-p-linear",
+            "h vs p: constant beside linear elements on the same mesh",
+            "builtin:shadow-narrow",
+            CDT.linear(true),
+        )
+    },
+    Figure {
+        overlays: Overlays { quadtree: true, ..Overlays::NONE },
+        reconstruction: DisplayReconstruction::Nodal,
+        camera: NARROW_CLOSE,
+        caption: "A uniform mesh of quadrilaterals with bilinear, discontinuous elements, each drawn \
+                  as its own function: the steps at element edges show where neighbours disagree. \
+                  The Mesh menu sets the element type (quads of the quadtree and the uniform mesh, \
+                  the Delaunay mesh's triangles, the BSP's convex pieces), their size and their \
+                  order (p = 0 or 1, continuous or not). The Display panel's flat, Gouraud and true p = 1 \
+                  draw one solution three ways.",
+        ..meshing(
+            "meshing-options",
+            "Meshing options: element type, size, order",
+            "builtin:shadow-narrow",
+            MeshSolveParams {
+                element_size_rel: 0.08,
+                ..MeshSolveParams::new(MeshMethod::Uniform).linear(false)
+            },
+        )
+    },
+    Figure {
+        overlays: Overlays { flat: true, artifact: Some(Artifact::All), ..Overlays::NONE },
+        camera: NARROW_CLOSE,
+        caption: "A coarse uniform mesh of the narrow shadow against its closed form, each artifact \
+                  marked where it lies: A the penumbra band's error, B missing features (blue), C \
+                  Mach bands (magenta) and D inappropriate jumps (orange) on element edges where \
+                  the exact answer is smooth, E shadow boundaries inside elements (lime). The \
+                  legend gives each as a number. On a discontinuity mesh (Mesh menu) E drops to \
+                  zero, while D stays until p = 1.",
+        ..meshing(
+            "five-artifacts",
+            "The five artifacts, labelled on the error image",
+            "builtin:shadow-narrow",
+            MeshSolveParams { element_size_rel: 0.1, ..MeshSolveParams::new(MeshMethod::Uniform) },
+        )
+    },
+    Figure {
         method: "hierarchical, Feps oracle with the five-times rule",
         params: HierarchicalParams { five_times: true, feps: 0.005, ..HierarchicalParams::lecture() },
         overlays: Overlays { quadtree: true, ..Overlays::NONE },
@@ -456,6 +625,25 @@ mod tests {
             for &b in f.sweep_bf_eps {
                 HierarchicalParams { bf_eps: b, ..f.params }.validate().unwrap();
             }
+            if f.mesh.method != MeshMethod::Quadtree {
+                f.mesh.validate().unwrap_or_else(|e| panic!("{}: {e}", f.name));
+                assert_eq!(f.submenu, Some(MESHING), "{}: a mesh figure is a meshing slide", f.name);
+            }
+            if f.reconstruction == DisplayReconstruction::Nodal {
+                assert_eq!(f.mesh.order, crate::basis::Order::Linear, "{}: true p = 1 needs p = 1", f.name);
+            }
+        }
+        // The meshing slides of the lecture (issue 18 §1).
+        for name in [
+            "irradiance-discontinuities",
+            "bsp-mesh",
+            "cdt-mesh",
+            "h-vs-p-constant",
+            "h-vs-p-linear",
+            "meshing-options",
+            "five-artifacts",
+        ] {
+            assert_eq!(find(name).unwrap().submenu, Some(MESHING), "{name}");
         }
     }
 

@@ -42,6 +42,7 @@
 //! - [`image`]: a CPU renderer of solutions (PNG) from a default camera.
 //! - [`bake`]: a solution as a glTF asset (vertex colours, unlit) that any viewer shows as solved.
 //! - [`overlay`]: CPU-side line/colour lists for quadtree, links and error overlays.
+//! - [`mesh_overlay`]: the meshing overlays' lines: critical edges (D0/D1/D2), artifact samples.
 //! - [`block_matrix`]: links as the blocks of the leaf-to-leaf form-factor matrix they stand for.
 //! - `render`, `viewer` (feature `gui`): wgpu pipelines and the eframe app.
 
@@ -61,6 +62,7 @@ pub mod image;
 pub mod link;
 pub mod math;
 pub mod mesh;
+pub mod mesh_overlay;
 pub mod metrics;
 pub mod order_study;
 pub mod overlay;

@@ -104,6 +104,42 @@ impl ElementView {
     }
 }
 
+impl ElementView {
+    /// A leaf of depth 0 without parent on input patch `patch_index` (a mesh solve's element, a
+    /// reference region): the first four of `vertices` (3 or 4 expected) and the patch's
+    /// material.
+    #[must_use]
+    pub fn flat_leaf(
+        id: u32,
+        patch_index: usize,
+        patch: &crate::scene::Patch,
+        vertices: &[DVec3],
+        area: f64,
+        radiosity: Rgb,
+        error_estimate: f64,
+        stop: &'static str,
+    ) -> ElementView {
+        let n = vertices.len().min(4);
+        let mut v = [vertices.first().copied().unwrap_or(DVec3::ZERO); 4];
+        v[..n].copy_from_slice(&vertices[..n]);
+        ElementView {
+            id,
+            patch: patch_index as u32,
+            parent: None,
+            depth: 0,
+            leaf: true,
+            vertices: v,
+            n_vertices: n as u8,
+            area,
+            reflectance: patch.reflectance,
+            emission: patch.emission,
+            radiosity,
+            error_estimate,
+            stop,
+        }
+    }
+}
+
 impl LinkView {
     /// The viewer's copy of a solver link.
     #[must_use]
@@ -145,7 +181,8 @@ pub struct LineList {
 }
 
 impl LineList {
-    fn push(&mut self, a: DVec3, b: DVec3, color: [f32; 4]) {
+    /// Add one segment.
+    pub fn push(&mut self, a: DVec3, b: DVec3, color: [f32; 4]) {
         self.points.extend([a, b]);
         self.colors.extend([color, color]);
     }

@@ -185,3 +185,36 @@ fn thin_pole_shadow_missed_by_the_quadtree_shown_by_the_cdt() {
     assert!(count(&cdt, 1) >= 8, "the streak is a feature the CDT shows: {cdt:?}");
     assert_eq!(count(&cdt, -1), 0, "the CDT misses (part of) the pole's shadow: {cdt:?}");
 }
+
+#[test]
+fn samples_add_up_to_the_report() {
+    use radlab::artifacts::{EdgeMark, measure_samples};
+    let scene = Scene::load("builtin:shadow-narrow").unwrap();
+    let accel = Accel::build(&scene);
+    let p = UniformParams { element_size: 0.5, ..Default::default() };
+    let sol = uniform::solve(&scene, &accel, &p, &mut |_, _| {}).unwrap();
+    let sb = SingleBounce::new(&scene).unwrap();
+    let exact = |patch: usize, x: DVec3| sb.patch_radiosity_at(patch, x);
+    let params = ArtifactParams::quick();
+    let (r, s) = measure_samples(&scene, &sol, &exact, &params).unwrap();
+    assert_eq!(r.blocky_shadows, measure(&scene, &sol, &exact, &params).unwrap().blocky_shadows);
+    assert_eq!(s.band.len(), r.band_points);
+    assert!(s.band.iter().any(|m| m.value > 0.1), "the coarse mesh errs in the penumbra");
+    assert!(!s.features.is_empty() && s.features.iter().all(|m| m.patch == sb.receiver));
+    // Each interior edge is sampled from both of its elements: half its length each time.
+    let length = |pick: &dyn Fn(&EdgeMark) -> bool| -> f64 {
+        s.edges.iter().filter(|e| pick(e)).map(|e| e.length / 2.0).sum()
+    };
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.max(1.0);
+    assert!(
+        close(length(&|_| true), r.shading_jumps.edge_length),
+        "{} vs {:?}",
+        length(&|_| true),
+        r.shading_jumps
+    );
+    assert!(close(length(&|e| e.jump), r.shading_jumps.inappropriate_length));
+    assert!(close(length(&|e| e.mach_band), r.mach_bands.band_length));
+    let unresolved: f64 = s.segments.iter().filter(|m| m.unresolved).map(|m| m.length).sum();
+    assert!(close(unresolved, r.unresolved.unresolved_length), "{unresolved} vs {:?}", r.unresolved);
+    assert!(s.segments.iter().any(|m| m.unresolved), "a 0.5 mesh leaves segments inside elements");
+}

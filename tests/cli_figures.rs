@@ -48,3 +48,25 @@ fn an_unknown_figure_is_one_line_listing_the_valid_names() {
         );
     }
 }
+
+/// `radlab view`'s mesh flags: what cannot be drawn is refused in one line before any window.
+#[test]
+fn view_mesh_flags_that_do_not_fit_are_one_line_errors() {
+    for (args, says) in [
+        (&["view", "builtin:cornell", "--order", "1"][..], "--mesh"),
+        (&["view", "builtin:cornell", "--mesh", "uniform", "--continuous"][..], "order 1"),
+        (&["view", "builtin:cornell", "--mesh", "uniform", "--reconstruction", "nodal"][..], "--order 1"),
+        (&["view", "builtin:cornell", "--mesh", "discontinuity-bsp", "--order", "2"][..], "--order 2"),
+        (&["view", "builtin:cornell", "--mesh", "voronoi"][..], "voronoi"),
+    ] {
+        let out = radlab(args);
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        if says != "voronoi" {
+            // (an unknown value is clap's message, with the valid ones listed)
+            assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+        }
+    }
+}

@@ -635,15 +635,27 @@ fn every_lecture_figure_opens_from_the_lecture_menu() {
     for f in radlab::figures::FIGURES {
         h.get_by_label("Lecture").click();
         h.run_steps(2);
+        if let Some(sub) = f.submenu {
+            h.get_by_label(sub).hover();
+            h.run_steps(2);
+        }
         h.get_by_label(f.slide).click();
         h.run_steps(2);
         let app = h.state();
         assert_eq!(app.scene().map(|s| s.source.as_str()), Some(f.scene), "{}", f.name);
         assert_eq!(app.params(), f.params, "{}", f.name);
+        assert_eq!(app.mesh(), f.mesh, "{}", f.name);
         let d = app.display;
         assert_eq!(
-            (d.quadtree, d.links, d.error, d.link_filter.full),
-            (f.overlays.quadtree, f.overlays.links, f.overlays.error, !f.overlays.partial_links_only),
+            (d.quadtree, d.links, d.error, d.link_filter.full, d.critical, d.artifact),
+            (
+                f.overlays.quadtree,
+                f.overlays.links,
+                f.overlays.error,
+                !f.overlays.partial_links_only,
+                f.overlays.critical,
+                f.overlays.artifact
+            ),
             "{}",
             f.name
         );
@@ -1025,4 +1037,221 @@ fn earlier_runs_are_scored_once_the_reference_exists() {
     assert!(runs[0].reference != runs[1].reference, "each run its own error");
     assert_eq!(h.state().error_samples().len(), 1, "the earlier run is not a point of this restart's plot");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// True when the widget labelled `label` is greyed out.
+fn disabled(h: &Harness<'static, RadlabApp>, label: &str) -> bool {
+    use egui_kittest::kittest::NodeT;
+    h.get_by_label(label).accesskit_node().is_disabled()
+}
+
+/// The mesh, order and display reconstruction are picked in the Solver and Display panels; a
+/// mesh solve runs on the solver thread and is shown; the quadtree-only overlays say they do
+/// not apply (greyed out).
+#[test]
+fn mesh_kind_order_and_reconstruction_are_selectable() {
+    use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
+    let mut h = harness(opts());
+    h.state_mut().load_spec("builtin:shadow-narrow");
+    settle(&mut h);
+    assert!(!disabled(&h, "links"), "links apply to the quadtree");
+    // The Mesh menu: pick the constrained Delaunay mesh; auto-run solves on it.
+    h.get_by_label("Mesh: quadtree").click();
+    h.run_steps(2);
+    h.get_by_label("discontinuity-cdt").click();
+    settle(&mut h);
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    let m = v.mesh.as_ref().expect("a mesh solve is shown");
+    assert_eq!(m.params.method, MeshMethod::DiscontinuityCdt);
+    assert!(v.leaves.len() > 100, "the CDT's pieces: {}", v.leaves.len());
+    assert!(v.elements.iter().any(|e| e.radiosity.mean() > 0.0));
+    assert!(m.coefficients.is_none(), "p = 0 keeps no vertex values");
+    assert!(disabled(&h, "links"), "no links on a mesh solve");
+    // The status bar and the inspector speak of the mesh, not of links and refinement.
+    assert!(h.query_by_label_contains("discontinuity-cdt p0: ").is_some(), "the status bar names the mesh");
+    h.state_mut().pick_relative(0.5, 0.8);
+    h.run_steps(2);
+    assert!(h.state().selected.is_some(), "a floor piece is picked");
+    assert!(h.query_by_label_contains("no links — this element is coupled").is_some());
+    assert!(h.query_by_label("none (a mesh solve has no estimate)").is_some());
+    h.state_mut().selected = None;
+    assert!(disabled(&h, "error heatmap"), "no estimate and no reference");
+    assert!(disabled(&h, "true p = 1"), "no p = 1 values to draw");
+    // Order 1, continuous, drawn as the true p = 1 function.
+    h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::DiscontinuityCdt).linear(true));
+    settle(&mut h);
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    let c = v.mesh.as_ref().and_then(|m| m.coefficients.clone()).expect("p = 1 vertex values");
+    assert_eq!(c.len(), v.elements.len());
+    let shaded = lower_viewport(&mut h);
+    h.get_by_label("flat").click();
+    settle(&mut h);
+    let flat = lower_viewport(&mut h);
+    assert_ne!(shaded.pixels, flat.pixels, "flat and p = 1 draw differently");
+    h.get_by_label("true p = 1").click();
+    settle(&mut h);
+    assert!(!disabled(&h, "true p = 1"));
+    check(&mut h, "gui_mesh_cdt_p1");
+    // Both mesh solves are runs: side by side in the split view, h vs p, each labelled.
+    let presets: Vec<String> = h.state().history.runs().iter().map(|r| r.preset.clone()).collect();
+    assert_eq!(presets, ["discontinuity-cdt p0", "discontinuity-cdt p1-continuous"]);
+    assert!(h.state().history.runs().iter().all(|r| r.estimate.is_none()), "no estimate of their own");
+    h.state_mut().split.on = true;
+    settle(&mut h);
+    assert!(h.query_by_label_contains("discontinuity-cdt, refined to 20° · p = 1 continuous").is_some());
+    assert!(h.query_by_label_contains("discontinuity-cdt, refined to 20° · p = 0").is_some());
+    check(&mut h, "gui_split_h_vs_p");
+    h.state_mut().split.on = false;
+    // The blocking matrix says why it has no blocks rather than showing none.
+    h.state_mut().lecture.matrix.open = true;
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("A mesh solve keeps no links").is_some());
+    h.state_mut().lecture.matrix.open = false;
+    // Back to the quadtree: the hierarchical solve is shown again, links apply.
+    h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::Quadtree));
+    settle(&mut h);
+    settle(&mut h);
+    assert!(h.state().view().mesh.is_none() && h.state().view().stats.links > 0);
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+/// Pixels of the lower half of the viewport within 40 of `rgb` on every channel.
+fn pixels_near(img: &RgbaImage, rgb: [u8; 3]) -> usize {
+    img.pixels.chunks_exact(4).filter(|p| (0..3).all(|c| p[c].abs_diff(rgb[c]) <= 40)).count()
+}
+
+/// The critical-edges overlay draws the D0/D1/D2 segments in their colours, over the quadtree
+/// and over a discontinuity mesh alike, with its legend's counts.
+#[test]
+fn critical_edges_overlay_draws_d0_d1_d2() {
+    use radlab::mesh_overlay::CRITICAL_COLORS;
+    use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().load_spec("builtin:table-room");
+    settle(&mut h);
+    let amber = CRITICAL_COLORS[1].map(|c| (c * 255.0) as u8);
+    let amber = [amber[0], amber[1], amber[2]];
+    let before = pixels_near(&lower_viewport(&mut h), amber);
+    assert!(h.state().critical_counts().is_none());
+    h.get_by_label("critical edges (D0/D1/D2)").click();
+    settle(&mut h);
+    let c = h.state().critical_counts().expect("the overlay's counts");
+    assert!(c.d0 > 0 && c.d1 > 0 && c.d2 > 0, "table-room has all three kinds: {c:?}");
+    let after = pixels_near(&lower_viewport(&mut h), amber);
+    assert!(after > before + 200, "the D1 lines are drawn under the table: {before} → {after} amber pixels");
+    check(&mut h, "gui_critical_edges");
+    // Over the BSP mesh too: its element edges follow the same lines.
+    h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::DiscontinuityBsp));
+    settle(&mut h);
+    settle(&mut h);
+    assert!(h.state().mesh_view());
+    assert_eq!(h.state().critical_counts(), Some(c), "the scene's segments, whatever the mesh");
+    assert!(pixels_near(&lower_viewport(&mut h), amber) > before + 200);
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+/// An artifact overlay is measured off the UI thread against the closed form, drawn where its
+/// samples lie, and says why when there is no reference.
+#[test]
+fn artifact_overlays_mark_their_samples() {
+    use radlab::mesh_overlay::Artifact;
+    use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
+    let mut h = harness(ViewerOptions {
+        solve_on_start: true,
+        mesh: Some(MeshSolveParams { element_size_rel: 0.1, ..MeshSolveParams::new(MeshMethod::Uniform) }),
+        ..opts()
+    });
+    h.state_mut().load_spec("builtin:shadow-narrow");
+    settle(&mut h);
+    assert!(h.state().artifacts().is_none(), "nothing measured while no artifact overlay is on");
+    let lime = Artifact::UnresolvedDiscontinuities.color().map(|c| (c * 255.0) as u8);
+    let lime = [lime[0], lime[1], lime[2]];
+    let before = pixels_near(&lower_viewport(&mut h), lime);
+    // The combo box: E.
+    h.get_by_value("none").click();
+    h.run_steps(2);
+    h.get_by_label(Artifact::UnresolvedDiscontinuities.name()).click();
+    settle(&mut h);
+    let m = match h.state().artifacts() {
+        Some(Ok(m)) => m.clone(),
+        other => panic!("measured: {other:?}"),
+    };
+    assert_eq!(m.against, "the closed form");
+    assert!(
+        m.report.unresolved.fraction() > 0.9,
+        "a uniform mesh resolves no segment: {:?}",
+        m.report.unresolved
+    );
+    assert!(m.samples.segments.iter().any(|s| s.unresolved));
+    let after = pixels_near(&lower_viewport(&mut h), lime);
+    assert!(after > before + 100, "unresolved segments drawn in lime: {before} → {after}");
+    h.state_mut().display.artifact = Some(Artifact::All);
+    settle(&mut h);
+    check(&mut h, "gui_artifacts_all");
+    // On the CDT the segments lie on element edges: nothing unresolved.
+    h.state_mut().set_mesh(MeshSolveParams {
+        cdt_min_angle_deg: 0.0,
+        ..MeshSolveParams::new(MeshMethod::DiscontinuityCdt)
+    });
+    settle(&mut h);
+    settle(&mut h);
+    match h.state().artifacts() {
+        Some(Ok(m)) => assert!(m.report.unresolved.fraction() < 0.01, "{:?}", m.report.unresolved),
+        other => panic!("measured: {other:?}"),
+    }
+    // A scene without closed form or reference: the legend says what to do.
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    match h.state().artifacts() {
+        Some(Err(e)) => assert!(e.contains("Compute reference"), "{e}"),
+        other => panic!("no reference: {other:?}"),
+    }
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+/// Every meshing figure opens solved on its own mesh, with its overlays measured and drawn and
+/// its caption shown.
+#[test]
+fn meshing_figures_open_solved_on_their_mesh() {
+    use radlab::figures::{FIGURES, MESHING};
+    use radlab::solver::meshed::MeshMethod;
+    let mut h = harness(opts());
+    h.run_steps(2);
+    let mut opened = 0;
+    for f in FIGURES.iter().filter(|f| f.submenu == Some(MESHING)) {
+        h.state_mut().open_figure(f);
+        settle(&mut h);
+        settle(&mut h);
+        let v = Arc::clone(h.state().view());
+        match f.mesh.method {
+            MeshMethod::Quadtree => assert!(v.mesh.is_none() && v.stats.links > 0, "{}", f.name),
+            _ => {
+                let m = v.mesh.as_ref().unwrap_or_else(|| panic!("{}: a mesh solve", f.name));
+                assert_eq!(m.params, f.mesh, "{}", f.name);
+                assert_eq!(
+                    m.coefficients.is_some(),
+                    f.mesh.order == radlab::basis::Order::Linear,
+                    "{}",
+                    f.name
+                );
+            }
+        }
+        assert!(v.elements.iter().any(|e| e.radiosity.mean() > 0.0), "{}: lit", f.name);
+        if f.overlays.critical {
+            let c = h.state().critical_counts().unwrap_or_else(|| panic!("{}: critical edges", f.name));
+            assert!(c.d1 + c.d2 > 0, "{}", f.name);
+        }
+        if f.overlays.artifact.is_some() {
+            assert!(matches!(h.state().artifacts(), Some(Ok(_))), "{}: {:?}", f.name, h.state().artifacts());
+        }
+        assert!(h.query_by_label(f.caption).is_some(), "{}: the caption is shown", f.name);
+        assert!(h.state().errors().is_empty(), "{}: {:?}", f.name, h.state().errors());
+        if f.name == "h-vs-p-linear" {
+            check(&mut h, "gui_figure_h_vs_p_linear");
+        }
+        opened += 1;
+    }
+    assert!(opened >= 6, "the meshing slides: {opened}");
 }

@@ -225,10 +225,25 @@ fn lines_are_depth_tested_unless_xray() {
         &Geometry { mesh: mesh.clone(), links: line.clone(), ..Geometry::default() },
         uniforms(false, 0, NO_SELECTION),
     );
-    let shown = draw(&Geometry { mesh, links: line, links_xray: true }, uniforms(false, 0, NO_SELECTION));
+    let shown = draw(
+        &Geometry { mesh: mesh.clone(), links: line.clone(), links_xray: true, ..Geometry::default() },
+        uniforms(false, 0, NO_SELECTION),
+    );
     let row_max = |img: &RgbaImage| (0..img.height).map(|y| img.pixel(W / 2, y)[1]).max().unwrap();
     assert!(row_max(&hidden) < 5, "link behind the wall is hidden");
     assert!(row_max(&shown) > 100, "x-ray link is drawn (viridis top is bright)");
+    // Overlay lines (critical edges, artifact samples) are always depth-tested.
+    let overlay_hidden = draw(
+        &Geometry { mesh, overlay: line.clone(), links_xray: true, ..Geometry::default() },
+        uniforms(false, 0, NO_SELECTION),
+    );
+    assert!(row_max(&overlay_hidden) < 5, "an overlay line behind the wall is hidden");
+    let unhidden = geometry::mesh(&els, &[1], MeshColors::Flat, DVec3::ZERO);
+    let overlay_shown = draw(
+        &Geometry { mesh: unhidden, overlay: line, ..Geometry::default() },
+        uniforms(false, 0, NO_SELECTION),
+    );
+    assert!(row_max(&overlay_shown) > 100, "without the wall it is drawn");
 }
 
 #[test]
@@ -613,6 +628,7 @@ fn direct_drawing_into_the_host_pass_matches_the_offscreen_image() {
         mesh: geometry::mesh(&els, &leaves, MeshColors::Smooth, DVec3::ZERO),
         links: geometry::lines(&list, DVec3::ZERO),
         links_xray: false,
+        overlay: Vec::new(),
     };
     assert!(!g.links.is_empty());
     let mut u = uniforms(true, 0, 3);

@@ -1,9 +1,11 @@
-//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error,…] [--preset NAME]
-//! [--bench-frames N] [--figure NAME] [--split N] [--history] [--replay FRAME [--depth-cut D]]`:
+//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error|critical|artifacts,…] [--preset NAME]
+//! [--bench-frames N] [--figure NAME] [--split N] [--history] [--replay FRAME [--depth-cut D]]
+//! [--mesh KIND] [--order 0|1 [--continuous]] [--reconstruction flat|gouraud|nodal]`:
 //! the interactive viewer (feature `gui`).
 //!
 //! Without the feature, or without a display, it fails with one line suggesting `radlab solve`.
 
+use radlab::solver::meshed::{DisplayReconstruction, MeshMethod};
 use std::path::PathBuf;
 
 /// Overlay drawn by a scripted screenshot.
@@ -14,6 +16,10 @@ pub enum Overlay {
     Quadtree,
     Links,
     Error,
+    /// The critical edges (D0/D1/D2 segments) coloured by kind.
+    Critical,
+    /// The five meshing artifacts' marked samples (against the closed form or the reference).
+    Artifacts,
 }
 
 #[derive(clap::Args, Debug)]
@@ -68,6 +74,20 @@ pub struct Args {
     /// With --replay: draw the quadtrees down to this depth only (0: the input patches).
     #[arg(long, value_name = "D", requires = "replay")]
     pub depth_cut: Option<u8>,
+    /// The mesh solved on: the hierarchical quadtree, a uniform mesh, or a discontinuity mesh
+    /// (constrained Delaunay or BSP; docs/meshing.md).
+    #[arg(long, value_enum, default_value = "quadtree")]
+    pub mesh: MeshMethod,
+    /// Element order on a uniform or discontinuity mesh: 0 constant, 1 linear / bilinear.
+    #[arg(long, default_value_t = 0)]
+    pub order: u32,
+    /// With --order 1: one value per mesh vertex, shared by the elements around it.
+    #[arg(long)]
+    pub continuous: bool,
+    /// How the solution is drawn: flat (element values), gouraud (vertex averages) or nodal
+    /// (the element's own p = 1 function; needs --order 1).
+    #[arg(long, value_enum, default_value = "gouraud")]
+    pub reconstruction: DisplayReconstruction,
 }
 
 impl Args {
@@ -89,7 +109,43 @@ impl Args {
             history: false,
             replay: None,
             depth_cut: None,
+            mesh: MeshMethod::Quadtree,
+            order: 0,
+            continuous: false,
+            reconstruction: DisplayReconstruction::Gouraud,
         }
+    }
+
+    /// The mesh settings the flags ask for (`None`: the quadtree), or why they cannot be used.
+    pub fn mesh_params(&self) -> anyhow::Result<Option<radlab::solver::meshed::MeshSolveParams>> {
+        use radlab::basis::Order;
+        use radlab::solver::meshed::MeshSolveParams;
+        let Some(order) = Order::from_degree(self.order) else {
+            anyhow::bail!(
+                "--order {}: supported orders are 0 (constant) and 1 (linear / bilinear)",
+                self.order
+            );
+        };
+        let nodal = self.reconstruction == DisplayReconstruction::Nodal;
+        if self.mesh == MeshMethod::Quadtree {
+            if order != Order::Constant || self.continuous {
+                anyhow::bail!(
+                    "--order 1 and --continuous need --mesh uniform|discontinuity-cdt|discontinuity-bsp (the quadtree's elements are constant)"
+                );
+            }
+            if nodal {
+                anyhow::bail!(
+                    "--reconstruction nodal draws p = 1 elements: it needs --mesh uniform|discontinuity-cdt|discontinuity-bsp and --order 1"
+                );
+            }
+            return Ok(None);
+        }
+        if nodal && order == Order::Constant {
+            anyhow::bail!("--reconstruction nodal draws p = 1 elements: it needs --order 1");
+        }
+        let p = MeshSolveParams { order, continuous: self.continuous, ..MeshSolveParams::new(self.mesh) };
+        p.validate().map_err(|e| anyhow::anyhow!("--mesh {}: {e}", self.mesh.name()))?;
+        Ok(Some(p))
     }
 }
 
@@ -116,6 +172,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::bail!("--bench-frames must be at least 1");
     }
     let figure = args.figure.as_deref().map(radlab::figures::find).transpose()?;
+    let mesh = args.mesh_params()?;
     let overlay = args
         .overlay
         .iter()
@@ -124,6 +181,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Overlay::Quadtree => OverlayChoice::Quadtree,
             Overlay::Links => OverlayChoice::Links,
             Overlay::Error => OverlayChoice::Error,
+            Overlay::Critical => OverlayChoice::Critical,
+            Overlay::Artifacts => OverlayChoice::Artifacts,
         })
         .collect();
     radlab::viewer::run(ViewerOptions {
@@ -141,6 +200,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         show_history: args.history,
         replay: args.replay,
         depth_cut: args.depth_cut,
+        mesh,
+        reconstruction: Some(args.reconstruction),
         ..ViewerOptions::default()
     })?;
     Ok(())
@@ -151,5 +212,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(name) = &args.figure {
         radlab::figures::find(name)?;
     }
+    args.mesh_params()?;
     anyhow::bail!("this radlab was built without the viewer (feature `gui`); use `radlab solve SCENE`")
 }

@@ -32,6 +32,10 @@ pub enum MeshColors<'a> {
     Smooth,
     /// A display colour per element id (error heatmap); the shader's mode must be 1.
     Display(&'a [[f32; 3]]),
+    /// Each element's own p = 1 function: its vertex values (indexed like `elements`, in vertex
+    /// order; one value: constant) interpolated with its basis ([`crate::basis`]) at every
+    /// boundary point, so T-vertices take the element's own value there.
+    Nodal(&'a [Vec<Rgb>]),
 }
 
 /// An indexed triangle list.
@@ -77,16 +81,23 @@ pub fn mesh(elements: &[ElementView], leaves: &[u32], colors: MeshColors<'_>, or
         let quad = e.n_vertices == 4;
         let boundary = field.boundary(e);
         let element_color = match colors {
-            MeshColors::Flat | MeshColors::Smooth => rgb(e.radiosity),
+            MeshColors::Flat | MeshColors::Smooth | MeshColors::Nodal(_) => rgb(e.radiosity),
             MeshColors::Display(c) => c.get(l as usize).copied().unwrap_or([0.0; 3]),
         };
         let line_color = line_rgba8(depth_color(e.depth), quad);
         let base = out.vertices.len() as u32;
         let mut push = |p: &BoundaryPoint| {
+            let color = match colors {
+                MeshColors::Smooth => rgb(p.value),
+                MeshColors::Nodal(c) => {
+                    c.get(l as usize).map_or(element_color, |c| rgb(nodal_value(c, quad, p.uv)))
+                }
+                MeshColors::Flat | MeshColors::Display(_) => element_color,
+            };
             out.vertices.push(MeshVertex {
                 position: local(p.position, origin),
                 element: e.id,
-                color: if matches!(colors, MeshColors::Smooth) { rgb(p.value) } else { element_color },
+                color,
                 uv: [p.uv[0] as f32, p.uv[1] as f32],
                 line_color,
             });
@@ -116,6 +127,18 @@ pub fn mesh(elements: &[ElementView], leaves: &[u32], colors: MeshColors<'_>, or
         }
     }
     out
+}
+
+/// An element's p = 1 function at a point of its parameter square (`uv` as
+/// [`BoundaryPoint::uv`]): the vertex values weighted by the basis; one value is a constant.
+fn nodal_value(coefficients: &[Rgb], quad: bool, uv: [f64; 2]) -> Rgb {
+    use crate::basis::{Local, Order, values};
+    let n = if quad { 4 } else { 3 };
+    if coefficients.len() != n {
+        return coefficients.first().copied().unwrap_or(Rgb::ZERO);
+    }
+    let phi = values(Order::Linear, n, Local(uv[0], uv[1]));
+    coefficients.iter().zip(phi).map(|(c, w)| *c * w).sum()
 }
 
 /// Line vertices of a [`LineList`].
@@ -168,6 +191,20 @@ mod tests {
         assert_eq!(m.vertices[2].line_color[3], 0, "marked as a triangle");
         let d = [[0.1, 0.2, 0.3]];
         assert_eq!(mesh(&els, &[0], MeshColors::Display(&d), DVec3::ZERO).vertices[2].color, d[0]);
+    }
+
+    #[test]
+    fn nodal_colours_are_the_elements_own_vertex_values() {
+        let els = vec![quad(0, 0, 0.0, 0.0, 1.0, 2.0)];
+        let values: Vec<Vec<Rgb>> = vec![(1..=4).map(|k| Rgb::splat(f64::from(k))).collect()];
+        let m = mesh(&els, &[0], MeshColors::Nodal(&values), DVec3::ZERO);
+        let colours: Vec<f32> = m.vertices.iter().map(|v| v.color[0]).collect();
+        assert_eq!(colours, [1.0, 2.0, 3.0, 4.0], "each corner its own value, not the average 2");
+        // One value: a constant element.
+        let m = mesh(&els, &[0], MeshColors::Nodal(&[vec![Rgb::splat(5.0)]]), DVec3::ZERO);
+        assert!(m.vertices.iter().all(|v| v.color == [5.0; 3]));
+        // Inside: bilinear.
+        assert_eq!(nodal_value(&values[0], true, [0.5, 0.5]), Rgb::splat(2.5));
     }
 
     #[test]

@@ -65,6 +65,9 @@ pub struct Geometry {
     pub links: Vec<LineVertex>,
     /// Draw links over everything (x-ray) instead of depth-testing them.
     pub links_xray: bool,
+    /// Overlay lines on the surfaces (critical edges, artifact samples), always depth-tested
+    /// ([`crate::mesh_overlay`] lifts them off their surface).
+    pub overlay: Vec<LineVertex>,
 }
 
 /// Per-frame settings of one render (the background colour is `uniforms.background`).
@@ -107,6 +110,7 @@ struct Slot {
     mesh_indices: Option<GpuBuffer>,
     links: Option<GpuBuffer>,
     links_xray: bool,
+    overlay: Option<GpuBuffer>,
     target: Option<Target>,
     /// Generation of the uploaded geometry (see [`ViewportCallback`]).
     generation: u64,
@@ -134,6 +138,7 @@ impl Slot {
             mesh_indices: None,
             links: None,
             links_xray: false,
+            overlay: None,
             target: None,
             generation: u64::MAX,
             drawn: None,
@@ -426,6 +431,7 @@ impl SceneRenderer {
         s.mesh_indices = upload(device, "radlab mesh indices", &geometry.mesh.indices, index);
         s.links = upload(device, "radlab links", &geometry.links, vertex);
         s.links_xray = geometry.links_xray;
+        s.overlay = upload(device, "radlab overlay lines", &geometry.overlay, vertex);
         s.drawn = None;
     }
 
@@ -593,7 +599,8 @@ impl SceneRenderer {
     }
 }
 
-/// Draw one view: the mesh, then (without a clear behind it) the background, then the link lines.
+/// Draw one view: the mesh, then (without a clear behind it) the background, then the link lines
+/// and the overlay lines.
 fn draw(s: &Slot, pass: &mut wgpu::RenderPass<'_>, pipelines: &ScenePipelines, background: bool) {
     pass.set_bind_group(0, &s.uniform_group, &[]);
     if let (Some(m), Some(i)) = (&s.mesh, &s.mesh_indices) {
@@ -610,6 +617,11 @@ fn draw(s: &Slot, pass: &mut wgpu::RenderPass<'_>, pipelines: &ScenePipelines, b
         pass.set_pipeline(if s.links_xray { &pipelines.xray } else { &pipelines.lines });
         pass.set_vertex_buffer(0, l.buffer.slice(..));
         pass.draw(0..l.count, 0..1);
+    }
+    if let Some(o) = &s.overlay {
+        pass.set_pipeline(&pipelines.lines);
+        pass.set_vertex_buffer(0, o.buffer.slice(..));
+        pass.draw(0..o.count, 0..1);
     }
 }
 

@@ -12,6 +12,8 @@
 //!   reported on the input scene's patches.
 //! - [`linear`]: Galerkin radiosity with p = 0 or p = 1 elements (linear / bilinear),
 //!   discontinuous or continuous, mass matrix on the left [Zatz 1993; Troutman & Max 1993].
+//! - [`meshed`]: one entry for the uniform and discontinuity meshes at p = 0 or 1 (the viewer's
+//!   mesh choice), with the display reconstructions' names.
 //!
 //! Every solver returns a [`Solution`]: leaf elements with geometry and radiosity, per-patch
 //! area-weighted radiosity, the energy balance and statistics. The CLI's JSON, the PNG renderer,
@@ -20,6 +22,7 @@
 pub mod discontinuity;
 pub mod hierarchical;
 pub mod linear;
+pub mod meshed;
 /// The hierarchical solver's own error estimate (kept at its old path).
 pub use hierarchical::estimate;
 pub mod params;

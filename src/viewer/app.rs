@@ -5,6 +5,7 @@
 //! an immutable `Arc<ViewData>` after each step; GPU geometry is rebuilt from those only when
 //! one of them changes.
 
+use super::artifacts::{ArtifactThread, Measured};
 use super::bench::FrameBench;
 use super::builder::{self, Builder, Built, Coloring};
 use super::camera::OrbitCamera;
@@ -21,6 +22,7 @@ use super::view::View;
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
+use crate::mesh_overlay::Artifact;
 use crate::overlay::{self, Decimation, Highlight, LinkFilter, LogScale, Palette};
 use crate::render::{
     FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, RgbaImage, SceneRenderer,
@@ -28,6 +30,7 @@ use crate::render::{
 };
 use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
+use crate::solver::meshed::{DisplayReconstruction, MeshMethod, MeshSolveParams};
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
 use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
 use eframe::egui_wgpu;
@@ -44,6 +47,10 @@ pub enum OverlayChoice {
     Quadtree,
     Links,
     Error,
+    /// The critical edges (D0/D1/D2 segments).
+    Critical,
+    /// The five artifacts' marked samples.
+    Artifacts,
 }
 
 /// How the viewer starts.
@@ -86,6 +93,10 @@ pub struct ViewerOptions {
     pub replay: Option<usize>,
     /// Cut the quadtrees at this depth in the refinement replay.
     pub depth_cut: Option<u8>,
+    /// The mesh solved on (`None`: the quadtree, the hierarchical solver).
+    pub mesh: Option<MeshSolveParams>,
+    /// How the solution is drawn (`None`: Gouraud).
+    pub reconstruction: Option<DisplayReconstruction>,
 }
 
 impl Default for ViewerOptions {
@@ -108,15 +119,32 @@ impl Default for ViewerOptions {
             show_history: false,
             replay: None,
             depth_cut: None,
+            mesh: None,
+            reconstruction: None,
         }
     }
 }
 
-/// Shading of the radiosity mesh.
+/// Shading of the radiosity mesh (the display reconstruction).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Shading {
     Flat,
+    /// Gouraud from vertex averages.
     Smooth,
+    /// The element's own p = 1 function (a p = 1 mesh solve's vertex values).
+    Nodal,
+}
+
+impl Shading {
+    /// The shading that draws a display reconstruction.
+    #[must_use]
+    pub fn of(r: DisplayReconstruction) -> Shading {
+        match r {
+            DisplayReconstruction::Flat => Shading::Flat,
+            DisplayReconstruction::Gouraud => Shading::Smooth,
+            DisplayReconstruction::Nodal => Shading::Nodal,
+        }
+    }
 }
 
 /// What is shown (no solver state).
@@ -131,6 +159,10 @@ pub struct Display {
     pub quadtree: bool,
     pub links: bool,
     pub error: bool,
+    /// The critical edges: every receiver's D0/D1/D2 segments, coloured by kind.
+    pub critical: bool,
+    /// An artifact overlay (measured against the best reference there is).
+    pub artifact: Option<Artifact>,
     pub link_filter: LinkFilter,
     /// Links of the picked element only.
     pub selected_links_only: bool,
@@ -148,6 +180,8 @@ impl Default for Display {
             quadtree: false,
             links: false,
             error: false,
+            critical: false,
+            artifact: None,
             link_filter: LinkFilter::default(),
             selected_links_only: false,
             links_xray: false,
@@ -193,6 +227,9 @@ enum Script {
 /// Frames drawn before `--bench-frames` starts measuring: the first uploads the geometry.
 const BENCH_WARMUP_FRAMES: usize = 3;
 
+/// The progress line's label while a mesh solve runs.
+const MESH_SOLVE_LABEL: &str = "solving on the mesh";
+
 /// BFeps the viewer starts the error oracle at (relative to the mean reflected radiosity):
 /// table-room converges to 15 % pointwise in 0.4 s there, 5 % at 0.05 in 3 s (README).
 const ERROR_ORACLE_START_EPS: f64 = 0.1;
@@ -207,6 +244,9 @@ pub struct RadlabApp {
     errors: Vec<String>,
     params: HierarchicalParams,
     preset: String,
+    /// The mesh solved on: `method` [`MeshMethod::Quadtree`] is the hierarchical solver (with
+    /// `params`), anything else a mesh solve with these settings.
+    mesh: MeshSolveParams,
     worker: Option<Worker>,
     progress: Option<(u64, u64)>,
     busy_label: String,
@@ -269,6 +309,17 @@ pub struct RadlabApp {
     /// Cached inspector rows: (view_seq, element, rows).
     inspector_rows: Option<(u64, u32, Arc<Vec<LinkRow>>)>,
     link_stats: (usize, usize),
+    /// The artifact measurements' thread, and its newest answer: (state measured, with a
+    /// reference, the measurement or why not).
+    artifact_thread: Option<ArtifactThread>,
+    artifacts: Option<(u64, bool, Result<Measured, String>)>,
+    /// The (state, with a reference) of the newest job sent, and its number.
+    artifact_job: Option<(u64, bool)>,
+    artifact_seq: u64,
+    /// The scene's Monte Carlo reference as flat leaves (once the reference thread has it).
+    reference_view: Option<Arc<ViewData>>,
+    /// The critical edges drawn, by kind (from the last build).
+    critical_counts: Option<crate::mesh::discontinuity::SegmentCounts>,
     link_scale: Option<LogScale>,
     error_scale: Option<LogScale>,
     pub selected: Option<u32>,
@@ -334,6 +385,8 @@ struct BuildKey {
     view_seq: u64,
     /// Address of the true-error list (`Arc` identity), if any.
     true_error: Option<usize>,
+    /// The artifact overlay drawn and the address of its samples (`Arc` identity), if any.
+    artifacts: Option<(Artifact, usize)>,
     settings: builder::Settings,
 }
 
@@ -368,6 +421,7 @@ impl RadlabApp {
             errors: Vec::new(),
             params: HierarchicalParams::preset(&preset).unwrap_or_else(HierarchicalParams::interactive),
             preset,
+            mesh: opts.mesh.unwrap_or(MeshSolveParams::new(MeshMethod::Quadtree)),
             worker: None,
             progress: None,
             busy_label: String::new(),
@@ -412,6 +466,12 @@ impl RadlabApp {
             ref_state: RefState::None,
             evaluated_seq: 0,
             link_stats: (0, 0),
+            critical_counts: None,
+            artifact_thread: None,
+            artifacts: None,
+            artifact_job: None,
+            artifact_seq: 0,
+            reference_view: None,
             link_scale: None,
             error_scale: None,
             selected: None,
@@ -442,6 +502,11 @@ impl RadlabApp {
         // Without the display thread the geometry is built on the UI thread (slower, correct).
         app.builder = display_builder.ok();
         let ctx = cc.egui_ctx.clone();
+        match ArtifactThread::spawn(move || ctx.request_repaint()) {
+            Ok(t) => app.artifact_thread = Some(t),
+            Err(e) => app.errors.push(e),
+        }
+        let ctx = cc.egui_ctx.clone();
         match RefThread::spawn(app.opts.reference.clone(), move || ctx.request_repaint()) {
             Ok(t) => app.reference = Some(t),
             Err(e) => app.errors.push(e),
@@ -456,12 +521,17 @@ impl RadlabApp {
             app.replay.start_at = Some(frame);
         }
         app.replay.depth = app.opts.depth_cut;
+        if let Some(r) = app.opts.reconstruction {
+            app.display.shading = Shading::of(r);
+        }
         for o in &app.opts.overlay {
             match o {
                 OverlayChoice::None => {}
                 OverlayChoice::Quadtree => app.display.quadtree = true,
                 OverlayChoice::Links => app.display.links = true,
                 OverlayChoice::Error => app.display.error = true,
+                OverlayChoice::Critical => app.display.critical = true,
+                OverlayChoice::Artifacts => app.display.artifact = Some(Artifact::All),
             }
         }
         if app.opts.screenshot.is_some() || app.opts.bench_frames.is_some() {
@@ -480,15 +550,22 @@ impl RadlabApp {
     /// Open a lecture figure: its settings, overlays and camera, then its scene, on which the
     /// figure's solves (BFeps sweep) and steps run; the caption panel shows its caption.
     pub fn open_figure(&mut self, f: &'static Figure) {
+        // A split figure's split view does not outlive it.
+        if self.lecture.figure().is_some_and(|p| p.split) && !f.split {
+            self.split.on = false;
+        }
         self.preset = f.preset.to_owned();
         // Not `set_params`: the load below starts a solver with these.
         self.params = f.params;
+        self.mesh = f.mesh;
         let o = f.overlays;
         let d = &mut self.display;
         d.quadtree = o.quadtree;
         d.links = o.links;
         d.error = o.error;
-        d.shading = if o.flat { Shading::Flat } else { Shading::Smooth };
+        d.critical = o.critical;
+        d.artifact = o.artifact;
+        d.shading = if o.flat { Shading::Flat } else { Shading::of(f.reconstruction) };
         d.link_filter = LinkFilter { full: !o.partial_links_only, ..LinkFilter::default() };
         d.selected_links_only = false;
         self.show_plots = f.plots;
@@ -508,8 +585,16 @@ impl RadlabApp {
         if !f.sweep_bf_eps.is_empty() {
             self.send(Command::SetParams(f.params), "restarting");
         }
+        for &m in f.mesh_sweep {
+            self.send(Command::SolveMesh(m), MESH_SOLVE_LABEL);
+        }
         for &k in f.steps {
             self.step(k);
+        }
+        if f.split {
+            self.split.on = true;
+            self.split.panes = 2;
+            self.replay.on = false;
         }
         let c = f.camera;
         self.camera = self.home;
@@ -581,6 +666,9 @@ impl RadlabApp {
         self.true_error = None;
         self.error_samples.clear();
         self.last_report = None;
+        self.reference_view = None;
+        self.artifacts = None;
+        self.artifact_job = None;
         if let Some(r) = &mut self.reference {
             r.load(Arc::clone(&scene), false);
             self.ref_state = RefState::Looking;
@@ -594,7 +682,7 @@ impl RadlabApp {
         self.send(Command::Load { scene, params }, "loading");
         self.loading = self.worker.is_some();
         if self.opts.solve_on_start {
-            self.send(Command::Step(StepKind::Solve), "solving");
+            self.step(StepKind::Solve);
         }
     }
 
@@ -677,8 +765,17 @@ impl RadlabApp {
         }
     }
 
-    /// Run a solver step (as the buttons do).
+    /// Run a solver step (as the buttons do). On a mesh other than the quadtree, Solve is the
+    /// mesh solve and the hierarchical steps are refused (a status line says so).
     pub fn step(&mut self, kind: StepKind) {
+        if self.mesh.method != MeshMethod::Quadtree {
+            if kind == StepKind::Solve {
+                self.send(Command::SolveMesh(self.mesh), MESH_SOLVE_LABEL);
+            } else {
+                self.status = format!("{kind:?} steps the quadtree: pick the quadtree mesh first");
+            }
+            return;
+        }
         let label = match kind {
             StepKind::Refine => "refining",
             StepKind::Gather => "gathering",
@@ -712,6 +809,94 @@ impl RadlabApp {
         }
     }
 
+    /// The mesh solved on and its settings.
+    #[must_use]
+    pub fn mesh(&self) -> MeshSolveParams {
+        self.mesh
+    }
+
+    /// Solve on another mesh (or order): re-solve at once with auto-run, keeping the last
+    /// picture until the new one comes. Bad settings are shown, not applied.
+    pub fn set_mesh(&mut self, m: MeshSolveParams) {
+        if m == self.mesh {
+            return;
+        }
+        if m.method != MeshMethod::Quadtree
+            && let Err(e) = m.validate()
+        {
+            self.errors.push(e);
+            return;
+        }
+        self.mesh = m;
+        if self.auto_run && self.scene.is_some() {
+            self.resolve_pending = true;
+        }
+    }
+
+    /// The artifact overlay to draw and its samples, when they were measured on the state shown.
+    fn artifact_samples(&self) -> Option<(Artifact, Arc<crate::artifacts::ArtifactSamples>)> {
+        let which = self.display.artifact?;
+        match &self.artifacts {
+            Some((seq, _, Ok(m))) if *seq == self.view_seq => Some((which, Arc::clone(&m.samples))),
+            _ => None,
+        }
+    }
+
+    /// The newest artifact measurement of the state shown (`None`: not asked, or not answered
+    /// yet), or why there is none.
+    #[must_use]
+    pub fn artifacts(&self) -> Option<&Result<Measured, String>> {
+        match &self.artifacts {
+            Some((seq, _, r)) if *seq == self.view_seq => Some(r),
+            _ => None,
+        }
+    }
+
+    /// Ask the artifacts thread to measure the state shown, once per state and reference (only
+    /// while an artifact overlay is on, and not a solve's intermediate picture).
+    fn request_artifacts(&mut self) {
+        if self.display.artifact.is_none() || self.view.elements.is_empty() || self.busy() || self.loading {
+            return;
+        }
+        let key = (self.view_seq, self.reference_view.is_some());
+        if self.artifact_job == Some(key) {
+            return;
+        }
+        let (Some(t), Some(scene)) = (&mut self.artifact_thread, &self.scene) else { return };
+        self.artifact_seq += 1;
+        t.request(super::artifacts::Job {
+            seq: self.artifact_seq,
+            scene: Arc::clone(scene),
+            view: Arc::clone(&self.view),
+            reference: self.reference_view.clone(),
+        });
+        self.artifact_job = Some(key);
+    }
+
+    /// Pick up the artifacts thread's answer (`wait`: block for it; tests, scripted runs).
+    fn poll_artifacts(&mut self, wait: bool) {
+        let Some(t) = &mut self.artifact_thread else { return };
+        let reply = if wait { t.wait() } else { t.poll() };
+        if let Some(r) = reply
+            && r.seq == self.artifact_seq
+            && let Some((view_seq, with_ref)) = self.artifact_job
+        {
+            self.artifacts = Some((view_seq, with_ref, r.result));
+        }
+    }
+
+    /// The critical edges drawn by kind (`None` while the overlay is off or not built yet).
+    #[must_use]
+    pub fn critical_counts(&self) -> Option<crate::mesh::discontinuity::SegmentCounts> {
+        self.critical_counts.filter(|_| self.display.critical)
+    }
+
+    /// True when the state shown is a mesh solve (not the quadtree's).
+    #[must_use]
+    pub fn mesh_view(&self) -> bool {
+        self.view.mesh.is_some()
+    }
+
     /// Block until the solver thread is idle and apply its replies, then until the reference
     /// thread has scored the result, then until the display is built (tests, scripted runs).
     pub fn wait_for_solver(&mut self) {
@@ -733,6 +918,8 @@ impl RadlabApp {
                 self.apply_ref(r);
             }
         }
+        self.request_artifacts();
+        self.poll_artifacts(true);
         self.request_geometry();
         if let Some(b) = self.builder.as_mut().and_then(Builder::wait) {
             self.apply_built(b);
@@ -799,6 +986,9 @@ impl RadlabApp {
                         && let Some(frames) = self.replay_frames.take()
                     {
                         self.replay.set_frames(frames, Arc::clone(&self.view));
+                    } else if self.view.mesh.is_some() {
+                        // A mesh solve has no rounds: the replay of an earlier solve is stale.
+                        self.replay.clear();
                     }
                     if rep.kind == StepKind::Solve && !rep.cancelled {
                         let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
@@ -917,6 +1107,7 @@ impl RadlabApp {
                 self.status = "reference computation cancelled".into();
             }
             RefReply::Solution { source, view } if current(&source, self) => {
+                self.reference_view = Some(Arc::clone(&view));
                 let samples = self.opts.reference.params.samples;
                 let name = self.scene_name().to_owned();
                 self.history.record_reference(&name, samples, view);
@@ -971,6 +1162,15 @@ impl RadlabApp {
         let busy = self.busy();
         let elapsed = self.busy_since.map_or(0.0, |t| t.elapsed().as_secs_f64());
         let (fraction, text) = match (busy, self.progress) {
+            // A mesh solve counts element pairs, not rounds.
+            (true, Some((done, total))) if self.busy_label == MESH_SOLVE_LABEL => (
+                done as f32 / total.max(1) as f32,
+                format!(
+                    "{} · {:.0} % of the pairs · {elapsed:.1} s (cannot be cancelled)",
+                    self.busy_label,
+                    100.0 * done as f64 / total.max(1) as f64
+                ),
+            ),
             (true, Some((done, total))) => (
                 done as f32 / total.max(1) as f32,
                 format!("{} · round {} of {total} · {elapsed:.1} s", self.busy_label, (done + 1).min(total)),
@@ -1075,6 +1275,13 @@ impl RadlabApp {
         self.true_error.as_ref().filter(|e| e.len() == self.view.elements.len())
     }
 
+    /// The error heatmap has something to show: the solver's estimate (quadtree), or the true
+    /// error against a reference (any mesh; a mesh solve has no estimate of its own).
+    #[must_use]
+    pub fn error_applies(&self) -> bool {
+        !self.mesh_view() || self.true_error().is_some()
+    }
+
     /// What the error heatmap shows.
     #[must_use]
     pub fn error_label(&self) -> &'static str {
@@ -1092,7 +1299,8 @@ impl RadlabApp {
     /// What the display settings ask of a geometry build (the split view's panes use them too).
     fn build_settings(&self) -> builder::Settings {
         let d = &self.display;
-        let show_links = d.links || (self.selected.is_some() && d.selected_links_only);
+        let mesh_view = self.mesh_view();
+        let show_links = !mesh_view && (d.links || (self.selected.is_some() && d.selected_links_only));
         let links = show_links.then(|| {
             let mut filter = d.link_filter;
             filter.element = if d.selected_links_only {
@@ -1104,18 +1312,21 @@ impl RadlabApp {
             filter
         });
         builder::Settings {
-            coloring: if d.error {
+            coloring: if d.error && self.error_applies() {
                 Coloring::Error
-            } else if d.shading == Shading::Smooth {
-                Coloring::Smooth
             } else {
-                Coloring::Flat
+                match d.shading {
+                    Shading::Smooth => Coloring::Smooth,
+                    Shading::Flat => Coloring::Flat,
+                    Shading::Nodal => Coloring::Nodal,
+                }
             },
             links,
             link_alpha: d.link_alpha,
             links_xray: d.links_xray,
             origin: self.origin,
             depth_limit: None,
+            critical: d.critical,
         }
     }
 
@@ -1127,6 +1338,7 @@ impl RadlabApp {
         let key = BuildKey {
             view_seq: self.view_seq,
             true_error: self.true_error().map(|e| Arc::as_ptr(e) as usize),
+            artifacts: self.artifact_samples().map(|(a, s)| (a, Arc::as_ptr(&s) as usize)),
             settings,
         };
         if self.build_key.as_ref() == Some(&key) {
@@ -1139,6 +1351,8 @@ impl RadlabApp {
             view_seq: self.view_seq,
             true_error: self.true_error().cloned(),
             settings,
+            scene: self.scene.clone(),
+            artifacts: self.artifact_samples(),
         };
         self.build_key = Some(key);
         match &mut self.builder {
@@ -1164,6 +1378,7 @@ impl RadlabApp {
         self.geometry = b.geometry;
         self.generation += 1;
         self.link_stats = b.link_stats;
+        self.critical_counts = b.critical;
         self.link_scale = b.link_scale;
         self.error_scale = b.error_scale;
         self.rebuild_s = b.build_s;
@@ -1187,7 +1402,7 @@ impl RadlabApp {
             view_proj: m.map(|c| c.map(|x| x as f32)),
             exposure: 2f32.powf(self.display.exposure_ev),
             tone: u32::from(self.display.srgb),
-            mode: u32::from(self.display.error),
+            mode: u32::from(self.display.error && self.error_applies()),
             selected: self.selected.unwrap_or(NO_SELECTION),
             back_color: BACK_COLOR,
             overlay: if self.display.quadtree { OVERLAY_QUADTREE } else { 0 }
@@ -1251,6 +1466,7 @@ impl RadlabApp {
                 "Convergence plots under the inspector: residual per gather, links against elements \
                  (one point per solve), error against solver time",
             );
+            self.mesh_menu(ui);
             ui.separator();
             let name = self.scene.as_ref().map_or("(no scene)".to_owned(), |s| s.name.clone());
             ui.label(egui::RichText::new(name).strong());
@@ -1299,9 +1515,129 @@ impl RadlabApp {
         .on_hover_text("Split view, run history and refinement replay: compare solves, watch one form");
     }
 
+    /// The Mesh menu of the top bar: the mesh, and the settings of a solve on a uniform or
+    /// discontinuity mesh (greyed out on the quadtree, whose settings are the Solver panel's).
+    fn mesh_menu(&mut self, ui: &mut egui::Ui) {
+        let title = match self.mesh.method {
+            MeshMethod::Quadtree => "Mesh: quadtree".to_owned(),
+            _ => format!("Mesh: {}", self.mesh.label()),
+        };
+        ui.menu_button(title, |ui| self.mesh_controls(ui)).response.on_hover_text(
+            "What the solution is computed on: the hierarchical quadtree, a uniform mesh, or a \
+             discontinuity mesh whose edges follow the shadow boundaries; element order p = 0 / 1",
+        );
+    }
+
+    fn mesh_controls(&mut self, ui: &mut egui::Ui) {
+        let mut m = self.mesh;
+        for method in MeshMethod::ALL {
+            ui.radio_value(&mut m.method, method, method.name()).on_hover_text(method.description());
+        }
+        ui.separator();
+        let on_mesh = m.method != MeshMethod::Quadtree;
+        ui.add_enabled_ui(on_mesh, |ui| {
+            ui.horizontal(|ui| {
+                ui.label("order");
+                ui.selectable_value(&mut m.order, crate::basis::Order::Constant, "p = 0")
+                    .on_hover_text("Constant elements: one value each")
+                    .on_disabled_hover_text("The quadtree's elements are constant (p = 0)");
+                ui.selectable_value(&mut m.order, crate::basis::Order::Linear, "p = 1")
+                    .on_hover_text(
+                        "Linear (triangles) / bilinear (quads) elements, a Galerkin solve of their \
+                         vertex values: follows a smooth ramp inside an element, but 20-60 times \
+                         slower than p = 0 (a minute or more on table-room; a mesh solve cannot be \
+                         cancelled)",
+                    )
+                    .on_disabled_hover_text("p = 1 exists on the uniform and discontinuity meshes");
+            });
+            ui.add_enabled_ui(m.order == crate::basis::Order::Linear, |ui| {
+                ui.horizontal(|ui| {
+                    ui.selectable_value(&mut m.continuous, false, "discontinuous").on_hover_text(
+                        "Each element its own vertex values: jumps can remain at element edges",
+                    );
+                    ui.selectable_value(&mut m.continuous, true, "continuous").on_hover_text(
+                        "One value per mesh vertex, shared by the elements around it: no jumps, \
+                         fewer unknowns",
+                    );
+                })
+                .response
+                .on_disabled_hover_text("Continuity applies to p = 1 elements");
+            });
+            ui.add_enabled_ui(m.method == MeshMethod::Uniform, |ui| {
+                log_slider(
+                    ui,
+                    "size",
+                    &mut m.element_size_rel,
+                    1e-3,
+                    1.0,
+                    "Uniform mesh: longest element side, as a fraction of the scene's diagonal",
+                );
+            });
+            ui.add_enabled_ui(m.method == MeshMethod::DiscontinuityCdt, |ui| {
+                ui.add(
+                    egui::Slider::new(&mut m.cdt_min_angle_deg, 0.0..=30.0)
+                        .step_by(5.0)
+                        .text("CDT min angle"),
+                )
+                .on_hover_text(
+                    "Delaunay refinement of the constrained triangulation to this smallest angle \
+                         (degrees; 0: the constraints' triangulation as it is, fewest elements)",
+                );
+            });
+            ui.add(egui::Slider::new(&mut m.rays, 1..=64).logarithmic(true).text("rays / pair"))
+                .on_hover_text("Shadow rays per element pair (the visible fraction)");
+        })
+        .response
+        .on_disabled_hover_text("Mesh settings: pick a uniform or discontinuity mesh above");
+        if m != self.mesh {
+            self.set_mesh(m);
+        }
+    }
+
     fn controls(&mut self, ui: &mut egui::Ui) {
         let busy = self.busy();
         ui.heading("Solver");
+        let quadtree = self.mesh.method == MeshMethod::Quadtree;
+        ui.add_enabled_ui(quadtree, |ui| self.quadtree_controls(ui))
+            .response
+            .on_disabled_hover_text("The hierarchical solver's settings: pick the quadtree mesh to use them");
+        let mesh_tip = "Steps the quadtree; on this mesh only Solve runs (the whole mesh solve)";
+        ui.separator();
+        ui.horizontal_wrapped(|ui| {
+            for (label, kind, tip) in [
+                (
+                    "Refine step",
+                    StepKind::Refine,
+                    "Initial linking, then the oracle over the existing links (Space)",
+                ),
+                ("Gather step", StepKind::Gather, "One Jacobi gather over all links (G)"),
+                ("Push-pull", StepKind::PushPull, "Push gathered irradiance down, pull radiosity up (P)"),
+                ("Iterate", StepKind::Iterate, "Refine + gather + push-pull (I)"),
+                ("Solve", StepKind::Solve, "The HSA91 loop until converged, or the mesh solve (S)"),
+            ] {
+                let enabled = !busy && (quadtree || kind == StepKind::Solve);
+                if ui
+                    .add_enabled(enabled, egui::Button::new(label))
+                    .on_hover_text(tip)
+                    .on_disabled_hover_text(if busy { "The solver is busy" } else { mesh_tip })
+                    .clicked()
+                {
+                    self.step(kind);
+                }
+            }
+            if ui
+                .add_enabled(!busy && quadtree, egui::Button::new("Reset"))
+                .on_hover_text("Back to the input patches")
+                .clicked()
+            {
+                self.send(Command::Reset, "resetting");
+            }
+        });
+        self.controls_below(ui);
+    }
+
+    /// The hierarchical solver's settings (preset, oracle, thresholds).
+    fn quadtree_controls(&mut self, ui: &mut egui::Ui) {
         let mut p = self.params;
         egui::ComboBox::from_label("preset")
             .selected_text(&self.preset)
@@ -1368,32 +1704,11 @@ impl RadlabApp {
         if p != self.params {
             self.set_params(p);
         }
+    }
 
-        ui.separator();
-        ui.horizontal_wrapped(|ui| {
-            for (label, kind, tip) in [
-                (
-                    "Refine step",
-                    StepKind::Refine,
-                    "Initial linking, then the oracle over the existing links (Space)",
-                ),
-                ("Gather step", StepKind::Gather, "One Jacobi gather over all links (G)"),
-                ("Push-pull", StepKind::PushPull, "Push gathered irradiance down, pull radiosity up (P)"),
-                ("Iterate", StepKind::Iterate, "Refine + gather + push-pull (I)"),
-                ("Solve", StepKind::Solve, "The HSA91 loop until converged (S)"),
-            ] {
-                if ui.add_enabled(!busy, egui::Button::new(label)).on_hover_text(tip).clicked() {
-                    self.step(kind);
-                }
-            }
-            if ui
-                .add_enabled(!busy, egui::Button::new("Reset"))
-                .on_hover_text("Back to the input patches")
-                .clicked()
-            {
-                self.send(Command::Reset, "resetting");
-            }
-        });
+    /// Auto-run and Cancel, the progress line, the reference, display and overlays.
+    fn controls_below(&mut self, ui: &mut egui::Ui) {
+        let busy = self.busy();
         ui.horizontal(|ui| {
             ui.checkbox(&mut self.auto_run, "auto-run").on_hover_text(
                 "Re-solve whenever a parameter changes; the last picture stays until the new one is \
@@ -1418,14 +1733,31 @@ impl RadlabApp {
 
         ui.separator();
         ui.heading("Display");
+        let mesh_view = self.mesh_view();
+        let has_p1 = self.view.mesh.as_ref().is_some_and(|m| m.coefficients.is_some());
+        let error_applies = self.error_applies();
         let d = &mut self.display;
         ui.horizontal(|ui| {
             ui.selectable_value(&mut d.shading, Shading::Flat, "flat")
-                .on_hover_text("Each element one colour: the mesh's resolution shows");
-            ui.selectable_value(&mut d.shading, Shading::Smooth, "smooth").on_hover_text(
-                "Gouraud from vertex averages; T-vertices take their big neighbour's edge value",
+                .on_hover_text("Each element one colour (its average): the mesh's resolution shows");
+            ui.selectable_value(&mut d.shading, Shading::Smooth, "Gouraud").on_hover_text(
+                "Gouraud from vertex averages, what most systems show; T-vertices take their big \
+                 neighbour's edge value",
             );
+            ui.add_enabled_ui(has_p1, |ui| {
+                ui.selectable_value(&mut d.shading, Shading::Nodal, "true p = 1")
+                    .on_hover_text(
+                        "Each element's own p = 1 function: the vertex values the Galerkin solve computed",
+                    )
+                    .on_disabled_hover_text(
+                        "The true p = 1 reconstruction needs a p = 1 solve (a uniform or \
+                         discontinuity mesh at order 1)",
+                    );
+            });
         });
+        if d.shading == Shading::Nodal && !has_p1 {
+            ui.weak("no p = 1 values in this solution: each element's constant");
+        }
         let ev = ui
             .add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"))
             .on_hover_text("Radiosity × 2^EV before tone mapping; moving it turns auto exposure off");
@@ -1443,10 +1775,18 @@ impl RadlabApp {
         ui.label(egui::RichText::new("back faces: striped magenta").small().weak());
         ui.separator();
         ui.heading("Overlays");
-        ui.checkbox(&mut d.quadtree, "quadtree")
-            .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
-        ui.checkbox(&mut d.links, "links").on_hover_text("Element-centre lines coloured by log F (L)");
-        if d.links || d.selected_links_only {
+        if mesh_view {
+            ui.checkbox(&mut d.quadtree, "mesh edges").on_hover_text("The elements' edges; depth-tested (Q)");
+        } else {
+            ui.checkbox(&mut d.quadtree, "quadtree")
+                .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
+        }
+        ui.add_enabled(!mesh_view, egui::Checkbox::new(&mut d.links, "links"))
+            .on_hover_text("Element-centre lines coloured by log F (L)")
+            .on_disabled_hover_text(
+                "A mesh solve keeps no links: every pair of its elements is coupled (n² interactions)",
+            );
+        if !mesh_view && (d.links || d.selected_links_only) {
             ui.indent("links", |ui| {
                 ui.checkbox(&mut d.selected_links_only, "picked element only")
                     .on_hover_text("Only the links the picked element gathers through (click an element)");
@@ -1481,8 +1821,30 @@ impl RadlabApp {
                     .on_hover_text("Draw links through surfaces instead of hiding those behind them");
             });
         }
-        ui.checkbox(&mut d.error, "error heatmap")
-            .on_hover_text("Per-element error on a log colour scale (E)");
+        ui.add_enabled(error_applies, egui::Checkbox::new(&mut d.error, "error heatmap"))
+            .on_hover_text("Per-element error on a log colour scale (E)")
+            .on_disabled_hover_text(
+                "A mesh solve has no error estimate of its own: Compute reference (above) gives the \
+                 true error, then the heatmap shows it",
+            );
+        egui::ComboBox::from_label("artifact")
+            .selected_text(d.artifact.map_or("none", Artifact::name))
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut d.artifact, None, "none").on_hover_text("No artifact overlay");
+                for a in Artifact::ALL.into_iter().chain([Artifact::All]) {
+                    ui.selectable_value(&mut d.artifact, Some(a), a.name()).on_hover_text(a.description());
+                }
+            })
+            .response
+            .on_hover_text(
+                "The lecture's five meshing artifacts, where they are: measured against the closed \
+                 form (single-bounce scenes) or the scene's reference, on a background thread",
+            );
+        ui.checkbox(&mut d.critical, "critical edges (D0/D1/D2)").on_hover_text(
+            "Where the radiosity is discontinuous: D0 where surfaces touch (a jump in value), D1 / D2 \
+             where a shadow's umbra or penumbra begins (a jump in the first / second derivative), \
+             from the emitters' EV and VE events; on any mesh",
+        );
     }
 
     fn inspector(&mut self, ui: &mut egui::Ui) {
@@ -1511,10 +1873,23 @@ impl RadlabApp {
             row(ui, "E", rgb_text(e.emission));
             row(ui, "ρ", rgb_text(e.reflectance));
             row(ui, "B", rgb_text(e.radiosity));
-            row(ui, "error", format!("{error:.3e} ({err_label})"));
+            if self.mesh_view() && self.true_error().is_none() {
+                row(ui, "error", "none (a mesh solve has no estimate)".to_owned());
+            } else {
+                row(ui, "error", format!("{error:.3e} ({err_label})"));
+            }
             row(ui, "stopped", e.stop.to_owned());
         });
         ui.separator();
+        if let Some(m) = &v.mesh {
+            ui.label(format!(
+                "{}: no links — this element is coupled to every element it sees ({} form-factor \
+                 entries in all).",
+                m.params.label(),
+                v.stats.links
+            ));
+            return;
+        }
         // Links through which this element gathers: its own and its ancestors' (computed once
         // per solver state and element, not every frame).
         let rows = match &self.inspector_rows {
@@ -1630,6 +2005,21 @@ impl RadlabApp {
         ui.horizontal(|ui| {
             ui.label(format!("{} elements ({} leaves)", s.elements, s.leaves));
             ui.separator();
+            if let Some(m) = &self.view.mesh {
+                // A mesh solve: no links, no refine / gather / push-pull phases.
+                ui.label(format!(
+                    "{}: {} form-factor entries · solve {:.3}s (meshing {:.3}s)",
+                    m.params.label(),
+                    s.links,
+                    m.solve_s,
+                    m.meshing_s
+                ));
+                if !self.status.is_empty() {
+                    ui.separator();
+                    ui.weak(&self.status);
+                }
+                return;
+            }
             ui.label(format!(
                 "{} links (full {}, partial {}, none {})",
                 s.links, s.links_full, s.links_partial, s.links_none
@@ -1906,7 +2296,26 @@ impl RadlabApp {
         let x = rect.left() + 8.0;
         let font = egui::FontId::proportional(12.0);
         let bg = Color32::from_black_alpha(170);
-        if self.display.quadtree {
+        if self.display.quadtree
+            && let Some(m) = &self.view.mesh
+        {
+            let text = format!(
+                "mesh edges: {} · {} elements · solve {:.2} s{}",
+                m.params.label(),
+                self.view.leaves.len(),
+                m.solve_s,
+                if m.meshing_s > 0.0 {
+                    format!(" (meshing {:.0} ms)", m.meshing_s * 1e3)
+                } else {
+                    String::new()
+                }
+            );
+            let galley = painter.layout_no_wrap(text, font.clone(), Color32::WHITE);
+            let box_r = Rect::from_min_size(Pos2::new(x, y), galley.size() + Vec2::new(8.0, 4.0));
+            painter.rect_filled(box_r, 4.0, bg);
+            painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
+            y = box_r.bottom() + 6.0;
+        } else if self.display.quadtree {
             let max_depth = self.view.stats.depth_histogram.len().max(1);
             let shown = max_depth.min(12);
             let box_r =
@@ -1934,7 +2343,8 @@ impl RadlabApp {
             }
             y = box_r.bottom() + 6.0;
         }
-        let show_links = self.display.links || (self.display.selected_links_only && self.selected.is_some());
+        let show_links = !self.mesh_view()
+            && (self.display.links || (self.display.selected_links_only && self.selected.is_some()));
         if show_links {
             let title = format!(
                 "links: F (log), {} of {} shown{}",
@@ -1960,7 +2370,13 @@ impl RadlabApp {
             );
             y += 18.0;
         }
-        if self.display.error {
+        if let Some(c) = self.critical_counts.filter(|_| self.display.critical) {
+            y = critical_legend(painter, Pos2::new(x, y), c) + 6.0;
+        }
+        if let Some(which) = self.display.artifact {
+            y = self.artifact_legend(painter, Pos2::new(x, y), which) + 6.0;
+        }
+        if self.display.error && self.error_applies() {
             let what = self.error_label();
             colour_bar(
                 painter,
@@ -1978,7 +2394,7 @@ impl RadlabApp {
                 "No scene. Open… a .gltf/.glb, drop one here, or type builtin:NAME above and press Load."
             };
             painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, font, Color32::LIGHT_GRAY);
-        } else if self.view.links.is_empty() && !self.busy() {
+        } else if self.view.links.is_empty() && !self.busy() && !self.mesh_view() {
             // A freshly loaded scene: only the lamps are lit. Say what to do next.
             bottom_note(
                 painter,
@@ -1990,9 +2406,44 @@ impl RadlabApp {
                 painter,
                 rect,
                 "Split view: it needs two solved runs. Solve again with other settings (auto-run \
-                 re-solves on every change), or pick runs in View ▸ Run history.",
+                 re-solves on every change), or pick runs in the View menu's Run history.",
             );
         }
+    }
+
+    /// The artifact overlay's legend: what it shows, its numbers and what it was measured
+    /// against (or that it is being measured, or why it cannot be); returns the bottom y.
+    fn artifact_legend(&self, painter: &egui::Painter, at: Pos2, which: Artifact) -> f32 {
+        let font = egui::FontId::proportional(12.0);
+        let mut rows: Vec<(Option<[f32; 4]>, String)> = Vec::new();
+        match self.artifacts() {
+            None => rows.push((None, format!("artifact {}: measuring…", which.name()))),
+            Some(Err(e)) => rows.push((None, e.clone())),
+            Some(Ok(m)) => {
+                rows.push((None, format!("artifacts against {} ({:.1} s)", m.against, m.time_s)));
+                let shown: Vec<Artifact> =
+                    if which == Artifact::All { Artifact::ALL.to_vec() } else { vec![which] };
+                for a in shown {
+                    rows.push((Some(a.color()), a.summary(&m.report)));
+                }
+            }
+        }
+        let galleys: Vec<_> = rows
+            .into_iter()
+            .map(|(c, t)| (c, painter.layout_no_wrap(t, font.clone(), Color32::WHITE)))
+            .collect();
+        let w = galleys.iter().map(|(_, g)| g.size().x).fold(0.0, f32::max) + 36.0;
+        let box_r = Rect::from_min_size(at, Vec2::new(w, 4.0 + 18.0 * galleys.len() as f32));
+        painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+        for (i, (color, galley)) in galleys.into_iter().enumerate() {
+            let top = at.y + 2.0 + 18.0 * i as f32;
+            if let Some(c) = color {
+                let swatch = Rect::from_min_size(Pos2::new(at.x + 6.0, top + 6.0), Vec2::new(18.0, 4.0));
+                painter.rect_filled(swatch, 0.0, rgb32([c[0], c[1], c[2]]));
+            }
+            painter.galley(Pos2::new(at.x + 30.0, top), galley, Color32::WHITE);
+        }
+        box_r.bottom()
     }
 
     fn file_answer(&mut self, answer: Answer) {
@@ -2093,7 +2544,8 @@ impl RadlabApp {
         let current = self.geometry_current()
             && !self.split.building()
             && !self.replay.building()
-            && !self.reference.as_ref().is_some_and(RefThread::busy);
+            && !self.reference.as_ref().is_some_and(RefThread::busy)
+            && !self.artifact_thread.as_ref().is_some_and(ArtifactThread::busy);
         match &mut self.script {
             Script::None | Script::Done | Script::WaitingShot => {}
             Script::Solving => {
@@ -2179,6 +2631,8 @@ impl eframe::App for RadlabApp {
         let ctx = ui.ctx().clone();
         self.poll_worker();
         self.poll_reference();
+        self.request_artifacts();
+        self.poll_artifacts(false);
         self.shortcuts(&ctx);
         if let Some([x, y]) = self.pending_pick
             && !self.busy()
@@ -2286,22 +2740,36 @@ impl eframe::App for RadlabApp {
 const AUTO_EXPOSURE_TARGET: f64 = 0.8;
 
 /// Exposure (EV) that maps the 95th percentile of the non-emitting leaves' luminance to
-/// `AUTO_EXPOSURE_TARGET`; `None` while everything is dark (before the first gather).
+/// `AUTO_EXPOSURE_TARGET`; `None` while everything is dark (before the first gather). On a mesh
+/// solve the percentile is of area (a discontinuity mesh packs its many small pieces into the
+/// shadows, so a count would over-expose); on the quadtree, of leaves.
 #[must_use]
 pub fn auto_exposure(view: &ViewData) -> Option<f32> {
-    let mut lum: Vec<f64> = view
+    let by_area = view.mesh.is_some();
+    let mut lum: Vec<(f64, f64)> = view
         .leaves
         .iter()
         .map(|&l| &view.elements[l as usize])
         .filter(|e| e.emission.is_zero())
-        .map(|e| e.radiosity.luminance())
-        .filter(|l| *l > 0.0 && l.is_finite())
+        .map(|e| (e.radiosity.luminance(), if by_area { e.area } else { 1.0 }))
+        .filter(|(l, _)| *l > 0.0 && l.is_finite())
         .collect();
     if lum.is_empty() {
         return None;
     }
-    lum.sort_by(f64::total_cmp);
-    let p95 = lum[(lum.len() - 1) * 95 / 100];
+    lum.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let p95 = if by_area {
+        let total: f64 = lum.iter().map(|x| x.1).sum();
+        let mut acc = 0.0;
+        lum.iter()
+            .find(|x| {
+                acc += x.1;
+                acc >= 0.95 * total
+            })
+            .map_or(lum[lum.len() - 1].0, |x| x.0)
+    } else {
+        lum[(lum.len() - 1) * 95 / 100].0
+    };
     // Rounded to the exposure slider's 0.1 EV step, so the slider does not see a change.
     let ev = ((AUTO_EXPOSURE_TARGET / p95).log2() * 10.0).round() / 10.0;
     Some((ev as f32).clamp(-12.0, 12.0))
@@ -2350,6 +2818,33 @@ fn bottom_note(painter: &egui::Painter, rect: Rect, msg: &str) {
     let box_r = Rect::from_center_size(at, galley.size() + Vec2::new(16.0, 8.0));
     painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
     painter.galley(box_r.min + Vec2::new(8.0, 4.0), galley, Color32::WHITE);
+}
+
+/// The critical edges' legend: a swatch and a count per kind; returns the bottom y.
+fn critical_legend(painter: &egui::Painter, at: Pos2, c: crate::mesh::discontinuity::SegmentCounts) -> f32 {
+    use crate::mesh_overlay::CRITICAL_COLORS;
+    let font = egui::FontId::proportional(12.0);
+    let rows = [
+        (CRITICAL_COLORS[0], format!("D0 value jumps (contact): {}", c.d0)),
+        (CRITICAL_COLORS[1], format!("D1 slope jumps: {}", c.d1)),
+        (CRITICAL_COLORS[2], format!("D2 curvature jumps: {}", c.d2)),
+    ];
+    let box_r = Rect::from_min_size(at, Vec2::new(230.0, 20.0 + 18.0 * rows.len() as f32));
+    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+    painter.text(
+        at + Vec2::new(4.0, 2.0),
+        egui::Align2::LEFT_TOP,
+        "critical edges",
+        font.clone(),
+        Color32::WHITE,
+    );
+    for (i, (color, text)) in rows.into_iter().enumerate() {
+        let top = at.y + 20.0 + 18.0 * i as f32;
+        let swatch = Rect::from_min_size(Pos2::new(at.x + 6.0, top + 6.0), Vec2::new(18.0, 4.0));
+        painter.rect_filled(swatch, 0.0, rgb32([color[0], color[1], color[2]]));
+        painter.text(Pos2::new(at.x + 30.0, top), egui::Align2::LEFT_TOP, text, font.clone(), Color32::WHITE);
+    }
+    box_r.bottom()
 }
 
 /// Draw a horizontal colour bar with its end values; returns the bottom y.

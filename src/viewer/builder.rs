@@ -10,10 +10,14 @@
 //! ```
 
 use super::worker::ViewData;
+use crate::artifacts::ArtifactSamples;
 use crate::math::DVec3;
+use crate::mesh::discontinuity::SegmentCounts;
+use crate::mesh_overlay::{Artifact, CriticalEdges, artifact_lines, critical_edges, critical_lines};
 use crate::overlay::{self, LinkFilter, LogScale};
 use crate::render::Geometry;
 use crate::render::geometry::{self, MeshColors};
+use crate::scene::Scene;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
 use std::time::Instant;
@@ -23,6 +27,9 @@ use std::time::Instant;
 pub enum Coloring {
     Flat,
     Smooth,
+    /// The element's own function: p = 1 where the state has vertex values (a p = 1 mesh
+    /// solve), else its constant (as `Flat`).
+    Nodal,
     /// Error heatmap (true error when given, else the solver's estimate).
     Error,
 }
@@ -41,6 +48,8 @@ pub struct Settings {
     /// this depth (its pulled radiosity), links between deeper elements are left out. `None`:
     /// the leaves.
     pub depth_limit: Option<u8>,
+    /// Draw the critical edges (D0/D1/D2) of the request's scene.
+    pub critical: bool,
 }
 
 /// One build job.
@@ -54,6 +63,11 @@ pub struct Request {
     /// Per-element true error (indexed like `view.elements`), when a reference exists.
     pub true_error: Option<Arc<Vec<f64>>>,
     pub settings: Settings,
+    /// The scene, for the overlays that read it (critical edges, artifacts); `None`: none of
+    /// them.
+    pub scene: Option<Arc<Scene>>,
+    /// An artifact overlay and the samples measured on `view`.
+    pub artifacts: Option<(Artifact, Arc<ArtifactSamples>)>,
 }
 
 /// What the UI receives.
@@ -69,13 +83,25 @@ pub struct Built {
     pub error_scale: Option<LogScale>,
     /// Auto exposure of this solver state ([`super::app::auto_exposure`]).
     pub auto_ev: Option<f32>,
+    /// The critical edges drawn, by kind (for the legend).
+    pub critical: Option<SegmentCounts>,
     /// Wall time of the build, seconds.
     pub build_s: f64,
 }
 
-/// Build the geometry of one request (the builder thread runs this; tests may call it directly).
+/// A scene's critical edges, kept between builds (found once per scene).
+pub type CriticalCache = Option<(usize, Arc<CriticalEdges>)>;
+
+/// Build the geometry of one request (the builder thread runs [`build_cached`]; tests may call
+/// this directly).
 #[must_use]
 pub fn build(req: &Request) -> Built {
+    build_cached(req, &mut None)
+}
+
+/// [`build`], reusing the critical edges of `cache` when they are the request scene's.
+#[must_use]
+pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
     let started = Instant::now();
     let v = &req.view;
     let s = &req.settings;
@@ -88,6 +114,11 @@ pub fn build(req: &Request) -> Built {
         Coloring::Error => MeshColors::Display(&heat),
         Coloring::Smooth => MeshColors::Smooth,
         Coloring::Flat => MeshColors::Flat,
+        // Without vertex values each element's own function is its constant.
+        Coloring::Nodal => match v.mesh.as_ref().and_then(|m| m.coefficients.as_deref()) {
+            Some(c) => MeshColors::Nodal(c),
+            None => MeshColors::Flat,
+        },
     };
     // Cut at a depth: the elements that tile the scene there, the links between them and above.
     let (cut_leaves, cut_links);
@@ -113,14 +144,33 @@ pub fn build(req: &Request) -> Built {
         }
         None => (Vec::new(), (0, 0), None),
     };
+    let (mut overlay, critical) = match (&req.scene, s.critical) {
+        (Some(scene), true) => {
+            let key = Arc::as_ptr(scene) as usize;
+            let edges = match cache {
+                Some((k, e)) if *k == key => Arc::clone(e),
+                _ => {
+                    let e = Arc::new(critical_edges(scene));
+                    *cache = Some((key, Arc::clone(&e)));
+                    e
+                }
+            };
+            (geometry::lines(&critical_lines(scene, &edges), s.origin), Some(edges.counts))
+        }
+        _ => (Vec::new(), None),
+    };
+    if let (Some(scene), Some((which, samples))) = (&req.scene, &req.artifacts) {
+        overlay.extend(geometry::lines(&artifact_lines(scene, samples, *which), s.origin));
+    }
     Built {
         seq: req.seq,
         view_seq: req.view_seq,
-        geometry: Arc::new(Geometry { mesh, links, links_xray: s.links_xray }),
+        geometry: Arc::new(Geometry { mesh, links, links_xray: s.links_xray, overlay }),
         link_stats,
         link_scale,
         error_scale,
         auto_ev: super::app::auto_exposure(v),
+        critical,
         build_s: started.elapsed().as_secs_f64(),
     }
 }
@@ -150,6 +200,7 @@ impl Builder {
         std::thread::Builder::new()
             .name("radlab-display".into())
             .spawn(move || {
+                let mut cache: CriticalCache = None;
                 while let Ok(mut req) = job_rx.recv() {
                     // Only the newest queued request matters.
                     loop {
@@ -159,7 +210,7 @@ impl Builder {
                             Err(TryRecvError::Disconnected) => return,
                         }
                     }
-                    if done_tx.send(build(&req)).is_err() {
+                    if done_tx.send(build_cached(&req, &mut cache)).is_err() {
                         return;
                     }
                     notify();
@@ -252,6 +303,7 @@ mod tests {
             links_xray: false,
             origin: DVec3::ZERO,
             depth_limit: None,
+            critical: false,
         }
     }
 
@@ -260,7 +312,15 @@ mod tests {
         let mut b = Builder::spawn(|| {}).unwrap();
         assert!(b.wait().is_none(), "nothing requested");
         for seq in 1..=3 {
-            b.request(Request { seq, view: view(), view_seq: 0, true_error: None, settings: settings() });
+            b.request(Request {
+                seq,
+                view: view(),
+                view_seq: 0,
+                true_error: None,
+                settings: settings(),
+                scene: None,
+                artifacts: None,
+            });
         }
         let built = b.wait().unwrap();
         assert_eq!(built.seq, 3);
@@ -276,13 +336,23 @@ mod tests {
         let mut s = settings();
         s.coloring = Coloring::Error;
         s.links = None;
-        let est = build(&Request { seq: 0, view: view(), view_seq: 0, true_error: None, settings: s });
+        let est = build(&Request {
+            seq: 0,
+            view: view(),
+            view_seq: 0,
+            true_error: None,
+            settings: s,
+            scene: None,
+            artifacts: None,
+        });
         let err = build(&Request {
             seq: 0,
             view: view(),
             view_seq: 0,
             true_error: Some(Arc::new(vec![1.0, 100.0])),
             settings: s,
+            scene: None,
+            artifacts: None,
         });
         assert!(est.error_scale.is_some() && err.error_scale.is_some());
         assert_ne!(est.error_scale, err.error_scale, "the true error sets the scale");
@@ -293,6 +363,8 @@ mod tests {
             view_seq: 0,
             true_error: Some(Arc::new(vec![1.0])),
             settings: s,
+            scene: None,
+            artifacts: None,
         });
         assert_eq!(bad.error_scale, est.error_scale);
         assert!(err.geometry.links.is_empty());

@@ -3,6 +3,11 @@
 //! plots overlay them (links against elements with the n and n² guides, error against solver
 //! time) and two or three of them fill the split view ([`super::split`]).
 //!
+//! Solves on a uniform or discontinuity mesh ([`crate::solver::meshed`]) are runs too, named by
+//! their mesh and order ("discontinuity-cdt p1-continuous"), one plot series per mesh and order;
+//! they have no estimate of their own, so their error is known once a reference scores them.
+//! Two of them side by side in the split view are the lecture's h vs p.
+//!
 //! ## Memory
 //! Every run keeps its numbers (about 300 bytes; beyond [`MAX_RUNS`] the oldest are dropped), but
 //! only the newest [`KEEP_SOLUTIONS`] runs, and the runs picked for the split view, keep their
@@ -21,6 +26,7 @@
 use super::view::View;
 use super::worker::ViewData;
 use crate::solver::hierarchical::estimate::global_relative_l2;
+use crate::solver::meshed::{MeshMethod, MeshSolveParams};
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
 use eframe::egui;
 use std::sync::Arc;
@@ -102,9 +108,12 @@ pub struct Run {
     pub kind: RunKind,
     /// Name of the scene solved.
     pub scene: String,
-    /// The preset's name, or "custom" when the settings differ from every preset.
+    /// The preset's name, or "custom" when the settings differ from every preset; a mesh
+    /// solve's mesh and order ("discontinuity-cdt p1-continuous").
     pub preset: String,
     pub params: HierarchicalParams,
+    /// A solve on a uniform or discontinuity mesh: its settings (`params` are then unused).
+    pub mesh: Option<MeshSolveParams>,
     /// Leaves of the solution (the elements that carry radiosity).
     pub elements: usize,
     pub links: usize,
@@ -144,9 +153,10 @@ impl Run {
     /// The oracle and its thresholds, e.g. "BF oracle, BFeps 2.0e-3, Feps 5.0e-2 · Aeps 1e-4 A".
     #[must_use]
     pub fn thresholds(&self) -> String {
-        match self.kind {
-            RunKind::Solve => thresholds(&self.params),
-            RunKind::Reference { regions, samples, .. } => {
+        match (self.kind, &self.mesh) {
+            (RunKind::Solve, Some(m)) => mesh_settings(m),
+            (RunKind::Solve, None) => thresholds(&self.params),
+            (RunKind::Reference { regions, samples, .. }, _) => {
                 format!("Monte Carlo reference: {regions} regions × {samples} paths (radlab reference)")
             }
         }
@@ -167,10 +177,14 @@ impl Run {
         )
     }
 
-    /// The plots' series this run belongs to: runs of one scene with one oracle.
+    /// The plots' series this run belongs to: runs of one scene with one oracle (or one mesh
+    /// and order).
     #[must_use]
     pub fn series(&self) -> String {
-        format!("{} · {}", self.scene, oracle_name(self.params.oracle))
+        match &self.mesh {
+            Some(m) => format!("{} · {}", self.scene, m.label()),
+            None => format!("{} · {}", self.scene, oracle_name(self.params.oracle)),
+        }
     }
 }
 
@@ -203,6 +217,25 @@ pub fn thresholds(p: &HierarchicalParams) -> String {
         AreaEps::Absolute(a) => format!("Aeps {a:.1e}"),
     };
     format!("{}, {oracle} · {aeps} · {} rays", oracle_name(p.oracle), p.rays)
+}
+
+/// A mesh solve's settings in one line, e.g. "discontinuity-cdt, refined to 20° · p = 1
+/// continuous · 16 rays".
+#[must_use]
+pub fn mesh_settings(m: &MeshSolveParams) -> String {
+    let mesh = match m.method {
+        MeshMethod::Uniform => format!("uniform, elements {:.1e} of the diagonal", m.element_size_rel),
+        MeshMethod::DiscontinuityCdt if m.cdt_min_angle_deg > 0.0 => {
+            format!("discontinuity-cdt, refined to {:.0}°", m.cdt_min_angle_deg)
+        }
+        other => other.name().to_owned(),
+    };
+    let order = match (m.order, m.continuous) {
+        (crate::basis::Order::Constant, _) => "p = 0",
+        (crate::basis::Order::Linear, false) => "p = 1 discontinuous",
+        (crate::basis::Order::Linear, true) => "p = 1 continuous",
+    };
+    format!("{mesh} · {order} · {} rays", m.rays)
 }
 
 /// The name of the preset `p` is, "uniform mesh" for the form-factor oracle at Feps = 0 (no pair
@@ -257,16 +290,19 @@ impl RunHistory {
     /// older solutions are dropped past [`KEEP_SOLUTIONS`].
     pub fn record(&mut self, scene: &str, time_s: f64, view_seq: u64, view: Arc<ViewData>) {
         let params = view.params;
+        let mesh = view.mesh.as_ref().map(|m| m.params);
         self.push(Run {
             number: 0,
             kind: RunKind::Solve,
             scene: scene.to_owned(),
-            preset: preset_name(&params),
+            preset: mesh.map_or_else(|| preset_name(&params), |m| m.label()),
             params,
+            mesh,
             elements: view.stats.leaves,
             links: view.stats.links,
             time_s,
-            estimate: estimate_of(&view),
+            // A mesh solve has no estimate of its own.
+            estimate: if mesh.is_some() { None } else { estimate_of(&view) },
             reference: None,
             view_seq,
             view: Some(view),
@@ -304,6 +340,7 @@ impl RunHistory {
             scene: scene.to_owned(),
             preset: "reference".to_owned(),
             params: view.params,
+            mesh: None,
             elements: regions,
             links: 0,
             time_s: 0.0,

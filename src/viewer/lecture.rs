@@ -1,5 +1,5 @@
 //! The Lecture menu and the caption panel: every figure of [`crate::figures`] one click away,
-//! listed by slide title; the figure shown keeps its caption in a panel under the viewport until
+//! listed by slide title (the meshing slides in their submenu, [`crate::figures::MESHING`]); the figure shown keeps its caption in a panel under the viewport until
 //! it is hidden (the × button or C) or another scene is opened. The menu also opens the
 //! blocking form-factor matrix ([`super::matrix`]) and the five-times explorer
 //! ([`super::five_times`]).
@@ -54,13 +54,30 @@ impl Lecture {
     /// explorers.
     pub fn menu(&mut self, ui: &mut egui::Ui) -> Option<&'static Figure> {
         let mut chosen = None;
+        let item = |ui: &mut egui::Ui, f: &'static Figure, chosen: &mut Option<&'static Figure>| {
+            let tip = format!("{} ({}, {}): {}", f.name, f.scene, f.method, f.caption);
+            if ui.button(f.slide).on_hover_text(tip).clicked() {
+                *chosen = Some(f);
+                ui.close();
+            }
+        };
         ui.menu_button("Lecture", |ui| {
-            for f in FIGURES {
-                let tip = format!("{} ({}, {}): {}", f.name, f.scene, f.method, f.caption);
-                if ui.button(f.slide).on_hover_text(tip).clicked() {
-                    chosen = Some(f);
-                    ui.close();
-                }
+            for f in FIGURES.iter().filter(|f| f.submenu.is_none()) {
+                item(ui, f, &mut chosen);
+            }
+            let mut submenus: Vec<&'static str> = FIGURES.iter().filter_map(|f| f.submenu).collect();
+            submenus.dedup();
+            for name in submenus {
+                ui.menu_button(name, |ui| {
+                    for f in FIGURES.iter().filter(|f| f.submenu == Some(name)) {
+                        item(ui, f, &mut chosen);
+                    }
+                })
+                .response
+                .on_hover_text(
+                    "The lecture's meshing slides: discontinuities, discontinuity meshes, h vs p, \
+                     meshing options, the five artifacts (solved on the figure's mesh)",
+                );
             }
             ui.separator();
             if ui

@@ -94,6 +94,16 @@ impl View for MatrixWindow {
 
     fn ui(&mut self, ui: &mut egui::Ui, input: MatrixInput<'_>) -> Option<MatrixAction> {
         let view = input.view;
+        if view.mesh.is_some() {
+            // Nothing stale: a mesh solve has no links to draw as blocks.
+            ui.label(format!(
+                "A mesh solve keeps no links: every pair of its {} elements is coupled, the full \
+                 n × n matrix. Pick the quadtree in the Mesh menu to see the blocks.",
+                view.leaves.len()
+            ));
+            self.highlighted = None;
+            return None;
+        }
         let key = Arc::as_ptr(view) as usize;
         if self.cache.as_ref().is_none_or(|c| c.0 != key) {
             let mut m = BlockMatrix::build(&view.elements, &view.links);

@@ -2,6 +2,7 @@
 //!
 //! - [`app`]: panels (solver controls, display, overlays, inspector, plots, status bar), picking,
 //!   screenshots, drag-and-drop and the scripted `--screenshot` / `--bench-frames` runs.
+//! - [`artifacts`]: the `radlab-artifacts` thread that measures the artifact overlays.
 //! - [`bench`]: frame-time statistics of `--bench-frames`.
 //! - [`builder`]: the `radlab-display` thread that builds GPU vertex arrays off the UI thread.
 //! - [`camera`]: orbit / pan / zoom camera.
@@ -22,6 +23,7 @@
 //! Rendering is in [`crate::render`]; display lists in [`crate::overlay`].
 
 pub mod app;
+pub mod artifacts;
 pub mod bench;
 pub mod builder;
 pub mod camera;

@@ -74,6 +74,8 @@ impl Pane {
                 view_seq: key,
                 true_error: None,
                 settings,
+                scene: None,
+                artifacts: None,
             };
             self.key = Some((key, settings));
             if self.builder.is_none() {

@@ -116,21 +116,7 @@ struct Loaded {
 
 /// Score a solver state against a reference.
 fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> Result<Evaluation, String> {
-    let leaves: Vec<SolvedElement> = view
-        .leaves
-        .iter()
-        .map(|&l| {
-            let e = &view.elements[l as usize];
-            SolvedElement {
-                patch: e.patch as usize,
-                vertices: e.verts().to_vec(),
-                area: e.area,
-                radiosity: e.radiosity,
-                error_estimate: None,
-                slope: None,
-            }
-        })
-        .collect();
+    let leaves = view.solved_leaves();
     // Scene norm: the solution resampled onto the reference regions.
     let values = metrics::resample(&r.scene, &leaves, &r.mesh).map_err(|e| e.to_string())?;
     let regions: Vec<(usize, f64)> =
@@ -289,33 +275,22 @@ fn solution_view(r: &Loaded) -> Arc<ViewData> {
         .zip(&r.estimates)
         .enumerate()
         .map(|(i, (m, est))| {
+            let area = crate::math::polygon_area(&m.vertices);
             let patch = &r.scene.patches[m.patch];
-            let n = m.vertices.len().min(4);
-            let mut vertices = [m.vertices[0]; 4];
-            vertices[..n].copy_from_slice(&m.vertices[..n]);
-            ElementView {
-                id: i as u32,
-                patch: m.patch as u32,
-                parent: None,
-                depth: 0,
-                leaf: true,
-                vertices,
-                n_vertices: n as u8,
-                area: crate::math::polygon_area(&m.vertices),
-                reflectance: patch.reflectance,
-                emission: patch.emission,
-                radiosity: est.radiosity,
-                error_estimate: est.std_error.mean(),
-                stop: "reference region",
-            }
+            let e = est.std_error.mean();
+            ElementView::flat_leaf(
+                i as u32,
+                m.patch,
+                patch,
+                &m.vertices,
+                area,
+                est.radiosity,
+                e,
+                "reference region",
+            )
         })
         .collect();
-    let n = elements.len();
-    let mut view = ViewData { leaves: (0..n as u32).collect(), elements, ..ViewData::default() };
-    view.stats.elements = n;
-    view.stats.leaves = n;
-    view.stats.depth_histogram = vec![n];
-    Arc::new(view)
+    Arc::new(ViewData::of_flat_leaves(elements))
 }
 
 fn load(

@@ -9,7 +9,9 @@
 use crate::math::Rgb;
 use crate::overlay::{ElementView, LinkView};
 use crate::scene::Scene;
+use crate::solver::Solution;
 use crate::solver::hierarchical::{HierarchicalSolver, HierarchicalStats, Snapshot, StepKind, StepReport};
+use crate::solver::meshed::{MeshSolution, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -31,6 +33,23 @@ pub struct ViewData {
     pub pushed_for_display: bool,
     /// The settings of the solver that produced this state (the run history records them).
     pub params: HierarchicalParams,
+    /// Set when this state is a solve on a uniform or discontinuity mesh (not the quadtree):
+    /// its settings, p = 1 vertex values and times ([`ViewData::of_mesh_solution`]).
+    pub mesh: Option<MeshInfo>,
+}
+
+/// What a mesh solve adds to its [`ViewData`].
+#[derive(Clone, Debug)]
+pub struct MeshInfo {
+    pub params: MeshSolveParams,
+    /// At p = 1: each element's vertex values (indexed like the elements), drawn by the
+    /// display's true p = 1 reconstruction.
+    pub coefficients: Option<Arc<Vec<Vec<Rgb>>>>,
+    /// Wall time of meshing (discontinuity meshes) and of the whole solve, seconds.
+    pub meshing_s: f64,
+    pub solve_s: f64,
+    /// The solution as the solver returned it (elements on the input patches).
+    pub solution: Arc<Solution>,
 }
 
 impl ViewData {
@@ -48,7 +67,91 @@ impl ViewData {
             residuals: s.residuals,
             pushed_for_display: false,
             params: HierarchicalParams::default(),
+            mesh: None,
         }
+    }
+
+    /// The state of a solve on a uniform or discontinuity mesh: every element a leaf on its
+    /// input patch (depth 0 where it is the whole patch, 1 where it is a piece) (materials from `scene`), no links (every pair was coupled), no error
+    /// estimate.
+    #[must_use]
+    pub fn of_mesh_solution(
+        scene: &Scene,
+        params: MeshSolveParams,
+        m: MeshSolution,
+        solve_s: f64,
+    ) -> ViewData {
+        let elements = m
+            .solution
+            .elements
+            .iter()
+            .enumerate()
+            .map(|(i, e)| {
+                let patch = &scene.patches[e.patch];
+                ElementView::flat_leaf(
+                    i as u32,
+                    e.patch,
+                    patch,
+                    &e.vertices,
+                    e.area,
+                    e.radiosity,
+                    0.0,
+                    "mesh element",
+                )
+            })
+            .collect();
+        let mut view = ViewData::of_flat_leaves(elements);
+        // A patch cut into pieces: its pieces are one level below it (their edges draw in the
+        // quadtree overlay's depth-1 colour, apart from whole patches' white).
+        let mut per_patch = vec![0usize; scene.patches.len()];
+        for e in &view.elements {
+            per_patch[e.patch as usize] += 1;
+        }
+        for e in &mut view.elements {
+            e.depth = u8::from(per_patch[e.patch as usize] > 1);
+        }
+        let pieces = view.elements.iter().filter(|e| e.depth == 1).count();
+        view.stats.depth_histogram = vec![view.elements.len() - pieces, pieces];
+        view.stats.links = m.solution.stats.links;
+        view.mesh = Some(MeshInfo {
+            params,
+            coefficients: m.coefficients.map(Arc::new),
+            meshing_s: m.meshing_s,
+            solve_s,
+            solution: Arc::new(m.solution),
+        });
+        view
+    }
+
+    /// The leaves as solved elements (the metrics' and the artifacts' input).
+    #[must_use]
+    pub fn solved_leaves(&self) -> Vec<crate::solver::SolvedElement> {
+        self.leaves
+            .iter()
+            .map(|&l| {
+                let e = &self.elements[l as usize];
+                crate::solver::SolvedElement {
+                    patch: e.patch as usize,
+                    vertices: e.verts().to_vec(),
+                    area: e.area,
+                    radiosity: e.radiosity,
+                    error_estimate: None,
+                    slope: None,
+                }
+            })
+            .collect()
+    }
+
+    /// A state whose elements are all leaves of depth 0 (`elements[i].id == i`): a mesh solve,
+    /// a reference.
+    #[must_use]
+    pub fn of_flat_leaves(elements: Vec<ElementView>) -> ViewData {
+        let n = elements.len();
+        let mut view = ViewData { leaves: (0..n as u32).collect(), elements, ..ViewData::default() };
+        view.stats.elements = n;
+        view.stats.leaves = n;
+        view.stats.depth_histogram = vec![n];
+        view
     }
 
     /// The state of a solver (pushed and pulled for display when it has gathered since its last
@@ -101,6 +204,10 @@ pub enum Command {
     SetParams(HierarchicalParams),
     Reset,
     Step(StepKind),
+    /// Solve the loaded scene on a uniform or discontinuity mesh ([`crate::solver::meshed`]);
+    /// answers `Done` with a [`StepKind::Solve`] report and the mesh's state. The hierarchical
+    /// solver is left as it was.
+    SolveMesh(MeshSolveParams),
     /// Write the current solution as a baked glTF ([`crate::bake`]) to `path` (.glb/.gltf).
     Bake {
         path: std::path::PathBuf,
@@ -314,6 +421,10 @@ fn run(
                     Reply::Done { report: None, view: view_of(s, false) }
                 }
             },
+            Command::SolveMesh(params) => match solver.as_ref() {
+                None => Reply::Failed("no scene loaded".into()),
+                Some(s) => solve_mesh(s.scene(), params, tx, notify),
+            },
             Command::Bake { path, options } => match solver.as_ref() {
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => Reply::Baked(bake_to(s, unpushed, &path, &options)),
@@ -378,6 +489,39 @@ fn run(
         if !send(reply) {
             break;
         }
+    }
+}
+
+/// A mesh solve on the solver thread, its progress forwarded (it cannot be cancelled midway:
+/// the mesh solvers have no cancel flag; `max_unknowns` keeps them short).
+fn solve_mesh(
+    scene: &Scene,
+    params: MeshSolveParams,
+    tx: &Sender<Reply>,
+    notify: &(impl Fn() + Send),
+) -> Reply {
+    let t = std::time::Instant::now();
+    let ptx = tx.clone();
+    let mut progress = move |done: u64, total: u64| {
+        let _ = ptx.send(Reply::Progress { done, total });
+    };
+    notify();
+    match crate::solver::meshed::solve(scene, &params, &mut progress) {
+        Ok(m) => {
+            let time_s = t.elapsed().as_secs_f64();
+            let view = Arc::new(ViewData::of_mesh_solution(scene, params, m, time_s));
+            let report = StepReport {
+                kind: StepKind::Solve,
+                time_s,
+                refined: 0,
+                new_links: 0,
+                residual: 0.0,
+                converged: true,
+                cancelled: false,
+            };
+            Reply::Done { report: Some(report), view }
+        }
+        Err(e) => Reply::Failed(format!("{}: {e}", params.label())),
     }
 }
 
