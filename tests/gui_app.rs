@@ -1255,3 +1255,32 @@ fn meshing_figures_open_solved_on_their_mesh() {
     }
     assert!(opened >= 6, "the meshing slides: {opened}");
 }
+
+/// The clusters overlay draws the boxes of a clustered solve's cluster tree; it is greyed out
+/// while the solve does not cluster.
+#[test]
+fn clusters_overlay_draws_the_cluster_boxes() {
+    use radlab::solver::params::Clustering;
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().load_spec("builtin:table-room");
+    settle(&mut h);
+    assert!(h.state().view().clusters.is_empty(), "table-room's 32 patches are not clustered by default");
+    let mut p = h.state().params();
+    p.cluster = Clustering::On;
+    h.state_mut().set_params(p);
+    settle(&mut h);
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    assert!(v.clusters.len() >= 10, "{} cluster nodes", v.clusters.len());
+    assert!(v.stats.cluster_links > 0, "the clustered solve has cluster links");
+    let before = lower_viewport(&mut h);
+    h.get_by_label("clusters").click();
+    settle(&mut h);
+    assert!(h.state().display.clusters);
+    let after = lower_viewport(&mut h);
+    let changed =
+        before.pixels.chunks_exact(4).zip(after.pixels.chunks_exact(4)).filter(|(a, b)| a != b).count();
+    assert!(changed > 300, "the boxes are drawn: {changed} pixels changed");
+    check(&mut h, "gui_clusters");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}

@@ -1,4 +1,4 @@
-//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error|critical|artifacts,…] [--preset NAME]
+//! `radlab view [SCENE] [--screenshot PATH] [--overlay none|quadtree|links|error|critical|artifacts|clusters,…] [--preset NAME]
 //! [--bench-frames N] [--figure NAME] [--split N] [--history] [--replay FRAME [--depth-cut D]]
 //! [--mesh KIND] [--order 0|1 [--continuous]] [--reconstruction flat|gouraud|nodal]`:
 //! the interactive viewer (feature `gui`).
@@ -20,6 +20,8 @@ pub enum Overlay {
     Critical,
     /// The five meshing artifacts' marked samples (against the closed form or the reference).
     Artifacts,
+    /// The cluster tree's bounding boxes (clustered solves: the furnished rooms).
+    Clusters,
 }
 
 #[derive(clap::Args, Debug)]
@@ -183,6 +185,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Overlay::Error => OverlayChoice::Error,
             Overlay::Critical => OverlayChoice::Critical,
             Overlay::Artifacts => OverlayChoice::Artifacts,
+            Overlay::Clusters => OverlayChoice::Clusters,
         })
         .collect();
     radlab::viewer::run(ViewerOptions {

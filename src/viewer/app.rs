@@ -51,6 +51,8 @@ pub enum OverlayChoice {
     Critical,
     /// The five artifacts' marked samples.
     Artifacts,
+    /// The cluster tree's bounding boxes.
+    Clusters,
 }
 
 /// How the viewer starts.
@@ -163,6 +165,9 @@ pub struct Display {
     pub critical: bool,
     /// An artifact overlay (measured against the best reference there is).
     pub artifact: Option<Artifact>,
+    /// The cluster tree's bounding boxes, from depth `clusters_from` down `CLUSTER_LEVELS` levels.
+    pub clusters: bool,
+    pub clusters_from: u8,
     pub link_filter: LinkFilter,
     /// Links of the picked element only.
     pub selected_links_only: bool,
@@ -182,6 +187,8 @@ impl Default for Display {
             error: false,
             critical: false,
             artifact: None,
+            clusters: false,
+            clusters_from: 0,
             link_filter: LinkFilter::default(),
             selected_links_only: false,
             links_xray: false,
@@ -192,6 +199,8 @@ impl Default for Display {
 
 /// Width of the solver/display panel and of the inspector, points (fixed: see `ui`).
 const CONTROLS_W: f32 = 290.0;
+/// Levels of the cluster tree the clusters overlay draws at once.
+const CLUSTER_LEVELS: u8 = 3;
 const INSPECTOR_W: f32 = 320.0;
 /// Width of the progress bars in the controls panel.
 const PANEL_CONTENT_W: f32 = 260.0;
@@ -532,6 +541,7 @@ impl RadlabApp {
                 OverlayChoice::Error => app.display.error = true,
                 OverlayChoice::Critical => app.display.critical = true,
                 OverlayChoice::Artifacts => app.display.artifact = Some(Artifact::All),
+                OverlayChoice::Clusters => app.display.clusters = true,
             }
         }
         if app.opts.screenshot.is_some() || app.opts.bench_frames.is_some() {
@@ -1327,6 +1337,9 @@ impl RadlabApp {
             origin: self.origin,
             depth_limit: None,
             critical: d.critical,
+            clusters: d
+                .clusters
+                .then(|| (d.clusters_from, d.clusters_from.saturating_add(CLUSTER_LEVELS - 1))),
         }
     }
 
@@ -1844,6 +1857,26 @@ impl RadlabApp {
             "Where the radiosity is discontinuous: D0 where surfaces touch (a jump in value), D1 / D2 \
              where a shadow's umbra or penumbra begins (a jump in the first / second derivative), \
              from the emitters' EV and VE events; on any mesh",
+        );
+        let max_depth = self.view.clusters.iter().map(|c| c.depth).max();
+        ui.add_enabled_ui(max_depth.is_some(), |ui| {
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut d.clusters, "clusters").on_hover_text(format!(
+                    "The cluster tree above the input patches: bounding boxes of {CLUSTER_LEVELS} levels from \
+                     the depth chosen, coloured by depth. Clusters link groups of patches, so links grow \
+                     as n, not n²"
+                ));
+                if let Some(m) = max_depth {
+                    d.clusters_from = d.clusters_from.min(m);
+                    ui.add(egui::Slider::new(&mut d.clusters_from, 0..=m).text("from depth"))
+                        .on_hover_text("The shallowest cluster level drawn");
+                }
+            });
+        })
+        .response
+        .on_disabled_hover_text(
+            "This solve does not cluster: scenes of 3 000 patches or more do (the furnished rooms), \
+             or --cluster on",
         );
     }
 

@@ -50,6 +50,8 @@ pub struct Settings {
     pub depth_limit: Option<u8>,
     /// Draw the critical edges (D0/D1/D2) of the request's scene.
     pub critical: bool,
+    /// Draw the cluster boxes of these depths (first, last).
+    pub clusters: Option<(u8, u8)>,
 }
 
 /// One build job.
@@ -161,6 +163,12 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
     };
     if let (Some(scene), Some((which, samples))) = (&req.scene, &req.artifacts) {
         overlay.extend(geometry::lines(&artifact_lines(scene, samples, *which), s.origin));
+    }
+    if let Some(depths) = &s.clusters {
+        overlay.extend(geometry::lines(
+            &overlay::cluster_lines(&v.clusters, depths.0..=depths.1, 0.9),
+            s.origin,
+        ));
     }
     Built {
         seq: req.seq,
@@ -304,6 +312,7 @@ mod tests {
             origin: DVec3::ZERO,
             depth_limit: None,
             critical: false,
+            clusters: None,
         }
     }
 

@@ -36,6 +36,8 @@ pub struct ViewData {
     /// Set when this state is a solve on a uniform or discontinuity mesh (not the quadtree):
     /// its settings, p = 1 vertex values and times ([`ViewData::of_mesh_solution`]).
     pub mesh: Option<MeshInfo>,
+    /// The cluster tree's nodes (empty when the solve does not cluster).
+    pub clusters: Vec<crate::solver::hierarchical::ClusterInfo>,
 }
 
 /// What a mesh solve adds to its [`ViewData`].
@@ -68,6 +70,7 @@ impl ViewData {
             pushed_for_display: false,
             params: HierarchicalParams::default(),
             mesh: None,
+            clusters: s.clusters,
         }
     }
 
