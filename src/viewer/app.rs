@@ -155,7 +155,7 @@ pub struct Display {
     pub shading: Shading,
     /// Exposure in stops: radiosity × 2^EV before tone mapping.
     pub exposure_ev: f32,
-    /// Set the exposure from the solution after every step (see [`auto_exposure`]).
+    /// Set the exposure from the solution after every step (see [`super::builder::auto_exposure`]).
     pub auto_exposure: bool,
     pub srgb: bool,
     pub quadtree: bool,
@@ -2769,44 +2769,6 @@ impl eframe::App for RadlabApp {
     }
 }
 
-/// Target display value of the 95th-percentile radiosity under auto exposure.
-const AUTO_EXPOSURE_TARGET: f64 = 0.8;
-
-/// Exposure (EV) that maps the 95th percentile of the non-emitting leaves' luminance to
-/// `AUTO_EXPOSURE_TARGET`; `None` while everything is dark (before the first gather). On a mesh
-/// solve the percentile is of area (a discontinuity mesh packs its many small pieces into the
-/// shadows, so a count would over-expose); on the quadtree, of leaves.
-#[must_use]
-pub fn auto_exposure(view: &ViewData) -> Option<f32> {
-    let by_area = view.mesh.is_some();
-    let mut lum: Vec<(f64, f64)> = view
-        .leaves
-        .iter()
-        .map(|&l| &view.elements[l as usize])
-        .filter(|e| e.emission.is_zero())
-        .map(|e| (e.radiosity.luminance(), if by_area { e.area } else { 1.0 }))
-        .filter(|(l, _)| *l > 0.0 && l.is_finite())
-        .collect();
-    if lum.is_empty() {
-        return None;
-    }
-    lum.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let p95 = if by_area {
-        let total: f64 = lum.iter().map(|x| x.1).sum();
-        let mut acc = 0.0;
-        lum.iter()
-            .find(|x| {
-                acc += x.1;
-                acc >= 0.95 * total
-            })
-            .map_or(lum[lum.len() - 1].0, |x| x.0)
-    } else {
-        lum[(lum.len() - 1) * 95 / 100].0
-    };
-    // Rounded to the exposure slider's 0.1 EV step, so the slider does not see a change.
-    let ev = ((AUTO_EXPOSURE_TARGET / p95).log2() * 10.0).round() / 10.0;
-    Some((ev as f32).clamp(-12.0, 12.0))
-}
 
 fn rgb32(c: [f32; 3]) -> Color32 {
     Color32::from_rgb((c[0] * 255.0) as u8, (c[1] * 255.0) as u8, (c[2] * 255.0) as u8)

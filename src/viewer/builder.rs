@@ -83,7 +83,7 @@ pub struct Built {
     pub link_stats: (usize, usize),
     pub link_scale: Option<LogScale>,
     pub error_scale: Option<LogScale>,
-    /// Auto exposure of this solver state ([`super::app::auto_exposure`]).
+    /// Auto exposure of this solver state ([`auto_exposure`]).
     pub auto_ev: Option<f32>,
     /// The critical edges drawn, by kind (for the legend).
     pub critical: Option<SegmentCounts>,
@@ -177,7 +177,7 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
         link_stats,
         link_scale,
         error_scale,
-        auto_ev: super::app::auto_exposure(v),
+        auto_ev: auto_exposure(v),
         critical,
         build_s: started.elapsed().as_secs_f64(),
     }
@@ -188,6 +188,45 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
 #[must_use]
 pub fn cut_at_depth(elements: &[crate::overlay::ElementView], d: u8) -> Vec<u32> {
     elements.iter().filter(|e| e.depth == d || (e.leaf && e.depth < d)).map(|e| e.id).collect()
+}
+
+/// Target display value of the 95th-percentile radiosity under auto exposure.
+const AUTO_EXPOSURE_TARGET: f64 = 0.8;
+
+/// Exposure (EV) that maps the 95th percentile of the non-emitting leaves' luminance to
+/// `AUTO_EXPOSURE_TARGET`; `None` while everything is dark (before the first gather). On a mesh
+/// solve the percentile is of area (a discontinuity mesh packs its many small pieces into the
+/// shadows, so a count would over-expose); on the quadtree, of leaves.
+#[must_use]
+pub fn auto_exposure(view: &ViewData) -> Option<f32> {
+    let by_area = view.mesh.is_some();
+    let mut lum: Vec<(f64, f64)> = view
+        .leaves
+        .iter()
+        .map(|&l| &view.elements[l as usize])
+        .filter(|e| e.emission.is_zero())
+        .map(|e| (e.radiosity.luminance(), if by_area { e.area } else { 1.0 }))
+        .filter(|(l, _)| *l > 0.0 && l.is_finite())
+        .collect();
+    if lum.is_empty() {
+        return None;
+    }
+    lum.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let p95 = if by_area {
+        let total: f64 = lum.iter().map(|x| x.1).sum();
+        let mut acc = 0.0;
+        lum.iter()
+            .find(|x| {
+                acc += x.1;
+                acc >= 0.95 * total
+            })
+            .map_or(lum[lum.len() - 1].0, |x| x.0)
+    } else {
+        lum[(lum.len() - 1) * 95 / 100].0
+    };
+    // Rounded to the exposure slider's 0.1 EV step, so the slider does not see a change.
+    let ev = ((AUTO_EXPOSURE_TARGET / p95).log2() * 10.0).round() / 10.0;
+    Some((ev as f32).clamp(-12.0, 12.0))
 }
 
 /// Handle of the builder thread (it ends when this is dropped).
