@@ -2769,7 +2769,6 @@ impl eframe::App for RadlabApp {
     }
 }
 
-
 fn rgb32(c: [f32; 3]) -> Color32 {
     Color32::from_rgb((c[0] * 255.0) as u8, (c[1] * 255.0) as u8, (c[2] * 255.0) as u8)
 }

@@ -535,6 +535,8 @@ pub struct HierarchicalSolver {
     gathered_once: bool,
     /// Scratch for `push_pull_flat`.
     chain: Vec<Chain>,
+    /// The same without slopes.
+    flat_chain: Vec<FlatChain>,
     /// Scratch for Jacobi gathers: every element's radiosity before the gather (kept between
     /// gathers, so no large allocation per iteration).
     b_prev: Vec<Rgb>,
@@ -697,6 +699,122 @@ impl Chain {
     }
 }
 
+/// What push-pull carries down a chain of ancestors: [`Chain`] with slopes, [`FlatChain`]
+/// without (`push_slopes` off: a quarter of the bytes written per element, which is what
+/// SPLASH-2's push-pull costs).
+trait Sums: Copy + Default {
+    /// The sums of element `e`, whose parent's are `self`.
+    fn down(self, e: &Element) -> Self;
+    /// The irradiance at the element (full + rest).
+    fn irradiance(&self) -> Rgb;
+    /// Σ F·V inherited from the ancestors (full F plus partial F·V).
+    fn inherited_fv(&self) -> f64;
+    /// The slopes' shift of the inherited row to the element's centroid.
+    fn fv_shift(&self) -> f64;
+}
+
+impl Sums for Chain {
+    fn down(self, e: &Element) -> Self {
+        self.then(e)
+    }
+    fn irradiance(&self) -> Rgb {
+        self.full + self.rest
+    }
+    fn inherited_fv(&self) -> f64 {
+        self.f + self.fv_partial
+    }
+    fn fv_shift(&self) -> f64 {
+        self.fv_shift
+    }
+}
+
+/// [`Chain`] without slopes.
+#[derive(Copy, Clone, Debug, Default)]
+struct FlatChain {
+    full: Rgb,
+    rest: Rgb,
+    f: f64,
+    fv_partial: f64,
+}
+
+impl Sums for FlatChain {
+    fn down(self, e: &Element) -> Self {
+        FlatChain {
+            full: self.full + e.gathered_full,
+            rest: self.rest + (e.gathered - e.gathered_full),
+            f: self.f + e.f_sum,
+            fv_partial: self.fv_partial + e.fv_partial,
+        }
+    }
+    fn irradiance(&self) -> Rgb {
+        self.full + self.rest
+    }
+    fn inherited_fv(&self) -> f64 {
+        self.f + self.fv_partial
+    }
+    fn fv_shift(&self) -> f64 {
+        0.0
+    }
+}
+
+/// The down sweep of push-pull over the whole forest (parents before children): each
+/// element's sums from its parent's; each leaf's radiosity B = E + ρ·H and, with `energy`, its
+/// absorbed and escaped power. Returns (largest leaf change against `before` or the old value,
+/// largest reflected radiosity, absorbed, escaped).
+fn push_down<S: Sums>(
+    els: &mut [Element],
+    chain: &mut Vec<S>,
+    before: Option<&[Rgb]>,
+    energy: bool,
+) -> (f64, f64, Rgb, Rgb) {
+    let mut max_change: f64 = 0.0;
+    let mut max_reflected: f64 = 0.0;
+    let mut absorbed = Rgb::ZERO;
+    let mut escaped = Rgb::ZERO;
+    chain.clear();
+    chain.reserve(els.len());
+    for (i, e) in els.iter_mut().enumerate() {
+        let up = if e.parent == NONE { S::default() } else { chain[e.parent as usize] };
+        let own = up.down(e);
+        chain.push(own);
+        if e.is_leaf() {
+            let h = own.irradiance();
+            let b = e.emission + e.reflectance.mul_rgb(h);
+            let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
+            max_change = max_change.max(b.abs_diff_max(old));
+            max_reflected = max_reflected.max((b - e.emission).max_channel());
+            if energy {
+                absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
+                let fv = up.inherited_fv() + e.fv_sum + own.fv_shift();
+                escaped += b * (e.area * (1.0 - fv));
+            }
+            e.radiosity = b;
+            e.b_max = b.max_channel();
+        }
+    }
+    (max_change, max_reflected, absorbed, escaped)
+}
+
+/// The absorbed and escaped power of the elements as they are (see `energy_pass`).
+fn energy_sums<S: Sums>(els: &[Element], chain: &mut Vec<S>) -> (Rgb, Rgb) {
+    let mut absorbed = Rgb::ZERO;
+    let mut escaped = Rgb::ZERO;
+    chain.clear();
+    chain.reserve(els.len());
+    for e in els {
+        let up = if e.parent == NONE { S::default() } else { chain[e.parent as usize] };
+        let own = up.down(e);
+        chain.push(own);
+        if e.is_leaf() {
+            let h = own.irradiance();
+            absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
+            let fv = up.inherited_fv() + e.fv_sum + own.fv_shift();
+            escaped += e.radiosity * (e.area * (1.0 - fv));
+        }
+    }
+    (absorbed, escaped)
+}
+
 impl HierarchicalSolver {
     /// Build the BVH and one root element per input patch (no links yet, B = E).
     pub fn new(scene: Arc<Scene>, params: HierarchicalParams) -> Result<Self, String> {
@@ -735,6 +853,7 @@ impl HierarchicalSolver {
             energy: EnergyBalance::default(),
             gathered_once: false,
             chain: Vec::new(),
+            flat_chain: Vec::new(),
             b_prev: Vec::new(),
             moment: Vec::new(),
             moment_world: Vec::new(),
@@ -1995,37 +2114,16 @@ impl HierarchicalSolver {
     /// order, area averages. The same values as `push_pull_rec` from every root. The residual is
     /// the largest leaf change against `before` (default: the values before this call).
     fn push_pull_flat(&mut self, before: Option<&[Rgb]>, energy: bool) {
-        let mut max_change: f64 = 0.0;
-        let mut max_reflected: f64 = 0.0;
-        let mut absorbed = Rgb::ZERO;
-        let mut escaped = Rgb::ZERO;
         let n = self.hier.len();
         let slopes = self.params.push_slopes;
         // Per element: its own and inherited sums (full-visibility irradiance, other irradiance,
-        // full-visibility F, other F·V).
-        let chain = &mut self.chain;
-        chain.clear();
-        chain.reserve(n);
+        // full-visibility F, other F·V; with slopes, their gradients).
+        let (max_change, max_reflected, absorbed, escaped) = if slopes {
+            push_down(&mut self.hier.elements, &mut self.chain, before, energy)
+        } else {
+            push_down(&mut self.hier.elements, &mut self.flat_chain, before, energy)
+        };
         let els = &mut self.hier.elements;
-        for (i, e) in els.iter_mut().enumerate() {
-            let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            let own = up.step(e, slopes);
-            chain.push(own);
-            if e.is_leaf() {
-                let h = own.full + own.rest;
-                let b = e.emission + e.reflectance.mul_rgb(h);
-                let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
-                max_change = max_change.max(b.abs_diff_max(old));
-                max_reflected = max_reflected.max((b - e.emission).max_channel());
-                if energy {
-                    absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                    let fv = up.f + up.fv_partial + e.fv_sum + own.fv_shift;
-                    escaped += b * (e.area * (1.0 - fv));
-                }
-                e.radiosity = b;
-                e.b_max = b.max_channel();
-            }
-        }
         // World moments Σ_leaves A B (c − c_e) / A_e while pulling (leaves: 0), then each in its
         // element's tangent basis.
         let world = &mut self.moment_world;
@@ -2081,23 +2179,11 @@ impl HierarchicalSolver {
     /// summed them (the same terms in the same order, with each leaf's B as it left them): for
     /// `solve`, whose iterations skip these sums until the end.
     fn energy_pass(&mut self) {
-        let slopes = self.params.push_slopes;
-        let mut absorbed = Rgb::ZERO;
-        let mut escaped = Rgb::ZERO;
-        let chain = &mut self.chain;
-        chain.clear();
-        chain.reserve(self.hier.len());
-        for e in &self.hier.elements {
-            let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            let own = up.step(e, slopes);
-            chain.push(own);
-            if e.is_leaf() {
-                let h = own.full + own.rest;
-                absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                let fv = up.f + up.fv_partial + e.fv_sum + own.fv_shift;
-                escaped += e.radiosity * (e.area * (1.0 - fv));
-            }
-        }
+        let (absorbed, escaped) = if self.params.push_slopes {
+            energy_sums(&self.hier.elements, &mut self.chain)
+        } else {
+            energy_sums(&self.hier.elements, &mut self.flat_chain)
+        };
         self.energy.absorbed = absorbed;
         self.energy.escaped = escaped;
     }
