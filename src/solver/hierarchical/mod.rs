@@ -1790,7 +1790,11 @@ impl HierarchicalSolver {
             return (None, 0);
         }
         // One Galerkin coupling serves both links (A_p F_pq = A_q F_qp exactly).
-        let g = transfer::coupling(p, pi, q, qi, sides.straddle, root, acc);
+        let g = if root {
+            transfer::coupling(p, pi, q, qi, sides.straddle, true, acc)
+        } else {
+            transfer::coupling_gap(p, pi, q, qi, sides.straddle, false, acc, transfer::box_gap(p, q))
+        };
         if g <= 0.0 && !sides.straddle {
             return (None, 0);
         }

@@ -98,9 +98,16 @@ pub(super) struct Accuracy {
 }
 
 /// The rule for integrating over `x` with the kernel to `y`.
+#[cfg(test)]
 pub(super) fn rule(x: &Element, y: &Element, straddle: bool, root: bool, acc: Accuracy) -> Rule {
+    rule_gap(x, y, straddle, root, acc, f64::NEG_INFINITY)
+}
+
+/// [`rule`], with `min_gap` a lower bound of the two elements' distance known otherwise (the
+/// centroids' distance less the half diameters says two small pieces side by side touch).
+fn rule_gap(x: &Element, y: &Element, straddle: bool, root: bool, acc: Accuracy, min_gap: f64) -> Rule {
     let d = x.centroid.distance(y.centroid);
-    let gap = d - 0.5 * (x.diam + y.diam);
+    let gap = (d - 0.5 * (x.diam + y.diam)).max(min_gap);
     if root && (straddle || gap < NEAR_GAP * x.diam) {
         return Rule::Adaptive;
     }
@@ -131,8 +138,39 @@ pub(super) fn coupling(
     root: bool,
     acc: Accuracy,
 ) -> f64 {
+    coupling_gap(a, a_id, b, b_id, straddle, root, acc, f64::NEG_INFINITY)
+}
+
+/// The distance between the two elements' bounding boxes: a lower bound of their distance.
+pub(super) fn box_gap(a: &Element, b: &Element) -> f64 {
+    let bounds = |e: &Element| {
+        e.vertices()
+            .iter()
+            .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| {
+                (lo.min(*v), hi.max(*v))
+            })
+    };
+    let ((alo, ahi), (blo, bhi)) = (bounds(a), bounds(b));
+    let d = (blo - ahi).max(alo - bhi).max(DVec3::ZERO);
+    d.length()
+}
+
+/// [`coupling`], the rule chosen with `min_gap`, a lower bound of the elements' distance
+/// ([`box_gap`]): the small patches a clustered scene links pair by pair are mostly near
+/// each other without touching, and the centroid rule sent them all to adaptive cubature.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn coupling_gap(
+    a: &Element,
+    a_id: u32,
+    b: &Element,
+    b_id: u32,
+    straddle: bool,
+    root: bool,
+    acc: Accuracy,
+    min_gap: f64,
+) -> f64 {
     let (x, y) = if integrate_over_a(a, a_id, b, b_id) { (a, b) } else { (b, a) };
-    let g = match rule(x, y, straddle, root, acc) {
+    let g = match rule_gap(x, y, straddle, root, acc, min_gap) {
         Rule::Disk => x.area * form_factor::disk(x.centroid, x.normal, y.centroid, y.normal, y.area),
         Rule::Gauss(n) => x.area * gauss(x, y, n),
         Rule::Adaptive => {
