@@ -1003,6 +1003,7 @@ mod tests {
             bmax: DVec3::splat(lo + 1.0),
             patches: 2,
             links: 0,
+            parent: None,
         };
         let clusters = [c(0, 0.0), c(1, 2.0), c(2, 4.0), c(2, 6.0)];
         let all = cluster_lines(&clusters, 0..=2, 1.0);

@@ -1282,5 +1282,21 @@ fn clusters_overlay_draws_the_cluster_boxes() {
         before.pixels.chunks_exact(4).zip(after.pixels.chunks_exact(4)).filter(|(a, b)| a != b).count();
     assert!(changed > 300, "the boxes are drawn: {changed} pixels changed");
     check(&mut h, "gui_clusters");
+    // Picking an element lists the clusters above its patch in the inspector.
+    h.state_mut().pick_relative(0.5, 0.8);
+    h.run_steps(2);
+    let id = h.state().selected.expect("a floor element is picked");
+    let v = Arc::clone(h.state().view());
+    let patch = v.elements[id as usize].patch as usize;
+    let mut levels = 0;
+    let mut at = v.patch_cluster.get(patch).copied();
+    while let Some(i) = at {
+        levels += 1;
+        at = v.clusters[i as usize].parent;
+    }
+    assert!(levels >= 2, "table-room's patches sit under several clusters: {levels}");
+    assert!(h.query_by_label(&format!("in {levels} clusters")).is_some(), "the inspector lists them");
+    let status = format!("+ {} cluster links ({} clusters)", v.stats.cluster_links, v.stats.clusters);
+    assert!(h.query_by_label(&status).is_some(), "the status bar counts the cluster links");
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }

@@ -1913,6 +1913,36 @@ impl RadlabApp {
             }
             row(ui, "stopped", e.stop.to_owned());
         });
+        // Clustered solves: the clusters holding the element's patch, smallest first.
+        if let Some(&first) = v.patch_cluster.get(e.patch as usize) {
+            let mut chain = Vec::new();
+            let mut at = Some(first);
+            while let Some(c) = at.and_then(|i| v.clusters.get(i as usize)) {
+                chain.push(*c);
+                at = c.parent;
+            }
+            egui::CollapsingHeader::new(format!("in {} clusters", chain.len()))
+                .id_salt("clusters of the patch")
+                .show(ui, |ui| {
+                    egui::Grid::new("clusters").num_columns(3).striped(true).show(ui, |ui| {
+                        for h in ["depth", "patches", "cluster links"] {
+                            ui.strong(h);
+                        }
+                        ui.end_row();
+                        for c in &chain {
+                            ui.monospace(c.depth.to_string());
+                            ui.monospace(c.patches.to_string());
+                            ui.monospace(c.links.to_string());
+                            ui.end_row();
+                        }
+                    });
+                })
+                .header_response
+                .on_hover_text(
+                    "The cluster tree above this element's patch, from the smallest cluster up to \
+                     the root: how many patches each holds and how many cluster links it has",
+                );
+        }
         ui.separator();
         if let Some(m) = &v.mesh {
             ui.label(format!(
@@ -2057,6 +2087,9 @@ impl RadlabApp {
                 "{} links (full {}, partial {}, none {})",
                 s.links, s.links_full, s.links_partial, s.links_none
             ));
+            if s.cluster_links > 0 {
+                ui.label(format!("+ {} cluster links ({} clusters)", s.cluster_links, s.clusters));
+            }
             ui.separator();
             ui.label(format!(
                 "refine {:.3}s · gather {:.3}s · push-pull {:.3}s",

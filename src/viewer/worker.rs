@@ -38,6 +38,8 @@ pub struct ViewData {
     pub mesh: Option<MeshInfo>,
     /// The cluster tree's nodes (empty when the solve does not cluster).
     pub clusters: Vec<crate::solver::hierarchical::ClusterInfo>,
+    /// Per input patch, the smallest cluster holding it (index into `clusters`).
+    pub patch_cluster: Vec<u32>,
 }
 
 /// What a mesh solve adds to its [`ViewData`].
@@ -71,6 +73,7 @@ impl ViewData {
             params: HierarchicalParams::default(),
             mesh: None,
             clusters: s.clusters,
+            patch_cluster: s.patch_cluster,
         }
     }
 

@@ -234,6 +234,8 @@ pub struct ClusterInfo {
     pub patches: u32,
     /// Cluster links with this node at one end.
     pub links: u32,
+    /// The parent's index in the same list (None: the root).
+    pub parent: Option<u32>,
 }
 
 /// A copy of the solver's state after a step.
@@ -243,6 +245,9 @@ pub struct Snapshot {
     pub links: Vec<LinkInfo>,
     /// The cluster tree's nodes of two patches or more (empty when the solve does not cluster).
     pub clusters: Vec<ClusterInfo>,
+    /// Per input patch, the index in `clusters` of the smallest cluster holding it (empty when
+    /// the solve does not cluster).
+    pub patch_cluster: Vec<u32>,
     pub stats: HierarchicalStats,
     /// Residual after each gather, in order.
     pub residuals: Vec<f64>,
@@ -1728,27 +1733,40 @@ impl HierarchicalSolver {
         created
     }
 
-    /// The cluster tree's nodes of two patches or more, in tree order, with their link counts.
+    /// The cluster tree's nodes of two patches or more, in tree order, with their link counts;
+    /// and per input patch the index of the smallest of them holding it (both empty when the
+    /// solve does not cluster).
     #[must_use]
-    pub fn cluster_infos(&self) -> Vec<ClusterInfo> {
-        let Some(tree) = &self.clusters else { return Vec::new() };
+    pub fn cluster_infos(&self) -> (Vec<ClusterInfo>, Vec<u32>) {
+        let Some(tree) = &self.clusters else { return (Vec::new(), Vec::new()) };
         let mut links = vec![0u32; tree.len()];
         for l in &self.cluster_links {
             links[l.a as usize] += 1;
             links[l.b as usize] += 1;
         }
-        tree.nodes
-            .iter()
-            .zip(links)
-            .filter(|(n, _)| !n.is_leaf())
-            .map(|(n, links)| ClusterInfo {
+        // Node id → index among the clusters (parents come before their children).
+        let mut index = vec![u32::MAX; tree.len()];
+        let mut infos = Vec::new();
+        let mut patch_cluster = vec![u32::MAX; self.hier.roots];
+        for (i, n) in tree.nodes.iter().enumerate() {
+            let parent = (n.parent != cluster::LEAF).then(|| index[n.parent as usize]);
+            if n.is_leaf() {
+                if let Some(p) = parent {
+                    patch_cluster[tree.patch(i as u32) as usize] = p;
+                }
+                continue;
+            }
+            index[i] = infos.len() as u32;
+            infos.push(ClusterInfo {
                 depth: n.depth,
                 bmin: n.bmin,
                 bmax: n.bmax,
                 patches: n.hi - n.lo,
-                links,
-            })
-            .collect()
+                links: links[i],
+                parent,
+            });
+        }
+        (infos, patch_cluster)
     }
 
     /// Every input patch's irradiance through the cluster links (None: no cluster links).
@@ -2399,10 +2417,12 @@ impl HierarchicalSolver {
                 })
             })
             .collect();
+        let (clusters, patch_cluster) = self.cluster_infos();
         Snapshot {
             elements,
             links,
-            clusters: self.cluster_infos(),
+            clusters,
+            patch_cluster,
             stats: self.stats(),
             residuals: self.residuals.clone(),
         }
