@@ -1914,7 +1914,8 @@ impl RadlabApp {
             row(ui, "stopped", e.stop.to_owned());
         });
         // Clustered solves: the clusters holding the element's patch, smallest first.
-        if let Some(&first) = v.patch_cluster.get(e.patch as usize) {
+        // (A patch that is the whole tree, a one-patch scene, has no cluster: u32::MAX.)
+        if let Some(&first) = v.patch_cluster.get(e.patch as usize).filter(|&&c| c != u32::MAX) {
             let mut chain = Vec::new();
             let mut at = Some(first);
             while let Some(c) = at.and_then(|i| v.clusters.get(i as usize)) {

@@ -546,19 +546,19 @@ impl ClusterTransfer {
                 }
             });
         let mut h = vec![Rgb::ZERO; hier.roots];
-        if n > 0 && tree.nodes[0].is_leaf() {
-            h[tree.patch(0) as usize] = self.direct[0];
-        }
-        // Push U and W down (parents first); leaves read them with their normal.
-        for i in 1..n {
-            let parent = tree.nodes[i].parent as usize;
-            let (u, w) = (self.u[parent], self.w[parent]);
-            for (mine, up) in self.u[i].iter_mut().zip(u) {
-                *mine += up;
-            }
-            for (mine_f, up_f) in self.w[i].iter_mut().zip(w) {
-                for (mine, up) in mine_f.iter_mut().zip(up_f) {
+        // Push U and W down (parents first; the root has none); leaves read them with their
+        // normal.
+        for i in 0..n {
+            let parent = tree.nodes[i].parent;
+            if parent != LEAF {
+                let (u, w) = (self.u[parent as usize], self.w[parent as usize]);
+                for (mine, up) in self.u[i].iter_mut().zip(u) {
                     *mine += up;
+                }
+                for (mine_f, up_f) in self.w[i].iter_mut().zip(w) {
+                    for (mine, up) in mine_f.iter_mut().zip(up_f) {
+                        *mine += up;
+                    }
                 }
             }
             if tree.nodes[i].is_leaf() {
