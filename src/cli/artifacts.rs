@@ -160,10 +160,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 &entry.estimates,
                 Some(&band),
             )?;
+            let per_patch: Vec<serde_json::Value> = s
+                .pointwise
+                .per_patch
+                .iter()
+                .map(|p| {
+                    json!({"patch": p.patch, "name": p.name, "area": p.norms.area,
+                           "rel_l2": p.norms.l2_debiased, "reference_mean": p.reference.mean(),
+                           "solution_mean": p.solution.mean()})
+                })
+                .collect();
             Some((
                 s.pointwise.scene.l2_debiased,
                 s.pointwise.scene.reference_noise,
                 s.penumbra.map(|b| b.report.scene.l2_debiased),
+                per_patch,
             ))
         }
         None => None,
@@ -188,7 +199,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         thousands(sol.elements.len()),
         unknowns.map_or_else(String::new, |u| format!(", {} unknowns", thousands(u as usize)))
     )?;
-    if let Some((scene_l2, noise, band)) = pointwise {
+    if let Some((scene_l2, noise, band, _)) = &pointwise {
+        let (scene_l2, noise, band) = (*scene_l2, *noise, *band);
         writeln!(
             log,
             "pointwise rel L2 at the reference's points {:.2} % (noise {:.2} %), penumbra band {}",
@@ -219,7 +231,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "ruler": ruler_label,
             "params": params,
             "solver_params": solved.params,
-            "pointwise": pointwise.map(|(l2, noise, band)| json!({"rel_l2": l2, "noise": noise, "penumbra_band_rel_l2": band})),
+            "pointwise": pointwise.map(|(l2, noise, band, per_patch)| json!({"rel_l2": l2, "noise": noise, "penumbra_band_rel_l2": band, "per_patch": per_patch})),
             "artifacts": report,
             "fractions": {
                 "A": report.blocky_shadows,

@@ -95,6 +95,21 @@ pub struct SolverArgs {
     /// default: no limit).
     #[arg(long)]
     pub dmesh_max_area: Option<f64>,
+    /// Grade the discontinuity mesh to N patches for the whole scene: only the critical segments
+    /// that bound a penumbra kept, then pieces split where the direct light varies (the
+    /// penumbrae) and by area elsewhere, every patch included (src/mesh/grade.rs; --mesh
+    /// discontinuity-cdt, whose refinement then defaults to none, or discontinuity-bsp).
+    #[arg(long, value_name = "N")]
+    pub dmesh_budget: Option<usize>,
+    /// With --dmesh-budget: the assumed smooth gradient that sizes elements away from the
+    /// shadows, in mean direct radiosities per scene diagonal (default 4; 0: split only where the
+    /// direct light varies).
+    #[arg(long, requires = "dmesh_budget")]
+    pub dmesh_smooth: Option<f64>,
+    /// With --dmesh-budget: how much more a penumbra's variation counts than elsewhere
+    /// (default 100; 1: plain L2 allocation).
+    #[arg(long, requires = "dmesh_budget")]
+    pub dmesh_penumbra_weight: Option<f64>,
 
     /// Hierarchical preset the flags below modify: interactive, quality, lecture, splash2.
     #[arg(long, default_value = "quality")]
@@ -403,6 +418,17 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
             mesh.name()
         );
     }
+    if a.dmesh_budget.is_some() && !discontinuity {
+        bail!(
+            "--dmesh-budget applies to --mesh discontinuity-cdt and discontinuity-bsp (not {})",
+            mesh.name()
+        );
+    }
+    if a.dmesh_budget.is_some() && a.continuous {
+        bail!(
+            "--dmesh-budget grades the mesh with cuts that end on a neighbour's edge (T-vertices): a continuous basis needs a conforming mesh"
+        );
+    }
     if a.ff_tol.is_some() && plan == Plan::Hierarchical {
         bail!(
             "--ff-tol applies to --mesh uniform and the discontinuity meshes (the hierarchical solver's links use their own kernel)"
@@ -557,11 +583,27 @@ pub fn solve_scene(
             };
             if let Some(v) = a.dmesh_min_angle {
                 p.mesh.cdt.min_angle_deg = v;
+            } else if a.dmesh_budget.is_some() {
+                // Grading sizes the elements: the CDT without angle refinement is its start.
+                p.mesh.cdt.min_angle_deg = 0.0;
             }
             if let Some(v) = a.dmesh_max_area {
                 p.mesh.cdt.max_area = v;
             }
             p.mesh.cdt.validate().context("invalid --dmesh-min-angle / --dmesh-max-area")?;
+            if let Some(n) = a.dmesh_budget {
+                let mut g = radlab::mesh::grade::GradeParams::with_budget(n);
+                if let Some(v) = a.dmesh_smooth {
+                    g.smooth = v;
+                }
+                if let Some(v) = a.dmesh_penumbra_weight {
+                    g.penumbra_weight = v;
+                }
+                g.validate().context("invalid --dmesh-budget / --dmesh-smooth")?;
+                p.mesh.grade = Some(g);
+                p.mesh.max_patches = p.mesh.max_patches.max(n);
+                p.solve.max_elements = p.solve.max_elements.max(n);
+            }
             p.solve.seed = a.seed;
             if let Some(v) = a.rays {
                 p.solve.rays = v;

@@ -19,6 +19,8 @@
 //!   segments as constraints, Delaunay refinement (minimum angle, maximum area), via `spade`.
 //! - [`bsp`]: Campbell & Fussell's BSP mesh — the receiver split recursively by the critical
 //!   segments' supporting lines into convex pieces.
+//! - [`grade`]: a discontinuity mesh graded to a budget — pieces split where the direct light
+//!   varies (the penumbrae) and by area elsewhere, every patch included.
 //! - [`remesh`]: a whole scene remeshed: every receiver with critical segments replaced by its
 //!   mesh's pieces, each keeping the patch's material, so any solver runs on it (p = 0).
 //!
@@ -34,6 +36,7 @@
 pub mod bsp;
 pub mod cdt;
 pub mod discontinuity;
+pub mod grade;
 pub mod remesh;
 
 use crate::math::{DVec3, orthonormal_basis, polygon_area, polygon_normal};

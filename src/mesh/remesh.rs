@@ -11,10 +11,15 @@
 //! Patches hold 3 or 4 vertices: BSP pieces with more are fanned into triangles (a convex
 //! polygon's fan from its first vertex). Receivers are meshed in parallel, results kept in patch
 //! order, so the scene is identical for any thread count.
+//!
+//! With [`RemeshParams::grade`] the pieces — and every patch left whole — are then split by
+//! [`super::grade`] to a budget of patches for the whole scene: small inside the penumbrae,
+//! larger elsewhere (a graded discontinuity mesh).
 
 use super::bsp::partition;
 use super::cdt::{CdtParams, triangulate};
 use super::discontinuity::{SegmentCounts, scene_segments};
+use super::grade::{GradeParams, GradeStats, Piece, grade};
 use super::{DEFAULT_SNAP, MeshError, ReceiverPlane};
 use crate::math::DVec3;
 use crate::scene::{Patch, Scene};
@@ -41,6 +46,8 @@ pub struct RemeshParams {
     pub snap: f64,
     /// Refuse scenes with more patches than this after meshing (the uniform solver's default cap).
     pub max_patches: usize,
+    /// Grade the mesh to a budget of patches ([`super::grade`]); `None`: the pieces as they are.
+    pub grade: Option<GradeParams>,
 }
 
 impl RemeshParams {
@@ -52,6 +59,7 @@ impl RemeshParams {
             cdt: CdtParams::quality(),
             snap: DEFAULT_SNAP,
             max_patches: 10_000,
+            grade: None,
         }
     }
 
@@ -78,6 +86,8 @@ pub struct RemeshStats {
     /// Pieces dropped because `Patch::new` rejected them (zero area), and their total area.
     pub pieces_dropped: usize,
     pub area_dropped: f64,
+    /// What grading did, when it ran.
+    pub graded: Option<GradeStats>,
     /// Wall time: finding segments, meshing, total (s).
     pub segments_s: f64,
     pub mesh_s: f64,
@@ -88,8 +98,11 @@ impl RemeshStats {
     /// One line for logs: segments, constraints, receivers, patch counts and meshing time.
     #[must_use]
     pub fn describe(&self) -> String {
+        let graded = self.graded.as_ref().map_or_else(String::new, |g| {
+            format!(" (graded to a budget of {}: {} splits, {:.4} s)", g.budget, g.splits, g.grade_s)
+        });
         format!(
-            "{} critical segments, {} constraints on {} receivers, {} → {} patches; meshing {:.4} s",
+            "{} critical segments, {} constraints on {} receivers, {} → {} patches{graded}; meshing {:.4} s",
             self.segments.total(),
             self.constraints,
             self.receivers_meshed,
@@ -113,13 +126,22 @@ pub struct RemeshedScene {
 /// refinement complete, seconds finding segments and meshing.
 type ReceiverResult = (Option<Vec<Vec<DVec3>>>, SegmentCounts, usize, bool, f64, f64);
 
-fn mesh_receiver(scene: &Scene, i: usize, params: &RemeshParams) -> Result<ReceiverResult, MeshError> {
+fn mesh_receiver(
+    scene: &Scene,
+    i: usize,
+    params: &RemeshParams,
+    accel: Option<&crate::accel::Accel>,
+) -> Result<ReceiverResult, MeshError> {
     let t0 = Instant::now();
     let set = scene_segments(&scene.patches, i, params.snap)?;
+    // Graded: only the segments that bound a shadow the direct light shows.
+    let ends = match (accel, &params.grade) {
+        (Some(accel), Some(g)) => super::grade::shadow_segments(scene, accel, i, &set, g.side),
+        _ => set.endpoints(),
+    };
     let t_seg = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let plane = ReceiverPlane::new(&scene.patches[i].vertices, params.snap)?;
-    let ends = set.endpoints();
     let constraints = plane.prepare(&ends).len();
     if constraints == 0 {
         return Ok((None, set.counts, 0, true, t_seg, t1.elapsed().as_secs_f64()));
@@ -146,27 +168,51 @@ fn patch_polygons(piece: Vec<DVec3>) -> Vec<Vec<DVec3>> {
 /// Remesh every receiver of `scene` that has critical segments (see the module docs).
 pub fn discontinuity_scene(scene: &Scene, params: &RemeshParams) -> Result<RemeshedScene, MeshError> {
     params.cdt.validate()?;
+    if let Some(g) = &params.grade {
+        g.validate()?;
+    }
     let t0 = Instant::now();
+    let accel = params.grade.is_some().then(|| crate::accel::Accel::build(scene));
     let results: Vec<ReceiverResult> = (0..scene.patches.len())
         .into_par_iter()
-        .map(|i| mesh_receiver(scene, i, params))
+        .map(|i| mesh_receiver(scene, i, params, accel.as_ref()))
         .collect::<Result<_, _>>()?;
     let mut stats = RemeshStats { input_patches: scene.patches.len(), ..RemeshStats::default() };
-    let (mut patches, mut origin) = (Vec::new(), Vec::new());
-    for (i, (pieces, counts, constraints, complete, t_seg, t_mesh)) in results.into_iter().enumerate() {
-        let p = &scene.patches[i];
+    // Every input patch as convex pieces: its mesh's, or itself.
+    let mut pieces: Vec<Piece> = Vec::new();
+    for (i, (meshed, counts, constraints, complete, t_seg, t_mesh)) in results.into_iter().enumerate() {
         stats.segments = stats.segments.plus(counts);
         stats.constraints += constraints;
         stats.refinement_incomplete += usize::from(!complete);
         stats.segments_s += t_seg;
         stats.mesh_s += t_mesh;
-        let Some(pieces) = pieces else {
-            patches.push(p.clone());
-            origin.push(i);
-            continue;
-        };
-        stats.receivers_meshed += 1;
-        for (k, verts) in pieces.into_iter().flat_map(patch_polygons).enumerate() {
+        match meshed {
+            Some(polygons) => {
+                stats.receivers_meshed += 1;
+                pieces.extend(polygons.into_iter().map(|vertices| Piece { patch: i, vertices }));
+            }
+            None => pieces.push(Piece { patch: i, vertices: scene.patches[i].vertices.clone() }),
+        }
+    }
+    if let (Some(g), Some(accel)) = (&params.grade, &accel) {
+        let (graded, g_stats) = grade(scene, accel, pieces, g);
+        pieces = graded;
+        stats.graded = Some(g_stats);
+    }
+    let (mut patches, mut origin) = (Vec::new(), Vec::new());
+    let mut serial = vec![0usize; scene.patches.len()];
+    for piece in pieces {
+        let i = piece.patch;
+        let p = &scene.patches[i];
+        let whole = piece.vertices == p.vertices;
+        for verts in patch_polygons(piece.vertices) {
+            if whole {
+                patches.push(p.clone());
+                origin.push(i);
+                continue;
+            }
+            let k = serial[i];
+            serial[i] += 1;
             let area = crate::math::polygon_area(&verts);
             let name = format!("{}/dm{k}", p.name);
             match Patch::new(
