@@ -128,7 +128,16 @@ fn order_one_on_the_cdt_dumps_vertex_values_shared_when_continuous() {
 fn nonsense_combinations_are_refused_with_one_line() {
     for (flags, needle) in [
         (&["--mesh", "quadtree", "--order", "1"][..], "--order 1"),
-        (&["--mesh", "discontinuity-bsp", "--method", "hierarchical"][..], "--mesh discontinuity-bsp"),
+        (&["--mesh", "discontinuity-bsp", "--method", "progressive"][..], "--mesh discontinuity-bsp"),
+        (&["--mesh", "discontinuity-cdt", "--method", "hierarchical", "--order", "1"][..], "--order 1"),
+        (&["--mesh", "discontinuity-cdt", "--method", "hierarchical", "--ff-tol", "1e-4"][..], "--ff-tol"),
+        (&["--mesh", "quadtree", "--dmesh-budget", "100"][..], "--dmesh-budget"),
+        (&["--mesh", "uniform", "--dmesh-budget", "100"][..], "--dmesh-budget"),
+        (
+            &["--mesh", "discontinuity-cdt", "--dmesh-budget", "100", "--order", "1", "--continuous"][..],
+            "--dmesh-budget",
+        ),
+        (&["--mesh", "discontinuity-cdt", "--dmesh-budget", "0"][..], "budget"),
         (&["--mesh", "uniform", "--method", "hierarchical"][..], "--mesh uniform"),
         (&["--mesh", "quadtree", "--method", "progressive"][..], "--mesh quadtree"),
         (&["--mesh", "discontinuity-cdt", "--element-size", "0.1"][..], "--element-size"),
@@ -154,4 +163,36 @@ fn nonsense_combinations_are_refused_with_one_line() {
     let out = radlab(&["solve", "builtin:parallel", "--json", "-"]);
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!((doc["method"].as_str(), doc["mesh"].as_str()), (Some("hierarchical"), Some("quadtree")));
+}
+
+/// `--dmesh-budget N` grades the discontinuity mesh to exactly N patches (every patch included:
+/// the lamp and the occluder too), and the JSON reports what grading did.
+#[test]
+fn a_graded_discontinuity_mesh_has_the_budgeted_element_count() {
+    for mesh in ["discontinuity-cdt", "discontinuity-bsp"] {
+        let (doc, dump) =
+            solve_and_dump(&["--mesh", mesh, "--dmesh-budget", "150"], &format!("{mesh}-graded"));
+        assert_eq!(dump["elements"].as_array().unwrap().len(), 150, "{mesh}");
+        let graded = &doc["meshing"]["stats"]["graded"];
+        assert_eq!(graded["budget"], 150, "{mesh}: {graded}");
+        assert_eq!(graded["patches_after"], 150, "{mesh}: {graded}");
+        assert!(graded["splits"].as_u64().unwrap() > 0, "{mesh}: {graded}");
+    }
+}
+
+/// `--mesh discontinuity-* --method hierarchical`: the pieces are the hierarchical solver's top
+/// level; its leaves (more than the pieces) are dumped on the input patches.
+#[test]
+fn the_discontinuity_mesh_as_the_top_level_of_hierarchical_refinement() {
+    let (plain, _) = solve_and_dump(&["--mesh", "discontinuity-bsp"], "bsp-flat");
+    let pieces = plain["stats"]["elements"].as_u64().unwrap();
+    let (doc, dump) =
+        solve_and_dump(&["--mesh", "discontinuity-bsp", "--method", "hierarchical"], "bsp-hierarchical");
+    assert_eq!(doc["method"], "hierarchical on discontinuity-bsp");
+    assert_eq!(doc["mesh"], "discontinuity-bsp");
+    assert!(doc["meshing"]["meshing_s"].as_f64().is_some(), "{}", doc["meshing"]);
+    let elements = dump["elements"].as_array().unwrap();
+    assert!(elements.len() as u64 > pieces, "{} leaves on {pieces} pieces", elements.len());
+    // Pulled back: every element names an input patch of shadow-narrow (3 patches).
+    assert!(elements.iter().all(|e| e["patch"].as_u64().unwrap() < 3));
 }

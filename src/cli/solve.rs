@@ -7,7 +7,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use radlab::accel::Accel;
 use radlab::basis::Order;
 use radlab::math::Rgb;
-use radlab::mesh::remesh::{MeshKind, RemeshStats};
+use radlab::mesh::remesh::{MeshKind, RemeshParams, RemeshStats};
 use radlab::scene::Scene;
 use radlab::solver::discontinuity::{self, DiscontinuityParams};
 use radlab::solver::hierarchical::HierarchicalSolver;
@@ -80,7 +80,8 @@ impl MeshArg {
 #[derive(clap::Args, Debug)]
 pub struct SolverArgs {
     /// Solver; default: hierarchical, or the one --mesh implies (uniform for the uniform and the
-    /// discontinuity meshes).
+    /// discontinuity meshes). With --mesh discontinuity-*, hierarchical makes the mesh's pieces
+    /// the top level of hierarchical refinement.
     #[arg(long, value_enum)]
     pub method: Option<Method>,
     /// Mesh: quadtree (the hierarchical solver's, the default), uniform, discontinuity-cdt or
@@ -376,6 +377,8 @@ pub enum Plan {
     Progressive,
     /// The uniform (p = 0) or Galerkin (p = 1) solve on a discontinuity mesh.
     Discontinuity(MeshKind),
+    /// The discontinuity mesh as the top level of the hierarchical solver.
+    DiscontinuityHierarchical(MeshKind),
 }
 
 /// Resolve `--method`, `--mesh`, `--order` and the mesh flags, refusing the combinations that
@@ -391,6 +394,12 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
         (MeshArg::Uniform, Some(Method::Progressive)) => Plan::Progressive,
         (MeshArg::DiscontinuityCdt, None | Some(Method::Uniform)) => Plan::Discontinuity(MeshKind::Cdt),
         (MeshArg::DiscontinuityBsp, None | Some(Method::Uniform)) => Plan::Discontinuity(MeshKind::Bsp),
+        (MeshArg::DiscontinuityCdt, Some(Method::Hierarchical)) => {
+            Plan::DiscontinuityHierarchical(MeshKind::Cdt)
+        }
+        (MeshArg::DiscontinuityBsp, Some(Method::Hierarchical)) => {
+            Plan::DiscontinuityHierarchical(MeshKind::Bsp)
+        }
         (MeshArg::Quadtree, Some(m)) => bail!(
             "--mesh quadtree is the hierarchical solver's own mesh; --method {} meshes uniformly (use --mesh uniform)",
             format!("{m:?}").to_lowercase()
@@ -399,12 +408,13 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
             "--method hierarchical refines its own quadtree (--mesh quadtree); --mesh uniform needs --method uniform or progressive"
         ),
         (m, Some(other)) => bail!(
-            "--mesh {} is solved by the uniform solver (one element per piece); not by --method {}",
+            "--mesh {} is solved by the uniform solver (one element per piece) or, as its top level, by --method hierarchical; not by --method {}",
             m.name(),
             format!("{other:?}").to_lowercase()
         ),
     };
-    let discontinuity = matches!(plan, Plan::Discontinuity(_));
+    let discontinuity = matches!(plan, Plan::Discontinuity(_) | Plan::DiscontinuityHierarchical(_));
+    let hierarchical = matches!(plan, Plan::Hierarchical | Plan::DiscontinuityHierarchical(_));
     if a.element_size.is_some() && !matches!(plan, Plan::Uniform | Plan::Progressive) {
         bail!(
             "--element-size applies to --mesh uniform; --mesh {} sizes its own elements{}",
@@ -429,7 +439,7 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
             "--dmesh-budget grades the mesh with cuts that end on a neighbour's edge (T-vertices): a continuous basis needs a conforming mesh"
         );
     }
-    if a.ff_tol.is_some() && plan == Plan::Hierarchical {
+    if a.ff_tol.is_some() && hierarchical {
         bail!(
             "--ff-tol applies to --mesh uniform and the discontinuity meshes (the hierarchical solver's links use their own kernel)"
         );
@@ -439,6 +449,9 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
         0 => {}
         1 if plan == Plan::Hierarchical => bail!(
             "--order 1 is not implemented on --mesh quadtree (the hierarchical solver's elements are constant); use --mesh uniform, discontinuity-cdt or discontinuity-bsp"
+        ),
+        1 if hierarchical => bail!(
+            "--order 1 is not implemented with --method hierarchical (its elements are constant); drop --method hierarchical to solve the discontinuity mesh at order 1"
         ),
         1 if plan == Plan::Progressive => {
             bail!(
@@ -452,6 +465,37 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
         p => bail!("--order {p}: supported orders are 0 (constant) and 1 (linear / bilinear)"),
     }
     Ok((plan, mesh))
+}
+
+/// The discontinuity mesh `--dmesh-*` asks for (kind from `--mesh`).
+fn remesh_params(a: &SolverArgs, kind: MeshKind) -> anyhow::Result<RemeshParams> {
+    let mut p = match kind {
+        MeshKind::Cdt => RemeshParams::cdt(),
+        MeshKind::Bsp => RemeshParams::bsp(),
+    };
+    if let Some(v) = a.dmesh_min_angle {
+        p.cdt.min_angle_deg = v;
+    } else if a.dmesh_budget.is_some() {
+        // Grading sizes the elements: the CDT without angle refinement is its start.
+        p.cdt.min_angle_deg = 0.0;
+    }
+    if let Some(v) = a.dmesh_max_area {
+        p.cdt.max_area = v;
+    }
+    p.cdt.validate().context("invalid --dmesh-min-angle / --dmesh-max-area")?;
+    if let Some(n) = a.dmesh_budget {
+        let mut g = radlab::mesh::grade::GradeParams::with_budget(n);
+        if let Some(v) = a.dmesh_smooth {
+            g.smooth = v;
+        }
+        if let Some(v) = a.dmesh_penumbra_weight {
+            g.penumbra_weight = v;
+        }
+        g.validate().context("invalid --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")?;
+        p.grade = Some(g);
+        p.max_patches = p.max_patches.max(n);
+    }
+    Ok(p)
 }
 
 /// A solved scene and what made it.
@@ -576,34 +620,15 @@ pub fn solve_scene(
                 .with_context(solving)?;
             (sol, serde_json::to_value(p)?)
         }
+        Plan::DiscontinuityHierarchical(kind) => {
+            let mesh = remesh_params(a, kind)?;
+            let p = hierarchical_params(a)?;
+            let d = discontinuity::solve_hierarchical(scene, &mesh, p, progress).with_context(solving)?;
+            remesh = Some((d.mesh, d.solve_s));
+            (d.solution, json!({ "mesh": mesh, "solve": p }))
+        }
         Plan::Discontinuity(kind) => {
-            let mut p = match kind {
-                MeshKind::Cdt => DiscontinuityParams::cdt(),
-                MeshKind::Bsp => DiscontinuityParams::bsp(),
-            };
-            if let Some(v) = a.dmesh_min_angle {
-                p.mesh.cdt.min_angle_deg = v;
-            } else if a.dmesh_budget.is_some() {
-                // Grading sizes the elements: the CDT without angle refinement is its start.
-                p.mesh.cdt.min_angle_deg = 0.0;
-            }
-            if let Some(v) = a.dmesh_max_area {
-                p.mesh.cdt.max_area = v;
-            }
-            p.mesh.cdt.validate().context("invalid --dmesh-min-angle / --dmesh-max-area")?;
-            if let Some(n) = a.dmesh_budget {
-                let mut g = radlab::mesh::grade::GradeParams::with_budget(n);
-                if let Some(v) = a.dmesh_smooth {
-                    g.smooth = v;
-                }
-                if let Some(v) = a.dmesh_penumbra_weight {
-                    g.penumbra_weight = v;
-                }
-                g.validate().context("invalid --dmesh-budget / --dmesh-smooth")?;
-                p.mesh.grade = Some(g);
-                p.mesh.max_patches = p.mesh.max_patches.max(n);
-                p.solve.max_elements = p.solve.max_elements.max(n);
-            }
+            let mut p = DiscontinuityParams::with_mesh(remesh_params(a, kind)?);
             p.solve.seed = a.seed;
             if let Some(v) = a.rays {
                 p.solve.rays = v;
@@ -662,7 +687,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let (plan, mesh) = plan(a)?;
     let label = match plan {
-        Plan::Discontinuity(_) => mesh.name().to_string(),
+        Plan::Discontinuity(_) | Plan::DiscontinuityHierarchical(_) => mesh.name().to_string(),
         _ => format!("{plan:?}").to_lowercase(),
     };
     let mut bar = LazyBar::new(&label, args.quiet);

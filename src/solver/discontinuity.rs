@@ -22,8 +22,18 @@
 //!
 //! [`solve_galerkin`] does the same with the Galerkin solver of [`super::linear`] (p = 0 or
 //! p = 1, continuous across the pieces of one input patch) and returns the coefficients too.
+//!
+//! [`solve_hierarchical`] makes the discontinuity mesh the **top level of hierarchical
+//! refinement** [Lischinski, Tampieri & Greenberg 1993, "Combining hierarchical radiosity and
+//! discontinuity meshing"]: the pieces are the input patches of the hierarchical solver
+//! ([`super::hierarchical`], HSA91), which links them, subdivides them as its oracle asks (each
+//! piece a quadtree of triangles or quads below it) and pushes slopes to its leaves; every leaf
+//! is pulled back onto the input patch its piece was cut from. Shadow boundaries then lie on
+//! top-level edges, which no subdivision has to find.
 
+use super::hierarchical::HierarchicalSolver;
 use super::linear::LinearParams;
+use super::params::HierarchicalParams;
 use super::uniform::{self, COARSE_FF_TOLERANCE, UniformParams, mesh_scene};
 use super::{Progress, Solution};
 use crate::accel::Accel;
@@ -31,6 +41,7 @@ use crate::math::Rgb;
 use crate::mesh::MeshError;
 use crate::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, discontinuity_scene};
 use crate::scene::Scene;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Settings of [`solve`]: the mesh, and the uniform solve on it (`element_size` is forced to ∞,
@@ -142,6 +153,34 @@ pub fn solve_galerkin(
     Ok((DiscontinuitySolution { solution, mesh: meshed.stats, solve_s }, on_mesh.coefficients))
 }
 
+/// The discontinuity mesh of `mesh` as the top level of the hierarchical solver with `params`
+/// (module docs): the solution's elements are the hierarchy's leaves, pulled back onto the input
+/// patches; `solve_s` is the hierarchical solve's (BVH of the pieces included).
+pub fn solve_hierarchical(
+    scene: &Scene,
+    mesh: &RemeshParams,
+    params: HierarchicalParams,
+    progress: Progress,
+) -> Result<DiscontinuitySolution, DiscontinuityError> {
+    params.validate().map_err(DiscontinuityError::Solve)?;
+    let meshed = discontinuity_scene(scene, mesh)?;
+    let t = Instant::now();
+    let pieces = Arc::new(meshed.scene);
+    let accel = Arc::new(Accel::build(&pieces));
+    let bvh_s = t.elapsed().as_secs_f64();
+    let mut solver = HierarchicalSolver::with_accel(Arc::clone(&pieces), accel, params, bvh_s);
+    solver.solve(progress);
+    let on_mesh = solver.solution_with(false);
+    let solve_s = t.elapsed().as_secs_f64();
+    let mut solution = pull_back(on_mesh, &meshed.origin, scene.patches.len());
+    solution.method = match mesh.kind {
+        MeshKind::Cdt => "hierarchical on discontinuity-cdt",
+        MeshKind::Bsp => "hierarchical on discontinuity-bsp",
+    }
+    .into();
+    Ok(DiscontinuitySolution { solution, mesh: meshed.stats, solve_s })
+}
+
 /// A solution of a remeshed scene as a solution of its input scene: each element's patch `q`
 /// becomes `origin[q]` (the input patch piece `q` was cut from), and the per-patch averages are
 /// taken over the input's `input_patches` patches. Elements, values, energy and statistics are
@@ -179,5 +218,35 @@ mod tests {
         let emitter = scene.patches.iter().position(|p| p.emission != Rgb::ZERO).unwrap();
         assert!(sol.patch_radiosity[emitter].g() >= scene.patches[emitter].emission.g());
         assert!(sol.is_physical());
+    }
+
+    /// The hierarchical solver on the pieces: every leaf lies on (and is pulled back to) an input
+    /// patch, the leaves cover each input patch, at least one piece is subdivided further, and
+    /// the lit receiver's average agrees with the p = 0 solve on the same pieces.
+    #[test]
+    fn hierarchical_on_the_pieces_covers_the_input_patches() {
+        let scene = Scene::load("builtin:shadow-narrow").unwrap();
+        let mesh = RemeshParams::bsp();
+        let pieces = discontinuity_scene(&scene, &mesh).unwrap().scene.patches.len();
+        let h = solve_hierarchical(&scene, &mesh, HierarchicalParams::quality(), &mut |_, _| {}).unwrap();
+        let sol = &h.solution;
+        assert_eq!(sol.method, "hierarchical on discontinuity-bsp");
+        assert!(sol.elements.len() > pieces, "{} leaves on {pieces} pieces", sol.elements.len());
+        for (p, patch) in scene.patches.iter().enumerate() {
+            let area: f64 = sol.elements.iter().filter(|e| e.patch == p).map(|e| e.area).sum();
+            assert!((area - patch.area).abs() < 1e-9 * patch.area, "patch {p}: {area} vs {}", patch.area);
+        }
+        assert!(sol.is_physical());
+        let flat = solve(&scene, &DiscontinuityParams::bsp(), &mut |_, _| {}).unwrap().solution;
+        let lit = scene
+            .patches
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.emission == Rgb::ZERO)
+            .map(|(i, _)| i)
+            .max_by(|&a, &b| flat.patch_radiosity[a].mean().total_cmp(&flat.patch_radiosity[b].mean()))
+            .unwrap();
+        let (hb, fb) = (sol.patch_radiosity[lit].mean(), flat.patch_radiosity[lit].mean());
+        assert!((hb - fb).abs() < 0.05 * fb, "lit receiver: hierarchical {hb} vs p = 0 {fb}");
     }
 }
