@@ -71,6 +71,14 @@ fn exact_and_path_traced_rulers_agree_and_pictures_are_written() {
     assert_eq!(a["E"], b["E"]);
     let pw = &traced["pointwise"];
     assert!(f(&pw["rel_l2"]) > 0.0 && f(&pw["penumbra_band_rel_l2"]) > f(&pw["rel_l2"]), "{pw}");
+    // Per input patch (shadow-narrow: receiver 2 × 2, lamp 0.2 × 0.2, occluder 0.6 × 0.6): the
+    // areas its points stand for add up to the scene's, and the receiver carries an error.
+    let per_patch = pw["per_patch"].as_array().unwrap();
+    assert_eq!(per_patch.len(), 3, "{pw}");
+    let area: f64 = per_patch.iter().map(|p| f(&p["area"])).sum();
+    assert!((area - 4.4).abs() < 1e-6, "per-patch areas add up to {area}");
+    let receiver = per_patch.iter().max_by(|a, b| f(&a["area"]).total_cmp(&f(&b["area"]))).unwrap();
+    assert!(f(&receiver["rel_l2"]) > 0.0 && f(&receiver["reference_mean"]) > 0.0, "{receiver}");
 }
 
 #[test]

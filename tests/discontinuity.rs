@@ -323,6 +323,33 @@ fn a_uniform_solve_on_the_discontinuity_mesh_is_finite_and_conserves_area() {
     }
 }
 
+/// Checks that `meshed` tiles every input patch of `scene` (areas), that each piece keeps its
+/// input patch's material and facing, and that meshing again gives the same mesh; returns the
+/// number of pieces of each input patch.
+fn tiles_and_repeats(
+    name: &str,
+    scene: &Scene,
+    params: &RemeshParams,
+    meshed: &radlab::mesh::remesh::RemeshedScene,
+) -> Vec<usize> {
+    let mut area = vec![0.0; scene.patches.len()];
+    let mut pieces = vec![0usize; scene.patches.len()];
+    for (p, &o) in meshed.scene.patches.iter().zip(&meshed.origin) {
+        let input = &scene.patches[o];
+        assert!(p.normal.dot(input.normal) > 1.0 - 1e-9, "{name}: {} faces away", p.name);
+        assert_eq!((p.reflectance, p.emission), (input.reflectance, input.emission), "{name}: {}", p.name);
+        area[o] += p.area;
+        pieces[o] += 1;
+    }
+    for (i, p) in scene.patches.iter().enumerate() {
+        assert!((area[i] - p.area).abs() <= AREA_TOL * p.area, "{name} patch {i}: {} vs {}", area[i], p.area);
+    }
+    let again = discontinuity_scene(scene, params).unwrap();
+    let verts = |s: &Scene| s.patches.iter().flat_map(|p| p.vertices.clone()).collect::<Vec<_>>();
+    assert_eq!(verts(&meshed.scene), verts(&again.scene), "{name} {:?}: deterministic", params.kind);
+    pieces
+}
+
 #[test]
 fn built_in_scenes_remesh_without_losing_area_for_both_kinds() {
     for name in ["table-room", "cornell", "shadow-wide"] {
@@ -332,22 +359,40 @@ fn built_in_scenes_remesh_without_losing_area_for_both_kinds() {
             let st = &meshed.stats;
             assert_eq!(st.pieces_dropped, 0, "{name} {:?}: {st:?}", params.kind);
             assert!(st.receivers_meshed > 0 && st.output_patches > st.input_patches, "{name}: {st:?}");
-            let mut area = vec![0.0; scene.patches.len()];
-            for (p, &o) in meshed.scene.patches.iter().zip(&meshed.origin) {
-                area[o] += p.area;
-            }
-            for (i, p) in scene.patches.iter().enumerate() {
-                assert!(
-                    (area[i] - p.area).abs() <= AREA_TOL * p.area,
-                    "{name} patch {i}: {} vs {}",
-                    area[i],
-                    p.area
-                );
-            }
-            // Deterministic: the same mesh again.
-            let again = discontinuity_scene(&scene, &params).unwrap();
-            let verts = |s: &Scene| s.patches.iter().flat_map(|p| p.vertices.clone()).collect::<Vec<_>>();
-            assert_eq!(verts(&meshed.scene), verts(&again.scene));
+            tiles_and_repeats(name, &scene, &params, &meshed);
+        }
+    }
+}
+
+/// Graded (`RemeshParams::grade`): exactly the budget of patches, every input patch tiled by its
+/// pieces (the walls and ceiling, which have no critical segment, split too), each piece with its
+/// input patch's material and facing, and the same mesh again on a second run.
+#[test]
+fn graded_remesh_meets_the_budget_and_tiles_every_patch() {
+    use radlab::mesh::grade::GradeParams;
+    for name in ["table-room", "cornell"] {
+        let scene = radlab::scene::builtin::load(name).unwrap();
+        for base in [RemeshParams::cdt(), RemeshParams::bsp()] {
+            let params = RemeshParams {
+                cdt: CdtParams { min_angle_deg: 0.0, ..CdtParams::quality() },
+                grade: Some(GradeParams::with_budget(900)),
+                ..base
+            };
+            let meshed = discontinuity_scene(&scene, &params).unwrap();
+            let graded = meshed.stats.graded.as_ref().unwrap();
+            assert_eq!(meshed.scene.patches.len(), 900, "{name} {:?}: {graded:?}", base.kind);
+            assert!(graded.patches_before < 900 && graded.splits > 0, "{name}: {graded:?}");
+            let pieces = tiles_and_repeats(name, &scene, &params, &meshed);
+            // Every large reflecting patch (a wall, the ceiling) is split, critical segments or not.
+            let biggest = (0..scene.patches.len())
+                .filter(|&i| scene.patches[i].reflectance.mean() > 0.0)
+                .max_by(|&a, &b| scene.patches[a].area.total_cmp(&scene.patches[b].area))
+                .unwrap();
+            assert!(
+                pieces.iter().filter(|&&n| n > 1).count() > meshed.stats.receivers_meshed,
+                "{name}: {pieces:?}"
+            );
+            assert!(pieces[biggest] > 1, "{name}: {pieces:?}");
         }
     }
 }

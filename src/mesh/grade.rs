@@ -398,6 +398,43 @@ pub fn grade(
 mod tests {
     use super::*;
 
+    /// table-room: on the floor the D1/D2 segments inside the table's umbra are dropped and
+    /// every D0 (the legs' footprints) kept; on the table top's underside, which no direct light
+    /// reaches, only the D0 remain. shadow-narrow: every segment bounds the penumbra, all kept.
+    #[test]
+    fn shadow_segments_keep_what_bounds_a_penumbra() {
+        use crate::mesh::DEFAULT_SNAP;
+        use crate::mesh::discontinuity::{Discontinuity, scene_segments};
+        let scene = Scene::load("builtin:table-room").unwrap();
+        let accel = Accel::build(&scene);
+        let index = |name: &str| scene.patches.iter().position(|p| p.name == name).unwrap();
+        for (name, lit) in [("floor/0/0", true), ("table_top/0/4", false)] {
+            let patch = index(name);
+            let set = scene_segments(&scene.patches, patch, DEFAULT_SNAP).unwrap();
+            let d0 = set.segments.iter().filter(|s| s.order == Discontinuity::D0).count();
+            let kept = shadow_segments(&scene, &accel, patch, &set, 8);
+            assert!(d0 > 0, "{name}: the legs touch it");
+            if lit {
+                assert!(
+                    kept.len() > d0 && kept.len() < set.segments.len(),
+                    "{name}: {} of {}",
+                    kept.len(),
+                    set.segments.len()
+                );
+            } else {
+                assert_eq!(kept.len(), d0, "{name}: only the contacts");
+            }
+        }
+        let scene = Scene::load("builtin:shadow-narrow").unwrap();
+        let accel = Accel::build(&scene);
+        let receiver = (0..scene.patches.len())
+            .max_by(|&a, &b| scene.patches[a].area.total_cmp(&scene.patches[b].area))
+            .unwrap();
+        let set = scene_segments(&scene.patches, receiver, DEFAULT_SNAP).unwrap();
+        assert!(!set.segments.is_empty());
+        assert_eq!(shadow_segments(&scene, &accel, receiver, &set, 8).len(), set.segments.len());
+    }
+
     #[test]
     fn cut_halves_a_square_and_keeps_the_area() {
         let v = |x, z| DVec3::new(x, 0.0, z);
