@@ -416,4 +416,14 @@ fn cli_mesh_reports_counts_as_json() {
         .unwrap();
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("min-angle"));
+    // --budget grades to exactly N patches, from the unrefined CDT unless --min-angle says.
+    let graded = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+        .args(["mesh", "builtin:shadow-narrow", "--budget", "120", "--json", "-"])
+        .output()
+        .unwrap();
+    assert!(graded.status.success(), "{}", String::from_utf8_lossy(&graded.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&graded.stdout).unwrap();
+    assert_eq!(doc["stats"]["output_patches"], 120, "{doc}");
+    assert_eq!(doc["stats"]["graded"]["budget"], 120, "{doc}");
+    assert_eq!(doc["params"]["cdt"]["min_angle_deg"], 0.0, "{doc}");
 }

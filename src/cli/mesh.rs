@@ -1,7 +1,8 @@
-//! `radlab mesh SCENE [--kind cdt|bsp] [--min-angle DEG] [--max-area F] [--solve] [--json PATH]`:
-//! the scene's discontinuity mesh (issue 16 §2, `radlab::mesh`): critical segments by kind,
-//! constraints inserted, receivers remeshed, patches before and after, and the meshing time;
-//! with `--solve`, also a uniform p = 0 solve on the mesh and its time (meshing against solving).
+//! `radlab mesh SCENE [--kind cdt|bsp] [--min-angle DEG] [--max-area F] [--budget N] [--solve]
+//! [--json PATH]`: the scene's discontinuity mesh (issue 16 §2, `radlab::mesh`): critical
+//! segments by kind, constraints inserted, receivers remeshed, patches before and after, and the
+//! meshing time; with `--budget`, graded to N patches ([`radlab::mesh::grade`]); with `--solve`,
+//! also a uniform p = 0 solve on the mesh and its time (meshing against solving).
 
 use super::solve::load_scene;
 use anyhow::Context as _;
@@ -17,15 +18,20 @@ pub struct Args {
     /// Constrained Delaunay (Heckbert) or BSP (Campbell & Fussell)
     #[arg(long, value_enum, default_value = "cdt")]
     pub kind: MeshKind,
-    /// CDT refinement: smallest angle in degrees (0: the unrefined CDT)
-    #[arg(long, default_value_t = CdtParams::quality().min_angle_deg)]
-    pub min_angle: f64,
+    /// CDT refinement: smallest angle in degrees (0: the unrefined CDT; default 20, or 0 with
+    /// --budget, whose grading sizes the elements)
+    #[arg(long)]
+    pub min_angle: Option<f64>,
     /// CDT refinement: largest triangle area as a fraction of its receiver's area
     #[arg(long, default_value_t = f64::INFINITY)]
     pub max_area: f64,
     /// Refuse meshes with more patches than this
     #[arg(long, default_value_t = RemeshParams::cdt().max_patches)]
     pub max_patches: usize,
+    /// Grade the mesh to N patches for the whole scene (as `radlab solve --dmesh-budget`; the
+    /// defaults of src/mesh/grade.rs)
+    #[arg(long, value_name = "N")]
+    pub budget: Option<usize>,
     /// Also solve on the mesh (uniform solver, one element per piece, 16 rays, --ff-tol 1e-4)
     #[arg(long)]
     pub solve: bool,
@@ -53,6 +59,12 @@ fn print(spec: &str, kind: MeshKind, s: &RemeshStats) {
         s.constraints, s.receivers_meshed
     );
     println!("  patches    {} → {}", s.input_patches, s.output_patches);
+    if let Some(g) = &s.graded {
+        println!(
+            "  graded     to {}: {} → {} patches, {} splits, {} direct-light samples, {:.4} s",
+            g.budget, g.patches_before, g.patches_after, g.splits, g.direct_samples, g.grade_s
+        );
+    }
     if s.pieces_dropped > 0 || s.refinement_incomplete > 0 {
         println!(
             "  warnings   {} pieces dropped (area {:e}); {} receivers' refinement hit the Steiner cap",
@@ -73,8 +85,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         MeshKind::Bsp => RemeshParams::bsp(),
     };
     let params = RemeshParams {
-        cdt: CdtParams { min_angle_deg: args.min_angle, max_area: args.max_area, ..base.cdt },
-        max_patches: args.max_patches,
+        cdt: CdtParams {
+            min_angle_deg: args.min_angle.unwrap_or(if args.budget.is_some() {
+                0.0
+            } else {
+                CdtParams::quality().min_angle_deg
+            }),
+            max_area: args.max_area,
+            ..base.cdt
+        },
+        max_patches: args.max_patches.max(args.budget.unwrap_or(0)),
+        grade: args.budget.map(radlab::mesh::grade::GradeParams::with_budget),
         ..base
     };
     let stdout_json = args.json.as_deref() == Some("-");
