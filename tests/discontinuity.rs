@@ -397,32 +397,31 @@ fn graded_remesh_meets_the_budget_and_tiles_every_patch() {
     }
 }
 
+/// `radlab mesh ARGS`: the process's output.
+fn radlab_mesh(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_radlab")).arg("mesh").args(args).output().unwrap()
+}
+
+/// `radlab mesh ARGS --json -`, which must succeed: its JSON.
+fn radlab_mesh_json(args: &[&str]) -> serde_json::Value {
+    let out = radlab_mesh(&[args, &["--json", "-"]].concat());
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 #[test]
 fn cli_mesh_reports_counts_as_json() {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
-        .args(["mesh", "builtin:shadow-narrow", "--kind", "bsp", "--json", "-"])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let doc = radlab_mesh_json(&["builtin:shadow-narrow", "--kind", "bsp"]);
     let stats = &doc["stats"];
     // One lamp, one occluder over the receiver: 16 EV + 16 VE segments, all D1 (parallel edges).
     assert_eq!(stats["segments"]["d1"], 32, "{doc}");
     assert_eq!(stats["receivers_meshed"], 1);
     assert!(stats["output_patches"].as_u64().unwrap() > 3);
-    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
-        .args(["mesh", "builtin:shadow-narrow", "--min-angle", "60"])
-        .output()
-        .unwrap();
+    let bad = radlab_mesh(&["builtin:shadow-narrow", "--min-angle", "60"]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("min-angle"));
     // --budget grades to exactly N patches, from the unrefined CDT unless --min-angle says.
-    let graded = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
-        .args(["mesh", "builtin:shadow-narrow", "--budget", "120", "--json", "-"])
-        .output()
-        .unwrap();
-    assert!(graded.status.success(), "{}", String::from_utf8_lossy(&graded.stderr));
-    let doc: serde_json::Value = serde_json::from_slice(&graded.stdout).unwrap();
+    let doc = radlab_mesh_json(&["builtin:shadow-narrow", "--budget", "120"]);
     assert_eq!(doc["stats"]["output_patches"], 120, "{doc}");
     assert_eq!(doc["stats"]["graded"]["budget"], 120, "{doc}");
     assert_eq!(doc["params"]["cdt"]["min_angle_deg"], 0.0, "{doc}");
