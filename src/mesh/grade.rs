@@ -34,6 +34,10 @@
 //!   └──────────────┘ D1
 //! ```
 //!
+//! Before grading, [`shadow_segments`] keeps only the critical segments with a penumbra beside
+//! them (and every D0), so the discontinuity mesh does not spend the budget on lines inside an
+//! umbra or in full light ([`super::remesh`] calls it when grading).
+//!
 //! Pieces stay convex (a convex polygon cut by a line); pieces of more than 4 vertices count as
 //! the triangles of their fan, which is how [`super::remesh`] turns them into patches. The cuts
 //! are straight lines through the piece's centroid, so the result is not conforming (a cut ends
