@@ -9,16 +9,22 @@ use super::artifacts::{ArtifactThread, Measured};
 use super::bench::FrameBench;
 use super::builder::{self, Builder, Built, Coloring};
 use super::camera::OrbitCamera;
+use super::display::{CLUSTER_LEVELS, Display, DisplayInput, DisplayPanel, Shading};
 use super::file_dialog::{Answer, FileDialogs, Purpose};
 use super::help::{self, Action};
 use super::history::{HistoryAction, RunHistory};
+use super::inspector::{self, Inspector, InspectorInput};
 use super::lecture::Lecture;
 use super::matrix::MatrixAction;
+use super::options::{OverlayChoice, ViewerOptions};
 use super::pane::PaneStyle;
-use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
+use super::plots::{Plots, PlotsInput};
+use super::reference::{RefCommand, RefReply, RefThread};
 use super::replay::{Replay, ReplayInput};
 use super::split::{SplitAction, SplitInput, SplitView};
+use super::status_bar::{StatusBar, StatusInput};
 use super::view::View;
+use super::widgets::{log_slider, rgb32};
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
@@ -30,7 +36,7 @@ use crate::render::{
 };
 use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
-use crate::solver::meshed::{DisplayReconstruction, MeshMethod, MeshSolveParams};
+use crate::solver::meshed::{MeshMethod, MeshSolveParams};
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
 use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
 use eframe::egui_wgpu;
@@ -39,168 +45,8 @@ use std::sync::Arc;
 use std::sync::mpsc::{Receiver, channel};
 use std::time::Instant;
 
-/// Which overlay `--overlay` turns on.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
-pub enum OverlayChoice {
-    #[default]
-    None,
-    Quadtree,
-    Links,
-    Error,
-    /// The critical edges (D0/D1/D2 segments).
-    Critical,
-    /// The five artifacts' marked samples.
-    Artifacts,
-    /// The cluster tree's bounding boxes.
-    Clusters,
-}
-
-/// How the viewer starts.
-#[derive(Clone, Debug)]
-pub struct ViewerOptions {
-    /// `builtin:NAME` or a path; empty: start without a scene (tests call `set_scene`).
-    pub scene: String,
-    pub preset: String,
-    /// Overlays on at start.
-    pub overlay: Vec<OverlayChoice>,
-    /// Solve with the current preset whenever a scene is loaded (at start, Load, Open, a
-    /// dropped file), on the solver thread: the viewer opens on a solved scene. Off: the input
-    /// patches, unsolved, for stepping by hand.
-    pub solve_on_start: bool,
-    /// Scripted use: write the viewport to this PNG once solved, then close.
-    pub screenshot: Option<PathBuf>,
-    /// Benchmark: after solving, draw this many frames, print the median frame time, close.
-    pub bench_frames: Option<usize>,
-    /// Pick the element under this viewport point once solved (fractions of the viewport,
-    /// y down), and show its links (scripted screenshots of the inspector).
-    pub pick: Option<[f32; 2]>,
-    /// Scripted screenshots capture the whole window instead of the viewport.
-    pub screenshot_window: bool,
-    /// Show the plots window open.
-    pub show_plots: bool,
-    /// Where the reference solution comes from (settings and disk cache).
-    pub reference: RefSettings,
-    /// Try the desktop's file dialog (xdg portal) before the in-app one (tests turn it off).
-    pub desktop_file_dialog: bool,
-    /// egui's render pass has a [`crate::render::DEPTH_FORMAT`] depth buffer (the native window
-    /// asks for one): draw the 3-D view straight into it instead of through an offscreen copy.
-    pub direct_viewport: bool,
-    /// Open this lecture figure instead of `scene` (its settings, overlays, camera, caption).
-    pub figure: Option<&'static Figure>,
-    /// Open the split view with this many panes (2 or 3).
-    pub split: Option<usize>,
-    /// Open the run history window.
-    pub show_history: bool,
-    /// Open the refinement replay at this frame of the first solve (0: its start).
-    pub replay: Option<usize>,
-    /// Cut the quadtrees at this depth in the refinement replay.
-    pub depth_cut: Option<u8>,
-    /// The mesh solved on (`None`: the quadtree, the hierarchical solver).
-    pub mesh: Option<MeshSolveParams>,
-    /// How the solution is drawn (`None`: Gouraud).
-    pub reconstruction: Option<DisplayReconstruction>,
-}
-
-impl Default for ViewerOptions {
-    fn default() -> Self {
-        ViewerOptions {
-            scene: "builtin:cornell".into(),
-            preset: "interactive".into(),
-            overlay: Vec::new(),
-            solve_on_start: true,
-            screenshot: None,
-            bench_frames: None,
-            pick: None,
-            screenshot_window: false,
-            show_plots: false,
-            reference: RefSettings::default(),
-            desktop_file_dialog: true,
-            direct_viewport: false,
-            figure: None,
-            split: None,
-            show_history: false,
-            replay: None,
-            depth_cut: None,
-            mesh: None,
-            reconstruction: None,
-        }
-    }
-}
-
-/// Shading of the radiosity mesh (the display reconstruction).
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum Shading {
-    Flat,
-    /// Gouraud from vertex averages.
-    Smooth,
-    /// The element's own p = 1 function (a p = 1 mesh solve's vertex values).
-    Nodal,
-}
-
-impl Shading {
-    /// The shading that draws a display reconstruction.
-    #[must_use]
-    pub fn of(r: DisplayReconstruction) -> Shading {
-        match r {
-            DisplayReconstruction::Flat => Shading::Flat,
-            DisplayReconstruction::Gouraud => Shading::Smooth,
-            DisplayReconstruction::Nodal => Shading::Nodal,
-        }
-    }
-}
-
-/// What is shown (no solver state).
-#[derive(Copy, Clone, Debug, PartialEq)]
-pub struct Display {
-    pub shading: Shading,
-    /// Exposure in stops: radiosity × 2^EV before tone mapping.
-    pub exposure_ev: f32,
-    /// Set the exposure from the solution after every step (see [`super::builder::auto_exposure`]).
-    pub auto_exposure: bool,
-    pub srgb: bool,
-    pub quadtree: bool,
-    pub links: bool,
-    pub error: bool,
-    /// The critical edges: every receiver's D0/D1/D2 segments, coloured by kind.
-    pub critical: bool,
-    /// An artifact overlay (measured against the best reference there is).
-    pub artifact: Option<Artifact>,
-    /// The cluster tree's bounding boxes, from depth `clusters_from` down `CLUSTER_LEVELS` levels.
-    pub clusters: bool,
-    pub clusters_from: u8,
-    pub link_filter: LinkFilter,
-    /// Links of the picked element only.
-    pub selected_links_only: bool,
-    pub links_xray: bool,
-    pub link_alpha: f32,
-}
-
-impl Default for Display {
-    fn default() -> Self {
-        Display {
-            shading: Shading::Smooth,
-            exposure_ev: 0.0,
-            auto_exposure: true,
-            srgb: true,
-            quadtree: false,
-            links: false,
-            error: false,
-            critical: false,
-            artifact: None,
-            clusters: false,
-            clusters_from: 0,
-            link_filter: LinkFilter::default(),
-            selected_links_only: false,
-            links_xray: false,
-            link_alpha: 0.35,
-        }
-    }
-}
-
 /// Width of the solver/display panel and of the inspector, points (fixed: see `ui`).
 const CONTROLS_W: f32 = 290.0;
-/// Levels of the cluster tree the clusters overlay draws at once.
-const CLUSTER_LEVELS: u8 = 3;
 const INSPECTOR_W: f32 = 320.0;
 /// Width of the progress bars in the controls panel.
 const PANEL_CONTENT_W: f32 = 260.0;
@@ -315,8 +161,7 @@ pub struct RadlabApp {
     solve_frames: FrameBench,
     /// Longest geometry upload seen (seconds; read from the renderer).
     max_upload_s: f64,
-    /// Cached inspector rows: (view_seq, element, rows).
-    inspector_rows: Option<(u64, u32, Arc<Vec<LinkRow>>)>,
+    inspector: Inspector,
     link_stats: (usize, usize),
     /// The artifact measurements' thread, and its newest answer: (state measured, with a
     /// reference, the measurement or why not).
@@ -342,8 +187,8 @@ pub struct RadlabApp {
     script: Script,
     shot_rx: Option<Receiver<Arc<egui::ColorImage>>>,
     files: FileDialogs,
-    status: String,
-    show_plots: bool,
+    status_bar: StatusBar,
+    plots: Plots,
     /// The lecture figure opened last and its caption panel.
     pub lecture: Lecture,
     show_help: bool,
@@ -398,9 +243,6 @@ struct BuildKey {
     artifacts: Option<(Artifact, usize)>,
     settings: builder::Settings,
 }
-
-/// One row of the inspector's link table: (receiver, source, F, V, B·F·V).
-type LinkRow = (u32, u32, f32, f32, f64);
 
 impl RadlabApp {
     /// Build the app: store the viewport renderer in egui's callback resources, start the
@@ -467,7 +309,7 @@ impl RadlabApp {
             build_seq: 0,
             shown_seq: 0,
             exposure_view_seq: 0,
-            inspector_rows: None,
+            inspector: Inspector::default(),
             view_seq: 0,
             solve_frames: FrameBench::default(),
             max_upload_s: 0.0,
@@ -491,8 +333,8 @@ impl RadlabApp {
             script: Script::None,
             shot_rx: None,
             files: FileDialogs::new(opts.desktop_file_dialog),
-            status: String::new(),
-            show_plots: opts.show_plots,
+            status_bar: StatusBar::default(),
+            plots: Plots { open: opts.show_plots },
             lecture: Lecture::default(),
             show_help: false,
             pending_pick: opts.pick,
@@ -578,7 +420,7 @@ impl RadlabApp {
         d.shading = if o.flat { Shading::Flat } else { Shading::of(f.reconstruction) };
         d.link_filter = LinkFilter { full: !o.partial_links_only, ..LinkFilter::default() };
         d.selected_links_only = false;
-        self.show_plots = f.plots;
+        self.plots.open = f.plots;
         self.lecture.matrix.open = f.matrix;
         f.scene.clone_into(&mut self.spec_edit);
         let solve = std::mem::replace(&mut self.opts.solve_on_start, false);
@@ -685,7 +527,7 @@ impl RadlabApp {
         }
         self.set_view(Arc::new(ViewData::default()));
         for w in &scene.warnings {
-            self.status = format!("{}: {w}", scene.name);
+            self.status_bar.message = format!("{}: {w}", scene.name);
         }
         self.scene = Some(Arc::clone(&scene));
         let params = self.params;
@@ -734,7 +576,7 @@ impl RadlabApp {
     /// True while the plots panel is open.
     #[must_use]
     pub fn plots_shown(&self) -> bool {
-        self.show_plots
+        self.plots.open
     }
 
     /// The current solver state.
@@ -782,7 +624,8 @@ impl RadlabApp {
             if kind == StepKind::Solve {
                 self.send(Command::SolveMesh(self.mesh), MESH_SOLVE_LABEL);
             } else {
-                self.status = format!("{kind:?} steps the quadtree: pick the quadtree mesh first");
+                self.status_bar.message =
+                    format!("{kind:?} steps the quadtree: pick the quadtree mesh first");
             }
             return;
         }
@@ -1027,7 +870,7 @@ impl RadlabApp {
                 }
             }
             Reply::Skipped => {}
-            Reply::Baked(Ok(what)) => self.status = what,
+            Reply::Baked(Ok(what)) => self.status_bar.message = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => {
                 self.loading = false;
@@ -1114,7 +957,7 @@ impl RadlabApp {
             RefReply::Missing { source } if current(&source, self) => self.ref_state = RefState::Missing,
             RefReply::Cancelled { source } if current(&source, self) => {
                 self.ref_state = RefState::Missing;
-                self.status = "reference computation cancelled".into();
+                self.status_bar.message = "reference computation cancelled".into();
             }
             RefReply::Solution { source, view } if current(&source, self) => {
                 self.reference_view = Some(Arc::clone(&view));
@@ -1295,15 +1138,7 @@ impl RadlabApp {
     /// What the error heatmap shows.
     #[must_use]
     pub fn error_label(&self) -> &'static str {
-        if self.true_error().is_some() { "true error |B − B_ref|" } else { "solver's error estimate" }
-    }
-
-    /// The error value of one element (as the heatmap shows it).
-    fn error_of(&self, id: u32) -> f64 {
-        match self.true_error() {
-            Some(e) => e.get(id as usize).copied().unwrap_or(0.0),
-            None => self.view.elements.get(id as usize).map_or(0.0, |e| e.error_estimate),
-        }
+        inspector::error_label(self.true_error().is_some())
     }
 
     /// What the display settings ask of a geometry build (the split view's panes use them too).
@@ -1475,7 +1310,7 @@ impl RadlabApp {
             if ui.button("Screenshot").on_hover_text("Save the viewport as a PNG").clicked() {
                 self.request_screenshot(ui.ctx());
             }
-            ui.toggle_value(&mut self.show_plots, "Plots").on_hover_text(
+            ui.toggle_value(&mut self.plots.open, "Plots").on_hover_text(
                 "Convergence plots under the inspector: residual per gather, links against elements \
                  (one point per solve), error against solver time",
             );
@@ -1745,380 +1580,9 @@ impl RadlabApp {
         self.reference_panel(ui);
 
         ui.separator();
-        ui.heading("Display");
-        let mesh_view = self.mesh_view();
-        let has_p1 = self.view.mesh.as_ref().is_some_and(|m| m.coefficients.is_some());
         let error_applies = self.error_applies();
-        let d = &mut self.display;
-        ui.horizontal(|ui| {
-            ui.selectable_value(&mut d.shading, Shading::Flat, "flat")
-                .on_hover_text("Each element one colour (its average): the mesh's resolution shows");
-            ui.selectable_value(&mut d.shading, Shading::Smooth, "Gouraud").on_hover_text(
-                "Gouraud from vertex averages, what most systems show; T-vertices take their big \
-                 neighbour's edge value",
-            );
-            ui.add_enabled_ui(has_p1, |ui| {
-                ui.selectable_value(&mut d.shading, Shading::Nodal, "true p = 1")
-                    .on_hover_text(
-                        "Each element's own p = 1 function: the vertex values the Galerkin solve computed",
-                    )
-                    .on_disabled_hover_text(
-                        "The true p = 1 reconstruction needs a p = 1 solve (a uniform or \
-                         discontinuity mesh at order 1)",
-                    );
-            });
-        });
-        if d.shading == Shading::Nodal && !has_p1 {
-            ui.weak("no p = 1 values in this solution: each element's constant");
-        }
-        let ev = ui
-            .add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"))
-            .on_hover_text("Radiosity × 2^EV before tone mapping; moving it turns auto exposure off");
-        if ev.changed() {
-            d.auto_exposure = false;
-        }
-        ui.checkbox(&mut d.auto_exposure, "auto exposure")
-            .on_hover_text("Map the 95th percentile of the lit surfaces' radiosity to 80 % white");
-        ui.horizontal(|ui| {
-            ui.label("tone map");
-            ui.selectable_value(&mut d.srgb, true, "sRGB").on_hover_text("Display values sRGB-encoded");
-            ui.selectable_value(&mut d.srgb, false, "linear")
-                .on_hover_text("Radiosity shown as is, clamped at 1 (dark mid-tones)");
-        });
-        ui.label(egui::RichText::new("back faces: striped magenta").small().weak());
-        ui.separator();
-        ui.heading("Overlays");
-        if mesh_view {
-            ui.checkbox(&mut d.quadtree, "mesh edges").on_hover_text("The elements' edges; depth-tested (Q)");
-        } else {
-            ui.checkbox(&mut d.quadtree, "quadtree")
-                .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
-        }
-        ui.add_enabled(!mesh_view, egui::Checkbox::new(&mut d.links, "links"))
-            .on_hover_text("Element-centre lines coloured by log F (L)")
-            .on_disabled_hover_text(
-                "A mesh solve keeps no links: every pair of its elements is coupled (n² interactions)",
-            );
-        if !mesh_view && (d.links || d.selected_links_only) {
-            ui.indent("links", |ui| {
-                ui.checkbox(&mut d.selected_links_only, "picked element only")
-                    .on_hover_text("Only the links the picked element gathers through (click an element)");
-                let mut min_ff = f64::from(d.link_filter.min_ff).max(1e-9);
-                log_slider(ui, "min F", &mut min_ff, 1e-9, 1.0, "Hide links with a smaller form factor");
-                d.link_filter.min_ff = if min_ff <= 1e-9 { 0.0 } else { min_ff as f32 };
-                ui.horizontal(|ui| {
-                    ui.label("visibility");
-                    ui.checkbox(&mut d.link_filter.full, "full")
-                        .on_hover_text("Links whose shadow rays all passed");
-                    ui.checkbox(&mut d.link_filter.partial, "partial")
-                        .on_hover_text("Links whose shadow rays were partly blocked: the penumbra's");
-                    ui.checkbox(&mut d.link_filter.none, "none")
-                        .on_hover_text("Links whose shadow rays were all blocked (they carry no light)");
-                });
-                ui.add(
-                    egui::Slider::new(&mut d.link_filter.max_lines, 100..=200_000)
-                        .logarithmic(true)
-                        .text("max lines"),
-                )
-                .on_hover_text("Decimation: beyond this many, a sample is drawn");
-                ui.horizontal(|ui| {
-                    ui.label("sample");
-                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::Strided, "every k-th")
-                        .on_hover_text("An even sample of the links");
-                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::LargestF, "largest F")
-                        .on_hover_text("The links with the largest form factors");
-                });
-                ui.add(egui::Slider::new(&mut d.link_alpha, 0.05..=1.0).text("opacity"))
-                    .on_hover_text("Opacity of the link lines");
-                ui.checkbox(&mut d.links_xray, "x-ray (no depth test)")
-                    .on_hover_text("Draw links through surfaces instead of hiding those behind them");
-            });
-        }
-        ui.add_enabled(error_applies, egui::Checkbox::new(&mut d.error, "error heatmap"))
-            .on_hover_text("Per-element error on a log colour scale (E)")
-            .on_disabled_hover_text(
-                "A mesh solve has no error estimate of its own: Compute reference (above) gives the \
-                 true error, then the heatmap shows it",
-            );
-        egui::ComboBox::from_label("artifact")
-            .selected_text(d.artifact.map_or("none", Artifact::name))
-            .show_ui(ui, |ui| {
-                ui.selectable_value(&mut d.artifact, None, "none").on_hover_text("No artifact overlay");
-                for a in Artifact::ALL.into_iter().chain([Artifact::All]) {
-                    ui.selectable_value(&mut d.artifact, Some(a), a.name()).on_hover_text(a.description());
-                }
-            })
-            .response
-            .on_hover_text(
-                "The lecture's five meshing artifacts, where they are: measured against the closed \
-                 form (single-bounce scenes) or the scene's reference, on a background thread",
-            );
-        ui.checkbox(&mut d.critical, "critical edges (D0/D1/D2)").on_hover_text(
-            "Where the radiosity is discontinuous: D0 where surfaces touch (a jump in value), D1 / D2 \
-             where a shadow's umbra or penumbra begins (a jump in the first / second derivative), \
-             from the emitters' EV and VE events; on any mesh",
-        );
-        let max_depth = self.view.clusters.iter().map(|c| c.depth).max();
-        ui.add_enabled_ui(max_depth.is_some(), |ui| {
-            ui.horizontal(|ui| {
-                ui.checkbox(&mut d.clusters, "clusters").on_hover_text(format!(
-                    "The cluster tree above the input patches: bounding boxes of {CLUSTER_LEVELS} levels from \
-                     the depth chosen, coloured by depth. Clusters link groups of patches, so links grow \
-                     as n, not n²"
-                ));
-                if let Some(m) = max_depth {
-                    d.clusters_from = d.clusters_from.min(m);
-                    ui.add(egui::Slider::new(&mut d.clusters_from, 0..=m).text("from depth"))
-                        .on_hover_text("The shallowest cluster level drawn");
-                }
-            });
-        })
-        .response
-        .on_disabled_hover_text(
-            "This solve does not cluster: scenes of 3 000 patches or more do (the furnished rooms), \
-             or --cluster on",
-        );
-    }
-
-    fn inspector(&mut self, ui: &mut egui::Ui) {
-        ui.heading("Inspect");
-        let Some(id) = self.selected else {
-            ui.label("Click an element in the viewport.");
-            return;
-        };
-        let v = Arc::clone(&self.view);
-        let Some(e) = v.elements.get(id as usize) else {
-            return;
-        };
-        let (error, err_label) = (self.error_of(id), self.error_label());
-        egui::Grid::new("element").num_columns(2).striped(true).show(ui, |ui| {
-            let row = |ui: &mut egui::Ui, k: &str, val: String| {
-                ui.label(k);
-                ui.monospace(val);
-                ui.end_row();
-            };
-            row(ui, "element", format!("{} (patch {})", e.id, e.patch));
-            if let Some(p) = self.scene.as_ref().and_then(|s| s.patches.get(e.patch as usize)) {
-                row(ui, "patch name", p.name.clone());
-            }
-            row(ui, "depth", e.depth.to_string());
-            row(ui, "area", format!("{:.4e}", e.area));
-            row(ui, "E", rgb_text(e.emission));
-            row(ui, "ρ", rgb_text(e.reflectance));
-            row(ui, "B", rgb_text(e.radiosity));
-            if self.mesh_view() && self.true_error().is_none() {
-                row(ui, "error", "none (a mesh solve has no estimate)".to_owned());
-            } else {
-                row(ui, "error", format!("{error:.3e} ({err_label})"));
-            }
-            row(ui, "stopped", e.stop.to_owned());
-        });
-        // Clustered solves: the clusters holding the element's patch, smallest first.
-        // (A patch that is the whole tree, a one-patch scene, has no cluster: u32::MAX.)
-        if let Some(&first) = v.patch_cluster.get(e.patch as usize).filter(|&&c| c != u32::MAX) {
-            let mut chain = Vec::new();
-            let mut at = Some(first);
-            while let Some(c) = at.and_then(|i| v.clusters.get(i as usize)) {
-                chain.push(*c);
-                at = c.parent;
-            }
-            egui::CollapsingHeader::new(format!("in {} clusters", chain.len()))
-                .id_salt("clusters of the patch")
-                .show(ui, |ui| {
-                    egui::Grid::new("clusters").num_columns(3).striped(true).show(ui, |ui| {
-                        for h in ["depth", "patches", "cluster links"] {
-                            ui.strong(h);
-                        }
-                        ui.end_row();
-                        for c in &chain {
-                            ui.monospace(c.depth.to_string());
-                            ui.monospace(c.patches.to_string());
-                            ui.monospace(c.links.to_string());
-                            ui.end_row();
-                        }
-                    });
-                })
-                .header_response
-                .on_hover_text(
-                    "The cluster tree above this element's patch, from the smallest cluster up to \
-                     the root: how many patches each holds and how many cluster links it has",
-                );
-        }
-        ui.separator();
-        if let Some(m) = &v.mesh {
-            ui.label(format!(
-                "{}: no links — this element is coupled to every element it sees ({} form-factor \
-                 entries in all).",
-                m.params.label(),
-                v.stats.links
-            ));
-            return;
-        }
-        // Links through which this element gathers: its own and its ancestors' (computed once
-        // per solver state and element, not every frame).
-        let rows = match &self.inspector_rows {
-            Some((seq, sel, rows)) if *seq == self.view_seq && *sel == id => Arc::clone(rows),
-            _ => {
-                let chain = overlay::ancestors(&v.elements, id);
-                let mut rows: Vec<LinkRow> = v
-                    .links
-                    .iter()
-                    .filter(|l| chain.contains(&l.receiver))
-                    .map(|l| {
-                        let b = v.elements.get(l.source as usize).map_or(0.0, |s| s.radiosity.mean());
-                        (l.receiver, l.source, l.ff, l.vis, b * f64::from(l.ff) * f64::from(l.vis))
-                    })
-                    .collect();
-                rows.sort_by(|a, b| b.4.total_cmp(&a.4).then(a.1.cmp(&b.1)));
-                let rows = Arc::new(rows);
-                self.inspector_rows = Some((self.view_seq, id, Arc::clone(&rows)));
-                rows
-            }
-        };
-        ui.label(format!("{} links gathered through (own + ancestors'), by B·F·V:", rows.len()));
-        egui::ScrollArea::vertical().max_height(220.0).id_salt("links").show(ui, |ui| {
-            egui::Grid::new("links").num_columns(5).striped(true).show(ui, |ui| {
-                for h in ["at", "source", "F", "V", "B·F·V"] {
-                    ui.strong(h);
-                }
-                ui.end_row();
-                for (r, s, f, vis, c) in rows.iter().take(200) {
-                    ui.monospace(if *r == id { "self".to_owned() } else { format!("↑{r}") });
-                    ui.monospace(s.to_string());
-                    ui.monospace(format!("{f:.3e}"));
-                    ui.monospace(format!("{vis:.2}"));
-                    ui.monospace(format!("{c:.3e}"));
-                    ui.end_row();
-                }
-            });
-        });
-        ui.checkbox(&mut self.display.selected_links_only, "show these links in the viewport")
-            .on_hover_text("Draw only these links, from the element and its ancestors");
-    }
-
-    fn plots(&self, ui: &mut egui::Ui) {
-        use egui_plot::{Legend, Line, Plot, PlotPoints, Points};
-        ui.label("Residual per gather (log₁₀)");
-        let res: Vec<[f64; 2]> = self
-            .view
-            .residuals
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| **r > 0.0)
-            .map(|(i, r)| [i as f64 + 1.0, r.log10()])
-            .collect();
-        Plot::new("residual").height(150.0).x_axis_label("gather").y_axis_label("log₁₀ residual").show(
-            ui,
-            |p| {
-                p.line(Line::new("residual", PlotPoints::from(res)));
-            },
-        );
-        // The runs of the history, one series per scene and oracle (line and points each).
-        let overlay = |p: &mut egui_plot::PlotUi<'_>, series: Vec<super::history::Series>| {
-            for s in series {
-                p.line(Line::new(s.name.clone(), PlotPoints::from(s.points.clone())));
-                p.points(Points::new(s.name, PlotPoints::from(s.points)).radius(3.5));
-            }
-        };
-        ui.label("Links against elements, runs in this window (log₁₀)");
-        let links = self.history.links_series();
-        let (lo, hi) = links
-            .iter()
-            .flat_map(|s| &s.points)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[0]), b.max(p[0])));
-        let (lo, hi) = if lo.is_finite() { (lo - 0.5, hi + 0.5) } else { (1.0, 5.0) };
-        Plot::new("links_vs_elements")
-            .height(150.0)
-            .legend(Legend::default())
-            .x_axis_label("log₁₀ elements")
-            .y_axis_label("log₁₀ links")
-            .show(ui, |p| {
-                overlay(p, links);
-                p.line(Line::new("n", PlotPoints::from(vec![[lo, lo], [hi, hi]])));
-                p.line(Line::new("n²", PlotPoints::from(vec![[lo, 2.0 * lo], [hi, 2.0 * hi]])));
-            });
-        ui.label("Error against solver time, runs in this window (log₁₀)").on_hover_text(
-            "Relative L2 error against the reference when the scene has one, else the solver's own \
-             estimate (series marked \"estimate\"); one point per solve",
-        );
-        Plot::new("runs_error_vs_time")
-            .height(150.0)
-            .legend(Legend::default())
-            .x_axis_label("solver time (s)")
-            .y_axis_label("log₁₀ rel. L2 error")
-            .show(ui, |p| overlay(p, self.history.error_series()));
-        if self.error_samples.is_empty() {
-            ui.weak("Error against time appears when a reference solution is loaded.");
-        } else {
-            ui.label("Error against the reference (rel L2, log₁₀) vs solver time since the last restart");
-            let pts: Vec<[f64; 2]> =
-                self.error_samples.iter().filter(|p| p[1] > 0.0).map(|p| [p[0], p[1].log10()]).collect();
-            Plot::new("error_vs_time")
-                .height(150.0)
-                .x_axis_label("solver time (s)")
-                .y_axis_label("log₁₀ error")
-                .show(ui, |p| {
-                    p.line(Line::new("error", PlotPoints::from(pts.clone())));
-                    p.points(Points::new("steps", PlotPoints::from(pts)).radius(3.0));
-                });
-        }
-    }
-
-    fn status_bar(&self, ui: &mut egui::Ui) {
-        let s = &self.view.stats;
-        ui.horizontal(|ui| {
-            ui.label(format!("{} elements ({} leaves)", s.elements, s.leaves));
-            ui.separator();
-            if let Some(m) = &self.view.mesh {
-                // A mesh solve: no links, no refine / gather / push-pull phases.
-                ui.label(format!(
-                    "{}: {} form-factor entries · solve {:.3}s (meshing {:.3}s)",
-                    m.params.label(),
-                    s.links,
-                    m.solve_s,
-                    m.meshing_s
-                ));
-                if !self.status.is_empty() {
-                    ui.separator();
-                    ui.weak(&self.status);
-                }
-                return;
-            }
-            ui.label(format!(
-                "{} links (full {}, partial {}, none {})",
-                s.links, s.links_full, s.links_partial, s.links_none
-            ));
-            if s.cluster_links > 0 {
-                ui.label(format!("+ {} cluster links ({} clusters)", s.cluster_links, s.clusters));
-            }
-            ui.separator();
-            ui.label(format!(
-                "refine {:.3}s · gather {:.3}s · push-pull {:.3}s",
-                s.refine_s, s.gather_s, s.push_pull_s
-            ));
-            ui.separator();
-            if let Some(r) = &self.last_report {
-                ui.label(format!(
-                    "last: {:?} {:.3}s, residual {:.2e}{}{}",
-                    r.kind,
-                    r.time_s,
-                    r.residual,
-                    if r.converged { ", converged" } else { "" },
-                    if r.cancelled { ", cancelled" } else { "" }
-                ));
-            }
-            if self.view.pushed_for_display {
-                ui.separator();
-                ui.label("B shown pushed-pulled").on_hover_text(
-                    "The solver has gathered; its own radiosity changes at the next Push-pull. \
-                     The view shows that result already.",
-                );
-            }
-            if !self.status.is_empty() {
-                ui.separator();
-                ui.weak(&self.status);
-            }
-        });
+        let input = DisplayInput { display: &mut self.display, view: &self.view, error_applies };
+        DisplayPanel.ui(ui, input);
     }
 
     // ------------------------------------------------------------------------------------------
@@ -2517,8 +1981,8 @@ impl RadlabApp {
         match answer {
             Answer::Chosen(Purpose::Open, path) => self.load_spec(&path.to_string_lossy()),
             Answer::Chosen(Purpose::ExportBake { .. }, path) => self.export_bake(path),
-            Answer::Cancelled(_) => self.status = "no file chosen".into(),
-            Answer::FellBack(note) => self.status = note,
+            Answer::Cancelled(_) => self.status_bar.message = "no file chosen".into(),
+            Answer::FellBack(note) => self.status_bar.message = note,
         }
     }
 
@@ -2590,7 +2054,7 @@ impl RadlabApp {
             PathBuf::from(format!("{name}-{}.png", self.generation))
         });
         match shot.save_png(&path) {
-            Ok(()) => self.status = format!("saved {}", path.display()),
+            Ok(()) => self.status_bar.message = format!("saved {}", path.display()),
             Err(e) => {
                 self.errors.push(format!("screenshot: {e}"));
                 if self.script != Script::None {
@@ -2744,7 +2208,10 @@ impl eframe::App for RadlabApp {
             frame = frame.fill(Color32::TRANSPARENT);
         }
         egui::Panel::top("top").frame(frame).show(ui, |ui| self.top_bar(ui));
-        egui::Panel::bottom("status").frame(frame).show(ui, |ui| self.status_bar(ui));
+        egui::Panel::bottom("status").frame(frame).show(ui, |ui| {
+            let input = StatusInput { view: &self.view, last_report: self.last_report.as_ref() };
+            self.status_bar.ui(ui, input);
+        });
         self.lecture.caption_panel(ui, frame);
         // Fixed widths: the panels do not widen with their longest line (a long error, a link
         // table, a folded-out option); text wraps or is cut instead.
@@ -2758,21 +2225,24 @@ impl eframe::App for RadlabApp {
                 egui::ScrollArea::both().auto_shrink([false, false]).id_salt("inspector_scroll").show(
                     ui,
                     |ui| {
-                        if !self.errors.is_empty() {
-                            ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
-                            for e in self.errors.iter().rev().take(5) {
-                                ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
-                            }
-                            if ui.small_button("clear").on_hover_text("Forget these errors").clicked() {
-                                self.errors.clear();
-                            }
-                            ui.separator();
-                        }
-                        self.inspector(ui);
-                        if self.show_plots {
+                        let true_error = self.true_error().cloned();
+                        let input = InspectorInput {
+                            errors: &mut self.errors,
+                            picked: self.selected.map(|id| (id, &self.view)),
+                            scene: self.scene.as_deref(),
+                            true_error: true_error.as_deref().map(Vec::as_slice),
+                            selected_links_only: &mut self.display.selected_links_only,
+                        };
+                        self.inspector.ui(ui, input);
+                        if self.plots.open {
                             ui.separator();
                             ui.heading("Convergence plots");
-                            self.plots(ui);
+                            let input = PlotsInput {
+                                view: &self.view,
+                                history: &self.history,
+                                error_samples: &self.error_samples,
+                            };
+                            self.plots.ui(ui, input);
                         }
                     },
                 );
@@ -2801,42 +2271,6 @@ impl eframe::App for RadlabApp {
         self.last_ui_s = started.elapsed().as_secs_f64();
         self.last_ui_cpu_s = cpu_started.and_then(|a| super::bench::thread_cpu_s().map(|b| b - a));
     }
-}
-
-fn rgb32(c: [f32; 3]) -> Color32 {
-    Color32::from_rgb((c[0] * 255.0) as u8, (c[1] * 255.0) as u8, (c[2] * 255.0) as u8)
-}
-
-fn rgb_text(c: crate::math::Rgb) -> String {
-    format!("{:.4} {:.4} {:.4}", c.r(), c.g(), c.b())
-}
-
-/// A log slider with a typed value next to it.
-fn log_slider(ui: &mut egui::Ui, label: &str, v: &mut f64, lo: f64, hi: f64, tip: &str) {
-    ui.horizontal(|ui| {
-        // Only what the user enters is clamped: a preset's value outside the range (the lecture
-        // preset's BFeps 0, a uniform mesh's Feps 0) stays as it is, and nothing restarts.
-        ui.add(
-            egui::Slider::new(v, lo..=hi)
-                .logarithmic(true)
-                .clamping(egui::SliderClamping::Edits)
-                .show_value(false)
-                .text(label),
-        )
-        .on_hover_text(tip);
-        let typed = ui
-            .add(
-                egui::DragValue::new(v)
-                    .speed(0.0)
-                    .range(lo..=hi)
-                    .clamp_existing_to_range(false)
-                    .custom_formatter(|x, _| format!("{x:.2e}")),
-            )
-            .on_hover_text(format!("{label}: type a value ({lo:.0e} to {hi:.0e})"));
-        // The typed field's accessible name (screen readers, UI tests).
-        let name = format!("{label} value");
-        ui.ctx().accesskit_node_builder(typed.id, |b| b.set_label(name));
-    });
 }
 
 /// A one-line note in a dark box at the bottom centre of the viewport.
