@@ -20,7 +20,11 @@ use super::options::{OverlayChoice, ViewerOptions};
 use super::pane::PaneStyle;
 use super::plots::{Plots, PlotsInput};
 use super::reference::{RefCommand, RefReply, RefThread};
+use super::reference_panel::{RefState, ReferenceAction, ReferenceInput, ReferencePanel};
 use super::replay::{Replay, ReplayInput};
+use super::solver_panel::{
+    MESH_SOLVE_LABEL, ProgressAction, ProgressInput, ProgressPanel, SolverAction, SolverInput, SolverPanel,
+};
 use super::split::{SplitAction, SplitInput, SplitView};
 use super::status_bar::{StatusBar, StatusInput};
 use super::view::View;
@@ -37,7 +41,7 @@ use crate::render::{
 use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
 use crate::solver::meshed::{MeshMethod, MeshSolveParams};
-use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
+use crate::solver::params::HierarchicalParams;
 use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
 use eframe::egui_wgpu;
 use std::path::PathBuf;
@@ -48,11 +52,6 @@ use std::time::Instant;
 /// Width of the solver/display panel and of the inspector, points (fixed: see `ui`).
 const CONTROLS_W: f32 = 290.0;
 const INSPECTOR_W: f32 = 320.0;
-/// Width of the progress bars in the controls panel.
-const PANEL_CONTENT_W: f32 = 260.0;
-/// Height reserved for the Reference panel (its tallest state: heading, a line, a progress bar
-/// and a button).
-const REFERENCE_PANEL_H: f32 = 100.0;
 
 /// Background of the viewport (display space).
 const BACKGROUND: [f32; 4] = [0.08, 0.08, 0.1, 1.0];
@@ -82,13 +81,6 @@ enum Script {
 /// Frames drawn before `--bench-frames` starts measuring: the first uploads the geometry.
 const BENCH_WARMUP_FRAMES: usize = 3;
 
-/// The progress line's label while a mesh solve runs.
-const MESH_SOLVE_LABEL: &str = "solving on the mesh";
-
-/// BFeps the viewer starts the error oracle at (relative to the mean reflected radiosity):
-/// table-room converges to 15 % pointwise in 0.4 s there, 5 % at 0.05 in 3 s (README).
-const ERROR_ORACLE_START_EPS: f64 = 0.1;
-
 /// The radlab viewer.
 pub struct RadlabApp {
     opts: ViewerOptions,
@@ -98,7 +90,7 @@ pub struct RadlabApp {
     /// Errors shown in the UI (load failures, solver failures); never a crash.
     errors: Vec<String>,
     params: HierarchicalParams,
-    preset: String,
+    solver_panel: SolverPanel,
     /// The mesh solved on: `method` [`MeshMethod::Quadtree`] is the hierarchical solver (with
     /// `params`), anything else a mesh solve with these settings.
     mesh: MeshSolveParams,
@@ -211,28 +203,6 @@ pub struct RadlabApp {
     pub panels_from_clear: bool,
 }
 
-/// Where the reference solution of the current scene stands.
-#[derive(Clone, Debug, PartialEq)]
-pub enum RefState {
-    /// No scene, or no reference thread.
-    None,
-    /// Looking in the disk cache.
-    Looking,
-    /// Not cached: the "Compute reference" button offers to compute it.
-    Missing,
-    Computing {
-        regions: usize,
-        samples: u32,
-        since: Instant,
-    },
-    Ready {
-        regions: usize,
-        samples: u32,
-        how: String,
-    },
-    Failed(String),
-}
-
 /// What a display build depends on.
 #[derive(Clone, Debug, PartialEq)]
 struct BuildKey {
@@ -271,7 +241,7 @@ impl RadlabApp {
             spec_edit: opts.scene.clone(),
             errors: Vec::new(),
             params: HierarchicalParams::preset(&preset).unwrap_or_else(HierarchicalParams::interactive),
-            preset,
+            solver_panel: SolverPanel { preset },
             mesh: opts.mesh.unwrap_or(MeshSolveParams::new(MeshMethod::Quadtree)),
             worker: None,
             progress: None,
@@ -406,7 +376,7 @@ impl RadlabApp {
         if self.lecture.figure().is_some_and(|p| p.split) && !f.split {
             self.split.on = false;
         }
-        self.preset = f.preset.to_owned();
+        self.solver_panel.preset = f.preset.to_owned();
         // Not `set_params`: the load below starts a solver with these.
         self.params = f.params;
         self.mesh = f.mesh;
@@ -1009,115 +979,6 @@ impl RadlabApp {
         }
     }
 
-    /// One line, always shown (nothing below moves as work starts and ends): while the solver
-    /// works, what it does, the solve's round and the time so far; then what the last step did.
-    fn progress_line(&self, ui: &mut egui::Ui) {
-        let busy = self.busy();
-        let elapsed = self.busy_since.map_or(0.0, |t| t.elapsed().as_secs_f64());
-        let (fraction, text) = match (busy, self.progress) {
-            // A mesh solve counts element pairs, not rounds.
-            (true, Some((done, total))) if self.busy_label == MESH_SOLVE_LABEL => (
-                done as f32 / total.max(1) as f32,
-                format!(
-                    "{} · {:.0} % of the pairs · {elapsed:.1} s (cannot be cancelled)",
-                    self.busy_label,
-                    100.0 * done as f64 / total.max(1) as f64
-                ),
-            ),
-            (true, Some((done, total))) => (
-                done as f32 / total.max(1) as f32,
-                format!("{} · round {} of {total} · {elapsed:.1} s", self.busy_label, (done + 1).min(total)),
-            ),
-            (true, None) => (0.0, format!("{} · {elapsed:.1} s", self.busy_label)),
-            (false, _) => match &self.last_report {
-                Some(r) => (
-                    1.0,
-                    format!(
-                        "{:?} {} in {:.3} s",
-                        r.kind,
-                        if r.cancelled { "cancelled" } else { "done" },
-                        r.time_s
-                    ),
-                ),
-                None => (0.0, "idle".to_owned()),
-            },
-        };
-        ui.add(egui::ProgressBar::new(fraction).desired_width(PANEL_CONTENT_W).text(text).animate(busy))
-            .on_hover_text("The solver thread: progress of the running step, else the last step's time");
-        if busy {
-            ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
-        }
-    }
-
-    fn reference_panel(&mut self, ui: &mut egui::Ui) {
-        // A fixed height: the panels below stay put as the reference's state changes.
-        let top = ui.cursor().top();
-        self.reference_panel_contents(ui);
-        let used = ui.cursor().top() - top;
-        ui.add_space((REFERENCE_PANEL_H - used).max(0.0));
-    }
-
-    fn reference_panel_contents(&mut self, ui: &mut egui::Ui) {
-        ui.heading("Reference");
-        let compute_button = |ui: &mut egui::Ui| {
-            ui.button("Compute reference")
-                .on_hover_text(
-                    "Independent Monte Carlo reference (radlab reference), on a background thread; \
-                     saved in the disk cache",
-                )
-                .clicked()
-        };
-        match self.ref_state.clone() {
-            RefState::None => {
-                ui.weak("no scene");
-            }
-            // Short lines: the panel widens to its widest line and keeps that width.
-            RefState::Looking => {
-                ui.horizontal(|ui| {
-                    ui.spinner();
-                    ui.label("looking in the cache…");
-                });
-            }
-            RefState::Missing => {
-                ui.label("none cached for this scene");
-                if compute_button(ui) {
-                    self.compute_reference();
-                }
-            }
-            RefState::Computing { regions, samples, since } => {
-                let (done, total) = self.reference_progress();
-                let total = if total == 0 { regions } else { total };
-                ui.label(format!("{regions} regions × {samples} paths"));
-                ui.add(
-                    egui::ProgressBar::new(done as f32 / total.max(1) as f32)
-                        .desired_width(PANEL_CONTENT_W)
-                        .text(format!("{done}/{total} · {:.0} s", since.elapsed().as_secs_f64())),
-                );
-                if ui
-                    .button("Cancel reference")
-                    .on_hover_text("Stop the computation (nothing is cached)")
-                    .clicked()
-                {
-                    self.cancel_reference();
-                }
-                ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
-            }
-            RefState::Ready { regions, samples, how } => {
-                ui.label(format!("{regions} regions × {samples} paths")).on_hover_text(how);
-                if let Some([_, e]) = self.error_samples.last() {
-                    ui.label(format!("rel L2 error {:.2} %", e * 100.0))
-                        .on_hover_text("of the current state; the plots show it against solver time");
-                }
-            }
-            RefState::Failed(e) => {
-                ui.colored_label(Color32::from_rgb(255, 150, 130), e);
-                if compute_button(ui) {
-                    self.compute_reference();
-                }
-            }
-        }
-    }
-
     fn set_view(&mut self, view: Arc<ViewData>) {
         self.view = view;
         self.view_seq += 1;
@@ -1442,142 +1303,47 @@ impl RadlabApp {
         }
     }
 
+    /// The side panel: the Solver, progress, Reference and Display sections, in that order
+    /// (each one's answer is applied before the next is drawn).
     fn controls(&mut self, ui: &mut egui::Ui) {
-        let busy = self.busy();
-        ui.heading("Solver");
-        let quadtree = self.mesh.method == MeshMethod::Quadtree;
-        ui.add_enabled_ui(quadtree, |ui| self.quadtree_controls(ui))
-            .response
-            .on_disabled_hover_text("The hierarchical solver's settings: pick the quadtree mesh to use them");
-        let mesh_tip = "Steps the quadtree; on this mesh only Solve runs (the whole mesh solve)";
-        ui.separator();
-        ui.horizontal_wrapped(|ui| {
-            for (label, kind, tip) in [
-                (
-                    "Refine step",
-                    StepKind::Refine,
-                    "Initial linking, then the oracle over the existing links (Space)",
-                ),
-                ("Gather step", StepKind::Gather, "One Jacobi gather over all links (G)"),
-                ("Push-pull", StepKind::PushPull, "Push gathered irradiance down, pull radiosity up (P)"),
-                ("Iterate", StepKind::Iterate, "Refine + gather + push-pull (I)"),
-                ("Solve", StepKind::Solve, "The HSA91 loop until converged, or the mesh solve (S)"),
-            ] {
-                let enabled = !busy && (quadtree || kind == StepKind::Solve);
-                if ui
-                    .add_enabled(enabled, egui::Button::new(label))
-                    .on_hover_text(tip)
-                    .on_disabled_hover_text(if busy { "The solver is busy" } else { mesh_tip })
-                    .clicked()
-                {
-                    self.step(kind);
-                }
-            }
-            if ui
-                .add_enabled(!busy && quadtree, egui::Button::new("Reset"))
-                .on_hover_text("Back to the input patches")
-                .clicked()
-            {
-                self.send(Command::Reset, "resetting");
-            }
-        });
-        self.controls_below(ui);
-    }
-
-    /// The hierarchical solver's settings (preset, oracle, thresholds).
-    fn quadtree_controls(&mut self, ui: &mut egui::Ui) {
-        let mut p = self.params;
-        egui::ComboBox::from_label("preset")
-            .selected_text(&self.preset)
-            .show_ui(ui, |ui| {
-                for name in HierarchicalParams::PRESETS {
-                    if ui.selectable_label(self.preset == name, name).clicked() {
-                        self.preset = name.to_owned();
-                        if let Some(q) = HierarchicalParams::preset(name) {
-                            p = q;
-                        }
-                    }
-                }
-            })
-            .response
-            .on_hover_text("Named solver settings (all sliders below at once)");
-        egui::ComboBox::from_label("oracle")
-            .selected_text(format!("{:?}", p.oracle))
-            .show_ui(ui, |ui| {
-                ui.selectable_value(&mut p.oracle, Oracle::Feps, "Feps (form factor)");
-                ui.selectable_value(&mut p.oracle, Oracle::Bf, "BF (B × F)");
-                ui.selectable_value(&mut p.oracle, Oracle::Error, "Error (where the answer is wrong)");
-            })
-            .response
-            .on_hover_text("What decides that a link is accurate enough, or must be split");
-        if p.oracle == Oracle::Error && self.params.oracle != Oracle::Error {
-            // The error oracle's BFeps is a fraction of the mean reflected radiosity: the BF
-            // presets' 2e-3 would refine to the link budget. Start where it converges in seconds.
-            p.bf_eps = ERROR_ORACLE_START_EPS;
-            p.bf_relative = true;
-        }
-        log_slider(
-            ui,
-            "Feps",
-            &mut p.feps,
-            1e-5,
-            1.0,
-            "Form-factor threshold of Refine: link when both F estimates are below it",
-        );
-        let mut aeps_rel = match p.aeps {
-            AreaEps::Relative(r) => r,
-            AreaEps::Absolute(a) => {
-                self.scene.as_ref().map_or(1e-4, |s| a / s.total_area().max(f64::MIN_POSITIVE))
-            }
+        let input = SolverInput {
+            params: self.params,
+            method: self.mesh.method,
+            busy: self.busy(),
+            scene_area: self.scene.as_ref().map(|s| s.total_area()),
         };
-        let before = aeps_rel;
-        log_slider(
-            ui,
-            "Aeps",
-            &mut aeps_rel,
-            1e-8,
-            1e-1,
-            "Smallest element area, as a fraction of the scene's area",
-        );
-        if aeps_rel != before {
-            p.aeps = AreaEps::Relative(aeps_rel);
+        match self.solver_panel.ui(ui, input) {
+            Some(SolverAction::Step(kind)) => self.step(kind),
+            Some(SolverAction::Reset) => self.send(Command::Reset, "resetting"),
+            Some(SolverAction::SetParams(p)) => self.set_params(p),
+            None => {}
         }
-        log_slider(ui, "BFeps", &mut p.bf_eps, 1e-6, 1.0, "Threshold of the BF oracle (units of B)");
-        ui.horizontal(|ui| {
-            ui.add(egui::Slider::new(&mut p.rays, 1..=256).logarithmic(true).text("rays"))
-                .on_hover_text("Shadow rays per link (visible fraction)");
-        });
-        ui.add(egui::Slider::new(&mut p.max_depth, 1..=20).text("max depth"))
-            .on_hover_text("Deepest quadtree level below an input patch: a hard floor on resolution");
-        if p != self.params {
-            self.set_params(p);
-        }
-    }
-
-    /// Auto-run and Cancel, the progress line, the reference, display and overlays.
-    fn controls_below(&mut self, ui: &mut egui::Ui) {
-        let busy = self.busy();
-        ui.horizontal(|ui| {
-            ui.checkbox(&mut self.auto_run, "auto-run").on_hover_text(
-                "Re-solve whenever a parameter changes; the last picture stays until the new one is \
-                 ready. Off: a change restarts from the input patches, for stepping by hand.",
-            );
-            // Always there, enabled while busy: the row does not change as work starts and ends.
-            if ui
-                .add_enabled(busy, egui::Button::new("Cancel"))
-                .on_hover_text("Stop the running step (the state stays consistent)")
-                .clicked()
-            {
-                if let Some(w) = &self.worker {
-                    w.cancel();
-                }
-                self.resolve_pending = false;
+        let input = ProgressInput {
+            auto_run: &mut self.auto_run,
+            busy: self.worker.as_ref().is_some_and(Worker::busy),
+            label: &self.busy_label,
+            since: self.busy_since,
+            progress: self.progress,
+            last_report: self.last_report.as_ref(),
+        };
+        if ProgressPanel.ui(ui, input) == Some(ProgressAction::Cancel) {
+            if let Some(w) = &self.worker {
+                w.cancel();
             }
-        });
-        self.progress_line(ui);
+            self.resolve_pending = false;
+        }
 
         ui.separator();
-        self.reference_panel(ui);
+        let input = ReferenceInput {
+            state: &self.ref_state,
+            progress: self.reference_progress(),
+            error: self.error_samples.last().map(|s| s[1]),
+        };
+        match ReferencePanel.ui(ui, input) {
+            Some(ReferenceAction::Compute) => self.compute_reference(),
+            Some(ReferenceAction::Cancel) => self.cancel_reference(),
+            None => {}
+        }
 
         ui.separator();
         let error_applies = self.error_applies();

@@ -39,18 +39,21 @@ pub mod options;
 pub mod pane;
 pub mod plots;
 pub mod reference;
+pub mod reference_panel;
 pub mod replay;
+pub mod solver_panel;
 pub mod split;
 pub mod status_bar;
 pub mod view;
 pub mod widgets;
 pub mod worker;
 
-pub use app::{RadlabApp, RefState};
+pub use app::RadlabApp;
 pub use display::{Display, Shading};
 use eframe::egui;
 pub use options::{OverlayChoice, ViewerOptions};
 pub use reference::RefSettings;
+pub use reference_panel::RefState;
 use std::sync::{Arc, Mutex};
 
 /// Why the viewer could not run.
