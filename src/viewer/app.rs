@@ -27,8 +27,9 @@ use super::solver_panel::{
 };
 use super::split::{SplitAction, SplitInput, SplitView};
 use super::status_bar::{StatusBar, StatusInput};
+use super::top_bar::{TopBar, TopBarAction, TopBarInput};
 use super::view::View;
-use super::widgets::{log_slider, rgb32};
+use super::widgets::rgb32;
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
@@ -86,7 +87,7 @@ pub struct RadlabApp {
     opts: ViewerOptions,
     scene: Option<Arc<Scene>>,
     scene_spec: String,
-    spec_edit: String,
+    top_bar: TopBar,
     /// Errors shown in the UI (load failures, solver failures); never a crash.
     errors: Vec<String>,
     params: HierarchicalParams,
@@ -238,7 +239,7 @@ impl RadlabApp {
         let mut app = RadlabApp {
             scene: None,
             scene_spec: opts.scene.clone(),
-            spec_edit: opts.scene.clone(),
+            top_bar: TopBar { spec_edit: opts.scene.clone() },
             errors: Vec::new(),
             params: HierarchicalParams::preset(&preset).unwrap_or_else(HierarchicalParams::interactive),
             solver_panel: SolverPanel { preset },
@@ -392,7 +393,7 @@ impl RadlabApp {
         d.selected_links_only = false;
         self.plots.open = f.plots;
         self.lecture.matrix.open = f.matrix;
-        f.scene.clone_into(&mut self.spec_edit);
+        f.scene.clone_into(&mut self.top_bar.spec_edit);
         let solve = std::mem::replace(&mut self.opts.solve_on_start, false);
         self.load_spec(f.scene);
         self.opts.solve_on_start = solve;
@@ -1126,180 +1127,24 @@ impl RadlabApp {
     // Panels
 
     fn top_bar(&mut self, ui: &mut egui::Ui) {
-        ui.horizontal(|ui| {
-            if let Some(f) = self.lecture.menu(ui) {
-                self.open_figure(f);
-            }
-            self.view_menu(ui);
-            help::menu(ui, &mut self.show_help);
-            ui.separator();
-            if ui
-                .button("Open…")
-                .on_hover_text("Open a .gltf/.glb file (or drop one on the window)")
-                .clicked()
-            {
-                self.files.choose(Purpose::Open);
-            }
-            let export =
-                ui.add_enabled(self.scene.is_some(), egui::Button::new("Export baked glTF…")).on_hover_text(
-                    "Write the solution shown as a .glb/.gltf: radiosity as vertex colours at the \
-                     viewer's exposure, unlit (docs/bake.md)",
-                );
-            if export.clicked() {
-                let name = self.scene.as_ref().map_or("radlab".to_owned(), |s| s.name.clone());
-                self.files.choose(Purpose::ExportBake { suggested: format!("{name}.glb") });
-            }
-            let edit = ui
-                .add(
-                    egui::TextEdit::singleline(&mut self.spec_edit)
-                        .desired_width(160.0)
-                        .hint_text("builtin:NAME or path"),
-                )
-                .on_hover_text("builtin:NAME (radlab scenes lists them) or a .gltf/.glb path");
-            let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
-            if ui
-                .button("Load")
-                .on_hover_text("Open the scene named on the left (or press Enter there)")
-                .clicked()
-                || enter
-            {
-                let spec = self.spec_edit.trim().to_owned();
-                if !spec.is_empty() {
-                    self.load_spec(&spec);
-                }
-            }
-            if ui.button("Screenshot").on_hover_text("Save the viewport as a PNG").clicked() {
-                self.request_screenshot(ui.ctx());
-            }
-            ui.toggle_value(&mut self.plots.open, "Plots").on_hover_text(
-                "Convergence plots under the inspector: residual per gather, links against elements \
-                 (one point per solve), error against solver time",
-            );
-            self.mesh_menu(ui);
-            ui.separator();
-            let name = self.scene.as_ref().map_or("(no scene)".to_owned(), |s| s.name.clone());
-            ui.label(egui::RichText::new(name).strong());
-            ui.weak(&self.scene_spec);
-        });
-    }
-
-    /// The View menu: the split view and the run history.
-    fn view_menu(&mut self, ui: &mut egui::Ui) {
-        ui.menu_button("View", |ui| {
-            if ui
-                .checkbox(&mut self.split.on, "Split view (V)")
-                .on_hover_text(
-                    "Two or three runs side by side with one camera and one exposure, each labelled \
-                     with its settings, time and error: the runs picked in the run history, else the \
-                     newest of this scene",
-                )
-                .changed()
-            {
-                self.replay.on &= !self.split.on;
-            }
-            ui.horizontal(|ui| {
-                ui.label("panes");
-                for n in [2, 3] {
-                    ui.selectable_value(&mut self.split.panes, n, n.to_string())
-                        .on_hover_text(format!("Show the newest {n} runs when fewer than two are picked"));
-                }
-            });
-            ui.checkbox(&mut self.history.open, "Run history (H)").on_hover_text(
-                "Every solve of this window: settings, elements, links, time, error; pick the runs \
-                 of the split view there",
-            );
-            ui.separator();
-            if ui
-                .checkbox(&mut self.replay.on, "Refinement replay")
-                .on_hover_text(
-                    "The last solve round by round (mesh, links, radiosity as they were), with a \
-                     slider; and a depth slider that cuts the quadtrees at a level",
-                )
-                .changed()
-            {
-                self.split.on &= !self.replay.on;
-            }
-        })
-        .response
-        .on_hover_text("Split view, run history and refinement replay: compare solves, watch one form");
-    }
-
-    /// The Mesh menu of the top bar: the mesh, and the settings of a solve on a uniform or
-    /// discontinuity mesh (greyed out on the quadtree, whose settings are the Solver panel's).
-    fn mesh_menu(&mut self, ui: &mut egui::Ui) {
-        let title = match self.mesh.method {
-            MeshMethod::Quadtree => "Mesh: quadtree".to_owned(),
-            _ => format!("Mesh: {}", self.mesh.label()),
+        let input = TopBarInput {
+            lecture: &mut self.lecture,
+            split: &mut self.split,
+            replay: &mut self.replay,
+            history: &mut self.history,
+            show_help: &mut self.show_help,
+            show_plots: &mut self.plots.open,
+            scene: self.scene.as_deref(),
+            scene_spec: &self.scene_spec,
+            mesh: self.mesh,
         };
-        ui.menu_button(title, |ui| self.mesh_controls(ui)).response.on_hover_text(
-            "What the solution is computed on: the hierarchical quadtree, a uniform mesh, or a \
-             discontinuity mesh whose edges follow the shadow boundaries; element order p = 0 / 1",
-        );
-    }
-
-    fn mesh_controls(&mut self, ui: &mut egui::Ui) {
-        let mut m = self.mesh;
-        for method in MeshMethod::ALL {
-            ui.radio_value(&mut m.method, method, method.name()).on_hover_text(method.description());
-        }
-        ui.separator();
-        let on_mesh = m.method != MeshMethod::Quadtree;
-        ui.add_enabled_ui(on_mesh, |ui| {
-            ui.horizontal(|ui| {
-                ui.label("order");
-                ui.selectable_value(&mut m.order, crate::basis::Order::Constant, "p = 0")
-                    .on_hover_text("Constant elements: one value each")
-                    .on_disabled_hover_text("The quadtree's elements are constant (p = 0)");
-                ui.selectable_value(&mut m.order, crate::basis::Order::Linear, "p = 1")
-                    .on_hover_text(
-                        "Linear (triangles) / bilinear (quads) elements, a Galerkin solve of their \
-                         vertex values: follows a smooth ramp inside an element, but 20-60 times \
-                         slower than p = 0 (a minute or more on table-room; a mesh solve cannot be \
-                         cancelled)",
-                    )
-                    .on_disabled_hover_text("p = 1 exists on the uniform and discontinuity meshes");
-            });
-            ui.add_enabled_ui(m.order == crate::basis::Order::Linear, |ui| {
-                ui.horizontal(|ui| {
-                    ui.selectable_value(&mut m.continuous, false, "discontinuous").on_hover_text(
-                        "Each element its own vertex values: jumps can remain at element edges",
-                    );
-                    ui.selectable_value(&mut m.continuous, true, "continuous").on_hover_text(
-                        "One value per mesh vertex, shared by the elements around it: no jumps, \
-                         fewer unknowns",
-                    );
-                })
-                .response
-                .on_disabled_hover_text("Continuity applies to p = 1 elements");
-            });
-            ui.add_enabled_ui(m.method == MeshMethod::Uniform, |ui| {
-                log_slider(
-                    ui,
-                    "size",
-                    &mut m.element_size_rel,
-                    1e-3,
-                    1.0,
-                    "Uniform mesh: longest element side, as a fraction of the scene's diagonal",
-                );
-            });
-            ui.add_enabled_ui(m.method == MeshMethod::DiscontinuityCdt, |ui| {
-                ui.add(
-                    egui::Slider::new(&mut m.cdt_min_angle_deg, 0.0..=30.0)
-                        .step_by(5.0)
-                        .text("CDT min angle"),
-                )
-                .on_hover_text(
-                    "Delaunay refinement of the constrained triangulation to this smallest angle \
-                         (degrees; 0: the constraints' triangulation as it is, fewest elements)",
-                );
-            });
-            ui.add(egui::Slider::new(&mut m.rays, 1..=64).logarithmic(true).text("rays / pair"))
-                .on_hover_text("Shadow rays per element pair (the visible fraction)");
-        })
-        .response
-        .on_disabled_hover_text("Mesh settings: pick a uniform or discontinuity mesh above");
-        if m != self.mesh {
-            self.set_mesh(m);
+        match self.top_bar.ui(ui, input) {
+            Some(TopBarAction::OpenFigure(f)) => self.open_figure(f),
+            Some(TopBarAction::ChooseFile(purpose)) => self.files.choose(purpose),
+            Some(TopBarAction::Load(spec)) => self.load_spec(&spec),
+            Some(TopBarAction::Screenshot) => self.request_screenshot(ui.ctx()),
+            Some(TopBarAction::SetMesh(m)) => self.set_mesh(m),
+            None => {}
         }
     }
 
