@@ -34,6 +34,7 @@ pub mod help;
 pub mod history;
 pub mod inspector;
 pub mod lecture;
+pub mod legends;
 pub mod matrix;
 pub mod mesh_menu;
 pub mod options;
