@@ -7,10 +7,11 @@
 
 use super::artifacts::{ArtifactThread, Measured};
 use super::bench::FrameBench;
-use super::builder::{self, Builder, Built, Coloring};
+use super::builder::{self, Builder, Coloring};
 use super::camera::OrbitCamera;
 use super::display::{CLUSTER_LEVELS, Display, DisplayInput, DisplayPanel, Shading};
 use super::file_dialog::{Answer, FileDialogs, Purpose};
+use super::geometry::{BuildKey, ShownGeometry};
 use super::help::{self, Action};
 use super::history::{HistoryAction, RunHistory};
 use super::inspector::{self, Inspector, InspectorInput};
@@ -23,6 +24,7 @@ use super::plots::{Plots, PlotsInput};
 use super::reference::{RefCommand, RefReply, RefThread};
 use super::reference_panel::{RefState, ReferenceAction, ReferenceInput, ReferencePanel};
 use super::replay::{Replay, ReplayInput};
+use super::script::{self, BenchScene, Script};
 use super::solver_panel::{
     MESH_SOLVE_LABEL, ProgressAction, ProgressInput, ProgressPanel, SolverAction, SolverInput, SolverPanel,
 };
@@ -34,16 +36,15 @@ use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
 use crate::mesh_overlay::Artifact;
-use crate::overlay::{self, Highlight, LinkFilter, LogScale};
+use crate::overlay::{self, Highlight, LinkFilter};
 use crate::render::{
-    FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, RgbaImage, SceneRenderer,
-    Uniforms, ViewportCallback,
+    FrameParams, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, SceneRenderer, Uniforms, ViewportCallback,
 };
 use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
 use crate::solver::meshed::{MeshMethod, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
-use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
+use eframe::egui::{self, Color32, Pos2, Rect, Sense};
 use eframe::egui_wgpu;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -61,26 +62,6 @@ const BACK_COLOR: [f32; 4] = [0.55, 0.1, 0.45, 1.0];
 /// Width of the quadtree edges drawn by the mesh shader, pixels on each side of an edge (a
 /// shared edge shows both sides' depth colours, 1.5 px together).
 const QUADTREE_LINE_PX: f32 = 0.75;
-
-/// What a scripted run (`--screenshot`, `--bench-frames`) is waiting for.
-#[derive(Clone, Debug, PartialEq)]
-enum Script {
-    None,
-    /// Waiting for the solve to finish.
-    Solving,
-    /// Frames left to draw before the screenshot (the geometry must reach the GPU first).
-    Settle(u32),
-    WaitingShot,
-    Bench {
-        /// Frames still to draw before measuring (the geometry upload happens in the first).
-        warmup: usize,
-        bench: FrameBench,
-    },
-    Done,
-}
-
-/// Frames drawn before `--bench-frames` starts measuring: the first uploads the geometry.
-const BENCH_WARMUP_FRAMES: usize = 3;
 
 /// The radlab viewer.
 pub struct RadlabApp {
@@ -134,17 +115,7 @@ pub struct RadlabApp {
     solver_time_s: f64,
     /// (solver time, error against the reference) after steps, for the error-vs-time plot.
     error_samples: Vec<[f64; 2]>,
-    geometry: Arc<Geometry>,
-    generation: u64,
-    /// The display builder thread (`None`: build on the UI thread).
-    builder: Option<Builder>,
-    /// What the newest display build was requested for, and its sequence number.
-    build_key: Option<BuildKey>,
-    build_seq: u64,
-    /// Sequence number of the build shown now.
-    shown_seq: u64,
-    /// The solver state whose auto exposure was applied last.
-    exposure_view_seq: u64,
+    geometry: ShownGeometry,
     /// The reference thread and where the current scene's reference stands.
     reference: Option<RefThread>,
     pub ref_state: RefState,
@@ -155,7 +126,6 @@ pub struct RadlabApp {
     /// Longest geometry upload seen (seconds; read from the renderer).
     max_upload_s: f64,
     inspector: Inspector,
-    link_stats: (usize, usize),
     /// The artifact measurements' thread, and its newest answer: (state measured, with a
     /// reference, the measurement or why not).
     artifact_thread: Option<ArtifactThread>,
@@ -165,10 +135,6 @@ pub struct RadlabApp {
     artifact_seq: u64,
     /// The scene's Monte Carlo reference as flat leaves (once the reference thread has it).
     reference_view: Option<Arc<ViewData>>,
-    /// The critical edges drawn, by kind (from the last build).
-    critical_counts: Option<crate::mesh::discontinuity::SegmentCounts>,
-    link_scale: Option<LogScale>,
-    error_scale: Option<LogScale>,
     pub selected: Option<u32>,
     /// The link of the matrix block hovered this frame (highlighted in the viewport).
     matrix_hover: Option<Highlight>,
@@ -190,11 +156,10 @@ pub struct RadlabApp {
     pending_pick: Option<[f32; 2]>,
     /// A Load was sent and its answer has not come yet.
     loading: bool,
-    /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
+    /// Wall time of the last `ui` call (seconds).
     last_ui_s: f64,
     /// On-CPU time of the last `ui` call (benchmarks only).
     last_ui_cpu_s: Option<f64>,
-    rebuild_s: f64,
     /// Set when the window should close (scripted runs); read by the runner.
     pub exit_code: Option<i32>,
     /// Leave the side panels unfilled: the window's clear colour (the native runner sets it to
@@ -202,17 +167,6 @@ pub struct RadlabApp {
     /// panels costs ~25 ms of CPU per frame at 1280×800; the clear is nearly free. Off by default
     /// (egui_kittest clears to transparent).
     pub panels_from_clear: bool,
-}
-
-/// What a display build depends on.
-#[derive(Clone, Debug, PartialEq)]
-struct BuildKey {
-    view_seq: u64,
-    /// Address of the true-error list (`Arc` identity), if any.
-    true_error: Option<usize>,
-    /// The artifact overlay drawn and the address of its samples (`Arc` identity), if any.
-    artifacts: Option<(Artifact, usize)>,
-    settings: builder::Settings,
 }
 
 impl RadlabApp {
@@ -273,13 +227,8 @@ impl RadlabApp {
             true_error: None,
             solver_time_s: 0.0,
             error_samples: Vec::new(),
-            geometry: Arc::new(Geometry::default()),
-            generation: 0,
-            builder: None,
-            build_key: None,
-            build_seq: 0,
-            shown_seq: 0,
-            exposure_view_seq: 0,
+            // Without the display thread the geometry is built on the UI thread (slower, correct).
+            geometry: ShownGeometry::new(display_builder.ok()),
             inspector: Inspector::default(),
             view_seq: 0,
             solve_frames: FrameBench::default(),
@@ -287,15 +236,11 @@ impl RadlabApp {
             reference: None,
             ref_state: RefState::None,
             evaluated_seq: 0,
-            link_stats: (0, 0),
-            critical_counts: None,
             artifact_thread: None,
             artifacts: None,
             artifact_job: None,
             artifact_seq: 0,
             reference_view: None,
-            link_scale: None,
-            error_scale: None,
             selected: None,
             matrix_hover: None,
             viewport_hover: None,
@@ -313,7 +258,6 @@ impl RadlabApp {
             exit_code: None,
             last_ui_s: 0.0,
             last_ui_cpu_s: None,
-            rebuild_s: 0.0,
             panels_from_clear: false,
             opts,
         };
@@ -321,8 +265,6 @@ impl RadlabApp {
             Ok(w) => app.worker = Some(w),
             Err(e) => app.errors.push(e),
         }
-        // Without the display thread the geometry is built on the UI thread (slower, correct).
-        app.builder = display_builder.ok();
         let ctx = cc.egui_ctx.clone();
         match ArtifactThread::spawn(move || ctx.request_repaint()) {
             Ok(t) => app.artifact_thread = Some(t),
@@ -712,7 +654,7 @@ impl RadlabApp {
     /// The critical edges drawn by kind (`None` while the overlay is off or not built yet).
     #[must_use]
     pub fn critical_counts(&self) -> Option<crate::mesh::discontinuity::SegmentCounts> {
-        self.critical_counts.filter(|_| self.display.critical)
+        self.geometry.critical_counts.filter(|_| self.display.critical)
     }
 
     /// True when the state shown is a mesh solve (not the quadtree's).
@@ -745,9 +687,7 @@ impl RadlabApp {
         self.request_artifacts();
         self.poll_artifacts(true);
         self.request_geometry();
-        if let Some(b) = self.builder.as_mut().and_then(Builder::wait) {
-            self.apply_built(b);
-        }
+        self.poll_geometry(true);
         self.split.wait();
         self.replay.wait();
     }
@@ -823,12 +763,7 @@ impl RadlabApp {
                     self.selected = None;
                 }
                 if self.script == Script::Solving && !self.busy() {
-                    self.script = match self.opts.bench_frames {
-                        Some(_) => {
-                            Script::Bench { warmup: BENCH_WARMUP_FRAMES, bench: FrameBench::default() }
-                        }
-                        None => Script::Settle(4),
-                    };
+                    self.script = Script::after_solve(self.opts.bench_frames.is_some());
                 }
             }
             Reply::Progress { done, total } => self.progress = Some((done, total)),
@@ -1051,59 +986,32 @@ impl RadlabApp {
             artifacts: self.artifact_samples().map(|(a, s)| (a, Arc::as_ptr(&s) as usize)),
             settings,
         };
-        if self.build_key.as_ref() == Some(&key) {
-            return;
-        }
-        self.build_seq += 1;
-        let req = builder::Request {
-            seq: self.build_seq,
-            view: Arc::clone(&self.view),
-            view_seq: self.view_seq,
-            true_error: self.true_error().cloned(),
+        let (view, view_seq, true_error) =
+            (Arc::clone(&self.view), self.view_seq, self.true_error().cloned());
+        let (scene, artifacts) = (self.scene.clone(), self.artifact_samples());
+        let ev = self.geometry.request(key, self.display.auto_exposure, |seq| builder::Request {
+            seq,
+            view,
+            view_seq,
+            true_error,
             settings,
-            scene: self.scene.clone(),
-            artifacts: self.artifact_samples(),
-        };
-        self.build_key = Some(key);
-        match &mut self.builder {
-            Some(b) => b.request(req),
-            None => {
-                let built = builder::build(&req);
-                self.apply_built(built);
-            }
-        }
+            scene,
+            artifacts,
+        });
+        self.apply_exposure(ev);
     }
 
-    fn poll_geometry(&mut self) {
-        if let Some(b) = self.builder.as_mut().and_then(Builder::poll) {
-            self.apply_built(b);
-        }
+    /// Pick up a finished display build (`wait`: block for it).
+    fn poll_geometry(&mut self, wait: bool) {
+        let ev = self.geometry.poll(wait, self.display.auto_exposure);
+        self.apply_exposure(ev);
     }
 
-    fn apply_built(&mut self, b: Built) {
-        if b.seq <= self.shown_seq && self.shown_seq != 0 {
-            return;
-        }
-        self.shown_seq = b.seq;
-        self.geometry = b.geometry;
-        self.generation += 1;
-        self.link_stats = b.link_stats;
-        self.critical_counts = b.critical;
-        self.link_scale = b.link_scale;
-        self.error_scale = b.error_scale;
-        self.rebuild_s = b.build_s;
-        if self.display.auto_exposure
-            && b.view_seq != self.exposure_view_seq
-            && let Some(ev) = b.auto_ev
-        {
+    /// The auto exposure of a new build, if any.
+    fn apply_exposure(&mut self, ev: Option<f32>) {
+        if let Some(ev) = ev {
             self.display.exposure_ev = ev;
-            self.exposure_view_seq = b.view_seq;
         }
-    }
-
-    /// True when the geometry shown is the newest requested (scripted runs wait for it).
-    fn geometry_current(&self) -> bool {
-        self.build_key.is_some() && self.shown_seq == self.build_seq
     }
 
     fn uniforms(&self, aspect: f64, pixels_per_point: f32) -> Uniforms {
@@ -1221,7 +1129,7 @@ impl RadlabApp {
         };
 
         self.request_geometry();
-        self.poll_geometry();
+        self.poll_geometry(false);
         let painter = ui.painter_at(rect);
         if self.has_wgpu {
             let ppp = ui.ctx().pixels_per_point();
@@ -1231,8 +1139,8 @@ impl RadlabApp {
                 rect,
                 ViewportCallback {
                     frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size },
-                    geometry: Arc::clone(&self.geometry),
-                    generation: self.generation,
+                    geometry: Arc::clone(&self.geometry.geometry),
+                    generation: self.geometry.generation,
                     slot: 0,
                 },
             ));
@@ -1254,9 +1162,9 @@ impl RadlabApp {
             display: &self.display,
             view: &self.view,
             picked: self.selected.is_some(),
-            link_stats: self.link_stats,
-            link_scale: self.link_scale,
-            error_scale: self.error_scale,
+            link_stats: self.geometry.link_stats,
+            link_scale: self.geometry.link_scale,
+            error_scale: self.geometry.error_scale,
             critical: self.critical_counts(),
             artifacts: self.artifacts(),
             error: (self.display.error && self.error_applies()).then(|| self.error_label()),
@@ -1319,7 +1227,7 @@ impl RadlabApp {
         self.viewport_hover = None;
         self.camera_keys(ui);
         self.request_geometry();
-        self.poll_geometry();
+        self.poll_geometry(false);
         PaneStyle {
             uniforms: self.uniforms(1.0, ui.ctx().pixels_per_point()),
             origin: self.origin,
@@ -1456,26 +1364,11 @@ impl RadlabApp {
             return;
         };
         self.shot_rx = None;
-        let ppp = ctx.pixels_per_point();
-        let full = RgbaImage {
-            width: img.size[0] as u32,
-            height: img.size[1] as u32,
-            pixels: img.pixels.iter().flat_map(|c| c.to_array()).collect(),
-        };
-        let r = if self.opts.screenshot_window && self.script == Script::WaitingShot {
-            Rect::from_min_size(Pos2::ZERO, Vec2::new(full.width as f32, full.height as f32) / ppp)
-        } else {
-            self.viewport_rect
-        };
-        let shot = full.crop(
-            (r.left() * ppp).round() as u32,
-            (r.top() * ppp).round() as u32,
-            (r.width() * ppp).round() as u32,
-            (r.height() * ppp).round() as u32,
-        );
+        let whole = self.opts.screenshot_window && self.script == Script::WaitingShot;
+        let shot = script::crop(&img, self.viewport_rect, whole, ctx.pixels_per_point());
         let path = self.opts.screenshot.clone().unwrap_or_else(|| {
             let name = self.scene.as_ref().map_or("radlab".to_owned(), |s| s.name.clone());
-            PathBuf::from(format!("{name}-{}.png", self.generation))
+            PathBuf::from(format!("{name}-{}.png", self.geometry.generation))
         });
         match shot.save_png(&path) {
             Ok(()) => self.status_bar.message = format!("saved {}", path.display()),
@@ -1496,7 +1389,7 @@ impl RadlabApp {
     fn run_script(&mut self, ctx: &egui::Context) {
         // The display is final when the newest build is shown and the reference thread has
         // nothing left to report (its look-up or a score changes the error overlay).
-        let current = self.geometry_current()
+        let current = self.geometry.current()
             && !self.split.building()
             && !self.replay.building()
             && !self.reference.as_ref().is_some_and(RefThread::busy)
@@ -1533,38 +1426,17 @@ impl RadlabApp {
                 // Spin the camera a little so every frame really redraws.
                 self.camera.orbit(0.002, 0.0);
                 if bench.frames() >= self.opts.bench_frames.unwrap_or(0) {
-                    let s = bench.summary();
-                    let fmt_cpu = |c: Option<f64>| c.map_or("n/a".to_owned(), |c| format!("{c:.1} ms"));
-                    println!(
-                        "radlab: {} frames; {} elements ({} leaves, {} triangles), {} links ({} drawn); quadtree {}; frame time median {:.2} ms, p95 {:.2} ms, max {:.2} ms ({:.1} fps); CPU {} per frame (all threads); UI code median {:.2} ms; last display build {:.1} ms (display thread); load average {}",
-                        s.frames,
-                        self.view.stats.elements,
-                        self.view.leaves.len(),
-                        self.geometry.mesh.triangles(),
-                        self.view.links.len(),
-                        self.geometry.links.len() / 2,
-                        if self.display.quadtree { "on" } else { "off" },
-                        s.median_ms,
-                        s.p95_ms,
-                        s.max_ms,
-                        if s.median_ms > 0.0 { 1e3 / s.median_ms } else { 0.0 },
-                        fmt_cpu(s.cpu_ms_per_frame),
-                        s.ui_median_ms,
-                        self.rebuild_s * 1e3,
-                        super::bench::load_average().map_or("n/a".to_owned(), |l| format!("{l:.2}")),
-                    );
-                    let d = self.solve_frames.summary();
-                    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max) * 1e3;
-                    println!(
-                        "radlab: during the solve: {} frames, frame time median {:.2} ms, p95 {:.2} ms, max {:.2} ms; UI code max {:.2} ms wall, {:.2} ms on-CPU; largest geometry upload {:.2} ms",
-                        d.frames,
-                        d.median_ms,
-                        d.p95_ms,
-                        d.max_ms,
-                        max(&self.solve_frames.ui_s),
-                        max(&self.solve_frames.ui_cpu_s),
-                        self.max_upload_s * 1e3
-                    );
+                    let scene = BenchScene {
+                        elements: self.view.stats.elements,
+                        leaves: self.view.leaves.len(),
+                        triangles: self.geometry.geometry.mesh.triangles(),
+                        links: self.view.links.len(),
+                        links_drawn: self.geometry.geometry.links.len() / 2,
+                        quadtree: self.display.quadtree,
+                        rebuild_s: self.geometry.rebuild_s,
+                        max_upload_s: self.max_upload_s,
+                    };
+                    script::print_bench(bench, &self.solve_frames, &scene);
                     self.script = Script::Done;
                     self.exit_code.get_or_insert(0);
                 }
