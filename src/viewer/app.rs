@@ -19,7 +19,7 @@ use super::lecture::Lecture;
 use super::legends::{self, Legends};
 use super::matrix::MatrixAction;
 use super::options::{OverlayChoice, ViewerOptions};
-use super::pane::PaneStyle;
+use super::pane::{self, PaneStyle};
 use super::plots::{Plots, PlotsInput};
 use super::reference::{RefCommand, RefReply, RefThread};
 use super::reference_panel::{RefState, ReferenceAction, ReferenceInput, ReferencePanel};
@@ -36,7 +36,7 @@ use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
 use crate::mesh_overlay::Artifact;
-use crate::overlay::{self, Highlight, LinkFilter};
+use crate::overlay::{Highlight, LinkFilter};
 use crate::render::{
     FrameParams, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, SceneRenderer, Uniforms, ViewportCallback,
 };
@@ -135,7 +135,11 @@ pub struct RadlabApp {
     artifact_seq: u64,
     /// The scene's Monte Carlo reference as flat leaves (once the reference thread has it).
     reference_view: Option<Arc<ViewData>>,
+    /// The element picked (an id of the current solution, or of `selected_run`'s).
     pub selected: Option<u32>,
+    /// The run whose solution `selected` belongs to when it was picked in a split view's pane
+    /// (`None`: the current solution).
+    pub selected_run: Option<usize>,
     /// The link of the matrix block hovered this frame (highlighted in the viewport).
     matrix_hover: Option<Highlight>,
     /// The leaf under the pointer in the viewport, while the matrix window is open (its row and
@@ -242,6 +246,7 @@ impl RadlabApp {
             artifact_seq: 0,
             reference_view: None,
             selected: None,
+            selected_run: None,
             matrix_hover: None,
             viewport_hover: None,
             has_wgpu,
@@ -428,6 +433,7 @@ impl RadlabApp {
         self.replay.clear();
         self.replay_frames = None;
         self.selected = None;
+        self.selected_run = None;
         self.true_error = None;
         self.error_samples.clear();
         self.last_report = None;
@@ -741,7 +747,10 @@ impl RadlabApp {
                     // SetParams / Reset restart the solver: element ids start over.
                     self.solver_time_s = 0.0;
                     self.error_samples.clear();
-                    self.selected = None;
+                    // (A pick in a split pane's run stays: that solution is kept.)
+                    if self.selected_run.is_none() {
+                        self.selected = None;
+                    }
                 }
                 if let Some(rep) = report {
                     self.solver_time_s += rep.time_s;
@@ -759,7 +768,7 @@ impl RadlabApp {
                         self.history.record(name, self.solver_time_s, self.view_seq, Arc::clone(&self.view));
                     }
                 }
-                if self.selected.is_some_and(|s| s as usize >= self.view.elements.len()) {
+                if self.picked_here().is_some_and(|s| s as usize >= self.view.elements.len()) {
                     self.selected = None;
                 }
                 if self.script == Script::Solving && !self.busy() {
@@ -942,12 +951,13 @@ impl RadlabApp {
     fn build_settings(&self) -> builder::Settings {
         let d = &self.display;
         let mesh_view = self.mesh_view();
-        let show_links = !mesh_view && (d.links || (self.selected.is_some() && d.selected_links_only));
+        let picked = self.picked_here();
+        let show_links = !mesh_view && (d.links || (picked.is_some() && d.selected_links_only));
         let links = show_links.then(|| {
             let mut filter = d.link_filter;
             filter.element = if d.selected_links_only {
                 // Nothing picked: nothing to show.
-                Some(self.selected.unwrap_or(u32::MAX))
+                Some(picked.unwrap_or(u32::MAX))
             } else {
                 None
             };
@@ -1021,10 +1031,10 @@ impl RadlabApp {
             exposure: 2f32.powf(self.display.exposure_ev),
             tone: u32::from(self.display.srgb),
             mode: u32::from(self.display.error && self.error_applies()),
-            selected: self.selected.unwrap_or(NO_SELECTION),
+            selected: self.picked_here().unwrap_or(NO_SELECTION),
             back_color: BACK_COLOR,
             overlay: if self.display.quadtree { OVERLAY_QUADTREE } else { 0 }
-                | if self.selected.is_some() { OVERLAY_PICKED } else { 0 },
+                | if self.picked_here().is_some() { OVERLAY_PICKED } else { 0 },
             line_px: QUADTREE_LINE_PX * pixels_per_point,
             _pad: [0; 2],
             background: BACKGROUND,
@@ -1161,7 +1171,7 @@ impl RadlabApp {
         let legends = Legends {
             display: &self.display,
             view: &self.view,
-            picked: self.selected.is_some(),
+            picked: self.picked_here().is_some(),
             link_stats: self.geometry.link_stats,
             link_scale: self.geometry.link_scale,
             error_scale: self.geometry.error_scale,
@@ -1241,9 +1251,16 @@ impl RadlabApp {
         let style = self.pane_frame(ui);
         let settings = self.build_settings();
         let scene = self.scene.as_ref().map_or("", |s| s.name.as_str());
-        let input = SplitInput { history: &self.history, scene, camera: &mut self.camera, settings, style };
-        if self.split.ui(ui, input) == Some(SplitAction::OpenHistory) {
-            self.history.open = true;
+        let picked = self.selected.zip(self.selected_run).map(|(id, run)| (run, id));
+        let input =
+            SplitInput { history: &self.history, scene, camera: &mut self.camera, settings, style, picked };
+        match self.split.ui(ui, input) {
+            Some(SplitAction::OpenHistory) => self.history.open = true,
+            Some(SplitAction::Pick { run, element }) => {
+                self.selected = element;
+                self.selected_run = element.map(|_| run);
+            }
+            None => {}
         }
     }
 
@@ -1277,15 +1294,27 @@ impl RadlabApp {
 
     fn pick_at(&mut self, pos: Pos2, rect: Rect) {
         self.selected = self.pick_id(pos, rect);
+        self.selected_run = None;
     }
 
     /// The leaf under a viewport point.
     fn pick_id(&self, pos: Pos2, rect: Rect) -> Option<u32> {
-        let aspect = f64::from(rect.width() / rect.height().max(1.0));
-        let nx = f64::from((pos.x - rect.left()) / rect.width()) * 2.0 - 1.0;
-        let ny = 1.0 - f64::from((pos.y - rect.top()) / rect.height()) * 2.0;
-        let (o, dir) = self.camera.ray(nx, ny, aspect);
-        overlay::pick(&self.view.elements, &self.view.leaves, o, dir).map(|(id, _)| id)
+        pane::pick(&self.view, &self.camera, pos, rect)
+    }
+
+    /// The picked element when it is one of the current solution (not a split pane's run's).
+    fn picked_here(&self) -> Option<u32> {
+        self.selected.filter(|_| self.selected_run.is_none())
+    }
+
+    /// The picked element and the solution it belongs to (the current one, or a split pane's
+    /// run's while that run keeps its solution).
+    fn picked(&self) -> Option<(u32, &Arc<ViewData>)> {
+        let id = self.selected?;
+        match self.selected_run {
+            None => Some((id, &self.view)),
+            Some(n) => self.history.runs().iter().find(|r| r.number == n)?.view.as_ref().map(|v| (id, v)),
+        }
     }
 
     /// What the viewport highlights this frame: the link of the matrix block hovered, else (while
@@ -1477,9 +1506,10 @@ impl eframe::App for RadlabApp {
         // The matrix ↔ viewport link: the element hovered in the viewport (else the picked one)
         // is highlighted in the matrix; a hovered block's link is highlighted in the viewport.
         self.matrix_hover = None;
-        match self.lecture.windows(&ctx, &self.view, self.viewport_hover.or(self.selected)) {
+        match self.lecture.windows(&ctx, &self.view, self.viewport_hover.or(self.picked_here())) {
             Some(MatrixAction::Pick(id)) => {
                 self.selected = Some(id);
+                self.selected_run = None;
                 self.display.selected_links_only = true;
             }
             Some(MatrixAction::Hover(h)) => self.matrix_hover = Some(h),
@@ -1521,10 +1551,12 @@ impl eframe::App for RadlabApp {
                 egui::ScrollArea::both().auto_shrink([false, false]).id_salt("inspector_scroll").show(
                     ui,
                     |ui| {
-                        let true_error = self.true_error().cloned();
+                        // The true error is the current solution's.
+                        let true_error = self.true_error().filter(|_| self.selected_run.is_none()).cloned();
+                        let picked = self.picked().map(|(id, v)| (id, Arc::clone(v)));
                         let input = InspectorInput {
                             errors: &mut self.errors,
-                            picked: self.selected.map(|id| (id, &self.view)),
+                            picked: picked.as_ref().map(|(id, v)| (*id, v)),
                             scene: self.scene.as_deref(),
                             true_error: true_error.as_deref().map(Vec::as_slice),
                             selected_links_only: &mut self.display.selected_links_only,
