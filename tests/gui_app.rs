@@ -841,6 +841,57 @@ fn keyboard_shortcuts_act_and_help_lists_them() {
     check(&mut h, "gui_help_window");
 }
 
+/// The newer overlays have keys too (D critical edges, A the artifact overlays in turn, K the
+/// cluster boxes), the Help lists them (checked above) and their tooltips name them.
+#[test]
+fn overlay_keys_toggle_critical_edges_artifacts_and_clusters() {
+    use radlab::mesh_overlay::Artifact;
+    let mut h = harness(opts());
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    assert!(!h.state().display.critical);
+    h.key_press(egui::Key::D);
+    h.run_steps(1);
+    assert!(h.state().display.critical, "D shows the critical edges");
+    h.key_press(egui::Key::D);
+    h.run_steps(1);
+    assert!(!h.state().display.critical, "D again hides them");
+    // A steps through the artifact overlays: each of the five, all five, none.
+    let mut seen = Vec::new();
+    for _ in 0..7 {
+        h.key_press(egui::Key::A);
+        h.run_steps(1);
+        seen.push(h.state().display.artifact);
+    }
+    let mut want: Vec<Option<Artifact>> = Artifact::ALL.map(Some).to_vec();
+    want.extend([Some(Artifact::All), None]);
+    assert_eq!(seen, want);
+    // The box does not cluster: K says so and draws nothing.
+    h.key_press(egui::Key::K);
+    h.run_steps(1);
+    assert!(!h.state().display.clusters);
+    assert!(h.query_by_label_contains("this solve does not cluster").is_some(), "the status bar says why");
+    // Not while a text field has the keyboard.
+    h.get_by_role(egui::accesskit::Role::TextInput).click();
+    h.run_steps(1);
+    h.key_press(egui::Key::D);
+    h.run_steps(1);
+    assert!(!h.state().display.critical, "typing D in the scene field is not a shortcut");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(1);
+    // The tooltips name the keys.
+    h.ctx.all_styles_mut(|s| s.interaction.tooltip_delay = 0.0);
+    for (label, tip) in [
+        ("critical edges (D0/D1/D2)", "on any mesh (D)"),
+        ("error heatmap", "log colour scale (E)"),
+        ("artifact", "(A steps through them)"),
+    ] {
+        h.get_by_label(label).hover();
+        h.run_steps(3);
+        assert!(h.query_by_label_contains(tip).is_some(), "{label}'s tooltip names its key: {tip:?}");
+    }
+}
+
 #[test]
 fn run_history_split_view_and_overlaid_plots() {
     let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
@@ -1361,6 +1412,11 @@ fn clusters_overlay_draws_the_cluster_boxes() {
         before.pixels.chunks_exact(4).zip(after.pixels.chunks_exact(4)).filter(|(a, b)| a != b).count();
     assert!(changed > 300, "the boxes are drawn: {changed} pixels changed");
     check(&mut h, "gui_clusters");
+    for on in [false, true] {
+        h.key_press(egui::Key::K);
+        h.run_steps(1);
+        assert_eq!(h.state().display.clusters, on, "K toggles the cluster boxes");
+    }
     // Picking an element lists the clusters above its patch in the inspector.
     h.state_mut().pick_relative(0.5, 0.8);
     h.run_steps(2);

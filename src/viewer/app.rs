@@ -9,7 +9,7 @@ use super::artifacts::{ArtifactThread, Measured};
 use super::bench::FrameBench;
 use super::builder::{self, Builder, Coloring};
 use super::camera::OrbitCamera;
-use super::display::{CLUSTER_LEVELS, Display, DisplayInput, DisplayPanel, Shading};
+use super::display::{self, CLUSTER_LEVELS, Display, DisplayInput, DisplayPanel, Shading};
 use super::file_dialog::{Answer, FileDialogs, Purpose};
 use super::geometry::{BuildKey, ShownGeometry};
 use super::help::{self, Action};
@@ -382,6 +382,14 @@ impl RadlabApp {
                 Action::ToggleQuadtree => self.display.quadtree ^= true,
                 Action::ToggleLinks => self.display.links ^= true,
                 Action::ToggleError => self.display.error ^= true,
+                Action::ToggleCritical => self.display.critical ^= true,
+                Action::CycleArtifact => {
+                    self.display.artifact = display::next_artifact(self.display.artifact)
+                }
+                Action::ToggleClusters if self.view.clusters.is_empty() => {
+                    self.status_bar.message = "no clusters: this solve does not cluster".into();
+                }
+                Action::ToggleClusters => self.display.clusters ^= true,
                 Action::ToggleCaption => self.lecture.toggle_caption(),
                 Action::ToggleHelp => self.show_help ^= true,
                 Action::ToggleSplit => {

@@ -82,6 +82,16 @@ impl Default for Display {
     }
 }
 
+/// The artifact overlay after `a` in the order the A key steps through: none, each of the
+/// five, all five, none again.
+#[must_use]
+pub fn next_artifact(a: Option<Artifact>) -> Option<Artifact> {
+    let order: Vec<Option<Artifact>> =
+        std::iter::once(None).chain(Artifact::ALL.map(Some)).chain([Some(Artifact::All)]).collect();
+    let at = order.iter().position(|&o| o == a).unwrap_or(0);
+    order[(at + 1) % order.len()]
+}
+
 /// What the Display and Overlays sections are lent for one frame.
 pub struct DisplayInput<'a> {
     /// The settings edited.
@@ -207,12 +217,13 @@ impl View for DisplayPanel {
             .response
             .on_hover_text(
                 "The lecture's five meshing artifacts, where they are: measured against the closed \
-                 form (single-bounce scenes) or the scene's reference, on a background thread",
+                 form (single-bounce scenes) or the scene's reference, on a background thread (A \
+                 steps through them)",
             );
         ui.checkbox(&mut d.critical, "critical edges (D0/D1/D2)").on_hover_text(
             "Where the radiosity is discontinuous: D0 where surfaces touch (a jump in value), D1 / D2 \
              where a shadow's umbra or penumbra begins (a jump in the first / second derivative), \
-             from the emitters' EV and VE events; on any mesh",
+             from the emitters' EV and VE events; on any mesh (D)",
         );
         let max_depth = view.clusters.iter().map(|c| c.depth).max();
         ui.add_enabled_ui(max_depth.is_some(), |ui| {
@@ -220,7 +231,7 @@ impl View for DisplayPanel {
                 ui.checkbox(&mut d.clusters, "clusters").on_hover_text(format!(
                     "The cluster tree above the input patches: bounding boxes of {CLUSTER_LEVELS} levels from \
                      the depth chosen, coloured by depth. Clusters link groups of patches, so links grow \
-                     as n, not n²"
+                     as n, not n² (K)"
                 ));
                 if let Some(m) = max_depth {
                     d.clusters_from = d.clusters_from.min(m);
