@@ -5,7 +5,7 @@
 //! an immutable `Arc<ViewData>` after each step; GPU geometry is rebuilt from those only when
 //! one of them changes.
 
-use super::artifacts::{ArtifactThread, Measured};
+use super::artifacts::{ArtifactThread, Measured, Measurements};
 use super::bench::FrameBench;
 use super::builder::{self, Builder, Coloring};
 use super::camera::OrbitCamera;
@@ -126,13 +126,8 @@ pub struct RadlabApp {
     /// Longest geometry upload seen (seconds; read from the renderer).
     max_upload_s: f64,
     inspector: Inspector,
-    /// The artifact measurements' thread, and its newest answer: (state measured, with a
-    /// reference, the measurement or why not).
-    artifact_thread: Option<ArtifactThread>,
-    artifacts: Option<(u64, bool, Result<Measured, String>)>,
-    /// The (state, with a reference) of the newest job sent, and its number.
-    artifact_job: Option<(u64, bool)>,
-    artifact_seq: u64,
+    /// The artifact overlays' measurements (their thread, the newest answer).
+    artifacts: Measurements,
     /// The scene's Monte Carlo reference as flat leaves (once the reference thread has it).
     reference_view: Option<Arc<ViewData>>,
     /// The element picked (an id of the current solution, or of `selected_run`'s).
@@ -240,10 +235,7 @@ impl RadlabApp {
             reference: None,
             ref_state: RefState::None,
             evaluated_seq: 0,
-            artifact_thread: None,
-            artifacts: None,
-            artifact_job: None,
-            artifact_seq: 0,
+            artifacts: Measurements::default(),
             reference_view: None,
             selected: None,
             selected_run: None,
@@ -272,7 +264,7 @@ impl RadlabApp {
         }
         let ctx = cc.egui_ctx.clone();
         match ArtifactThread::spawn(move || ctx.request_repaint()) {
-            Ok(t) => app.artifact_thread = Some(t),
+            Ok(t) => app.artifacts = Measurements::new(Some(t)),
             Err(e) => app.errors.push(e),
         }
         let ctx = cc.egui_ctx.clone();
@@ -446,8 +438,7 @@ impl RadlabApp {
         self.error_samples.clear();
         self.last_report = None;
         self.reference_view = None;
-        self.artifacts = None;
-        self.artifact_job = None;
+        self.artifacts.clear();
         if let Some(r) = &mut self.reference {
             r.load(Arc::clone(&scene), false);
             self.ref_state = RefState::Looking;
@@ -615,21 +606,14 @@ impl RadlabApp {
 
     /// The artifact overlay to draw and its samples, when they were measured on the state shown.
     fn artifact_samples(&self) -> Option<(Artifact, Arc<crate::artifacts::ArtifactSamples>)> {
-        let which = self.display.artifact?;
-        match &self.artifacts {
-            Some((seq, _, Ok(m))) if *seq == self.view_seq => Some((which, Arc::clone(&m.samples))),
-            _ => None,
-        }
+        self.artifacts.samples(self.display.artifact, self.view_seq)
     }
 
     /// The newest artifact measurement of the state shown (`None`: not asked, or not answered
     /// yet), or why there is none.
     #[must_use]
     pub fn artifacts(&self) -> Option<&Result<Measured, String>> {
-        match &self.artifacts {
-            Some((seq, _, r)) if *seq == self.view_seq => Some(r),
-            _ => None,
-        }
+        self.artifacts.of(self.view_seq)
     }
 
     /// Ask the artifacts thread to measure the state shown, once per state and reference (only
@@ -638,30 +622,8 @@ impl RadlabApp {
         if self.display.artifact.is_none() || self.view.elements.is_empty() || self.busy() || self.loading {
             return;
         }
-        let key = (self.view_seq, self.reference_view.is_some());
-        if self.artifact_job == Some(key) {
-            return;
-        }
-        let (Some(t), Some(scene)) = (&mut self.artifact_thread, &self.scene) else { return };
-        self.artifact_seq += 1;
-        t.request(super::artifacts::Job {
-            seq: self.artifact_seq,
-            scene: Arc::clone(scene),
-            view: Arc::clone(&self.view),
-            reference: self.reference_view.clone(),
-        });
-        self.artifact_job = Some(key);
-    }
-
-    /// Pick up the artifacts thread's answer (`wait`: block for it; tests, scripted runs).
-    fn poll_artifacts(&mut self, wait: bool) {
-        let Some(t) = &mut self.artifact_thread else { return };
-        let reply = if wait { t.wait() } else { t.poll() };
-        if let Some(r) = reply
-            && r.seq == self.artifact_seq
-            && let Some((view_seq, with_ref)) = self.artifact_job
-        {
-            self.artifacts = Some((view_seq, with_ref, r.result));
+        if let Some(scene) = &self.scene {
+            self.artifacts.request(self.view_seq, scene, &self.view, self.reference_view.as_ref());
         }
     }
 
@@ -699,7 +661,7 @@ impl RadlabApp {
             }
         }
         self.request_artifacts();
-        self.poll_artifacts(true);
+        self.artifacts.poll(true);
         self.request_geometry();
         self.poll_geometry(true);
         self.split.wait();
@@ -1194,42 +1156,10 @@ impl RadlabApp {
         let _ = response;
     }
 
-    /// The camera's keys (arrows orbit, shift + arrows pan, + / − zoom, F frames the scene, R goes
-    /// back to the scene's camera), unless a text field has the keyboard.
+    /// The camera's keys ([`OrbitCamera::keys`]; F frames the scene, R goes back to its camera).
     fn camera_keys(&mut self, ui: &egui::Ui) {
-        if ui.ctx().egui_wants_keyboard_input() {
-            return;
-        }
-        ui.input(|i| {
-            let step = 0.05;
-            let pan = i.modifiers.shift;
-            for (key, dx, dy) in [
-                (egui::Key::ArrowLeft, -1.0, 0.0),
-                (egui::Key::ArrowRight, 1.0, 0.0),
-                (egui::Key::ArrowUp, 0.0, -1.0),
-                (egui::Key::ArrowDown, 0.0, 1.0),
-            ] {
-                if i.key_down(key) {
-                    if pan {
-                        self.camera.pan(dx * step * 0.5, -dy * step * 0.5);
-                    } else {
-                        self.camera.orbit(dx * step, dy * step);
-                    }
-                }
-            }
-            if i.key_pressed(egui::Key::Plus) || i.key_pressed(egui::Key::Equals) {
-                self.camera.zoom(0.85);
-            }
-            if i.key_pressed(egui::Key::Minus) {
-                self.camera.zoom(1.0 / 0.85);
-            }
-            if i.key_pressed(egui::Key::F) {
-                self.frame_all();
-            }
-            if i.key_pressed(egui::Key::R) {
-                self.camera = self.home;
-            }
-        });
+        let scene = self.scene.as_ref();
+        self.camera.keys(ui, &self.home, || scene.map(|s| s.bounds()));
     }
 
     /// Name of the scene shown ("" without one).
@@ -1267,6 +1197,8 @@ impl RadlabApp {
             Some(SplitAction::Pick { run, element }) => {
                 self.selected = element;
                 self.selected_run = element.map(|_| run);
+                // The panes were drawn before the pick: outline it in the next frame.
+                ui.ctx().request_repaint();
             }
             None => {}
         }
@@ -1294,9 +1226,7 @@ impl RadlabApp {
     /// Frame the whole scene, keeping the view direction.
     pub fn frame_all(&mut self) {
         if let Some(s) = &self.scene {
-            let f = OrbitCamera::frame_all(&s.bounds());
-            self.camera.target = f.target;
-            self.camera.distance = f.distance;
+            self.camera.reframe(&s.bounds());
         }
     }
 
@@ -1430,7 +1360,7 @@ impl RadlabApp {
             && !self.split.building()
             && !self.replay.building()
             && !self.reference.as_ref().is_some_and(RefThread::busy)
-            && !self.artifact_thread.as_ref().is_some_and(ArtifactThread::busy);
+            && !self.artifacts.busy();
         match &mut self.script {
             Script::None | Script::Done | Script::WaitingShot => {}
             Script::Solving => {
@@ -1496,7 +1426,7 @@ impl eframe::App for RadlabApp {
         self.poll_worker();
         self.poll_reference();
         self.request_artifacts();
-        self.poll_artifacts(false);
+        self.artifacts.poll(false);
         self.shortcuts(&ctx);
         if let Some([x, y]) = self.pending_pick
             && !self.busy()
