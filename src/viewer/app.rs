@@ -1,4 +1,7 @@
-//! The eframe application: panels, viewport, overlays, inspector, plots, files.
+//! The eframe application: it owns the threads (solver, display builds, reference, artifacts)
+//! and the state shown, lays the panels out and routes what they answer (each panel is a type of
+//! its own implementing [`View`]: top bar, side panel sections, inspector, plots, status bar,
+//! split view, replay, windows; ARCHITECTURE.md has the layout), and draws the viewport.
 //!
 //! State is split the way STYLE.md asks: solver settings ([`HierarchicalParams`]) are data sent
 //! to the worker; what is shown ([`Display`]) is a `Copy` struct; the solver's state arrives as
