@@ -19,7 +19,7 @@ use super::help::{self, Action};
 use super::history::{HistoryAction, RunHistory};
 use super::inspector::{self, Inspector, InspectorInput};
 use super::lecture::Lecture;
-use super::legends::{self, Legends};
+use super::legends::Legends;
 use super::matrix::MatrixAction;
 use super::options::{OverlayChoice, ViewerOptions};
 use super::pane::{self, PaneStyle};
@@ -35,20 +35,18 @@ use super::split::{SplitAction, SplitInput, SplitView};
 use super::status_bar::{StatusBar, StatusInput};
 use super::top_bar::{TopBar, TopBarAction, TopBarInput};
 use super::view::View;
+use super::viewport::{self, Picture, Shade};
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
 use crate::mesh_overlay::Artifact;
 use crate::overlay::{Highlight, LinkFilter};
-use crate::render::{
-    FrameParams, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, SceneRenderer, Uniforms, ViewportCallback,
-};
+use crate::render::SceneRenderer;
 use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
 use crate::solver::meshed::{MeshMethod, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
 use eframe::egui::{self, Color32, Pos2, Rect, Sense};
-use eframe::egui_wgpu;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, channel};
@@ -57,14 +55,6 @@ use std::time::Instant;
 /// Width of the solver/display panel and of the inspector, points (fixed: see `ui`).
 const CONTROLS_W: f32 = 290.0;
 const INSPECTOR_W: f32 = 320.0;
-
-/// Background of the viewport (display space).
-const BACKGROUND: [f32; 4] = [0.08, 0.08, 0.1, 1.0];
-/// Back faces: dull magenta, striped in the shader.
-const BACK_COLOR: [f32; 4] = [0.55, 0.1, 0.45, 1.0];
-/// Width of the quadtree edges drawn by the mesh shader, pixels on each side of an edge (a
-/// shared edge shows both sides' depth colours, 1.5 px together).
-const QUADTREE_LINE_PX: f32 = 0.75;
 
 /// The radlab viewer.
 pub struct RadlabApp {
@@ -997,20 +987,15 @@ impl RadlabApp {
         }
     }
 
-    fn uniforms(&self, aspect: f64, pixels_per_point: f32) -> Uniforms {
-        let m = self.camera.view_proj(aspect, self.origin).to_cols_array_2d();
-        Uniforms {
-            view_proj: m.map(|c| c.map(|x| x as f32)),
-            exposure: 2f32.powf(self.display.exposure_ev),
-            tone: u32::from(self.display.srgb),
-            mode: u32::from(self.display.error && self.error_applies()),
-            selected: self.picked_here().unwrap_or(NO_SELECTION),
-            back_color: BACK_COLOR,
-            overlay: if self.display.quadtree { OVERLAY_QUADTREE } else { 0 }
-                | if self.picked_here().is_some() { OVERLAY_PICKED } else { 0 },
-            line_px: QUADTREE_LINE_PX * pixels_per_point,
-            _pad: [0; 2],
-            background: BACKGROUND,
+    /// How the mesh shader draws the current solution (the panes too, less the pick).
+    fn shade(&self) -> Shade {
+        let d = &self.display;
+        Shade {
+            exposure_ev: d.exposure_ev,
+            srgb: d.srgb,
+            error: d.error && self.error_applies(),
+            quadtree: d.quadtree,
+            picked: self.picked_here(),
         }
     }
 
@@ -1113,48 +1098,29 @@ impl RadlabApp {
 
         self.request_geometry();
         self.poll_geometry(false);
-        let painter = ui.painter_at(rect);
-        if self.has_wgpu {
-            let ppp = ui.ctx().pixels_per_point();
-            let size =
-                [(rect.width() * ppp).round().max(1.0) as u32, (rect.height() * ppp).round().max(1.0) as u32];
-            painter.add(egui_wgpu::Callback::new_paint_callback(
-                rect,
-                ViewportCallback {
-                    frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size },
-                    geometry: Arc::clone(&self.geometry.geometry),
-                    generation: self.geometry.generation,
-                    slot: 0,
-                },
-            ));
-        } else {
-            painter.rect_filled(rect, 0.0, Color32::from_gray(20));
-            painter.text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
-                "no wgpu renderer",
-                egui::FontId::proportional(16.0),
-                Color32::GRAY,
-            );
-        }
-        if let Some(h) = self.highlight() {
-            let view_proj = self.camera.view_proj(aspect, self.origin);
-            legends::highlight(&painter, rect, &self.view, h, view_proj, self.origin);
-        }
-        let legends = Legends {
-            display: &self.display,
+        let picture = Picture {
+            geometry: &self.geometry,
+            view_proj: self.camera.view_proj(aspect, self.origin),
+            origin: self.origin,
+            shade: self.shade(),
+            has_wgpu: self.has_wgpu,
             view: &self.view,
-            picked: self.picked_here().is_some(),
-            link_stats: self.geometry.link_stats,
-            link_scale: self.geometry.link_scale,
-            error_scale: self.geometry.error_scale,
-            critical: self.critical_counts(),
-            artifacts: self.artifacts(),
-            error: (self.display.error && self.error_applies()).then(|| self.error_label()),
-            busy: self.busy(),
-            split_on: self.split.on,
+            highlight: self.highlight(),
+            legends: Legends {
+                display: &self.display,
+                view: &self.view,
+                picked: self.picked_here().is_some(),
+                link_stats: self.geometry.link_stats,
+                link_scale: self.geometry.link_scale,
+                error_scale: self.geometry.error_scale,
+                critical: self.critical_counts(),
+                artifacts: self.artifacts(),
+                error: (self.display.error && self.error_applies()).then(|| self.error_label()),
+                busy: self.busy(),
+                split_on: self.split.on,
+            },
         };
-        legends.draw(&painter, rect);
+        viewport::paint(ui, rect, &picture);
         ui.horizontal(|_| {});
         let _ = response;
     }
@@ -1180,7 +1146,11 @@ impl RadlabApp {
         self.request_geometry();
         self.poll_geometry(false);
         PaneStyle {
-            uniforms: self.uniforms(1.0, ui.ctx().pixels_per_point()),
+            uniforms: viewport::uniforms(
+                self.camera.view_proj(1.0, self.origin),
+                self.shade(),
+                ui.ctx().pixels_per_point(),
+            ),
             origin: self.origin,
             has_wgpu: self.has_wgpu,
         }

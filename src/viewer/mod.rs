@@ -9,7 +9,8 @@
 //!   solve kept, the table, the runs overlaid in the plots); [`split`] (two or three runs side by
 //!   side, one camera, one exposure; a click picks in a pane's run); [`replay`] (the last solve
 //!   round by round, the depth slider); [`matrix`] (the blocking form-factor matrix window).
-//! - [`legends`]: the overlays' legends and the matrix highlight drawn over the viewport.
+//! - [`viewport`]: the viewport's picture (paint callback, uniforms); [`legends`]: the overlays'
+//!   legends and the matrix highlight drawn over it.
 //! - [`pane`]: one solver state drawn beside the viewport (the split view's and replay's panes),
 //!   and picking.
 //! - [`geometry`]: the viewport's display build (what it was asked for, the numbers it brings).
@@ -56,6 +57,7 @@ pub mod split;
 pub mod status_bar;
 pub mod top_bar;
 pub mod view;
+pub mod viewport;
 pub mod widgets;
 pub mod worker;
 
