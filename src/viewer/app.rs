@@ -24,7 +24,7 @@ use super::matrix::MatrixAction;
 use super::options::{OverlayChoice, ViewerOptions};
 use super::pane::{self, PaneStyle};
 use super::plots::{Plots, PlotsInput};
-use super::reference::{RefCommand, RefReply, RefThread};
+use super::reference::{RefClient, RefReply, RefThread};
 use super::reference_panel::{RefState, ReferenceAction, ReferenceInput, ReferencePanel};
 use super::replay::{Replay, ReplayInput};
 use super::script::{self, BenchScene, Script};
@@ -94,8 +94,6 @@ pub struct RadlabApp {
     pub replay: Replay,
     /// The frames of the solve running now (they come just before its `Done`).
     replay_frames: Option<Vec<Arc<ViewData>>>,
-    /// Earlier runs sent to the reference thread for their error only (not the plot's points).
-    scoring_runs: Vec<u64>,
     camera: OrbitCamera,
     home: OrbitCamera,
     origin: DVec3,
@@ -109,11 +107,10 @@ pub struct RadlabApp {
     /// (solver time, error against the reference) after steps, for the error-vs-time plot.
     error_samples: Vec<[f64; 2]>,
     geometry: ShownGeometry,
-    /// The reference thread and where the current scene's reference stands.
-    reference: Option<RefThread>,
+    /// The reference thread (what it was sent, the scene's reference solution), and where the
+    /// current scene's reference stands.
+    reference: RefClient,
     pub ref_state: RefState,
-    /// The solver state last sent to the reference thread for scoring.
-    evaluated_seq: u64,
     /// Frame times while a scripted benchmark waits for its solve.
     solve_frames: FrameBench,
     /// Longest geometry upload seen (seconds; read from the renderer).
@@ -121,8 +118,6 @@ pub struct RadlabApp {
     inspector: Inspector,
     /// The artifact overlays' measurements (their thread, the newest answer).
     artifacts: Measurements,
-    /// The scene's Monte Carlo reference as flat leaves (once the reference thread has it).
-    reference_view: Option<Arc<ViewData>>,
     /// The element picked (an id of the current solution, or of `selected_run`'s).
     pub selected: Option<u32>,
     /// The run whose solution `selected` belongs to when it was picked in a split view's pane
@@ -205,7 +200,6 @@ impl RadlabApp {
             split: SplitView::default(),
             replay: Replay::default(),
             replay_frames: None,
-            scoring_runs: Vec::new(),
             camera: OrbitCamera::frame_all(&crate::scene::Bounds {
                 min: DVec3::splat(-1.0),
                 max: DVec3::splat(1.0),
@@ -225,11 +219,9 @@ impl RadlabApp {
             view_seq: 0,
             solve_frames: FrameBench::default(),
             max_upload_s: 0.0,
-            reference: None,
+            reference: RefClient::default(),
             ref_state: RefState::None,
-            evaluated_seq: 0,
             artifacts: Measurements::default(),
-            reference_view: None,
             selected: None,
             selected_run: None,
             matrix_hover: None,
@@ -262,7 +254,7 @@ impl RadlabApp {
         }
         let ctx = cc.egui_ctx.clone();
         match RefThread::spawn(app.opts.reference.clone(), move || ctx.request_repaint()) {
-            Ok(t) => app.reference = Some(t),
+            Ok(t) => app.reference = RefClient::new(Some(t)),
             Err(e) => app.errors.push(e),
         }
         if let Some(n) = app.opts.split {
@@ -430,10 +422,9 @@ impl RadlabApp {
         self.true_error = None;
         self.error_samples.clear();
         self.last_report = None;
-        self.reference_view = None;
+        self.reference.view = None;
         self.artifacts.clear();
-        if let Some(r) = &mut self.reference {
-            r.load(Arc::clone(&scene), false);
+        if self.reference.load(&scene, false) {
             self.ref_state = RefState::Looking;
         }
         self.set_view(Arc::new(ViewData::default()));
@@ -616,7 +607,7 @@ impl RadlabApp {
             return;
         }
         if let Some(scene) = &self.scene {
-            self.artifacts.request(self.view_seq, scene, &self.view, self.reference_view.as_ref());
+            self.artifacts.request(self.view_seq, scene, &self.view, self.reference.view.as_ref());
         }
     }
 
@@ -644,11 +635,7 @@ impl RadlabApp {
         }
         loop {
             self.request_evaluation();
-            let mut replies = Vec::new();
-            match &mut self.reference {
-                Some(r) if r.busy() => r.wait_idle(|x| replies.push(x)),
-                _ => break,
-            }
+            let Some(replies) = self.reference.wait_idle() else { break };
             for r in replies {
                 self.apply_ref(r);
             }
@@ -769,8 +756,9 @@ impl RadlabApp {
     /// Compute the reference of the current scene on the reference thread (uses the disk
     /// cache; the UI stays live and shows the elapsed time).
     pub fn compute_reference(&mut self) {
-        if let (Some(r), Some(scene)) = (&mut self.reference, &self.scene) {
-            r.load(Arc::clone(scene), true);
+        if let Some(scene) = &self.scene
+            && self.reference.load(scene, true)
+        {
             self.ref_state = RefState::Looking;
         }
     }
@@ -778,15 +766,13 @@ impl RadlabApp {
     /// Stop the reference computation started by [`RadlabApp::compute_reference`]; the scene
     /// is left without a reference (nothing is cached).
     pub fn cancel_reference(&mut self) {
-        if let Some(r) = &self.reference {
-            r.cancel();
-        }
+        self.reference.cancel();
     }
 
     /// (regions finished, regions) of the reference computation.
     #[must_use]
     pub fn reference_progress(&self) -> (usize, usize) {
-        self.reference.as_ref().map_or((0, 0), RefThread::progress)
+        self.reference.progress()
     }
 
     /// The (solver time, rel L2 error against the reference) points of the error plot.
@@ -797,30 +783,13 @@ impl RadlabApp {
 
     /// Send the current solver state to the reference thread for scoring, once.
     fn request_evaluation(&mut self) {
-        if !matches!(self.ref_state, RefState::Ready { .. })
-            || self.evaluated_seq == self.view_seq
-            || self.view.elements.is_empty()
-        {
-            return;
-        }
-        if let Some(r) = &mut self.reference {
-            r.send(RefCommand::Evaluate {
-                view: Arc::clone(&self.view),
-                view_seq: self.view_seq,
-                solver_time_s: self.solver_time_s,
-            });
-            self.evaluated_seq = self.view_seq;
+        if matches!(self.ref_state, RefState::Ready { .. }) && !self.view.elements.is_empty() {
+            self.reference.evaluate(self.view_seq, &self.view, self.solver_time_s);
         }
     }
 
     fn poll_reference(&mut self) {
-        let mut replies = Vec::new();
-        if let Some(r) = &mut self.reference {
-            while let Some(x) = r.poll() {
-                replies.push(x);
-            }
-        }
-        for r in replies {
+        for r in self.reference.poll() {
             self.apply_ref(r);
         }
         self.request_evaluation();
@@ -838,18 +807,17 @@ impl RadlabApp {
                 self.status_bar.message = "reference computation cancelled".into();
             }
             RefReply::Solution { source, view } if current(&source, self) => {
-                self.reference_view = Some(Arc::clone(&view));
+                self.reference.view = Some(Arc::clone(&view));
                 let samples = self.opts.reference.params.samples;
                 let name = self.scene_name().to_owned();
                 self.history.record_reference(&name, samples, view);
             }
             RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
                 self.ref_state = RefState::Ready { regions, samples, how };
-                self.evaluated_seq = 0; // score the current state
+                self.reference.rescore();
                 self.score_runs();
             }
-            RefReply::Evaluated(e) if self.scoring_runs.contains(&e.view_seq) => {
-                self.scoring_runs.retain(|&s| s != e.view_seq);
+            RefReply::Evaluated(e) if self.reference.scored_run(e.view_seq) => {
                 self.history.set_reference_error(e.view_seq, e.rel_l2);
             }
             RefReply::Evaluated(e) => {
@@ -877,14 +845,8 @@ impl RadlabApp {
     /// Send the earlier runs of this scene that still keep their solution to the reference thread,
     /// so that their error, too, is the one against the reference (the split view compares them).
     fn score_runs(&mut self) {
-        let Some(r) = &mut self.reference else { return };
-        let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
-        for (view_seq, solver_time_s, view) in self.history.unscored(name) {
-            if view_seq != self.view_seq && !self.scoring_runs.contains(&view_seq) {
-                r.send(RefCommand::Evaluate { view, view_seq, solver_time_s });
-                self.scoring_runs.push(view_seq);
-            }
-        }
+        let runs = self.history.unscored(self.scene_name());
+        self.reference.score_runs(runs, self.view_seq);
     }
 
     fn set_view(&mut self, view: Arc<ViewData>) {
@@ -1332,7 +1294,7 @@ impl RadlabApp {
         let current = self.geometry.current()
             && !self.split.building()
             && !self.replay.building()
-            && !self.reference.as_ref().is_some_and(RefThread::busy)
+            && !self.reference.busy()
             && !self.artifacts.busy();
         match &mut self.script {
             Script::None | Script::Done | Script::WaitingShot => {}
