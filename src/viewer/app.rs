@@ -177,6 +177,9 @@ impl RadlabApp {
         } else {
             "interactive".into()
         };
+        // Until a scene is loaded: framing the unit cube around the origin.
+        let start =
+            OrbitCamera::frame_all(&crate::scene::Bounds { min: DVec3::splat(-1.0), max: DVec3::splat(1.0) });
         let mut app = RadlabApp {
             scene: None,
             scene_spec: opts.scene.clone(),
@@ -200,14 +203,8 @@ impl RadlabApp {
             split: SplitView::default(),
             replay: Replay::default(),
             replay_frames: None,
-            camera: OrbitCamera::frame_all(&crate::scene::Bounds {
-                min: DVec3::splat(-1.0),
-                max: DVec3::splat(1.0),
-            }),
-            home: OrbitCamera::frame_all(&crate::scene::Bounds {
-                min: DVec3::splat(-1.0),
-                max: DVec3::splat(1.0),
-            }),
+            camera: start,
+            home: start,
             origin: DVec3::ZERO,
             display: Display::default(),
             true_error: None,
