@@ -841,6 +841,57 @@ fn keyboard_shortcuts_act_and_help_lists_them() {
     check(&mut h, "gui_help_window");
 }
 
+/// The newer overlays have keys too (D critical edges, A the artifact overlays in turn, K the
+/// cluster boxes), the Help lists them (checked above) and their tooltips name them.
+#[test]
+fn overlay_keys_toggle_critical_edges_artifacts_and_clusters() {
+    use radlab::mesh_overlay::Artifact;
+    let mut h = harness(opts());
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    assert!(!h.state().display.critical);
+    h.key_press(egui::Key::D);
+    h.run_steps(1);
+    assert!(h.state().display.critical, "D shows the critical edges");
+    h.key_press(egui::Key::D);
+    h.run_steps(1);
+    assert!(!h.state().display.critical, "D again hides them");
+    // A steps through the artifact overlays: each of the five, all five, none.
+    let mut seen = Vec::new();
+    for _ in 0..7 {
+        h.key_press(egui::Key::A);
+        h.run_steps(1);
+        seen.push(h.state().display.artifact);
+    }
+    let mut want: Vec<Option<Artifact>> = Artifact::ALL.map(Some).to_vec();
+    want.extend([Some(Artifact::All), None]);
+    assert_eq!(seen, want);
+    // The box does not cluster: K says so and draws nothing.
+    h.key_press(egui::Key::K);
+    h.run_steps(1);
+    assert!(!h.state().display.clusters);
+    assert!(h.query_by_label_contains("this solve does not cluster").is_some(), "the status bar says why");
+    // Not while a text field has the keyboard.
+    h.get_by_role(egui::accesskit::Role::TextInput).click();
+    h.run_steps(1);
+    h.key_press(egui::Key::D);
+    h.run_steps(1);
+    assert!(!h.state().display.critical, "typing D in the scene field is not a shortcut");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(1);
+    // The tooltips name the keys.
+    h.ctx.all_styles_mut(|s| s.interaction.tooltip_delay = 0.0);
+    for (label, tip) in [
+        ("critical edges (D0/D1/D2)", "on any mesh (D)"),
+        ("error heatmap", "log colour scale (E)"),
+        ("artifact", "(A steps through them)"),
+    ] {
+        h.get_by_label(label).hover();
+        h.run_steps(3);
+        assert!(h.query_by_label_contains(tip).is_some(), "{label}'s tooltip names its key: {tip:?}");
+    }
+}
+
 #[test]
 fn run_history_split_view_and_overlaid_plots() {
     let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
@@ -946,6 +997,92 @@ fn run_history_split_view_and_overlaid_plots() {
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
 
+/// The box solved twice (auto-run): on load, then on a coarse tree (max depth 1).
+fn fine_then_coarse(opts: ViewerOptions) -> Harness<'static, RadlabApp> {
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let mut coarse = h.state().params();
+    coarse.max_depth = 1;
+    // (Twice: the restart's answer sends the re-solve, then that is waited for.)
+    h.state_mut().set_params(coarse);
+    settle(&mut h);
+    settle(&mut h);
+    h
+}
+
+/// A pane's picture as rendered (below its label).
+fn pane_image(h: &mut Harness<'static, RadlabApp>, rect: egui::Rect) -> RgbaImage {
+    h.remove_cursor();
+    h.run_steps(2);
+    let img = h.render().expect("render");
+    let (w, hh) = (img.width(), img.height());
+    let r = rect.shrink(4.0);
+    RgbaImage { width: w, height: hh, pixels: img.into_raw() }.crop(
+        r.left() as u32,
+        r.center().y as u32 - 40,
+        r.width() as u32,
+        (r.bottom() - r.center().y) as u32 + 40,
+    )
+}
+
+/// Clicking an element in a split view's pane picks it in that pane's run, not in the current
+/// solution: the inspector shows that run's element and the pane outlines it.
+#[test]
+fn picking_in_a_split_pane_picks_in_that_panes_solution() {
+    // The current solution is the coarse one.
+    let mut h = fine_then_coarse(opts());
+    assert_eq!(h.state().solve_runs(), 2);
+    h.key_press(egui::Key::V);
+    settle(&mut h);
+    let panes = h.state().split.shown().to_vec();
+    assert_eq!(panes.iter().map(|p| p.0).collect::<Vec<_>>(), vec![1, 2]);
+    let run_view = |h: &Harness<'static, RadlabApp>, n: usize| {
+        let run = h.state().history.runs().iter().find(|r| r.number == n).cloned().expect("run");
+        run.view.expect("the run keeps its solution")
+    };
+    let mut depths = Vec::new();
+    for &(number, rect) in &panes {
+        let before = pane_image(&mut h, rect);
+        // The back wall, a little above the block.
+        let at = egui::pos2(rect.center().x, rect.top() + 0.45 * rect.height());
+        click_at(&mut h, at);
+        settle(&mut h);
+        assert_eq!(h.state().selected_run, Some(number), "picked in run #{number}'s pane");
+        let id = h.state().selected.expect("an element is picked");
+        let view = run_view(&h, number);
+        let e = &view.elements[id as usize];
+        assert!(e.leaf, "a leaf of run #{number}'s solution: {id}");
+        assert_eq!(e.patch, 2, "the back wall");
+        assert!(
+            h.query_by_label(&format!("{id} (patch 2)")).is_some(),
+            "the inspector shows run #{number}'s element {id}"
+        );
+        assert!(
+            h.query_all_by_label(&format!("{:.4e}", e.area)).next().is_some(),
+            "the inspector shows its area in run #{number}: {:.4e}",
+            e.area
+        );
+        let after = pane_image(&mut h, rect);
+        let (d, _) = snapshot::diff(&before, &after).expect("same size");
+        assert!(d.max > 100, "the pane of run #{number} outlines the picked element: {d:?}");
+        depths.push(e.depth);
+    }
+    // The fine run's element lies deeper than anything of the coarse tree (max depth 1): the
+    // pick in pane #1 was made in run #1's solution, not in the current (coarse) one.
+    assert!(depths[1] <= 1, "the coarse run's element: depth {}", depths[1]);
+    assert!(depths[0] > depths[1], "the fine run's element is deeper: {depths:?}");
+    // A pick in the viewport is in the current solution again.
+    h.key_press(egui::Key::V);
+    settle(&mut h);
+    let r = h.state().viewport_rect();
+    click_at(&mut h, r.center());
+    settle(&mut h);
+    assert_eq!(h.state().selected_run, None);
+    assert!(h.state().selected.is_some());
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
 /// The lower half of the viewport's area (below the sliders and labels), as rendered.
 fn lower_viewport(h: &mut Harness<'static, RadlabApp>) -> RgbaImage {
     h.remove_cursor();
@@ -1015,14 +1152,7 @@ fn refinement_replay_scrubs_the_last_solve_and_the_depth_slider_cuts_the_tree() 
 #[test]
 fn earlier_runs_are_scored_once_the_reference_exists() {
     let (dir, reference) = quick_reference("ref-runs");
-    let mut h = harness(ViewerOptions { reference, solve_on_start: true, ..opts() });
-    h.state_mut().set_scene(Arc::new(cornell()));
-    settle(&mut h);
-    let mut coarse = h.state().params();
-    coarse.max_depth = 1;
-    h.state_mut().set_params(coarse);
-    settle(&mut h);
-    settle(&mut h);
+    let mut h = fine_then_coarse(ViewerOptions { reference, ..opts() });
     let runs = h.state().history.runs().to_vec();
     assert_eq!(runs.len(), 2);
     assert!(runs.iter().all(|r| r.reference.is_none() && r.estimate.is_some()), "no reference yet");
@@ -1282,6 +1412,11 @@ fn clusters_overlay_draws_the_cluster_boxes() {
         before.pixels.chunks_exact(4).zip(after.pixels.chunks_exact(4)).filter(|(a, b)| a != b).count();
     assert!(changed > 300, "the boxes are drawn: {changed} pixels changed");
     check(&mut h, "gui_clusters");
+    for on in [false, true] {
+        h.key_press(egui::Key::K);
+        h.run_steps(1);
+        assert_eq!(h.state().display.clusters, on, "K toggles the cluster boxes");
+    }
     // Picking an element lists the clusters above its patch in the inspector.
     h.state_mut().pick_relative(0.5, 0.8);
     h.run_steps(2);

@@ -1,258 +1,71 @@
-//! The eframe application: panels, viewport, overlays, inspector, plots, files.
+//! The eframe application: it owns the threads (solver, display builds, reference, artifacts)
+//! and the state shown, lays the panels out and routes what they answer (each panel is a type of
+//! its own implementing [`View`]: top bar, side panel sections, inspector, plots, status bar,
+//! split view, replay, windows; ARCHITECTURE.md has the layout), and draws the viewport.
 //!
 //! State is split the way STYLE.md asks: solver settings ([`HierarchicalParams`]) are data sent
 //! to the worker; what is shown ([`Display`]) is a `Copy` struct; the solver's state arrives as
 //! an immutable `Arc<ViewData>` after each step; GPU geometry is rebuilt from those only when
 //! one of them changes.
 
-use super::artifacts::{ArtifactThread, Measured};
+use super::artifacts::{ArtifactThread, Measured, Measurements};
 use super::bench::FrameBench;
-use super::builder::{self, Builder, Built, Coloring};
+use super::builder::{self, Builder, Coloring};
 use super::camera::OrbitCamera;
+use super::display::{self, CLUSTER_LEVELS, Display, DisplayInput, DisplayPanel, Shading};
 use super::file_dialog::{Answer, FileDialogs, Purpose};
+use super::geometry::{BuildKey, ShownGeometry};
 use super::help::{self, Action};
 use super::history::{HistoryAction, RunHistory};
+use super::inspector::{self, Inspector, InspectorInput};
 use super::lecture::Lecture;
+use super::legends::Legends;
 use super::matrix::MatrixAction;
-use super::pane::PaneStyle;
-use super::reference::{RefCommand, RefReply, RefSettings, RefThread};
+use super::options::{OverlayChoice, ViewerOptions};
+use super::pane::{self, PaneStyle};
+use super::plots::{Plots, PlotsInput};
+use super::reference::{RefClient, RefReply, RefThread};
+use super::reference_panel::{RefState, ReferenceAction, ReferenceInput, ReferencePanel};
 use super::replay::{Replay, ReplayInput};
+use super::script::{self, BenchScene, Script};
+use super::solver_panel::{
+    MESH_SOLVE_LABEL, ProgressAction, ProgressInput, ProgressPanel, SolverAction, SolverInput, SolverPanel,
+};
 use super::split::{SplitAction, SplitInput, SplitView};
+use super::status_bar::{StatusBar, StatusInput};
+use super::top_bar::{TopBar, TopBarAction, TopBarInput};
 use super::view::View;
+use super::viewport::{self, Picture, Shade};
 use super::worker::{Command, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
 use crate::mesh_overlay::Artifact;
-use crate::overlay::{self, Decimation, Highlight, LinkFilter, LogScale, Palette};
-use crate::render::{
-    FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, RgbaImage, SceneRenderer,
-    Uniforms, ViewportCallback,
-};
+use crate::overlay::{Highlight, LinkFilter};
+use crate::render::SceneRenderer;
 use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
-use crate::solver::meshed::{DisplayReconstruction, MeshMethod, MeshSolveParams};
-use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
-use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
-use eframe::egui_wgpu;
+use crate::solver::meshed::{MeshMethod, MeshSolveParams};
+use crate::solver::params::HierarchicalParams;
+use eframe::egui::{self, Color32, Pos2, Rect, Sense};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, channel};
 use std::time::Instant;
 
-/// Which overlay `--overlay` turns on.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
-pub enum OverlayChoice {
-    #[default]
-    None,
-    Quadtree,
-    Links,
-    Error,
-    /// The critical edges (D0/D1/D2 segments).
-    Critical,
-    /// The five artifacts' marked samples.
-    Artifacts,
-    /// The cluster tree's bounding boxes.
-    Clusters,
-}
-
-/// How the viewer starts.
-#[derive(Clone, Debug)]
-pub struct ViewerOptions {
-    /// `builtin:NAME` or a path; empty: start without a scene (tests call `set_scene`).
-    pub scene: String,
-    pub preset: String,
-    /// Overlays on at start.
-    pub overlay: Vec<OverlayChoice>,
-    /// Solve with the current preset whenever a scene is loaded (at start, Load, Open, a
-    /// dropped file), on the solver thread: the viewer opens on a solved scene. Off: the input
-    /// patches, unsolved, for stepping by hand.
-    pub solve_on_start: bool,
-    /// Scripted use: write the viewport to this PNG once solved, then close.
-    pub screenshot: Option<PathBuf>,
-    /// Benchmark: after solving, draw this many frames, print the median frame time, close.
-    pub bench_frames: Option<usize>,
-    /// Pick the element under this viewport point once solved (fractions of the viewport,
-    /// y down), and show its links (scripted screenshots of the inspector).
-    pub pick: Option<[f32; 2]>,
-    /// Scripted screenshots capture the whole window instead of the viewport.
-    pub screenshot_window: bool,
-    /// Show the plots window open.
-    pub show_plots: bool,
-    /// Where the reference solution comes from (settings and disk cache).
-    pub reference: RefSettings,
-    /// Try the desktop's file dialog (xdg portal) before the in-app one (tests turn it off).
-    pub desktop_file_dialog: bool,
-    /// egui's render pass has a [`crate::render::DEPTH_FORMAT`] depth buffer (the native window
-    /// asks for one): draw the 3-D view straight into it instead of through an offscreen copy.
-    pub direct_viewport: bool,
-    /// Open this lecture figure instead of `scene` (its settings, overlays, camera, caption).
-    pub figure: Option<&'static Figure>,
-    /// Open the split view with this many panes (2 or 3).
-    pub split: Option<usize>,
-    /// Open the run history window.
-    pub show_history: bool,
-    /// Open the refinement replay at this frame of the first solve (0: its start).
-    pub replay: Option<usize>,
-    /// Cut the quadtrees at this depth in the refinement replay.
-    pub depth_cut: Option<u8>,
-    /// The mesh solved on (`None`: the quadtree, the hierarchical solver).
-    pub mesh: Option<MeshSolveParams>,
-    /// How the solution is drawn (`None`: Gouraud).
-    pub reconstruction: Option<DisplayReconstruction>,
-}
-
-impl Default for ViewerOptions {
-    fn default() -> Self {
-        ViewerOptions {
-            scene: "builtin:cornell".into(),
-            preset: "interactive".into(),
-            overlay: Vec::new(),
-            solve_on_start: true,
-            screenshot: None,
-            bench_frames: None,
-            pick: None,
-            screenshot_window: false,
-            show_plots: false,
-            reference: RefSettings::default(),
-            desktop_file_dialog: true,
-            direct_viewport: false,
-            figure: None,
-            split: None,
-            show_history: false,
-            replay: None,
-            depth_cut: None,
-            mesh: None,
-            reconstruction: None,
-        }
-    }
-}
-
-/// Shading of the radiosity mesh (the display reconstruction).
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum Shading {
-    Flat,
-    /// Gouraud from vertex averages.
-    Smooth,
-    /// The element's own p = 1 function (a p = 1 mesh solve's vertex values).
-    Nodal,
-}
-
-impl Shading {
-    /// The shading that draws a display reconstruction.
-    #[must_use]
-    pub fn of(r: DisplayReconstruction) -> Shading {
-        match r {
-            DisplayReconstruction::Flat => Shading::Flat,
-            DisplayReconstruction::Gouraud => Shading::Smooth,
-            DisplayReconstruction::Nodal => Shading::Nodal,
-        }
-    }
-}
-
-/// What is shown (no solver state).
-#[derive(Copy, Clone, Debug, PartialEq)]
-pub struct Display {
-    pub shading: Shading,
-    /// Exposure in stops: radiosity × 2^EV before tone mapping.
-    pub exposure_ev: f32,
-    /// Set the exposure from the solution after every step (see [`super::builder::auto_exposure`]).
-    pub auto_exposure: bool,
-    pub srgb: bool,
-    pub quadtree: bool,
-    pub links: bool,
-    pub error: bool,
-    /// The critical edges: every receiver's D0/D1/D2 segments, coloured by kind.
-    pub critical: bool,
-    /// An artifact overlay (measured against the best reference there is).
-    pub artifact: Option<Artifact>,
-    /// The cluster tree's bounding boxes, from depth `clusters_from` down `CLUSTER_LEVELS` levels.
-    pub clusters: bool,
-    pub clusters_from: u8,
-    pub link_filter: LinkFilter,
-    /// Links of the picked element only.
-    pub selected_links_only: bool,
-    pub links_xray: bool,
-    pub link_alpha: f32,
-}
-
-impl Default for Display {
-    fn default() -> Self {
-        Display {
-            shading: Shading::Smooth,
-            exposure_ev: 0.0,
-            auto_exposure: true,
-            srgb: true,
-            quadtree: false,
-            links: false,
-            error: false,
-            critical: false,
-            artifact: None,
-            clusters: false,
-            clusters_from: 0,
-            link_filter: LinkFilter::default(),
-            selected_links_only: false,
-            links_xray: false,
-            link_alpha: 0.35,
-        }
-    }
-}
-
 /// Width of the solver/display panel and of the inspector, points (fixed: see `ui`).
 const CONTROLS_W: f32 = 290.0;
-/// Levels of the cluster tree the clusters overlay draws at once.
-const CLUSTER_LEVELS: u8 = 3;
 const INSPECTOR_W: f32 = 320.0;
-/// Width of the progress bars in the controls panel.
-const PANEL_CONTENT_W: f32 = 260.0;
-/// Height reserved for the Reference panel (its tallest state: heading, a line, a progress bar
-/// and a button).
-const REFERENCE_PANEL_H: f32 = 100.0;
-
-/// Background of the viewport (display space).
-const BACKGROUND: [f32; 4] = [0.08, 0.08, 0.1, 1.0];
-/// Back faces: dull magenta, striped in the shader.
-const BACK_COLOR: [f32; 4] = [0.55, 0.1, 0.45, 1.0];
-/// Width of the quadtree edges drawn by the mesh shader, pixels on each side of an edge (a
-/// shared edge shows both sides' depth colours, 1.5 px together).
-const QUADTREE_LINE_PX: f32 = 0.75;
-
-/// What a scripted run (`--screenshot`, `--bench-frames`) is waiting for.
-#[derive(Clone, Debug, PartialEq)]
-enum Script {
-    None,
-    /// Waiting for the solve to finish.
-    Solving,
-    /// Frames left to draw before the screenshot (the geometry must reach the GPU first).
-    Settle(u32),
-    WaitingShot,
-    Bench {
-        /// Frames still to draw before measuring (the geometry upload happens in the first).
-        warmup: usize,
-        bench: FrameBench,
-    },
-    Done,
-}
-
-/// Frames drawn before `--bench-frames` starts measuring: the first uploads the geometry.
-const BENCH_WARMUP_FRAMES: usize = 3;
-
-/// The progress line's label while a mesh solve runs.
-const MESH_SOLVE_LABEL: &str = "solving on the mesh";
-
-/// BFeps the viewer starts the error oracle at (relative to the mean reflected radiosity):
-/// table-room converges to 15 % pointwise in 0.4 s there, 5 % at 0.05 in 3 s (README).
-const ERROR_ORACLE_START_EPS: f64 = 0.1;
 
 /// The radlab viewer.
 pub struct RadlabApp {
     opts: ViewerOptions,
     scene: Option<Arc<Scene>>,
     scene_spec: String,
-    spec_edit: String,
+    top_bar: TopBar,
     /// Errors shown in the UI (load failures, solver failures); never a crash.
     errors: Vec<String>,
     params: HierarchicalParams,
-    preset: String,
+    solver_panel: SolverPanel,
     /// The mesh solved on: `method` [`MeshMethod::Quadtree`] is the hierarchical solver (with
     /// `params`), anything else a mesh solve with these settings.
     mesh: MeshSolveParams,
@@ -281,8 +94,6 @@ pub struct RadlabApp {
     pub replay: Replay,
     /// The frames of the solve running now (they come just before its `Done`).
     replay_frames: Option<Vec<Arc<ViewData>>>,
-    /// Earlier runs sent to the reference thread for their error only (not the plot's points).
-    scoring_runs: Vec<u64>,
     camera: OrbitCamera,
     home: OrbitCamera,
     origin: DVec3,
@@ -295,43 +106,23 @@ pub struct RadlabApp {
     solver_time_s: f64,
     /// (solver time, error against the reference) after steps, for the error-vs-time plot.
     error_samples: Vec<[f64; 2]>,
-    geometry: Arc<Geometry>,
-    generation: u64,
-    /// The display builder thread (`None`: build on the UI thread).
-    builder: Option<Builder>,
-    /// What the newest display build was requested for, and its sequence number.
-    build_key: Option<BuildKey>,
-    build_seq: u64,
-    /// Sequence number of the build shown now.
-    shown_seq: u64,
-    /// The solver state whose auto exposure was applied last.
-    exposure_view_seq: u64,
-    /// The reference thread and where the current scene's reference stands.
-    reference: Option<RefThread>,
+    geometry: ShownGeometry,
+    /// The reference thread (what it was sent, the scene's reference solution), and where the
+    /// current scene's reference stands.
+    reference: RefClient,
     pub ref_state: RefState,
-    /// The solver state last sent to the reference thread for scoring.
-    evaluated_seq: u64,
     /// Frame times while a scripted benchmark waits for its solve.
     solve_frames: FrameBench,
     /// Longest geometry upload seen (seconds; read from the renderer).
     max_upload_s: f64,
-    /// Cached inspector rows: (view_seq, element, rows).
-    inspector_rows: Option<(u64, u32, Arc<Vec<LinkRow>>)>,
-    link_stats: (usize, usize),
-    /// The artifact measurements' thread, and its newest answer: (state measured, with a
-    /// reference, the measurement or why not).
-    artifact_thread: Option<ArtifactThread>,
-    artifacts: Option<(u64, bool, Result<Measured, String>)>,
-    /// The (state, with a reference) of the newest job sent, and its number.
-    artifact_job: Option<(u64, bool)>,
-    artifact_seq: u64,
-    /// The scene's Monte Carlo reference as flat leaves (once the reference thread has it).
-    reference_view: Option<Arc<ViewData>>,
-    /// The critical edges drawn, by kind (from the last build).
-    critical_counts: Option<crate::mesh::discontinuity::SegmentCounts>,
-    link_scale: Option<LogScale>,
-    error_scale: Option<LogScale>,
+    inspector: Inspector,
+    /// The artifact overlays' measurements (their thread, the newest answer).
+    artifacts: Measurements,
+    /// The element picked (an id of the current solution, or of `selected_run`'s).
     pub selected: Option<u32>,
+    /// The run whose solution `selected` belongs to when it was picked in a split view's pane
+    /// (`None`: the current solution).
+    pub selected_run: Option<usize>,
     /// The link of the matrix block hovered this frame (highlighted in the viewport).
     matrix_hover: Option<Highlight>,
     /// The leaf under the pointer in the viewport, while the matrix window is open (its row and
@@ -342,8 +133,8 @@ pub struct RadlabApp {
     script: Script,
     shot_rx: Option<Receiver<Arc<egui::ColorImage>>>,
     files: FileDialogs,
-    status: String,
-    show_plots: bool,
+    status_bar: StatusBar,
+    plots: Plots,
     /// The lecture figure opened last and its caption panel.
     pub lecture: Lecture,
     show_help: bool,
@@ -352,11 +143,10 @@ pub struct RadlabApp {
     pending_pick: Option<[f32; 2]>,
     /// A Load was sent and its answer has not come yet.
     loading: bool,
-    /// Wall time of the last `ui` call and of the last geometry rebuild (seconds).
+    /// Wall time of the last `ui` call (seconds).
     last_ui_s: f64,
     /// On-CPU time of the last `ui` call (benchmarks only).
     last_ui_cpu_s: Option<f64>,
-    rebuild_s: f64,
     /// Set when the window should close (scripted runs); read by the runner.
     pub exit_code: Option<i32>,
     /// Leave the side panels unfilled: the window's clear colour (the native runner sets it to
@@ -365,42 +155,6 @@ pub struct RadlabApp {
     /// (egui_kittest clears to transparent).
     pub panels_from_clear: bool,
 }
-
-/// Where the reference solution of the current scene stands.
-#[derive(Clone, Debug, PartialEq)]
-pub enum RefState {
-    /// No scene, or no reference thread.
-    None,
-    /// Looking in the disk cache.
-    Looking,
-    /// Not cached: the "Compute reference" button offers to compute it.
-    Missing,
-    Computing {
-        regions: usize,
-        samples: u32,
-        since: Instant,
-    },
-    Ready {
-        regions: usize,
-        samples: u32,
-        how: String,
-    },
-    Failed(String),
-}
-
-/// What a display build depends on.
-#[derive(Clone, Debug, PartialEq)]
-struct BuildKey {
-    view_seq: u64,
-    /// Address of the true-error list (`Arc` identity), if any.
-    true_error: Option<usize>,
-    /// The artifact overlay drawn and the address of its samples (`Arc` identity), if any.
-    artifacts: Option<(Artifact, usize)>,
-    settings: builder::Settings,
-}
-
-/// One row of the inspector's link table: (receiver, source, F, V, B·F·V).
-type LinkRow = (u32, u32, f32, f32, f64);
 
 impl RadlabApp {
     /// Build the app: store the viewport renderer in egui's callback resources, start the
@@ -423,13 +177,16 @@ impl RadlabApp {
         } else {
             "interactive".into()
         };
+        // Until a scene is loaded: framing the unit cube around the origin.
+        let start =
+            OrbitCamera::frame_all(&crate::scene::Bounds { min: DVec3::splat(-1.0), max: DVec3::splat(1.0) });
         let mut app = RadlabApp {
             scene: None,
             scene_spec: opts.scene.clone(),
-            spec_edit: opts.scene.clone(),
+            top_bar: TopBar { spec_edit: opts.scene.clone() },
             errors: Vec::new(),
             params: HierarchicalParams::preset(&preset).unwrap_or_else(HierarchicalParams::interactive),
-            preset,
+            solver_panel: SolverPanel { preset },
             mesh: opts.mesh.unwrap_or(MeshSolveParams::new(MeshMethod::Quadtree)),
             worker: None,
             progress: None,
@@ -446,44 +203,24 @@ impl RadlabApp {
             split: SplitView::default(),
             replay: Replay::default(),
             replay_frames: None,
-            scoring_runs: Vec::new(),
-            camera: OrbitCamera::frame_all(&crate::scene::Bounds {
-                min: DVec3::splat(-1.0),
-                max: DVec3::splat(1.0),
-            }),
-            home: OrbitCamera::frame_all(&crate::scene::Bounds {
-                min: DVec3::splat(-1.0),
-                max: DVec3::splat(1.0),
-            }),
+            camera: start,
+            home: start,
             origin: DVec3::ZERO,
             display: Display::default(),
             true_error: None,
             solver_time_s: 0.0,
             error_samples: Vec::new(),
-            geometry: Arc::new(Geometry::default()),
-            generation: 0,
-            builder: None,
-            build_key: None,
-            build_seq: 0,
-            shown_seq: 0,
-            exposure_view_seq: 0,
-            inspector_rows: None,
+            // Without the display thread the geometry is built on the UI thread (slower, correct).
+            geometry: ShownGeometry::new(display_builder.ok()),
+            inspector: Inspector::default(),
             view_seq: 0,
             solve_frames: FrameBench::default(),
             max_upload_s: 0.0,
-            reference: None,
+            reference: RefClient::default(),
             ref_state: RefState::None,
-            evaluated_seq: 0,
-            link_stats: (0, 0),
-            critical_counts: None,
-            artifact_thread: None,
-            artifacts: None,
-            artifact_job: None,
-            artifact_seq: 0,
-            reference_view: None,
-            link_scale: None,
-            error_scale: None,
+            artifacts: Measurements::default(),
             selected: None,
+            selected_run: None,
             matrix_hover: None,
             viewport_hover: None,
             has_wgpu,
@@ -491,8 +228,8 @@ impl RadlabApp {
             script: Script::None,
             shot_rx: None,
             files: FileDialogs::new(opts.desktop_file_dialog),
-            status: String::new(),
-            show_plots: opts.show_plots,
+            status_bar: StatusBar::default(),
+            plots: Plots { open: opts.show_plots },
             lecture: Lecture::default(),
             show_help: false,
             pending_pick: opts.pick,
@@ -500,7 +237,6 @@ impl RadlabApp {
             exit_code: None,
             last_ui_s: 0.0,
             last_ui_cpu_s: None,
-            rebuild_s: 0.0,
             panels_from_clear: false,
             opts,
         };
@@ -508,16 +244,14 @@ impl RadlabApp {
             Ok(w) => app.worker = Some(w),
             Err(e) => app.errors.push(e),
         }
-        // Without the display thread the geometry is built on the UI thread (slower, correct).
-        app.builder = display_builder.ok();
         let ctx = cc.egui_ctx.clone();
         match ArtifactThread::spawn(move || ctx.request_repaint()) {
-            Ok(t) => app.artifact_thread = Some(t),
+            Ok(t) => app.artifacts = Measurements::new(Some(t)),
             Err(e) => app.errors.push(e),
         }
         let ctx = cc.egui_ctx.clone();
         match RefThread::spawn(app.opts.reference.clone(), move || ctx.request_repaint()) {
-            Ok(t) => app.reference = Some(t),
+            Ok(t) => app.reference = RefClient::new(Some(t)),
             Err(e) => app.errors.push(e),
         }
         if let Some(n) = app.opts.split {
@@ -564,7 +298,7 @@ impl RadlabApp {
         if self.lecture.figure().is_some_and(|p| p.split) && !f.split {
             self.split.on = false;
         }
-        self.preset = f.preset.to_owned();
+        self.solver_panel.preset = f.preset.to_owned();
         // Not `set_params`: the load below starts a solver with these.
         self.params = f.params;
         self.mesh = f.mesh;
@@ -578,9 +312,9 @@ impl RadlabApp {
         d.shading = if o.flat { Shading::Flat } else { Shading::of(f.reconstruction) };
         d.link_filter = LinkFilter { full: !o.partial_links_only, ..LinkFilter::default() };
         d.selected_links_only = false;
-        self.show_plots = f.plots;
+        self.plots.open = f.plots;
         self.lecture.matrix.open = f.matrix;
-        f.scene.clone_into(&mut self.spec_edit);
+        f.scene.clone_into(&mut self.top_bar.spec_edit);
         let solve = std::mem::replace(&mut self.opts.solve_on_start, false);
         self.load_spec(f.scene);
         self.opts.solve_on_start = solve;
@@ -622,6 +356,14 @@ impl RadlabApp {
                 Action::ToggleQuadtree => self.display.quadtree ^= true,
                 Action::ToggleLinks => self.display.links ^= true,
                 Action::ToggleError => self.display.error ^= true,
+                Action::ToggleCritical => self.display.critical ^= true,
+                Action::CycleArtifact => {
+                    self.display.artifact = display::next_artifact(self.display.artifact)
+                }
+                Action::ToggleClusters if self.view.clusters.is_empty() => {
+                    self.status_bar.message = "no clusters: this solve does not cluster".into();
+                }
+                Action::ToggleClusters => self.display.clusters ^= true,
                 Action::ToggleCaption => self.lecture.toggle_caption(),
                 Action::ToggleHelp => self.show_help ^= true,
                 Action::ToggleSplit => {
@@ -673,19 +415,18 @@ impl RadlabApp {
         self.replay.clear();
         self.replay_frames = None;
         self.selected = None;
+        self.selected_run = None;
         self.true_error = None;
         self.error_samples.clear();
         self.last_report = None;
-        self.reference_view = None;
-        self.artifacts = None;
-        self.artifact_job = None;
-        if let Some(r) = &mut self.reference {
-            r.load(Arc::clone(&scene), false);
+        self.reference.view = None;
+        self.artifacts.clear();
+        if self.reference.load(&scene, false) {
             self.ref_state = RefState::Looking;
         }
         self.set_view(Arc::new(ViewData::default()));
         for w in &scene.warnings {
-            self.status = format!("{}: {w}", scene.name);
+            self.status_bar.message = format!("{}: {w}", scene.name);
         }
         self.scene = Some(Arc::clone(&scene));
         let params = self.params;
@@ -734,7 +475,7 @@ impl RadlabApp {
     /// True while the plots panel is open.
     #[must_use]
     pub fn plots_shown(&self) -> bool {
-        self.show_plots
+        self.plots.open
     }
 
     /// The current solver state.
@@ -782,7 +523,8 @@ impl RadlabApp {
             if kind == StepKind::Solve {
                 self.send(Command::SolveMesh(self.mesh), MESH_SOLVE_LABEL);
             } else {
-                self.status = format!("{kind:?} steps the quadtree: pick the quadtree mesh first");
+                self.status_bar.message =
+                    format!("{kind:?} steps the quadtree: pick the quadtree mesh first");
             }
             return;
         }
@@ -845,21 +587,14 @@ impl RadlabApp {
 
     /// The artifact overlay to draw and its samples, when they were measured on the state shown.
     fn artifact_samples(&self) -> Option<(Artifact, Arc<crate::artifacts::ArtifactSamples>)> {
-        let which = self.display.artifact?;
-        match &self.artifacts {
-            Some((seq, _, Ok(m))) if *seq == self.view_seq => Some((which, Arc::clone(&m.samples))),
-            _ => None,
-        }
+        self.artifacts.samples(self.display.artifact, self.view_seq)
     }
 
     /// The newest artifact measurement of the state shown (`None`: not asked, or not answered
     /// yet), or why there is none.
     #[must_use]
     pub fn artifacts(&self) -> Option<&Result<Measured, String>> {
-        match &self.artifacts {
-            Some((seq, _, r)) if *seq == self.view_seq => Some(r),
-            _ => None,
-        }
+        self.artifacts.of(self.view_seq)
     }
 
     /// Ask the artifacts thread to measure the state shown, once per state and reference (only
@@ -868,37 +603,15 @@ impl RadlabApp {
         if self.display.artifact.is_none() || self.view.elements.is_empty() || self.busy() || self.loading {
             return;
         }
-        let key = (self.view_seq, self.reference_view.is_some());
-        if self.artifact_job == Some(key) {
-            return;
-        }
-        let (Some(t), Some(scene)) = (&mut self.artifact_thread, &self.scene) else { return };
-        self.artifact_seq += 1;
-        t.request(super::artifacts::Job {
-            seq: self.artifact_seq,
-            scene: Arc::clone(scene),
-            view: Arc::clone(&self.view),
-            reference: self.reference_view.clone(),
-        });
-        self.artifact_job = Some(key);
-    }
-
-    /// Pick up the artifacts thread's answer (`wait`: block for it; tests, scripted runs).
-    fn poll_artifacts(&mut self, wait: bool) {
-        let Some(t) = &mut self.artifact_thread else { return };
-        let reply = if wait { t.wait() } else { t.poll() };
-        if let Some(r) = reply
-            && r.seq == self.artifact_seq
-            && let Some((view_seq, with_ref)) = self.artifact_job
-        {
-            self.artifacts = Some((view_seq, with_ref, r.result));
+        if let Some(scene) = &self.scene {
+            self.artifacts.request(self.view_seq, scene, &self.view, self.reference.view.as_ref());
         }
     }
 
     /// The critical edges drawn by kind (`None` while the overlay is off or not built yet).
     #[must_use]
     pub fn critical_counts(&self) -> Option<crate::mesh::discontinuity::SegmentCounts> {
-        self.critical_counts.filter(|_| self.display.critical)
+        self.geometry.critical_counts.filter(|_| self.display.critical)
     }
 
     /// True when the state shown is a mesh solve (not the quadtree's).
@@ -919,21 +632,15 @@ impl RadlabApp {
         }
         loop {
             self.request_evaluation();
-            let mut replies = Vec::new();
-            match &mut self.reference {
-                Some(r) if r.busy() => r.wait_idle(|x| replies.push(x)),
-                _ => break,
-            }
+            let Some(replies) = self.reference.wait_idle() else { break };
             for r in replies {
                 self.apply_ref(r);
             }
         }
         self.request_artifacts();
-        self.poll_artifacts(true);
+        self.artifacts.poll(true);
         self.request_geometry();
-        if let Some(b) = self.builder.as_mut().and_then(Builder::wait) {
-            self.apply_built(b);
-        }
+        self.poll_geometry(true);
         self.split.wait();
         self.replay.wait();
     }
@@ -987,7 +694,10 @@ impl RadlabApp {
                     // SetParams / Reset restart the solver: element ids start over.
                     self.solver_time_s = 0.0;
                     self.error_samples.clear();
-                    self.selected = None;
+                    // (A pick in a split pane's run stays: that solution is kept.)
+                    if self.selected_run.is_none() {
+                        self.selected = None;
+                    }
                 }
                 if let Some(rep) = report {
                     self.solver_time_s += rep.time_s;
@@ -1005,16 +715,11 @@ impl RadlabApp {
                         self.history.record(name, self.solver_time_s, self.view_seq, Arc::clone(&self.view));
                     }
                 }
-                if self.selected.is_some_and(|s| s as usize >= self.view.elements.len()) {
+                if self.picked_here().is_some_and(|s| s as usize >= self.view.elements.len()) {
                     self.selected = None;
                 }
                 if self.script == Script::Solving && !self.busy() {
-                    self.script = match self.opts.bench_frames {
-                        Some(_) => {
-                            Script::Bench { warmup: BENCH_WARMUP_FRAMES, bench: FrameBench::default() }
-                        }
-                        None => Script::Settle(4),
-                    };
+                    self.script = Script::after_solve(self.opts.bench_frames.is_some());
                 }
             }
             Reply::Progress { done, total } => self.progress = Some((done, total)),
@@ -1027,7 +732,7 @@ impl RadlabApp {
                 }
             }
             Reply::Skipped => {}
-            Reply::Baked(Ok(what)) => self.status = what,
+            Reply::Baked(Ok(what)) => self.status_bar.message = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => {
                 self.loading = false;
@@ -1048,8 +753,9 @@ impl RadlabApp {
     /// Compute the reference of the current scene on the reference thread (uses the disk
     /// cache; the UI stays live and shows the elapsed time).
     pub fn compute_reference(&mut self) {
-        if let (Some(r), Some(scene)) = (&mut self.reference, &self.scene) {
-            r.load(Arc::clone(scene), true);
+        if let Some(scene) = &self.scene
+            && self.reference.load(scene, true)
+        {
             self.ref_state = RefState::Looking;
         }
     }
@@ -1057,15 +763,13 @@ impl RadlabApp {
     /// Stop the reference computation started by [`RadlabApp::compute_reference`]; the scene
     /// is left without a reference (nothing is cached).
     pub fn cancel_reference(&mut self) {
-        if let Some(r) = &self.reference {
-            r.cancel();
-        }
+        self.reference.cancel();
     }
 
     /// (regions finished, regions) of the reference computation.
     #[must_use]
     pub fn reference_progress(&self) -> (usize, usize) {
-        self.reference.as_ref().map_or((0, 0), RefThread::progress)
+        self.reference.progress()
     }
 
     /// The (solver time, rel L2 error against the reference) points of the error plot.
@@ -1076,30 +780,13 @@ impl RadlabApp {
 
     /// Send the current solver state to the reference thread for scoring, once.
     fn request_evaluation(&mut self) {
-        if !matches!(self.ref_state, RefState::Ready { .. })
-            || self.evaluated_seq == self.view_seq
-            || self.view.elements.is_empty()
-        {
-            return;
-        }
-        if let Some(r) = &mut self.reference {
-            r.send(RefCommand::Evaluate {
-                view: Arc::clone(&self.view),
-                view_seq: self.view_seq,
-                solver_time_s: self.solver_time_s,
-            });
-            self.evaluated_seq = self.view_seq;
+        if matches!(self.ref_state, RefState::Ready { .. }) && !self.view.elements.is_empty() {
+            self.reference.evaluate(self.view_seq, &self.view, self.solver_time_s);
         }
     }
 
     fn poll_reference(&mut self) {
-        let mut replies = Vec::new();
-        if let Some(r) = &mut self.reference {
-            while let Some(x) = r.poll() {
-                replies.push(x);
-            }
-        }
-        for r in replies {
+        for r in self.reference.poll() {
             self.apply_ref(r);
         }
         self.request_evaluation();
@@ -1114,21 +801,20 @@ impl RadlabApp {
             RefReply::Missing { source } if current(&source, self) => self.ref_state = RefState::Missing,
             RefReply::Cancelled { source } if current(&source, self) => {
                 self.ref_state = RefState::Missing;
-                self.status = "reference computation cancelled".into();
+                self.status_bar.message = "reference computation cancelled".into();
             }
             RefReply::Solution { source, view } if current(&source, self) => {
-                self.reference_view = Some(Arc::clone(&view));
+                self.reference.view = Some(Arc::clone(&view));
                 let samples = self.opts.reference.params.samples;
                 let name = self.scene_name().to_owned();
                 self.history.record_reference(&name, samples, view);
             }
             RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
                 self.ref_state = RefState::Ready { regions, samples, how };
-                self.evaluated_seq = 0; // score the current state
+                self.reference.rescore();
                 self.score_runs();
             }
-            RefReply::Evaluated(e) if self.scoring_runs.contains(&e.view_seq) => {
-                self.scoring_runs.retain(|&s| s != e.view_seq);
+            RefReply::Evaluated(e) if self.reference.scored_run(e.view_seq) => {
                 self.history.set_reference_error(e.view_seq, e.rel_l2);
             }
             RefReply::Evaluated(e) => {
@@ -1156,123 +842,8 @@ impl RadlabApp {
     /// Send the earlier runs of this scene that still keep their solution to the reference thread,
     /// so that their error, too, is the one against the reference (the split view compares them).
     fn score_runs(&mut self) {
-        let Some(r) = &mut self.reference else { return };
-        let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
-        for (view_seq, solver_time_s, view) in self.history.unscored(name) {
-            if view_seq != self.view_seq && !self.scoring_runs.contains(&view_seq) {
-                r.send(RefCommand::Evaluate { view, view_seq, solver_time_s });
-                self.scoring_runs.push(view_seq);
-            }
-        }
-    }
-
-    /// One line, always shown (nothing below moves as work starts and ends): while the solver
-    /// works, what it does, the solve's round and the time so far; then what the last step did.
-    fn progress_line(&self, ui: &mut egui::Ui) {
-        let busy = self.busy();
-        let elapsed = self.busy_since.map_or(0.0, |t| t.elapsed().as_secs_f64());
-        let (fraction, text) = match (busy, self.progress) {
-            // A mesh solve counts element pairs, not rounds.
-            (true, Some((done, total))) if self.busy_label == MESH_SOLVE_LABEL => (
-                done as f32 / total.max(1) as f32,
-                format!(
-                    "{} · {:.0} % of the pairs · {elapsed:.1} s (cannot be cancelled)",
-                    self.busy_label,
-                    100.0 * done as f64 / total.max(1) as f64
-                ),
-            ),
-            (true, Some((done, total))) => (
-                done as f32 / total.max(1) as f32,
-                format!("{} · round {} of {total} · {elapsed:.1} s", self.busy_label, (done + 1).min(total)),
-            ),
-            (true, None) => (0.0, format!("{} · {elapsed:.1} s", self.busy_label)),
-            (false, _) => match &self.last_report {
-                Some(r) => (
-                    1.0,
-                    format!(
-                        "{:?} {} in {:.3} s",
-                        r.kind,
-                        if r.cancelled { "cancelled" } else { "done" },
-                        r.time_s
-                    ),
-                ),
-                None => (0.0, "idle".to_owned()),
-            },
-        };
-        ui.add(egui::ProgressBar::new(fraction).desired_width(PANEL_CONTENT_W).text(text).animate(busy))
-            .on_hover_text("The solver thread: progress of the running step, else the last step's time");
-        if busy {
-            ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
-        }
-    }
-
-    fn reference_panel(&mut self, ui: &mut egui::Ui) {
-        // A fixed height: the panels below stay put as the reference's state changes.
-        let top = ui.cursor().top();
-        self.reference_panel_contents(ui);
-        let used = ui.cursor().top() - top;
-        ui.add_space((REFERENCE_PANEL_H - used).max(0.0));
-    }
-
-    fn reference_panel_contents(&mut self, ui: &mut egui::Ui) {
-        ui.heading("Reference");
-        let compute_button = |ui: &mut egui::Ui| {
-            ui.button("Compute reference")
-                .on_hover_text(
-                    "Independent Monte Carlo reference (radlab reference), on a background thread; \
-                     saved in the disk cache",
-                )
-                .clicked()
-        };
-        match self.ref_state.clone() {
-            RefState::None => {
-                ui.weak("no scene");
-            }
-            // Short lines: the panel widens to its widest line and keeps that width.
-            RefState::Looking => {
-                ui.horizontal(|ui| {
-                    ui.spinner();
-                    ui.label("looking in the cache…");
-                });
-            }
-            RefState::Missing => {
-                ui.label("none cached for this scene");
-                if compute_button(ui) {
-                    self.compute_reference();
-                }
-            }
-            RefState::Computing { regions, samples, since } => {
-                let (done, total) = self.reference_progress();
-                let total = if total == 0 { regions } else { total };
-                ui.label(format!("{regions} regions × {samples} paths"));
-                ui.add(
-                    egui::ProgressBar::new(done as f32 / total.max(1) as f32)
-                        .desired_width(PANEL_CONTENT_W)
-                        .text(format!("{done}/{total} · {:.0} s", since.elapsed().as_secs_f64())),
-                );
-                if ui
-                    .button("Cancel reference")
-                    .on_hover_text("Stop the computation (nothing is cached)")
-                    .clicked()
-                {
-                    self.cancel_reference();
-                }
-                ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
-            }
-            RefState::Ready { regions, samples, how } => {
-                ui.label(format!("{regions} regions × {samples} paths")).on_hover_text(how);
-                if let Some([_, e]) = self.error_samples.last() {
-                    ui.label(format!("rel L2 error {:.2} %", e * 100.0))
-                        .on_hover_text("of the current state; the plots show it against solver time");
-                }
-            }
-            RefState::Failed(e) => {
-                ui.colored_label(Color32::from_rgb(255, 150, 130), e);
-                if compute_button(ui) {
-                    self.compute_reference();
-                }
-            }
-        }
+        let runs = self.history.unscored(self.scene_name());
+        self.reference.score_runs(runs, self.view_seq);
     }
 
     fn set_view(&mut self, view: Arc<ViewData>) {
@@ -1295,27 +866,20 @@ impl RadlabApp {
     /// What the error heatmap shows.
     #[must_use]
     pub fn error_label(&self) -> &'static str {
-        if self.true_error().is_some() { "true error |B − B_ref|" } else { "solver's error estimate" }
-    }
-
-    /// The error value of one element (as the heatmap shows it).
-    fn error_of(&self, id: u32) -> f64 {
-        match self.true_error() {
-            Some(e) => e.get(id as usize).copied().unwrap_or(0.0),
-            None => self.view.elements.get(id as usize).map_or(0.0, |e| e.error_estimate),
-        }
+        inspector::error_label(self.true_error().is_some())
     }
 
     /// What the display settings ask of a geometry build (the split view's panes use them too).
     fn build_settings(&self) -> builder::Settings {
         let d = &self.display;
         let mesh_view = self.mesh_view();
-        let show_links = !mesh_view && (d.links || (self.selected.is_some() && d.selected_links_only));
+        let picked = self.picked_here();
+        let show_links = !mesh_view && (d.links || (picked.is_some() && d.selected_links_only));
         let links = show_links.then(|| {
             let mut filter = d.link_filter;
             filter.element = if d.selected_links_only {
                 // Nothing picked: nothing to show.
-                Some(self.selected.unwrap_or(u32::MAX))
+                Some(picked.unwrap_or(u32::MAX))
             } else {
                 None
             };
@@ -1354,75 +918,43 @@ impl RadlabApp {
             artifacts: self.artifact_samples().map(|(a, s)| (a, Arc::as_ptr(&s) as usize)),
             settings,
         };
-        if self.build_key.as_ref() == Some(&key) {
-            return;
-        }
-        self.build_seq += 1;
-        let req = builder::Request {
-            seq: self.build_seq,
-            view: Arc::clone(&self.view),
-            view_seq: self.view_seq,
-            true_error: self.true_error().cloned(),
+        let (view, view_seq, true_error) =
+            (Arc::clone(&self.view), self.view_seq, self.true_error().cloned());
+        let (scene, artifacts) = (self.scene.clone(), self.artifact_samples());
+        let ev = self.geometry.request(key, self.display.auto_exposure, |seq| builder::Request {
+            seq,
+            view,
+            view_seq,
+            true_error,
             settings,
-            scene: self.scene.clone(),
-            artifacts: self.artifact_samples(),
-        };
-        self.build_key = Some(key);
-        match &mut self.builder {
-            Some(b) => b.request(req),
-            None => {
-                let built = builder::build(&req);
-                self.apply_built(built);
-            }
-        }
+            scene,
+            artifacts,
+        });
+        self.apply_exposure(ev);
     }
 
-    fn poll_geometry(&mut self) {
-        if let Some(b) = self.builder.as_mut().and_then(Builder::poll) {
-            self.apply_built(b);
-        }
+    /// Pick up a finished display build (`wait`: block for it).
+    fn poll_geometry(&mut self, wait: bool) {
+        let ev = self.geometry.poll(wait, self.display.auto_exposure);
+        self.apply_exposure(ev);
     }
 
-    fn apply_built(&mut self, b: Built) {
-        if b.seq <= self.shown_seq && self.shown_seq != 0 {
-            return;
-        }
-        self.shown_seq = b.seq;
-        self.geometry = b.geometry;
-        self.generation += 1;
-        self.link_stats = b.link_stats;
-        self.critical_counts = b.critical;
-        self.link_scale = b.link_scale;
-        self.error_scale = b.error_scale;
-        self.rebuild_s = b.build_s;
-        if self.display.auto_exposure
-            && b.view_seq != self.exposure_view_seq
-            && let Some(ev) = b.auto_ev
-        {
+    /// The auto exposure of a new build, if any.
+    fn apply_exposure(&mut self, ev: Option<f32>) {
+        if let Some(ev) = ev {
             self.display.exposure_ev = ev;
-            self.exposure_view_seq = b.view_seq;
         }
     }
 
-    /// True when the geometry shown is the newest requested (scripted runs wait for it).
-    fn geometry_current(&self) -> bool {
-        self.build_key.is_some() && self.shown_seq == self.build_seq
-    }
-
-    fn uniforms(&self, aspect: f64, pixels_per_point: f32) -> Uniforms {
-        let m = self.camera.view_proj(aspect, self.origin).to_cols_array_2d();
-        Uniforms {
-            view_proj: m.map(|c| c.map(|x| x as f32)),
-            exposure: 2f32.powf(self.display.exposure_ev),
-            tone: u32::from(self.display.srgb),
-            mode: u32::from(self.display.error && self.error_applies()),
-            selected: self.selected.unwrap_or(NO_SELECTION),
-            back_color: BACK_COLOR,
-            overlay: if self.display.quadtree { OVERLAY_QUADTREE } else { 0 }
-                | if self.selected.is_some() { OVERLAY_PICKED } else { 0 },
-            line_px: QUADTREE_LINE_PX * pixels_per_point,
-            _pad: [0; 2],
-            background: BACKGROUND,
+    /// How the mesh shader draws the current solution (the panes too, less the pick).
+    fn shade(&self) -> Shade {
+        let d = &self.display;
+        Shade {
+            exposure_ev: d.exposure_ev,
+            srgb: d.srgb,
+            error: d.error && self.error_applies(),
+            quadtree: d.quadtree,
+            picked: self.picked_here(),
         }
     }
 
@@ -1430,695 +962,73 @@ impl RadlabApp {
     // Panels
 
     fn top_bar(&mut self, ui: &mut egui::Ui) {
-        ui.horizontal(|ui| {
-            if let Some(f) = self.lecture.menu(ui) {
-                self.open_figure(f);
-            }
-            self.view_menu(ui);
-            help::menu(ui, &mut self.show_help);
-            ui.separator();
-            if ui
-                .button("Open…")
-                .on_hover_text("Open a .gltf/.glb file (or drop one on the window)")
-                .clicked()
-            {
-                self.files.choose(Purpose::Open);
-            }
-            let export =
-                ui.add_enabled(self.scene.is_some(), egui::Button::new("Export baked glTF…")).on_hover_text(
-                    "Write the solution shown as a .glb/.gltf: radiosity as vertex colours at the \
-                     viewer's exposure, unlit (docs/bake.md)",
-                );
-            if export.clicked() {
-                let name = self.scene.as_ref().map_or("radlab".to_owned(), |s| s.name.clone());
-                self.files.choose(Purpose::ExportBake { suggested: format!("{name}.glb") });
-            }
-            let edit = ui
-                .add(
-                    egui::TextEdit::singleline(&mut self.spec_edit)
-                        .desired_width(160.0)
-                        .hint_text("builtin:NAME or path"),
-                )
-                .on_hover_text("builtin:NAME (radlab scenes lists them) or a .gltf/.glb path");
-            let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
-            if ui
-                .button("Load")
-                .on_hover_text("Open the scene named on the left (or press Enter there)")
-                .clicked()
-                || enter
-            {
-                let spec = self.spec_edit.trim().to_owned();
-                if !spec.is_empty() {
-                    self.load_spec(&spec);
-                }
-            }
-            if ui.button("Screenshot").on_hover_text("Save the viewport as a PNG").clicked() {
-                self.request_screenshot(ui.ctx());
-            }
-            ui.toggle_value(&mut self.show_plots, "Plots").on_hover_text(
-                "Convergence plots under the inspector: residual per gather, links against elements \
-                 (one point per solve), error against solver time",
-            );
-            self.mesh_menu(ui);
-            ui.separator();
-            let name = self.scene.as_ref().map_or("(no scene)".to_owned(), |s| s.name.clone());
-            ui.label(egui::RichText::new(name).strong());
-            ui.weak(&self.scene_spec);
-        });
-    }
-
-    /// The View menu: the split view and the run history.
-    fn view_menu(&mut self, ui: &mut egui::Ui) {
-        ui.menu_button("View", |ui| {
-            if ui
-                .checkbox(&mut self.split.on, "Split view (V)")
-                .on_hover_text(
-                    "Two or three runs side by side with one camera and one exposure, each labelled \
-                     with its settings, time and error: the runs picked in the run history, else the \
-                     newest of this scene",
-                )
-                .changed()
-            {
-                self.replay.on &= !self.split.on;
-            }
-            ui.horizontal(|ui| {
-                ui.label("panes");
-                for n in [2, 3] {
-                    ui.selectable_value(&mut self.split.panes, n, n.to_string())
-                        .on_hover_text(format!("Show the newest {n} runs when fewer than two are picked"));
-                }
-            });
-            ui.checkbox(&mut self.history.open, "Run history (H)").on_hover_text(
-                "Every solve of this window: settings, elements, links, time, error; pick the runs \
-                 of the split view there",
-            );
-            ui.separator();
-            if ui
-                .checkbox(&mut self.replay.on, "Refinement replay")
-                .on_hover_text(
-                    "The last solve round by round (mesh, links, radiosity as they were), with a \
-                     slider; and a depth slider that cuts the quadtrees at a level",
-                )
-                .changed()
-            {
-                self.split.on &= !self.replay.on;
-            }
-        })
-        .response
-        .on_hover_text("Split view, run history and refinement replay: compare solves, watch one form");
-    }
-
-    /// The Mesh menu of the top bar: the mesh, and the settings of a solve on a uniform or
-    /// discontinuity mesh (greyed out on the quadtree, whose settings are the Solver panel's).
-    fn mesh_menu(&mut self, ui: &mut egui::Ui) {
-        let title = match self.mesh.method {
-            MeshMethod::Quadtree => "Mesh: quadtree".to_owned(),
-            _ => format!("Mesh: {}", self.mesh.label()),
+        let input = TopBarInput {
+            lecture: &mut self.lecture,
+            split: &mut self.split,
+            replay: &mut self.replay,
+            history: &mut self.history,
+            show_help: &mut self.show_help,
+            show_plots: &mut self.plots.open,
+            scene: self.scene.as_deref(),
+            scene_spec: &self.scene_spec,
+            mesh: self.mesh,
         };
-        ui.menu_button(title, |ui| self.mesh_controls(ui)).response.on_hover_text(
-            "What the solution is computed on: the hierarchical quadtree, a uniform mesh, or a \
-             discontinuity mesh whose edges follow the shadow boundaries; element order p = 0 / 1",
-        );
-    }
-
-    fn mesh_controls(&mut self, ui: &mut egui::Ui) {
-        let mut m = self.mesh;
-        for method in MeshMethod::ALL {
-            ui.radio_value(&mut m.method, method, method.name()).on_hover_text(method.description());
-        }
-        ui.separator();
-        let on_mesh = m.method != MeshMethod::Quadtree;
-        ui.add_enabled_ui(on_mesh, |ui| {
-            ui.horizontal(|ui| {
-                ui.label("order");
-                ui.selectable_value(&mut m.order, crate::basis::Order::Constant, "p = 0")
-                    .on_hover_text("Constant elements: one value each")
-                    .on_disabled_hover_text("The quadtree's elements are constant (p = 0)");
-                ui.selectable_value(&mut m.order, crate::basis::Order::Linear, "p = 1")
-                    .on_hover_text(
-                        "Linear (triangles) / bilinear (quads) elements, a Galerkin solve of their \
-                         vertex values: follows a smooth ramp inside an element, but 20-60 times \
-                         slower than p = 0 (a minute or more on table-room; a mesh solve cannot be \
-                         cancelled)",
-                    )
-                    .on_disabled_hover_text("p = 1 exists on the uniform and discontinuity meshes");
-            });
-            ui.add_enabled_ui(m.order == crate::basis::Order::Linear, |ui| {
-                ui.horizontal(|ui| {
-                    ui.selectable_value(&mut m.continuous, false, "discontinuous").on_hover_text(
-                        "Each element its own vertex values: jumps can remain at element edges",
-                    );
-                    ui.selectable_value(&mut m.continuous, true, "continuous").on_hover_text(
-                        "One value per mesh vertex, shared by the elements around it: no jumps, \
-                         fewer unknowns",
-                    );
-                })
-                .response
-                .on_disabled_hover_text("Continuity applies to p = 1 elements");
-            });
-            ui.add_enabled_ui(m.method == MeshMethod::Uniform, |ui| {
-                log_slider(
-                    ui,
-                    "size",
-                    &mut m.element_size_rel,
-                    1e-3,
-                    1.0,
-                    "Uniform mesh: longest element side, as a fraction of the scene's diagonal",
-                );
-            });
-            ui.add_enabled_ui(m.method == MeshMethod::DiscontinuityCdt, |ui| {
-                ui.add(
-                    egui::Slider::new(&mut m.cdt_min_angle_deg, 0.0..=30.0)
-                        .step_by(5.0)
-                        .text("CDT min angle"),
-                )
-                .on_hover_text(
-                    "Delaunay refinement of the constrained triangulation to this smallest angle \
-                         (degrees; 0: the constraints' triangulation as it is, fewest elements)",
-                );
-            });
-            ui.add(egui::Slider::new(&mut m.rays, 1..=64).logarithmic(true).text("rays / pair"))
-                .on_hover_text("Shadow rays per element pair (the visible fraction)");
-        })
-        .response
-        .on_disabled_hover_text("Mesh settings: pick a uniform or discontinuity mesh above");
-        if m != self.mesh {
-            self.set_mesh(m);
+        match self.top_bar.ui(ui, input) {
+            Some(TopBarAction::OpenFigure(f)) => self.open_figure(f),
+            Some(TopBarAction::ChooseFile(purpose)) => self.files.choose(purpose),
+            Some(TopBarAction::Load(spec)) => self.load_spec(&spec),
+            Some(TopBarAction::Screenshot) => self.request_screenshot(ui.ctx()),
+            Some(TopBarAction::SetMesh(m)) => self.set_mesh(m),
+            None => {}
         }
     }
 
+    /// The side panel: the Solver, progress, Reference and Display sections, in that order
+    /// (each one's answer is applied before the next is drawn).
     fn controls(&mut self, ui: &mut egui::Ui) {
-        let busy = self.busy();
-        ui.heading("Solver");
-        let quadtree = self.mesh.method == MeshMethod::Quadtree;
-        ui.add_enabled_ui(quadtree, |ui| self.quadtree_controls(ui))
-            .response
-            .on_disabled_hover_text("The hierarchical solver's settings: pick the quadtree mesh to use them");
-        let mesh_tip = "Steps the quadtree; on this mesh only Solve runs (the whole mesh solve)";
-        ui.separator();
-        ui.horizontal_wrapped(|ui| {
-            for (label, kind, tip) in [
-                (
-                    "Refine step",
-                    StepKind::Refine,
-                    "Initial linking, then the oracle over the existing links (Space)",
-                ),
-                ("Gather step", StepKind::Gather, "One Jacobi gather over all links (G)"),
-                ("Push-pull", StepKind::PushPull, "Push gathered irradiance down, pull radiosity up (P)"),
-                ("Iterate", StepKind::Iterate, "Refine + gather + push-pull (I)"),
-                ("Solve", StepKind::Solve, "The HSA91 loop until converged, or the mesh solve (S)"),
-            ] {
-                let enabled = !busy && (quadtree || kind == StepKind::Solve);
-                if ui
-                    .add_enabled(enabled, egui::Button::new(label))
-                    .on_hover_text(tip)
-                    .on_disabled_hover_text(if busy { "The solver is busy" } else { mesh_tip })
-                    .clicked()
-                {
-                    self.step(kind);
-                }
-            }
-            if ui
-                .add_enabled(!busy && quadtree, egui::Button::new("Reset"))
-                .on_hover_text("Back to the input patches")
-                .clicked()
-            {
-                self.send(Command::Reset, "resetting");
-            }
-        });
-        self.controls_below(ui);
-    }
-
-    /// The hierarchical solver's settings (preset, oracle, thresholds).
-    fn quadtree_controls(&mut self, ui: &mut egui::Ui) {
-        let mut p = self.params;
-        egui::ComboBox::from_label("preset")
-            .selected_text(&self.preset)
-            .show_ui(ui, |ui| {
-                for name in HierarchicalParams::PRESETS {
-                    if ui.selectable_label(self.preset == name, name).clicked() {
-                        self.preset = name.to_owned();
-                        if let Some(q) = HierarchicalParams::preset(name) {
-                            p = q;
-                        }
-                    }
-                }
-            })
-            .response
-            .on_hover_text("Named solver settings (all sliders below at once)");
-        egui::ComboBox::from_label("oracle")
-            .selected_text(format!("{:?}", p.oracle))
-            .show_ui(ui, |ui| {
-                ui.selectable_value(&mut p.oracle, Oracle::Feps, "Feps (form factor)");
-                ui.selectable_value(&mut p.oracle, Oracle::Bf, "BF (B × F)");
-                ui.selectable_value(&mut p.oracle, Oracle::Error, "Error (where the answer is wrong)");
-            })
-            .response
-            .on_hover_text("What decides that a link is accurate enough, or must be split");
-        if p.oracle == Oracle::Error && self.params.oracle != Oracle::Error {
-            // The error oracle's BFeps is a fraction of the mean reflected radiosity: the BF
-            // presets' 2e-3 would refine to the link budget. Start where it converges in seconds.
-            p.bf_eps = ERROR_ORACLE_START_EPS;
-            p.bf_relative = true;
-        }
-        log_slider(
-            ui,
-            "Feps",
-            &mut p.feps,
-            1e-5,
-            1.0,
-            "Form-factor threshold of Refine: link when both F estimates are below it",
-        );
-        let mut aeps_rel = match p.aeps {
-            AreaEps::Relative(r) => r,
-            AreaEps::Absolute(a) => {
-                self.scene.as_ref().map_or(1e-4, |s| a / s.total_area().max(f64::MIN_POSITIVE))
-            }
+        let input = SolverInput {
+            params: self.params,
+            method: self.mesh.method,
+            busy: self.busy(),
+            scene_area: self.scene.as_ref().map(|s| s.total_area()),
         };
-        let before = aeps_rel;
-        log_slider(
-            ui,
-            "Aeps",
-            &mut aeps_rel,
-            1e-8,
-            1e-1,
-            "Smallest element area, as a fraction of the scene's area",
-        );
-        if aeps_rel != before {
-            p.aeps = AreaEps::Relative(aeps_rel);
+        match self.solver_panel.ui(ui, input) {
+            Some(SolverAction::Step(kind)) => self.step(kind),
+            Some(SolverAction::Reset) => self.send(Command::Reset, "resetting"),
+            Some(SolverAction::SetParams(p)) => self.set_params(p),
+            None => {}
         }
-        log_slider(ui, "BFeps", &mut p.bf_eps, 1e-6, 1.0, "Threshold of the BF oracle (units of B)");
-        ui.horizontal(|ui| {
-            ui.add(egui::Slider::new(&mut p.rays, 1..=256).logarithmic(true).text("rays"))
-                .on_hover_text("Shadow rays per link (visible fraction)");
-        });
-        ui.add(egui::Slider::new(&mut p.max_depth, 1..=20).text("max depth"))
-            .on_hover_text("Deepest quadtree level below an input patch: a hard floor on resolution");
-        if p != self.params {
-            self.set_params(p);
-        }
-    }
-
-    /// Auto-run and Cancel, the progress line, the reference, display and overlays.
-    fn controls_below(&mut self, ui: &mut egui::Ui) {
-        let busy = self.busy();
-        ui.horizontal(|ui| {
-            ui.checkbox(&mut self.auto_run, "auto-run").on_hover_text(
-                "Re-solve whenever a parameter changes; the last picture stays until the new one is \
-                 ready. Off: a change restarts from the input patches, for stepping by hand.",
-            );
-            // Always there, enabled while busy: the row does not change as work starts and ends.
-            if ui
-                .add_enabled(busy, egui::Button::new("Cancel"))
-                .on_hover_text("Stop the running step (the state stays consistent)")
-                .clicked()
-            {
-                if let Some(w) = &self.worker {
-                    w.cancel();
-                }
-                self.resolve_pending = false;
+        let input = ProgressInput {
+            auto_run: &mut self.auto_run,
+            busy: self.worker.as_ref().is_some_and(Worker::busy),
+            label: &self.busy_label,
+            since: self.busy_since,
+            progress: self.progress,
+            last_report: self.last_report.as_ref(),
+        };
+        if ProgressPanel.ui(ui, input) == Some(ProgressAction::Cancel) {
+            if let Some(w) = &self.worker {
+                w.cancel();
             }
-        });
-        self.progress_line(ui);
+            self.resolve_pending = false;
+        }
 
         ui.separator();
-        self.reference_panel(ui);
+        let input = ReferenceInput {
+            state: &self.ref_state,
+            progress: self.reference_progress(),
+            error: self.error_samples.last().map(|s| s[1]),
+        };
+        match ReferencePanel.ui(ui, input) {
+            Some(ReferenceAction::Compute) => self.compute_reference(),
+            Some(ReferenceAction::Cancel) => self.cancel_reference(),
+            None => {}
+        }
 
         ui.separator();
-        ui.heading("Display");
-        let mesh_view = self.mesh_view();
-        let has_p1 = self.view.mesh.as_ref().is_some_and(|m| m.coefficients.is_some());
         let error_applies = self.error_applies();
-        let d = &mut self.display;
-        ui.horizontal(|ui| {
-            ui.selectable_value(&mut d.shading, Shading::Flat, "flat")
-                .on_hover_text("Each element one colour (its average): the mesh's resolution shows");
-            ui.selectable_value(&mut d.shading, Shading::Smooth, "Gouraud").on_hover_text(
-                "Gouraud from vertex averages, what most systems show; T-vertices take their big \
-                 neighbour's edge value",
-            );
-            ui.add_enabled_ui(has_p1, |ui| {
-                ui.selectable_value(&mut d.shading, Shading::Nodal, "true p = 1")
-                    .on_hover_text(
-                        "Each element's own p = 1 function: the vertex values the Galerkin solve computed",
-                    )
-                    .on_disabled_hover_text(
-                        "The true p = 1 reconstruction needs a p = 1 solve (a uniform or \
-                         discontinuity mesh at order 1)",
-                    );
-            });
-        });
-        if d.shading == Shading::Nodal && !has_p1 {
-            ui.weak("no p = 1 values in this solution: each element's constant");
-        }
-        let ev = ui
-            .add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"))
-            .on_hover_text("Radiosity × 2^EV before tone mapping; moving it turns auto exposure off");
-        if ev.changed() {
-            d.auto_exposure = false;
-        }
-        ui.checkbox(&mut d.auto_exposure, "auto exposure")
-            .on_hover_text("Map the 95th percentile of the lit surfaces' radiosity to 80 % white");
-        ui.horizontal(|ui| {
-            ui.label("tone map");
-            ui.selectable_value(&mut d.srgb, true, "sRGB").on_hover_text("Display values sRGB-encoded");
-            ui.selectable_value(&mut d.srgb, false, "linear")
-                .on_hover_text("Radiosity shown as is, clamped at 1 (dark mid-tones)");
-        });
-        ui.label(egui::RichText::new("back faces: striped magenta").small().weak());
-        ui.separator();
-        ui.heading("Overlays");
-        if mesh_view {
-            ui.checkbox(&mut d.quadtree, "mesh edges").on_hover_text("The elements' edges; depth-tested (Q)");
-        } else {
-            ui.checkbox(&mut d.quadtree, "quadtree")
-                .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
-        }
-        ui.add_enabled(!mesh_view, egui::Checkbox::new(&mut d.links, "links"))
-            .on_hover_text("Element-centre lines coloured by log F (L)")
-            .on_disabled_hover_text(
-                "A mesh solve keeps no links: every pair of its elements is coupled (n² interactions)",
-            );
-        if !mesh_view && (d.links || d.selected_links_only) {
-            ui.indent("links", |ui| {
-                ui.checkbox(&mut d.selected_links_only, "picked element only")
-                    .on_hover_text("Only the links the picked element gathers through (click an element)");
-                let mut min_ff = f64::from(d.link_filter.min_ff).max(1e-9);
-                log_slider(ui, "min F", &mut min_ff, 1e-9, 1.0, "Hide links with a smaller form factor");
-                d.link_filter.min_ff = if min_ff <= 1e-9 { 0.0 } else { min_ff as f32 };
-                ui.horizontal(|ui| {
-                    ui.label("visibility");
-                    ui.checkbox(&mut d.link_filter.full, "full")
-                        .on_hover_text("Links whose shadow rays all passed");
-                    ui.checkbox(&mut d.link_filter.partial, "partial")
-                        .on_hover_text("Links whose shadow rays were partly blocked: the penumbra's");
-                    ui.checkbox(&mut d.link_filter.none, "none")
-                        .on_hover_text("Links whose shadow rays were all blocked (they carry no light)");
-                });
-                ui.add(
-                    egui::Slider::new(&mut d.link_filter.max_lines, 100..=200_000)
-                        .logarithmic(true)
-                        .text("max lines"),
-                )
-                .on_hover_text("Decimation: beyond this many, a sample is drawn");
-                ui.horizontal(|ui| {
-                    ui.label("sample");
-                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::Strided, "every k-th")
-                        .on_hover_text("An even sample of the links");
-                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::LargestF, "largest F")
-                        .on_hover_text("The links with the largest form factors");
-                });
-                ui.add(egui::Slider::new(&mut d.link_alpha, 0.05..=1.0).text("opacity"))
-                    .on_hover_text("Opacity of the link lines");
-                ui.checkbox(&mut d.links_xray, "x-ray (no depth test)")
-                    .on_hover_text("Draw links through surfaces instead of hiding those behind them");
-            });
-        }
-        ui.add_enabled(error_applies, egui::Checkbox::new(&mut d.error, "error heatmap"))
-            .on_hover_text("Per-element error on a log colour scale (E)")
-            .on_disabled_hover_text(
-                "A mesh solve has no error estimate of its own: Compute reference (above) gives the \
-                 true error, then the heatmap shows it",
-            );
-        egui::ComboBox::from_label("artifact")
-            .selected_text(d.artifact.map_or("none", Artifact::name))
-            .show_ui(ui, |ui| {
-                ui.selectable_value(&mut d.artifact, None, "none").on_hover_text("No artifact overlay");
-                for a in Artifact::ALL.into_iter().chain([Artifact::All]) {
-                    ui.selectable_value(&mut d.artifact, Some(a), a.name()).on_hover_text(a.description());
-                }
-            })
-            .response
-            .on_hover_text(
-                "The lecture's five meshing artifacts, where they are: measured against the closed \
-                 form (single-bounce scenes) or the scene's reference, on a background thread",
-            );
-        ui.checkbox(&mut d.critical, "critical edges (D0/D1/D2)").on_hover_text(
-            "Where the radiosity is discontinuous: D0 where surfaces touch (a jump in value), D1 / D2 \
-             where a shadow's umbra or penumbra begins (a jump in the first / second derivative), \
-             from the emitters' EV and VE events; on any mesh",
-        );
-        let max_depth = self.view.clusters.iter().map(|c| c.depth).max();
-        ui.add_enabled_ui(max_depth.is_some(), |ui| {
-            ui.horizontal(|ui| {
-                ui.checkbox(&mut d.clusters, "clusters").on_hover_text(format!(
-                    "The cluster tree above the input patches: bounding boxes of {CLUSTER_LEVELS} levels from \
-                     the depth chosen, coloured by depth. Clusters link groups of patches, so links grow \
-                     as n, not n²"
-                ));
-                if let Some(m) = max_depth {
-                    d.clusters_from = d.clusters_from.min(m);
-                    ui.add(egui::Slider::new(&mut d.clusters_from, 0..=m).text("from depth"))
-                        .on_hover_text("The shallowest cluster level drawn");
-                }
-            });
-        })
-        .response
-        .on_disabled_hover_text(
-            "This solve does not cluster: scenes of 3 000 patches or more do (the furnished rooms), \
-             or --cluster on",
-        );
-    }
-
-    fn inspector(&mut self, ui: &mut egui::Ui) {
-        ui.heading("Inspect");
-        let Some(id) = self.selected else {
-            ui.label("Click an element in the viewport.");
-            return;
-        };
-        let v = Arc::clone(&self.view);
-        let Some(e) = v.elements.get(id as usize) else {
-            return;
-        };
-        let (error, err_label) = (self.error_of(id), self.error_label());
-        egui::Grid::new("element").num_columns(2).striped(true).show(ui, |ui| {
-            let row = |ui: &mut egui::Ui, k: &str, val: String| {
-                ui.label(k);
-                ui.monospace(val);
-                ui.end_row();
-            };
-            row(ui, "element", format!("{} (patch {})", e.id, e.patch));
-            if let Some(p) = self.scene.as_ref().and_then(|s| s.patches.get(e.patch as usize)) {
-                row(ui, "patch name", p.name.clone());
-            }
-            row(ui, "depth", e.depth.to_string());
-            row(ui, "area", format!("{:.4e}", e.area));
-            row(ui, "E", rgb_text(e.emission));
-            row(ui, "ρ", rgb_text(e.reflectance));
-            row(ui, "B", rgb_text(e.radiosity));
-            if self.mesh_view() && self.true_error().is_none() {
-                row(ui, "error", "none (a mesh solve has no estimate)".to_owned());
-            } else {
-                row(ui, "error", format!("{error:.3e} ({err_label})"));
-            }
-            row(ui, "stopped", e.stop.to_owned());
-        });
-        // Clustered solves: the clusters holding the element's patch, smallest first.
-        // (A patch that is the whole tree, a one-patch scene, has no cluster: u32::MAX.)
-        if let Some(&first) = v.patch_cluster.get(e.patch as usize).filter(|&&c| c != u32::MAX) {
-            let mut chain = Vec::new();
-            let mut at = Some(first);
-            while let Some(c) = at.and_then(|i| v.clusters.get(i as usize)) {
-                chain.push(*c);
-                at = c.parent;
-            }
-            egui::CollapsingHeader::new(format!("in {} clusters", chain.len()))
-                .id_salt("clusters of the patch")
-                .show(ui, |ui| {
-                    egui::Grid::new("clusters").num_columns(3).striped(true).show(ui, |ui| {
-                        for h in ["depth", "patches", "cluster links"] {
-                            ui.strong(h);
-                        }
-                        ui.end_row();
-                        for c in &chain {
-                            ui.monospace(c.depth.to_string());
-                            ui.monospace(c.patches.to_string());
-                            ui.monospace(c.links.to_string());
-                            ui.end_row();
-                        }
-                    });
-                })
-                .header_response
-                .on_hover_text(
-                    "The cluster tree above this element's patch, from the smallest cluster up to \
-                     the root: how many patches each holds and how many cluster links it has",
-                );
-        }
-        ui.separator();
-        if let Some(m) = &v.mesh {
-            ui.label(format!(
-                "{}: no links — this element is coupled to every element it sees ({} form-factor \
-                 entries in all).",
-                m.params.label(),
-                v.stats.links
-            ));
-            return;
-        }
-        // Links through which this element gathers: its own and its ancestors' (computed once
-        // per solver state and element, not every frame).
-        let rows = match &self.inspector_rows {
-            Some((seq, sel, rows)) if *seq == self.view_seq && *sel == id => Arc::clone(rows),
-            _ => {
-                let chain = overlay::ancestors(&v.elements, id);
-                let mut rows: Vec<LinkRow> = v
-                    .links
-                    .iter()
-                    .filter(|l| chain.contains(&l.receiver))
-                    .map(|l| {
-                        let b = v.elements.get(l.source as usize).map_or(0.0, |s| s.radiosity.mean());
-                        (l.receiver, l.source, l.ff, l.vis, b * f64::from(l.ff) * f64::from(l.vis))
-                    })
-                    .collect();
-                rows.sort_by(|a, b| b.4.total_cmp(&a.4).then(a.1.cmp(&b.1)));
-                let rows = Arc::new(rows);
-                self.inspector_rows = Some((self.view_seq, id, Arc::clone(&rows)));
-                rows
-            }
-        };
-        ui.label(format!("{} links gathered through (own + ancestors'), by B·F·V:", rows.len()));
-        egui::ScrollArea::vertical().max_height(220.0).id_salt("links").show(ui, |ui| {
-            egui::Grid::new("links").num_columns(5).striped(true).show(ui, |ui| {
-                for h in ["at", "source", "F", "V", "B·F·V"] {
-                    ui.strong(h);
-                }
-                ui.end_row();
-                for (r, s, f, vis, c) in rows.iter().take(200) {
-                    ui.monospace(if *r == id { "self".to_owned() } else { format!("↑{r}") });
-                    ui.monospace(s.to_string());
-                    ui.monospace(format!("{f:.3e}"));
-                    ui.monospace(format!("{vis:.2}"));
-                    ui.monospace(format!("{c:.3e}"));
-                    ui.end_row();
-                }
-            });
-        });
-        ui.checkbox(&mut self.display.selected_links_only, "show these links in the viewport")
-            .on_hover_text("Draw only these links, from the element and its ancestors");
-    }
-
-    fn plots(&self, ui: &mut egui::Ui) {
-        use egui_plot::{Legend, Line, Plot, PlotPoints, Points};
-        ui.label("Residual per gather (log₁₀)");
-        let res: Vec<[f64; 2]> = self
-            .view
-            .residuals
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| **r > 0.0)
-            .map(|(i, r)| [i as f64 + 1.0, r.log10()])
-            .collect();
-        Plot::new("residual").height(150.0).x_axis_label("gather").y_axis_label("log₁₀ residual").show(
-            ui,
-            |p| {
-                p.line(Line::new("residual", PlotPoints::from(res)));
-            },
-        );
-        // The runs of the history, one series per scene and oracle (line and points each).
-        let overlay = |p: &mut egui_plot::PlotUi<'_>, series: Vec<super::history::Series>| {
-            for s in series {
-                p.line(Line::new(s.name.clone(), PlotPoints::from(s.points.clone())));
-                p.points(Points::new(s.name, PlotPoints::from(s.points)).radius(3.5));
-            }
-        };
-        ui.label("Links against elements, runs in this window (log₁₀)");
-        let links = self.history.links_series();
-        let (lo, hi) = links
-            .iter()
-            .flat_map(|s| &s.points)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[0]), b.max(p[0])));
-        let (lo, hi) = if lo.is_finite() { (lo - 0.5, hi + 0.5) } else { (1.0, 5.0) };
-        Plot::new("links_vs_elements")
-            .height(150.0)
-            .legend(Legend::default())
-            .x_axis_label("log₁₀ elements")
-            .y_axis_label("log₁₀ links")
-            .show(ui, |p| {
-                overlay(p, links);
-                p.line(Line::new("n", PlotPoints::from(vec![[lo, lo], [hi, hi]])));
-                p.line(Line::new("n²", PlotPoints::from(vec![[lo, 2.0 * lo], [hi, 2.0 * hi]])));
-            });
-        ui.label("Error against solver time, runs in this window (log₁₀)").on_hover_text(
-            "Relative L2 error against the reference when the scene has one, else the solver's own \
-             estimate (series marked \"estimate\"); one point per solve",
-        );
-        Plot::new("runs_error_vs_time")
-            .height(150.0)
-            .legend(Legend::default())
-            .x_axis_label("solver time (s)")
-            .y_axis_label("log₁₀ rel. L2 error")
-            .show(ui, |p| overlay(p, self.history.error_series()));
-        if self.error_samples.is_empty() {
-            ui.weak("Error against time appears when a reference solution is loaded.");
-        } else {
-            ui.label("Error against the reference (rel L2, log₁₀) vs solver time since the last restart");
-            let pts: Vec<[f64; 2]> =
-                self.error_samples.iter().filter(|p| p[1] > 0.0).map(|p| [p[0], p[1].log10()]).collect();
-            Plot::new("error_vs_time")
-                .height(150.0)
-                .x_axis_label("solver time (s)")
-                .y_axis_label("log₁₀ error")
-                .show(ui, |p| {
-                    p.line(Line::new("error", PlotPoints::from(pts.clone())));
-                    p.points(Points::new("steps", PlotPoints::from(pts)).radius(3.0));
-                });
-        }
-    }
-
-    fn status_bar(&self, ui: &mut egui::Ui) {
-        let s = &self.view.stats;
-        ui.horizontal(|ui| {
-            ui.label(format!("{} elements ({} leaves)", s.elements, s.leaves));
-            ui.separator();
-            if let Some(m) = &self.view.mesh {
-                // A mesh solve: no links, no refine / gather / push-pull phases.
-                ui.label(format!(
-                    "{}: {} form-factor entries · solve {:.3}s (meshing {:.3}s)",
-                    m.params.label(),
-                    s.links,
-                    m.solve_s,
-                    m.meshing_s
-                ));
-                if !self.status.is_empty() {
-                    ui.separator();
-                    ui.weak(&self.status);
-                }
-                return;
-            }
-            ui.label(format!(
-                "{} links (full {}, partial {}, none {})",
-                s.links, s.links_full, s.links_partial, s.links_none
-            ));
-            if s.cluster_links > 0 {
-                ui.label(format!("+ {} cluster links ({} clusters)", s.cluster_links, s.clusters));
-            }
-            ui.separator();
-            ui.label(format!(
-                "refine {:.3}s · gather {:.3}s · push-pull {:.3}s",
-                s.refine_s, s.gather_s, s.push_pull_s
-            ));
-            ui.separator();
-            if let Some(r) = &self.last_report {
-                ui.label(format!(
-                    "last: {:?} {:.3}s, residual {:.2e}{}{}",
-                    r.kind,
-                    r.time_s,
-                    r.residual,
-                    if r.converged { ", converged" } else { "" },
-                    if r.cancelled { ", cancelled" } else { "" }
-                ));
-            }
-            if self.view.pushed_for_display {
-                ui.separator();
-                ui.label("B shown pushed-pulled").on_hover_text(
-                    "The solver has gathered; its own radiosity changes at the next Push-pull. \
-                     The view shows that result already.",
-                );
-            }
-            if !self.status.is_empty() {
-                ui.separator();
-                ui.weak(&self.status);
-            }
-        });
+        let input = DisplayInput { display: &mut self.display, view: &self.view, error_applies };
+        DisplayPanel.ui(ui, input);
     }
 
     // ------------------------------------------------------------------------------------------
@@ -2146,73 +1056,38 @@ impl RadlabApp {
         };
 
         self.request_geometry();
-        self.poll_geometry();
-        let painter = ui.painter_at(rect);
-        if self.has_wgpu {
-            let ppp = ui.ctx().pixels_per_point();
-            let size =
-                [(rect.width() * ppp).round().max(1.0) as u32, (rect.height() * ppp).round().max(1.0) as u32];
-            painter.add(egui_wgpu::Callback::new_paint_callback(
-                rect,
-                ViewportCallback {
-                    frame: FrameParams { uniforms: self.uniforms(aspect, ppp), size },
-                    geometry: Arc::clone(&self.geometry),
-                    generation: self.generation,
-                    slot: 0,
-                },
-            ));
-        } else {
-            painter.rect_filled(rect, 0.0, Color32::from_gray(20));
-            painter.text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
-                "no wgpu renderer",
-                egui::FontId::proportional(16.0),
-                Color32::GRAY,
-            );
-        }
-        self.draw_highlight(&painter, rect, aspect);
-        self.legends(&painter, rect);
+        self.poll_geometry(false);
+        let picture = Picture {
+            geometry: &self.geometry,
+            view_proj: self.camera.view_proj(aspect, self.origin),
+            origin: self.origin,
+            shade: self.shade(),
+            has_wgpu: self.has_wgpu,
+            view: &self.view,
+            highlight: self.highlight(),
+            legends: Legends {
+                display: &self.display,
+                view: &self.view,
+                picked: self.picked_here().is_some(),
+                link_stats: self.geometry.link_stats,
+                link_scale: self.geometry.link_scale,
+                error_scale: self.geometry.error_scale,
+                critical: self.critical_counts(),
+                artifacts: self.artifacts(),
+                error: (self.display.error && self.error_applies()).then(|| self.error_label()),
+                busy: self.busy(),
+                split_on: self.split.on,
+            },
+        };
+        viewport::paint(ui, rect, &picture);
         ui.horizontal(|_| {});
         let _ = response;
     }
 
-    /// The camera's keys (arrows orbit, shift + arrows pan, + / − zoom, F frames the scene, R goes
-    /// back to the scene's camera), unless a text field has the keyboard.
+    /// The camera's keys ([`OrbitCamera::keys`]; F frames the scene, R goes back to its camera).
     fn camera_keys(&mut self, ui: &egui::Ui) {
-        if ui.ctx().egui_wants_keyboard_input() {
-            return;
-        }
-        ui.input(|i| {
-            let step = 0.05;
-            let pan = i.modifiers.shift;
-            for (key, dx, dy) in [
-                (egui::Key::ArrowLeft, -1.0, 0.0),
-                (egui::Key::ArrowRight, 1.0, 0.0),
-                (egui::Key::ArrowUp, 0.0, -1.0),
-                (egui::Key::ArrowDown, 0.0, 1.0),
-            ] {
-                if i.key_down(key) {
-                    if pan {
-                        self.camera.pan(dx * step * 0.5, -dy * step * 0.5);
-                    } else {
-                        self.camera.orbit(dx * step, dy * step);
-                    }
-                }
-            }
-            if i.key_pressed(egui::Key::Plus) || i.key_pressed(egui::Key::Equals) {
-                self.camera.zoom(0.85);
-            }
-            if i.key_pressed(egui::Key::Minus) {
-                self.camera.zoom(1.0 / 0.85);
-            }
-            if i.key_pressed(egui::Key::F) {
-                self.frame_all();
-            }
-            if i.key_pressed(egui::Key::R) {
-                self.camera = self.home;
-            }
-        });
+        let scene = self.scene.as_ref();
+        self.camera.keys(ui, &self.home, || scene.map(|s| s.bounds()));
     }
 
     /// Name of the scene shown ("" without one).
@@ -2228,9 +1103,13 @@ impl RadlabApp {
         self.viewport_hover = None;
         self.camera_keys(ui);
         self.request_geometry();
-        self.poll_geometry();
+        self.poll_geometry(false);
         PaneStyle {
-            uniforms: self.uniforms(1.0, ui.ctx().pixels_per_point()),
+            uniforms: viewport::uniforms(
+                self.camera.view_proj(1.0, self.origin),
+                self.shade(),
+                ui.ctx().pixels_per_point(),
+            ),
             origin: self.origin,
             has_wgpu: self.has_wgpu,
         }
@@ -2242,9 +1121,18 @@ impl RadlabApp {
         let style = self.pane_frame(ui);
         let settings = self.build_settings();
         let scene = self.scene.as_ref().map_or("", |s| s.name.as_str());
-        let input = SplitInput { history: &self.history, scene, camera: &mut self.camera, settings, style };
-        if self.split.ui(ui, input) == Some(SplitAction::OpenHistory) {
-            self.history.open = true;
+        let picked = self.selected.zip(self.selected_run).map(|(id, run)| (run, id));
+        let input =
+            SplitInput { history: &self.history, scene, camera: &mut self.camera, settings, style, picked };
+        match self.split.ui(ui, input) {
+            Some(SplitAction::OpenHistory) => self.history.open = true,
+            Some(SplitAction::Pick { run, element }) => {
+                self.selected = element;
+                self.selected_run = element.map(|_| run);
+                // The panes were drawn before the pick: outline it in the next frame.
+                ui.ctx().request_repaint();
+            }
+            None => {}
         }
     }
 
@@ -2270,23 +1158,33 @@ impl RadlabApp {
     /// Frame the whole scene, keeping the view direction.
     pub fn frame_all(&mut self) {
         if let Some(s) = &self.scene {
-            let f = OrbitCamera::frame_all(&s.bounds());
-            self.camera.target = f.target;
-            self.camera.distance = f.distance;
+            self.camera.reframe(&s.bounds());
         }
     }
 
     fn pick_at(&mut self, pos: Pos2, rect: Rect) {
         self.selected = self.pick_id(pos, rect);
+        self.selected_run = None;
     }
 
     /// The leaf under a viewport point.
     fn pick_id(&self, pos: Pos2, rect: Rect) -> Option<u32> {
-        let aspect = f64::from(rect.width() / rect.height().max(1.0));
-        let nx = f64::from((pos.x - rect.left()) / rect.width()) * 2.0 - 1.0;
-        let ny = 1.0 - f64::from((pos.y - rect.top()) / rect.height()) * 2.0;
-        let (o, dir) = self.camera.ray(nx, ny, aspect);
-        overlay::pick(&self.view.elements, &self.view.leaves, o, dir).map(|(id, _)| id)
+        pane::pick(&self.view, &self.camera, pos, rect)
+    }
+
+    /// The picked element when it is one of the current solution (not a split pane's run's).
+    fn picked_here(&self) -> Option<u32> {
+        self.selected.filter(|_| self.selected_run.is_none())
+    }
+
+    /// The picked element and the solution it belongs to (the current one, or a split pane's
+    /// run's while that run keeps its solution).
+    fn picked(&self) -> Option<(u32, &Arc<ViewData>)> {
+        let id = self.selected?;
+        match self.selected_run {
+            None => Some((id, &self.view)),
+            Some(n) => self.history.runs().iter().find(|r| r.number == n)?.view.as_ref().map(|v| (id, v)),
+        }
     }
 
     /// What the viewport highlights this frame: the link of the matrix block hovered, else (while
@@ -2302,54 +1200,6 @@ impl RadlabApp {
         self.viewport_hover
     }
 
-    /// Draw [`RadlabApp::highlight`] over the viewport: the elements' outlines and the link's
-    /// line ([`overlay::highlight_lines`], not depth-tested, so they show through surfaces) and a
-    /// label naming them.
-    fn draw_highlight(&self, painter: &egui::Painter, rect: Rect, aspect: f64) {
-        let Some(h) = self.highlight() else { return };
-        let lines = overlay::highlight_lines(&self.view.elements, h);
-        if lines.points.is_empty() {
-            return;
-        }
-        let vp = self.camera.view_proj(aspect, self.origin);
-        let project = |p: DVec3| {
-            let c = vp * (p - self.origin).extend(1.0);
-            (c.w > 1e-9).then(|| {
-                let (x, y) = ((c.x / c.w) as f32, (c.y / c.w) as f32);
-                Pos2::new(
-                    rect.left() + (0.5 + 0.5 * x) * rect.width(),
-                    rect.top() + (0.5 - 0.5 * y) * rect.height(),
-                )
-            })
-        };
-        for (p, c) in lines.points.chunks_exact(2).zip(lines.colors.chunks_exact(2)) {
-            if let (Some(a), Some(b)) = (project(p[0]), project(p[1])) {
-                let [r, g, bl, al] = c[0].map(|x| (x.clamp(0.0, 1.0) * 255.0) as u8);
-                painter.line_segment(
-                    [a, b],
-                    egui::Stroke::new(2.0, Color32::from_rgba_unmultiplied(r, g, bl, al)),
-                );
-            }
-        }
-        // The label sits in the viewport's lower-left corner: the matrix window often covers
-        // the middle of the link.
-        let text = match h {
-            Highlight::Link { receiver, source } => {
-                let l = self.view.links.iter().find(|l| l.receiver == receiver && l.source == source);
-                let fv = l.map_or(String::new(), |l| format!(" · F = {:.3e} · V = {:.2}", l.ff, l.vis));
-                format!("receiver {receiver} (orange) gathers from source {source} (cyan){fv}")
-            }
-            Highlight::Element(id) => format!("element {id} (orange): its row and column in the matrix"),
-        };
-        let galley = painter.layout_no_wrap(text, egui::FontId::proportional(12.0), Color32::WHITE);
-        let box_r = Rect::from_min_size(
-            Pos2::new(rect.left() + 8.0, rect.bottom() - 56.0),
-            galley.size() + Vec2::new(8.0, 4.0),
-        );
-        painter.rect_filled(box_r, 3.0, Color32::from_black_alpha(190));
-        painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
-    }
-
     /// Pick the element under a point given in viewport-relative coordinates (0..1, y down).
     pub fn pick_relative(&mut self, x: f32, y: f32) {
         let r = self.viewport_rect;
@@ -2358,167 +1208,12 @@ impl RadlabApp {
         }
     }
 
-    fn legends(&self, painter: &egui::Painter, rect: Rect) {
-        let mut y = rect.top() + 8.0;
-        let x = rect.left() + 8.0;
-        let font = egui::FontId::proportional(12.0);
-        let bg = Color32::from_black_alpha(170);
-        if self.display.quadtree
-            && let Some(m) = &self.view.mesh
-        {
-            let text = format!(
-                "mesh edges: {} · {} elements · solve {:.2} s{}",
-                m.params.label(),
-                self.view.leaves.len(),
-                m.solve_s,
-                if m.meshing_s > 0.0 {
-                    format!(" (meshing {:.0} ms)", m.meshing_s * 1e3)
-                } else {
-                    String::new()
-                }
-            );
-            let galley = painter.layout_no_wrap(text, font.clone(), Color32::WHITE);
-            let box_r = Rect::from_min_size(Pos2::new(x, y), galley.size() + Vec2::new(8.0, 4.0));
-            painter.rect_filled(box_r, 4.0, bg);
-            painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
-            y = box_r.bottom() + 6.0;
-        } else if self.display.quadtree {
-            let max_depth = self.view.stats.depth_histogram.len().max(1);
-            let shown = max_depth.min(12);
-            let box_r =
-                Rect::from_min_size(Pos2::new(x, y), Vec2::new((8.0 + 18.0 * shown as f32).max(100.0), 36.0));
-            painter.rect_filled(box_r, 4.0, bg);
-            painter.text(
-                Pos2::new(x + 4.0, y + 2.0),
-                egui::Align2::LEFT_TOP,
-                "quadtree depth",
-                font.clone(),
-                Color32::WHITE,
-            );
-            for dpt in 0..shown {
-                let c = overlay::depth_color(dpt as u8);
-                let r =
-                    Rect::from_min_size(Pos2::new(x + 4.0 + 18.0 * dpt as f32, y + 18.0), Vec2::splat(14.0));
-                painter.rect_filled(r, 2.0, rgb32(c));
-                painter.text(
-                    r.center(),
-                    egui::Align2::CENTER_CENTER,
-                    dpt.to_string(),
-                    egui::FontId::proportional(9.0),
-                    if dpt == 0 { Color32::BLACK } else { Color32::WHITE },
-                );
-            }
-            y = box_r.bottom() + 6.0;
-        }
-        let show_links = !self.mesh_view()
-            && (self.display.links || (self.display.selected_links_only && self.selected.is_some()));
-        if show_links {
-            let title = format!(
-                "links: F (log), {} of {} shown{}",
-                self.link_stats.0,
-                self.link_stats.1,
-                match (self.link_stats.0 < self.link_stats.1, self.display.link_filter.decimation) {
-                    (false, _) => "",
-                    (true, Decimation::Strided) => " (every k-th)",
-                    (true, Decimation::LargestF) => " (largest F)",
-                }
-            );
-            y = colour_bar(painter, Pos2::new(x, y), &title, self.link_scale, Palette::Viridis, "") + 6.0;
-            painter.text(
-                Pos2::new(x + 4.0, y),
-                egui::Align2::LEFT_TOP,
-                if self.display.links_xray {
-                    "x-ray: links drawn through surfaces"
-                } else {
-                    "depth-tested, alpha-blended"
-                },
-                egui::FontId::proportional(10.0),
-                Color32::LIGHT_GRAY,
-            );
-            y += 18.0;
-        }
-        if let Some(c) = self.critical_counts.filter(|_| self.display.critical) {
-            y = critical_legend(painter, Pos2::new(x, y), c) + 6.0;
-        }
-        if let Some(which) = self.display.artifact {
-            y = self.artifact_legend(painter, Pos2::new(x, y), which) + 6.0;
-        }
-        if self.display.error && self.error_applies() {
-            let what = self.error_label();
-            colour_bar(
-                painter,
-                Pos2::new(x, y),
-                &format!("error: {what} (log scale, ends at the 10th / 99th percentile)"),
-                self.error_scale,
-                Palette::Heat,
-                " (units of B)",
-            );
-        }
-        if self.view.elements.is_empty() {
-            let msg = if self.busy() {
-                "loading…"
-            } else {
-                "No scene. Open… a .gltf/.glb, drop one here, or type builtin:NAME above and press Load."
-            };
-            painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, font, Color32::LIGHT_GRAY);
-        } else if self.view.links.is_empty() && !self.busy() && !self.mesh_view() {
-            // A freshly loaded scene: only the lamps are lit. Say what to do next.
-            bottom_note(
-                painter,
-                rect,
-                "Only the lamps are lit: press Solve, or Refine step then Gather step to watch it converge.",
-            );
-        } else if self.split.on {
-            bottom_note(
-                painter,
-                rect,
-                "Split view: it needs two solved runs. Solve again with other settings (auto-run \
-                 re-solves on every change), or pick runs in the View menu's Run history.",
-            );
-        }
-    }
-
-    /// The artifact overlay's legend: what it shows, its numbers and what it was measured
-    /// against (or that it is being measured, or why it cannot be); returns the bottom y.
-    fn artifact_legend(&self, painter: &egui::Painter, at: Pos2, which: Artifact) -> f32 {
-        let font = egui::FontId::proportional(12.0);
-        let mut rows: Vec<(Option<[f32; 4]>, String)> = Vec::new();
-        match self.artifacts() {
-            None => rows.push((None, format!("artifact {}: measuring…", which.name()))),
-            Some(Err(e)) => rows.push((None, e.clone())),
-            Some(Ok(m)) => {
-                rows.push((None, format!("artifacts against {} ({:.1} s)", m.against, m.time_s)));
-                let shown: Vec<Artifact> =
-                    if which == Artifact::All { Artifact::ALL.to_vec() } else { vec![which] };
-                for a in shown {
-                    rows.push((Some(a.color()), a.summary(&m.report)));
-                }
-            }
-        }
-        let galleys: Vec<_> = rows
-            .into_iter()
-            .map(|(c, t)| (c, painter.layout_no_wrap(t, font.clone(), Color32::WHITE)))
-            .collect();
-        let w = galleys.iter().map(|(_, g)| g.size().x).fold(0.0, f32::max) + 36.0;
-        let box_r = Rect::from_min_size(at, Vec2::new(w, 4.0 + 18.0 * galleys.len() as f32));
-        painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
-        for (i, (color, galley)) in galleys.into_iter().enumerate() {
-            let top = at.y + 2.0 + 18.0 * i as f32;
-            if let Some(c) = color {
-                let swatch = Rect::from_min_size(Pos2::new(at.x + 6.0, top + 6.0), Vec2::new(18.0, 4.0));
-                painter.rect_filled(swatch, 0.0, rgb32([c[0], c[1], c[2]]));
-            }
-            painter.galley(Pos2::new(at.x + 30.0, top), galley, Color32::WHITE);
-        }
-        box_r.bottom()
-    }
-
     fn file_answer(&mut self, answer: Answer) {
         match answer {
             Answer::Chosen(Purpose::Open, path) => self.load_spec(&path.to_string_lossy()),
             Answer::Chosen(Purpose::ExportBake { .. }, path) => self.export_bake(path),
-            Answer::Cancelled(_) => self.status = "no file chosen".into(),
-            Answer::FellBack(note) => self.status = note,
+            Answer::Cancelled(_) => self.status_bar.message = "no file chosen".into(),
+            Answer::FellBack(note) => self.status_bar.message = note,
         }
     }
 
@@ -2568,29 +1263,14 @@ impl RadlabApp {
             return;
         };
         self.shot_rx = None;
-        let ppp = ctx.pixels_per_point();
-        let full = RgbaImage {
-            width: img.size[0] as u32,
-            height: img.size[1] as u32,
-            pixels: img.pixels.iter().flat_map(|c| c.to_array()).collect(),
-        };
-        let r = if self.opts.screenshot_window && self.script == Script::WaitingShot {
-            Rect::from_min_size(Pos2::ZERO, Vec2::new(full.width as f32, full.height as f32) / ppp)
-        } else {
-            self.viewport_rect
-        };
-        let shot = full.crop(
-            (r.left() * ppp).round() as u32,
-            (r.top() * ppp).round() as u32,
-            (r.width() * ppp).round() as u32,
-            (r.height() * ppp).round() as u32,
-        );
+        let whole = self.opts.screenshot_window && self.script == Script::WaitingShot;
+        let shot = script::crop(&img, self.viewport_rect, whole, ctx.pixels_per_point());
         let path = self.opts.screenshot.clone().unwrap_or_else(|| {
             let name = self.scene.as_ref().map_or("radlab".to_owned(), |s| s.name.clone());
-            PathBuf::from(format!("{name}-{}.png", self.generation))
+            PathBuf::from(format!("{name}-{}.png", self.geometry.generation))
         });
         match shot.save_png(&path) {
-            Ok(()) => self.status = format!("saved {}", path.display()),
+            Ok(()) => self.status_bar.message = format!("saved {}", path.display()),
             Err(e) => {
                 self.errors.push(format!("screenshot: {e}"));
                 if self.script != Script::None {
@@ -2608,11 +1288,11 @@ impl RadlabApp {
     fn run_script(&mut self, ctx: &egui::Context) {
         // The display is final when the newest build is shown and the reference thread has
         // nothing left to report (its look-up or a score changes the error overlay).
-        let current = self.geometry_current()
+        let current = self.geometry.current()
             && !self.split.building()
             && !self.replay.building()
-            && !self.reference.as_ref().is_some_and(RefThread::busy)
-            && !self.artifact_thread.as_ref().is_some_and(ArtifactThread::busy);
+            && !self.reference.busy()
+            && !self.artifacts.busy();
         match &mut self.script {
             Script::None | Script::Done | Script::WaitingShot => {}
             Script::Solving => {
@@ -2645,38 +1325,17 @@ impl RadlabApp {
                 // Spin the camera a little so every frame really redraws.
                 self.camera.orbit(0.002, 0.0);
                 if bench.frames() >= self.opts.bench_frames.unwrap_or(0) {
-                    let s = bench.summary();
-                    let fmt_cpu = |c: Option<f64>| c.map_or("n/a".to_owned(), |c| format!("{c:.1} ms"));
-                    println!(
-                        "radlab: {} frames; {} elements ({} leaves, {} triangles), {} links ({} drawn); quadtree {}; frame time median {:.2} ms, p95 {:.2} ms, max {:.2} ms ({:.1} fps); CPU {} per frame (all threads); UI code median {:.2} ms; last display build {:.1} ms (display thread); load average {}",
-                        s.frames,
-                        self.view.stats.elements,
-                        self.view.leaves.len(),
-                        self.geometry.mesh.triangles(),
-                        self.view.links.len(),
-                        self.geometry.links.len() / 2,
-                        if self.display.quadtree { "on" } else { "off" },
-                        s.median_ms,
-                        s.p95_ms,
-                        s.max_ms,
-                        if s.median_ms > 0.0 { 1e3 / s.median_ms } else { 0.0 },
-                        fmt_cpu(s.cpu_ms_per_frame),
-                        s.ui_median_ms,
-                        self.rebuild_s * 1e3,
-                        super::bench::load_average().map_or("n/a".to_owned(), |l| format!("{l:.2}")),
-                    );
-                    let d = self.solve_frames.summary();
-                    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max) * 1e3;
-                    println!(
-                        "radlab: during the solve: {} frames, frame time median {:.2} ms, p95 {:.2} ms, max {:.2} ms; UI code max {:.2} ms wall, {:.2} ms on-CPU; largest geometry upload {:.2} ms",
-                        d.frames,
-                        d.median_ms,
-                        d.p95_ms,
-                        d.max_ms,
-                        max(&self.solve_frames.ui_s),
-                        max(&self.solve_frames.ui_cpu_s),
-                        self.max_upload_s * 1e3
-                    );
+                    let scene = BenchScene {
+                        elements: self.view.stats.elements,
+                        leaves: self.view.leaves.len(),
+                        triangles: self.geometry.geometry.mesh.triangles(),
+                        links: self.view.links.len(),
+                        links_drawn: self.geometry.geometry.links.len() / 2,
+                        quadtree: self.display.quadtree,
+                        rebuild_s: self.geometry.rebuild_s,
+                        max_upload_s: self.max_upload_s,
+                    };
+                    script::print_bench(bench, &self.solve_frames, &scene);
                     self.script = Script::Done;
                     self.exit_code.get_or_insert(0);
                 }
@@ -2699,7 +1358,7 @@ impl eframe::App for RadlabApp {
         self.poll_worker();
         self.poll_reference();
         self.request_artifacts();
-        self.poll_artifacts(false);
+        self.artifacts.poll(false);
         self.shortcuts(&ctx);
         if let Some([x, y]) = self.pending_pick
             && !self.busy()
@@ -2717,9 +1376,10 @@ impl eframe::App for RadlabApp {
         // The matrix ↔ viewport link: the element hovered in the viewport (else the picked one)
         // is highlighted in the matrix; a hovered block's link is highlighted in the viewport.
         self.matrix_hover = None;
-        match self.lecture.windows(&ctx, &self.view, self.viewport_hover.or(self.selected)) {
+        match self.lecture.windows(&ctx, &self.view, self.viewport_hover.or(self.picked_here())) {
             Some(MatrixAction::Pick(id)) => {
                 self.selected = Some(id);
+                self.selected_run = None;
                 self.display.selected_links_only = true;
             }
             Some(MatrixAction::Hover(h)) => self.matrix_hover = Some(h),
@@ -2744,7 +1404,10 @@ impl eframe::App for RadlabApp {
             frame = frame.fill(Color32::TRANSPARENT);
         }
         egui::Panel::top("top").frame(frame).show(ui, |ui| self.top_bar(ui));
-        egui::Panel::bottom("status").frame(frame).show(ui, |ui| self.status_bar(ui));
+        egui::Panel::bottom("status").frame(frame).show(ui, |ui| {
+            let input = StatusInput { view: &self.view, last_report: self.last_report.as_ref() };
+            self.status_bar.ui(ui, input);
+        });
         self.lecture.caption_panel(ui, frame);
         // Fixed widths: the panels do not widen with their longest line (a long error, a link
         // table, a folded-out option); text wraps or is cut instead.
@@ -2758,21 +1421,26 @@ impl eframe::App for RadlabApp {
                 egui::ScrollArea::both().auto_shrink([false, false]).id_salt("inspector_scroll").show(
                     ui,
                     |ui| {
-                        if !self.errors.is_empty() {
-                            ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
-                            for e in self.errors.iter().rev().take(5) {
-                                ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
-                            }
-                            if ui.small_button("clear").on_hover_text("Forget these errors").clicked() {
-                                self.errors.clear();
-                            }
-                            ui.separator();
-                        }
-                        self.inspector(ui);
-                        if self.show_plots {
+                        // The true error is the current solution's.
+                        let true_error = self.true_error().filter(|_| self.selected_run.is_none()).cloned();
+                        let picked = self.picked().map(|(id, v)| (id, Arc::clone(v)));
+                        let input = InspectorInput {
+                            errors: &mut self.errors,
+                            picked: picked.as_ref().map(|(id, v)| (*id, v)),
+                            scene: self.scene.as_deref(),
+                            true_error: true_error.as_deref().map(Vec::as_slice),
+                            selected_links_only: &mut self.display.selected_links_only,
+                        };
+                        self.inspector.ui(ui, input);
+                        if self.plots.open {
                             ui.separator();
                             ui.heading("Convergence plots");
-                            self.plots(ui);
+                            let input = PlotsInput {
+                                view: &self.view,
+                                history: &self.history,
+                                error_samples: &self.error_samples,
+                            };
+                            self.plots.ui(ui, input);
                         }
                     },
                 );
@@ -2801,115 +1469,4 @@ impl eframe::App for RadlabApp {
         self.last_ui_s = started.elapsed().as_secs_f64();
         self.last_ui_cpu_s = cpu_started.and_then(|a| super::bench::thread_cpu_s().map(|b| b - a));
     }
-}
-
-fn rgb32(c: [f32; 3]) -> Color32 {
-    Color32::from_rgb((c[0] * 255.0) as u8, (c[1] * 255.0) as u8, (c[2] * 255.0) as u8)
-}
-
-fn rgb_text(c: crate::math::Rgb) -> String {
-    format!("{:.4} {:.4} {:.4}", c.r(), c.g(), c.b())
-}
-
-/// A log slider with a typed value next to it.
-fn log_slider(ui: &mut egui::Ui, label: &str, v: &mut f64, lo: f64, hi: f64, tip: &str) {
-    ui.horizontal(|ui| {
-        // Only what the user enters is clamped: a preset's value outside the range (the lecture
-        // preset's BFeps 0, a uniform mesh's Feps 0) stays as it is, and nothing restarts.
-        ui.add(
-            egui::Slider::new(v, lo..=hi)
-                .logarithmic(true)
-                .clamping(egui::SliderClamping::Edits)
-                .show_value(false)
-                .text(label),
-        )
-        .on_hover_text(tip);
-        let typed = ui
-            .add(
-                egui::DragValue::new(v)
-                    .speed(0.0)
-                    .range(lo..=hi)
-                    .clamp_existing_to_range(false)
-                    .custom_formatter(|x, _| format!("{x:.2e}")),
-            )
-            .on_hover_text(format!("{label}: type a value ({lo:.0e} to {hi:.0e})"));
-        // The typed field's accessible name (screen readers, UI tests).
-        let name = format!("{label} value");
-        ui.ctx().accesskit_node_builder(typed.id, |b| b.set_label(name));
-    });
-}
-
-/// A one-line note in a dark box at the bottom centre of the viewport.
-fn bottom_note(painter: &egui::Painter, rect: Rect, msg: &str) {
-    let at = Pos2::new(rect.center().x, rect.bottom() - 28.0);
-    let galley = painter.layout_no_wrap(msg.to_owned(), egui::FontId::proportional(12.0), Color32::WHITE);
-    let box_r = Rect::from_center_size(at, galley.size() + Vec2::new(16.0, 8.0));
-    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
-    painter.galley(box_r.min + Vec2::new(8.0, 4.0), galley, Color32::WHITE);
-}
-
-/// The critical edges' legend: a swatch and a count per kind; returns the bottom y.
-fn critical_legend(painter: &egui::Painter, at: Pos2, c: crate::mesh::discontinuity::SegmentCounts) -> f32 {
-    use crate::mesh_overlay::CRITICAL_COLORS;
-    let font = egui::FontId::proportional(12.0);
-    let rows = [
-        (CRITICAL_COLORS[0], format!("D0 value jumps (contact): {}", c.d0)),
-        (CRITICAL_COLORS[1], format!("D1 slope jumps: {}", c.d1)),
-        (CRITICAL_COLORS[2], format!("D2 curvature jumps: {}", c.d2)),
-    ];
-    let box_r = Rect::from_min_size(at, Vec2::new(230.0, 20.0 + 18.0 * rows.len() as f32));
-    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
-    painter.text(
-        at + Vec2::new(4.0, 2.0),
-        egui::Align2::LEFT_TOP,
-        "critical edges",
-        font.clone(),
-        Color32::WHITE,
-    );
-    for (i, (color, text)) in rows.into_iter().enumerate() {
-        let top = at.y + 20.0 + 18.0 * i as f32;
-        let swatch = Rect::from_min_size(Pos2::new(at.x + 6.0, top + 6.0), Vec2::new(18.0, 4.0));
-        painter.rect_filled(swatch, 0.0, rgb32([color[0], color[1], color[2]]));
-        painter.text(Pos2::new(at.x + 30.0, top), egui::Align2::LEFT_TOP, text, font.clone(), Color32::WHITE);
-    }
-    box_r.bottom()
-}
-
-/// Draw a horizontal colour bar with its end values; returns the bottom y.
-fn colour_bar(
-    painter: &egui::Painter,
-    at: Pos2,
-    title: &str,
-    scale: Option<LogScale>,
-    palette: Palette,
-    unit: &str,
-) -> f32 {
-    let w = 200.0;
-    let font = egui::FontId::proportional(11.0);
-    let galley = painter.layout_no_wrap(title.to_owned(), font.clone(), Color32::WHITE);
-    let box_r = Rect::from_min_size(at, Vec2::new(galley.size().x.max(w) + 8.0, 50.0));
-    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
-    painter.galley(at + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
-    let bar_y = at.y + 18.0;
-    let n = 64;
-    for i in 0..n {
-        let t = i as f64 / f64::from(n - 1);
-        let r = Rect::from_min_size(
-            Pos2::new(at.x + 4.0 + w * i as f32 / n as f32, bar_y),
-            Vec2::new(w / n as f32 + 0.5, 12.0),
-        );
-        painter.rect_filled(r, 0.0, rgb32(palette.at(t)));
-    }
-    let (lo, hi) = scale.map_or(("–".to_owned(), "–".to_owned()), |s| {
-        (format!("{:.1e}", s.lo), format!("{:.1e}{unit}", s.hi))
-    });
-    painter.text(
-        Pos2::new(at.x + 4.0, bar_y + 14.0),
-        egui::Align2::LEFT_TOP,
-        lo,
-        font.clone(),
-        Color32::WHITE,
-    );
-    painter.text(Pos2::new(at.x + 4.0 + w, bar_y + 14.0), egui::Align2::RIGHT_TOP, hi, font, Color32::WHITE);
-    box_r.bottom()
 }

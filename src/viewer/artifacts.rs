@@ -17,6 +17,7 @@ use super::worker::ViewData;
 use crate::artifacts::{ArtifactParams, ArtifactReport, ArtifactSamples, measure_samples};
 use crate::exact::SingleBounce;
 use crate::math::DVec3;
+use crate::mesh_overlay::Artifact;
 use crate::pointwise::PiecewiseConstant;
 use crate::scene::Scene;
 use crate::solver::{Solution, SolveStats};
@@ -170,6 +171,95 @@ impl ArtifactThread {
             }
         }
         None
+    }
+}
+
+/// The measurements of the states shown: the thread, the job sent last and the newest answer.
+#[derive(Default)]
+pub struct Measurements {
+    thread: Option<ArtifactThread>,
+    /// The newest answer: (state measured, with a reference, the measurement or why not).
+    answer: Option<(u64, bool, Result<Measured, String>)>,
+    /// The (state, with a reference) of the newest job sent, and its number.
+    job: Option<(u64, bool)>,
+    seq: u64,
+}
+
+impl Measurements {
+    /// Measure on `thread` (`None`: never; the overlays then say "measuring…").
+    #[must_use]
+    pub fn new(thread: Option<ArtifactThread>) -> Measurements {
+        Measurements { thread, ..Measurements::default() }
+    }
+
+    /// The newest measurement of state `view_seq` (`None`: not asked, or not answered yet), or
+    /// why there is none.
+    #[must_use]
+    pub fn of(&self, view_seq: u64) -> Option<&Result<Measured, String>> {
+        match &self.answer {
+            Some((seq, _, r)) if *seq == view_seq => Some(r),
+            _ => None,
+        }
+    }
+
+    /// The samples measured on state `view_seq`, to draw as overlay `which`.
+    #[must_use]
+    pub fn samples(
+        &self,
+        which: Option<Artifact>,
+        view_seq: u64,
+    ) -> Option<(Artifact, Arc<ArtifactSamples>)> {
+        match self.of(view_seq)? {
+            Ok(m) => Some((which?, Arc::clone(&m.samples))),
+            Err(_) => None,
+        }
+    }
+
+    /// Ask for state `view_seq` to be measured, once per state and reference.
+    pub fn request(
+        &mut self,
+        view_seq: u64,
+        scene: &Arc<Scene>,
+        view: &Arc<ViewData>,
+        reference: Option<&Arc<ViewData>>,
+    ) {
+        let key = (view_seq, reference.is_some());
+        if self.job == Some(key) {
+            return;
+        }
+        let Some(t) = &mut self.thread else { return };
+        self.seq += 1;
+        t.request(Job {
+            seq: self.seq,
+            scene: Arc::clone(scene),
+            view: Arc::clone(view),
+            reference: reference.cloned(),
+        });
+        self.job = Some(key);
+    }
+
+    /// Pick up the thread's answer (`wait`: block for it; tests, scripted runs).
+    pub fn poll(&mut self, wait: bool) {
+        let Some(t) = &mut self.thread else { return };
+        let reply = if wait { t.wait() } else { t.poll() };
+        if let Some(r) = reply
+            && r.seq == self.seq
+            && let Some((view_seq, with_ref)) = self.job
+        {
+            self.answer = Some((view_seq, with_ref, r.result));
+        }
+    }
+
+    /// Forget the answers (another scene).
+    pub fn clear(&mut self) {
+        self.answer = None;
+        self.job = None;
+    }
+
+    /// True while the newest job has not been answered.
+    #[must_use]
+    pub fn busy(&self) -> bool {
+        self.thread.as_ref().is_some_and(ArtifactThread::busy)
     }
 }
 

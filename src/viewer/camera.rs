@@ -132,6 +132,52 @@ impl OrbitCamera {
         proj * view
     }
 
+    /// Frame `bounds`, keeping the view direction.
+    pub fn reframe(&mut self, bounds: &Bounds) {
+        let f = OrbitCamera::frame_all(bounds);
+        self.target = f.target;
+        self.distance = f.distance;
+    }
+
+    /// The camera's keys (arrows orbit, shift + arrows pan, + / − zoom, F frames `bounds()`, R
+    /// goes back to `home`), unless a text field has the keyboard.
+    pub fn keys(&mut self, ui: &egui::Ui, home: &OrbitCamera, bounds: impl FnOnce() -> Option<Bounds>) {
+        if ui.ctx().egui_wants_keyboard_input() {
+            return;
+        }
+        let (frame, reset) = ui.input(|i| {
+            let step = 0.05;
+            let pan = i.modifiers.shift;
+            for (key, dx, dy) in [
+                (egui::Key::ArrowLeft, -1.0, 0.0),
+                (egui::Key::ArrowRight, 1.0, 0.0),
+                (egui::Key::ArrowUp, 0.0, -1.0),
+                (egui::Key::ArrowDown, 0.0, 1.0),
+            ] {
+                if i.key_down(key) {
+                    if pan {
+                        self.pan(dx * step * 0.5, -dy * step * 0.5);
+                    } else {
+                        self.orbit(dx * step, dy * step);
+                    }
+                }
+            }
+            if i.key_pressed(egui::Key::Plus) || i.key_pressed(egui::Key::Equals) {
+                self.zoom(0.85);
+            }
+            if i.key_pressed(egui::Key::Minus) {
+                self.zoom(1.0 / 0.85);
+            }
+            (i.key_pressed(egui::Key::F), i.key_pressed(egui::Key::R))
+        });
+        if frame && let Some(b) = bounds() {
+            self.reframe(&b);
+        }
+        if reset {
+            *self = *home;
+        }
+    }
+
     /// Drive the camera from a view's response: left-drag orbits, right/middle-drag or
     /// shift-drag pans, the wheel zooms (while hovered). The viewport and every split-view pane
     /// call this with the one camera they share.

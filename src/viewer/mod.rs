@@ -1,23 +1,30 @@
 //! The interactive viewer (feature `gui`): an eframe/egui app with a wgpu viewport.
 //!
-//! - [`app`]: panels (solver controls, display, overlays, inspector, plots, status bar), picking,
-//!   screenshots, drag-and-drop and the scripted `--screenshot` / `--bench-frames` runs.
+//! - [`app`]: the app: owns the threads and the state shown, lays the panels out and routes their
+//!   answers; the viewport (camera, picking, paint callback), files, drag-and-drop.
+//! - [`view`]: the small `View` trait every panel implements (one type per panel). The panels:
+//!   [`top_bar`] (menus, scene field) with [`mesh_menu`]; [`solver_panel`] (settings, steps,
+//!   progress line); [`reference_panel`]; [`display`] (the `Display` settings and their
+//!   section); [`inspector`]; [`plots`]; [`status_bar`]; [`history`] (the run history: every
+//!   solve kept, the table, the runs overlaid in the plots); [`split`] (two or three runs side by
+//!   side, one camera, one exposure; a click picks in a pane's run); [`replay`] (the last solve
+//!   round by round, the depth slider); [`matrix`] (the blocking form-factor matrix window).
+//! - [`viewport`]: the viewport's picture (paint callback, uniforms); [`legends`]: the overlays'
+//!   legends and the matrix highlight drawn over it.
+//! - [`pane`]: one solver state drawn beside the viewport (the split view's and replay's panes),
+//!   and picking.
+//! - [`geometry`]: the viewport's display build (what it was asked for, the numbers it brings).
 //! - [`artifacts`]: the `radlab-artifacts` thread that measures the artifact overlays.
-//! - [`bench`]: frame-time statistics of `--bench-frames`.
+//! - [`bench`](mod@bench): frame-time statistics of `--bench-frames`; [`script`]: the scripted runs.
 //! - [`builder`]: the `radlab-display` thread that builds GPU vertex arrays off the UI thread.
-//! - [`camera`]: orbit / pan / zoom camera.
+//! - [`camera`]: orbit / pan / zoom camera and its keys.
 //! - [`file_dialog`]: the desktop's file dialog, or an in-app one where none answers.
 //! - [`five_times`]: the five-times explorer (exact, disk and point-source form factors).
 //! - [`help`]: keyboard shortcuts, the Help menu and window.
-//! - [`history`]: the run history: every solve kept (settings, size, time, error), the table and
-//!   the runs overlaid in the plots.
-//! - [`matrix`]: the blocking form-factor matrix window.
-//! - [`pane`]: one solver state drawn beside the viewport (the split view's and replay's panes).
-//! - [`replay`]: the refinement replay: the last solve round by round, and the depth slider.
 //! - [`lecture`]: the Lecture menu (the figures of [`crate::figures`]) and the caption panel.
-//! - [`reference`]: the `radlab-reference` thread: cached/computed reference, true error.
-//! - [`split`]: the split view: two or three runs side by side, one camera, one exposure.
-//! - [`view`]: the small `View` trait the panels implement (one type per panel).
+//! - [`options`]: how the viewer starts (`ViewerOptions`).
+//! - [`reference`](mod@reference): the `radlab-reference` thread: cached/computed reference, true error.
+//! - [`widgets`]: small widgets the panels share (the log slider).
 //! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
 //!
 //! Rendering is in [`crate::render`]; display lists in [`crate::overlay`].
@@ -27,22 +34,39 @@ pub mod artifacts;
 pub mod bench;
 pub mod builder;
 pub mod camera;
+pub mod display;
 pub mod file_dialog;
 pub mod five_times;
+pub mod geometry;
 pub mod help;
 pub mod history;
+pub mod inspector;
 pub mod lecture;
+pub mod legends;
 pub mod matrix;
+pub mod mesh_menu;
+pub mod options;
 pub mod pane;
+pub mod plots;
 pub mod reference;
+pub mod reference_panel;
 pub mod replay;
+pub mod script;
+pub mod solver_panel;
 pub mod split;
+pub mod status_bar;
+pub mod top_bar;
 pub mod view;
+pub mod viewport;
+pub mod widgets;
 pub mod worker;
 
-pub use app::{OverlayChoice, RadlabApp, RefState, ViewerOptions};
+pub use app::RadlabApp;
+pub use display::{Display, Shading};
 use eframe::egui;
+pub use options::{OverlayChoice, ViewerOptions};
 pub use reference::RefSettings;
+pub use reference_panel::RefState;
 use std::sync::{Arc, Mutex};
 
 /// Why the viewer could not run.

@@ -4,14 +4,16 @@
 //!
 //! A pane builds its geometry on its own `radlab-display` thread ([`super::builder`]) whenever the
 //! state or the display settings change, and draws through the viewport's renderer into a slot
-//! of its own ([`crate::render::ViewportCallback::slot`]).
+//! of its own ([`crate::render::ViewportCallback::slot`]). [`pick`] finds the element under a
+//! point of a pane (or of the viewport).
 
 use super::builder::{self, Builder, Settings};
 use super::camera::OrbitCamera;
 use super::worker::ViewData;
 use crate::math::DVec3;
+use crate::overlay;
 use crate::render::{FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, Uniforms, ViewportCallback};
-use eframe::egui::{self, Color32, Rect};
+use eframe::egui::{self, Color32, Pos2, Rect};
 use eframe::egui_wgpu;
 use std::sync::Arc;
 
@@ -25,6 +27,17 @@ pub struct PaneStyle {
     pub origin: DVec3,
     /// A wgpu renderer is there to draw with.
     pub has_wgpu: bool,
+}
+
+/// The leaf of `view` under the point `pos` of a picture drawn into `rect` through `camera` (the
+/// viewport's and every pane's picking).
+#[must_use]
+pub fn pick(view: &ViewData, camera: &OrbitCamera, pos: Pos2, rect: Rect) -> Option<u32> {
+    let aspect = f64::from(rect.width() / rect.height().max(1.0));
+    let nx = f64::from((pos.x - rect.left()) / rect.width()) * 2.0 - 1.0;
+    let ny = 1.0 - f64::from((pos.y - rect.top()) / rect.height()) * 2.0;
+    let (o, dir) = camera.ray(nx, ny, aspect);
+    overlay::pick(&view.elements, &view.leaves, o, dir).map(|(id, _)| id)
 }
 
 /// The geometry of one pane and the thread that builds it.
@@ -106,8 +119,16 @@ impl Pane {
         self.builder.as_ref().is_some_and(|b| b.requested > self.shown_seq)
     }
 
-    /// Draw the geometry into `rect` through `camera`.
-    pub fn paint(&self, ui: &egui::Ui, rect: Rect, camera: &OrbitCamera, style: PaneStyle) {
+    /// Draw the geometry into `rect` through `camera`, outlining the element `picked` (an id of
+    /// this pane's solution).
+    pub fn paint(
+        &self,
+        ui: &egui::Ui,
+        rect: Rect,
+        camera: &OrbitCamera,
+        style: PaneStyle,
+        picked: Option<u32>,
+    ) {
         let painter = ui.painter_at(rect);
         if !style.has_wgpu {
             painter.rect_filled(rect, 0.0, Color32::from_gray(20));
@@ -119,8 +140,9 @@ impl Pane {
         let frame = FrameParams {
             uniforms: Uniforms {
                 view_proj: m.map(|c| c.map(|x| x as f32)),
-                selected: NO_SELECTION,
-                overlay: style.uniforms.overlay & !OVERLAY_PICKED,
+                selected: picked.unwrap_or(NO_SELECTION),
+                overlay: (style.uniforms.overlay & !OVERLAY_PICKED)
+                    | if picked.is_some() { OVERLAY_PICKED } else { 0 },
                 ..style.uniforms
             },
             size: [

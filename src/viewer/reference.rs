@@ -345,6 +345,109 @@ fn load(
     }
 }
 
+/// What the app keeps of the reference thread: the thread, the scoring it was sent, and the
+/// reference solution of the scene shown.
+#[derive(Default)]
+pub struct RefClient {
+    thread: Option<RefThread>,
+    /// The solver state last sent for scoring.
+    evaluated_seq: u64,
+    /// Earlier runs sent for their error only (not the error plot's points).
+    scoring_runs: Vec<u64>,
+    /// The scene's Monte Carlo reference as flat leaves (once the thread has it).
+    pub view: Option<Arc<ViewData>>,
+}
+
+impl RefClient {
+    /// A client of `thread` (`None`: no reference at all).
+    #[must_use]
+    pub fn new(thread: Option<RefThread>) -> RefClient {
+        RefClient { thread, ..RefClient::default() }
+    }
+
+    /// Look up (with `compute`, compute if not cached) the reference of `scene`; false when
+    /// there is no thread.
+    pub fn load(&mut self, scene: &Arc<Scene>, compute: bool) -> bool {
+        let Some(t) = &mut self.thread else { return false };
+        t.load(Arc::clone(scene), compute);
+        true
+    }
+
+    /// Stop the computation (nothing is cached).
+    pub fn cancel(&self) {
+        if let Some(t) = &self.thread {
+            t.cancel();
+        }
+    }
+
+    /// (regions finished, regions) of the computation.
+    #[must_use]
+    pub fn progress(&self) -> (usize, usize) {
+        self.thread.as_ref().map_or((0, 0), RefThread::progress)
+    }
+
+    /// True while a command is queued or running.
+    #[must_use]
+    pub fn busy(&self) -> bool {
+        self.thread.as_ref().is_some_and(RefThread::busy)
+    }
+
+    /// Send solver state `view_seq` for scoring, once.
+    pub fn evaluate(&mut self, view_seq: u64, view: &Arc<ViewData>, solver_time_s: f64) {
+        if self.evaluated_seq == view_seq {
+            return;
+        }
+        if let Some(t) = &mut self.thread {
+            t.send(RefCommand::Evaluate { view: Arc::clone(view), view_seq, solver_time_s });
+            self.evaluated_seq = view_seq;
+        }
+    }
+
+    /// Score the current state again (a new reference).
+    pub fn rescore(&mut self) {
+        self.evaluated_seq = 0;
+    }
+
+    /// Send earlier runs (view_seq, solver time, solution), all but state `current`, for their
+    /// error only.
+    pub fn score_runs(&mut self, runs: Vec<(u64, f64, Arc<ViewData>)>, current: u64) {
+        let Some(t) = &mut self.thread else { return };
+        for (view_seq, solver_time_s, view) in runs {
+            if view_seq != current && !self.scoring_runs.contains(&view_seq) {
+                t.send(RefCommand::Evaluate { view, view_seq, solver_time_s });
+                self.scoring_runs.push(view_seq);
+            }
+        }
+    }
+
+    /// True (once) if state `view_seq` was sent by [`RefClient::score_runs`].
+    pub fn scored_run(&mut self, view_seq: u64) -> bool {
+        let was = self.scoring_runs.contains(&view_seq);
+        self.scoring_runs.retain(|&s| s != view_seq);
+        was
+    }
+
+    /// The replies so far (never blocks).
+    pub fn poll(&mut self) -> Vec<RefReply> {
+        let mut replies = Vec::new();
+        if let Some(t) = &mut self.thread {
+            while let Some(r) = t.poll() {
+                replies.push(r);
+            }
+        }
+        replies
+    }
+
+    /// Block until every command is answered and return the replies; `None` when idle (tests
+    /// and scripted runs only).
+    pub fn wait_idle(&mut self) -> Option<Vec<RefReply>> {
+        let t = self.thread.as_mut().filter(|t| t.busy())?;
+        let mut replies = Vec::new();
+        t.wait_idle(|r| replies.push(r));
+        Some(replies)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -189,7 +189,7 @@ impl View for Replay {
         settings.depth_limit = self.depth;
         let key = (self.epoch << 20) | self.position as u64;
         self.pane.update(ui.ctx(), key, view, settings);
-        self.pane.paint(ui, rect, camera, style);
+        self.pane.paint(ui, rect, camera, style, None);
         None
     }
 }

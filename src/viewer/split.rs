@@ -12,6 +12,9 @@
 //!  └───────────────────────────┘└───────────────────────────┘
 //! ```
 //!
+//! A click in a pane picks the element under it in that pane's solution: the inspector shows it
+//! (from that run) and the pane outlines it.
+//!
 //! Each pane ([`super::pane`]) builds its geometry from its run's solution with the main view's
 //! display settings (shading or error heatmap, quadtree, links; not the picked element, whose id
 //! means nothing in another solution) and draws into its own renderer slot (1, 2, 3). The error
@@ -22,7 +25,7 @@
 use super::builder::Settings;
 use super::camera::OrbitCamera;
 use super::history::{Run, RunHistory};
-use super::pane::{Pane, PaneStyle};
+use super::pane::{Pane, PaneStyle, pick};
 use super::view::View;
 use eframe::egui::{self, Color32, Rect, Sense, Vec2};
 
@@ -41,6 +44,8 @@ pub struct SplitInput<'a> {
     /// The main view's display settings (the picked element's link filter is dropped).
     pub settings: Settings,
     pub style: PaneStyle,
+    /// The element picked in a pane: (run number, element id in that run's solution).
+    pub picked: Option<(usize, u32)>,
 }
 
 /// What the split view asks of the app.
@@ -48,6 +53,9 @@ pub struct SplitInput<'a> {
 pub enum SplitAction {
     /// Open the run history (to pick the runs shown).
     OpenHistory,
+    /// A click in the picture of run `run`'s pane: the element of that run's solution under it
+    /// (`None`: nothing there).
+    Pick { run: usize, element: Option<u32> },
 }
 
 /// The split view's state: on or off, how many panes, and each pane's geometry.
@@ -100,7 +108,7 @@ impl View for SplitView {
 
     /// The panes, side by side over the whole of `ui`'s available rectangle.
     fn ui(&mut self, ui: &mut egui::Ui, input: SplitInput<'_>) -> Option<SplitAction> {
-        let SplitInput { history, scene, camera, mut settings, style } = input;
+        let SplitInput { history, scene, camera, mut settings, style, picked } = input;
         // The picked element's id means nothing in another solution.
         if settings.links.is_some_and(|f| f.element.is_some()) {
             settings.links = None;
@@ -132,8 +140,16 @@ impl View for SplitView {
             }
             if let Some(view) = &run.view {
                 self.slots[i].update(ui.ctx(), run.number as u64, view, settings);
+                // A click in the picture picks in this run's solution.
+                if response.clicked()
+                    && let Some(pos) = response.interact_pointer_pos().filter(|p| rect.contains(*p))
+                {
+                    let element = pick(view, camera, pos, rect);
+                    action = Some(SplitAction::Pick { run: run.number, element });
+                }
             }
-            self.slots[i].paint(ui, rect, camera, style);
+            let outlined = picked.filter(|p| p.0 == run.number).map(|p| p.1);
+            self.slots[i].paint(ui, rect, camera, style, outlined);
             self.shown.push((run.number, rect));
         }
         for i in 1..n {

@@ -7,8 +7,12 @@
 //!  RadlabApp ── Input (borrowed, this frame) ──► panel.ui(ui, input) ── Option<Action> ──► app
 //! ```
 //!
-//! Implemented by [`super::history::RunHistory`], [`super::split::SplitView`],
-//! [`super::replay::Replay`] and [`super::matrix::MatrixWindow`].
+//! Implemented by [`super::top_bar::TopBar`], [`super::mesh_menu::MeshMenu`],
+//! [`super::solver_panel::SolverPanel`], [`super::solver_panel::ProgressPanel`],
+//! [`super::reference_panel::ReferencePanel`], [`super::display::DisplayPanel`],
+//! [`super::inspector::Inspector`], [`super::plots::Plots`], [`super::status_bar::StatusBar`],
+//! [`super::history::RunHistory`], [`super::split::SplitView`], [`super::replay::Replay`] and
+//! [`super::matrix::MatrixWindow`].
 
 use eframe::egui;
 

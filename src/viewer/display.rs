@@ -1,0 +1,250 @@
+//! What is shown, as data ([`Display`]: shading, exposure, overlays; no solver state), and the
+//! side panel's Display and Overlays sections that edit it ([`DisplayPanel`]).
+
+use super::view::View;
+use super::widgets::log_slider;
+use super::worker::ViewData;
+use crate::mesh_overlay::Artifact;
+use crate::overlay::{Decimation, LinkFilter};
+use crate::solver::meshed::DisplayReconstruction;
+use eframe::egui;
+
+/// Levels of the cluster tree the clusters overlay draws at once.
+pub const CLUSTER_LEVELS: u8 = 3;
+
+/// Shading of the radiosity mesh (the display reconstruction).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Shading {
+    Flat,
+    /// Gouraud from vertex averages.
+    Smooth,
+    /// The element's own p = 1 function (a p = 1 mesh solve's vertex values).
+    Nodal,
+}
+
+impl Shading {
+    /// The shading that draws a display reconstruction.
+    #[must_use]
+    pub fn of(r: DisplayReconstruction) -> Shading {
+        match r {
+            DisplayReconstruction::Flat => Shading::Flat,
+            DisplayReconstruction::Gouraud => Shading::Smooth,
+            DisplayReconstruction::Nodal => Shading::Nodal,
+        }
+    }
+}
+
+/// What is shown (no solver state).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Display {
+    pub shading: Shading,
+    /// Exposure in stops: radiosity × 2^EV before tone mapping.
+    pub exposure_ev: f32,
+    /// Set the exposure from the solution after every step (see [`super::builder::auto_exposure`]).
+    pub auto_exposure: bool,
+    pub srgb: bool,
+    pub quadtree: bool,
+    pub links: bool,
+    pub error: bool,
+    /// The critical edges: every receiver's D0/D1/D2 segments, coloured by kind.
+    pub critical: bool,
+    /// An artifact overlay (measured against the best reference there is).
+    pub artifact: Option<Artifact>,
+    /// The cluster tree's bounding boxes, from depth `clusters_from` down `CLUSTER_LEVELS` levels.
+    pub clusters: bool,
+    pub clusters_from: u8,
+    pub link_filter: LinkFilter,
+    /// Links of the picked element only.
+    pub selected_links_only: bool,
+    pub links_xray: bool,
+    pub link_alpha: f32,
+}
+
+impl Default for Display {
+    fn default() -> Self {
+        Display {
+            shading: Shading::Smooth,
+            exposure_ev: 0.0,
+            auto_exposure: true,
+            srgb: true,
+            quadtree: false,
+            links: false,
+            error: false,
+            critical: false,
+            artifact: None,
+            clusters: false,
+            clusters_from: 0,
+            link_filter: LinkFilter::default(),
+            selected_links_only: false,
+            links_xray: false,
+            link_alpha: 0.35,
+        }
+    }
+}
+
+/// The artifact overlay after `a` in the order the A key steps through: none, each of the
+/// five, all five, none again.
+#[must_use]
+pub fn next_artifact(a: Option<Artifact>) -> Option<Artifact> {
+    let order: Vec<Option<Artifact>> =
+        std::iter::once(None).chain(Artifact::ALL.map(Some)).chain([Some(Artifact::All)]).collect();
+    let at = order.iter().position(|&o| o == a).unwrap_or(0);
+    order[(at + 1) % order.len()]
+}
+
+/// What the Display and Overlays sections are lent for one frame.
+pub struct DisplayInput<'a> {
+    /// The settings edited.
+    pub display: &'a mut Display,
+    /// The solver state shown (a mesh solve or the quadtree's; p = 1 values; clusters).
+    pub view: &'a ViewData,
+    /// The error heatmap has something to show ([`super::RadlabApp::error_applies`]).
+    pub error_applies: bool,
+}
+
+/// The side panel's Display and Overlays sections (shading, exposure, tone map; quadtree or
+/// mesh edges, links and their filter, error heatmap, artifacts, critical edges, clusters).
+#[derive(Copy, Clone, Debug, Default)]
+pub struct DisplayPanel;
+
+impl View for DisplayPanel {
+    type Input<'a> = DisplayInput<'a>;
+    type Action = ();
+
+    fn ui(&mut self, ui: &mut egui::Ui, input: DisplayInput<'_>) -> Option<()> {
+        let DisplayInput { display: d, view, error_applies } = input;
+        ui.heading("Display");
+        let mesh_view = view.mesh.is_some();
+        let has_p1 = view.mesh.as_ref().is_some_and(|m| m.coefficients.is_some());
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut d.shading, Shading::Flat, "flat")
+                .on_hover_text("Each element one colour (its average): the mesh's resolution shows");
+            ui.selectable_value(&mut d.shading, Shading::Smooth, "Gouraud").on_hover_text(
+                "Gouraud from vertex averages, what most systems show; T-vertices take their big \
+                 neighbour's edge value",
+            );
+            ui.add_enabled_ui(has_p1, |ui| {
+                ui.selectable_value(&mut d.shading, Shading::Nodal, "true p = 1")
+                    .on_hover_text(
+                        "Each element's own p = 1 function: the vertex values the Galerkin solve computed",
+                    )
+                    .on_disabled_hover_text(
+                        "The true p = 1 reconstruction needs a p = 1 solve (a uniform or \
+                         discontinuity mesh at order 1)",
+                    );
+            });
+        });
+        if d.shading == Shading::Nodal && !has_p1 {
+            ui.weak("no p = 1 values in this solution: each element's constant");
+        }
+        let ev = ui
+            .add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"))
+            .on_hover_text("Radiosity × 2^EV before tone mapping; moving it turns auto exposure off");
+        if ev.changed() {
+            d.auto_exposure = false;
+        }
+        ui.checkbox(&mut d.auto_exposure, "auto exposure")
+            .on_hover_text("Map the 95th percentile of the lit surfaces' radiosity to 80 % white");
+        ui.horizontal(|ui| {
+            ui.label("tone map");
+            ui.selectable_value(&mut d.srgb, true, "sRGB").on_hover_text("Display values sRGB-encoded");
+            ui.selectable_value(&mut d.srgb, false, "linear")
+                .on_hover_text("Radiosity shown as is, clamped at 1 (dark mid-tones)");
+        });
+        ui.label(egui::RichText::new("back faces: striped magenta").small().weak());
+        ui.separator();
+        ui.heading("Overlays");
+        if mesh_view {
+            ui.checkbox(&mut d.quadtree, "mesh edges").on_hover_text("The elements' edges; depth-tested (Q)");
+        } else {
+            ui.checkbox(&mut d.quadtree, "quadtree")
+                .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
+        }
+        ui.add_enabled(!mesh_view, egui::Checkbox::new(&mut d.links, "links"))
+            .on_hover_text("Element-centre lines coloured by log F (L)")
+            .on_disabled_hover_text(
+                "A mesh solve keeps no links: every pair of its elements is coupled (n² interactions)",
+            );
+        if !mesh_view && (d.links || d.selected_links_only) {
+            ui.indent("links", |ui| {
+                ui.checkbox(&mut d.selected_links_only, "picked element only")
+                    .on_hover_text("Only the links the picked element gathers through (click an element)");
+                let mut min_ff = f64::from(d.link_filter.min_ff).max(1e-9);
+                log_slider(ui, "min F", &mut min_ff, 1e-9, 1.0, "Hide links with a smaller form factor");
+                d.link_filter.min_ff = if min_ff <= 1e-9 { 0.0 } else { min_ff as f32 };
+                ui.horizontal(|ui| {
+                    ui.label("visibility");
+                    ui.checkbox(&mut d.link_filter.full, "full")
+                        .on_hover_text("Links whose shadow rays all passed");
+                    ui.checkbox(&mut d.link_filter.partial, "partial")
+                        .on_hover_text("Links whose shadow rays were partly blocked: the penumbra's");
+                    ui.checkbox(&mut d.link_filter.none, "none")
+                        .on_hover_text("Links whose shadow rays were all blocked (they carry no light)");
+                });
+                ui.add(
+                    egui::Slider::new(&mut d.link_filter.max_lines, 100..=200_000)
+                        .logarithmic(true)
+                        .text("max lines"),
+                )
+                .on_hover_text("Decimation: beyond this many, a sample is drawn");
+                ui.horizontal(|ui| {
+                    ui.label("sample");
+                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::Strided, "every k-th")
+                        .on_hover_text("An even sample of the links");
+                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::LargestF, "largest F")
+                        .on_hover_text("The links with the largest form factors");
+                });
+                ui.add(egui::Slider::new(&mut d.link_alpha, 0.05..=1.0).text("opacity"))
+                    .on_hover_text("Opacity of the link lines");
+                ui.checkbox(&mut d.links_xray, "x-ray (no depth test)")
+                    .on_hover_text("Draw links through surfaces instead of hiding those behind them");
+            });
+        }
+        ui.add_enabled(error_applies, egui::Checkbox::new(&mut d.error, "error heatmap"))
+            .on_hover_text("Per-element error on a log colour scale (E)")
+            .on_disabled_hover_text(
+                "A mesh solve has no error estimate of its own: Compute reference (above) gives the \
+                 true error, then the heatmap shows it",
+            );
+        egui::ComboBox::from_label("artifact")
+            .selected_text(d.artifact.map_or("none", Artifact::name))
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut d.artifact, None, "none").on_hover_text("No artifact overlay");
+                for a in Artifact::ALL.into_iter().chain([Artifact::All]) {
+                    ui.selectable_value(&mut d.artifact, Some(a), a.name()).on_hover_text(a.description());
+                }
+            })
+            .response
+            .on_hover_text(
+                "The lecture's five meshing artifacts, where they are: measured against the closed \
+                 form (single-bounce scenes) or the scene's reference, on a background thread (A \
+                 steps through them)",
+            );
+        ui.checkbox(&mut d.critical, "critical edges (D0/D1/D2)").on_hover_text(
+            "Where the radiosity is discontinuous: D0 where surfaces touch (a jump in value), D1 / D2 \
+             where a shadow's umbra or penumbra begins (a jump in the first / second derivative), \
+             from the emitters' EV and VE events; on any mesh (D)",
+        );
+        let max_depth = view.clusters.iter().map(|c| c.depth).max();
+        ui.add_enabled_ui(max_depth.is_some(), |ui| {
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut d.clusters, "clusters").on_hover_text(format!(
+                    "The cluster tree above the input patches: bounding boxes of {CLUSTER_LEVELS} levels from \
+                     the depth chosen, coloured by depth. Clusters link groups of patches, so links grow \
+                     as n, not n² (K)"
+                ));
+                if let Some(m) = max_depth {
+                    d.clusters_from = d.clusters_from.min(m);
+                    ui.add(egui::Slider::new(&mut d.clusters_from, 0..=m).text("from depth"))
+                        .on_hover_text("The shallowest cluster level drawn");
+                }
+            });
+        })
+        .response
+        .on_disabled_hover_text(
+            "This solve does not cluster: scenes of 3 000 patches or more do (the furnished rooms), \
+             or --cluster on",
+        );
+        None
+    }
+}

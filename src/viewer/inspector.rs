@@ -1,0 +1,174 @@
+//! The inspector (right panel): the errors so far, then the picked element — its numbers, the
+//! clusters above its patch, and the links it gathers through (its own and its ancestors'),
+//! largest B·F·V first.
+
+use super::view::View;
+use super::widgets::rgb_text;
+use super::worker::ViewData;
+use crate::overlay;
+use crate::scene::Scene;
+use eframe::egui::{self, Color32};
+use std::sync::Arc;
+
+/// One row of the inspector's link table: (receiver, source, F, V, B·F·V).
+type LinkRow = (u32, u32, f32, f32, f64);
+
+/// The inspector and its cached link table.
+#[derive(Clone, Debug, Default)]
+pub struct Inspector {
+    /// (solution, element, rows): computed once per solution and element, not every frame.
+    rows: Option<(Arc<ViewData>, u32, Arc<Vec<LinkRow>>)>,
+}
+
+/// What the inspector is lent for one frame.
+pub struct InspectorInput<'a> {
+    /// Errors shown above the inspector (a "clear" button empties the list).
+    pub errors: &'a mut Vec<String>,
+    /// The picked element and the solution it is an element of.
+    pub picked: Option<(u32, &'a Arc<ViewData>)>,
+    pub scene: Option<&'a Scene>,
+    /// Per-element true error against the reference, when it belongs to the picked solution.
+    pub true_error: Option<&'a [f64]>,
+    /// "show these links in the viewport".
+    pub selected_links_only: &'a mut bool,
+}
+
+/// What the error heatmap and the inspector's error show.
+#[must_use]
+pub fn error_label(true_error: bool) -> &'static str {
+    if true_error { "true error |B − B_ref|" } else { "solver's error estimate" }
+}
+
+impl View for Inspector {
+    type Input<'a> = InspectorInput<'a>;
+    type Action = ();
+
+    fn ui(&mut self, ui: &mut egui::Ui, input: InspectorInput<'_>) -> Option<()> {
+        let InspectorInput { errors, picked, scene, true_error, selected_links_only } = input;
+        if !errors.is_empty() {
+            ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
+            for e in errors.iter().rev().take(5) {
+                ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
+            }
+            if ui.small_button("clear").on_hover_text("Forget these errors").clicked() {
+                errors.clear();
+            }
+            ui.separator();
+        }
+        ui.heading("Inspect");
+        let Some((id, v)) = picked else {
+            ui.label("Click an element in the viewport.");
+            return None;
+        };
+        let e = v.elements.get(id as usize)?;
+        let error = match true_error {
+            Some(t) => t.get(id as usize).copied().unwrap_or(0.0),
+            None => e.error_estimate,
+        };
+        let err_label = error_label(true_error.is_some());
+        egui::Grid::new("element").num_columns(2).striped(true).show(ui, |ui| {
+            let row = |ui: &mut egui::Ui, k: &str, val: String| {
+                ui.label(k);
+                ui.monospace(val);
+                ui.end_row();
+            };
+            row(ui, "element", format!("{} (patch {})", e.id, e.patch));
+            if let Some(p) = scene.and_then(|s| s.patches.get(e.patch as usize)) {
+                row(ui, "patch name", p.name.clone());
+            }
+            row(ui, "depth", e.depth.to_string());
+            row(ui, "area", format!("{:.4e}", e.area));
+            row(ui, "E", rgb_text(e.emission));
+            row(ui, "ρ", rgb_text(e.reflectance));
+            row(ui, "B", rgb_text(e.radiosity));
+            if v.mesh.is_some() && true_error.is_none() {
+                row(ui, "error", "none (a mesh solve has no estimate)".to_owned());
+            } else {
+                row(ui, "error", format!("{error:.3e} ({err_label})"));
+            }
+            row(ui, "stopped", e.stop.to_owned());
+        });
+        // Clustered solves: the clusters holding the element's patch, smallest first.
+        // (A patch that is the whole tree, a one-patch scene, has no cluster: u32::MAX.)
+        if let Some(&first) = v.patch_cluster.get(e.patch as usize).filter(|&&c| c != u32::MAX) {
+            let mut chain = Vec::new();
+            let mut at = Some(first);
+            while let Some(c) = at.and_then(|i| v.clusters.get(i as usize)) {
+                chain.push(*c);
+                at = c.parent;
+            }
+            egui::CollapsingHeader::new(format!("in {} clusters", chain.len()))
+                .id_salt("clusters of the patch")
+                .show(ui, |ui| {
+                    egui::Grid::new("clusters").num_columns(3).striped(true).show(ui, |ui| {
+                        for h in ["depth", "patches", "cluster links"] {
+                            ui.strong(h);
+                        }
+                        ui.end_row();
+                        for c in &chain {
+                            ui.monospace(c.depth.to_string());
+                            ui.monospace(c.patches.to_string());
+                            ui.monospace(c.links.to_string());
+                            ui.end_row();
+                        }
+                    });
+                })
+                .header_response
+                .on_hover_text(
+                    "The cluster tree above this element's patch, from the smallest cluster up to \
+                     the root: how many patches each holds and how many cluster links it has",
+                );
+        }
+        ui.separator();
+        if let Some(m) = &v.mesh {
+            ui.label(format!(
+                "{}: no links — this element is coupled to every element it sees ({} form-factor \
+                 entries in all).",
+                m.params.label(),
+                v.stats.links
+            ));
+            return None;
+        }
+        // Links through which this element gathers: its own and its ancestors' (computed once
+        // per solver state and element, not every frame).
+        let rows = match &self.rows {
+            Some((seen, sel, rows)) if Arc::ptr_eq(seen, v) && *sel == id => Arc::clone(rows),
+            _ => {
+                let chain = overlay::ancestors(&v.elements, id);
+                let mut rows: Vec<LinkRow> = v
+                    .links
+                    .iter()
+                    .filter(|l| chain.contains(&l.receiver))
+                    .map(|l| {
+                        let b = v.elements.get(l.source as usize).map_or(0.0, |s| s.radiosity.mean());
+                        (l.receiver, l.source, l.ff, l.vis, b * f64::from(l.ff) * f64::from(l.vis))
+                    })
+                    .collect();
+                rows.sort_by(|a, b| b.4.total_cmp(&a.4).then(a.1.cmp(&b.1)));
+                let rows = Arc::new(rows);
+                self.rows = Some((Arc::clone(v), id, Arc::clone(&rows)));
+                rows
+            }
+        };
+        ui.label(format!("{} links gathered through (own + ancestors'), by B·F·V:", rows.len()));
+        egui::ScrollArea::vertical().max_height(220.0).id_salt("links").show(ui, |ui| {
+            egui::Grid::new("links").num_columns(5).striped(true).show(ui, |ui| {
+                for h in ["at", "source", "F", "V", "B·F·V"] {
+                    ui.strong(h);
+                }
+                ui.end_row();
+                for (r, s, f, vis, c) in rows.iter().take(200) {
+                    ui.monospace(if *r == id { "self".to_owned() } else { format!("↑{r}") });
+                    ui.monospace(s.to_string());
+                    ui.monospace(format!("{f:.3e}"));
+                    ui.monospace(format!("{vis:.2}"));
+                    ui.monospace(format!("{c:.3e}"));
+                    ui.end_row();
+                }
+            });
+        });
+        ui.checkbox(selected_links_only, "show these links in the viewport")
+            .on_hover_text("Draw only these links, from the element and its ancestors");
+        None
+    }
+}

@@ -1,0 +1,134 @@
+//! The side panel's Reference section: where the current scene's reference solution stands
+//! ([`RefState`]: looked up in the disk cache, missing, being computed, ready), with the buttons
+//! that compute or cancel it and the current state's error against it.
+
+use super::solver_panel::PANEL_CONTENT_W;
+use super::view::View;
+use eframe::egui::{self, Color32};
+use std::time::Instant;
+
+/// Height reserved for the Reference section (its tallest state: heading, a line, a progress
+/// bar and a button).
+const REFERENCE_PANEL_H: f32 = 100.0;
+
+/// Where the reference solution of the current scene stands.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RefState {
+    /// No scene, or no reference thread.
+    None,
+    /// Looking in the disk cache.
+    Looking,
+    /// Not cached: the "Compute reference" button offers to compute it.
+    Missing,
+    Computing {
+        regions: usize,
+        samples: u32,
+        since: Instant,
+    },
+    Ready {
+        regions: usize,
+        samples: u32,
+        how: String,
+    },
+    Failed(String),
+}
+
+/// The Reference section (its state is the app's [`RefState`]).
+#[derive(Copy, Clone, Debug, Default)]
+pub struct ReferencePanel;
+
+/// What the Reference section is lent for one frame.
+pub struct ReferenceInput<'a> {
+    pub state: &'a RefState,
+    /// (regions finished, regions) of a computation.
+    pub progress: (usize, usize),
+    /// The current state's rel L2 error against the reference, once scored.
+    pub error: Option<f64>,
+}
+
+/// What the Reference section asks of the app.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum ReferenceAction {
+    /// Compute the reference (on the reference thread; saved in the disk cache).
+    Compute,
+    /// Stop the computation.
+    Cancel,
+}
+
+impl View for ReferencePanel {
+    type Input<'a> = ReferenceInput<'a>;
+    type Action = ReferenceAction;
+
+    fn ui(&mut self, ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAction> {
+        // A fixed height: the panels below stay put as the reference's state changes.
+        let top = ui.cursor().top();
+        let action = contents(ui, input);
+        let used = ui.cursor().top() - top;
+        ui.add_space((REFERENCE_PANEL_H - used).max(0.0));
+        action
+    }
+}
+
+fn contents(ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAction> {
+    let ReferenceInput { state, progress, error } = input;
+    let mut action = None;
+    ui.heading("Reference");
+    let compute_button = |ui: &mut egui::Ui| {
+        ui.button("Compute reference")
+            .on_hover_text(
+                "Independent Monte Carlo reference (radlab reference), on a background thread; \
+                 saved in the disk cache",
+            )
+            .clicked()
+    };
+    match state.clone() {
+        RefState::None => {
+            ui.weak("no scene");
+        }
+        // Short lines: the panel widens to its widest line and keeps that width.
+        RefState::Looking => {
+            ui.horizontal(|ui| {
+                ui.spinner();
+                ui.label("looking in the cache…");
+            });
+        }
+        RefState::Missing => {
+            ui.label("none cached for this scene");
+            if compute_button(ui) {
+                action = Some(ReferenceAction::Compute);
+            }
+        }
+        RefState::Computing { regions, samples, since } => {
+            let (done, total) = progress;
+            let total = if total == 0 { regions } else { total };
+            ui.label(format!("{regions} regions × {samples} paths"));
+            ui.add(
+                egui::ProgressBar::new(done as f32 / total.max(1) as f32)
+                    .desired_width(PANEL_CONTENT_W)
+                    .text(format!("{done}/{total} · {:.0} s", since.elapsed().as_secs_f64())),
+            );
+            if ui
+                .button("Cancel reference")
+                .on_hover_text("Stop the computation (nothing is cached)")
+                .clicked()
+            {
+                action = Some(ReferenceAction::Cancel);
+            }
+            ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
+        }
+        RefState::Ready { regions, samples, how } => {
+            ui.label(format!("{regions} regions × {samples} paths")).on_hover_text(how);
+            if let Some(e) = error {
+                ui.label(format!("rel L2 error {:.2} %", e * 100.0))
+                    .on_hover_text("of the current state; the plots show it against solver time");
+            }
+        }
+        RefState::Failed(e) => {
+            ui.colored_label(Color32::from_rgb(255, 150, 130), e);
+            if compute_button(ui) {
+                action = Some(ReferenceAction::Compute);
+            }
+        }
+    }
+    action
+}
