@@ -222,6 +222,18 @@ pub struct LinkInfo {
     pub err: f32,
 }
 
+/// A cluster link as the viewer draws it ([`HierarchicalSolver::cluster_link_views`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClusterLinkView {
+    /// Centres of the two ends.
+    pub from: DVec3,
+    pub to: DVec3,
+    /// Estimated visibility in [0, 1].
+    pub vis: f32,
+    /// The larger unoccluded form factor of the two directions (point approximation).
+    pub ff: f64,
+}
+
 /// Read-only view of one node of the cluster tree ([`cluster`]).
 #[derive(Copy, Clone, Debug, Serialize)]
 pub struct ClusterInfo {
@@ -1731,6 +1743,27 @@ impl HierarchicalSolver {
         let ones = self.cluster_xfer.irradiance(tree, &self.hier, &|_| Rgb::ONE);
         self.cluster_fv = ones.iter().map(|h| h.0[0]).collect();
         created
+    }
+
+    /// Every cluster link as drawn: the centres of its two nodes (a patch's: its centroid), its
+    /// visibility, and the larger of its two unoccluded form factors in the clusters' point
+    /// approximation, `min(1, P_b(−ω) / (π d²))` with P the projected area of the far end towards
+    /// the near one (empty when the solve does not cluster).
+    #[must_use]
+    pub fn cluster_link_views(&self) -> Vec<ClusterLinkView> {
+        let Some(tree) = &self.clusters else { return Vec::new() };
+        self.cluster_links
+            .iter()
+            .map(|l| {
+                let (na, nb) = (&tree.nodes[l.a as usize], &tree.nodes[l.b as usize]);
+                let d = na.center.distance(nb.center).max(f64::MIN_POSITIVE);
+                let w = (nb.center - na.center) / d;
+                let f = cluster::link_frame(na, nb, w);
+                let pd2 = std::f64::consts::PI * d * d;
+                let ff = (nb.projected_area(-w, f) / pd2).max(na.projected_area(w, f) / pd2).min(1.0);
+                ClusterLinkView { from: na.center, to: nb.center, vis: l.vis, ff }
+            })
+            .collect()
     }
 
     /// The cluster tree's nodes of two patches or more, in tree order, with their link counts;
