@@ -862,6 +862,47 @@ pub fn link_lines(
     LinkLines { shown: kept.len(), lines, matched, scale }
 }
 
+/// Each cluster link is drawn as this many dashes (with as many gaps), so it reads apart from
+/// the element links' solid lines.
+pub const CLUSTER_LINK_DASHES: usize = 6;
+
+/// Dashed lines between the two ends' centres of the cluster links (clustered solves, issue 17
+/// §1) that pass `filter`'s minimum F and visibility classes, coloured by log₁₀ F on `scale`
+/// (the element links' scale, so both read on one colour bar; `None`: the cluster links' own),
+/// at most `filter.max_lines` of them, taken in the order given (the viewer keeps them largest
+/// F first). `filter.element` does not apply: a cluster link has no element at its ends.
+#[must_use]
+pub fn cluster_link_lines(
+    links: &[crate::solver::hierarchical::ClusterLinkView],
+    filter: &LinkFilter,
+    scale: Option<LogScale>,
+    alpha: f32,
+) -> LinkLines {
+    let class = |vis: f32| LinkView { receiver: 0, source: 0, ff: 0.0, vis }.class();
+    let kept: Vec<_> = links
+        .iter()
+        .filter(|l| {
+            l.ff >= f64::from(filter.min_ff)
+                && match class(l.vis) {
+                    VisClass::Full => filter.full,
+                    VisClass::Partial => filter.partial,
+                    VisClass::None => filter.none,
+                }
+        })
+        .collect();
+    let matched = kept.len();
+    let scale = scale.or_else(|| LogScale::spanning(kept.iter().map(|l| l.ff)));
+    let mut lines = LineList::default();
+    for l in kept.iter().take(filter.max_lines) {
+        let [r, g, b] = Palette::Viridis.at(scale.map_or(0.0, |s| s.t(l.ff)));
+        let at = |k: usize| l.from.lerp(l.to, k as f64 / (2 * CLUSTER_LINK_DASHES - 1) as f64);
+        for dash in 0..CLUSTER_LINK_DASHES {
+            lines.push(at(2 * dash), at(2 * dash + 1), [r, g, b, alpha]);
+        }
+    }
+    LinkLines { shown: matched.min(filter.max_lines), lines, matched, scale }
+}
+
 /// The twelve edges of every cluster's bounding box whose depth is in `depths` (inclusive),
 /// coloured by depth (viridis over the range shown): the cluster overlay (issue 17 §1).
 #[must_use]

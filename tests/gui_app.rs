@@ -1386,20 +1386,24 @@ fn meshing_figures_open_solved_on_their_mesh() {
     assert!(opened >= 6, "the meshing slides: {opened}");
 }
 
+/// Turn clustering on and let the (auto-run) solve finish.
+fn solve_clustered(h: &mut Harness<'static, RadlabApp>) {
+    let mut p = h.state().params();
+    p.cluster = radlab::solver::params::Clustering::On;
+    h.state_mut().set_params(p);
+    settle(h);
+    settle(h);
+}
+
 /// The clusters overlay draws the boxes of a clustered solve's cluster tree; it is greyed out
 /// while the solve does not cluster.
 #[test]
 fn clusters_overlay_draws_the_cluster_boxes() {
-    use radlab::solver::params::Clustering;
     let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
     h.state_mut().load_spec("builtin:table-room");
     settle(&mut h);
     assert!(h.state().view().clusters.is_empty(), "table-room's 32 patches are not clustered by default");
-    let mut p = h.state().params();
-    p.cluster = Clustering::On;
-    h.state_mut().set_params(p);
-    settle(&mut h);
-    settle(&mut h);
+    solve_clustered(&mut h);
     let v = Arc::clone(h.state().view());
     assert!(v.clusters.len() >= 10, "{} cluster nodes", v.clusters.len());
     assert!(v.stats.cluster_links > 0, "the clustered solve has cluster links");
@@ -1430,8 +1434,58 @@ fn clusters_overlay_draws_the_cluster_boxes() {
         at = v.clusters[i as usize].parent;
     }
     assert!(levels >= 2, "table-room's patches sit under several clusters: {levels}");
-    assert!(h.query_by_label(&format!("in {levels} clusters")).is_some(), "the inspector lists them");
+    let mut cluster_links = 0;
+    let mut at = v.patch_cluster.get(patch).copied();
+    while let Some(i) = at {
+        cluster_links += v.clusters[i as usize].links;
+        at = v.clusters[i as usize].parent;
+    }
+    let header = format!("in {levels} clusters · {cluster_links} cluster links");
+    assert!(h.query_by_label(&header).is_some(), "the inspector lists them and counts their links");
     let status = format!("+ {} cluster links ({} clusters)", v.stats.cluster_links, v.stats.clusters);
     assert!(h.query_by_label(&status).is_some(), "the status bar counts the cluster links");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+/// The links overlay draws a clustered solve's cluster links too, dashed, on the element links'
+/// colour scale, and its legend says how many of how many; the checkbox turns them off.
+#[test]
+fn links_overlay_draws_the_cluster_links() {
+    use radlab::overlay::CLUSTER_LINK_DASHES;
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().load_spec("builtin:furnished-2k");
+    settle(&mut h);
+    solve_clustered(&mut h);
+    let v = Arc::clone(h.state().view());
+    let total = v.stats.cluster_links;
+    assert!(total > 0, "the clustered solve has cluster links");
+    assert_eq!(v.cluster_links.len(), total.min(radlab::viewer::worker::CLUSTER_LINKS_KEPT));
+    assert!(v.cluster_links.windows(2).all(|w| w[0].ff >= w[1].ff), "kept largest F first");
+    h.key_press(egui::Key::L);
+    settle(&mut h);
+    assert!(h.state().display.links && h.state().display.cluster_links);
+    let with = lower_viewport(&mut h);
+    let max_lines = h.state().display.link_filter.max_lines;
+    // The default filter leaves out the links that carry no light (V = 0).
+    let visible = v.cluster_links.iter().filter(|l| l.vis > radlab::overlay::VIS_CLASS_EPS).count();
+    let drawn = visible.min(max_lines);
+    assert!(drawn > 0);
+    let legend = h.state().cluster_link_legend().expect("a legend line");
+    assert!(legend.starts_with(&format!("- - cluster links (dashed): {drawn} drawn of {total}")), "{legend}");
+    assert!(h.query_by_label("cluster links (dashed)").is_some(), "the checkbox is there");
+    h.get_by_label("cluster links (dashed)").click();
+    settle(&mut h);
+    assert!(!h.state().display.cluster_links);
+    assert!(h.state().cluster_link_legend().is_some_and(|s| s.ends_with("(not drawn)")));
+    let without = lower_viewport(&mut h);
+    let changed =
+        with.pixels.chunks_exact(4).zip(without.pixels.chunks_exact(4)).filter(|(a, b)| a != b).count();
+    assert!(
+        changed > 200,
+        "{drawn} dashed cluster links ({CLUSTER_LINK_DASHES} dashes each): {changed} pixels"
+    );
+    h.get_by_label("cluster links (dashed)").click();
+    settle(&mut h);
+    check(&mut h, "gui_cluster_links");
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }

@@ -19,7 +19,7 @@ use super::help::{self, Action};
 use super::history::{HistoryAction, RunHistory};
 use super::inspector::{self, Inspector, InspectorInput};
 use super::lecture::Lecture;
-use super::legends::Legends;
+use super::legends::{self, Legends};
 use super::matrix::MatrixAction;
 use super::options::{OverlayChoice, ViewerOptions};
 use super::pane::{self, PaneStyle};
@@ -863,6 +863,12 @@ impl RadlabApp {
         !self.mesh_view() || self.true_error().is_some()
     }
 
+    /// The links legend's line on the cluster links (`None`: the solve has none).
+    #[must_use]
+    pub fn cluster_link_legend(&self) -> Option<String> {
+        legends::cluster_link_note(&self.display, &self.view, self.geometry.cluster_link_stats)
+    }
+
     /// What the error heatmap shows.
     #[must_use]
     pub fn error_label(&self) -> &'static str {
@@ -898,6 +904,7 @@ impl RadlabApp {
             links,
             link_alpha: d.link_alpha,
             links_xray: d.links_xray,
+            cluster_links: d.cluster_links,
             origin: self.origin,
             depth_limit: None,
             critical: d.critical,
@@ -1070,6 +1077,7 @@ impl RadlabApp {
                 view: &self.view,
                 picked: self.picked_here().is_some(),
                 link_stats: self.geometry.link_stats,
+                cluster_link_stats: self.geometry.cluster_link_stats,
                 link_scale: self.geometry.link_scale,
                 error_scale: self.geometry.error_scale,
                 critical: self.critical_counts(),

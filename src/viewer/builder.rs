@@ -42,6 +42,8 @@ pub struct Settings {
     pub links: Option<LinkFilter>,
     pub link_alpha: f32,
     pub links_xray: bool,
+    /// With the links overlay (not one element's links): the view's cluster links too, dashed.
+    pub cluster_links: bool,
     /// Scene centre subtracted from every position.
     pub origin: DVec3,
     /// Draw the quadtree down to this depth only: deeper leaves are drawn as their ancestor at
@@ -81,6 +83,8 @@ pub struct Built {
     pub geometry: Arc<Geometry>,
     /// Links drawn, links matching the filter.
     pub link_stats: (usize, usize),
+    /// Cluster links drawn, of those carried that match the filter (when drawn).
+    pub cluster_link_stats: Option<(usize, usize)>,
     pub link_scale: Option<LogScale>,
     pub error_scale: Option<LogScale>,
     /// Auto exposure of this solver state ([`auto_exposure`]).
@@ -139,13 +143,24 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
         None => (&v.leaves, &v.links),
     };
     let mesh = geometry::mesh(&v.elements, leaves, colors, s.origin);
-    let (links, link_stats, link_scale) = match &s.links {
+    let (mut links, link_stats, link_scale) = match &s.links {
         Some(filter) => {
             let ll = overlay::link_lines(&v.elements, links, filter, s.link_alpha);
             (geometry::lines(&ll.lines, s.origin), (ll.shown, ll.matched), ll.scale)
         }
         None => (Vec::new(), (0, 0), None),
     };
+    // Cluster links on the element links' colour scale (their own when no element link shows).
+    let mut cluster_link_stats = None;
+    let mut link_scale = link_scale;
+    if let Some(filter) = s.links.as_ref().filter(|f| s.cluster_links && f.element.is_none())
+        && !v.cluster_links.is_empty()
+    {
+        let cl = overlay::cluster_link_lines(&v.cluster_links, filter, link_scale, s.link_alpha);
+        links.extend(geometry::lines(&cl.lines, s.origin));
+        cluster_link_stats = Some((cl.shown, cl.matched));
+        link_scale = link_scale.or(cl.scale);
+    }
     let (mut overlay, critical) = match (&req.scene, s.critical) {
         (Some(scene), true) => {
             let key = Arc::as_ptr(scene) as usize;
@@ -175,6 +190,7 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
         view_seq: req.view_seq,
         geometry: Arc::new(Geometry { mesh, links, links_xray: s.links_xray, overlay }),
         link_stats,
+        cluster_link_stats,
         link_scale,
         error_scale,
         auto_ev: auto_exposure(v),
@@ -348,6 +364,7 @@ mod tests {
             links: Some(LinkFilter::default()),
             link_alpha: 1.0,
             links_xray: false,
+            cluster_links: true,
             origin: DVec3::ZERO,
             depth_limit: None,
             critical: false,

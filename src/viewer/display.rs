@@ -3,7 +3,7 @@
 
 use super::view::View;
 use super::widgets::log_slider;
-use super::worker::ViewData;
+use super::worker::{CLUSTER_LINKS_KEPT, ViewData};
 use crate::mesh_overlay::Artifact;
 use crate::overlay::{Decimation, LinkFilter};
 use crate::solver::meshed::DisplayReconstruction;
@@ -54,6 +54,8 @@ pub struct Display {
     pub clusters: bool,
     pub clusters_from: u8,
     pub link_filter: LinkFilter,
+    /// With the links overlay, a clustered solve's cluster links too (dashed).
+    pub cluster_links: bool,
     /// Links of the picked element only.
     pub selected_links_only: bool,
     pub links_xray: bool,
@@ -75,6 +77,7 @@ impl Default for Display {
             clusters: false,
             clusters_from: 0,
             link_filter: LinkFilter::default(),
+            cluster_links: true,
             selected_links_only: false,
             links_xray: false,
             link_alpha: 0.35,
@@ -169,6 +172,19 @@ impl View for DisplayPanel {
             ui.indent("links", |ui| {
                 ui.checkbox(&mut d.selected_links_only, "picked element only")
                     .on_hover_text("Only the links the picked element gathers through (click an element)");
+                let clustered = view.stats.cluster_links > 0;
+                ui.add_enabled(
+                    clustered,
+                    egui::Checkbox::new(&mut d.cluster_links, "cluster links (dashed)"),
+                )
+                .on_hover_text(format!(
+                    "Also the links between clusters (or a cluster and a patch), dashed between \
+                         the two ends' centres, coloured by F on the same scale: {} in this solve, \
+                         the {CLUSTER_LINKS_KEPT} with the largest F kept for drawing, at most \
+                         \"max lines\" of them drawn; not with \"picked element only\"",
+                    view.stats.cluster_links
+                ))
+                .on_disabled_hover_text("This solve does not cluster: it has no cluster links");
                 let mut min_ff = f64::from(d.link_filter.min_ff).max(1e-9);
                 log_slider(ui, "min F", &mut min_ff, 1e-9, 1.0, "Hide links with a smaller form factor");
                 d.link_filter.min_ff = if min_ff <= 1e-9 { 0.0 } else { min_ff as f32 };

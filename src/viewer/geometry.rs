@@ -39,6 +39,8 @@ pub struct ShownGeometry {
     exposure_view_seq: u64,
     /// (links drawn, links that pass the filter).
     pub link_stats: (usize, usize),
+    /// (cluster links drawn, cluster links carried that pass the filter), when drawn.
+    pub cluster_link_stats: Option<(usize, usize)>,
     /// The critical edges drawn, by kind.
     pub critical_counts: Option<SegmentCounts>,
     pub link_scale: Option<LogScale>,
@@ -60,6 +62,7 @@ impl ShownGeometry {
             shown_seq: 0,
             exposure_view_seq: 0,
             link_stats: (0, 0),
+            cluster_link_stats: None,
             critical_counts: None,
             link_scale: None,
             error_scale: None,
@@ -109,6 +112,7 @@ impl ShownGeometry {
         self.geometry = b.geometry;
         self.generation += 1;
         self.link_stats = b.link_stats;
+        self.cluster_link_stats = b.cluster_link_stats;
         self.critical_counts = b.critical;
         self.link_scale = b.link_scale;
         self.error_scale = b.error_scale;

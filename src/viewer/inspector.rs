@@ -97,27 +97,32 @@ impl View for Inspector {
                 chain.push(*c);
                 at = c.parent;
             }
-            egui::CollapsingHeader::new(format!("in {} clusters", chain.len()))
-                .id_salt("clusters of the patch")
-                .show(ui, |ui| {
-                    egui::Grid::new("clusters").num_columns(3).striped(true).show(ui, |ui| {
-                        for h in ["depth", "patches", "cluster links"] {
-                            ui.strong(h);
-                        }
+            let cluster_links: u32 = chain.iter().map(|c| c.links).sum();
+            egui::CollapsingHeader::new(format!(
+                "in {} clusters · {cluster_links} cluster links",
+                chain.len()
+            ))
+            .id_salt("clusters of the patch")
+            .show(ui, |ui| {
+                egui::Grid::new("clusters").num_columns(3).striped(true).show(ui, |ui| {
+                    for h in ["depth", "patches", "cluster links"] {
+                        ui.strong(h);
+                    }
+                    ui.end_row();
+                    for c in &chain {
+                        ui.monospace(c.depth.to_string());
+                        ui.monospace(c.patches.to_string());
+                        ui.monospace(c.links.to_string());
                         ui.end_row();
-                        for c in &chain {
-                            ui.monospace(c.depth.to_string());
-                            ui.monospace(c.patches.to_string());
-                            ui.monospace(c.links.to_string());
-                            ui.end_row();
-                        }
-                    });
-                })
-                .header_response
-                .on_hover_text(
-                    "The cluster tree above this element's patch, from the smallest cluster up to \
-                     the root: how many patches each holds and how many cluster links it has",
-                );
+                    }
+                });
+            })
+            .header_response
+            .on_hover_text(
+                "The cluster tree above this element's patch, from the smallest cluster up to \
+                     the root: how many patches each holds and how many cluster links it has (the \
+                     header sums them)",
+            );
         }
         ui.separator();
         if let Some(m) = &v.mesh {

@@ -23,6 +23,8 @@ pub struct Legends<'a> {
     pub picked: bool,
     /// (links drawn, links that pass the filter).
     pub link_stats: (usize, usize),
+    /// (cluster links drawn, carried ones that pass the filter), when they are drawn.
+    pub cluster_link_stats: Option<(usize, usize)>,
     pub link_scale: Option<LogScale>,
     pub error_scale: Option<LogScale>,
     /// The critical edges drawn, by kind (while that overlay is on).
@@ -118,6 +120,13 @@ impl Legends<'_> {
                 Color32::LIGHT_GRAY,
             );
             y += 18.0;
+            if let Some(note) = cluster_link_note(self.display, self.view, self.cluster_link_stats) {
+                let galley = painter.layout_no_wrap(note, egui::FontId::proportional(11.0), Color32::WHITE);
+                let box_r = Rect::from_min_size(Pos2::new(x, y), galley.size() + Vec2::new(8.0, 4.0));
+                painter.rect_filled(box_r, 4.0, bg);
+                painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
+                y = box_r.bottom() + 6.0;
+            }
         }
         if let Some(c) = self.critical {
             y = critical_legend(painter, Pos2::new(x, y), c) + 6.0;
@@ -245,6 +254,33 @@ pub fn highlight(
     );
     painter.rect_filled(box_r, 3.0, Color32::from_black_alpha(190));
     painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
+}
+
+/// The links legend's line on a clustered solve's cluster links: how many are drawn (dashed) of
+/// how many there are, or why none are; `stats`: (drawn, carried ones that pass the filter) of
+/// the geometry shown, when it drew them. `None` when the solve has no cluster links.
+#[must_use]
+pub fn cluster_link_note(d: &Display, view: &ViewData, stats: Option<(usize, usize)>) -> Option<String> {
+    let total = view.stats.cluster_links;
+    if total == 0 {
+        return None;
+    }
+    Some(match stats {
+        _ if !d.cluster_links => format!("cluster links: {total} (not drawn)"),
+        _ if d.selected_links_only => format!("cluster links: {total} (not with one element's links)"),
+        None if view.cluster_links.is_empty() => {
+            format!("cluster links: {total} (drawn once the solve ends)")
+        }
+        None => format!("cluster links: {total}"),
+        Some((shown, matched)) => {
+            let mut s = format!("- - cluster links (dashed): {shown} drawn of {total}");
+            if shown < total {
+                let kept = view.cluster_links.len();
+                s += &format!(" (largest F; {matched} of the {kept} kept pass the filter)");
+            }
+            s
+        }
+    })
 }
 
 /// A one-line note in a dark box at the bottom centre of the viewport.

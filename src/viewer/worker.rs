@@ -10,7 +10,9 @@ use crate::math::Rgb;
 use crate::overlay::{ElementView, LinkView};
 use crate::scene::Scene;
 use crate::solver::Solution;
-use crate::solver::hierarchical::{HierarchicalSolver, HierarchicalStats, Snapshot, StepKind, StepReport};
+use crate::solver::hierarchical::{
+    ClusterLinkView, HierarchicalSolver, HierarchicalStats, Snapshot, StepKind, StepReport,
+};
 use crate::solver::meshed::{MeshSolution, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
 use std::sync::Arc;
@@ -40,6 +42,28 @@ pub struct ViewData {
     pub clusters: Vec<crate::solver::hierarchical::ClusterInfo>,
     /// Per input patch, the smallest cluster holding it (index into `clusters`).
     pub patch_cluster: Vec<u32>,
+    /// The cluster links with the largest form factors, largest first, at most
+    /// [`CLUSTER_LINKS_KEPT`] of the solver's `stats.cluster_links` (the links overlay draws
+    /// them dashed). Empty in a solve's intermediate pictures and replay frames.
+    pub cluster_links: Vec<ClusterLinkView>,
+}
+
+/// Most cluster links a [`ViewData`] carries: a 100 k-triangle room has 4 M (64 bytes each),
+/// and the overlay draws a few thousand at most.
+pub const CLUSTER_LINKS_KEPT: usize = 50_000;
+
+/// The `kept` cluster links with the largest form factors, largest first (ties in the order
+/// the solver gave them, so the choice does not depend on the thread count).
+#[must_use]
+pub fn strongest_cluster_links(mut links: Vec<ClusterLinkView>, kept: usize) -> Vec<ClusterLinkView> {
+    let by_f = |a: &ClusterLinkView, b: &ClusterLinkView| b.ff.total_cmp(&a.ff);
+    if links.len() > kept && kept > 0 {
+        links.select_nth_unstable_by(kept - 1, by_f);
+    }
+    links.truncate(kept);
+    links.sort_by(by_f);
+    links.shrink_to_fit();
+    links
 }
 
 /// What a mesh solve adds to its [`ViewData`].
@@ -74,6 +98,7 @@ impl ViewData {
             mesh: None,
             clusters: s.clusters,
             patch_cluster: s.patch_cluster,
+            cluster_links: Vec::new(),
         }
     }
 
@@ -161,14 +186,20 @@ impl ViewData {
     }
 
     /// The state of a solver (pushed and pulled for display when it has gathered since its last
-    /// push-pull, `unpushed`), with its settings.
+    /// push-pull, `unpushed`), with its settings and its strongest cluster links.
     #[must_use]
     pub fn of_solver(s: &HierarchicalSolver, unpushed: bool) -> Arc<ViewData> {
-        Self::of_solver_with(s, unpushed, true)
+        let mut view = Self::of_solver_with(s, unpushed, true);
+        let links = s.cluster_link_views();
+        if !links.is_empty() {
+            Arc::make_mut(&mut view).cluster_links = strongest_cluster_links(links, CLUSTER_LINKS_KEPT);
+        }
+        view
     }
 
-    /// [`ViewData::of_solver`], without the error estimates (every estimate 0) when
-    /// `estimates` is false: the refinement replay's frames, which show radiosity only.
+    /// [`ViewData::of_solver`] without the cluster links (a solve's intermediate pictures), and
+    /// without the error estimates (every estimate 0) when `estimates` is false: the refinement
+    /// replay's frames, which show radiosity only.
     #[must_use]
     pub fn of_solver_with(s: &HierarchicalSolver, unpushed: bool, estimates: bool) -> Arc<ViewData> {
         let snapshot = s.snapshot_with(estimates);
@@ -183,7 +214,9 @@ impl ViewData {
     /// Bytes this state holds (elements and links), about.
     #[must_use]
     pub fn bytes(&self) -> usize {
-        self.elements.len() * size_of::<ElementView>() + self.links.len() * size_of::<LinkView>()
+        self.elements.len() * size_of::<ElementView>()
+            + self.links.len() * size_of::<LinkView>()
+            + self.cluster_links.len() * size_of::<ClusterLinkView>()
     }
 
     /// Convert a snapshot taken between a gather and its push-pull, showing the radiosity the
@@ -471,7 +504,9 @@ fn run(
                                 let now = std::time::Instant::now();
                                 if last.is_none_or(|t| now.duration_since(t) >= PARTIAL_EVERY) {
                                     last = Some(now);
-                                    let _ = tx.send(Reply::Partial { view: view_of(s, false) });
+                                    let _ = tx.send(Reply::Partial {
+                                        view: ViewData::of_solver_with(s, false, true),
+                                    });
                                     notify();
                                 }
                             };
