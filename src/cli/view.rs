@@ -8,7 +8,8 @@
 use radlab::solver::meshed::{DisplayReconstruction, MeshMethod};
 use std::path::PathBuf;
 
-/// Overlay drawn by a scripted screenshot.
+/// An overlay the viewer opens with (the one definition: under `gui` each names the
+/// [`radlab::viewer::Display`] setting it turns on, [`Overlay::turn_on`]).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Overlay {
     #[default]
@@ -151,6 +152,22 @@ impl Args {
     }
 }
 
+impl Overlay {
+    /// Turn this overlay on in `d`.
+    #[cfg(feature = "gui")]
+    pub fn turn_on(self, d: &mut radlab::viewer::Display) {
+        match self {
+            Overlay::None => {}
+            Overlay::Quadtree => d.quadtree = true,
+            Overlay::Links => d.links = true,
+            Overlay::Error => d.error = true,
+            Overlay::Critical => d.critical = true,
+            Overlay::Artifacts => d.artifact = Some(radlab::mesh_overlay::Artifact::All),
+            Overlay::Clusters => d.clusters = true,
+        }
+    }
+}
+
 fn parse_point(s: &str) -> Result<[f32; 2], String> {
     let (x, y) = s.split_once(',').ok_or("expected X,Y (fractions of the viewport)")?;
     let f = |t: &str| -> Result<f32, String> {
@@ -162,7 +179,7 @@ fn parse_point(s: &str) -> Result<[f32; 2], String> {
 
 #[cfg(feature = "gui")]
 pub fn run(args: Args) -> anyhow::Result<()> {
-    use radlab::viewer::{OverlayChoice, ViewerOptions};
+    use radlab::viewer::ViewerOptions;
     if radlab::solver::params::HierarchicalParams::preset(&args.preset).is_none() {
         anyhow::bail!(
             "--preset {:?}: unknown preset (one of {})",
@@ -175,23 +192,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let figure = args.figure.as_deref().map(radlab::figures::find).transpose()?;
     let mesh = args.mesh_params()?;
-    let overlay = args
-        .overlay
-        .iter()
-        .map(|o| match o {
-            Overlay::None => OverlayChoice::None,
-            Overlay::Quadtree => OverlayChoice::Quadtree,
-            Overlay::Links => OverlayChoice::Links,
-            Overlay::Error => OverlayChoice::Error,
-            Overlay::Critical => OverlayChoice::Critical,
-            Overlay::Artifacts => OverlayChoice::Artifacts,
-            Overlay::Clusters => OverlayChoice::Clusters,
-        })
-        .collect();
+    let mut display = radlab::viewer::Display::default();
+    for o in &args.overlay {
+        o.turn_on(&mut display);
+    }
     radlab::viewer::run(ViewerOptions {
         scene: args.scene,
         preset: args.preset,
-        overlay,
+        display,
         solve_on_start: args.solve || !args.no_solve,
         screenshot: args.screenshot,
         bench_frames: args.bench_frames,

@@ -21,7 +21,7 @@ use super::inspector::{self, Inspector, InspectorInput};
 use super::lecture::Lecture;
 use super::legends::{self, Legends};
 use super::matrix::MatrixAction;
-use super::options::{OverlayChoice, ViewerOptions};
+use super::options::ViewerOptions;
 use super::pane::{self, PaneStyle};
 use super::plots::{Plots, PlotsInput};
 use super::reference::{RefClient, RefReply, RefThread};
@@ -206,7 +206,7 @@ impl RadlabApp {
             camera: start,
             home: start,
             origin: DVec3::ZERO,
-            display: Display::default(),
+            display: opts.display,
             true_error: None,
             solver_time_s: 0.0,
             error_samples: Vec::new(),
@@ -266,17 +266,6 @@ impl RadlabApp {
         app.replay.depth = app.opts.depth_cut;
         if let Some(r) = app.opts.reconstruction {
             app.display.shading = Shading::of(r);
-        }
-        for o in &app.opts.overlay {
-            match o {
-                OverlayChoice::None => {}
-                OverlayChoice::Quadtree => app.display.quadtree = true,
-                OverlayChoice::Links => app.display.links = true,
-                OverlayChoice::Error => app.display.error = true,
-                OverlayChoice::Critical => app.display.critical = true,
-                OverlayChoice::Artifacts => app.display.artifact = Some(Artifact::All),
-                OverlayChoice::Clusters => app.display.clusters = true,
-            }
         }
         if app.opts.screenshot.is_some() || app.opts.bench_frames.is_some() {
             app.opts.solve_on_start = true;

@@ -64,7 +64,7 @@ pub mod worker;
 pub use app::RadlabApp;
 pub use display::{Display, Shading};
 use eframe::egui;
-pub use options::{OverlayChoice, ViewerOptions};
+pub use options::ViewerOptions;
 pub use reference::RefSettings;
 pub use reference_panel::RefState;
 use std::sync::{Arc, Mutex};

@@ -1,26 +1,11 @@
-//! How the viewer starts ([`ViewerOptions`]: the `radlab view` flags) and which overlays
-//! `--overlay` turns on.
+//! How the viewer starts ([`ViewerOptions`]: the `radlab view` flags, the overlays of
+//! `--overlay` among them as the [`Display`] it opens with).
 
+use super::display::Display;
 use super::reference::RefSettings;
 use crate::figures::Figure;
 use crate::solver::meshed::{DisplayReconstruction, MeshSolveParams};
 use std::path::PathBuf;
-
-/// Which overlay `--overlay` turns on.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
-pub enum OverlayChoice {
-    #[default]
-    None,
-    Quadtree,
-    Links,
-    Error,
-    /// The critical edges (D0/D1/D2 segments).
-    Critical,
-    /// The five artifacts' marked samples.
-    Artifacts,
-    /// The cluster tree's bounding boxes.
-    Clusters,
-}
 
 /// How the viewer starts.
 #[derive(Clone, Debug)]
@@ -28,8 +13,9 @@ pub struct ViewerOptions {
     /// `builtin:NAME` or a path; empty: start without a scene (tests call `set_scene`).
     pub scene: String,
     pub preset: String,
-    /// Overlays on at start.
-    pub overlay: Vec<OverlayChoice>,
+    /// What is shown at start: the overlays `radlab view --overlay` turns on (its `Overlay`
+    /// values name these settings; a lecture figure's own replace them).
+    pub display: Display,
     /// Solve with the current preset whenever a scene is loaded (at start, Load, Open, a
     /// dropped file), on the solver thread: the viewer opens on a solved scene. Off: the input
     /// patches, unsolved, for stepping by hand.
@@ -73,7 +59,7 @@ impl Default for ViewerOptions {
         ViewerOptions {
             scene: "builtin:cornell".into(),
             preset: "interactive".into(),
-            overlay: Vec::new(),
+            display: Display::default(),
             solve_on_start: true,
             screenshot: None,
             bench_frames: None,
