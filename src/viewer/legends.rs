@@ -159,12 +159,7 @@ impl Legends<'_> {
                 "Only the lamps are lit: press Solve, or Refine step then Gather step to watch it converge.",
             );
         } else if self.split_on {
-            bottom_note(
-                painter,
-                rect,
-                "Split view: it needs two solved runs. Solve again with other settings (auto-run \
-                 re-solves on every change), or pick runs in the View menu's Run history.",
-            );
+            bottom_note(painter, rect, SPLIT_NOTE);
         }
     }
 
@@ -283,11 +278,24 @@ pub fn cluster_link_note(d: &Display, view: &ViewData, stats: Option<(usize, usi
     })
 }
 
-/// A one-line note in a dark box at the bottom centre of the viewport.
+/// What the viewport says while the split view is on but has fewer than two runs to show.
+const SPLIT_NOTE: &str = "Split view: it needs two solved runs. Solve again with other settings \
+                          (auto-run re-solves on every change), or pick runs in the View menu's Run \
+                          history.";
+
+/// A bottom note's text laid out for the viewport `rect`: wrapped 20 points inside each side.
+fn note_galley(painter: &egui::Painter, rect: Rect, msg: &str) -> std::sync::Arc<egui::Galley> {
+    let wrap = (rect.width() - 40.0).max(80.0);
+    painter.layout(msg.to_owned(), egui::FontId::proportional(12.0), Color32::WHITE, wrap)
+}
+
+/// A note in a dark box at the bottom centre of the viewport, wrapped to its width (a narrow
+/// split pane or window cuts no words off); its last line sits where a one-line note does.
 fn bottom_note(painter: &egui::Painter, rect: Rect, msg: &str) {
-    let at = Pos2::new(rect.center().x, rect.bottom() - 28.0);
-    let galley = painter.layout_no_wrap(msg.to_owned(), egui::FontId::proportional(12.0), Color32::WHITE);
-    let box_r = Rect::from_center_size(at, galley.size() + Vec2::new(16.0, 8.0));
+    let galley = note_galley(painter, rect, msg);
+    let size = galley.size() + Vec2::new(16.0, 8.0);
+    let box_r =
+        Rect::from_min_size(Pos2::new(rect.center().x - size.x / 2.0, rect.bottom() - 18.0 - size.y), size);
     painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
     painter.galley(box_r.min + Vec2::new(8.0, 4.0), galley, Color32::WHITE);
 }
@@ -356,4 +364,29 @@ fn colour_bar(
     );
     painter.text(Pos2::new(at.x + 4.0 + w, bar_y + 14.0), egui::Align2::RIGHT_TOP, hi, font, Color32::WHITE);
     box_r.bottom()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The split view's note used to be one line wider than a 600-point viewport (cut off at
+    /// both ends); it wraps to the viewport's width now.
+    #[test]
+    fn the_split_views_note_wraps_inside_a_narrow_viewport() {
+        let ctx = egui::Context::default();
+        let rect = Rect::from_min_size(Pos2::ZERO, Vec2::new(560.0, 400.0));
+        let (mut wrapped, mut one_line) = (Vec2::ZERO, Vec2::ZERO);
+        let mut out = ctx.run_ui(egui::RawInput::default(), |ui| {
+            let painter = ui.painter().clone();
+            wrapped = note_galley(&painter, rect, SPLIT_NOTE).size();
+            one_line = painter
+                .layout_no_wrap(SPLIT_NOTE.to_owned(), egui::FontId::proportional(12.0), Color32::WHITE)
+                .size();
+        });
+        out.textures_delta.clear();
+        assert!(one_line.x > rect.width(), "the note is longer than the viewport: {one_line:?}");
+        assert!(wrapped.x + 16.0 <= rect.width(), "its box fits: {wrapped:?}");
+        assert!(wrapped.y > 1.5 * one_line.y, "on two lines or more: {wrapped:?}");
+    }
 }
