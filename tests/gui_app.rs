@@ -424,6 +424,42 @@ fn a_long_solve_shows_its_progress_and_can_be_cancelled() {
     assert!(h.query_by_label_contains("Solve cancelled in").is_some(), "the line says what happened");
 }
 
+/// A mesh solve (here p = 1 on a fine uniform mesh, seconds or more) has no cancel hook of its
+/// own: Cancel answers at once anyway, the picture shown stays and no run is recorded.
+#[test]
+fn a_mesh_solve_can_be_cancelled() {
+    use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().load_spec("builtin:table-room");
+    settle(&mut h);
+    let before = Arc::clone(h.state().view());
+    let runs = h.state().solve_runs();
+    h.state_mut().set_mesh(MeshSolveParams {
+        element_size_rel: 0.04,
+        ..MeshSolveParams::new(MeshMethod::Uniform).linear(false)
+    });
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while h.query_by_label_contains("of the pairs").is_none() {
+        assert!(std::time::Instant::now() < deadline, "no progress line in {WAIT_S} s");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    h.get_by_label("Cancel").click();
+    let pressed = std::time::Instant::now();
+    while h.state().busy() {
+        assert!(pressed.elapsed() < std::time::Duration::from_secs(3), "the cancel was not answered");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    h.run_steps(2);
+    let r = h.state().last_report().expect("the solve answered");
+    assert!(r.cancelled, "{r:?}");
+    assert!(h.query_by_label_contains("Solve cancelled in").is_some(), "the line says what happened");
+    assert!(Arc::ptr_eq(h.state().view(), &before), "the picture shown stays");
+    assert_eq!(h.state().solve_runs(), runs, "a cancelled solve is no run");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
 /// A long solve shows the picture as it forms: after a round's gathers the viewport gets the
 /// solver's state (refined, lit) while the solve goes on.
 #[test]

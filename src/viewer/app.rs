@@ -660,7 +660,11 @@ impl RadlabApp {
     fn apply(&mut self, r: Reply) {
         match r {
             // The previous scene's last answers (its running step, cancelled): not shown.
-            Reply::Done { .. } | Reply::Partial { .. } | Reply::Progress { .. } | Reply::Replay { .. }
+            Reply::Done { .. }
+            | Reply::Cancelled { .. }
+            | Reply::Partial { .. }
+            | Reply::Progress { .. }
+            | Reply::Replay { .. }
                 if self.loading => {}
             Reply::Replay { frames } => self.replay_frames = Some(frames),
             Reply::Loaded { view, .. } => {
@@ -721,6 +725,14 @@ impl RadlabApp {
                 }
             }
             Reply::Skipped => {}
+            // A mesh solve dropped on Cancel: the picture shown stays.
+            Reply::Cancelled { report } => {
+                self.progress = None;
+                self.last_report = Some(report);
+                if self.script == Script::Solving && !self.busy() {
+                    self.script = Script::after_solve(self.opts.bench_frames.is_some());
+                }
+            }
             Reply::Baked(Ok(what)) => self.status_bar.message = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => {

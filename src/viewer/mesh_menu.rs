@@ -48,8 +48,7 @@ fn controls(ui: &mut egui::Ui, mesh: MeshSolveParams) -> Option<MeshSolveParams>
                 .on_hover_text(
                     "Linear (triangles) / bilinear (quads) elements, a Galerkin solve of their \
                      vertex values: follows a smooth ramp inside an element, but 20-60 times \
-                     slower than p = 0 (a minute or more on table-room; a mesh solve cannot be \
-                     cancelled)",
+                     slower than p = 0 (a minute or more on table-room; Cancel drops it)",
                 )
                 .on_disabled_hover_text("p = 1 exists on the uniform and discontinuity meshes");
         });

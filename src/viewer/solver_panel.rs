@@ -213,7 +213,13 @@ impl View for ProgressPanel {
             // Always there, enabled while busy: the row does not change as work starts and ends.
             if ui
                 .add_enabled(busy, egui::Button::new("Cancel"))
-                .on_hover_text("Stop the running step (the state stays consistent)")
+                .on_hover_text(
+                    "Stop the running step (the state stays consistent). A mesh solve (uniform, \
+                     discontinuity, p = 0 or 1) has no cancel hook of its own: it runs on a thread \
+                     of its own, Cancel answers at once and keeps the picture shown, and the solve \
+                     finishes in the background with its result dropped (the CPU it takes until \
+                     then is not given back)",
+                )
                 .clicked()
             {
                 action = Some(ProgressAction::Cancel);
@@ -227,7 +233,7 @@ impl View for ProgressPanel {
             (true, Some((done, total))) if label == MESH_SOLVE_LABEL => (
                 done as f32 / total.max(1) as f32,
                 format!(
-                    "{} · {:.0} % of the pairs · {elapsed:.1} s (cannot be cancelled)",
+                    "{} · {:.0} % of the pairs · {elapsed:.1} s",
                     label,
                     100.0 * done as f64 / total.max(1) as f64
                 ),

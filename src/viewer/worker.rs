@@ -4,6 +4,8 @@
 //! ```text
 //!  UI ── Command (mpsc) ──► "radlab-solver" thread ── Reply (mpsc) + request_repaint ──► UI
 //!  UI ── cancel flag (Arc<AtomicBool>, the solver's own cancel_handle) ──► running step
+//!  "radlab-solver" ── a mesh solve ──► "radlab-mesh-solve" thread (no cancel hook: the
+//!                     solver thread watches the flag and drops it on Cancel)
 //! ```
 
 use crate::math::Rgb;
@@ -285,6 +287,11 @@ pub enum Reply {
     Failed(String),
     /// A command queued before [`Worker::cancel_all`] was dropped unrun.
     Skipped,
+    /// A mesh solve was cancelled: its thread was left to finish on its own and its result will
+    /// be dropped; the state shown stays (`report.cancelled` is set).
+    Cancelled {
+        report: StepReport,
+    },
 }
 
 /// A solve sends its picture after a round at most this often (`Reply::Partial`).
@@ -357,9 +364,11 @@ impl Worker {
                         self.cancel = Some(Arc::clone(cancel));
                         self.in_flight = self.in_flight.saturating_sub(1);
                     }
-                    Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) | Reply::Skipped => {
-                        self.in_flight = self.in_flight.saturating_sub(1)
-                    }
+                    Reply::Done { .. }
+                    | Reply::Cancelled { .. }
+                    | Reply::Baked(_)
+                    | Reply::Failed(_)
+                    | Reply::Skipped => self.in_flight = self.in_flight.saturating_sub(1),
                     Reply::Progress { .. } | Reply::Partial { .. } | Reply::Replay { .. } => {}
                 }
                 Some(r)
@@ -385,7 +394,11 @@ impl Worker {
                             self.cancel = Some(Arc::clone(cancel));
                             self.in_flight -= 1;
                         }
-                        Reply::Done { .. } | Reply::Baked(_) | Reply::Failed(_) | Reply::Skipped => {
+                        Reply::Done { .. }
+                        | Reply::Cancelled { .. }
+                        | Reply::Baked(_)
+                        | Reply::Failed(_)
+                        | Reply::Skipped => {
                             self.in_flight -= 1;
                         }
                         Reply::Progress { .. } | Reply::Partial { .. } | Reply::Replay { .. } => {}
@@ -462,7 +475,7 @@ fn run(
             },
             Command::SolveMesh(params) => match solver.as_ref() {
                 None => Reply::Failed("no scene loaded".into()),
-                Some(s) => solve_mesh(s.scene(), params, tx, notify),
+                Some(s) => solve_mesh(s.scene(), params, &s.cancel_handle(), tx, notify),
             },
             Command::Bake { path, options } => match solver.as_ref() {
                 None => Reply::Failed("no scene loaded".into()),
@@ -533,36 +546,63 @@ fn run(
     }
 }
 
-/// A mesh solve on the solver thread, its progress forwarded (it cannot be cancelled midway:
-/// the mesh solvers have no cancel flag; `max_unknowns` keeps them short).
+/// How often a mesh solve's waiting solver thread looks at the cancel flag.
+const MESH_CANCEL_POLL: std::time::Duration = std::time::Duration::from_millis(20);
+
+/// A mesh solve, its progress forwarded. The mesh solvers have no cancel flag, so the solve runs
+/// on a thread of its own ("radlab-mesh-solve") while the solver thread waits for it and watches
+/// `cancel`: on Cancel it answers [`Reply::Cancelled`] at once and the solve is left to finish in
+/// the background (its progress no longer forwarded, its result dropped; `max_unknowns` keeps it
+/// bounded), so the next command runs without waiting for it.
 fn solve_mesh(
-    scene: &Scene,
+    scene: &Arc<Scene>,
     params: MeshSolveParams,
+    cancel: &AtomicBool,
     tx: &Sender<Reply>,
     notify: &(impl Fn() + Send),
 ) -> Reply {
     let t = std::time::Instant::now();
-    let ptx = tx.clone();
-    let mut progress = move |done: u64, total: u64| {
-        let _ = ptx.send(Reply::Progress { done, total });
-    };
+    let abandoned = Arc::new(AtomicBool::new(false));
+    let (done_tx, done_rx) = channel();
+    let (ptx, quiet, on) = (tx.clone(), Arc::clone(&abandoned), Arc::clone(scene));
+    let spawned = std::thread::Builder::new().name("radlab-mesh-solve".into()).spawn(move || {
+        let mut progress = move |done: u64, total: u64| {
+            if !quiet.load(Ordering::Relaxed) {
+                let _ = ptx.send(Reply::Progress { done, total });
+            }
+        };
+        let _ = done_tx.send(crate::solver::meshed::solve(&on, &params, &mut progress));
+    });
+    if let Err(e) = spawned {
+        return Reply::Failed(format!("cannot start the mesh solve's thread: {e}"));
+    }
     notify();
-    match crate::solver::meshed::solve(scene, &params, &mut progress) {
-        Ok(m) => {
-            let time_s = t.elapsed().as_secs_f64();
-            let view = Arc::new(ViewData::of_mesh_solution(scene, params, m, time_s));
-            let report = StepReport {
-                kind: StepKind::Solve,
-                time_s,
-                refined: 0,
-                new_links: 0,
-                residual: 0.0,
-                converged: true,
-                cancelled: false,
-            };
-            Reply::Done { report: Some(report), view }
+    let report = |cancelled: bool| StepReport {
+        kind: StepKind::Solve,
+        time_s: t.elapsed().as_secs_f64(),
+        refined: 0,
+        new_links: 0,
+        residual: 0.0,
+        converged: !cancelled,
+        cancelled,
+    };
+    loop {
+        match done_rx.recv_timeout(MESH_CANCEL_POLL) {
+            Ok(Ok(m)) => {
+                let report = report(false);
+                let view = Arc::new(ViewData::of_mesh_solution(scene, params, m, report.time_s));
+                return Reply::Done { report: Some(report), view };
+            }
+            Ok(Err(e)) => return Reply::Failed(format!("{}: {e}", params.label())),
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) if cancel.load(Ordering::Relaxed) => {
+                abandoned.store(true, Ordering::Relaxed);
+                return Reply::Cancelled { report: report(true) };
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                return Reply::Failed(format!("{}: the mesh solve's thread stopped", params.label()));
+            }
         }
-        Err(e) => Reply::Failed(format!("{}: {e}", params.label())),
     }
 }
 
@@ -685,6 +725,44 @@ mod tests {
         let mut gathered = false;
         w.wait_idle(|r| gathered |= matches!(r, Reply::Done { report: Some(_), .. }));
         assert!(gathered);
+    }
+
+    #[test]
+    fn a_running_mesh_solve_is_dropped_on_cancel_and_the_next_command_runs_at_once() {
+        use crate::solver::meshed::MeshMethod;
+        let mut w = Worker::spawn(|| {}).unwrap();
+        load(&mut w, "builtin:table-room", HierarchicalParams::interactive());
+        // A p = 1 solve on 1 500 unknowns or so: seconds even optimised.
+        let params = MeshSolveParams {
+            element_size_rel: 0.04,
+            ..MeshSolveParams::new(MeshMethod::Uniform).linear(false)
+        };
+        w.send(Command::SolveMesh(params));
+        loop {
+            match w.rx.recv().unwrap() {
+                Reply::Progress { .. } => break,
+                Reply::Done { .. } => panic!("the solve ended before its first progress"),
+                Reply::Failed(e) => panic!("{e}"),
+                _ => {}
+            }
+        }
+        let pressed = std::time::Instant::now();
+        w.cancel();
+        let mut answers = Vec::new();
+        w.wait_idle(|r| answers.push(r));
+        let waited = pressed.elapsed();
+        assert!(
+            matches!(answers.last(), Some(Reply::Cancelled { report }) if report.cancelled),
+            "the solve answers Cancelled"
+        );
+        assert!(waited < std::time::Duration::from_secs(2), "answered in {waited:?}");
+        // The next command runs while the dropped solve finishes in the background, and the
+        // dropped solve's progress is no longer forwarded.
+        w.send(Command::Step(StepKind::Iterate));
+        let mut answers = Vec::new();
+        w.wait_idle(|r| answers.push(r));
+        assert!(matches!(answers.last(), Some(Reply::Done { report: Some(_), .. })));
+        assert!(!answers.iter().any(|r| matches!(r, Reply::Progress { .. })), "no stray progress");
     }
 
     #[test]
