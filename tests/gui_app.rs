@@ -1525,3 +1525,36 @@ fn links_overlay_draws_the_cluster_links() {
     check(&mut h, "gui_cluster_links");
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
+
+/// The Mesh menu's D-mesh options: graded to a budget of patches (exactly that many elements),
+/// then the graded D-mesh as the top level of hierarchical refinement (its leaves below the
+/// pieces); both named in the menu's title.
+#[test]
+fn the_mesh_menu_grades_the_dmesh_and_makes_it_the_hierarchys_top_level() {
+    use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
+    use radlab::viewer::worker::DmeshOptions;
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().load_spec("builtin:table-room");
+    settle(&mut h);
+    h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::DiscontinuityCdt));
+    settle(&mut h);
+    settle(&mut h);
+    let runs = h.state().solve_runs();
+    let budget = 700;
+    for (hierarchical, named) in [(false, ""), (true, " top of hierarchy")] {
+        h.state_mut().set_dmesh(DmeshOptions { budget: Some(budget), hierarchical });
+        settle(&mut h);
+        settle(&mut h);
+        let v = Arc::clone(h.state().view());
+        let label = format!("discontinuity-cdt p0 graded {budget}{named}");
+        assert_eq!(v.mesh.as_ref().expect("a mesh solve").label(), label);
+        assert!(h.query_by_label(&format!("Mesh: {label}")).is_some(), "the menu names it");
+        if hierarchical {
+            assert!(v.leaves.len() > budget, "the hierarchy refines below the pieces: {}", v.leaves.len());
+        } else {
+            assert_eq!(v.leaves.len(), budget, "graded to the budget");
+        }
+    }
+    assert_eq!(h.state().solve_runs(), runs + 2, "each is a run of the history");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}

@@ -36,7 +36,7 @@ use super::status_bar::{StatusBar, StatusInput};
 use super::top_bar::{TopBar, TopBarAction, TopBarInput};
 use super::view::View;
 use super::viewport::{self, Picture, Shade};
-use super::worker::{Command, Reply, ViewData, Worker};
+use super::worker::{Command, DmeshOptions, Reply, ViewData, Worker};
 use crate::figures::Figure;
 use crate::math::DVec3;
 use crate::mesh_overlay::Artifact;
@@ -69,6 +69,8 @@ pub struct RadlabApp {
     /// The mesh solved on: `method` [`MeshMethod::Quadtree`] is the hierarchical solver (with
     /// `params`), anything else a mesh solve with these settings.
     mesh: MeshSolveParams,
+    /// The Mesh menu's graded / top-of-hierarchy D-mesh options.
+    dmesh: DmeshOptions,
     worker: Option<Worker>,
     progress: Option<(u64, u64)>,
     busy_label: String,
@@ -188,6 +190,7 @@ impl RadlabApp {
             params: HierarchicalParams::preset(&preset).unwrap_or_else(HierarchicalParams::interactive),
             solver_panel: SolverPanel { preset },
             mesh: opts.mesh.unwrap_or(MeshSolveParams::new(MeshMethod::Quadtree)),
+            dmesh: DmeshOptions::default(),
             worker: None,
             progress: None,
             busy_label: String::new(),
@@ -291,6 +294,7 @@ impl RadlabApp {
         // Not `set_params`: the load below starts a solver with these.
         self.params = f.params;
         self.mesh = f.mesh;
+        self.dmesh = DmeshOptions::default();
         let o = f.overlays;
         let d = &mut self.display;
         d.quadtree = o.quadtree;
@@ -319,7 +323,7 @@ impl RadlabApp {
             self.send(Command::SetParams(f.params), "restarting");
         }
         for &m in f.mesh_sweep {
-            self.send(Command::SolveMesh(m), MESH_SOLVE_LABEL);
+            self.send(Command::SolveMesh(m, DmeshOptions::default()), MESH_SOLVE_LABEL);
         }
         for &k in f.steps {
             self.step(k);
@@ -510,7 +514,7 @@ impl RadlabApp {
     pub fn step(&mut self, kind: StepKind) {
         if self.mesh.method != MeshMethod::Quadtree {
             if kind == StepKind::Solve {
-                self.send(Command::SolveMesh(self.mesh), MESH_SOLVE_LABEL);
+                self.send(Command::SolveMesh(self.mesh, self.dmesh), MESH_SOLVE_LABEL);
             } else {
                 self.status_bar.message =
                     format!("{kind:?} steps the quadtree: pick the quadtree mesh first");
@@ -572,6 +576,20 @@ impl RadlabApp {
         if self.auto_run && self.scene.is_some() {
             self.resolve_pending = true;
         }
+    }
+
+    /// The Mesh menu's D-mesh options (graded, top of the hierarchy).
+    #[must_use]
+    pub fn dmesh(&self) -> DmeshOptions {
+        self.dmesh
+    }
+
+    /// Solve the discontinuity meshes with D-mesh options `d` (re-solving with auto-run when they
+    /// change the solve on the mesh chosen).
+    pub fn set_dmesh(&mut self, d: DmeshOptions) {
+        let old = std::mem::replace(&mut self.dmesh, d);
+        let changes_solve = d != old && (d.apply_to(&self.mesh) || old.apply_to(&self.mesh));
+        self.resolve_pending |= changes_solve && self.auto_run && self.scene.is_some();
     }
 
     /// The artifact overlay to draw and its samples, when they were measured on the state shown.
@@ -979,14 +997,17 @@ impl RadlabApp {
             show_plots: &mut self.plots.open,
             scene: self.scene.as_deref(),
             scene_spec: &self.scene_spec,
-            mesh: self.mesh,
+            mesh: (self.mesh, self.dmesh),
         };
         match self.top_bar.ui(ui, input) {
             Some(TopBarAction::OpenFigure(f)) => self.open_figure(f),
             Some(TopBarAction::ChooseFile(purpose)) => self.files.choose(purpose),
             Some(TopBarAction::Load(spec)) => self.load_spec(&spec),
             Some(TopBarAction::Screenshot) => self.request_screenshot(ui.ctx()),
-            Some(TopBarAction::SetMesh(m)) => self.set_mesh(m),
+            Some(TopBarAction::SetMesh(m, d)) => {
+                self.set_dmesh(d);
+                self.set_mesh(m);
+            }
             None => {}
         }
     }

@@ -129,7 +129,7 @@ impl View for Inspector {
             ui.label(format!(
                 "{}: no links — this element is coupled to every element it sees ({} form-factor \
                  entries in all).",
-                m.params.label(),
+                m.label(),
                 v.stats.links
             ));
             return None;

@@ -51,7 +51,7 @@ impl Legends<'_> {
         {
             let text = format!(
                 "mesh edges: {} · {} elements · solve {:.2} s{}",
-                m.params.label(),
+                m.label(),
                 self.view.leaves.len(),
                 m.solve_s,
                 if m.meshing_s > 0.0 {

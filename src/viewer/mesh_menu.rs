@@ -1,9 +1,12 @@
 //! The Mesh menu of the top bar: what the solution is computed on (the hierarchical quadtree, a
 //! uniform mesh, a discontinuity mesh) and a mesh solve's settings (order, continuity, element
-//! size, CDT angle, rays), greyed out on the quadtree, whose settings are the Solver section's.
+//! size, CDT angle, rays), greyed out on the quadtree, whose settings are the Solver section's;
+//! on a discontinuity mesh at p = 0, grading to a budget of patches and the D-mesh as the top
+//! level of hierarchical refinement ([`DmeshOptions`]).
 
 use super::view::View;
 use super::widgets::log_slider;
+use super::worker::DmeshOptions;
 use crate::solver::meshed::{MeshMethod, MeshSolveParams};
 use eframe::egui;
 
@@ -12,18 +15,22 @@ use eframe::egui;
 pub struct MeshMenu;
 
 impl View for MeshMenu {
-    /// The mesh solved on now.
-    type Input<'a> = MeshSolveParams;
+    /// The mesh solved on now and the D-mesh options.
+    type Input<'a> = (MeshSolveParams, DmeshOptions);
     /// The mesh and settings chosen, when they changed.
-    type Action = MeshSolveParams;
+    type Action = (MeshSolveParams, DmeshOptions);
 
-    fn ui(&mut self, ui: &mut egui::Ui, mesh: MeshSolveParams) -> Option<MeshSolveParams> {
+    fn ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        (mesh, dmesh): (MeshSolveParams, DmeshOptions),
+    ) -> Option<(MeshSolveParams, DmeshOptions)> {
         let title = match mesh.method {
             MeshMethod::Quadtree => "Mesh: quadtree".to_owned(),
-            _ => format!("Mesh: {}", mesh.label()),
+            _ => format!("Mesh: {}{}", mesh.label(), dmesh.label(&mesh)),
         };
         let mut chosen = None;
-        ui.menu_button(title, |ui| chosen = controls(ui, mesh)).response.on_hover_text(
+        ui.menu_button(title, |ui| chosen = controls(ui, (mesh, dmesh))).response.on_hover_text(
             "What the solution is computed on: the hierarchical quadtree, a uniform mesh, or a \
              discontinuity mesh whose edges follow the shadow boundaries; element order p = 0 / 1",
         );
@@ -31,8 +38,11 @@ impl View for MeshMenu {
     }
 }
 
-fn controls(ui: &mut egui::Ui, mesh: MeshSolveParams) -> Option<MeshSolveParams> {
-    let mut m = mesh;
+fn controls(
+    ui: &mut egui::Ui,
+    (mesh, dmesh): (MeshSolveParams, DmeshOptions),
+) -> Option<(MeshSolveParams, DmeshOptions)> {
+    let (mut m, mut d) = (mesh, dmesh);
     for method in MeshMethod::ALL {
         ui.radio_value(&mut m.method, method, method.name()).on_hover_text(method.description());
     }
@@ -85,8 +95,40 @@ fn controls(ui: &mut egui::Ui, mesh: MeshSolveParams) -> Option<MeshSolveParams>
         });
         ui.add(egui::Slider::new(&mut m.rays, 1..=64).logarithmic(true).text("rays / pair"))
             .on_hover_text("Shadow rays per element pair (the visible fraction)");
+        let discontinuity = matches!(m.method, MeshMethod::DiscontinuityCdt | MeshMethod::DiscontinuityBsp);
+        ui.add_enabled_ui(discontinuity && m.order == crate::basis::Order::Constant, |ui| {
+            dmesh_controls(ui, &mut d);
+        })
+        .response
+        .on_disabled_hover_text("Grading and the hierarchical top level: a discontinuity mesh at p = 0");
     })
     .response
     .on_disabled_hover_text("Mesh settings: pick a uniform or discontinuity mesh above");
-    (m != mesh).then_some(m)
+    (m != mesh || d != dmesh).then_some((m, d))
+}
+
+/// Default budget when grading is turned on: table-room's unrefined CDT has 592 shadow-bounding
+/// pieces, so twice that gives the penumbrae room.
+const DEFAULT_BUDGET: usize = 2_000;
+
+/// Grading to a budget and the D-mesh as the top level of hierarchical refinement
+/// (docs/meshing.md, "A graded discontinuity mesh" and "The D-mesh as the top level").
+fn dmesh_controls(ui: &mut egui::Ui, d: &mut DmeshOptions) {
+    ui.horizontal(|ui| {
+        let mut graded = d.budget.is_some();
+        ui.checkbox(&mut graded, "graded").on_hover_text(
+            "Keep only the segments that bound a shadow, then cut the piece with the largest \
+             error estimate in two (across a penumbra, along its isolines) until the scene has \
+             this many patches (radlab solve --dmesh-budget N)",
+        );
+        let mut budget = d.budget.unwrap_or(DEFAULT_BUDGET);
+        ui.add_enabled(graded, egui::Slider::new(&mut budget, 100..=6_000).logarithmic(true).text("patches"))
+            .on_hover_text("The budget: patches for the whole scene after grading");
+        d.budget = graded.then_some(budget);
+    });
+    ui.checkbox(&mut d.hierarchical, "top of hierarchical refinement").on_hover_text(
+        "Hand the D-mesh's pieces to the hierarchical solver as its top level (the Solver \
+         panel's settings): shadow boundaries are top-level edges, the oracle refines the smooth \
+         parts below them (radlab solve --method hierarchical)",
+    );
 }

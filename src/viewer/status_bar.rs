@@ -34,7 +34,7 @@ impl View for StatusBar {
                 // A mesh solve: no links, no refine / gather / push-pull phases.
                 ui.label(format!(
                     "{}: {} form-factor entries · solve {:.3}s (meshing {:.3}s)",
-                    m.params.label(),
+                    m.label(),
                     s.links,
                     m.solve_s,
                     m.meshing_s

@@ -10,6 +10,7 @@ use super::mesh_menu::MeshMenu;
 use super::replay::Replay;
 use super::split::SplitView;
 use super::view::View;
+use super::worker::DmeshOptions;
 use crate::figures::Figure;
 use crate::scene::Scene;
 use crate::solver::meshed::MeshSolveParams;
@@ -34,7 +35,8 @@ pub struct TopBarInput<'a> {
     pub scene: Option<&'a Scene>,
     /// What the scene was opened from.
     pub scene_spec: &'a str,
-    pub mesh: MeshSolveParams,
+    /// The mesh and the D-mesh options.
+    pub mesh: (MeshSolveParams, DmeshOptions),
 }
 
 /// What the top bar asks of the app.
@@ -47,7 +49,7 @@ pub enum TopBarAction {
     Load(String),
     Screenshot,
     /// Solve on this mesh.
-    SetMesh(MeshSolveParams),
+    SetMesh(MeshSolveParams, DmeshOptions),
 }
 
 impl View for TopBar {
@@ -108,8 +110,8 @@ impl View for TopBar {
                 "Convergence plots under the inspector: residual per gather, links against elements \
                  (one point per solve), error against solver time",
             );
-            if let Some(m) = MeshMenu.ui(ui, mesh) {
-                action = Some(TopBarAction::SetMesh(m));
+            if let Some((m, d)) = MeshMenu.ui(ui, mesh) {
+                action = Some(TopBarAction::SetMesh(m, d));
             }
             ui.separator();
             let name = scene.map_or("(no scene)".to_owned(), |s| s.name.clone());

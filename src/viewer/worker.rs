@@ -15,7 +15,7 @@ use crate::solver::Solution;
 use crate::solver::hierarchical::{
     ClusterLinkView, HierarchicalSolver, HierarchicalStats, Snapshot, StepKind, StepReport,
 };
-use crate::solver::meshed::{MeshSolution, MeshSolveParams};
+use crate::solver::meshed::{MeshMethod, MeshSolution, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -68,10 +68,87 @@ pub fn strongest_cluster_links(mut links: Vec<ClusterLinkView>, kept: usize) -> 
     links
 }
 
+/// What the viewer adds to a discontinuity-mesh solve (issue 16 §2, §4; docs/meshing.md): a
+/// graded mesh and the D-mesh as the hierarchical solver's top level. Both at p = 0 only (the
+/// Mesh menu greys them out at p = 1); ignored on the uniform mesh.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub struct DmeshOptions {
+    /// Grade the mesh to this many patches for the whole scene (`radlab solve --dmesh-budget N`,
+    /// [`crate::mesh::grade`]).
+    pub budget: Option<usize>,
+    /// Solve the D-mesh's pieces as the top level of hierarchical refinement, with the Solver
+    /// panel's settings (`--method hierarchical`, [`crate::solver::discontinuity::solve_hierarchical`]).
+    pub hierarchical: bool,
+}
+
+impl DmeshOptions {
+    /// Whether these options change a solve on `m` (a discontinuity mesh at p = 0).
+    #[must_use]
+    pub fn apply_to(self, m: &MeshSolveParams) -> bool {
+        self != DmeshOptions::default()
+            && matches!(m.method, MeshMethod::DiscontinuityCdt | MeshMethod::DiscontinuityBsp)
+            && m.order == crate::basis::Order::Constant
+    }
+
+    /// What the label of a solve on `m` adds: " graded 2000", " top of hierarchy".
+    #[must_use]
+    pub fn label(self, m: &MeshSolveParams) -> String {
+        if !self.apply_to(m) {
+            return String::new();
+        }
+        let graded = self.budget.map_or(String::new(), |n| format!(" graded {n}"));
+        let top = if self.hierarchical { " top of hierarchy" } else { "" };
+        format!("{graded}{top}")
+    }
+}
+
+/// Solve `scene` on the mesh of `params` with the viewer's D-mesh options (`hierarchical`: the
+/// solver settings of its top-level solve): [`crate::solver::meshed::solve`] unless they apply,
+/// else the discontinuity solvers with the mesh `radlab solve --dmesh-budget` would build.
+fn solve_on_mesh(
+    scene: &Scene,
+    params: &MeshSolveParams,
+    dmesh: DmeshOptions,
+    hierarchical: HierarchicalParams,
+    progress: crate::solver::Progress,
+) -> Result<MeshSolution, String> {
+    use crate::mesh::remesh::RemeshParams;
+    use crate::solver::discontinuity::{self, DiscontinuityParams};
+    if !dmesh.apply_to(params) {
+        return crate::solver::meshed::solve(scene, params, progress);
+    }
+    params.validate()?;
+    let mut mesh =
+        if params.method == MeshMethod::DiscontinuityBsp { RemeshParams::bsp() } else { RemeshParams::cdt() };
+    // Grading sizes the elements: the CDT without angle refinement is its start (as the CLI's).
+    mesh.cdt = if dmesh.budget.is_some() || params.cdt_min_angle_deg <= 0.0 {
+        crate::mesh::cdt::CdtParams::unrefined()
+    } else {
+        crate::mesh::cdt::CdtParams {
+            min_angle_deg: params.cdt_min_angle_deg,
+            ..crate::mesh::cdt::CdtParams::quality()
+        }
+    };
+    mesh.max_patches = params.max_unknowns.max(dmesh.budget.unwrap_or(0));
+    mesh.grade = dmesh.budget.map(crate::mesh::grade::GradeParams::with_budget);
+    let d = if dmesh.hierarchical {
+        discontinuity::solve_hierarchical(scene, &mesh, hierarchical, progress)
+    } else {
+        let mut p = DiscontinuityParams::with_mesh(mesh);
+        p.solve.rays = params.rays;
+        p.solve.max_elements = mesh.max_patches;
+        discontinuity::solve(scene, &p, progress)
+    }
+    .map_err(|e| e.to_string())?;
+    Ok(MeshSolution { solution: d.solution, coefficients: None, meshing_s: d.mesh.total_s })
+}
+
 /// What a mesh solve adds to its [`ViewData`].
 #[derive(Clone, Debug)]
 pub struct MeshInfo {
     pub params: MeshSolveParams,
+    /// The D-mesh options it was solved with.
+    pub dmesh: DmeshOptions,
     /// At p = 1: each element's vertex values (indexed like the elements), drawn by the
     /// display's true p = 1 reconstruction.
     pub coefficients: Option<Arc<Vec<Vec<Rgb>>>>,
@@ -80,6 +157,14 @@ pub struct MeshInfo {
     pub solve_s: f64,
     /// The solution as the solver returned it (elements on the input patches).
     pub solution: Arc<Solution>,
+}
+
+impl MeshInfo {
+    /// "discontinuity-cdt p0 graded 2000 top of hierarchy", …
+    #[must_use]
+    pub fn label(&self) -> String {
+        format!("{}{}", self.params.label(), self.dmesh.label(&self.params))
+    }
 }
 
 impl ViewData {
@@ -148,6 +233,7 @@ impl ViewData {
         view.stats.links = m.solution.stats.links;
         view.mesh = Some(MeshInfo {
             params,
+            dmesh: DmeshOptions::default(),
             coefficients: m.coefficients.map(Arc::new),
             meshing_s: m.meshing_s,
             solve_s,
@@ -248,7 +334,7 @@ pub enum Command {
     /// Solve the loaded scene on a uniform or discontinuity mesh ([`crate::solver::meshed`]);
     /// answers `Done` with a [`StepKind::Solve`] report and the mesh's state. The hierarchical
     /// solver is left as it was.
-    SolveMesh(MeshSolveParams),
+    SolveMesh(MeshSolveParams, DmeshOptions),
     /// Write the current solution as a baked glTF ([`crate::bake`]) to `path` (.glb/.gltf).
     Bake {
         path: std::path::PathBuf,
@@ -473,9 +559,9 @@ fn run(
                     Reply::Done { report: None, view: view_of(s, false) }
                 }
             },
-            Command::SolveMesh(params) => match solver.as_ref() {
+            Command::SolveMesh(params, dmesh) => match solver.as_ref() {
                 None => Reply::Failed("no scene loaded".into()),
-                Some(s) => solve_mesh(s.scene(), params, &s.cancel_handle(), tx, notify),
+                Some(s) => solve_mesh(s.scene(), (params, dmesh, s.params()), &s.cancel_handle(), tx, notify),
             },
             Command::Bake { path, options } => match solver.as_ref() {
                 None => Reply::Failed("no scene loaded".into()),
@@ -556,7 +642,7 @@ const MESH_CANCEL_POLL: std::time::Duration = std::time::Duration::from_millis(2
 /// bounded), so the next command runs without waiting for it.
 fn solve_mesh(
     scene: &Arc<Scene>,
-    params: MeshSolveParams,
+    (params, dmesh, hierarchical): (MeshSolveParams, DmeshOptions, HierarchicalParams),
     cancel: &AtomicBool,
     tx: &Sender<Reply>,
     notify: &(impl Fn() + Send),
@@ -571,7 +657,7 @@ fn solve_mesh(
                 let _ = ptx.send(Reply::Progress { done, total });
             }
         };
-        let _ = done_tx.send(crate::solver::meshed::solve(&on, &params, &mut progress));
+        let _ = done_tx.send(solve_on_mesh(&on, &params, dmesh, hierarchical, &mut progress));
     });
     if let Err(e) = spawned {
         return Reply::Failed(format!("cannot start the mesh solve's thread: {e}"));
@@ -590,10 +676,13 @@ fn solve_mesh(
         match done_rx.recv_timeout(MESH_CANCEL_POLL) {
             Ok(Ok(m)) => {
                 let report = report(false);
-                let view = Arc::new(ViewData::of_mesh_solution(scene, params, m, report.time_s));
-                return Reply::Done { report: Some(report), view };
+                let mut view = ViewData::of_mesh_solution(scene, params, m, report.time_s);
+                if let Some(info) = view.mesh.as_mut() {
+                    info.dmesh = dmesh;
+                }
+                return Reply::Done { report: Some(report), view: Arc::new(view) };
             }
-            Ok(Err(e)) => return Reply::Failed(format!("{}: {e}", params.label())),
+            Ok(Err(e)) => return Reply::Failed(format!("{}{}: {e}", params.label(), dmesh.label(&params))),
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) if cancel.load(Ordering::Relaxed) => {
                 abandoned.store(true, Ordering::Relaxed);
                 return Reply::Cancelled { report: report(true) };
@@ -737,7 +826,7 @@ mod tests {
             element_size_rel: 0.04,
             ..MeshSolveParams::new(MeshMethod::Uniform).linear(false)
         };
-        w.send(Command::SolveMesh(params));
+        w.send(Command::SolveMesh(params, DmeshOptions::default()));
         loop {
             match w.rx.recv().unwrap() {
                 Reply::Progress { .. } => break,
