@@ -225,5 +225,9 @@ fn the_discontinuity_mesh_as_the_top_level_of_hierarchical_refinement() {
         "bsp-hierarchical-off",
     );
     assert!(off["meshing"]["stats"]["graded"].is_null(), "{}", off["meshing"]);
+    // The hierarchical solver clusters large top levels: its cap is 100 000 pieces, the uniform
+    // solver's 10 000 (splash_room's D-mesh has 46 845).
+    assert_eq!(doc["params"]["mesh"]["max_patches"], 100_000, "{}", doc["params"]);
+    assert_eq!(plain["params"]["mesh"]["max_patches"], 10_000, "{}", plain["params"]);
     assert_eq!(off["meshing"]["stats"]["output_patches"].as_u64(), Some(pieces));
 }

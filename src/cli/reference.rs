@@ -436,6 +436,9 @@ fn remesh_params(args: &Args, method: &str) -> anyhow::Result<radlab::mesh::reme
     use radlab::mesh::remesh::RemeshParams;
     let hierarchical = method.starts_with("hierarchical-");
     let mut p = if method.ends_with("-cdt") { RemeshParams::cdt() } else { RemeshParams::bsp() };
+    if hierarchical {
+        p.max_patches = radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES;
+    }
     let default = if hierarchical { BudgetArg::Auto } else { BudgetArg::Off };
     let budget = BudgetArg::grading(args.dmesh_budget, default);
     anyhow::ensure!(

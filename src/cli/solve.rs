@@ -533,6 +533,9 @@ fn remesh_params(a: &SolverArgs, plan: Plan, kind: MeshKind) -> anyhow::Result<R
         MeshKind::Cdt => RemeshParams::cdt(),
         MeshKind::Bsp => RemeshParams::bsp(),
     };
+    if matches!(plan, Plan::DiscontinuityHierarchical(_)) {
+        p.max_patches = radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES;
+    }
     let budget = BudgetArg::for_plan(a, plan);
     if let Some(v) = a.dmesh_min_angle {
         p.cdt.min_angle_deg = v;
