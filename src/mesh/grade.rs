@@ -182,7 +182,10 @@ pub fn patch_cost(vertices: usize) -> usize {
 /// The critical segments of `receiver` that bound a shadow the direct light shows: every D0
 /// (contact: a jump in value, lit or not), and each D1/D2 with a penumbra beside it — lit
 /// strictly between the band's margins, or lit differing across it, at one of 5 points along
-/// it, read a small step (10⁻³ of the receiver's size) to either side. The segments of
+/// it, read a small step (10⁻³ of the receiver's size) to either side. With several emitters,
+/// "lit" is the segment's own emitter's visible fraction, and that emitter must bring at least
+/// the band's `min_direct` (10 %) of the unoccluded direct light there: the summed lit fraction
+/// of many lamps is partial almost everywhere (splash_room: 548 137 pieces, now 46 014). The segments of
 /// [`super::discontinuity`] are a superset (a wedge hidden by another occluder is not clipped):
 /// inside an umbra or in full light they bound nothing, and only cost elements.
 #[must_use]
