@@ -138,6 +138,20 @@ fn nonsense_combinations_are_refused_with_one_line() {
             "--dmesh-budget",
         ),
         (&["--mesh", "discontinuity-cdt", "--dmesh-budget", "0"][..], "budget"),
+        (&["--mesh", "discontinuity-cdt", "--dmesh-smooth", "2"][..], "--dmesh-smooth"),
+        (
+            &[
+                "--mesh",
+                "discontinuity-cdt",
+                "--method",
+                "hierarchical",
+                "--dmesh-budget",
+                "off",
+                "--dmesh-smooth",
+                "2",
+            ][..],
+            "--dmesh-smooth",
+        ),
         (&["--mesh", "uniform", "--method", "hierarchical"][..], "--mesh uniform"),
         (&["--mesh", "quadtree", "--method", "progressive"][..], "--mesh quadtree"),
         (&["--mesh", "discontinuity-cdt", "--element-size", "0.1"][..], "--element-size"),
@@ -195,4 +209,25 @@ fn the_discontinuity_mesh_as_the_top_level_of_hierarchical_refinement() {
     assert!(elements.len() as u64 > pieces, "{} leaves on {pieces} pieces", elements.len());
     // Pulled back: every element names an input patch of shadow-narrow (3 patches).
     assert!(elements.iter().all(|e| e["patch"].as_u64().unwrap() < 3));
+    // Without --dmesh-budget the top level is graded to the automatic budget, the same on every
+    // run; `--dmesh-budget off` keeps the ungraded pieces.
+    let graded = &doc["meshing"]["stats"]["graded"];
+    assert_eq!(graded["auto"], true, "{graded}");
+    assert_eq!(graded["patches_after"], graded["budget"], "{graded}");
+    assert!(graded["budget"].as_u64().unwrap() > graded["patches_before"].as_u64().unwrap(), "{graded}");
+    let (again, _) = solve_and_dump(
+        &["--mesh", "discontinuity-bsp", "--method", "hierarchical"],
+        "bsp-hierarchical-again",
+    );
+    assert_eq!(again["meshing"]["stats"]["graded"]["budget"], graded["budget"]);
+    let (off, _) = solve_and_dump(
+        &["--mesh", "discontinuity-bsp", "--method", "hierarchical", "--dmesh-budget", "off"],
+        "bsp-hierarchical-off",
+    );
+    assert!(off["meshing"]["stats"]["graded"].is_null(), "{}", off["meshing"]);
+    // The hierarchical solver clusters large top levels: its cap is 100 000 pieces, the uniform
+    // solver's 10 000 (splash_room's D-mesh has 46 845).
+    assert_eq!(doc["params"]["mesh"]["max_patches"], 100_000, "{}", doc["params"]);
+    assert_eq!(plain["params"]["mesh"]["max_patches"], 10_000, "{}", plain["params"]);
+    assert_eq!(off["meshing"]["stats"]["output_patches"].as_u64(), Some(pieces));
 }

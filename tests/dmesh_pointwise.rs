@@ -147,3 +147,55 @@ fn graded_discontinuity_mesh_resolves_the_narrow_penumbra() {
     assert!(g_band <= p_band / 3.0, "band {g_band} vs ungraded {p_band}");
     assert!(g_scene < p_scene, "scene {g_scene} vs ungraded {p_scene}");
 }
+
+/// The automatic budget (src/mesh/grade.rs, `auto_budget`) as the hierarchical solver's top
+/// level against the ungraded CDT as its top level, on table-room's whole scene, scored against a
+/// path-traced reference of 8 192 points × 256 paths (noise ~4.6 %, as tests/metrics.rs), the
+/// `quality` preset for both. Measured with the standard 65 537 × 1 024 reference
+/// (docs/meshing.md): auto (1 183 pieces, 1 984 leaves) 1.29 %, ungraded (the 20° CDT, 5 150
+/// pieces, 6 275 leaves) 4.87 %; with this test's reference (the test prints it) auto 0.00 %
+/// (below its noise, resolution 1.15 %) and ungraded 4.48 %. Asserted: the auto budget's debiased
+/// scene error below 2/3 of the ungraded one's, and the budget chosen the same on a second
+/// meshing.
+#[test]
+fn auto_budget_top_level_beats_the_ungraded_one_on_table_room() {
+    use radlab::mesh::grade::GradeParams;
+    use radlab::mesh::remesh::RemeshParams;
+    use radlab::reference::ReferenceParams;
+    use radlab::solver::params::HierarchicalParams;
+    let scene = Scene::load("builtin:table-room").unwrap();
+    let accel = Accel::build(&scene);
+    // The ruler of tests/metrics.rs's table-room test.
+    let quick = PointParams::quick();
+    let ruler = PointParams { points: 8192, paths: ReferenceParams { samples: 256, ..quick.paths }, ..quick };
+    let (set, reference) = reference_points(&scene, &accel, &ruler, &Control::default()).unwrap();
+    let err = |sol: &Solution| {
+        radlab::pointwise::compare_solution_points(&scene, sol, &set.points, &reference).unwrap().scene
+    };
+    let solve = |mesh: &RemeshParams| {
+        discontinuity::solve_hierarchical(&scene, mesh, HierarchicalParams::quality(), &mut |_, _| {})
+            .unwrap()
+    };
+    let ungraded = solve(&RemeshParams::cdt());
+    let mut auto = RemeshParams::cdt();
+    auto.cdt.min_angle_deg = 0.0;
+    auto.grade = Some(GradeParams::auto());
+    let graded = solve(&auto);
+    let g = graded.mesh.graded.clone().expect("graded");
+    assert!(g.auto && g.budget > g.patches_before && g.budget <= auto.max_patches, "{g:?}");
+    let (eu, ea) = (err(&ungraded.solution), err(&graded.solution));
+    println!(
+        "table-room: ungraded top level {} pieces, {} leaves, {:.2} % | auto budget {} pieces, {} leaves, {:.2} % (noise {:.2} %, resolution {:.2} %)",
+        ungraded.mesh.output_patches,
+        ungraded.solution.elements.len(),
+        100.0 * eu.l2_debiased,
+        g.budget,
+        graded.solution.elements.len(),
+        100.0 * ea.l2_debiased,
+        100.0 * ea.reference_noise,
+        100.0 * ea.resolution
+    );
+    assert!(ea.l2_debiased < eu.l2_debiased * 2.0 / 3.0, "auto {ea:?} vs ungraded {eu:?}");
+    let again = radlab::mesh::remesh::discontinuity_scene(&scene, &auto).unwrap();
+    assert_eq!(again.stats.graded.unwrap().budget, g.budget);
+}

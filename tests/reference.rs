@@ -269,3 +269,35 @@ fn point_cache_hits_and_batches_reuse_the_layout() {
     assert_eq!((again.set, again.estimates), (b1.set, b1.estimates));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `radlab reference SCENE --compare hierarchical-dmesh-cdt`: the discontinuity mesh as the
+/// hierarchical solver's top level, graded to the budget asked (`auto` by default, `off`: the
+/// ungraded mesh), scored like any method; the grading flags without grading are refused.
+#[test]
+fn compare_solves_the_dmesh_top_level_with_its_grading() {
+    let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("reference-dmesh-cache");
+    let run = |flags: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+            .args(["reference", "builtin:shadow-narrow", "--samples", "16", "--exact"])
+            .args(["--compare", "hierarchical-dmesh-cdt"])
+            .args(flags)
+            .arg("--cache-dir")
+            .arg(&cache)
+            .output()
+            .unwrap();
+        let text =
+            format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        (out.status.success(), text)
+    };
+    let (ok, text) = run(&["--dmesh-budget", "150"]);
+    assert!(ok, "{text}");
+    assert!(text.contains("→ 150 patches (graded to a budget of 150:"), "{text}");
+    assert!(text.contains("pointwise rel L2"), "{text}");
+    let (ok, text) = run(&[]);
+    assert!(ok, "{text}");
+    assert!(text.contains("(auto)"), "the hierarchical top level grades by default: {text}");
+    let (ok, text) = run(&["--dmesh-budget", "off"]);
+    assert!(ok && !text.contains("graded"), "{text}");
+    let (ok, text) = run(&["--dmesh-budget", "off", "--dmesh-smooth", "2"]);
+    assert!(!ok && text.contains("--dmesh-smooth"), "{text}");
+}

@@ -1,7 +1,7 @@
 //! `radlab mesh SCENE [--kind cdt|bsp] [--min-angle DEG] [--max-area F] [--budget N] [--solve]
 //! [--json PATH]`: the scene's discontinuity mesh (issue 16 §2, `radlab::mesh`): critical
 //! segments by kind, constraints inserted, receivers remeshed, patches before and after, and the
-//! meshing time; with `--budget`, graded to N patches ([`radlab::mesh::grade`]); with `--solve`,
+//! meshing time; with `--budget N|auto`, graded to N patches (or a budget chosen from the scene) ([`radlab::mesh::grade`]); with `--solve`,
 //! also a uniform p = 0 solve on the mesh and its time (meshing against solving).
 
 use super::solve::load_scene;
@@ -28,10 +28,11 @@ pub struct Args {
     /// Refuse meshes with more patches than this
     #[arg(long, default_value_t = RemeshParams::cdt().max_patches)]
     pub max_patches: usize,
-    /// Grade the mesh to N patches for the whole scene (as `radlab solve --dmesh-budget`; the
-    /// defaults of src/mesh/grade.rs)
-    #[arg(long, value_name = "N")]
-    pub budget: Option<usize>,
+    /// Grade the mesh to N patches for the whole scene, or to the budget `auto` chooses from the
+    /// scene (as `radlab solve --dmesh-budget`; the defaults of src/mesh/grade.rs; `off`, the
+    /// default: ungraded)
+    #[arg(long, value_name = "N|auto|off")]
+    pub budget: Option<super::solve::BudgetArg>,
     /// Also solve on the mesh (uniform solver, one element per piece, 16 rays, --ff-tol 1e-4)
     #[arg(long)]
     pub solve: bool,
@@ -61,8 +62,14 @@ fn print(spec: &str, kind: MeshKind, s: &RemeshStats) {
     println!("  patches    {} → {}", s.input_patches, s.output_patches);
     if let Some(g) = &s.graded {
         println!(
-            "  graded     to {}: {} → {} patches, {} splits, {} direct-light samples, {:.4} s",
-            g.budget, g.patches_before, g.patches_after, g.splits, g.direct_samples, g.grade_s
+            "  graded     to {}{}: {} → {} patches, {} splits, {} direct-light samples, {:.4} s",
+            g.budget,
+            if g.auto { " (auto)" } else { "" },
+            g.patches_before,
+            g.patches_after,
+            g.splits,
+            g.direct_samples,
+            g.grade_s
         );
     }
     if s.pieces_dropped > 0 || s.refinement_incomplete > 0 {
@@ -84,9 +91,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         MeshKind::Cdt => RemeshParams::cdt(),
         MeshKind::Bsp => RemeshParams::bsp(),
     };
+    let grading = super::solve::BudgetArg::grading(args.budget, super::solve::BudgetArg::Off);
     let params = RemeshParams {
         cdt: CdtParams {
-            min_angle_deg: args.min_angle.unwrap_or(if args.budget.is_some() {
+            min_angle_deg: args.min_angle.unwrap_or(if grading.is_some() {
                 0.0
             } else {
                 CdtParams::quality().min_angle_deg
@@ -94,8 +102,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             max_area: args.max_area,
             ..base.cdt
         },
-        max_patches: args.max_patches.max(args.budget.unwrap_or(0)),
-        grade: args.budget.map(radlab::mesh::grade::GradeParams::with_budget),
+        max_patches: match grading {
+            Some(radlab::mesh::grade::Budget::Patches(n)) => args.max_patches.max(n),
+            _ => args.max_patches,
+        },
+        grade: grading.map(|budget| radlab::mesh::grade::GradeParams {
+            budget,
+            ..radlab::mesh::grade::GradeParams::auto()
+        }),
         ..base
     };
     let stdout_json = args.json.as_deref() == Some("-");

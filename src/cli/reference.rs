@@ -42,15 +42,29 @@ pub struct Args {
     /// Cache folder (default: $RADLAB_CACHE, else .radlab-cache/ in the current directory).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
-    /// Also solve the scene with this method (`hierarchical`, `uniform`, `progressive`, or
+    /// Also solve the scene with this method (`hierarchical`, `uniform`, `progressive`,
     /// `dmesh-cdt` / `dmesh-bsp`: the uniform solver at p = 0 on a discontinuity mesh, one element
-    /// per piece) and print its error against the reference per patch, for the scene and, with
-    /// the pointwise ruler, over the penumbra band ([`radlab::penumbra`]).
+    /// per piece, or `hierarchical-dmesh-cdt` / `hierarchical-dmesh-bsp`: the discontinuity mesh
+    /// as the top level of the hierarchical solver, `--preset` and the `--solve-*` flags as for
+    /// `hierarchical`) and print its error against the reference per patch, for the scene and,
+    /// with the pointwise ruler, over the penumbra band ([`radlab::penumbra`]).
     #[arg(long)]
     pub compare: Option<String>,
-    /// Smallest angle of the CDT refinement of --compare dmesh-cdt, degrees (0: unrefined).
-    #[arg(long, default_value_t = radlab::mesh::cdt::CdtParams::quality().min_angle_deg)]
-    pub dmesh_min_angle: f64,
+    /// Smallest angle of the CDT refinement of --compare dmesh-cdt and hierarchical-dmesh-cdt,
+    /// degrees (0: unrefined). Default 20, or 0 when the mesh is graded.
+    #[arg(long)]
+    pub dmesh_min_angle: Option<f64>,
+    /// Grade the discontinuity mesh of --compare dmesh-* / hierarchical-dmesh-* to N patches,
+    /// to a budget chosen from the scene (`auto`, the default of hierarchical-dmesh-*) or not at
+    /// all (`off`, the default of dmesh-*), as `radlab solve --dmesh-budget`.
+    #[arg(long, value_name = "N|auto|off")]
+    pub dmesh_budget: Option<super::solve::BudgetArg>,
+    /// The graded mesh's smooth gradient (as `radlab solve --dmesh-smooth`).
+    #[arg(long)]
+    pub dmesh_smooth: Option<f64>,
+    /// The graded mesh's penumbra weight (as `radlab solve --dmesh-penumbra-weight`).
+    #[arg(long)]
+    pub dmesh_penumbra_weight: Option<f64>,
     /// Largest triangle of --compare dmesh-cdt, as a fraction of its receiver's area.
     #[arg(long, default_value_t = f64::INFINITY)]
     pub dmesh_max_area: f64,
@@ -316,7 +330,6 @@ fn solve(
     accel: &Accel,
     log: &mut Box<dyn Write>,
 ) -> anyhow::Result<(radlab::solver::Solution, Option<Vec<Vec<Rgb>>>)> {
-    use radlab::solver::params::HierarchicalParams;
     use radlab::solver::{hierarchical::HierarchicalSolver, progressive, uniform};
     let h = args.solve_element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
     let t0 = std::time::Instant::now();
@@ -324,24 +337,18 @@ fn solve(
     let mut coefficients = None;
     let sol = match method {
         "hierarchical" => {
-            let mut p = HierarchicalParams::preset(&args.preset).with_context(|| {
-                format!("--preset {}: one of {:?}", args.preset, HierarchicalParams::PRESETS)
-            })?;
-            p.rays = args.solve_rays.unwrap_or(p.rays);
-            p.seed = args.solve_seed.unwrap_or(p.seed);
-            if let Some(o) = args.solve_oracle {
-                p.oracle = o.into();
-            }
-            if let Some(e) = args.solve_bf_eps_rel {
-                p.bf_eps = e;
-                p.bf_relative = true;
-            }
-            p.cluster = args.solve_cluster.unwrap_or(p.cluster);
-            p.validate().map_err(anyhow::Error::msg).context("invalid --solve-rays / --solve-bf-eps-rel")?;
+            let p = hierarchical_params(args)?;
             let mut s =
                 HierarchicalSolver::new(std::sync::Arc::new(scene.clone()), p).map_err(anyhow::Error::msg)?;
             s.solve(&mut |_, _| {});
             s.solution()
+        }
+        "hierarchical-dmesh-cdt" | "hierarchical-dmesh-bsp" => {
+            let p = hierarchical_params(args)?;
+            let mesh = remesh_params(args, method)?;
+            let d = radlab::solver::discontinuity::solve_hierarchical(scene, &mesh, p, &mut |_, _| {})?;
+            writeln!(log, "\n{method}: {}, solve {:.3} s", d.mesh.describe(), d.solve_s)?;
+            d.solution
         }
         "uniform" if linear.is_some() => {
             let p = radlab::solver::linear::LinearParams { element_size: h, ..linear.unwrap_or_default() };
@@ -367,21 +374,8 @@ fn solve(
             progressive::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?
         }
         "dmesh-cdt" | "dmesh-bsp" => {
-            use radlab::mesh::cdt::CdtParams;
             use radlab::solver::discontinuity::{self, DiscontinuityParams};
-            let base =
-                if method == "dmesh-cdt" { DiscontinuityParams::cdt() } else { DiscontinuityParams::bsp() };
-            let mut p = DiscontinuityParams {
-                mesh: radlab::mesh::remesh::RemeshParams {
-                    cdt: CdtParams {
-                        min_angle_deg: args.dmesh_min_angle,
-                        max_area: args.dmesh_max_area,
-                        ..base.mesh.cdt
-                    },
-                    ..base.mesh
-                },
-                ..base
-            };
+            let mut p = DiscontinuityParams::with_mesh(remesh_params(args, method)?);
             p.solve.rays = args.solve_rays.unwrap_or(p.solve.rays);
             p.solve.seed = args.solve_seed.unwrap_or(p.solve.seed);
             let d = match &linear {
@@ -401,7 +395,7 @@ fn solve(
             d.solution
         }
         other => anyhow::bail!(
-            "--compare {other}: expected hierarchical, uniform, progressive, dmesh-cdt or dmesh-bsp"
+            "--compare {other}: expected hierarchical, uniform, progressive, dmesh-cdt, dmesh-bsp, hierarchical-dmesh-cdt or hierarchical-dmesh-bsp"
         ),
     };
     let secs = t0.elapsed().as_secs_f64();
@@ -411,6 +405,65 @@ fn solve(
         writeln!(log, "order 1 ({}), Galerkin: {unknowns} unknowns", lp.label())?;
     }
     Ok((sol, coefficients))
+}
+
+/// The hierarchical solver's settings of --compare hierarchical and hierarchical-dmesh-*:
+/// `--preset` modified by the `--solve-*` flags.
+fn hierarchical_params(args: &Args) -> anyhow::Result<radlab::solver::params::HierarchicalParams> {
+    use radlab::solver::params::HierarchicalParams;
+    let mut p = HierarchicalParams::preset(&args.preset)
+        .with_context(|| format!("--preset {}: one of {:?}", args.preset, HierarchicalParams::PRESETS))?;
+    p.rays = args.solve_rays.unwrap_or(p.rays);
+    p.seed = args.solve_seed.unwrap_or(p.seed);
+    if let Some(o) = args.solve_oracle {
+        p.oracle = o.into();
+    }
+    if let Some(e) = args.solve_bf_eps_rel {
+        p.bf_eps = e;
+        p.bf_relative = true;
+    }
+    p.cluster = args.solve_cluster.unwrap_or(p.cluster);
+    p.validate().map_err(anyhow::Error::msg).context("invalid --solve-rays / --solve-bf-eps-rel")?;
+    Ok(p)
+}
+
+/// The discontinuity mesh of --compare dmesh-* / hierarchical-dmesh-*: its kind, the CDT flags,
+/// and grading (`--dmesh-budget`; `auto` by default on the hierarchical top level, `off` for the
+/// uniform solver).
+fn remesh_params(args: &Args, method: &str) -> anyhow::Result<radlab::mesh::remesh::RemeshParams> {
+    use super::solve::BudgetArg;
+    use radlab::mesh::grade::{Budget, GradeParams};
+    use radlab::mesh::remesh::RemeshParams;
+    let hierarchical = method.starts_with("hierarchical-");
+    let mut p = if method.ends_with("-cdt") { RemeshParams::cdt() } else { RemeshParams::bsp() };
+    if hierarchical {
+        p.max_patches = radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES;
+    }
+    let default = if hierarchical { BudgetArg::Auto } else { BudgetArg::Off };
+    let budget = BudgetArg::grading(args.dmesh_budget, default);
+    anyhow::ensure!(
+        budget.is_some() || (args.dmesh_smooth.is_none() && args.dmesh_penumbra_weight.is_none()),
+        "--dmesh-smooth and --dmesh-penumbra-weight tune a graded mesh (--dmesh-budget N|auto)"
+    );
+    anyhow::ensure!(
+        budget.is_none() || !args.continuous,
+        "--dmesh-budget grades the mesh with T-vertices: --continuous needs --dmesh-budget off"
+    );
+    p.cdt.min_angle_deg =
+        args.dmesh_min_angle.unwrap_or(if budget.is_some() { 0.0 } else { p.cdt.min_angle_deg });
+    p.cdt.max_area = args.dmesh_max_area;
+    p.cdt.validate().context("invalid --dmesh-min-angle / --dmesh-max-area")?;
+    if let Some(budget) = budget {
+        let mut g = GradeParams { budget, ..GradeParams::auto() };
+        g.smooth = args.dmesh_smooth.unwrap_or(g.smooth);
+        g.penumbra_weight = args.dmesh_penumbra_weight.unwrap_or(g.penumbra_weight);
+        g.validate().context("invalid --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")?;
+        if let Budget::Patches(n) = budget {
+            p.max_patches = p.max_patches.max(n);
+        }
+        p.grade = Some(g);
+    }
+    Ok(p)
 }
 
 /// The Galerkin settings of `--order 1` (None at order 0), refusing the unsupported combinations.

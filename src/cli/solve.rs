@@ -77,6 +77,56 @@ impl MeshArg {
 
 /// What solves a scene: method, mesh, order and their settings — shared by `radlab solve` and
 /// `radlab artifacts`.
+/// `--dmesh-budget N|auto|off`: grade the discontinuity mesh to N patches, to a budget chosen
+/// from the scene ([`radlab::mesh::grade::auto_budget`]), or not at all.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum BudgetArg {
+    Patches(usize),
+    Auto,
+    Off,
+}
+
+impl std::str::FromStr for BudgetArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<BudgetArg, String> {
+        match s {
+            "auto" => Ok(BudgetArg::Auto),
+            "off" => Ok(BudgetArg::Off),
+            // 0 parses, and grading's validation refuses it in one line.
+            n => n
+                .parse::<usize>()
+                .map(BudgetArg::Patches)
+                .map_err(|_| format!("expected a number of patches, auto or off (got {n:?})")),
+        }
+    }
+}
+
+impl BudgetArg {
+    /// The grading it asks for (`default` when the flag is absent): `None` ungraded.
+    #[must_use]
+    pub fn grading(arg: Option<BudgetArg>, default: BudgetArg) -> Option<radlab::mesh::grade::Budget> {
+        use radlab::mesh::grade::Budget;
+        match arg.unwrap_or(default) {
+            BudgetArg::Patches(n) => Some(Budget::Patches(n)),
+            BudgetArg::Auto => Some(Budget::Auto),
+            BudgetArg::Off => None,
+        }
+    }
+
+    /// The grading the flags ask for on a D-mesh solved by `plan` (hierarchical: `auto` unless
+    /// told; the uniform solver: `off`, as its n² couplings make every piece count).
+    fn for_plan(a: &SolverArgs, plan: Plan) -> Option<radlab::mesh::grade::Budget> {
+        let default =
+            if matches!(plan, Plan::DiscontinuityHierarchical(_)) { BudgetArg::Auto } else { BudgetArg::Off };
+        match plan {
+            Plan::Discontinuity(_) | Plan::DiscontinuityHierarchical(_) => {
+                BudgetArg::grading(a.dmesh_budget, default)
+            }
+            _ => None,
+        }
+    }
+}
+
 #[derive(clap::Args, Debug)]
 pub struct SolverArgs {
     /// Solver; default: hierarchical, or the one --mesh implies (uniform for the uniform and the
@@ -98,18 +148,20 @@ pub struct SolverArgs {
     pub dmesh_max_area: Option<f64>,
     /// Grade the discontinuity mesh to N patches for the whole scene: only the critical segments
     /// that bound a penumbra kept, then pieces split where the direct light varies (the
-    /// penumbrae) and by area elsewhere, every patch included (src/mesh/grade.rs; --mesh
-    /// discontinuity-cdt, whose refinement then defaults to none, or discontinuity-bsp).
-    #[arg(long, value_name = "N")]
-    pub dmesh_budget: Option<usize>,
-    /// With --dmesh-budget: the assumed smooth gradient that sizes elements away from the
+    /// penumbrae) and by area elsewhere, every patch included (src/mesh/grade.rs; the CDT's
+    /// refinement then defaults to none). `auto` chooses N from the scene (the segments' pieces
+    /// plus about one piece per (diagonal / 17)² of reflecting area), the default with
+    /// --method hierarchical; `off` keeps the ungraded mesh, the default of the uniform solver.
+    #[arg(long, value_name = "N|auto|off")]
+    pub dmesh_budget: Option<BudgetArg>,
+    /// When the mesh is graded: the assumed smooth gradient that sizes elements away from the
     /// shadows, in mean direct radiosities per scene diagonal (default 4; 0: split only where the
     /// direct light varies).
-    #[arg(long, requires = "dmesh_budget")]
+    #[arg(long)]
     pub dmesh_smooth: Option<f64>,
-    /// With --dmesh-budget: how much more a penumbra's variation counts than elsewhere
+    /// When the mesh is graded: how much more a penumbra's variation counts than elsewhere
     /// (default 100; 1: plain L2 allocation).
-    #[arg(long, requires = "dmesh_budget")]
+    #[arg(long)]
     pub dmesh_penumbra_weight: Option<f64>,
 
     /// Hierarchical preset the flags below modify: interactive, quality, lecture, splash2.
@@ -434,7 +486,14 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
             mesh.name()
         );
     }
-    if a.dmesh_budget.is_some() && a.continuous {
+    if (a.dmesh_smooth.is_some() || a.dmesh_penumbra_weight.is_some())
+        && BudgetArg::for_plan(a, plan).is_none()
+    {
+        bail!(
+            "--dmesh-smooth and --dmesh-penumbra-weight tune a graded discontinuity mesh (--dmesh-budget N|auto; auto is the default with --method hierarchical)"
+        );
+    }
+    if a.continuous && BudgetArg::for_plan(a, plan).is_some() {
         bail!(
             "--dmesh-budget grades the mesh with cuts that end on a neighbour's edge (T-vertices): a continuous basis needs a conforming mesh"
         );
@@ -467,15 +526,20 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
     Ok((plan, mesh))
 }
 
-/// The discontinuity mesh `--dmesh-*` asks for (kind from `--mesh`).
-fn remesh_params(a: &SolverArgs, kind: MeshKind) -> anyhow::Result<RemeshParams> {
+/// The discontinuity mesh `--dmesh-*` asks for (kind from `--mesh`, grading by the plan:
+/// [`BudgetArg::for_plan`]).
+fn remesh_params(a: &SolverArgs, plan: Plan, kind: MeshKind) -> anyhow::Result<RemeshParams> {
     let mut p = match kind {
         MeshKind::Cdt => RemeshParams::cdt(),
         MeshKind::Bsp => RemeshParams::bsp(),
     };
+    if matches!(plan, Plan::DiscontinuityHierarchical(_)) {
+        p.max_patches = radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES;
+    }
+    let budget = BudgetArg::for_plan(a, plan);
     if let Some(v) = a.dmesh_min_angle {
         p.cdt.min_angle_deg = v;
-    } else if a.dmesh_budget.is_some() {
+    } else if budget.is_some() {
         // Grading sizes the elements: the CDT without angle refinement is its start.
         p.cdt.min_angle_deg = 0.0;
     }
@@ -483,8 +547,8 @@ fn remesh_params(a: &SolverArgs, kind: MeshKind) -> anyhow::Result<RemeshParams>
         p.cdt.max_area = v;
     }
     p.cdt.validate().context("invalid --dmesh-min-angle / --dmesh-max-area")?;
-    if let Some(n) = a.dmesh_budget {
-        let mut g = radlab::mesh::grade::GradeParams::with_budget(n);
+    if let Some(budget) = budget {
+        let mut g = radlab::mesh::grade::GradeParams { budget, ..radlab::mesh::grade::GradeParams::auto() };
         if let Some(v) = a.dmesh_smooth {
             g.smooth = v;
         }
@@ -493,7 +557,9 @@ fn remesh_params(a: &SolverArgs, kind: MeshKind) -> anyhow::Result<RemeshParams>
         }
         g.validate().context("invalid --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")?;
         p.grade = Some(g);
-        p.max_patches = p.max_patches.max(n);
+        if let radlab::mesh::grade::Budget::Patches(n) = budget {
+            p.max_patches = p.max_patches.max(n);
+        }
     }
     Ok(p)
 }
@@ -621,14 +687,14 @@ pub fn solve_scene(
             (sol, serde_json::to_value(p)?)
         }
         Plan::DiscontinuityHierarchical(kind) => {
-            let mesh = remesh_params(a, kind)?;
+            let mesh = remesh_params(a, Plan::DiscontinuityHierarchical(kind), kind)?;
             let p = hierarchical_params(a)?;
             let d = discontinuity::solve_hierarchical(scene, &mesh, p, progress).with_context(solving)?;
             remesh = Some((d.mesh, d.solve_s));
             (d.solution, json!({ "mesh": mesh, "solve": p }))
         }
         Plan::Discontinuity(kind) => {
-            let mut p = DiscontinuityParams::with_mesh(remesh_params(a, kind)?);
+            let mut p = DiscontinuityParams::with_mesh(remesh_params(a, Plan::Discontinuity(kind), kind)?);
             p.solve.seed = a.seed;
             if let Some(v) = a.rays {
                 p.solve.rays = v;

@@ -38,6 +38,14 @@
 //! them (and every D0), so the discontinuity mesh does not spend the budget on lines inside an
 //! umbra or in full light ([`super::remesh`] calls it when grading).
 //!
+//! **The automatic budget** ([`Budget::Auto`], [`auto_budget`]; the default when the graded mesh
+//! is the hierarchical solver's top level): the patches the kept segments' mesh already has, plus
+//! one piece per square of side d/17 of reflecting area (d the scene's diagonal). The first part
+//! draws the shadows' edges; the second is what the top level needs for the smooth light, since
+//! the hierarchy's oracle, started from a wall left as 2–3 pieces, stops with it 3–6 % off. The
+//! constant is measured (docs/meshing.md: table-room and cornell, both A_r/d² ≈ 2, reach their
+//! lowest scene error near 1 000 patches, i.e. 400–650 beyond the segments' pieces).
+//!
 //! Pieces stay convex (a convex polygon cut by a line); pieces of more than 4 vertices count as
 //! the triangles of their fan, which is how [`super::remesh`] turns them into patches. The cuts
 //! are straight lines through the piece's centroid, so the result is not conforming (a cut ends
@@ -54,11 +62,42 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::time::Instant;
 
+/// How many patches [`grade`] leaves the scene with.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Budget {
+    /// Exactly this many (emitters and pieces fanned into triangles included).
+    Patches(usize),
+    /// Chosen from the scene by [`auto_budget`]: the pieces of the shadow segments, plus about
+    /// one piece per (diagonal / 17)² of reflecting area.
+    Auto,
+}
+
+/// Pieces the automatic budget adds per d² of reflecting area (d the scene's diagonal): one per
+/// square of side d / 17 (module docs, "The automatic budget").
+pub const AUTO_PIECES_PER_DIAGONAL_SQUARED: f64 = 289.0;
+
+/// The automatic budget ([`Budget::Auto`]): the `before` patches the shadow segments' mesh
+/// already has, plus [`AUTO_PIECES_PER_DIAGONAL_SQUARED`] · A_r / d² for the smooth light, A_r
+/// the reflecting area and d the scene's diagonal, capped at `cap`. The segments' pieces resolve
+/// the shadows' edges; the rest gives every reflecting surface pieces about d / 17 across before
+/// any hierarchical refinement (table-room: walls left as 2–3 pieces reach 3–6 %, cut to ~30
+/// they reach 1.2–1.7 %; docs/meshing.md).
+#[must_use]
+pub fn auto_budget(scene: &Scene, before: usize, cap: usize) -> usize {
+    let reflecting: f64 = scene.patches.iter().filter(|p| p.reflectance.mean() > 0.0).map(|p| p.area).sum();
+    let d = scene.bounds().diagonal().max(f64::MIN_POSITIVE);
+    let smooth = (AUTO_PIECES_PER_DIAGONAL_SQUARED * reflecting / (d * d)).ceil();
+    // A degenerate scene's ratio is huge or not finite: the cap bounds it.
+    let smooth = if smooth.is_finite() && smooth < cap as f64 { smooth as usize } else { cap };
+    before.saturating_add(smooth).min(cap)
+}
+
 /// Settings of [`grade`].
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct GradeParams {
-    /// Patches of the whole graded scene (emitters and pieces fanned into triangles included).
-    pub budget: usize,
+    /// Patches of the whole graded scene, or [`Budget::Auto`].
+    pub budget: Budget,
     /// Side of the shadow-ray grid on each emitter at each sample point (side² rays).
     pub side: u32,
     /// The assumed smooth gradient, in units of the scene's mean direct radiosity per scene
@@ -75,20 +114,32 @@ impl GradeParams {
     /// table-room: docs/meshing.md).
     #[must_use]
     pub const fn with_budget(budget: usize) -> GradeParams {
-        GradeParams { budget, side: 8, smooth: 4.0, penumbra_weight: 100.0 }
+        GradeParams { budget: Budget::Patches(budget), side: 8, smooth: 4.0, penumbra_weight: 100.0 }
+    }
+
+    /// [`GradeParams::with_budget`] with the budget chosen from the scene ([`auto_budget`]).
+    #[must_use]
+    pub const fn auto() -> GradeParams {
+        GradeParams { budget: Budget::Auto, ..GradeParams::with_budget(1) }
     }
 
     /// Reject budgets of 0, a zero grid, a negative or non-finite smooth term.
     pub fn validate(&self) -> Result<(), super::MeshError> {
         let finite_nonneg = |x: f64| x.is_finite() && x >= 0.0;
-        if self.budget == 0
+        if self.budget == Budget::Patches(0)
             || self.side == 0
             || !finite_nonneg(self.smooth)
             || !(finite_nonneg(self.penumbra_weight) && self.penumbra_weight > 0.0)
         {
             return Err(super::MeshError::Parameter(format!(
                 "grading needs budget ≥ 1, side ≥ 1, smooth ≥ 0 and penumbra weight > 0 (got {}, {}, {}, {})",
-                self.budget, self.side, self.smooth, self.penumbra_weight
+                match self.budget {
+                    Budget::Patches(n) => n.to_string(),
+                    Budget::Auto => "auto".into(),
+                },
+                self.side,
+                self.smooth,
+                self.penumbra_weight
             )));
         }
         Ok(())
@@ -98,7 +149,10 @@ impl GradeParams {
 /// What [`grade`] did.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct GradeStats {
+    /// The budget graded to (the automatic one's value when `auto`).
     pub budget: usize,
+    /// The budget was chosen by [`auto_budget`].
+    pub auto: bool,
     /// Patches before and after (fanned pieces counted as their triangles).
     pub patches_before: usize,
     pub patches_after: usize,
@@ -128,7 +182,10 @@ pub fn patch_cost(vertices: usize) -> usize {
 /// The critical segments of `receiver` that bound a shadow the direct light shows: every D0
 /// (contact: a jump in value, lit or not), and each D1/D2 with a penumbra beside it — lit
 /// strictly between the band's margins, or lit differing across it, at one of 5 points along
-/// it, read a small step (10⁻³ of the receiver's size) to either side. The segments of
+/// it, read a small step (10⁻³ of the receiver's size) to either side. With several emitters,
+/// "lit" is the segment's own emitter's visible fraction, and that emitter must bring at least
+/// the band's `min_direct` (10 %) of the unoccluded direct light there: the summed lit fraction
+/// of many lamps is partial almost everywhere (splash_room: 548 137 pieces, now 46 014). The segments of
 /// [`super::discontinuity`] are a superset (a wedge hidden by another occluder is not clipped):
 /// inside an umbra or in full light they bound nothing, and only cost elements.
 #[must_use]
@@ -144,6 +201,7 @@ pub fn shadow_segments(
     let band = crate::penumbra::BandParams::standard();
     let size = p.area.sqrt();
     let lit = |x: DVec3| lit_fraction(scene, accel, receiver, x, side).map_or(0.0, |(l, _)| l);
+    let emitters = scene.patches.iter().filter(|q| q.emission.mean() > 0.0).count();
     set.segments
         .iter()
         .filter(|s| {
@@ -151,6 +209,18 @@ pub fn shadow_segments(
                 return true;
             }
             let across = p.normal.cross(s.b - s.a).normalize_or_zero() * (1e-3 * size);
+            if let (Some(e), true) = (s.emitter, emitters > 1) {
+                // Several lamps: the summed lit fraction is partial almost everywhere; ask
+                // whether this segment's own emitter is partly hidden beside it, and whether
+                // its light is at least the band's share of the direct light there.
+                return [0.1, 0.3, 0.5, 0.7, 0.9].iter().any(|t| {
+                    let x = s.a.lerp(s.b, *t);
+                    let (l0, s0) = emitter_lit(scene, accel, receiver, e, x - across, side);
+                    let (l1, s1) = emitter_lit(scene, accel, receiver, e, x + across, side);
+                    let partial = |l: f64| l > band.lo && l < band.hi;
+                    s0.max(s1) >= band.min_direct && (partial(l0) || partial(l1) || (l0 - l1).abs() > band.lo)
+                });
+            }
             [0.1, 0.3, 0.5, 0.7, 0.9].iter().any(|t| {
                 let x = s.a.lerp(s.b, *t);
                 let (l0, l1) = (lit(x - across), lit(x + across));
@@ -160,6 +230,38 @@ pub fn shadow_segments(
         })
         .map(|s| [s.a, s.b])
         .collect()
+}
+
+/// Emitter `e` seen from `x` on `receiver`: the fraction of a `side` × `side` grid of its points
+/// that no patch hides, and its share of the unoccluded direct light E·F summed over every
+/// emitter (0 when none faces x).
+fn emitter_lit(scene: &Scene, accel: &Accel, receiver: usize, e: usize, x: DVec3, side: u32) -> (f64, f64) {
+    let p = &scene.patches[receiver];
+    let direct = |q: &crate::scene::Patch| {
+        let power = q.emission.mean();
+        if power > 0.0 {
+            power * crate::form_factor::point_to_polygon(x, p.normal, &q.vertices).max(0.0)
+        } else {
+            0.0
+        }
+    };
+    let total: f64 =
+        scene.patches.iter().enumerate().filter(|(i, _)| *i != receiver).map(|(_, q)| direct(q)).sum();
+    let emitter = &scene.patches[e];
+    let own = direct(emitter);
+    if !(total > 0.0 && own > 0.0) {
+        return (0.0, 0.0);
+    }
+    let n = f64::from(side);
+    let mut last = crate::accel::NO_HIT;
+    let grid = (0..side * side).map(|k| ((f64::from(k % side) + 0.5) / n, (f64::from(k / side) + 0.5) / n));
+    let seen = grid
+        .filter(|&(u, v)| {
+            let y = crate::visibility::point_on_polygon(&emitter.vertices, u, v);
+            !accel.occluded_cached(x, y, [receiver as u32, e as u32], &mut last)
+        })
+        .count();
+    (seen as f64 / (n * n), own / total)
 }
 
 /// A piece with its estimate.
@@ -312,13 +414,15 @@ fn key(error: f64, index: usize) -> (u64, Reverse<usize>) {
 }
 
 /// Grade `pieces` (module docs): split the piece of largest estimated error until the scene
-/// has `params.budget` patches. `accel` is the input scene's. Returns the pieces in input-patch
-/// order (pieces of one patch in creation order).
+/// has `params.budget` patches ([`Budget::Auto`]: [`auto_budget`] of the pieces' count, at most
+/// `cap`). `accel` is the input scene's. Returns the pieces in input-patch order (pieces of one
+/// patch in creation order).
 pub fn grade(
     scene: &Scene,
     accel: &Accel,
     pieces: Vec<Piece>,
     params: &GradeParams,
+    cap: usize,
 ) -> (Vec<Piece>, GradeStats) {
     let t0 = Instant::now();
     let mut scored: Vec<Option<Scored>> =
@@ -345,11 +449,15 @@ pub fn grade(
     let error = |s: &Scored| s.area * (weight(s) * s.variance + smooth_var(s));
     let mut count: usize = scored.iter().flatten().map(|s| patch_cost(s.piece.vertices.len())).sum();
     let before = count;
+    let budget = match params.budget {
+        Budget::Patches(n) => n,
+        Budget::Auto => auto_budget(scene, before, cap),
+    };
     let min_area = 1e-9 * scene.patches.iter().map(|p| p.area).sum::<f64>();
     let mut heap: BinaryHeap<(u64, Reverse<usize>)> =
         scored.iter().enumerate().map(|(i, s)| key(s.as_ref().map_or(0.0, error), i)).collect();
     let mut splits = 0;
-    while count < params.budget {
+    while count < budget {
         let Some((err, Reverse(i))) = heap.pop() else { break };
         if err == 0 {
             break;
@@ -366,7 +474,7 @@ pub fn grade(
             continue;
         };
         let grown = count - patch_cost(v.len()) + patch_cost(a.len()) + patch_cost(b.len());
-        if grown > params.budget || s.area < min_area {
+        if grown > budget || s.area < min_area {
             scored[i] = Some(s);
             continue;
         }
@@ -387,7 +495,8 @@ pub fn grade(
         scored.into_iter().enumerate().filter_map(|(i, s)| s.map(|s| (i, s.piece))).collect();
     out.sort_by_key(|(i, p)| (p.patch, *i));
     let stats = GradeStats {
-        budget: params.budget,
+        budget,
+        auto: params.budget == Budget::Auto,
         patches_before: before,
         patches_after: count,
         splits,
@@ -439,6 +548,74 @@ mod tests {
         assert_eq!(shadow_segments(&scene, &accel, receiver, &set, 8).len(), set.segments.len());
     }
 
+    /// The automatic budget: the segments' pieces plus 289 · A_r / d², never below what the
+    /// segments' mesh already has (unless capped), never above the cap, the same every call;
+    /// graded to it, table-room gets exactly that many patches and its walls ~30 pieces each.
+    #[test]
+    fn auto_budget_is_the_segments_pieces_plus_the_reflecting_area() {
+        let scene = Scene::load("builtin:table-room").unwrap();
+        let reflecting: f64 =
+            scene.patches.iter().filter(|p| p.reflectance.mean() > 0.0).map(|p| p.area).sum();
+        let d = scene.bounds().diagonal();
+        let smooth = (289.0 * reflecting / (d * d)).ceil() as usize;
+        assert!((500..700).contains(&smooth), "table-room: A_r/d² ≈ 2, so ≈ 580 ({smooth})");
+        assert_eq!(auto_budget(&scene, 592, 10_000), 592 + smooth);
+        assert_eq!(auto_budget(&scene, 592, 10_000), auto_budget(&scene, 592, 10_000));
+        assert_eq!(auto_budget(&scene, 592, 800), 800, "capped");
+        assert_eq!(auto_budget(&scene, 20_000, 10_000), 10_000, "capped below the pieces");
+        let params = crate::mesh::remesh::RemeshParams {
+            cdt: crate::mesh::cdt::CdtParams { min_angle_deg: 0.0, ..crate::mesh::cdt::CdtParams::quality() },
+            grade: Some(GradeParams::auto()),
+            ..crate::mesh::remesh::RemeshParams::cdt()
+        };
+        let meshed = crate::mesh::remesh::discontinuity_scene(&scene, &params).unwrap();
+        let g = meshed.stats.graded.clone().unwrap();
+        assert!(g.auto);
+        assert_eq!(g.budget, g.patches_before + smooth, "{g:?}");
+        assert_eq!(g.patches_after, g.budget);
+        assert_eq!(meshed.scene.patches.len(), g.budget);
+        let wall = scene.patches.iter().position(|p| p.name.starts_with("walls")).unwrap();
+        let on_wall = meshed.origin.iter().filter(|&&o| o == wall).count();
+        assert!(on_wall >= 16, "a wall cut into {on_wall} pieces");
+        let again = crate::mesh::remesh::discontinuity_scene(&scene, &params).unwrap();
+        assert_eq!(again.scene.patches.len(), meshed.scene.patches.len());
+        assert!(meshed.scene.patches.iter().zip(&again.scene.patches).all(|(a, b)| a.vertices == b.vertices));
+    }
+
+    /// With several lamps (splash_room) a D1/D2 segment is kept by its own emitter's penumbra
+    /// and share of the light: on the room's most segmented receiver fewer than a third of the
+    /// segments survive (the summed lit fraction is partial nearly everywhere and kept
+    /// them nearly all), and at least one D1/D2 besides the contacts. Its share: one emitter
+    /// alone gives 1.
+    #[test]
+    fn with_several_lamps_a_segment_answers_to_its_own_emitter() {
+        use crate::mesh::DEFAULT_SNAP;
+        use crate::mesh::discontinuity::{Discontinuity, scene_segments};
+        let scene = Scene::load("builtin:splash_room").unwrap();
+        let accel = Accel::build(&scene);
+        let sets: Vec<_> = (0..scene.patches.len())
+            .map(|i| (i, scene_segments(&scene.patches, i, DEFAULT_SNAP).unwrap()))
+            .collect();
+        let (receiver, set) = sets.into_iter().max_by_key(|(_, s)| s.segments.len()).unwrap();
+        let d0 = set.segments.iter().filter(|s| s.order == Discontinuity::D0).count();
+        let kept = shadow_segments(&scene, &accel, receiver, &set, 8);
+        assert!(
+            kept.len() > d0 && 3 * kept.len() < set.segments.len(),
+            "{} kept of {} ({d0} D0)",
+            kept.len(),
+            set.segments.len()
+        );
+        let narrow = Scene::load("builtin:shadow-narrow").unwrap();
+        let accel = Accel::build(&narrow);
+        let lamp = narrow.patches.iter().position(|p| p.emission.mean() > 0.0).unwrap();
+        let floor = (0..narrow.patches.len())
+            .max_by(|&a, &b| narrow.patches[a].area.total_cmp(&narrow.patches[b].area))
+            .unwrap();
+        let (lit, share) =
+            emitter_lit(&narrow, &accel, floor, lamp, centre(&narrow.patches[floor].vertices), 8);
+        assert!((share - 1.0).abs() < 1e-12 && (0.0..=1.0).contains(&lit), "{lit} {share}");
+    }
+
     #[test]
     fn cut_halves_a_square_and_keeps_the_area() {
         let v = |x, z| DVec3::new(x, 0.0, z);
@@ -465,7 +642,7 @@ mod tests {
             .map(|(patch, p)| Piece { patch, vertices: p.vertices.clone() })
             .collect();
         let params = GradeParams { smooth: 0.5, ..GradeParams::with_budget(200) };
-        let (out, stats) = grade(&scene, &accel, pieces, &params);
+        let (out, stats) = grade(&scene, &accel, pieces, &params, usize::MAX);
         assert_eq!(stats.patches_after, 200);
         assert_eq!(out.iter().map(|p| patch_cost(p.vertices.len())).sum::<usize>(), 200);
         for (i, p) in scene.patches.iter().enumerate() {

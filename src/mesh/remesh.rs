@@ -99,7 +99,8 @@ impl RemeshStats {
     #[must_use]
     pub fn describe(&self) -> String {
         let graded = self.graded.as_ref().map_or_else(String::new, |g| {
-            format!(" (graded to a budget of {}: {} splits, {:.4} s)", g.budget, g.splits, g.grade_s)
+            let auto = if g.auto { " (auto)" } else { "" };
+            format!(" (graded to a budget of {}{auto}: {} splits, {:.4} s)", g.budget, g.splits, g.grade_s)
         });
         format!(
             "{} critical segments, {} constraints on {} receivers, {} → {} patches{graded}; meshing {:.4} s",
@@ -194,8 +195,14 @@ pub fn discontinuity_scene(scene: &Scene, params: &RemeshParams) -> Result<Remes
             None => pieces.push(Piece { patch: i, vertices: scene.patches[i].vertices.clone() }),
         }
     }
+    // Grading only adds patches: refuse a mesh already over the cap before spending its time
+    // (splash_room's kept segments cross into 548 137 pieces).
+    let count: usize = pieces.iter().map(|p| super::grade::patch_cost(p.vertices.len())).sum();
+    if count > params.max_patches {
+        return Err(MeshError::TooManyPatches { count, cap: params.max_patches });
+    }
     if let (Some(g), Some(accel)) = (&params.grade, &accel) {
-        let (graded, g_stats) = grade(scene, accel, pieces, g);
+        let (graded, g_stats) = grade(scene, accel, pieces, g, params.max_patches);
         pieces = graded;
         stats.graded = Some(g_stats);
     }
