@@ -113,3 +113,19 @@ fn auto_clusters_large_scenes_only() {
     let s = solve(&scene, Clustering::Auto, p);
     assert_eq!(s.stats().clusters, 0, "cornell is not clustered by default");
 }
+
+#[test]
+fn the_viewer_gets_the_strongest_cluster_links_only() {
+    // `cluster_link_views(max)` builds only the `max` links of largest F, largest first: the
+    // same links, in the same order, as the head of the whole list sorted by F.
+    let scene = load("furnished-2k").unwrap();
+    let s = solve(&scene, Clustering::On, HierarchicalParams::interactive());
+    let all = s.cluster_link_views(usize::MAX);
+    assert_eq!(all.len(), s.stats().cluster_links);
+    let top = s.cluster_link_views(100);
+    assert_eq!(top.len(), 100);
+    assert!(top.windows(2).all(|w| w[0].ff >= w[1].ff), "largest first");
+    assert_eq!(&all[..100], &top[..], "the head of the whole list");
+    assert!(top[99].ff >= all[100].ff);
+    assert!(s.cluster_link_views(0).is_empty());
+}

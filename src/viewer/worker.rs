@@ -278,7 +278,7 @@ impl ViewData {
     #[must_use]
     pub fn of_solver(s: &HierarchicalSolver, unpushed: bool) -> Arc<ViewData> {
         let mut view = Self::of_solver_with(s, unpushed, true);
-        let links = s.cluster_link_views();
+        let links = s.cluster_link_views(CLUSTER_LINKS_KEPT);
         if !links.is_empty() {
             Arc::make_mut(&mut view).cluster_links = strongest_cluster_links(links, CLUSTER_LINKS_KEPT);
         }

@@ -1745,23 +1745,38 @@ impl HierarchicalSolver {
         created
     }
 
-    /// Every cluster link as drawn: the centres of its two nodes (a patch's: its centroid), its
-    /// visibility, and the larger of its two unoccluded form factors in the clusters' point
-    /// approximation, `min(1, P_b(−ω) / (π d²))` with P the projected area of the far end towards
-    /// the near one (empty when the solve does not cluster).
+    /// The `max` cluster links of largest form factor, largest first (ties: link order), as
+    /// drawn: the centres of their two nodes (a patch's: its centroid), their visibility, and
+    /// the larger of their two unoccluded form factors in the clusters' point approximation,
+    /// `min(1, P_b(−ω) / (π d²))` with P the projected area of the far end towards the near
+    /// one (empty when the solve does not cluster). Only the kept links are built: the 100 k
+    /// room has 4 M cluster links.
     #[must_use]
-    pub fn cluster_link_views(&self) -> Vec<ClusterLinkView> {
+    pub fn cluster_link_views(&self, max: usize) -> Vec<ClusterLinkView> {
         let Some(tree) = &self.clusters else { return Vec::new() };
-        self.cluster_links
-            .iter()
-            .map(|l| {
-                let (na, nb) = (&tree.nodes[l.a as usize], &tree.nodes[l.b as usize]);
-                let d = na.center.distance(nb.center).max(f64::MIN_POSITIVE);
-                let w = (nb.center - na.center) / d;
-                let f = cluster::link_frame(na, nb, w);
-                let pd2 = std::f64::consts::PI * d * d;
-                let ff = (nb.projected_area(-w, f) / pd2).max(na.projected_area(w, f) / pd2).min(1.0);
-                ClusterLinkView { from: na.center, to: nb.center, vis: l.vis, ff }
+        let ends = |l: &ClusterLink| {
+            let (na, nb) = (&tree.nodes[l.a as usize], &tree.nodes[l.b as usize]);
+            let d = na.center.distance(nb.center).max(f64::MIN_POSITIVE);
+            let w = (nb.center - na.center) / d;
+            let f = cluster::link_frame(na, nb, w);
+            let pd2 = std::f64::consts::PI * d * d;
+            let ff = (nb.projected_area(-w, f) / pd2).max(na.projected_area(w, f) / pd2).min(1.0);
+            (na.center, nb.center, ff)
+        };
+        let mut order: Vec<(f64, u32)> =
+            self.cluster_links.par_iter().enumerate().map(|(i, l)| (ends(l).2, i as u32)).collect();
+        let by_f = |x: &(f64, u32), y: &(f64, u32)| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1));
+        if order.len() > max && max > 0 {
+            order.select_nth_unstable_by(max - 1, by_f);
+        }
+        order.truncate(max);
+        order.sort_unstable_by(by_f);
+        order
+            .into_iter()
+            .map(|(_, i)| {
+                let l = &self.cluster_links[i as usize];
+                let (from, to, ff) = ends(l);
+                ClusterLinkView { from, to, vis: l.vis, ff }
             })
             .collect()
     }
