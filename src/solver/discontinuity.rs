@@ -91,10 +91,18 @@ impl DiscontinuityParams {
 /// Why [`solve`] failed.
 #[derive(Debug, thiserror::Error)]
 pub enum DiscontinuityError {
+    /// The mesh's message is part of this one (not a separate source, which `{:#}` would print
+    /// a second time).
     #[error("discontinuity mesh: {0}")]
-    Mesh(#[from] MeshError),
+    Mesh(MeshError),
     #[error("solve on the discontinuity mesh: {0}")]
     Solve(String),
+}
+
+impl From<MeshError> for DiscontinuityError {
+    fn from(e: MeshError) -> Self {
+        DiscontinuityError::Mesh(e)
+    }
 }
 
 /// A solve on a discontinuity mesh: the solution on the input scene, the mesh's statistics and
@@ -254,5 +262,13 @@ mod tests {
             .unwrap();
         let (hb, fb) = (sol.patch_radiosity[lit].mean(), flat.patch_radiosity[lit].mean());
         assert!((hb - fb).abs() < 0.05 * fb, "lit receiver: hierarchical {hb} vs p = 0 {fb}");
+    }
+
+    #[test]
+    fn a_mesh_error_reads_once_in_the_one_line_chain() {
+        let e: DiscontinuityError = MeshError::TooManyPatches { count: 20, cap: 10 }.into();
+        let line = format!("{:#}", anyhow::Error::from(e));
+        assert_eq!(line.matches("more than the cap").count(), 1, "{line}");
+        assert!(line.starts_with("discontinuity mesh: the discontinuity mesh has 20 patches"), "{line}");
     }
 }
