@@ -54,20 +54,6 @@ pub struct ViewData {
 /// and the overlay draws a few thousand at most.
 pub const CLUSTER_LINKS_KEPT: usize = 50_000;
 
-/// The `kept` cluster links with the largest form factors, largest first (ties in the order
-/// the solver gave them, so the choice does not depend on the thread count).
-#[must_use]
-pub fn strongest_cluster_links(mut links: Vec<ClusterLinkView>, kept: usize) -> Vec<ClusterLinkView> {
-    let by_f = |a: &ClusterLinkView, b: &ClusterLinkView| b.ff.total_cmp(&a.ff);
-    if links.len() > kept && kept > 0 {
-        links.select_nth_unstable_by(kept - 1, by_f);
-    }
-    links.truncate(kept);
-    links.sort_by(by_f);
-    links.shrink_to_fit();
-    links
-}
-
 /// What the viewer adds to a discontinuity-mesh solve (issue 16 §2, §4; docs/meshing.md): a
 /// graded mesh and the D-mesh as the hierarchical solver's top level. Both at p = 0 only (the
 /// Mesh menu greys them out at p = 1); ignored on the uniform mesh.
@@ -278,9 +264,10 @@ impl ViewData {
     #[must_use]
     pub fn of_solver(s: &HierarchicalSolver, unpushed: bool) -> Arc<ViewData> {
         let mut view = Self::of_solver_with(s, unpushed, true);
+        // The solver builds only the strongest, largest first.
         let links = s.cluster_link_views(CLUSTER_LINKS_KEPT);
         if !links.is_empty() {
-            Arc::make_mut(&mut view).cluster_links = strongest_cluster_links(links, CLUSTER_LINKS_KEPT);
+            Arc::make_mut(&mut view).cluster_links = links;
         }
         view
     }

@@ -1856,11 +1856,9 @@ impl HierarchicalSolver {
             return (None, 0);
         }
         // One Galerkin coupling serves both links (A_p F_pq = A_q F_qp exactly).
-        let g = if root {
-            transfer::coupling(p, pi, q, qi, sides.straddle, true, acc)
-        } else {
-            transfer::coupling_gap(p, pi, q, qi, sides.straddle, false, acc, transfer::box_gap(p, q))
-        };
+        // The small patches of a clustered scene are placed by their bounding boxes' gap.
+        let min_gap = if root { transfer::NO_GAP_BOUND } else { transfer::box_gap(p, q) };
+        let g = transfer::coupling(p, pi, q, qi, sides.straddle, root, acc, min_gap);
         if g <= 0.0 && !sides.straddle {
             return (None, 0);
         }
@@ -2583,7 +2581,7 @@ fn form_factor_surely_positive(receiver: &Element, source: &Element) -> bool {
 fn coupling_in(hier: &Hierarchy, acc: transfer::Accuracy, r: u32, s: u32, straddle: bool) -> f64 {
     let (p, q) = (hier.get(r), hier.get(s));
     let root = p.parent == NONE && q.parent == NONE;
-    transfer::coupling(p, r, q, s, straddle, root, acc)
+    transfer::coupling(p, r, q, s, straddle, root, acc, transfer::NO_GAP_BOUND)
 }
 
 /// BFeps in units of B.

@@ -57,6 +57,8 @@ pub(super) const ROOT_ABS_TOL: f64 = 1e-10;
 /// cube-one-light −0.105 %; now −0.007 % each).
 const ONE_POINT_ROOT_TOL: f64 = 1e-4;
 pub(super) const ELEMENT_ABS_TOL: f64 = 1e-8;
+/// `min_gap` of [`coupling`] when nothing bounds the pair's distance but its centroids.
+pub(super) const NO_GAP_BOUND: f64 = f64::NEG_INFINITY;
 /// Largest Gauss–Legendre order per axis; a pair that needs more is integrated adaptively.
 const MAX_GAUSS: usize = 8;
 /// A pair whose bounding-sphere gap is below this fraction of the integrated element's diameter
@@ -100,7 +102,7 @@ pub(super) struct Accuracy {
 /// The rule for integrating over `x` with the kernel to `y`.
 #[cfg(test)]
 pub(super) fn rule(x: &Element, y: &Element, straddle: bool, root: bool, acc: Accuracy) -> Rule {
-    rule_gap(x, y, straddle, root, acc, f64::NEG_INFINITY)
+    rule_gap(x, y, straddle, root, acc, NO_GAP_BOUND)
 }
 
 /// [`rule`], with `min_gap` a lower bound of the two elements' distance known otherwise (the
@@ -126,21 +128,6 @@ fn rule_gap(x: &Element, y: &Element, straddle: bool, root: bool, acc: Accuracy,
     if !n.is_finite() || n > MAX_GAUSS as f64 { Rule::Adaptive } else { Rule::Gauss((n as usize).max(1)) }
 }
 
-/// G = A_a F_ab = A_b F_ba of two elements (ids `a_id`, `b_id`), independent of their order.
-/// `straddle`: one element has vertices on both sides of the other's plane (see `pair_sides`);
-/// `root`: both are input patches (tighter tolerance).
-pub(super) fn coupling(
-    a: &Element,
-    a_id: u32,
-    b: &Element,
-    b_id: u32,
-    straddle: bool,
-    root: bool,
-    acc: Accuracy,
-) -> f64 {
-    coupling_gap(a, a_id, b, b_id, straddle, root, acc, f64::NEG_INFINITY)
-}
-
 /// The distance between the two elements' bounding boxes: a lower bound of their distance.
 pub(super) fn box_gap(a: &Element, b: &Element) -> f64 {
     let bounds = |e: &Element| {
@@ -155,11 +142,14 @@ pub(super) fn box_gap(a: &Element, b: &Element) -> f64 {
     d.length()
 }
 
-/// [`coupling`], the rule chosen with `min_gap`, a lower bound of the elements' distance
-/// ([`box_gap`]): the small patches a clustered scene links pair by pair are mostly near
-/// each other without touching, and the centroid rule sent them all to adaptive cubature.
+/// G = A_a F_ab = A_b F_ba of two elements (ids `a_id`, `b_id`), independent of their order.
+/// `straddle`: one element has vertices on both sides of the other's plane (see `pair_sides`);
+/// `root`: both are input patches (tighter tolerance). `min_gap`: a lower bound of the
+/// elements' distance known otherwise ([`box_gap`]; [`NO_GAP_BOUND`] when none): the small
+/// patches a clustered scene links pair by pair are mostly near each other without touching,
+/// and the centroid rule alone sent them all to adaptive cubature.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn coupling_gap(
+pub(super) fn coupling(
     a: &Element,
     a_id: u32,
     b: &Element,
@@ -257,7 +247,7 @@ mod tests {
     #[test]
     fn root_couplings_match_the_catalog() {
         let h = hier(vec![floor(), square_down(0.0, 1.0, 1.0)]);
-        let g = coupling(h.get(0), 0, h.get(1), 1, false, true, ACC);
+        let g = coupling(h.get(0), 0, h.get(1), 1, false, true, ACC, NO_GAP_BOUND);
         assert!((g - 0.199_824_895_7).abs() < ROOT_REL_TOL * g, "parallel: {g}");
         let wall = patch(vec![
             DVec3::new(0.0, 0.0, 0.0),
@@ -266,7 +256,7 @@ mod tests {
             DVec3::new(1.0, 0.0, 0.0),
         ]);
         let h = hier(vec![floor(), wall]);
-        let g = coupling(h.get(0), 0, h.get(1), 1, false, true, ACC);
+        let g = coupling(h.get(0), 0, h.get(1), 1, false, true, ACC, NO_GAP_BOUND);
         assert!((g - 0.200_043_776_1).abs() < ROOT_REL_TOL * g, "perpendicular: {g}");
     }
 
@@ -275,8 +265,8 @@ mod tests {
     fn coupling_is_symmetric_bit_for_bit() {
         for (dx, h, s) in [(0.3, 0.7, 0.2), (2.0, 1.0, 0.5), (0.0, 0.05, 1.0), (0.5, 3.0, 1.0)] {
             let hr = hier(vec![floor(), square_down(dx, h, s)]);
-            let ab = coupling(hr.get(0), 0, hr.get(1), 1, false, false, ACC);
-            let ba = coupling(hr.get(1), 1, hr.get(0), 0, false, false, ACC);
+            let ab = coupling(hr.get(0), 0, hr.get(1), 1, false, false, ACC, NO_GAP_BOUND);
+            let ba = coupling(hr.get(1), 1, hr.get(0), 0, false, false, ACC, NO_GAP_BOUND);
             assert_eq!(ab.to_bits(), ba.to_bits(), "dx {dx} h {h} s {s}");
             assert!(ab > 0.0);
         }
@@ -294,7 +284,7 @@ mod tests {
             let exact = q.area * form_factor::polygon_to_polygon(q.vertices(), p.vertices(), 1e-11);
             for tol in [1e-3, 1e-4, 1e-6] {
                 let acc = Accuracy { tol, five_times: false };
-                let g = coupling(p, 0, q, 1, false, false, acc);
+                let g = coupling(p, 0, q, 1, false, false, acc, NO_GAP_BOUND);
                 let rel = (g - exact).abs() / exact;
                 assert!(
                     rel < tol,
