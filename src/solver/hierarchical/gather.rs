@@ -1,0 +1,238 @@
+//! Gather (HSA91 §4): every receiver sums, over its own links, what its sources send, in
+//! parallel (Jacobi):
+//!
+//! ```text
+//! gathered_p = Σ_{links p ← q} F_pq V_pq B_q  (+ with slopes, (A_q/A_p) src_slope_pq · M_q)
+//! ```
+//! F_pq V_pq is fixed between refinements, so the links are flattened once into a
+//! [`GatherPlan`]; ancestors' links reach the leaves in [`super::push_pull`].
+
+use super::*;
+
+/// Every receiver's links with F·V > 0, flattened for gathering (links do not change between
+/// refinements): source (high bit set when fully visible) and weight F·V, in list order.
+#[derive(Debug, Default)]
+pub(super) struct GatherPlan {
+    /// Receiver r's links are `start[r]..start[r + 1]`.
+    start: Vec<u32>,
+    source: Vec<u32>,
+    weight: Vec<f64>,
+    /// Each link's `slope` (empty when slopes are not pushed).
+    slope: Vec<[f32; 2]>,
+    /// Each link's moment weight (A_source / A_receiver)·`src_slope` (empty likewise).
+    moment: Vec<[f32; 2]>,
+}
+
+pub(super) const FULL_BIT: u32 = 1 << 31;
+
+/// Receivers per block when the gather plan is built in parallel.
+pub(super) const PLAN_BLOCK: usize = 256;
+
+impl GatherPlan {
+    /// Rebuild the plan from `links`, reusing its buffers. Built in parallel over blocks of
+    /// receivers (counts, prefix sums, then each block fills its own range): the same arrays
+    /// as a serial pass in receiver order.
+    fn rebuild(&mut self, links: &LinkStore, slopes: Option<&Hierarchy>) {
+        let lists = &links.by_receiver;
+        let weight = |l: &Link| f64::from(l.ff) * f64::from(l.vis);
+        self.start.clear();
+        self.start.par_extend(
+            lists
+                .par_iter()
+                .with_min_len(PLAN_BLOCK)
+                .map(|ls| ls.iter().filter(|l| weight(l) > 0.0).count() as u32),
+        );
+        let mut total = 0u32;
+        for c in &mut self.start {
+            (*c, total) = (total, total + *c);
+        }
+        self.start.push(total);
+        self.source.resize(total as usize, 0);
+        self.weight.resize(total as usize, 0.0);
+        let n_slopes = if slopes.is_some() { total as usize } else { 0 };
+        self.slope.clear();
+        self.slope.resize(n_slopes, [0.0; 2]);
+        self.moment.clear();
+        self.moment.resize(n_slopes, [0.0; 2]);
+        // Disjoint output ranges, one per block of receivers.
+        let (mut source, mut weights) = (&mut self.source[..], &mut self.weight[..]);
+        let (mut slope, mut moment) = (&mut self.slope[..], &mut self.moment[..]);
+        let mut blocks = Vec::with_capacity(lists.len().div_ceil(PLAN_BLOCK));
+        for (k, block) in lists.chunks(PLAN_BLOCK).enumerate() {
+            let first = k * PLAN_BLOCK;
+            let len = (self.start[first + block.len()] - self.start[first]) as usize;
+            let len_s = if slopes.is_some() { len } else { 0 };
+            let (s, s_rest) = std::mem::take(&mut source).split_at_mut(len);
+            let (w, w_rest) = std::mem::take(&mut weights).split_at_mut(len);
+            let (g, g_rest) = std::mem::take(&mut slope).split_at_mut(len_s);
+            let (m, m_rest) = std::mem::take(&mut moment).split_at_mut(len_s);
+            (source, weights, slope, moment) = (s_rest, w_rest, g_rest, m_rest);
+            blocks.push((first, block, s, w, g, m));
+        }
+        blocks.into_par_iter().for_each(|(first, block, s, w, g, m)| {
+            let mut i = 0;
+            for (r, l) in block.iter().enumerate().flat_map(|(k, ls)| ls.iter().map(move |l| (first + k, l)))
+            {
+                let wl = weight(l);
+                if wl > 0.0 {
+                    debug_assert!(l.source < FULL_BIT, "element ids stay below 2^31");
+                    s[i] = l.source | if l.vis >= 1.0 { FULL_BIT } else { 0 };
+                    w[i] = wl;
+                    if let Some(hier) = slopes {
+                        debug_assert!(l.slope_set, "slopes are filled before the plan");
+                        g[i] = l.slope;
+                        let ratio = hier.get(l.source).area / hier.get(r as u32).area;
+                        m[i] = l.src_slope.map(|x| (f64::from(x) * ratio) as f32);
+                    }
+                    i += 1;
+                }
+            }
+            debug_assert_eq!(i, s.len(), "counted and filled alike");
+        });
+    }
+
+    /// (Σ F·V·B + moment terms over receiver `r`'s links, the same over the fully visible ones
+    /// without moments, Σ slope·B), in list order, with source radiosities `b` and the sources'
+    /// radiosity moments `mu` (in each source's tangent basis; empty: none).
+    fn gather(&self, r: usize, b: impl Fn(u32) -> Rgb, mu: &[[Rgb; 2]]) -> (Rgb, Rgb, [Rgb; 2]) {
+        let (lo, hi) = (self.start[r] as usize, self.start[r + 1] as usize);
+        let mut g = Rgb::ZERO;
+        let mut full = Rgb::ZERO;
+        let mut slope = [Rgb::ZERO; 2];
+        for (&s, &w) in self.source[lo..hi].iter().zip(&self.weight[lo..hi]) {
+            let t = b(s & !FULL_BIT) * w;
+            g += t;
+            if s & FULL_BIT != 0 {
+                full += t;
+            }
+        }
+        if !self.slope.is_empty() {
+            for (&s, &[gu, gv]) in self.source[lo..hi].iter().zip(&self.slope[lo..hi]) {
+                let bs = b(s & !FULL_BIT);
+                slope[0] += bs * f64::from(gu);
+                slope[1] += bs * f64::from(gv);
+            }
+            if !mu.is_empty() {
+                for (&s, &[mu_w, mv_w]) in self.source[lo..hi].iter().zip(&self.moment[lo..hi]) {
+                    // Elements made since the last push-pull have no moment yet (none: 0).
+                    if let Some(&[mu_u, mu_v]) = mu.get((s & !FULL_BIT) as usize) {
+                        g += mu_u * f64::from(mu_w) + mu_v * f64::from(mv_w);
+                    }
+                }
+            }
+        }
+        (g, full, slope)
+    }
+}
+
+impl HierarchicalSolver {
+    /// Recompute Σ F and Σ F·V of every receiver whose link list changed since the last call
+    /// (`changed`).
+    pub(super) fn update_sums(&mut self, changed: &[u32]) {
+        let links = &self.links.by_receiver;
+        disjoint_mut(&mut self.hier.elements, changed.iter().copied())
+            .into_par_iter()
+            .zip(changed.par_iter())
+            .with_min_len(256)
+            .for_each(|(e, &r)| {
+                let ls = &links[r as usize];
+                e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
+                e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
+                e.fv_partial = e.fv_sum - e.f_sum;
+            });
+        // Input patches' rows include what they gather through cluster links.
+        for &r in changed {
+            if let Some(&fv) = self.cluster_fv.get(r as usize) {
+                let e = &mut self.hier.elements[r as usize];
+                e.fv_sum += fv;
+                e.fv_partial += fv;
+            }
+        }
+    }
+
+    // ------------------------------------------------------------------------------------------
+    // Gather and push-pull
+    // ------------------------------------------------------------------------------------------
+
+    /// One gather over every link (the lecture's `Gather`), Jacobi: every receiver reads the
+    /// radiosities of the previous iteration. With `gauss_seidel`, gathers and pushes patch by
+    /// patch instead, each patch using the newest values (then push-pull is already done).
+    pub fn gather_step(&mut self) -> StepReport {
+        self.cancel.store(false, Ordering::Relaxed);
+        self.gather_inner()
+    }
+
+    pub(super) fn gather_inner(&mut self) -> StepReport {
+        let t = Instant::now();
+        // The links as one contiguous plan, rebuilt after they change.
+        let mut plan = std::mem::take(&mut self.gather_plan);
+        if !self.plan_valid {
+            if self.params.push_slopes {
+                self.fill_slopes();
+            }
+            plan.rebuild(&self.links, self.params.push_slopes.then_some(&self.hier));
+            self.plan_valid = true;
+        }
+        // What the input patches gather through cluster links, from the radiosities before
+        // this gather (both sweeps).
+        let cluster_h = self.cluster_irradiance();
+        if self.params.gauss_seidel {
+            let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
+            for root in 0..self.hier.roots as u32 {
+                let ids = self.subtree(root);
+                let g: Vec<(Rgb, Rgb, [Rgb; 2])> = ids
+                    .iter()
+                    .map(|&r| plan.gather(r as usize, |s| self.hier.get(s).radiosity, &self.moment))
+                    .collect();
+                for (&r, (g, full, slope)) in ids.iter().zip(g) {
+                    let e = &mut self.hier.elements[r as usize];
+                    (e.gathered, e.gathered_full, e.gathered_slope) = (g, full, slope);
+                }
+                if let Some(h) = &cluster_h {
+                    self.hier.elements[root as usize].gathered += h[root as usize];
+                }
+                self.push_pull_root(root);
+            }
+            // Recomputes the same leaf values (nothing was gathered since each root's push) and
+            // measures the change against the values before the sweep.
+            self.push_pull_flat(Some(&before), true);
+            self.stats.gather_s += t.elapsed().as_secs_f64();
+        } else {
+            // Sources' radiosity in a compact array (read once per link, in any order), then
+            // every receiver gathers in parallel.
+            let mut b = std::mem::take(&mut self.b_prev);
+            b.resize(self.hier.len(), Rgb::ZERO);
+            b.par_iter_mut()
+                .zip(self.hier.elements.par_iter())
+                .with_min_len(1024)
+                .for_each(|(b, e)| *b = e.radiosity);
+            let mu = &self.moment;
+            self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
+                (e.gathered, e.gathered_full, e.gathered_slope) = plan.gather(r, |s| b[s as usize], mu);
+            });
+            if let Some(h) = &cluster_h {
+                for (e, h) in self.hier.elements.iter_mut().zip(h) {
+                    e.gathered += *h;
+                }
+            }
+            self.b_prev = b;
+            self.stats.gather_s += t.elapsed().as_secs_f64();
+        }
+        self.gather_plan = plan;
+        self.gathered_once = true;
+        self.stats.iterations += 1;
+        self.report(StepKind::Gather, t, 0, 0)
+    }
+
+    pub(super) fn subtree(&self, root: u32) -> Vec<u32> {
+        let mut out = Vec::new();
+        let mut stack = vec![root];
+        while let Some(id) = stack.pop() {
+            out.push(id);
+            if let Some(c) = self.hier.get(id).children() {
+                stack.extend(c.iter().rev());
+            }
+        }
+        out
+    }
+}

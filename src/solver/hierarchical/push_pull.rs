@@ -1,0 +1,377 @@
+//! Push-pull (HSA91 §4): push each element's gathered irradiance down to its leaves (with the
+//! links' slopes when `push_slopes` is on), reflect there, and pull the area-weighted average
+//! back up, so every level holds a consistent radiosity:
+//!
+//! ```text
+//! push: H_leaf = Σ_{a = leaf or an ancestor} [ gathered_a + slope_a · (c_leaf − c_a) ]
+//!       B_leaf = E_leaf + ρ_leaf H_leaf
+//! pull: B_parent = Σ_children (A_child / A_parent) B_child
+//! ```
+//! Both moves are area-weighted and exact: a gather followed by push-pull moves no power
+//! between levels. The same sweep sums the power balance (`EnergyBalance`): absorbed
+//! Σ A (1 − ρ) H and escaped Σ A B (1 − Σ F·V of the leaf's row).
+
+use super::*;
+
+/// Sums an element inherits in push-pull, its own included.
+#[derive(Copy, Clone, Debug, Default)]
+pub(super) struct Chain {
+    /// Irradiance through fully visible links, at `at`.
+    pub(super) full: Rgb,
+    /// The other irradiance, at `at` (with the slopes' shift to `at`).
+    pub(super) rest: Rgb,
+    /// World gradient of the irradiance (x, y, z components, each per channel).
+    pub(super) slope: [Rgb; 3],
+    /// The point the sums are evaluated at: the centroid of the chain's last element.
+    pub(super) at: DVec3,
+    pub(super) f: f64,
+    pub(super) fv_partial: f64,
+    /// World gradient of the row Σ F·V (the own links' `fv_slope`s), and the inherited rows'
+    /// shift along it to `at` (included in the energy balance's Σ F·V).
+    pub(super) fv_slope: DVec3,
+    pub(super) fv_shift: f64,
+}
+
+impl Chain {
+    /// `then` without slopes (`push_slopes` off: SPLASH-2's constants), at the cost it had
+    /// before slopes existed.
+    fn then_flat(self, e: &Element) -> Chain {
+        Chain {
+            full: self.full + e.gathered_full,
+            rest: self.rest + (e.gathered - e.gathered_full),
+            f: self.f + e.f_sum,
+            fv_partial: self.fv_partial + e.fv_partial,
+            ..Chain::default()
+        }
+    }
+
+    /// `then` or `then_flat`.
+    pub(super) fn step(self, e: &Element, slopes: bool) -> Chain {
+        if slopes { self.then(e) } else { self.then_flat(e) }
+    }
+
+    /// The sums of element `e`, whose parent's are `self`: the inherited irradiance moved along
+    /// its slope from the parent's centroid to e's, plus e's own.
+    fn then(self, e: &Element) -> Chain {
+        let d = e.centroid - self.at;
+        let shift = self.slope[0] * d.x + self.slope[1] * d.y + self.slope[2] * d.z;
+        let [su, sv] = e.gathered_slope;
+        let [fu, fv] = e.fv_slope;
+        let (t1, t2) = if su == Rgb::ZERO && sv == Rgb::ZERO && fu == 0.0 && fv == 0.0 {
+            (DVec3::ZERO, DVec3::ZERO)
+        } else {
+            crate::math::orthonormal_basis(e.normal)
+        };
+        Chain {
+            full: self.full + e.gathered_full,
+            rest: self.rest + shift + (e.gathered - e.gathered_full),
+            slope: [
+                self.slope[0] + su * t1.x + sv * t2.x,
+                self.slope[1] + su * t1.y + sv * t2.y,
+                self.slope[2] + su * t1.z + sv * t2.z,
+            ],
+            at: e.centroid,
+            f: self.f + e.f_sum,
+            fv_partial: self.fv_partial + e.fv_partial,
+            fv_slope: self.fv_slope + t1 * fu + t2 * fv,
+            fv_shift: self.fv_shift + self.fv_slope.dot(d),
+        }
+    }
+}
+
+/// What push-pull carries down a chain of ancestors: [`Chain`] with slopes, [`FlatChain`]
+/// without (`push_slopes` off: a quarter of the bytes written per element, which is what
+/// SPLASH-2's push-pull costs).
+pub(super) trait Sums: Copy + Default {
+    /// The sums of element `e`, whose parent's are `self`.
+    fn down(self, e: &Element) -> Self;
+    /// The irradiance at the element (full + rest).
+    fn irradiance(&self) -> Rgb;
+    /// Σ F·V inherited from the ancestors (full F plus partial F·V).
+    fn inherited_fv(&self) -> f64;
+    /// The slopes' shift of the inherited row to the element's centroid.
+    fn fv_shift(&self) -> f64;
+}
+
+impl Sums for Chain {
+    fn down(self, e: &Element) -> Self {
+        self.then(e)
+    }
+    fn irradiance(&self) -> Rgb {
+        self.full + self.rest
+    }
+    fn inherited_fv(&self) -> f64 {
+        self.f + self.fv_partial
+    }
+    fn fv_shift(&self) -> f64 {
+        self.fv_shift
+    }
+}
+
+/// [`Chain`] without slopes.
+#[derive(Copy, Clone, Debug, Default)]
+pub(super) struct FlatChain {
+    full: Rgb,
+    rest: Rgb,
+    f: f64,
+    fv_partial: f64,
+}
+
+impl Sums for FlatChain {
+    fn down(self, e: &Element) -> Self {
+        FlatChain {
+            full: self.full + e.gathered_full,
+            rest: self.rest + (e.gathered - e.gathered_full),
+            f: self.f + e.f_sum,
+            fv_partial: self.fv_partial + e.fv_partial,
+        }
+    }
+    fn irradiance(&self) -> Rgb {
+        self.full + self.rest
+    }
+    fn inherited_fv(&self) -> f64 {
+        self.f + self.fv_partial
+    }
+    fn fv_shift(&self) -> f64 {
+        0.0
+    }
+}
+
+/// The down sweep of push-pull over the whole forest (parents before children): each
+/// element's sums from its parent's; each leaf's radiosity B = E + ρ·H and, with `energy`, its
+/// absorbed and escaped power. Returns (largest leaf change against `before` or the old value,
+/// largest reflected radiosity, absorbed, escaped).
+pub(super) fn push_down<S: Sums>(
+    els: &mut [Element],
+    chain: &mut Vec<S>,
+    before: Option<&[Rgb]>,
+    energy: bool,
+) -> (f64, f64, Rgb, Rgb) {
+    let mut max_change: f64 = 0.0;
+    let mut max_reflected: f64 = 0.0;
+    let mut absorbed = Rgb::ZERO;
+    let mut escaped = Rgb::ZERO;
+    chain.clear();
+    chain.reserve(els.len());
+    for (i, e) in els.iter_mut().enumerate() {
+        let up = if e.parent == NONE { S::default() } else { chain[e.parent as usize] };
+        let own = up.down(e);
+        chain.push(own);
+        if e.is_leaf() {
+            let h = own.irradiance();
+            let b = e.emission + e.reflectance.mul_rgb(h);
+            let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
+            max_change = max_change.max(b.abs_diff_max(old));
+            max_reflected = max_reflected.max((b - e.emission).max_channel());
+            if energy {
+                absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
+                let fv = up.inherited_fv() + e.fv_sum + own.fv_shift();
+                escaped += b * (e.area * (1.0 - fv));
+            }
+            e.radiosity = b;
+            e.b_max = b.max_channel();
+        }
+    }
+    (max_change, max_reflected, absorbed, escaped)
+}
+
+/// The absorbed and escaped power of the elements as they are (see `energy_pass`).
+pub(super) fn energy_sums<S: Sums>(els: &[Element], chain: &mut Vec<S>) -> (Rgb, Rgb) {
+    let mut absorbed = Rgb::ZERO;
+    let mut escaped = Rgb::ZERO;
+    chain.clear();
+    chain.reserve(els.len());
+    for e in els {
+        let up = if e.parent == NONE { S::default() } else { chain[e.parent as usize] };
+        let own = up.down(e);
+        chain.push(own);
+        if e.is_leaf() {
+            let h = own.irradiance();
+            absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
+            let fv = up.inherited_fv() + e.fv_sum + own.fv_shift();
+            escaped += e.radiosity * (e.area * (1.0 - fv));
+        }
+    }
+    (absorbed, escaped)
+}
+
+impl HierarchicalSolver {
+    /// The radiosity of every element (indexed by id) that `push_pull_step` would give now, the
+    /// solver's state untouched: what a viewer shows right after a gather. The same chain sums
+    /// (with the links' slopes) and area averages as `push_pull_flat`.
+    #[must_use]
+    pub fn push_pull_preview(&self) -> Vec<Rgb> {
+        let els = &self.hier.elements;
+        let mut b: Vec<Rgb> =
+            els.iter()
+                .zip(self.chains())
+                .map(|(e, c)| {
+                    if e.is_leaf() { e.emission + e.reflectance.mul_rgb(c.full + c.rest) } else { Rgb::ZERO }
+                })
+                .collect();
+        for i in (0..els.len()).rev() {
+            let first = els[i].first_child;
+            if first != NONE {
+                let area = els[i].area;
+                b[i] = (first as usize..first as usize + 4)
+                    .fold(Rgb::ZERO, |s, c| s + b[c] * (els[c].area / area));
+            }
+        }
+        b
+    }
+
+    /// Fill `Link::slope` of every link that has none yet (parallel over receivers; a link's
+    /// slope depends on its two elements and V only, so it is computed once per link).
+    pub(super) fn fill_slopes(&mut self) {
+        let hier = &self.hier;
+        let sums: Vec<[f64; 2]> = self
+            .links
+            .by_receiver
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(64)
+            .map(|(r, ls)| {
+                let re = hier.get(r as u32);
+                for l in ls.iter_mut().filter(|l| !l.slope_set) {
+                    let v = f64::from(l.vis).clamp(0.0, 1.0);
+                    let se = hier.get(l.source);
+                    let g = f64::from(l.g);
+                    // Both sides from the same inputs as the mirror link's: bit-identical.
+                    (l.slope, l.src_slope) = if v > 0.0 {
+                        (
+                            oracle::kernel_slope(re, se, v, g / re.area).map(|x| x as f32),
+                            oracle::kernel_slope(se, re, v, g / se.area).map(|x| x as f32),
+                        )
+                    } else {
+                        ([0.0; 2], [0.0; 2])
+                    };
+                    l.slope_set = true;
+                }
+                // Over every own link (a split may have removed some since the last fill).
+                ls.iter().fold([0.0; 2], |[u, v], l| [u + f64::from(l.slope[0]), v + f64::from(l.slope[1])])
+            })
+            .collect();
+        for (e, s) in self.hier.elements.iter_mut().zip(sums) {
+            e.fv_slope = s;
+        }
+    }
+
+    /// Push gathered irradiance down to the leaves (B = E + ρ·H), pull area averages up.
+    pub fn push_pull_step(&mut self) -> StepReport {
+        let t = Instant::now();
+        self.push_pull_flat(None, true);
+        self.stats.push_pull_s += t.elapsed().as_secs_f64();
+        self.report(StepKind::PushPull, t, 0, 0)
+    }
+
+    pub(super) fn push_pull_root(&mut self, root: u32) {
+        self.push_pull_rec(root, Chain::default());
+    }
+
+    /// `up`: the irradiance inherited from the ancestors (`Chain`).
+    pub(super) fn push_pull_rec(&mut self, id: u32, up: Chain) -> Rgb {
+        let e = &self.hier.elements[id as usize];
+        let own = up.step(e, self.params.push_slopes);
+        if let Some(kids) = e.children() {
+            let area = e.area;
+            let mut b = Rgb::ZERO;
+            let mut b_max: f64 = 0.0;
+            for c in kids {
+                let bc = self.push_pull_rec(c, own);
+                let child = &self.hier.elements[c as usize];
+                b += bc * (child.area / area);
+                b_max = b_max.max(child.b_max);
+            }
+            let e = &mut self.hier.elements[id as usize];
+            e.radiosity = b;
+            e.b_max = b_max;
+            b
+        } else {
+            let b = e.emission + e.reflectance.mul_rgb(own.full + own.rest);
+            let e = &mut self.hier.elements[id as usize];
+            e.radiosity = b;
+            e.b_max = b.max_channel();
+            b
+        }
+    }
+
+    /// Push-pull over the whole forest in two flat sweeps (parents have smaller ids than their
+    /// children): down in id order, each element's inherited sums from its parent's, leaves'
+    /// radiosity B = E + ρ·(H_full + H_rest) and their energy terms; then up in reverse
+    /// order, area averages. The same values as `push_pull_rec` from every root. The residual is
+    /// the largest leaf change against `before` (default: the values before this call).
+    pub(super) fn push_pull_flat(&mut self, before: Option<&[Rgb]>, energy: bool) {
+        let n = self.hier.len();
+        let slopes = self.params.push_slopes;
+        // Per element: its own and inherited sums (full-visibility irradiance, other irradiance,
+        // full-visibility F, other F·V; with slopes, their gradients).
+        let (max_change, max_reflected, absorbed, escaped) = if slopes {
+            push_down(&mut self.hier.elements, &mut self.chain, before, energy)
+        } else {
+            push_down(&mut self.hier.elements, &mut self.flat_chain, before, energy)
+        };
+        let els = &mut self.hier.elements;
+        // World moments Σ_leaves A B (c − c_e) / A_e while pulling (leaves: 0), then each in its
+        // element's tangent basis.
+        let world = &mut self.moment_world;
+        world.clear();
+        world.resize(if slopes { n } else { 0 }, [Rgb::ZERO; 3]);
+        for i in (0..n).rev() {
+            let first = els[i].first_child;
+            if first == NONE {
+                continue;
+            }
+            let (area, at) = (els[i].area, els[i].centroid);
+            let mut b = Rgb::ZERO;
+            let mut b_max: f64 = 0.0;
+            let mut m = [Rgb::ZERO; 3];
+            for (k, c) in els[first as usize..first as usize + 4].iter().enumerate() {
+                let w = c.area / area;
+                b += c.radiosity * w;
+                b_max = b_max.max(c.b_max);
+                if slopes {
+                    let d = (c.centroid - at) * w;
+                    let mc = world[first as usize + k];
+                    m[0] += mc[0] * w + c.radiosity * d.x;
+                    m[1] += mc[1] * w + c.radiosity * d.y;
+                    m[2] += mc[2] * w + c.radiosity * d.z;
+                }
+            }
+            els[i].radiosity = b;
+            els[i].b_max = b_max;
+            if slopes {
+                world[i] = m;
+            }
+        }
+        self.moment.clear();
+        if slopes {
+            self.moment.par_extend(els.par_iter().zip(world.par_iter()).with_min_len(1024).map(|(e, m)| {
+                if e.is_leaf() {
+                    return [Rgb::ZERO; 2];
+                }
+                let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+                [m[0] * t1.x + m[1] * t1.y + m[2] * t1.z, m[0] * t2.x + m[1] * t2.y + m[2] * t2.z]
+            }));
+        }
+        let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
+        self.residuals.push(residual);
+        self.converged = residual < self.params.tolerance;
+        if energy {
+            self.energy.absorbed = absorbed;
+            self.energy.escaped = escaped;
+        }
+    }
+
+    /// The absorbed and escaped power of the current state, as the last push-pull would have
+    /// summed them (the same terms in the same order, with each leaf's B as it left them): for
+    /// `solve`, whose iterations skip these sums until the end.
+    pub(super) fn energy_pass(&mut self) {
+        let (absorbed, escaped) = if self.params.push_slopes {
+            energy_sums(&self.hier.elements, &mut self.chain)
+        } else {
+            energy_sums(&self.hier.elements, &mut self.flat_chain)
+        };
+        self.energy.absorbed = absorbed;
+        self.energy.escaped = escaped;
+    }
+}
