@@ -762,7 +762,10 @@ impl HierarchicalSolver {
             // P(V̂ = 0) E[V̂₂] = V, unbiased (shadow-wide at 16 rays, error oracle: the receiver
             // was 12 % dark keeping the zeros, 0.4 % with the fresh estimate).
             vis = v2;
-        } else if vis == 1.0 && split_partial && self.params.conservative && self.params.zero_confirm > 0 {
+        } else if vis == 1.0
+            && ((split_partial && self.params.conservative) || error_oracle)
+            && self.params.zero_confirm > 0
+        {
             // Symmetrically, an all-visible estimate ends a refinement that any partial one
             // continues (the next pass splits this link only if partially visible): accepted as
             // it is, each level keeps P(V̂ = 1) · 1 of the link where V is due, a compounding
@@ -771,7 +774,7 @@ impl HierarchicalSolver {
             // emitted −11 %). Confirmed the same way: a blocked ray settles the split, else the
             // fresh estimate stands (unbiased, as for the zeros).
             let more = self.params.zero_confirm.saturating_mul(rays);
-            let confirm = if self.early_exit { Stop::AtMixed } else { Stop::Never };
+            let confirm = if self.early_exit && split_partial { Stop::AtMixed } else { Stop::Never };
             let (v2, c2) = vis_with(more, 0x0DE5, confirm);
             cast += c2;
             if v2 > 0.0 && v2 < 1.0 && confirm == Stop::AtMixed {
