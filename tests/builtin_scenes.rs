@@ -197,9 +197,26 @@ fn splash_rooms_load_with_the_rho_clamp() {
     for (name, polygons) in [("splash_room", 216), ("splash_largeroom", 305)] {
         let s = load(name).unwrap();
         // Each SPLASH-2 polygon is one primitive: a triangle, or a planar convex quad stored as two
-        // triangles which merge back. So one patch per polygon, in polygon order.
-        assert_eq!(s.patches.len(), polygons, "{name}");
-        assert!(s.patches.iter().enumerate().all(|(i, p)| p.primitive == i), "{name}: one patch per polygon");
+        // triangles which merge back. So one patch per polygon, in polygon order; except wall 1,
+        // which the poster (polygon 6) covers in its own plane: it is cut around the poster into
+        // four pieces (`scene::decal`), the first in its place and three at the end.
+        assert_eq!(s.patches.len(), polygons + 3, "{name}");
+        assert!(
+            s.patches[..polygons].iter().enumerate().all(|(i, p)| p.primitive == i),
+            "{name}: one patch per polygon"
+        );
+        assert!(
+            s.patches[polygons..].iter().all(|p| p.primitive == 1 && p.name.starts_with("mesh0/1/0#cut")),
+            "{name}"
+        );
+        assert!(
+            s.warnings.iter().any(|w| w.contains("1 patch(es) cut around 1 coplanar decal(s)")),
+            "{name}: {:?}",
+            s.warnings
+        );
+        let wall: f64 = s.patches.iter().filter(|p| p.primitive == 1).map(|p| p.area).sum();
+        let (w1, poster) = (1694.0 * 1600.0, 435.0 * 498.4);
+        assert!((wall - (w1 - poster)).abs() < 0.01 * poster, "{name}: wall 1 minus the poster, {wall}");
         assert!(
             s.patches.iter().filter(|p| p.vertices.len() == 4).count() > polygons / 2,
             "{name}: quads merged"

@@ -384,6 +384,7 @@ impl Loader<'_> {
 
         let name = self.file.file_stem().map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
         let mut scene = Scene::new(name, self.file.display().to_string(), patches);
+        super::decal::cut_under_decals(&mut scene);
         if let Some((node, world)) = camera_node {
             scene.camera = self.viewpoint(doc, node, world, &scene);
         }

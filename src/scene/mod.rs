@@ -8,6 +8,7 @@
 //! furnished rooms), [`texture`]; validation lives here.
 
 pub mod builtin;
+pub mod decal;
 pub mod furnished;
 pub mod gltf;
 pub mod texture;
