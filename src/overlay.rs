@@ -758,7 +758,8 @@ fn find_t_vertices(
 /// Give every T-vertex the value interpolated along the edge it lies inside, longest edges
 /// first, repeated until nothing changes (an end point may hang on another edge in turn).
 fn anchor(corners: &mut HashMap<Key, (DVec3, Rgb)>, t_vertices: &TVertices) {
-    let mut edges: Vec<(f64, &(Key, Key), &Vec<(f64, Key)>)> =
+    // (length, end keys, T-vertices inside)
+    let mut edges: Vec<_> =
         t_vertices.iter().map(|(k, inside)| (corners[&k.0].0.distance(corners[&k.1].0), k, inside)).collect();
     edges.sort_by(|x, y| y.0.total_cmp(&x.0).then_with(|| x.1.cmp(y.1)));
     for _ in 0..MAX_ANCHOR_PASSES {

@@ -296,9 +296,10 @@ pub fn print_table(r: &ArtifactReport, side: u32, log: &mut dyn Write) -> anyhow
             "E unresolved",
             pct(e.fraction()),
             format!(
-                "of {:.3} critical-segment length in {} segments; rel L2 beside them {}",
+                "of {:.3} critical-segment length in {} segments that bound a shadow, {} others not scored; rel L2 beside them {}",
                 e.length,
                 e.segments,
+                e.dropped,
                 e.error_beside.map_or_else(|| "none".into(), pct)
             ),
         ),
