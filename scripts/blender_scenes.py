@@ -17,6 +17,11 @@ Scenes (colours are sRGB bytes painted into the textures; see tests/blender_gltf
               extension radlab does not support) and a second mesh
   light       a floor and a point light (KHR_lights_punctual)
   two_sided   one plane whose material shows its back face (doubleSided)
+  shadow      a floor, a square occluder above it and a small square lamp above that (issue 16:
+              the discontinuity meshes find its shadow's critical segments)
+
+    /tmp/bpyenv/bin/python scripts/blender_scenes.py shadow   # only the named scenes; the
+                                                              # others' entries of expected.json kept
 """
 
 import json
@@ -215,18 +220,39 @@ def two_sided():
     return export("two_sided")
 
 
+def shadow():
+    reset()
+    grey = material("grey", base=(0.5, 0.5, 0.5))
+    lamp = material("lamp", base=(0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0), strength=10.0)
+    # Floor 2 × 2 at z = 0 facing up; occluder 0.5 × 0.5 at z = 0.5 facing the lamp; lamp
+    # 0.2 × 0.2 at z = 1.5 facing down. Penumbra edges on the floor at |x|, |y| = 0.325 and 0.425.
+    mesh_object("Floor", quad(-1, -1, 1, 1, 0), [(0, 1, 2, 3)], [grey])
+    mesh_object("Occluder", quad(-0.25, -0.25, 0.25, 0.25, 0.5), [(0, 1, 2, 3)], [grey])
+    mesh_object("Lamp", quad(-0.1, -0.1, 0.1, 0.1, 1.5), [(0, 3, 2, 1)], [lamp])
+    return export("shadow")
+
+
+SCENES = {
+    "room": room,
+    "hierarchy": hierarchy,
+    "materials": materials,
+    "light": light,
+    "two_sided": two_sided,
+    "shadow": shadow,
+}
+
+
 def main():
     os.makedirs(OUT, exist_ok=True)
-    expected = {
-        "blender": bpy.app.version_string,
-        "scenes": {
-            "room": room(),
-            "hierarchy": hierarchy(),
-            "materials": materials(),
-            "light": light(),
-            "two_sided": two_sided(),
-        },
-    }
+    names = sys.argv[1:] or list(SCENES)
+    path = os.path.join(OUT, "expected.json")
+    expected = {"blender": bpy.app.version_string, "scenes": {}}
+    if sys.argv[1:] and os.path.exists(path):
+        with open(path) as f:
+            expected = json.load(f)
+    for name in names:
+        expected["scenes"][name] = SCENES[name]()
+        expected.setdefault("exported_by", {})[name] = bpy.app.version_string
     with open(os.path.join(OUT, "expected.json"), "w") as f:
         json.dump(expected, f, indent=1)
         f.write("\n")

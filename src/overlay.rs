@@ -5,15 +5,17 @@
 //! ## What is drawn
 //! - **Radiosity**: each leaf element's B (flat), or Gouraud-interpolated vertex values
 //!   (smooth). Vertex values are the average of the leaves that share the vertex as a corner
-//!   ("nodal averaging", Cohen & Wallace 1993, §9.2.1); a vertex that lies in the middle of a
-//!   larger neighbour's edge (a *T-vertex* between elements of different depth) instead takes the
-//!   value interpolated along that edge, so the shading has no cracks:
+//!   ("nodal averaging", Cohen & Wallace 1993, §9.2.1); a vertex that lies inside a larger
+//!   neighbour's edge (a *T-vertex*: the quadtree's midpoints between elements of different
+//!   depth, anywhere along the edge in a BSP or graded discontinuity mesh) instead takes the
+//!   value interpolated along that edge [Baum, Mann, Smith & Winget 1991], so the shading has no
+//!   cracks:
 //!
 //!   ```text
-//!   A ────────── B        value(M) = ½ (value(A) + value(B)),
-//!   │  big       │        applied coarsest edge first, recursively on A–M and M–B,
-//!   ├────M───────┤        so a chain of T-vertices stays continuous.
-//!   │ s1 │  s2   │
+//!   A ────────── B        value(M) = (1 − t) value(A) + t value(B),   t = |AM| / |AB|,
+//!   │  big       │        longest edges first, repeated until no value changes,
+//!   ├──────M─────┤        so a chain of T-vertices stays continuous.
+//!   │ s1   │  s2 │
 //!   ```
 //! - **Conforming mesh**: each leaf is triangulated with the T-vertices on its edges (corners
 //!   of finer neighbours, [`VertexField::boundary`]), so no cracks open along T-junctions.
@@ -370,8 +372,13 @@ impl Quantizer {
     }
 }
 
-/// Deepest chain of T-vertices followed along one edge (the quadtree's depth cap is 30).
-const MAX_T_DEPTH: u32 = 32;
+/// Most anchoring passes (a chain of T-vertices hanging on each other takes one pass per link
+/// when its edges are not longest-first; the quadtree's depth cap is 30).
+const MAX_ANCHOR_PASSES: usize = 64;
+
+/// An edge (its end keys, in key order) → the corners strictly inside it, as (t from the first
+/// key's end, key), sorted by t.
+type TVertices = HashMap<(Key, Key), Vec<(f64, Key)>>;
 
 /// The leaves' corners, merged per input patch: a canonical position for each (so that every
 /// leaf that shares a corner emits bit-identical coordinates) and the Gouraud value there
@@ -380,6 +387,8 @@ pub struct VertexField {
     quant: Quantizer,
     /// Corner key → (canonical position, smooth radiosity).
     corners: HashMap<Key, (DVec3, Rgb)>,
+    /// The T-vertices inside each leaf edge that has some.
+    t_vertices: TVertices,
     seams: Seams,
 }
 
@@ -421,19 +430,10 @@ impl VertexField {
         }
         let mut corners: HashMap<Key, (DVec3, Rgb)> =
             sums.into_iter().map(|(k, (p, s, n))| (k, (p, s / f64::from(n)))).collect();
-
-        // Coarsest edges first, so a T-vertex's endpoints already hold their final values.
-        let mut order: Vec<u32> = leaves.to_vec();
-        order.sort_by_key(|&l| (elements[l as usize].depth, l));
-        for &l in &order {
-            let e = &elements[l as usize];
-            let n = e.verts().len();
-            for i in 0..n {
-                anchor(&quant, &mut corners, e.patch, e.vertices[i], e.vertices[(i + 1) % n], MAX_T_DEPTH);
-            }
-        }
+        let t_vertices = find_t_vertices(&quant, &corners, elements, leaves);
+        anchor(&mut corners, &t_vertices);
         let seams = Seams::build(elements, leaves, &quant, &canonical);
-        VertexField { quant, corners, seams }
+        VertexField { quant, corners, t_vertices, seams }
     }
 
     /// Canonical position and smooth value of a corner of a leaf on `patch`.
@@ -443,10 +443,10 @@ impl VertexField {
     }
 
     /// The leaf's boundary, counter-clockwise like its vertices: each corner followed by the
-    /// T-vertices on the edge to the next corner (corners of finer leaves of the same patch that
-    /// lie on that edge, found by recursive midpoint look-up: elements split 1 → 4 at edge
-    /// midpoints). Triangulating this polygon instead of the bare corners makes the mesh
-    /// conforming: no cracks where a large leaf meets subdivided neighbours.
+    /// T-vertices on the edge to the next corner (corners of other leaves of the same patch that
+    /// lie inside that edge: the quadtree's midpoints, anywhere in a BSP mesh). Triangulating
+    /// this polygon instead of the bare corners makes the mesh conforming: no cracks where a
+    /// large leaf meets subdivided neighbours.
     #[must_use]
     pub fn boundary(&self, e: &ElementView) -> Vec<BoundaryPoint> {
         let v = e.verts();
@@ -457,7 +457,7 @@ impl VertexField {
             let (pa, va) = self.corner(e.patch, v[i]).unwrap_or((v[i], e.radiosity));
             let start = out.len();
             out.push(BoundaryPoint { position: pa, uv: uv[i], value: va });
-            self.t_vertices(e.patch, v[i], v[j], (uv[i], uv[j]), MAX_T_DEPTH, &mut out);
+            self.inside_edge(e.patch, v[i], v[j], (uv[i], uv[j]), &mut out);
             if !self.seams.is_empty() {
                 let (pb, vb) = self.corner(e.patch, v[j]).unwrap_or((v[j], e.radiosity));
                 let end = BoundaryPoint { position: pb, uv: uv[j], value: vb };
@@ -467,24 +467,31 @@ impl VertexField {
         out
     }
 
-    fn t_vertices(
+    /// Push the T-vertices strictly inside the leaf edge a → b, in order from a, with their
+    /// parameter coordinates along the edge (the parameter is linear along an edge of a
+    /// triangle or a bilinear quad).
+    fn inside_edge(
         &self,
         patch: u32,
         a: DVec3,
         b: DVec3,
         (ua, ub): ([f64; 2], [f64; 2]),
-        budget: u32,
         out: &mut Vec<BoundaryPoint>,
     ) {
-        if budget == 0 {
-            return;
+        let (ka, kb) = (self.quant.key(patch, a), self.quant.key(patch, b));
+        let forward = ka < kb;
+        let Some(inside) = self.t_vertices.get(&if forward { (ka, kb) } else { (kb, ka) }) else { return };
+        let mut push = |&(t, k): &(f64, Key)| {
+            let Some(&(position, value)) = self.corners.get(&k) else { return };
+            let s = if forward { t } else { 1.0 - t };
+            let uv = [ua[0] + s * (ub[0] - ua[0]), ua[1] + s * (ub[1] - ua[1])];
+            out.push(BoundaryPoint { position, uv, value });
+        };
+        if forward {
+            inside.iter().for_each(&mut push);
+        } else {
+            inside.iter().rev().for_each(&mut push);
         }
-        let m = 0.5 * (a + b);
-        let Some((pm, vm)) = self.corner(patch, m) else { return };
-        let um = [0.5 * (ua[0] + ub[0]), 0.5 * (ua[1] + ub[1])];
-        self.t_vertices(patch, a, m, (ua, um), budget - 1, out);
-        out.push(BoundaryPoint { position: pm, uv: um, value: vm });
-        self.t_vertices(patch, m, b, (um, ub), budget - 1, out);
     }
 }
 
@@ -710,32 +717,67 @@ pub fn vertex_radiosity(elements: &[ElementView], leaves: &[u32]) -> Vec<[Rgb; 4
         .collect()
 }
 
-fn anchor(
+/// Every leaf edge with corners of the same patch strictly inside it (within 4 quanta of it),
+/// keyed by its end keys in key order, each list sorted by t from the first key's end.
+fn find_t_vertices(
     quant: &Quantizer,
-    value: &mut HashMap<Key, (DVec3, Rgb)>,
-    patch: u32,
-    a: DVec3,
-    b: DVec3,
-    budget: u32,
-) {
-    if budget == 0 {
-        return;
+    corners: &HashMap<Key, (DVec3, Rgb)>,
+    elements: &[ElementView],
+    leaves: &[u32],
+) -> TVertices {
+    let mut by_patch: HashMap<u32, Vec<(Key, DVec3)>> = HashMap::new();
+    for (k, (p, _)) in corners {
+        by_patch.entry(k.0).or_default().push((*k, *p));
     }
-    let m = 0.5 * (a + b);
-    let km = quant.key(patch, m);
-    if !value.contains_key(&km) {
-        return;
+    let grids: HashMap<u32, crate::reconstruction::BucketGrid<Key>> =
+        by_patch.into_iter().map(|(patch, v)| (patch, crate::reconstruction::BucketGrid::new(v))).collect();
+    let tol = 4.0 * quant.diag * MERGE_REL;
+    let mut out = TVertices::new();
+    let mut seen = std::collections::HashSet::new();
+    for &l in leaves {
+        let e = &elements[l as usize];
+        let Some(grid) = grids.get(&e.patch) else { continue };
+        let v = e.verts();
+        for i in 0..v.len() {
+            let (ka, kb) = (quant.key(e.patch, v[i]), quant.key(e.patch, v[(i + 1) % v.len()]));
+            if ka == kb || !seen.insert(if ka < kb { (ka, kb) } else { (kb, ka) }) {
+                continue;
+            }
+            let (a, b) = (corners[&ka].0, corners[&kb].0);
+            let (key, from, to) = if ka < kb { ((ka, kb), a, b) } else { ((kb, ka), b, a) };
+            let mut inside = grid.on_segment(from, to, tol, |k| k != ka && k != kb);
+            if !inside.is_empty() {
+                inside.sort_by(|x, y| x.0.total_cmp(&y.0));
+                out.insert(key, inside);
+            }
+        }
     }
-    let (Some(va), Some(vb)) =
-        (value.get(&quant.key(patch, a)).map(|c| c.1), value.get(&quant.key(patch, b)).map(|c| c.1))
-    else {
-        return;
-    };
-    if let Some(c) = value.get_mut(&km) {
-        c.1 = (va + vb) * 0.5;
+    out
+}
+
+/// Give every T-vertex the value interpolated along the edge it lies inside, longest edges
+/// first, repeated until nothing changes (an end point may hang on another edge in turn).
+fn anchor(corners: &mut HashMap<Key, (DVec3, Rgb)>, t_vertices: &TVertices) {
+    // (length, end keys, T-vertices inside)
+    let mut edges: Vec<_> =
+        t_vertices.iter().map(|(k, inside)| (corners[&k.0].0.distance(corners[&k.1].0), k, inside)).collect();
+    edges.sort_by(|x, y| y.0.total_cmp(&x.0).then_with(|| x.1.cmp(y.1)));
+    for _ in 0..MAX_ANCHOR_PASSES {
+        let mut changed = false;
+        for (_, (ka, kb), inside) in &edges {
+            let (va, vb) = (corners[ka].1, corners[kb].1);
+            for &(t, k) in *inside {
+                if let Some(c) = corners.get_mut(&k) {
+                    let new = va * (1.0 - t) + vb * t;
+                    changed |= new != c.1;
+                    c.1 = new;
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
     }
-    anchor(quant, value, patch, a, m, budget - 1);
-    anchor(quant, value, patch, m, b, budget - 1);
 }
 
 // ---------------------------------------------------------------------------------------------

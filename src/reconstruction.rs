@@ -164,7 +164,7 @@ impl VertexAverages {
         for (k, (p, _)) in &self.vertices {
             by_patch.entry(k.0).or_default().push((*k, *p));
         }
-        let grids: HashMap<usize, BucketGrid> =
+        let grids: HashMap<usize, BucketGrid<VertexKey>> =
             by_patch.into_iter().map(|(patch, verts)| (patch, BucketGrid::new(verts))).collect();
         // Every distinct edge with the vertices strictly inside it.
         let mut seen = std::collections::HashSet::new();
@@ -219,15 +219,16 @@ impl VertexAverages {
     }
 }
 
-/// Vertices of one patch in a uniform 3-D bucket grid, for "which vertices lie on this segment".
-struct BucketGrid {
+/// Vertices of one patch in a uniform 3-D bucket grid, for "which vertices lie on this segment"
+/// (also the viewer's T-vertices, [`crate::overlay::VertexField`]); `K` names a vertex.
+pub(crate) struct BucketGrid<K> {
     origin: DVec3,
     cell: f64,
-    buckets: HashMap<[i64; 3], Vec<(VertexKey, DVec3)>>,
+    buckets: HashMap<[i64; 3], Vec<(K, DVec3)>>,
 }
 
-impl BucketGrid {
-    fn new(verts: Vec<(VertexKey, DVec3)>) -> BucketGrid {
+impl<K: Copy> BucketGrid<K> {
+    pub(crate) fn new(verts: Vec<(K, DVec3)>) -> BucketGrid<K> {
         let (lo, hi) = verts
             .iter()
             .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(l, h), (_, p)| {
@@ -249,13 +250,7 @@ impl BucketGrid {
 
     /// Vertices within `tol` of the segment a–b, strictly between its ends, that `keep`
     /// accepts, as (t along a→b, key).
-    fn on_segment(
-        &self,
-        a: DVec3,
-        b: DVec3,
-        tol: f64,
-        keep: impl Fn(VertexKey) -> bool,
-    ) -> Vec<(f64, VertexKey)> {
+    pub(crate) fn on_segment(&self, a: DVec3, b: DVec3, tol: f64, keep: impl Fn(K) -> bool) -> Vec<(f64, K)> {
         let (lo, hi) = (self.index(a.min(b) - DVec3::splat(tol)), self.index(a.max(b) + DVec3::splat(tol)));
         let ab = b - a;
         let len2 = ab.length_squared();
@@ -264,7 +259,7 @@ impl BucketGrid {
             return out;
         }
         let cells = (0..3).map(|k| (hi[k] - lo[k] + 1) as f64).product::<f64>();
-        let mut visit = |bucket: &Vec<(VertexKey, DVec3)>| {
+        let mut visit = |bucket: &Vec<(K, DVec3)>| {
             for &(k, p) in bucket {
                 let t = (p - a).dot(ab) / len2;
                 let off = tol / len2.sqrt();

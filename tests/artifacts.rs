@@ -218,3 +218,78 @@ fn samples_add_up_to_the_report() {
     assert!(close(unresolved, r.unresolved.unresolved_length), "{unresolved} vs {:?}", r.unresolved);
     assert!(s.segments.iter().any(|m| m.unresolved), "a 0.5 mesh leaves segments inside elements");
 }
+
+/// E scores only the critical segments that bound a shadow (`mesh::grade::shadow_segments`), the
+/// ones a graded D-mesh keeps: on table-room's floor the D1/D2 segments inside the table's umbra
+/// bound nothing and are dropped. A floor meshed by the CDT of its kept segments alone leaves the
+/// dropped ones inside its triangles (checked below) and must read E ≈ 0; the floor as one
+/// element leaves the kept ones inside it and must read E ≈ 100 %, over the same segments.
+#[test]
+fn dropped_segments_inside_elements_do_not_count_kept_ones_do() {
+    use radlab::mesh::cdt::{CdtParams, triangulate};
+    use radlab::mesh::discontinuity::scene_segments;
+    use radlab::mesh::grade::shadow_segments;
+    use radlab::mesh::{DEFAULT_SNAP, ReceiverPlane};
+    use radlab::solver::SolvedElement;
+    let scene = Scene::load("builtin:table-room").unwrap();
+    let accel = Accel::build(&scene);
+    let floor = scene.patches.iter().position(|p| p.name == "floor/0/0").unwrap();
+    let set = scene_segments(&scene.patches, floor, DEFAULT_SNAP).unwrap();
+    let params = ArtifactParams { side: 16, ..ArtifactParams::quick() };
+    let kept = shadow_segments(&scene, &accel, floor, &set, params.shadow_side);
+    assert!(!kept.is_empty() && kept.len() < set.segments.len(), "{} of {}", kept.len(), set.segments.len());
+
+    // One element a patch; then the floor's element replaced by the CDT of its kept segments.
+    let whole = uniform_solve(&scene, f64::INFINITY);
+    let plane = ReceiverPlane::new(&scene.patches[floor].vertices, DEFAULT_SNAP).unwrap();
+    let cdt = triangulate(&plane, &kept, &CdtParams { min_angle_deg: 0.0, ..CdtParams::quality() }).unwrap();
+    let value = whole.elements.iter().find(|e| e.patch == floor).unwrap().radiosity;
+    let mut meshed = whole.clone();
+    meshed.elements.retain(|e| e.patch != floor);
+    meshed.elements.extend(cdt.triangles.iter().map(|t| SolvedElement {
+        patch: floor,
+        area: radlab::math::polygon_area(&t.vertices),
+        vertices: t.vertices.to_vec(),
+        radiosity: value,
+        error_estimate: None,
+        slope: None,
+    }));
+    // The case is real: some dropped segment's midpoint lies inside a triangle, farther than
+    // 10⁻³ of the floor's size from each of its edges (E's `on_edge` is 10⁻⁴).
+    let normal = scene.patches[floor].normal;
+    let margin = 1e-3 * scene.patches[floor].diameter();
+    let inside_a_triangle = |x: DVec3| {
+        cdt.triangles.iter().any(|t| {
+            let v = &t.vertices;
+            (0..3).all(|k| {
+                let (a, b, opposite) = (v[k], v[(k + 1) % 3], v[(k + 2) % 3]);
+                let n = (b - a).cross(normal).normalize();
+                n.dot(x - a) * n.dot(opposite - a).signum() > margin
+            })
+        })
+    };
+    let dropped_inside = set
+        .segments
+        .iter()
+        .filter(|s| !kept.contains(&[s.a, s.b]) && inside_a_triangle(s.a.lerp(s.b, 0.5)))
+        .count();
+    assert!(dropped_inside > 0, "no dropped segment lies inside a triangle");
+
+    let reference = PiecewiseConstant::new(&scene, &whole.elements).unwrap();
+    let e_meshed = measure(&scene, &meshed, &reference, &params).unwrap().unresolved;
+    let e_whole = measure(&scene, &whole, &reference, &params).unwrap().unresolved;
+    println!("floor on its kept segments: {e_meshed:?}; one element a patch: {e_whole:?}");
+    assert_eq!(e_meshed.segments, e_whole.segments, "the same segments are scored");
+    assert_eq!(e_meshed.dropped, e_whole.dropped);
+    assert!(e_whole.dropped >= set.segments.len() - kept.len(), "{e_whole:?}");
+    // One element a patch: every kept segment lies inside an element.
+    assert!(e_whole.fraction() > 0.999, "kept segments inside elements not counted: {e_whole:?}");
+    // The floor on its kept segments resolves exactly the floor's kept length (the other
+    // patches' segments stay inside their single elements); its dropped ones add nothing.
+    let floor_kept: f64 = kept.iter().map(|[a, b]| a.distance(*b)).sum();
+    let resolved = e_whole.unresolved_length - e_meshed.unresolved_length;
+    assert!(
+        (resolved - floor_kept).abs() < 1e-6 * floor_kept,
+        "resolved {resolved} of the floor's kept {floor_kept}: {e_meshed:?}"
+    );
+}

@@ -99,7 +99,7 @@ fn check_world_vertices(label: &str, scene: &Scene, scene_name: &str) {
 fn files_were_written_by_blender() {
     let exp = expected();
     assert!(exp["blender"].as_str().is_some_and(|v| v.starts_with("5.")), "{}", exp["blender"]);
-    for name in ["room", "hierarchy", "materials", "light", "two_sided"] {
+    for name in ["room", "hierarchy", "materials", "light", "two_sided", "shadow"] {
         let text = std::fs::read_to_string(dir().join(format!("{name}.gltf"))).unwrap();
         let json: Value = serde_json::from_str(&text).unwrap();
         let generator = json["asset"]["generator"].as_str().unwrap_or("");
@@ -210,7 +210,7 @@ fn double_sided_plane_gives_two_back_to_back_patches() {
 
 #[test]
 fn glb_and_separate_exports_give_the_same_patches() {
-    for name in ["room", "hierarchy", "materials", "light", "two_sided"] {
+    for name in ["room", "hierarchy", "materials", "light", "two_sided", "shadow"] {
         let s = both(name);
         let (a, b) = (&s[0].1, &s[1].1);
         assert_eq!(a.patches.len(), b.patches.len(), "{name}");
@@ -323,4 +323,74 @@ fn oversized_texture_is_refused_before_decoding() {
     let err = load(&tmp.join("room.gltf"), &opts).map(|_| ()).unwrap_err().to_string();
     let _ = std::fs::remove_dir_all(&tmp);
     assert!(err.contains("16×16") && err.contains("255 pixels"), "{err}");
+}
+
+/// Issue 16 on a Blender scene: `shadow` (a 2 × 2 floor, a 0.5 × 0.5 occluder at height 0.5 and
+/// a 0.2 × 0.2 lamp at height 1.5, all centred; E = 10). The lamp's corners against the
+/// occluder's edges put the umbra's and penumbra's edges on the floor at |x|, |z| = 0.325 and
+/// 0.425 (x = l + (b − l) · 1.5 for lamp and occluder half-widths l = ±0.1, b = 0.25). The
+/// critical segments lie on those eight lines; the CDT and the BSP meshes, solved at p = 0, and
+/// the graded CDT as the hierarchical solver's top level, put element edges on them (artifact
+/// E, scored on the segments that bound the shadow, ≈ 0), and the floor is dark under the
+/// occluder and lit in the open.
+#[test]
+fn blender_shadow_scene_gets_its_critical_segments_meshed_and_solved() {
+    use radlab::artifacts::{ArtifactParams, measure};
+    use radlab::mesh::DEFAULT_SNAP;
+    use radlab::mesh::discontinuity::scene_segments;
+    use radlab::mesh::grade::GradeParams;
+    use radlab::mesh::remesh::{MeshKind, RemeshParams};
+    use radlab::pointwise::{PiecewiseConstant, Reconstruction};
+    use radlab::solver::discontinuity::{self, DiscontinuityParams, solve_hierarchical};
+    use radlab::solver::params::HierarchicalParams;
+    for (label, scene) in both("shadow") {
+        check_world_vertices(&label, &scene, "shadow");
+        assert_eq!(scene.patches.len(), 3, "{label}: floor, occluder, lamp");
+        let lamp = scene.patches.iter().find(|p| p.mesh == "Lamp").expect("the lamp");
+        assert!(close(lamp.emission, Rgb::splat(10.0), F32_TOL), "{label}: E = {:?}", lamp.emission);
+        assert!(lamp.normal.y < -0.99, "{label}: the lamp faces the floor");
+        let floor = scene.patches.iter().position(|p| p.mesh == "Floor").unwrap();
+
+        // The critical segments on the floor: every one of the eight lines carries some.
+        let set = scene_segments(&scene.patches, floor, DEFAULT_SNAP).unwrap();
+        let on_line = |s: &radlab::mesh::discontinuity::CriticalSegment, axis: usize, at: f64| {
+            [s.a, s.b].iter().all(|p| (p.to_array()[axis] - at).abs() < POS_TOL)
+        };
+        for axis in [0, 2] {
+            for at in [-0.425, -0.325, 0.325, 0.425] {
+                assert!(
+                    set.segments.iter().any(|s| on_line(s, axis, at)),
+                    "{label}: no critical segment on {} = {at}",
+                    ["x", "y", "z"][axis]
+                );
+            }
+        }
+
+        // Solved on each mesh: the shadow's segments on element edges, the shadow in B.
+        let params = ArtifactParams { side: 32, ..ArtifactParams::quick() };
+        let cdt = discontinuity::solve(&scene, &DiscontinuityParams::cdt(), &mut |_, _| {}).unwrap();
+        let bsp = discontinuity::solve(&scene, &DiscontinuityParams::bsp(), &mut |_, _| {}).unwrap();
+        // The mesh `radlab solve --method hierarchical --mesh discontinuity-cdt --dmesh-budget 300`
+        // builds.
+        let graded =
+            RemeshParams::for_solve(MeshKind::Cdt, None, None, Some(GradeParams::with_budget(300)), 10_000)
+                .unwrap();
+        let top = solve_hierarchical(&scene, &graded, HierarchicalParams::quality(), &mut |_, _| {}).unwrap();
+        for d in [cdt, bsp, top] {
+            let sol = &d.solution;
+            assert!(sol.is_physical(), "{label}: {}", sol.method);
+            let flat = PiecewiseConstant::new(&scene, &sol.elements).unwrap();
+            let e = measure(&scene, sol, &flat, &params).unwrap().unresolved;
+            println!("{label}, {} ({} elements): E {e:?}", sol.method, sol.elements.len());
+            assert!(e.segments >= 8 && e.fraction() < 0.01, "{label}, {}: {e:?}", sol.method);
+            let b = |x: f64, z: f64| flat.radiosity_at(floor, DVec3::new(x, 0.0, z)).mean();
+            assert!(
+                b(0.0, 0.0) < 0.2 * b(0.7, 0.0),
+                "{label}, {}: umbra {} lit {}",
+                sol.method,
+                b(0.0, 0.0),
+                b(0.7, 0.0)
+            );
+        }
+    }
 }

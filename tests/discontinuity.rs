@@ -426,3 +426,151 @@ fn cli_mesh_reports_counts_as_json() {
     assert_eq!(doc["stats"]["graded"]["budget"], 120, "{doc}");
     assert_eq!(doc["params"]["cdt"]["min_angle_deg"], 0.0, "{doc}");
 }
+
+/// The pieces of `scene`'s discontinuity mesh as elements of the input scene (each on the patch
+/// it was cut from), with arbitrary values: a crack of a reconstruction is geometry, whatever
+/// the values (a deterministic hash of the element's index in [1, 2)).
+fn pieces_as_elements(scene: &Scene, mesh: &RemeshParams) -> Vec<radlab::solver::SolvedElement> {
+    let meshed = discontinuity_scene(scene, mesh).unwrap();
+    meshed
+        .scene
+        .patches
+        .iter()
+        .zip(&meshed.origin)
+        .enumerate()
+        .map(|(i, (p, &origin))| {
+            let h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 11;
+            radlab::solver::SolvedElement {
+                patch: origin,
+                area: p.area,
+                vertices: p.vertices.clone(),
+                radiosity: Rgb::splat(1.0 + h as f64 / (1u64 << 53) as f64),
+                error_estimate: None,
+                slope: None,
+            }
+        })
+        .collect()
+}
+
+/// An element's own Gouraud function at `x` (its vertex values, weighted by its p = 1 basis),
+/// wherever `x` is: both sides of an edge are read exactly on it, with no offset.
+fn own_value(e: &radlab::solver::SolvedElement, coefficients: &[Rgb], x: DVec3) -> Rgb {
+    use radlab::basis::{Order, local_coordinates, values};
+    let phi = values(Order::Linear, e.vertices.len(), local_coordinates(&e.vertices, x));
+    coefficients.iter().zip(phi).map(|(c, p)| *c * p).sum()
+}
+
+/// The BSP mesh's T-vertices lie anywhere along a neighbour's edge. Read on every interior edge
+/// (15 points an edge of every element), the library's Gouraud reconstruction
+/// (`reconstruction::gouraud`, anchored T-vertices) gives the same value on the edge from both
+/// elements, and the points just beside it on both sides lie in elements (no gap); without the
+/// anchoring the values differ there.
+#[test]
+fn bsp_gouraud_reconstruction_has_no_gap_and_no_jump_across_any_edge() {
+    use radlab::pointwise::PiecewiseConstant;
+    use radlab::reconstruction::{gouraud, gouraud_unanchored};
+    for name in ["builtin:table-room", "builtin:cornell"] {
+        let scene = Scene::load(name).unwrap();
+        let elements = pieces_as_elements(&scene, &RemeshParams::bsp());
+        let flat = PiecewiseConstant::new(&scene, &elements).unwrap();
+        let (anchored, unanchored) = (gouraud(&scene, &elements), gouraud_unanchored(&scene, &elements));
+        let (mut samples, mut worst, mut worst_unanchored) = (0usize, 0.0f64, 0.0f64);
+        for (i, e) in elements.iter().enumerate() {
+            let patch = &scene.patches[e.patch];
+            let eps = 1e-7 * patch.diameter();
+            let c = radlab::math::polygon_centroid(&e.vertices);
+            let m = patch.vertices.len();
+            for k in 0..e.vertices.len() {
+                let (a, b) = (e.vertices[k], e.vertices[(k + 1) % e.vertices.len()]);
+                let mut n = (b - a).cross(patch.normal).normalize();
+                if n.dot((a + b) * 0.5 - c) < 0.0 {
+                    n = -n;
+                }
+                for j in 1..16 {
+                    let x = a.lerp(b, f64::from(j) / 16.0);
+                    let outer = x + n * eps;
+                    let on_boundary = (0..m).any(|q| {
+                        let (p0, p1) = (patch.vertices[q], patch.vertices[(q + 1) % m]);
+                        (p1 - p0).cross(outer - p0).dot(patch.normal) <= 0.0
+                    });
+                    if on_boundary {
+                        continue;
+                    }
+                    let inner = flat.element_at(e.patch, x - n * eps);
+                    let Some(o) = flat.element_at(e.patch, outer) else {
+                        panic!("{name}: a gap beside element {i}'s edge at {x}")
+                    };
+                    assert_eq!(inner, Some(i), "{name}: element {i} does not hold its own side");
+                    samples += 1;
+                    let jump = |coef: &[Vec<Rgb>]| {
+                        (own_value(&elements[o], &coef[o], x) - own_value(e, &coef[i], x)).mean().abs()
+                    };
+                    worst = worst.max(jump(&anchored));
+                    worst_unanchored = worst_unanchored.max(jump(&unanchored));
+                }
+            }
+        }
+        println!(
+            "{name}: {samples} edge samples, largest jump {worst:.2e} (unanchored {worst_unanchored:.2e})"
+        );
+        assert!(samples > 10_000, "{name}: {samples}");
+        // Values are in [1, 2]: rounding only.
+        assert!(worst < 1e-9, "{name}: the Gouraud view jumps by {worst} across an edge");
+        assert!(worst_unanchored > 1e-2, "{name}: no T-vertex to anchor ({worst_unanchored})");
+    }
+}
+
+/// The viewer's Gouraud display (`overlay::VertexField`, which `render::geometry` triangulates)
+/// on the BSP mesh: every corner of a leaf that lies inside another leaf's edge is a point of
+/// that leaf's drawn boundary (no T-junction, so no gap between the rasterised triangles) with the
+/// same value (no jump), so both sides of every shared edge draw the same points and values.
+#[test]
+fn bsp_gouraud_display_is_conforming_and_continuous() {
+    use radlab::overlay::{ElementView, VertexField};
+    for name in ["builtin:table-room", "builtin:cornell"] {
+        let scene = Scene::load(name).unwrap();
+        let elements = pieces_as_elements(&scene, &RemeshParams::bsp());
+        let views: Vec<ElementView> = elements
+            .iter()
+            .enumerate()
+            .map(|(i, e)| {
+                let p = &scene.patches[e.patch];
+                ElementView::flat_leaf(i as u32, e.patch, p, &e.vertices, e.area, e.radiosity, 0.0, "piece")
+            })
+            .collect();
+        let leaves: Vec<u32> = (0..views.len() as u32).collect();
+        let field = VertexField::build(&views, &leaves);
+        let boundaries: Vec<_> = views.iter().map(|v| field.boundary(v)).collect();
+        let tol = 1e-7 * scene.bounds().diagonal();
+        let mut t_vertices = 0;
+        for (i, v) in views.iter().enumerate() {
+            for (j, w) in views.iter().enumerate() {
+                if i == j || v.patch != w.patch {
+                    continue;
+                }
+                let corners = w.verts();
+                for k in 0..corners.len() {
+                    let (a, b) = (corners[k], corners[(k + 1) % corners.len()]);
+                    for p in &boundaries[i] {
+                        let t = (p.position - a).dot(b - a) / (b - a).length_squared();
+                        let inside = t > 1e-6 && t < 1.0 - 1e-6 && a.lerp(b, t).distance(p.position) < tol;
+                        if !inside {
+                            continue;
+                        }
+                        t_vertices += 1;
+                        let there = boundaries[j].iter().find(|q| q.position.distance(p.position) < tol);
+                        let Some(q) = there else {
+                            panic!(
+                                "{name}: a T-junction: a point of leaf {i} inside leaf {j}'s edge is not drawn there"
+                            )
+                        };
+                        let jump = (q.value - p.value).mean().abs();
+                        assert!(jump < 1e-9, "{name}: leaves {i} and {j} draw {p:?} and {q:?}");
+                    }
+                }
+            }
+        }
+        println!("{name}: {} leaves, {t_vertices} T-vertices drawn on both sides", views.len());
+        assert!(t_vertices > 50, "{name}: the BSP mesh has T-vertices ({t_vertices})");
+    }
+}

@@ -1528,9 +1528,14 @@ fn links_overlay_draws_the_cluster_links() {
 
 /// The Mesh menu's D-mesh options: graded to a budget of patches (exactly that many elements),
 /// then the graded D-mesh as the top level of hierarchical refinement (its leaves below the
-/// pieces); both named in the menu's title.
+/// pieces); both named in the menu's title. Grading is the mesh's own setting
+/// (`MeshSolveParams::grade`, built as `radlab solve --dmesh-budget` builds it), so it is offered
+/// at p = 1 (discontinuous) too: clicked in the menu, the p = 1 graded solve has exactly the
+/// budget's elements and their vertex values; continuous p = 1 greys grading out and drops it.
 #[test]
 fn the_mesh_menu_grades_the_dmesh_and_makes_it_the_hierarchys_top_level() {
+    use radlab::basis::Order;
+    use radlab::mesh::grade::Budget;
     use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
     use radlab::viewer::worker::DmeshOptions;
     let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
@@ -1541,8 +1546,9 @@ fn the_mesh_menu_grades_the_dmesh_and_makes_it_the_hierarchys_top_level() {
     settle(&mut h);
     let runs = h.state().solve_runs();
     let budget = 700;
+    h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::DiscontinuityCdt).graded(budget));
     for (hierarchical, named) in [(false, ""), (true, " top of hierarchy")] {
-        h.state_mut().set_dmesh(DmeshOptions { budget: Some(budget), hierarchical });
+        h.state_mut().set_dmesh(DmeshOptions { hierarchical });
         settle(&mut h);
         settle(&mut h);
         let v = Arc::clone(h.state().view());
@@ -1556,5 +1562,50 @@ fn the_mesh_menu_grades_the_dmesh_and_makes_it_the_hierarchys_top_level() {
         }
     }
     assert_eq!(h.state().solve_runs(), runs + 2, "each is a run of the history");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+
+    // p = 1 graded, picked in the menu (shadow-narrow: its shadow's pieces are few, so a small
+    // budget keeps the Galerkin solve short).
+    h.state_mut().set_dmesh(DmeshOptions::default());
+    h.state_mut().load_spec("builtin:shadow-narrow");
+    settle(&mut h);
+    let small = 120;
+    h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::DiscontinuityCdt).graded(small));
+    settle(&mut h);
+    settle(&mut h);
+    assert_eq!(h.state().view().leaves.len(), small, "graded at p = 0");
+    // The menu, opened again when a click inside it closed it.
+    let open_menu = |h: &mut Harness<'static, RadlabApp>| {
+        if h.query_by_label("graded").is_none() {
+            h.query_by_label_contains("Mesh: discontinuity-cdt").expect("the Mesh menu").click();
+            h.run_steps(2);
+        }
+    };
+    open_menu(&mut h);
+    h.get_by_label("p = 1").click();
+    h.run_steps(2);
+    open_menu(&mut h);
+    assert!(!disabled(&h, "graded"), "grading is offered at p = 1 discontinuous");
+    settle(&mut h);
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    let m = v.mesh.as_ref().expect("a mesh solve");
+    assert_eq!(m.label(), format!("discontinuity-cdt p1-discontinuous graded {small}"));
+    assert_eq!(
+        (m.params.order, m.params.grade.map(|g| g.budget)),
+        (Order::Linear, Some(Budget::Patches(small)))
+    );
+    assert_eq!(v.leaves.len(), small, "graded to the budget at p = 1");
+    let c = m.coefficients.as_ref().expect("p = 1 vertex values");
+    assert!(c.iter().zip(&m.solution.elements).all(|(c, e)| c.len() == e.vertices.len()));
+    // Continuous p = 1 needs a conforming mesh: grading is greyed out and dropped.
+    open_menu(&mut h);
+    h.get_by_label("continuous").click();
+    h.run_steps(2);
+    open_menu(&mut h);
+    assert!(disabled(&h, "graded"), "no grading with a continuous basis");
+    assert_eq!(h.state().mesh().grade, None);
+    settle(&mut h);
+    settle(&mut h);
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }

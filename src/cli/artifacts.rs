@@ -47,6 +47,10 @@ pub struct Args {
     /// Score against the cached path-traced reference even on a single-bounce scene.
     #[arg(long)]
     pub path_traced: bool,
+    /// Read every element as its constant (drop the slopes the hierarchical solver pushes to
+    /// its leaves): how much of a quadtree's smaller D is the slopes' (docs/meshing.md).
+    #[arg(long)]
+    pub drop_slopes: bool,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
@@ -72,6 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     set_threads(a.threads)?;
     anyhow::ensure!((4..=1024).contains(&args.side), "--side {}: must be in 4..=1024", args.side);
     super::solve::plan(a)?;
+    anyhow::ensure!(!args.drop_slopes || a.order == 0, "--drop-slopes reads p = 0 elements (not --order 1)");
     // The output folder first: a bad --out fails before the reference and the solve.
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("--out {}: cannot create the folder", args.out.display()))?;
@@ -109,6 +114,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let solved = solve_scene(a, &args.scene, &scene, &accel, bvh_s, &mut |d, n| bar.update(d, n))?;
     bar.finish();
     let solve_s = t.elapsed().as_secs_f64();
+    let mut solved = solved;
+    if args.drop_slopes {
+        solved.solution.elements.iter_mut().for_each(|e| e.slope = None);
+    }
     let sol = &solved.solution;
 
     let t = Instant::now();
@@ -287,9 +296,10 @@ pub fn print_table(r: &ArtifactReport, side: u32, log: &mut dyn Write) -> anyhow
             "E unresolved",
             pct(e.fraction()),
             format!(
-                "of {:.3} critical-segment length in {} segments; rel L2 beside them {}",
+                "of {:.3} critical-segment length in {} segments that bound a shadow, {} others not scored; rel L2 beside them {}",
                 e.length,
                 e.segments,
+                e.dropped,
                 e.error_beside.map_or_else(|| "none".into(), pct)
             ),
         ),

@@ -432,7 +432,6 @@ fn hierarchical_params(args: &Args) -> anyhow::Result<radlab::solver::params::Hi
 /// uniform solver).
 fn remesh_params(args: &Args, method: &str) -> anyhow::Result<radlab::mesh::remesh::RemeshParams> {
     use super::solve::BudgetArg;
-    use radlab::mesh::grade::{Budget, GradeParams};
     use radlab::mesh::remesh::RemeshParams;
     let hierarchical = method.starts_with("hierarchical-");
     let mut p = if method.ends_with("-cdt") { RemeshParams::cdt() } else { RemeshParams::bsp() };
@@ -449,21 +448,9 @@ fn remesh_params(args: &Args, method: &str) -> anyhow::Result<radlab::mesh::reme
         budget.is_none() || !args.continuous,
         "--dmesh-budget grades the mesh with T-vertices: --continuous needs --dmesh-budget off"
     );
-    p.cdt.min_angle_deg =
-        args.dmesh_min_angle.unwrap_or(if budget.is_some() { 0.0 } else { p.cdt.min_angle_deg });
-    p.cdt.max_area = args.dmesh_max_area;
-    p.cdt.validate().context("invalid --dmesh-min-angle / --dmesh-max-area")?;
-    if let Some(budget) = budget {
-        let mut g = GradeParams { budget, ..GradeParams::auto() };
-        g.smooth = args.dmesh_smooth.unwrap_or(g.smooth);
-        g.penumbra_weight = args.dmesh_penumbra_weight.unwrap_or(g.penumbra_weight);
-        g.validate().context("invalid --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")?;
-        if let Budget::Patches(n) = budget {
-            p.max_patches = p.max_patches.max(n);
-        }
-        p.grade = Some(g);
-    }
-    Ok(p)
+    let grade = budget.map(|b| super::solve::grade_params(b, args.dmesh_smooth, args.dmesh_penumbra_weight));
+    RemeshParams::for_solve(p.kind, args.dmesh_min_angle, Some(args.dmesh_max_area), grade, p.max_patches)
+        .context("invalid --dmesh-min-angle / --dmesh-max-area / --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")
 }
 
 /// The Galerkin settings of `--order 1` (None at order 0), refusing the unsupported combinations.

@@ -526,42 +526,33 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
     Ok((plan, mesh))
 }
 
+/// Grading to `budget` with `--dmesh-smooth` and `--dmesh-penumbra-weight` where given
+/// ([`radlab::mesh::grade::GradeParams::auto`]'s otherwise).
+pub fn grade_params(
+    budget: radlab::mesh::grade::Budget,
+    smooth: Option<f64>,
+    penumbra_weight: Option<f64>,
+) -> radlab::mesh::grade::GradeParams {
+    let g = radlab::mesh::grade::GradeParams { budget, ..radlab::mesh::grade::GradeParams::auto() };
+    radlab::mesh::grade::GradeParams {
+        smooth: smooth.unwrap_or(g.smooth),
+        penumbra_weight: penumbra_weight.unwrap_or(g.penumbra_weight),
+        ..g
+    }
+}
+
 /// The discontinuity mesh `--dmesh-*` asks for (kind from `--mesh`, grading by the plan:
 /// [`BudgetArg::for_plan`]).
 fn remesh_params(a: &SolverArgs, plan: Plan, kind: MeshKind) -> anyhow::Result<RemeshParams> {
-    let mut p = match kind {
-        MeshKind::Cdt => RemeshParams::cdt(),
-        MeshKind::Bsp => RemeshParams::bsp(),
+    let max_patches = if matches!(plan, Plan::DiscontinuityHierarchical(_)) {
+        radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES
+    } else {
+        RemeshParams::cdt().max_patches
     };
-    if matches!(plan, Plan::DiscontinuityHierarchical(_)) {
-        p.max_patches = radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES;
-    }
-    let budget = BudgetArg::for_plan(a, plan);
-    if let Some(v) = a.dmesh_min_angle {
-        p.cdt.min_angle_deg = v;
-    } else if budget.is_some() {
-        // Grading sizes the elements: the CDT without angle refinement is its start.
-        p.cdt.min_angle_deg = 0.0;
-    }
-    if let Some(v) = a.dmesh_max_area {
-        p.cdt.max_area = v;
-    }
-    p.cdt.validate().context("invalid --dmesh-min-angle / --dmesh-max-area")?;
-    if let Some(budget) = budget {
-        let mut g = radlab::mesh::grade::GradeParams { budget, ..radlab::mesh::grade::GradeParams::auto() };
-        if let Some(v) = a.dmesh_smooth {
-            g.smooth = v;
-        }
-        if let Some(v) = a.dmesh_penumbra_weight {
-            g.penumbra_weight = v;
-        }
-        g.validate().context("invalid --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")?;
-        p.grade = Some(g);
-        if let radlab::mesh::grade::Budget::Patches(n) = budget {
-            p.max_patches = p.max_patches.max(n);
-        }
-    }
-    Ok(p)
+    let grade =
+        BudgetArg::for_plan(a, plan).map(|b| grade_params(b, a.dmesh_smooth, a.dmesh_penumbra_weight));
+    RemeshParams::for_solve(kind, a.dmesh_min_angle, a.dmesh_max_area, grade, max_patches)
+        .context("invalid --dmesh-min-angle / --dmesh-max-area / --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")
 }
 
 /// A solved scene and what made it.

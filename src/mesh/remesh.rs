@@ -68,6 +68,34 @@ impl RemeshParams {
     pub const fn bsp() -> RemeshParams {
         RemeshParams { kind: MeshKind::Bsp, ..RemeshParams::cdt() }
     }
+
+    /// The discontinuity mesh of a solve — the one construction behind `radlab solve|artifacts
+    /// --mesh discontinuity-*`, `radlab reference --compare dmesh-*` and the viewer's Mesh menu:
+    /// `kind`; the CDT refined to `min_angle_deg` (`None`: 20° ungraded, unrefined when graded,
+    /// since grading sizes the elements) and `max_area` (`None`: no limit); graded by `grade`;
+    /// at most `max_patches` patches, raised to a fixed budget.
+    pub fn for_solve(
+        kind: MeshKind,
+        min_angle_deg: Option<f64>,
+        max_area: Option<f64>,
+        grade: Option<GradeParams>,
+        max_patches: usize,
+    ) -> Result<RemeshParams, MeshError> {
+        let mut p = RemeshParams { kind, max_patches, grade, ..RemeshParams::cdt() };
+        p.cdt.min_angle_deg =
+            min_angle_deg.unwrap_or(if grade.is_some() { 0.0 } else { p.cdt.min_angle_deg });
+        if let Some(area) = max_area {
+            p.cdt.max_area = area;
+        }
+        p.cdt.validate()?;
+        if let Some(g) = grade {
+            g.validate()?;
+            if let super::grade::Budget::Patches(n) = g.budget {
+                p.max_patches = p.max_patches.max(n);
+            }
+        }
+        Ok(p)
+    }
 }
 
 /// What [`discontinuity_scene`] did.

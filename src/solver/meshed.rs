@@ -20,7 +20,7 @@ use super::{Progress, Solution};
 use crate::accel::Accel;
 use crate::basis::Order;
 use crate::math::Rgb;
-use crate::mesh::cdt::CdtParams;
+use crate::mesh::grade::{Budget, GradeParams};
 use crate::mesh::remesh::{MeshKind, RemeshParams};
 use crate::scene::Scene;
 use serde::Serialize;
@@ -119,13 +119,18 @@ pub struct MeshSolveParams {
     pub cdt_min_angle_deg: f64,
     /// Shadow rays per element pair.
     pub rays: u32,
-    /// Refuse meshes with more unknowns than this (the matrices are O(n²)).
+    /// Refuse meshes with more unknowns than this (the matrices are O(n²)); a graded mesh
+    /// raises it to its budget (times the functions per element at p = 1).
     pub max_unknowns: usize,
+    /// A discontinuity mesh graded to a budget of patches ([`crate::mesh::grade`], `radlab solve
+    /// --dmesh-budget`); `None`: the pieces as they are. Not with a continuous basis (grading
+    /// leaves T-vertices).
+    pub grade: Option<GradeParams>,
 }
 
 impl MeshSolveParams {
     /// p = 0 on `method`, elements of 1/16 of the diagonal (uniform), the CDT refined to 20°,
-    /// 16 rays, at most 6 000 unknowns.
+    /// 16 rays, at most 6 000 unknowns, not graded.
     #[must_use]
     pub const fn new(method: MeshMethod) -> MeshSolveParams {
         MeshSolveParams {
@@ -136,7 +141,14 @@ impl MeshSolveParams {
             cdt_min_angle_deg: 20.0,
             rays: 16,
             max_unknowns: 6_000,
+            grade: None,
         }
+    }
+
+    /// The same graded to `budget` patches ([`GradeParams::with_budget`]).
+    #[must_use]
+    pub const fn graded(self, budget: usize) -> MeshSolveParams {
+        MeshSolveParams { grade: Some(GradeParams::with_budget(budget)), ..self }
     }
 
     /// The same at p = 1, continuous or not.
@@ -162,7 +174,20 @@ impl MeshSolveParams {
         if self.rays == 0 || self.max_unknowns == 0 {
             return Err("rays and max unknowns must be at least 1".into());
         }
-        Ok(())
+        if self.grade.is_some() {
+            if !matches!(self.method, MeshMethod::DiscontinuityCdt | MeshMethod::DiscontinuityBsp) {
+                return Err(format!(
+                    "grading applies to the discontinuity meshes (not {})",
+                    self.method.name()
+                ));
+            }
+            if self.continuous {
+                return Err(
+                    "grading cuts pieces with T-vertices: a continuous basis needs a conforming mesh".into(),
+                );
+            }
+        }
+        self.remesh().map(|_| ())
     }
 
     /// "uniform p0", "discontinuity-cdt p1-continuous", …
@@ -173,17 +198,20 @@ impl MeshSolveParams {
             (Order::Linear, false) => "p1-discontinuous",
             (Order::Linear, true) => "p1-continuous",
         };
-        format!("{} {order}", self.method.name())
+        let graded = match self.grade.map(|g| g.budget) {
+            None => String::new(),
+            Some(Budget::Patches(n)) => format!(" graded {n}"),
+            Some(Budget::Auto) => " graded auto".into(),
+        };
+        format!("{} {order}{graded}", self.method.name())
     }
 
-    fn remesh(&self) -> RemeshParams {
-        let cdt = if self.cdt_min_angle_deg > 0.0 {
-            CdtParams { min_angle_deg: self.cdt_min_angle_deg, ..CdtParams::quality() }
-        } else {
-            CdtParams::unrefined()
-        };
+    /// The discontinuity mesh, built as `radlab solve` builds it ([`RemeshParams::for_solve`]);
+    /// graded, the CDT starts unrefined (grading sizes the elements) whatever the angle here.
+    pub fn remesh(&self) -> Result<RemeshParams, String> {
         let kind = if self.method == MeshMethod::DiscontinuityBsp { MeshKind::Bsp } else { MeshKind::Cdt };
-        RemeshParams { kind, cdt, max_patches: self.max_unknowns, ..RemeshParams::cdt() }
+        let angle = self.grade.is_none().then_some(self.cdt_min_angle_deg);
+        RemeshParams::for_solve(kind, angle, None, self.grade, self.max_unknowns).map_err(|e| e.to_string())
     }
 }
 
@@ -215,8 +243,17 @@ pub fn solve(scene: &Scene, params: &MeshSolveParams, progress: Progress) -> Res
         max_unknowns: params.max_unknowns,
         ..LinearParams::default()
     };
-    let dmesh =
-        DiscontinuityParams { solve: uniform_params, ..DiscontinuityParams::with_mesh(params.remesh()) };
+    let mesh = params.remesh()?;
+    let uniform_params = UniformParams { max_elements: mesh.max_patches, ..uniform_params };
+    // Graded: the budget of patches, each up to 4 functions at p = 1.
+    let linear_params = match mesh.grade {
+        Some(_) => LinearParams {
+            max_unknowns: params.max_unknowns.max(mesh.max_patches * params.order.functions(4)),
+            ..linear_params
+        },
+        None => linear_params,
+    };
+    let dmesh = DiscontinuityParams { solve: uniform_params, ..DiscontinuityParams::with_mesh(mesh) };
     let (solution, coefficients, meshing_s) = match (params.method, params.order) {
         // `validate` refused it already; an error, not a panic, if that ever changes.
         (MeshMethod::Quadtree, _) => return Err("the quadtree is not a mesh solve".into()),
@@ -273,6 +310,24 @@ mod tests {
         }
     }
 
+    /// Graded, at p = 0 and p = 1 (discontinuous): exactly the budget's elements, built as the
+    /// CLI builds them ([`RemeshParams::for_solve`]: the CDT unrefined under grading).
+    #[test]
+    fn graded_meshes_solve_at_both_orders() {
+        let scene = shadow();
+        let p0 = MeshSolveParams::new(MeshMethod::DiscontinuityBsp).graded(60);
+        let mesh = p0.remesh().unwrap();
+        assert_eq!(mesh.grade, Some(GradeParams::with_budget(60)));
+        let cdt = MeshSolveParams::new(MeshMethod::DiscontinuityCdt).graded(60).remesh().unwrap();
+        assert_eq!(cdt.cdt.min_angle_deg, 0.0, "grading sizes the elements");
+        for p in [p0, p0.linear(false)] {
+            let s = solve(&scene, &p, &mut |_, _| {}).unwrap_or_else(|e| panic!("{}: {e}", p.label()));
+            assert_eq!(s.solution.elements.len(), 60, "{}", p.label());
+            assert_eq!(s.coefficients.is_some(), p.order == Order::Linear, "{}", p.label());
+        }
+        assert_eq!(p0.linear(false).label(), "discontinuity-bsp p1-discontinuous graded 60");
+    }
+
     #[test]
     fn bad_settings_are_one_line_errors() {
         let scene = shadow();
@@ -286,5 +341,10 @@ mod tests {
         assert!(refuse(MeshSolveParams { continuous: true, ..u }).contains("order 1"));
         assert!(refuse(MeshSolveParams { element_size_rel: f64::NAN, ..u }).contains("element size"));
         assert!(refuse(MeshSolveParams { element_size_rel: 1e-4, max_unknowns: 50, ..u }).contains("50"));
+        // Grading: discontinuity meshes only, not with a continuous basis, a valid budget.
+        assert!(refuse(u.graded(100)).contains("discontinuity meshes"));
+        let cdt = MeshSolveParams::new(MeshMethod::DiscontinuityCdt);
+        assert!(refuse(cdt.linear(true).graded(100)).contains("conforming"));
+        assert!(refuse(cdt.graded(0)).contains("budget"));
     }
 }

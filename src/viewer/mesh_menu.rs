@@ -1,8 +1,9 @@
 //! The Mesh menu of the top bar: what the solution is computed on (the hierarchical quadtree, a
 //! uniform mesh, a discontinuity mesh) and a mesh solve's settings (order, continuity, element
 //! size, CDT angle, rays), greyed out on the quadtree, whose settings are the Solver section's;
-//! on a discontinuity mesh at p = 0, grading to a budget of patches and the D-mesh as the top
-//! level of hierarchical refinement ([`DmeshOptions`]).
+//! on a discontinuity mesh, grading to a budget of patches ([`MeshSolveParams::grade`], at p = 0
+//! and p = 1 discontinuous) and, at p = 0, the D-mesh as the top level of hierarchical refinement
+//! ([`DmeshOptions`]).
 
 use super::view::View;
 use super::widgets::log_slider;
@@ -96,11 +97,20 @@ fn controls(
         ui.add(egui::Slider::new(&mut m.rays, 1..=64).logarithmic(true).text("rays / pair"))
             .on_hover_text("Shadow rays per element pair (the visible fraction)");
         let discontinuity = matches!(m.method, MeshMethod::DiscontinuityCdt | MeshMethod::DiscontinuityBsp);
+        ui.add_enabled_ui(discontinuity && !m.continuous, |ui| grade_controls(ui, &mut m))
+            .response
+            .on_disabled_hover_text(
+                "Grading: a discontinuity mesh at p = 0 or p = 1 discontinuous (its cuts leave \
+                 T-vertices, which a continuous basis cannot share values across)",
+            );
+        if !discontinuity || m.continuous {
+            m.grade = None;
+        }
         ui.add_enabled_ui(discontinuity && m.order == crate::basis::Order::Constant, |ui| {
-            dmesh_controls(ui, &mut d);
+            top_level_control(ui, &mut d);
         })
         .response
-        .on_disabled_hover_text("Grading and the hierarchical top level: a discontinuity mesh at p = 0");
+        .on_disabled_hover_text("The hierarchical top level: a discontinuity mesh at p = 0");
     })
     .response
     .on_disabled_hover_text("Mesh settings: pick a uniform or discontinuity mesh above");
@@ -111,21 +121,32 @@ fn controls(
 /// pieces, so twice that gives the penumbrae room.
 const DEFAULT_BUDGET: usize = 2_000;
 
-/// Grading to a budget and the D-mesh as the top level of hierarchical refinement
-/// (docs/meshing.md, "A graded discontinuity mesh" and "The D-mesh as the top level").
-fn dmesh_controls(ui: &mut egui::Ui, d: &mut DmeshOptions) {
+/// Grading to a budget (docs/meshing.md, "A graded discontinuity mesh").
+fn grade_controls(ui: &mut egui::Ui, m: &mut MeshSolveParams) {
     ui.horizontal(|ui| {
-        let mut graded = d.budget.is_some();
+        let budget_now = match m.grade.map(|g| g.budget) {
+            Some(crate::mesh::grade::Budget::Patches(n)) => Some(n),
+            Some(crate::mesh::grade::Budget::Auto) => Some(DEFAULT_BUDGET),
+            None => None,
+        };
+        let mut graded = budget_now.is_some();
         ui.checkbox(&mut graded, "graded").on_hover_text(
             "Keep only the segments that bound a shadow, then cut the piece with the largest \
              error estimate in two (across a penumbra, along its isolines) until the scene has \
              this many patches (radlab solve --dmesh-budget N)",
         );
-        let mut budget = d.budget.unwrap_or(DEFAULT_BUDGET);
+        let mut budget = budget_now.unwrap_or(DEFAULT_BUDGET);
         ui.add_enabled(graded, egui::Slider::new(&mut budget, 100..=6_000).logarithmic(true).text("patches"))
             .on_hover_text("The budget: patches for the whole scene after grading");
-        d.budget = graded.then_some(budget);
+        if budget_now != graded.then_some(budget) {
+            *m = if graded { m.graded(budget) } else { MeshSolveParams { grade: None, ..*m } };
+        }
     });
+}
+
+/// The D-mesh as the top level of hierarchical refinement (docs/meshing.md, "The D-mesh as the
+/// top level").
+fn top_level_control(ui: &mut egui::Ui, d: &mut DmeshOptions) {
     ui.checkbox(&mut d.hierarchical, "top of hierarchical refinement").on_hover_text(
         "Hand the D-mesh's pieces to the hierarchical solver as its top level (the Solver \
          panel's settings): shadow boundaries are top-level edges, the oracle refines the smooth \

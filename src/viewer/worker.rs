@@ -54,14 +54,12 @@ pub struct ViewData {
 /// and the overlay draws a few thousand at most.
 pub const CLUSTER_LINKS_KEPT: usize = 50_000;
 
-/// What the viewer adds to a discontinuity-mesh solve (issue 16 §2, §4; docs/meshing.md): a
-/// graded mesh and the D-mesh as the hierarchical solver's top level. Both at p = 0 only (the
-/// Mesh menu greys them out at p = 1); ignored on the uniform mesh.
+/// What the viewer adds to a discontinuity-mesh solve (issue 16 §2; docs/meshing.md): the D-mesh
+/// as the hierarchical solver's top level, at p = 0 only (the Mesh menu greys it out at p = 1);
+/// ignored on the uniform mesh. Grading is the mesh's own setting
+/// ([`MeshSolveParams::grade`], built as `radlab solve --dmesh-budget` builds it).
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
 pub struct DmeshOptions {
-    /// Grade the mesh to this many patches for the whole scene (`radlab solve --dmesh-budget N`,
-    /// [`crate::mesh::grade`]).
-    pub budget: Option<usize>,
     /// Solve the D-mesh's pieces as the top level of hierarchical refinement, with the Solver
     /// panel's settings (`--method hierarchical`, [`crate::solver::discontinuity::solve_hierarchical`]).
     pub hierarchical: bool,
@@ -71,26 +69,21 @@ impl DmeshOptions {
     /// Whether these options change a solve on `m` (a discontinuity mesh at p = 0).
     #[must_use]
     pub fn apply_to(self, m: &MeshSolveParams) -> bool {
-        self != DmeshOptions::default()
+        self.hierarchical
             && matches!(m.method, MeshMethod::DiscontinuityCdt | MeshMethod::DiscontinuityBsp)
             && m.order == crate::basis::Order::Constant
     }
 
-    /// What the label of a solve on `m` adds: " graded 2000", " top of hierarchy".
+    /// What the label of a solve on `m` adds: " top of hierarchy".
     #[must_use]
     pub fn label(self, m: &MeshSolveParams) -> String {
-        if !self.apply_to(m) {
-            return String::new();
-        }
-        let graded = self.budget.map_or(String::new(), |n| format!(" graded {n}"));
-        let top = if self.hierarchical { " top of hierarchy" } else { "" };
-        format!("{graded}{top}")
+        if self.apply_to(m) { " top of hierarchy".into() } else { String::new() }
     }
 }
 
 /// Solve `scene` on the mesh of `params` with the viewer's D-mesh options (`hierarchical`: the
 /// solver settings of its top-level solve): [`crate::solver::meshed::solve`] unless they apply,
-/// else the discontinuity solvers with the mesh `radlab solve --dmesh-budget` would build.
+/// else the hierarchical solver on the mesh [`MeshSolveParams::remesh`] builds (graded or not).
 fn solve_on_mesh(
     scene: &Scene,
     params: &MeshSolveParams,
@@ -98,34 +91,13 @@ fn solve_on_mesh(
     hierarchical: HierarchicalParams,
     progress: crate::solver::Progress,
 ) -> Result<MeshSolution, String> {
-    use crate::mesh::remesh::RemeshParams;
-    use crate::solver::discontinuity::{self, DiscontinuityParams};
     if !dmesh.apply_to(params) {
         return crate::solver::meshed::solve(scene, params, progress);
     }
     params.validate()?;
-    let mut mesh =
-        if params.method == MeshMethod::DiscontinuityBsp { RemeshParams::bsp() } else { RemeshParams::cdt() };
-    // Grading sizes the elements: the CDT without angle refinement is its start (as the CLI's).
-    mesh.cdt = if dmesh.budget.is_some() || params.cdt_min_angle_deg <= 0.0 {
-        crate::mesh::cdt::CdtParams::unrefined()
-    } else {
-        crate::mesh::cdt::CdtParams {
-            min_angle_deg: params.cdt_min_angle_deg,
-            ..crate::mesh::cdt::CdtParams::quality()
-        }
-    };
-    mesh.max_patches = params.max_unknowns.max(dmesh.budget.unwrap_or(0));
-    mesh.grade = dmesh.budget.map(crate::mesh::grade::GradeParams::with_budget);
-    let d = if dmesh.hierarchical {
-        discontinuity::solve_hierarchical(scene, &mesh, hierarchical, progress)
-    } else {
-        let mut p = DiscontinuityParams::with_mesh(mesh);
-        p.solve.rays = params.rays;
-        p.solve.max_elements = mesh.max_patches;
-        discontinuity::solve(scene, &p, progress)
-    }
-    .map_err(|e| e.to_string())?;
+    let mesh = params.remesh()?;
+    let d = crate::solver::discontinuity::solve_hierarchical(scene, &mesh, hierarchical, progress)
+        .map_err(|e| e.to_string())?;
     Ok(MeshSolution { solution: d.solution, coefficients: None, meshing_s: d.mesh.total_s })
 }
 
@@ -146,7 +118,8 @@ pub struct MeshInfo {
 }
 
 impl MeshInfo {
-    /// "discontinuity-cdt p0 graded 2000 top of hierarchy", …
+    /// "discontinuity-cdt p0 graded 2000 top of hierarchy", "discontinuity-bsp p1-discontinuous
+    /// graded 700", …
     #[must_use]
     pub fn label(&self) -> String {
         format!("{}{}", self.params.label(), self.dmesh.label(&self.params))
