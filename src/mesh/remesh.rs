@@ -1,6 +1,6 @@
 //! A whole scene on a discontinuity mesh: every patch with critical segments replaced by the
 //! pieces of its constrained Delaunay mesh ([`super::cdt`]) or BSP mesh ([`super::bsp`]), each
-//! piece a new [`Patch`] with the original's material (ρ, E), mesh and material names. Any solver
+//! piece a new [`Patch`](crate::scene::Patch) with the original's material (ρ, E), mesh and material names. Any solver
 //! then runs on the new scene; the uniform solver with `element_size = ∞` (one element per patch)
 //! is the p = 0 Galerkin solve on the discontinuity mesh [Heckbert 1992; Lischinski et al. 1992].
 //!
@@ -22,7 +22,7 @@ use super::discontinuity::{SegmentCounts, scene_segments};
 use super::grade::{GradeParams, GradeStats, Piece, grade};
 use super::{DEFAULT_SNAP, MeshError, ReceiverPlane};
 use crate::math::DVec3;
-use crate::scene::{Patch, Scene};
+use crate::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
@@ -250,15 +250,7 @@ pub fn discontinuity_scene(scene: &Scene, params: &RemeshParams) -> Result<Remes
             serial[i] += 1;
             let area = crate::math::polygon_area(&verts);
             let name = format!("{}/dm{k}", p.name);
-            match Patch::new(
-                verts,
-                p.reflectance,
-                p.emission,
-                p.mesh.clone(),
-                p.primitive,
-                name,
-                p.material.clone(),
-            ) {
+            match p.piece(verts, name) {
                 Ok(piece) => {
                     patches.push(piece);
                     origin.push(i);

@@ -87,15 +87,7 @@ pub fn cut_under_decals(scene: &mut Scene) -> CutReport {
             for (j, poly) in split_to_quads(&clean(piece, 1e-12 * diag)).into_iter().enumerate() {
                 let verts = poly.iter().map(|&q| frame.lift(q)).collect();
                 let name = format!("{}#cut{k}.{j}", p.name);
-                if let Ok(np) = Patch::new(
-                    verts,
-                    p.reflectance,
-                    p.emission,
-                    p.mesh.clone(),
-                    p.primitive,
-                    name,
-                    p.material.clone(),
-                ) {
+                if let Ok(np) = p.piece(verts, name) {
                     patches.push(np);
                 }
             }

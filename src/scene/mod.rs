@@ -124,6 +124,20 @@ impl Patch {
         })
     }
 
+    /// A piece of this patch: the same material, mesh and primitive, with its own vertices and
+    /// name (a remeshed or cut piece). Errors as [`Patch::new`].
+    pub fn piece(&self, vertices: Vec<DVec3>, name: impl Into<String>) -> Result<Patch, String> {
+        Patch::new(
+            vertices,
+            self.reflectance,
+            self.emission,
+            self.mesh.clone(),
+            self.primitive,
+            name,
+            self.material.clone(),
+        )
+    }
+
     #[must_use]
     pub fn is_emitter(&self) -> bool {
         self.emission.max_channel() > 0.0
