@@ -734,3 +734,23 @@ fn the_error_oracle_update_changes_nothing() {
         }
     }
 }
+
+/// The `quality` preset creates no light in the closed rooms: escaped ≥ 0 in every channel, so
+/// absorbed ≤ emitted (issue 15 §2). Before session 14 table-room escaped −0.8 % of its light
+/// (all-visible estimates accepted unconfirmed by the error oracle, and a visibility sampler
+/// biased by one fixed pairing of strata) and splash_room −1.9 % (its poster, lying in the plane
+/// of wall 1, received the same light as the wall under it: `scene::decal`).
+#[test]
+fn quality_creates_no_light_in_the_closed_rooms() {
+    for name in ["table-room", "splash_room"] {
+        let scene = radlab::scene::Scene::load(&format!("builtin:{name}")).unwrap();
+        let mut s = HierarchicalSolver::new(Arc::new(scene), HierarchicalParams::quality()).unwrap();
+        s.solve(&mut |_, _| {});
+        let e = s.solution().energy;
+        for c in 0..3 {
+            assert!(e.escaped.0[c] >= 0.0, "{name}: light created, channel {c}: {e:?}");
+            assert!(e.absorbed.0[c] <= e.emitted.0[c], "{name}: absorbed more than emitted: {e:?}");
+        }
+        assert!(e.relative_residual() < 1e-3, "{name}: {e:?}");
+    }
+}
