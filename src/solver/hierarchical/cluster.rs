@@ -720,7 +720,7 @@ impl ClusterTransfer {
         let mut h = vec![Rgb::ZERO; hier.roots];
         // Push U and W down (parents first; the root has none); leaves read their parent's
         // with their normal.
-        for i in 0..n {
+        for (i, direct) in direct.iter().enumerate() {
             let parent = tree.nodes[i].parent;
             let Node { patch, slot, .. } = self.nodes[i];
             if parent == LEAF {
@@ -744,7 +744,7 @@ impl ClusterTransfer {
                 for f in 0..FRAMES.len() {
                     hw += dot(&self.w[up][f], abs_in(f, nrm));
                 }
-                h[patch as usize] = direct[i] + clamp0(hw * 0.5);
+                h[patch as usize] = *direct + clamp0(hw * 0.5);
             }
         }
         h
@@ -783,9 +783,8 @@ mod tests {
         t.order[n.lo as usize..n.hi as usize].to_vec()
     }
 
-    #[test]
-    fn linking_covers_every_pair_of_patches_exactly_once() {
-        // Cubes in a row and a turned one: 30 patches; an arbitrary (but deterministic) accept.
+    /// Four cubes in a row and a turned one (30 patches), and their tree.
+    fn cubes_in_a_row() -> (Hierarchy, ClusterTree) {
         let mut patches = Vec::new();
         for k in 0..4 {
             patches.extend(cube(DVec3::new(3.0 * f64::from(k), 0.0, 0.0), 1.0, 0.0));
@@ -793,6 +792,13 @@ mod tests {
         patches.extend(cube(DVec3::new(0.0, 5.0, 2.0), 2.0, 0.3));
         let hier = hierarchy(patches);
         let tree = ClusterTree::build(&hier);
+        (hier, tree)
+    }
+
+    #[test]
+    fn linking_covers_every_pair_of_patches_exactly_once() {
+        // Cubes in a row and a turned one: 30 patches; an arbitrary (but deterministic) accept.
+        let (hier, tree) = cubes_in_a_row();
         assert_eq!(tree.len(), 2 * hier.roots - 1, "a binary tree down to single patches");
         let mut pairs = Vec::new();
         tree.link(0, 0, &|a, b| (a + b) % 3 == 0, &mut pairs);
@@ -830,14 +836,8 @@ mod tests {
     fn batched_linking_gives_the_same_pairings_in_the_same_order() {
         // 30 patches linked in batches of pairs of at most 4 members: the batches put together
         // are `link`'s list, pairing for pairing.
-        let mut patches = Vec::new();
-        for k in 0..4 {
-            patches.extend(cube(DVec3::new(3.0 * f64::from(k), 0.0, 0.0), 1.0, 0.0));
-        }
-        patches.extend(cube(DVec3::new(0.0, 5.0, 2.0), 2.0, 0.3));
-        let hier = hierarchy(patches);
-        let tree = ClusterTree::build(&hier);
-        let accept = |a: u32, b: u32| (a + b) % 3 == 0;
+        let (_, tree) = cubes_in_a_row();
+        let accept = |a: u32, b: u32| (a + b).is_multiple_of(3);
         let mut whole = Vec::new();
         tree.link(0, 0, &accept, &mut whole);
         for batch_members in [1, 4, 7, 1024] {
