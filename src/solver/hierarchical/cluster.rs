@@ -129,6 +129,16 @@ pub struct ClusterTree {
 /// Above this many members on both sides, linking recurses in parallel.
 const PARALLEL_MEMBERS: u32 = 256;
 
+/// [`ClusterTree::link_batched`] links pairs of nodes of at most this many members at once.
+const BATCH_MEMBERS: u32 = 1024;
+
+/// A step of [`ClusterTree::link_batched`]: a pairing decided, or two nodes to link.
+#[derive(Copy, Clone, Debug)]
+enum Task {
+    Done(Pairing),
+    Pairs(u32, u32),
+}
+
 impl ClusterTree {
     /// Median splits of the patch centroids along the longest axis of their bounds, down to
     /// single patches (ties broken by patch id: the same tree for any thread count).
@@ -216,6 +226,100 @@ impl ClusterTree {
         } else {
             self.link(p0.0, p0.1, accept, out);
             self.link(p1.0, p1.1, accept, out);
+        }
+    }
+
+    /// [`Self::link`] of `a` and `b`, handed to `sink` a batch at a time, in the order `link`
+    /// gives them (so the batches put together are `link`'s list): the whole list of a 100 k
+    /// patch room is 11 M pairings, 130 MB before its links are made. The recursion is
+    /// unrolled down to pairs of nodes of at most [`BATCH_MEMBERS`] members between them;
+    /// those are linked in parallel, a few at a time.
+    pub fn link_batched<F: Fn(u32, u32) -> bool + Sync>(
+        &self,
+        a: u32,
+        b: u32,
+        accept: &F,
+        sink: &mut impl FnMut(&[Pairing]),
+    ) {
+        self.link_batched_in(a, b, accept, BATCH_MEMBERS, sink);
+    }
+
+    fn link_batched_in<F: Fn(u32, u32) -> bool + Sync>(
+        &self,
+        a: u32,
+        b: u32,
+        accept: &F,
+        batch_members: u32,
+        sink: &mut impl FnMut(&[Pairing]),
+    ) {
+        let mut tasks = Vec::new();
+        self.unroll(a, b, accept, batch_members, &mut tasks);
+        let mut i = 0;
+        while i < tasks.len() {
+            // About BATCH_MEMBERS × 16 members a batch (a task is at least one pairing).
+            let mut j = i;
+            let mut members = 0;
+            while j < tasks.len() && members < 16 * batch_members {
+                members += match tasks[j] {
+                    Task::Pairs(x, y) => self.members(x, y),
+                    Task::Done(_) => 1,
+                };
+                j += 1;
+            }
+            let parts: Vec<Vec<Pairing>> = tasks[i..j]
+                .par_iter()
+                .map(|t| match *t {
+                    Task::Done(p) => vec![p],
+                    Task::Pairs(x, y) => self.collect(x, y, accept),
+                })
+                .collect();
+            sink(&parts.concat());
+            i = j;
+        }
+    }
+
+    /// Members of `a` and `b` together (`a` alone when they are one node).
+    fn members(&self, a: u32, b: u32) -> u32 {
+        let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
+        if a == b { na.hi - na.lo } else { (na.hi - na.lo) + (nb.hi - nb.lo) }
+    }
+
+    /// [`Self::link`]'s recursion, in its order, down to pairs of at most `batch_members` (2 or
+    /// more) members (left as tasks) or pairings it decides on the way.
+    fn unroll<F: Fn(u32, u32) -> bool + Sync>(
+        &self,
+        a: u32,
+        b: u32,
+        accept: &F,
+        batch_members: u32,
+        out: &mut Vec<Task>,
+    ) {
+        if self.members(a, b) <= batch_members.max(2) {
+            out.push(Task::Pairs(a, b));
+            return;
+        }
+        let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
+        if a == b {
+            let [k0, k1] = na.kids;
+            self.unroll(k0, k0, accept, batch_members, out);
+            self.unroll(k0, k1, accept, batch_members, out);
+            self.unroll(k1, k1, accept, batch_members, out);
+            return;
+        }
+        // More than BATCH_MEMBERS ≥ 2 members: not two patches.
+        let gap = na.center.distance(nb.center) - na.radius - nb.radius;
+        if gap > 0.0 && accept(a, b) {
+            out.push(Task::Done(Pairing::Cluster(a, b)));
+            return;
+        }
+        let split_a = !na.is_leaf() && (nb.is_leaf() || na.radius >= nb.radius);
+        let (big, other) = if split_a { (na, b) } else { (nb, a) };
+        for k in big.kids {
+            if split_a {
+                self.unroll(k, other, accept, batch_members, out);
+            } else {
+                self.unroll(other, k, accept, batch_members, out);
+            }
         }
     }
 
@@ -429,12 +533,26 @@ pub struct ClusterTransfer {
     /// Node r receives `incoming[start[r]..start[r + 1]]`, in link order.
     start: Vec<u32>,
     incoming: Vec<Incoming>,
+    /// Each node's centre, patch and slot, compact.
+    nodes: Vec<Node>,
+    /// The clusters (nodes of two patches or more) by slot, in tree order.
+    clusters: Vec<u32>,
+    /// Per cluster slot: its radiosity moments S and T (a patch's are read from it), the
+    /// pushed irradiance moments U and W (a patch gathers its own links at once).
     s: Vec<Vec3Rgb>,
     t: Vec<[Vec3Rgb; FRAMES.len()]>,
     u: Vec<Vec3Rgb>,
     w: Vec<[Vec3Rgb; FRAMES.len()]>,
-    /// What a leaf node gathers from its own links.
-    direct: Vec<Rgb>,
+}
+
+/// A node as the transfer reads it.
+#[derive(Copy, Clone, Debug)]
+struct Node {
+    centre: DVec3,
+    /// Its patch, or [`LEAF`] for a cluster.
+    patch: u32,
+    /// A cluster's index into the moments (unused for a patch).
+    slot: u32,
 }
 
 fn axpy(v: &mut Vec3Rgb, d: DVec3, x: Rgb) {
@@ -479,7 +597,20 @@ impl ClusterTransfer {
                 *slot += 1;
             }
         }
-        ClusterTransfer { start, incoming, ..ClusterTransfer::default() }
+        let mut clusters = Vec::new();
+        let nodes = (0..n as u32)
+            .map(|i| {
+                let node = &tree.nodes[i as usize];
+                let (patch, slot) = if node.is_leaf() {
+                    (tree.patch(i), LEAF)
+                } else {
+                    clusters.push(i);
+                    (LEAF, clusters.len() as u32 - 1)
+                };
+                Node { centre: node.center, patch, slot }
+            })
+            .collect();
+        ClusterTransfer { start, incoming, nodes, clusters, ..ClusterTransfer::default() }
     }
 
     /// Irradiance of every patch (indexed by patch) through the cluster links, with patch
@@ -495,101 +626,125 @@ impl ClusterTransfer {
             // No links (or a tree of another scene): nothing is gathered.
             return vec![Rgb::ZERO; hier.roots];
         }
-        // Pull S and T up the tree (children have larger ids).
+        let m = self.clusters.len();
+        // A patch's moments, S = A B n and T = A B |n| per frame.
+        let leaf_moments = |p: u32| {
+            let e = hier.get(p);
+            let ab = b(p) * e.area;
+            let (mut s, mut t) = ([Rgb::ZERO; 3], [[Rgb::ZERO; 3]; FRAMES.len()]);
+            axpy(&mut s, e.normal, ab);
+            for (f, tf) in t.iter_mut().enumerate() {
+                axpy(tf, abs_in(f, e.normal), ab);
+            }
+            (s, t)
+        };
+        // Pull S and T up the tree (children have larger ids, so larger slots).
         self.s.clear();
-        self.s.resize(n, [Rgb::ZERO; 3]);
+        self.s.resize(m, [Rgb::ZERO; 3]);
         self.t.clear();
-        self.t.resize(n, [[Rgb::ZERO; 3]; FRAMES.len()]);
-        for i in (0..n).rev() {
-            let node = &tree.nodes[i];
-            if node.is_leaf() {
-                let p = tree.patch(i as u32);
-                let e = hier.get(p);
-                let ab = b(p) * e.area;
-                axpy(&mut self.s[i], e.normal, ab);
+        self.t.resize(m, [[Rgb::ZERO; 3]; FRAMES.len()]);
+        for k in (0..m).rev() {
+            let kids = tree.nodes[self.clusters[k] as usize].kids;
+            let [(s0, t0), (s1, t1)] = kids.map(|kid| match self.nodes[kid as usize] {
+                Node { patch: LEAF, slot, .. } => (self.s[slot as usize], self.t[slot as usize]),
+                Node { patch, .. } => leaf_moments(patch),
+            });
+            for c in 0..3 {
+                self.s[k][c] = s0[c] + s1[c];
                 for f in 0..FRAMES.len() {
-                    axpy(&mut self.t[i][f], abs_in(f, e.normal), ab);
-                }
-            } else {
-                let [k0, k1] = node.kids;
-                for k in 0..3 {
-                    self.s[i][k] = self.s[k0 as usize][k] + self.s[k1 as usize][k];
-                    for f in 0..FRAMES.len() {
-                        self.t[i][f][k] = self.t[k0 as usize][f][k] + self.t[k1 as usize][f][k];
-                    }
+                    self.t[k][f][c] = t0[f][c] + t1[f][c];
                 }
             }
         }
-        // Intensity of node x towards the unit direction `dir` (cosines in frame f).
-        let (s_moment, t_moment) = (&self.s, &self.t);
-        let intensity = |x: u32, dir: DVec3, f: usize| -> Rgb {
-            let node = &tree.nodes[x as usize];
-            if node.is_leaf() {
-                let p = tree.patch(x);
-                let e = hier.get(p);
-                b(p) * (e.area * e.normal.dot(dir).max(0.0))
-            } else {
-                let i = x as usize;
-                clamp0((dot(&s_moment[i], dir) + dot(&t_moment[i][f], abs_in(f, dir))) * 0.5)
+        // Intensity of node x towards the unit direction `dir` (cosines in frame f; `abs_dir`:
+        // |dir| in that frame). The nodes' centres, patches and slots are read from the compact
+        // `nodes` (the tree's are 240 bytes, and the sources are visited at random).
+        let (s_moment, t_moment, nodes) = (&self.s, &self.t, &self.nodes);
+        let intensity = |x: u32, dir: DVec3, abs_dir: DVec3, f: usize| -> Rgb {
+            match nodes[x as usize] {
+                Node { patch: LEAF, slot, .. } => {
+                    let i = slot as usize;
+                    clamp0((dot(&s_moment[i], dir) + dot(&t_moment[i][f], abs_dir)) * 0.5)
+                }
+                Node { patch, .. } => {
+                    let e = hier.get(patch);
+                    b(patch) * (e.area * e.normal.dot(dir).max(0.0))
+                }
             }
         };
-        // Each receiving node sums its incoming links in parallel (in link order).
-        self.u.clear();
-        self.u.resize(n, [Rgb::ZERO; 3]);
-        self.w.clear();
-        self.w.resize(n, [[Rgb::ZERO; 3]; FRAMES.len()]);
-        self.direct.clear();
-        self.direct.resize(n, Rgb::ZERO);
         let (start, incoming) = (&self.start, &self.incoming);
-        self.u
-            .par_iter_mut()
-            .zip(self.w.par_iter_mut())
-            .zip(self.direct.par_iter_mut())
-            .enumerate()
+        // Node r's incoming links, in link order: (ω, |ω| in the link's frame, the frame, φ).
+        let gather = |r: usize| {
+            let centre = nodes[r].centre;
+            incoming[start[r] as usize..start[r + 1] as usize].iter().map(move |inc| {
+                let d = nodes[inc.src as usize].centre - centre;
+                let d2 = d.length_squared();
+                let omega = d / d2.sqrt();
+                let f = usize::from(inc.frame);
+                let abs_omega = abs_in(f, omega);
+                // r gathers from the direction ω what the source sends towards −ω.
+                let phi = intensity(inc.src, -omega, abs_omega, f) * f64::from(inc.coef);
+                (omega, abs_omega, f, phi)
+            })
+        };
+        // Each receiving node sums its incoming links in parallel: a cluster into its U and W,
+        // a patch at once with its normal.
+        self.u.clear();
+        self.u.resize(m, [Rgb::ZERO; 3]);
+        self.w.clear();
+        self.w.resize(m, [[Rgb::ZERO; 3]; FRAMES.len()]);
+        let clusters = &self.clusters;
+        self.u.par_iter_mut().zip(self.w.par_iter_mut()).enumerate().with_min_len(256).for_each(
+            |(k, (u, w))| {
+                for (omega, abs_omega, f, phi) in gather(clusters[k] as usize) {
+                    axpy(u, omega, phi);
+                    axpy(&mut w[f], abs_omega, phi);
+                }
+            },
+        );
+        let direct: Vec<Rgb> = (0..n)
+            .into_par_iter()
             .with_min_len(256)
-            .for_each(|(r, ((u, w), direct))| {
-                let node = &tree.nodes[r];
-                let recv_normal = node.is_leaf().then(|| hier.get(tree.patch(r as u32)).normal);
-                for inc in &incoming[start[r] as usize..start[r + 1] as usize] {
-                    let d = tree.nodes[inc.src as usize].center - node.center;
-                    let d2 = d.length_squared();
-                    let omega = d / d2.sqrt();
-                    let f = usize::from(inc.frame);
-                    // r gathers from the direction ω what the source sends towards −ω.
-                    let phi = intensity(inc.src, -omega, f) * f64::from(inc.coef);
-                    match recv_normal {
-                        Some(nrm) => *direct += phi * nrm.dot(omega).max(0.0),
-                        None => {
-                            axpy(u, omega, phi);
-                            axpy(&mut w[f], abs_in(f, omega), phi);
-                        }
+            .map(|r| {
+                let patch = nodes[r].patch;
+                let mut direct = Rgb::ZERO;
+                if patch != LEAF {
+                    let nrm = hier.get(patch).normal;
+                    for (omega, _, _, phi) in gather(r) {
+                        direct += phi * nrm.dot(omega).max(0.0);
                     }
                 }
-            });
+                direct
+            })
+            .collect();
         let mut h = vec![Rgb::ZERO; hier.roots];
-        // Push U and W down (parents first; the root has none); leaves read them with their
-        // normal.
-        for i in 0..n {
+        // Push U and W down (parents first; the root has none); leaves read their parent's
+        // with their normal.
+        for (i, direct) in direct.iter().enumerate() {
             let parent = tree.nodes[i].parent;
-            if parent != LEAF {
-                let (u, w) = (self.u[parent as usize], self.w[parent as usize]);
-                for (mine, up) in self.u[i].iter_mut().zip(u) {
+            let Node { patch, slot, .. } = self.nodes[i];
+            if parent == LEAF {
+                continue;
+            }
+            let up = self.nodes[parent as usize].slot as usize;
+            if patch == LEAF {
+                let (u, w) = (self.u[up], self.w[up]);
+                let k = slot as usize;
+                for (mine, up) in self.u[k].iter_mut().zip(u) {
                     *mine += up;
                 }
-                for (mine_f, up_f) in self.w[i].iter_mut().zip(w) {
+                for (mine_f, up_f) in self.w[k].iter_mut().zip(w) {
                     for (mine, up) in mine_f.iter_mut().zip(up_f) {
                         *mine += up;
                     }
                 }
-            }
-            if tree.nodes[i].is_leaf() {
-                let p = tree.patch(i as u32);
-                let nrm = hier.get(p).normal;
-                let mut hw = dot(&self.u[i], nrm);
+            } else {
+                let nrm = hier.get(patch).normal;
+                let mut hw = dot(&self.u[up], nrm);
                 for f in 0..FRAMES.len() {
-                    hw += dot(&self.w[i][f], abs_in(f, nrm));
+                    hw += dot(&self.w[up][f], abs_in(f, nrm));
                 }
-                h[p as usize] = self.direct[i] + clamp0(hw * 0.5);
+                h[patch as usize] = *direct + clamp0(hw * 0.5);
             }
         }
         h
@@ -628,9 +783,8 @@ mod tests {
         t.order[n.lo as usize..n.hi as usize].to_vec()
     }
 
-    #[test]
-    fn linking_covers_every_pair_of_patches_exactly_once() {
-        // Cubes in a row and a turned one: 30 patches; an arbitrary (but deterministic) accept.
+    /// Four cubes in a row and a turned one (30 patches), and their tree.
+    fn cubes_in_a_row() -> (Hierarchy, ClusterTree) {
         let mut patches = Vec::new();
         for k in 0..4 {
             patches.extend(cube(DVec3::new(3.0 * f64::from(k), 0.0, 0.0), 1.0, 0.0));
@@ -638,6 +792,13 @@ mod tests {
         patches.extend(cube(DVec3::new(0.0, 5.0, 2.0), 2.0, 0.3));
         let hier = hierarchy(patches);
         let tree = ClusterTree::build(&hier);
+        (hier, tree)
+    }
+
+    #[test]
+    fn linking_covers_every_pair_of_patches_exactly_once() {
+        // Cubes in a row and a turned one: 30 patches; an arbitrary (but deterministic) accept.
+        let (hier, tree) = cubes_in_a_row();
         assert_eq!(tree.len(), 2 * hier.roots - 1, "a binary tree down to single patches");
         let mut pairs = Vec::new();
         tree.link(0, 0, &|a, b| (a + b) % 3 == 0, &mut pairs);
@@ -668,6 +829,26 @@ mod tests {
                 assert_eq!(count[p * n + q], 1, "pair ({p}, {q}) covered {} times", count[p * n + q]);
             }
             assert_eq!(count[p * n + p], 0, "patch {p} linked to itself");
+        }
+    }
+
+    #[test]
+    fn batched_linking_gives_the_same_pairings_in_the_same_order() {
+        // 30 patches linked in batches of pairs of at most 4 members: the batches put together
+        // are `link`'s list, pairing for pairing.
+        let (_, tree) = cubes_in_a_row();
+        let accept = |a: u32, b: u32| (a + b).is_multiple_of(3);
+        let mut whole = Vec::new();
+        tree.link(0, 0, &accept, &mut whole);
+        for batch_members in [1, 4, 7, 1024] {
+            let mut batches = Vec::new();
+            tree.link_batched_in(0, 0, &accept, batch_members, &mut |p| batches.push(p.to_vec()));
+            assert_eq!(batches.concat(), whole, "batches of {batch_members}");
+            if batch_members == 1024 {
+                assert_eq!(batches.len(), 1, "30 patches are one batch");
+            } else {
+                assert!(batches.len() > 1, "batches of {batch_members}: {}", batches.len());
+            }
         }
     }
 

@@ -10,6 +10,34 @@
 
 use super::*;
 
+/// Pairings made (in parallel) and installed at a time by `install_chunk`.
+const INSTALL_CHUNK: usize = 1 << 16;
+
+/// The couplings of the patch pairs a clustered scene links one by one are integrated to this
+/// many times `link_tol` (relative; `interactive`: 1e-2 instead of 1e-3).
+///
+/// Why looser than element links: these pairs are neighbouring small pieces (a leg on the
+/// floor, books side by side), most of them touching or nearly so, where the adaptive
+/// cubature's cost grows fast with the tolerance (near pairs ~930 kernel evaluations each at
+/// 1e-3; two thirds of furnished-30k's couplings are adaptive). Their error is not what limits
+/// the solve: the cluster links beside them carry a point approximation good to a few percent
+/// and 4-ray visibility, and the rooms that reach the link budget keep one value per patch. A
+/// coupling 1 % off moves the answer by far less than that. Measured (docs/scale.md, session
+/// 14): furnished-30k 22 % less CPU (17.6 → 13.7 s user); its patches move by 0.21 %
+/// (area-weighted rel L2) and the escaped power by 0.01 points; the pointwise error against
+/// the path-traced furnished-4k reference stays 10.48 % (rel L2, debiased; L1 9.63 → 9.64 %).
+/// Presets with one-point couplings (`link_tol` 0) keep one point.
+const CLUSTERED_PAIR_TOL_FACTOR: f64 = 10.0;
+
+/// Links being installed (`install_start` … `install_finish`).
+struct Installing {
+    lists: Vec<Vec<Link>>,
+    cluster_links: Vec<ClusterLink>,
+    created: usize,
+    skipped: usize,
+    rays: u64,
+}
+
 impl HierarchicalSolver {
     /// Does this solve cluster (decided by `params.cluster` and the patch count)?
     pub(super) fn clustering(&self) -> bool {
@@ -33,6 +61,19 @@ impl HierarchicalSolver {
     /// Is a cluster link between nodes `a` and `b` (spheres apart) accurate enough? The BF
     /// oracle's test with cluster bounds ([`cluster`]); the Feps oracle's with F alone.
     pub(super) fn cluster_accept(&self, tree: &ClusterTree, b_max: &[f64], a: u32, b: u32) -> bool {
+        self.cluster_accept_in(tree, b_max, a, b, None)
+    }
+
+    /// [`Self::cluster_accept`] with the link's frame when it is known (a cluster link keeps
+    /// it: the four frames' sums cost more than the rest of the test).
+    fn cluster_accept_in(
+        &self,
+        tree: &ClusterTree,
+        b_max: &[f64],
+        a: u32,
+        b: u32,
+        frame: Option<u8>,
+    ) -> bool {
         let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
         let d = na.center.distance(nb.center);
         let gap = d - na.radius - nb.radius;
@@ -45,7 +86,7 @@ impl HierarchicalSolver {
         // furnished-2k's error against the unclustered solve, 4.8 → 8.9 %).
         let w = (nb.center - na.center) / d;
         let pg2 = std::f64::consts::PI * gap * gap;
-        let f = cluster::link_frame(na, nb, w);
+        let f = frame.unwrap_or_else(|| cluster::link_frame(na, nb, w));
         let (f_ab, f_ba) =
             ((nb.projected_area(-w, f) / pg2).min(1.0), (na.projected_area(w, f) / pg2).min(1.0));
         match self.params.oracle {
@@ -63,10 +104,10 @@ impl HierarchicalSolver {
     pub(super) fn cluster_linking(&mut self) -> usize {
         let tree = Arc::clone(self.clusters.get_or_insert_with(|| Arc::new(ClusterTree::build(&self.hier))));
         let b_max = self.cluster_b_max(&tree);
+        let mut inst = self.install_start(Vec::new());
         let accept = |a: u32, b: u32| self.cluster_accept(&tree, &b_max, a, b);
-        let mut pairs = Vec::new();
-        tree.link(0, 0, &accept, &mut pairs);
-        self.install_pairings(&tree, &pairs, Vec::new())
+        tree.link_batched(0, 0, &accept, &mut |pairs| self.install_chunk(&tree, &mut inst, pairs));
+        self.install_finish(&tree, inst)
     }
 
     /// Test every cluster link again with the current radiosities and replace those that fail
@@ -74,51 +115,59 @@ impl HierarchicalSolver {
     pub(super) fn cluster_refine(&mut self) -> (usize, bool) {
         let Some(tree) = self.clusters.clone() else { return (0, false) };
         let b_max = self.cluster_b_max(&tree);
-        let accept = |a: u32, b: u32| self.cluster_accept(&tree, &b_max, a, b);
-        let redone: Vec<Option<Vec<Pairing>>> = self
+        let keep: Vec<bool> = self
             .cluster_links
             .par_iter()
             .with_min_len(64)
-            .map(|l| {
-                if accept(l.a, l.b) {
-                    return None;
-                }
-                let mut out = Vec::new();
-                tree.link(l.a, l.b, &accept, &mut out);
-                Some(out)
-            })
+            .map(|l| self.cluster_accept_in(&tree, &b_max, l.a, l.b, Some(l.frame)))
             .collect();
-        if redone.iter().all(Option::is_none) {
+        if keep.iter().all(|&k| k) {
             return (0, false);
         }
-        let mut kept = Vec::with_capacity(self.cluster_links.len());
-        let mut pairs = Vec::new();
-        for (l, r) in self.cluster_links.iter().zip(redone) {
-            match r {
-                None => kept.push(*l),
-                Some(p) => pairs.extend(p),
-            }
+        let links = std::mem::take(&mut self.cluster_links);
+        let kept = links.iter().zip(&keep).filter(|(_, k)| **k).map(|(l, _)| *l).collect();
+        let mut inst = self.install_start(kept);
+        // The failing links' subdivisions, in link order, a chunk of links at a time.
+        let failed: Vec<ClusterLink> =
+            links.iter().zip(&keep).filter(|(_, k)| !**k).map(|(l, _)| *l).collect();
+        drop(links);
+        let accept = |a: u32, b: u32| self.cluster_accept(&tree, &b_max, a, b);
+        for chunk in failed.chunks(1024) {
+            let parts: Vec<Vec<Pairing>> = chunk
+                .par_iter()
+                .map(|l| {
+                    let mut out = Vec::new();
+                    tree.link(l.a, l.b, &accept, &mut out);
+                    out
+                })
+                .collect();
+            self.install_chunk(&tree, &mut inst, &parts.concat());
         }
-        (self.install_pairings(&tree, &pairs, kept), true)
+        (self.install_finish(&tree, inst), true)
+    }
+
+    /// Begin installing pairings after the cluster links `kept`: the patches' link lists are
+    /// taken out of the store until [`Self::install_finish`].
+    fn install_start(&mut self, kept: Vec<ClusterLink>) -> Installing {
+        // The old transfer (its incoming links and moments: 0.2 GB at 100 k patches) is not
+        // needed while the new links are made.
+        self.cluster_xfer = ClusterTransfer::default();
+        Installing {
+            lists: std::mem::take(&mut self.links.by_receiver),
+            cluster_links: kept,
+            created: 0,
+            skipped: 0,
+            rays: 0,
+        }
     }
 
     /// Make the links of `pairs` (cluster links with their visibility, element links of patch
-    /// pairs as `initial_linking` does), after the cluster links `kept`; update the patches'
-    /// cluster rows. Returns the links made.
-    pub(super) fn install_pairings(
-        &mut self,
-        tree: &Arc<ClusterTree>,
-        pairs: &[Pairing],
-        kept: Vec<ClusterLink>,
-    ) -> usize {
+    /// pairs as `initial_linking` does) and add them to `inst`, in pair order.
+    fn install_chunk(&self, tree: &ClusterTree, inst: &mut Installing, pairs: &[Pairing]) {
         let (rays, seed) = (self.params.rays.max(4), self.params.seed);
-        // A clustered scene's patches are small pieces: their pairs are integrated as element
-        // pairs are (the input pairs' 1e-7 took 88 % of a 10 k-patch room's solve).
-        let acc = self.accuracy();
-        let made: Vec<Made> = pairs
-            .par_iter()
-            .with_min_len(16)
-            .map(|pair| match *pair {
+        let acc = self.clustered_pair_accuracy();
+        let make = |pair: &Pairing| -> Made {
+            match *pair {
                 Pairing::Cluster(a, b) => {
                     let (vis, cast) = tree.visibility(&self.hier, &self.accel, a, b, rays, seed);
                     let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
@@ -129,30 +178,51 @@ impl HierarchicalSolver {
                     let (links, cast) = self.root_pair(p, q, acc, false);
                     (None, links.map(|(pq, qp)| (p, q, pq, qp)), cast)
                 }
-            })
-            .collect();
-        let mut created = 0;
-        let mut skipped = 0;
-        self.cluster_links = kept;
-        for (cl, el, cast) in made {
-            self.stats.rays += cast;
-            if let Some(cl) = cl {
-                self.cluster_links.push(cl);
-                created += 2;
-            } else if let Some((p, q, pq, qp)) = el {
-                self.links.by_receiver[p as usize].push(pq);
-                self.links.by_receiver[q as usize].push(qp);
-                created += 2;
-            } else {
-                skipped += 1;
+            }
+        };
+        // In chunks: a made pair takes ~130 bytes until installed, and all of them at once
+        // were the peak of the process (furnished-30k: 3.7 M pairs, 0.48 GB of its 0.50 GB).
+        for chunk in pairs.chunks(INSTALL_CHUNK) {
+            let made: Vec<Made> = chunk.par_iter().with_min_len(16).map(make).collect();
+            for (cl, el, cast) in made {
+                inst.rays += cast;
+                if let Some(cl) = cl {
+                    inst.cluster_links.push(cl);
+                    inst.created += 2;
+                } else if let Some((p, q, pq, qp)) = el {
+                    inst.lists[p as usize].push(pq);
+                    inst.lists[q as usize].push(qp);
+                    inst.created += 2;
+                } else {
+                    inst.skipped += 1;
+                }
             }
         }
+    }
+
+    /// Put the links installed into the store, update the patches' cluster rows. Returns the
+    /// links made (element links, and cluster links counted twice).
+    fn install_finish(&mut self, tree: &ClusterTree, inst: Installing) -> usize {
+        let Installing { mut lists, mut cluster_links, created, skipped, rays } = inst;
+        // Lists grown a push at a time hold up to twice their links.
+        lists[..self.hier.roots].par_iter_mut().with_min_len(256).for_each(Vec::shrink_to_fit);
+        cluster_links.shrink_to_fit();
+        self.links.by_receiver = lists;
+        self.cluster_links = cluster_links;
+        self.stats.rays += rays;
         self.stats.pairs_skipped += skipped;
         // Each patch's Σ F·V through the cluster links: the transfer with B = 1.
         self.cluster_xfer = ClusterTransfer::new(tree, &self.cluster_links);
         let ones = self.cluster_xfer.irradiance(tree, &self.hier, &|_| Rgb::ONE);
         self.cluster_fv = ones.iter().map(|h| h.0[0]).collect();
         created
+    }
+
+    /// The accuracy of the couplings of the patch pairs a clustered scene links one by one:
+    /// [`CLUSTERED_PAIR_TOL_FACTOR`] × `link_tol` (one point stays one point).
+    fn clustered_pair_accuracy(&self) -> transfer::Accuracy {
+        let acc = self.accuracy();
+        transfer::Accuracy { tol: acc.tol * CLUSTERED_PAIR_TOL_FACTOR, ..acc }
     }
 
     /// The `max` cluster links of largest form factor, largest first (ties: link order), as
@@ -265,13 +335,6 @@ impl HierarchicalSolver {
         if !sides.facing {
             return (None, 0);
         }
-        // One Galerkin coupling serves both links (A_p F_pq = A_q F_qp exactly).
-        // The small patches of a clustered scene are placed by their bounding boxes' gap.
-        let min_gap = if root { transfer::NO_GAP_BOUND } else { transfer::box_gap(p, q) };
-        let g = transfer::coupling(p, pi, q, qi, sides.straddle, root, acc, min_gap);
-        if g <= 0.0 && !sides.straddle {
-            return (None, 0);
-        }
         // Newell normals of the input polygons (as `visibility::visible_fraction`).
         let (n_p, n_q) = (newell_normal(p.vertices()), newell_normal(q.vertices()));
         let mut last = NO_HIT;
@@ -313,6 +376,15 @@ impl HierarchicalSolver {
             if v2 < 1.0 {
                 v = (f64::from(rays) + v2 * f64::from(confirm)) / f64::from(rays + confirm);
             }
+        }
+        // One Galerkin coupling serves both links (A_p F_pq = A_q F_qp exactly). Computed
+        // once the pair is known to be visible: near pairs take adaptive cubature, the larger
+        // part of a clustered solve, and a fully occluded pair needs none.
+        // The small patches of a clustered scene are placed by their bounding boxes' gap.
+        let min_gap = if root { transfer::NO_GAP_BOUND } else { transfer::box_gap(p, q) };
+        let g = transfer::coupling(p, pi, q, qi, sides.straddle, root, acc, min_gap);
+        if g <= 0.0 && !sides.straddle {
+            return (None, cast);
         }
         let v = v as f32;
         let links = (

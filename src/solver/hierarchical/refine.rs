@@ -75,7 +75,7 @@ pub(super) const PARALLEL_SPLITS: usize = 32;
 /// Cached initial links: ((rays, seed, conservative, weighted), links per root receiver, pairs skipped).
 pub(super) type InitialLinks = ((u32, u64, bool, bool), Vec<Vec<Link>>, usize);
 
-/// What `install_pairings` makes of one pairing: a cluster link, or a patch pair's two links
+/// What `install_chunk` makes of one pairing: a cluster link, or a patch pair's two links
 /// (none when the pair is skipped), and the rays cast.
 pub(super) type Made = (Option<ClusterLink>, Option<(u32, u32, Link, Link)>, u64);
 pub(super) type PairRow = (Vec<(u32, Link, Link)>, usize, u64);
