@@ -28,6 +28,10 @@ pub const PLANE_REL: f64 = 1e-7;
 /// Two coplanar patches overlap when their intersection covers more than this fraction of the
 /// smaller one; cut pieces smaller than this fraction of their patch are dropped.
 pub const OVERLAP_REL: f64 = 1e-6;
+/// Work bounds (hostile files): a plane with more candidate pairs than this is not searched,
+/// and a patch under more decals than [`MAX_DECALS_PER_PATCH`] is not cut; the warning says so.
+pub const MAX_PAIRS_PER_PLANE: usize = 4_000_000;
+pub const MAX_DECALS_PER_PATCH: usize = 64;
 
 /// One decal pair: the decal and the patch it lies on. Of two overlapping patches the decal is
 /// the one whose mesh has less area in their plane (a rug over a tiled floor), then the smaller
@@ -49,6 +53,8 @@ pub struct CutReport {
     pub pieces: usize,
     /// Area dropped (covered).
     pub covered_area: f64,
+    /// Planes not searched and patches not cut, for the work bounds.
+    pub skipped: usize,
 }
 
 /// Cut every patch that a decal covers around it (see the module docs); the first piece of a
@@ -59,9 +65,10 @@ pub fn cut_under_decals(scene: &mut Scene) -> CutReport {
     if !(diag > 0.0) || scene.patches.len() < 2 {
         return CutReport::default();
     }
-    let decals = find_decals(&scene.patches, diag);
-    let mut report = CutReport { decals: decals.len(), ..CutReport::default() };
+    let (decals, skipped_planes) = find_decals(&scene.patches, diag);
+    let mut report = CutReport { decals: decals.len(), skipped: skipped_planes, ..CutReport::default() };
     if decals.is_empty() {
+        warn_skipped(scene, &report);
         return report;
     }
     let mut by_base: Vec<(usize, Vec<usize>)> = Vec::new();
@@ -74,6 +81,10 @@ pub fn cut_under_decals(scene: &mut Scene) -> CutReport {
     let mut first_cut: Option<(String, String)> = None;
     let mut appended = Vec::new();
     for (base, tops) in by_base {
+        if tops.len() > MAX_DECALS_PER_PATCH {
+            report.skipped += 1;
+            continue;
+        }
         let p = &scene.patches[base];
         let frame = Frame::of(p);
         let mut pieces = vec![frame.project(&p.vertices)];
@@ -116,12 +127,25 @@ pub fn cut_under_decals(scene: &mut Scene) -> CutReport {
             report.cut, report.decals, report.pieces, report.covered_area
         ));
     }
+    warn_skipped(scene, &report);
     report
 }
 
-/// The decal pairs of `patches` (scene diagonal `diag`), sorted by (covered patch, decal).
+fn warn_skipped(scene: &mut Scene, report: &CutReport) {
+    if report.skipped > 0 {
+        scene.warnings.push(format!(
+            "{} plane(s) or patch(es) with too many coplanar overlaps (more than {MAX_PAIRS_PER_PLANE} \
+             candidate pairs, or {MAX_DECALS_PER_PATCH} decals on one patch) left uncut: their overlapping \
+             parts receive the same light twice",
+            report.skipped
+        ));
+    }
+}
+
+/// The decal pairs of `patches` (scene diagonal `diag`), sorted by (covered patch, decal), and
+/// the number of planes not searched (over [`MAX_PAIRS_PER_PLANE`]).
 #[must_use]
-pub fn find_decals(patches: &[Patch], diag: f64) -> Vec<Decal> {
+pub fn find_decals(patches: &[Patch], diag: f64) -> (Vec<Decal>, usize) {
     let plane_tol = PLANE_REL * diag;
     let mut buckets: HashMap<(i64, i64, i64, i64), Vec<usize>> = HashMap::new();
     for (i, p) in patches.iter().enumerate() {
@@ -131,15 +155,19 @@ pub fn find_decals(patches: &[Patch], diag: f64) -> Vec<Decal> {
         buckets.entry(key).or_default().push(i);
     }
     let mut out = Vec::new();
+    let mut skipped = 0;
     for g in buckets.into_values().filter(|g| g.len() > 1) {
-        decals_in_plane(patches, &g, diag, &mut out);
+        if !decals_in_plane(patches, &g, diag, &mut out) {
+            skipped += 1;
+        }
     }
     out.sort_unstable_by_key(|d| (d.on, d.decal));
-    out
+    (out, skipped)
 }
 
-/// The decal pairs among the patches `ids` of one plane.
-fn decals_in_plane(patches: &[Patch], ids: &[usize], diag: f64, out: &mut Vec<Decal>) {
+/// The decal pairs among the patches `ids` of one plane; false (nothing added) when the plane
+/// has more than [`MAX_PAIRS_PER_PLANE`] candidate pairs.
+fn decals_in_plane(patches: &[Patch], ids: &[usize], diag: f64, out: &mut Vec<Decal>) -> bool {
     let frame = Frame::of(&patches[ids[0]]);
     let poly: Vec<Vec<[f64; 2]>> = ids.iter().map(|&i| frame.project(&patches[i].vertices)).collect();
     let boxes: Vec<[f64; 4]> = poly.iter().map(|v| bbox(v)).collect();
@@ -161,6 +189,10 @@ fn decals_in_plane(patches: &[Patch], ids: &[usize], diag: f64, out: &mut Vec<De
                 grid.entry((x, y)).or_default().push(k as u32);
             }
         }
+    }
+    let cell_pairs: usize = grid.values().map(|m| m.len() * m.len().saturating_sub(1) / 2).sum();
+    if cell_pairs.saturating_add(big.len().saturating_mul(boxes.len())) > MAX_PAIRS_PER_PLANE {
+        return false;
     }
     let mut pairs: Vec<(u32, u32)> = Vec::new();
     for members in grid.values() {
@@ -198,6 +230,7 @@ fn decals_in_plane(patches: &[Patch], ids: &[usize], diag: f64, out: &mut Vec<De
             out.push(Decal { decal: ids[top], on: ids[bottom] });
         }
     }
+    true
 }
 
 /// A patch's plane: 2D coordinates (u, v) along t1, t2 and the offset along the normal.
@@ -380,10 +413,11 @@ mod tests {
                 ));
             }
         }
-        assert!(find_decals(&tiles, 20.0).is_empty(), "tiles sharing edges are no decals");
+        assert!(find_decals(&tiles, 20.0).0.is_empty(), "tiles sharing edges are no decals");
         // A rug larger than a tile: its mesh has less area in the plane, so it is on top.
         tiles.push(quad_of("rug", 2.5, 2.5, 4.5, 4.5, 0.0));
-        let found = find_decals(&tiles, 20.0);
+        let (found, skipped) = find_decals(&tiles, 20.0);
+        assert_eq!(skipped, 0);
         // The rug covers parts of 9 tiles (columns and rows 2, 3, 4).
         assert_eq!(found.len(), 9, "{found:?}");
         assert!(found.iter().all(|d| d.decal == 100));
@@ -402,7 +436,7 @@ mod tests {
         let flipped = Patch::new(v, Rgb::splat(0.5), Rgb::ZERO, "m", 0, "p", "m").unwrap();
         let above = quad(1.0, 1.0, 2.0, 2.0, 0.01);
         let beside = quad(4.0, 0.0, 5.0, 1.0, 0.0);
-        assert!(find_decals(&[floor, flipped, above, beside], 10.0).is_empty());
+        assert!(find_decals(&[floor, flipped, above, beside], 10.0).0.is_empty());
     }
 
     #[test]
@@ -424,7 +458,7 @@ mod tests {
         let area: f64 = pieces.iter().map(|p| p.area).sum();
         assert!((area - 10.5).abs() < 1e-12, "{area}");
         assert!(pieces.iter().all(|p| p.normal.z > 0.999 && p.vertices.iter().all(|v| v.z.abs() < 1e-12)));
-        assert!(find_decals(&scene.patches, 10.0).is_empty(), "nothing left under the poster");
+        assert!(find_decals(&scene.patches, 10.0).0.is_empty(), "nothing left under the poster");
         assert!(scene.warnings.iter().any(|w| w.contains("1 patch(es) cut around 1 coplanar decal(s)")));
         assert!(scene.validate().is_empty(), "{:?}", scene.validate());
     }
@@ -440,5 +474,16 @@ mod tests {
         let r = cut_under_decals(&mut d);
         assert_eq!((r.decals, r.cut, r.pieces), (1, 1, 0));
         assert_eq!(d.patches.len(), 1);
+    }
+
+    #[test]
+    fn a_pile_of_overlapping_copies_is_bounded() {
+        // 70 copies of one quad: every copy lies on the earlier ones, so the first is under 69
+        // decals (over the per-patch bound): left uncut, with a warning, and no blow-up.
+        let quads: Vec<Patch> = (0..70).map(|_| quad(0.0, 0.0, 1.0, 1.0, 0.0)).collect();
+        let mut scene = Scene::new("t", "t", quads);
+        let r = cut_under_decals(&mut scene);
+        assert!(r.skipped >= 1, "{r:?}");
+        assert!(scene.warnings.iter().any(|w| w.contains("left uncut")), "{:?}", scene.warnings);
     }
 }
