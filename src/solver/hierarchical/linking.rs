@@ -10,6 +10,15 @@
 
 use super::*;
 
+/// Cached initial links: ((rays, seed, conservative, weighted), links per root receiver, pairs skipped).
+pub(super) type InitialLinks = ((u32, u64, bool, bool), Vec<Vec<Link>>, usize);
+
+/// What `install_chunk` makes of one pairing: a cluster link, or a patch pair's two links
+/// (none when the pair is skipped), and the rays cast.
+pub(super) type Made = (Option<ClusterLink>, Option<(u32, u32, Link, Link)>, u64);
+/// One patch's row of initial links: (q, link p ← q, link q ← p) for q > p, pairs skipped, rays.
+pub(super) type PairRow = (Vec<(u32, Link, Link)>, usize, u64);
+
 /// Pairings made (in parallel) and installed at a time by `install_chunk`.
 const INSTALL_CHUNK: usize = 1 << 16;
 

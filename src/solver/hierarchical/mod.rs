@@ -116,6 +116,7 @@ mod refine;
 mod transfer;
 
 use gather::*;
+use linking::InitialLinks;
 use push_pull::*;
 use refine::*;
 

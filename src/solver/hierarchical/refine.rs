@@ -72,14 +72,6 @@ impl IdSet {
 /// A receiver with at least this many links to split computes their replacements in parallel.
 pub(super) const PARALLEL_SPLITS: usize = 32;
 
-/// Cached initial links: ((rays, seed, conservative, weighted), links per root receiver, pairs skipped).
-pub(super) type InitialLinks = ((u32, u64, bool, bool), Vec<Vec<Link>>, usize);
-
-/// What `install_chunk` makes of one pairing: a cluster link, or a patch pair's two links
-/// (none when the pair is skipped), and the rays cast.
-pub(super) type Made = (Option<ClusterLink>, Option<(u32, u32, Link, Link)>, u64);
-pub(super) type PairRow = (Vec<(u32, Link, Link)>, usize, u64);
-
 /// What `replace_links` made for one receiver.
 pub(super) struct Replaced {
     receiver: u32,
