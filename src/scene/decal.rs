@@ -200,9 +200,9 @@ fn decals_in_plane(patches: &[Patch], ids: &[usize], diag: f64, out: &mut Vec<De
             pairs.extend(members[a + 1..].iter().map(|&j| (i.min(j), i.max(j))));
         }
     }
-    for (a, &i) in big.iter().enumerate() {
-        pairs.extend(big[a + 1..].iter().map(|&j| (i.min(j), i.max(j))));
-        pairs.extend((0..boxes.len() as u32).filter(|j| !big.contains(j)).map(|j| (i.min(j), i.max(j))));
+    // A big patch is a candidate with every other one (pairs of two big ones dedup below).
+    for &i in &big {
+        pairs.extend((0..boxes.len() as u32).filter(|&j| j != i).map(|j| (i.min(j), i.max(j))));
     }
     pairs.sort_unstable();
     pairs.dedup();
@@ -485,5 +485,22 @@ mod tests {
         let r = cut_under_decals(&mut scene);
         assert!(r.skipped >= 1, "{r:?}");
         assert!(scene.warnings.iter().any(|w| w.contains("left uncut")), "{:?}", scene.warnings);
+    }
+
+    #[test]
+    fn a_patch_far_larger_than_the_others_is_still_paired() {
+        // 10 000 tiles of side 0.01 on a floor of side 10: the floor spans far more grid cells
+        // than the cap, so it is paired with every tile directly; each tile lies on it.
+        let mut p = vec![quad_of("floor", 0.0, 0.0, 10.0, 10.0, 0.0)];
+        for i in 0..100 {
+            for j in 0..100 {
+                let (x, y) = (f64::from(i) * 0.01, f64::from(j) * 0.01);
+                p.push(quad_of("tiles", x, y, x + 0.01, y + 0.01, 0.0));
+            }
+        }
+        let (found, skipped) = find_decals(&p, 15.0);
+        assert_eq!(skipped, 0);
+        assert_eq!(found.len(), 10_000);
+        assert!(found.iter().all(|d| d.on == 0 && d.decal > 0));
     }
 }
