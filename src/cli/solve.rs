@@ -248,6 +248,12 @@ pub struct SolverArgs {
     /// "Push-pull with slopes").
     #[arg(long)]
     pub push_slopes: Option<bool>,
+    /// Row check: push down the links above a leaf whose row of form factors exceeds 1 (which
+    /// creates light) where that adds more than this fraction of the mean reflected radiosity
+    /// to its answer; 0 off. 0.05 in interactive, 0.1 in quality, off in lecture and splash2
+    /// (hierarchical; see README, "Row check").
+    #[arg(long)]
+    pub row_tol: Option<f64>,
     /// Cluster the input patches, so links grow as n, not n² (hierarchical; auto: scenes of
     /// 3000 patches or more; see README, "Clustering").
     #[arg(long, value_enum)]
@@ -399,6 +405,9 @@ pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalPara
     }
     if let Some(v) = args.partial_bf_factor {
         p.partial_bf_factor = v;
+    }
+    if let Some(v) = args.row_tol {
+        p.row_tol = v;
     }
     if let Some(v) = args.push_slopes {
         p.push_slopes = v;

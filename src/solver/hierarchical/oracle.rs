@@ -434,7 +434,7 @@ impl HierarchicalSolver {
             || elo.reflectance.max_channel() * f_lo * v * field.spread[hi as usize] * var_hi > eps
             || weighted(elo, ehi, var_hi) > eps;
         let (first, second) = match (split_lo, split_hi) {
-            (false, false) => return Err(StopReason::BelowErrorEps),
+            (false, false) => return self.row_split(lo, hi, link).ok_or(StopReason::BelowErrorEps),
             (true, false) => (lo, None),
             (false, true) => (hi, None),
             (true, true) => {

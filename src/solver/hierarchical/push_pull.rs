@@ -195,7 +195,60 @@ pub(super) fn energy_sums<S: Sums>(els: &[Element], chain: &mut Vec<S>) -> (Rgb,
     (absorbed, escaped)
 }
 
+/// Rows within this of 1 are never flagged by the row check (rounding of f32 form factors and
+/// the quadrature's tolerance).
+pub(super) const ROW_SLACK: f64 = 1e-3;
+
+/// The row check's excess (see `HierarchicalParams::row_tol`): per inner element, the largest
+/// Σ F·V − 1 over the leaves below it (the same row as the energy balance's) where that exceeds
+/// [`ROW_SLACK`] and adds more than `eps` to the leaf's answer (ρ · H · excess / row: a dim
+/// corner's excess moves little light), else 0; 0 for leaves.
+pub(super) fn row_excess<S: Sums>(els: &[Element], chain: &mut Vec<S>, eps: f64) -> Vec<f32> {
+    let mut ex = vec![0.0f32; els.len()];
+    chain.clear();
+    chain.reserve(els.len());
+    for (i, e) in els.iter().enumerate() {
+        let up = if e.parent == NONE { S::default() } else { chain[e.parent as usize] };
+        let own = up.down(e);
+        chain.push(own);
+        if e.is_leaf() {
+            let row = up.inherited_fv() + e.fv_sum + own.fv_shift();
+            let over = row - 1.0;
+            // What the excess adds to the leaf's answer: ρ times its share of the irradiance.
+            let err = e.reflectance.max_channel() * own.irradiance().max_channel() * over / row;
+            if over > ROW_SLACK && err > eps {
+                ex[i] = over as f32;
+            }
+        }
+    }
+    // Up to the ancestors (parents have smaller ids than their children). A leaf keeps no
+    // excess of its own: its own links are its exact averages, and splitting them would not
+    // move the inherited ones.
+    for i in (0..els.len()).rev() {
+        let p = els[i].parent;
+        if p != NONE && ex[i] > ex[p as usize] {
+            ex[p as usize] = ex[i];
+        }
+        if els[i].is_leaf() {
+            ex[i] = 0.0;
+        }
+    }
+    ex
+}
+
 impl HierarchicalSolver {
+    /// The row check's excess of every element now (empty when `row_tol` is 0).
+    pub(super) fn row_excess_now(&mut self) -> Vec<f32> {
+        let eps = self.params.row_tol * self.mean_reflected();
+        if eps <= 0.0 {
+            Vec::new()
+        } else if self.params.push_slopes {
+            row_excess(&self.hier.elements, &mut self.chain, eps)
+        } else {
+            row_excess(&self.hier.elements, &mut self.flat_chain, eps)
+        }
+    }
+
     /// The radiosity of every element (indexed by id) that `push_pull_step` would give now, the
     /// solver's state untouched: what a viewer shows right after a gather. The same chain sums
     /// (with the links' slopes) and area averages as `push_pull_flat`.
