@@ -38,10 +38,14 @@ fn patch_difference(a: &HierarchicalSolver, b: &HierarchicalSolver) -> f64 {
 fn small_scenes_solve_alike_clustered_or_not() {
     // Measured (interactive preset): table-room 0.09 %, splash_room 2.6 % (1 367 cluster links;
     // pointwise against the cached reference 12.94 % clustered, 12.66 % not).
+    // The row check is off in both: it runs only without cluster links (see
+    // `HierarchicalParams::row_tol`), and with it the unclustered table-room is 3 % apart
+    // (pointwise 5.6 → 3.6 %), which is the row check's doing, not clustering's.
+    let p = HierarchicalParams { row_tol: 0.0, ..HierarchicalParams::interactive() };
     for (name, max_diff) in [("table-room", 0.005), ("splash_room", 0.04)] {
         let scene = load(name).unwrap();
-        let off = solve(&scene, Clustering::Off, HierarchicalParams::interactive());
-        let on = solve(&scene, Clustering::On, HierarchicalParams::interactive());
+        let off = solve(&scene, Clustering::Off, p);
+        let on = solve(&scene, Clustering::On, p);
         assert_eq!(off.stats().cluster_links, 0);
         assert!(on.stats().cluster_links > 0, "{name}: no cluster links");
         let d = patch_difference(&off, &on);

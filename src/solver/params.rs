@@ -165,7 +165,7 @@ pub struct HierarchicalParams {
     /// that excess adds more than `row_tol` times the scene's mean reflected radiosity to a
     /// leaf's answer, the largest links of its ancestors are pushed down a level at each
     /// refinement. 0: off (`lecture`, the lecture's Refine alone; `splash2`, SPLASH-2's
-    /// criterion). At 0.1, table-room `quality` conserves energy (escaped +0.10 % of the
+    /// criterion); off too in a solve with cluster links. At 0.1, table-room `quality` conserves energy (escaped +0.10 % of the
     /// emitted power, was −0.92…+0.24 % depending on the threshold) with 2.1× the links; at
     /// 0.03 it takes 6× the links for the same balance.
     pub row_tol: f64,
