@@ -14,6 +14,25 @@
 //! decision is symmetric in the pair, so the links q ← p mirror the links p ← q at every level.
 //! The oracles themselves are in [`super::oracle`]; the input patches' (and clusters') first
 //! links in [`super::linking`].
+//!
+//! ## The row check
+//! Whatever the oracle, a point's form factors to the rest of the scene sum to at most 1 (its
+//! hemisphere). A leaf gathers through its own links and, pushed down, its ancestors' (each the
+//! average over the ancestor, moved along its slope):
+//!
+//! ```text
+//! row_x = Σ_{links a ← q, a = x or an ancestor} [ F_aq + slope_aq · (c_x − c_a) ] V_aq   ≤ 1
+//! ```
+//! Where row_x > 1 the inherited averages overstate x's share (a wall's leaf by a corner, whose
+//! view the adjacent wall fills, inherits the whole wall's share of the far walls), its radiosity
+//! follows the row, and the solve creates light (the energy balance's escaped power is
+//! Σ A_x B_x (1 − row_x)). At each refinement after a gather (`row_split`, with
+//! `HierarchicalParams::row_tol`): every leaf whose excess adds more than `row_tol` × the mean
+//! reflected radiosity to its answer (ρ_x H_x (row_x − 1) / row_x) marks its ancestors with its
+//! excess; of a marked element, the largest links that together carry twice the excess are
+//! split on its side, so their averages are replaced by its children's own. The decision
+//! reads only the pair's coupling, V and the two elements' marks, so a link and its mirror
+//! agree.
 
 use super::*;
 
