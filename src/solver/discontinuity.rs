@@ -46,7 +46,7 @@ use crate::accel::Accel;
 use crate::form_factor::point_to_polygon;
 use crate::math::{DVec3, Rgb, orthonormal_basis, polygon_area, polygon_centroid};
 use crate::mesh::MeshError;
-use crate::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, discontinuity_scene};
+use crate::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, conform, discontinuity_scene};
 use crate::scene::Scene;
 use crate::visibility::{point_on_polygon, visible_fraction};
 use rayon::prelude::*;
@@ -157,14 +157,21 @@ pub fn solve(
 /// [`solve`] with the Galerkin solver of [`super::linear`] on the pieces (order and continuity
 /// from `linear`; its element size is not used: one element per piece). Continuous coefficients
 /// are shared between the pieces of one input patch (the CDT is conforming). Returns the solution
-/// on the input scene and each element's coefficients ([`crate::reconstruction::Nodal`]).
+/// on the input scene and each element's coefficients ([`crate::reconstruction::Nodal`]). A
+/// continuous basis on the (ungraded) BSP mesh runs on its pieces made conforming first
+/// ([`crate::mesh::remesh::conform`]: the T-vertices inserted, pieces that gained corners fanned
+/// into triangles).
 pub fn solve_galerkin(
     scene: &Scene,
     params: &DiscontinuityParams,
     linear: &LinearParams,
     progress: Progress,
 ) -> Result<(DiscontinuitySolution, Vec<Vec<Rgb>>), DiscontinuityError> {
-    let meshed = discontinuity_scene(scene, &params.mesh)?;
+    let mut meshed = discontinuity_scene(scene, &params.mesh)?;
+    if linear.continuous && params.mesh.kind == MeshKind::Bsp && params.mesh.grade.is_none() {
+        // Shared vertex values need the pieces to meet corner to corner.
+        conform(&mut meshed, scene);
+    }
     let t = Instant::now();
     let accel = Accel::build(&meshed.scene);
     let per_element = linear.order.functions(4);
