@@ -37,7 +37,10 @@ fn exact_and_path_traced_rulers_agree_and_pictures_are_written() {
     assert!(exact["pointwise"].is_null(), "no reference points with the closed form");
     let fr = &exact["fractions"];
     assert_eq!(f(&fr["E"]), 0.0, "the D-mesh resolves every critical segment");
-    assert!(f(&fr["A"]) > 0.3 && f(&fr["D"]) > 0.3, "p = 0 on the D-mesh is blocky and jumps: {fr}");
+    // p = 0 with the gather's slopes (src/solver/discontinuity.rs): the band still off by a few
+    // percent and some jumps at edges (measured: A 12.4 %, D 7.5 %; without the slopes 59 % and
+    // 61 %), enough for the two rulers to be compared below.
+    assert!(f(&fr["A"]) > 0.05 && f(&fr["D"]) > 0.02, "p = 0 on the D-mesh is blocky and jumps: {fr}");
     for name in radlab::artifact_pictures::FILES {
         let bytes = std::fs::read(out.join(name)).unwrap();
         assert_eq!(&bytes[1..4], b"PNG", "{name}");
@@ -46,7 +49,8 @@ fn exact_and_path_traced_rulers_agree_and_pictures_are_written() {
 
     // The same solution against the path-traced reference (64 paths a point, cached in a temp
     // folder), read through its linear interpolant: A and D within 3 points of the closed form's
-    // (measured: 59.4 % against 59.2 %, 60.8 % against 60.8 %), E identical (geometry).
+    // (measured without the gather: 59.4 % against 59.2 %, 60.8 % against 60.8 %), E identical
+    // (geometry).
     let cache = temp("cache");
     let traced = artifacts(
         &[

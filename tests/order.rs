@@ -129,7 +129,9 @@ fn linear_elements_on_the_discontinuity_mesh() {
         .map(|p| Estimate { radiosity: sb.patch_radiosity_at(p.patch, p.position), std_error: Rgb::ZERO })
         .collect();
     let in_band = band(&scene, &accel, &set.points, &exact, &BandParams::standard());
-    let params = DiscontinuityParams::cdt();
+    // p = 0 as the solve leaves it: constant elements, without the gather's slopes (with them
+    // p = 0 reads 0.8 %, band 7.9 %: tests/dmesh_pointwise.rs).
+    let params = DiscontinuityParams { gather: false, ..DiscontinuityParams::cdt() };
     let p0 = discontinuity::solve(&scene, &params, &mut |_, _| {}).unwrap();
     let s0 = score_solution_in_band(&scene, &p0.solution, &set.points, &exact, Some(&in_band)).unwrap();
     let lp = LinearParams { continuous: true, ..LinearParams::default() };

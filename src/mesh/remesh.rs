@@ -272,3 +272,70 @@ pub fn discontinuity_scene(scene: &Scene, params: &RemeshParams) -> Result<Remes
     out.camera = scene.camera;
     Ok(RemeshedScene { scene: out, origin, stats })
 }
+
+/// Make the pieces of every input patch meet corner to corner: each corner of a piece that lies
+/// inside another piece's edge of the same input patch (a T-vertex: Campbell & Fussell's BSP cuts
+/// one cell at a time, so its neighbours' edges run past the cut's end) is inserted into that
+/// edge, and a piece that gained corners is replaced by the fan of triangles from its centroid
+/// to each of its edges (one triangle per edge, corners inserted included). The CDT is
+/// conforming already; graded meshes are not made so (grading refuses a continuous basis). Used
+/// by the continuous p = 1 solve on the BSP mesh, whose vertex values are shared by position.
+/// Returns the T-vertices inserted.
+pub fn conform(meshed: &mut RemeshedScene, input: &Scene) -> usize {
+    let n = meshed.scene.patches.len();
+    let mut by_origin = vec![Vec::new(); input.patches.len()];
+    for q in 0..n {
+        by_origin[meshed.origin[q]].push(q);
+    }
+    let mut inserted = 0;
+    let (mut patches, mut origin) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut serial = vec![0usize; input.patches.len()];
+    for q in 0..n {
+        let o = meshed.origin[q];
+        let tol = 1e-9 * input.patches[o].diameter();
+        let own = &meshed.scene.patches[q].vertices;
+        let mut verts = Vec::with_capacity(own.len());
+        for k in 0..own.len() {
+            let (a, b) = (own[k], own[(k + 1) % own.len()]);
+            verts.push(a);
+            let d = b - a;
+            let mut hanging: Vec<(f64, DVec3)> = by_origin[o]
+                .iter()
+                .filter(|&&r| r != q)
+                .flat_map(|&r| meshed.scene.patches[r].vertices.iter().copied())
+                .filter_map(|v| {
+                    let s = (v - a).dot(d) / d.length_squared();
+                    (s > 1e-9 && s < 1.0 - 1e-9 && (a + d * s).distance(v) <= tol).then_some((s, v))
+                })
+                .collect();
+            hanging.sort_by(|x, y| x.0.total_cmp(&y.0));
+            hanging.dedup_by(|x, y| x.1.distance(y.1) <= tol);
+            inserted += hanging.len();
+            verts.extend(hanging.into_iter().map(|(_, v)| v));
+        }
+        if verts.len() == own.len() {
+            patches.push(meshed.scene.patches[q].clone());
+            origin.push(o);
+            continue;
+        }
+        // A fan from the centre: a fan from a corner would leave out the zero-area triangles
+        // along an edge that gained corners, and the triangle beside them would keep them hanging.
+        let c = crate::math::polygon_centroid(own);
+        for k in 0..verts.len() {
+            let tri = vec![c, verts[k], verts[(k + 1) % verts.len()]];
+            let name = format!("{}/conformed{}", input.patches[o].name, serial[o]);
+            serial[o] += 1;
+            if let Ok(p) = input.patches[o].piece(tri, name) {
+                patches.push(p);
+                origin.push(o);
+            }
+        }
+    }
+    meshed.stats.output_patches = patches.len();
+    let mut scene = Scene::new(meshed.scene.name.clone(), meshed.scene.source.clone(), patches);
+    scene.warnings.clone_from(&meshed.scene.warnings);
+    scene.camera = meshed.scene.camera;
+    meshed.scene = scene;
+    meshed.origin = origin;
+    inserted
+}

@@ -8,7 +8,11 @@
 //! B_i = E_i + ρ_i Σ_j F_ij V_ij B_j          over the pieces i, j   [Heckbert 1992, §3]
 //! ```
 //!
-//! and [`pull_back`] hands every solved element back to the input patch it was cut from (the
+//! then [`gather`] re-integrates the direct light of the pieces that see an emitter partly (more
+//! shadow rays where the solve's V is strictly between 0 and 1) and gives every piece a slope
+//! from the irradiance gathered at its points (a constant element with a slope, as the
+//! hierarchical solver's leaves; `DiscontinuityParams::gather`, on by default), and [`pull_back`]
+//! hands every solved element back to the input patch it was cut from (the
 //! remeshed scene's `origin`), so the solution is a [`Solution`] **of the input scene**: its
 //! elements are the pieces, its patch indices the input's. Anything that scores a solution of the
 //! input scene — the pointwise ruler ([`crate::pointwise`]) at points placed on the input
@@ -34,13 +38,18 @@
 use super::hierarchical::HierarchicalSolver;
 use super::linear::LinearParams;
 use super::params::HierarchicalParams;
-use super::uniform::{self, COARSE_FF_TOLERANCE, UniformParams, mesh_scene};
-use super::{Progress, Solution};
+use super::uniform::{
+    self, COARSE_FF_TOLERANCE, CouplingSettings, Element, UniformParams, mesh_scene, pair_coupling,
+};
+use super::{Progress, Slope, Solution};
 use crate::accel::Accel;
-use crate::math::Rgb;
+use crate::form_factor::point_to_polygon;
+use crate::math::{DVec3, Rgb, orthonormal_basis, polygon_area, polygon_centroid};
 use crate::mesh::MeshError;
-use crate::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, discontinuity_scene};
+use crate::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, conform, discontinuity_scene};
 use crate::scene::Scene;
+use crate::visibility::{point_on_polygon, visible_fraction};
+use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -57,6 +66,9 @@ pub struct DiscontinuityParams {
     pub mesh: RemeshParams,
     /// Rays, tolerances, seed and element cap of the uniform solve.
     pub solve: UniformParams,
+    /// After the solve, [`gather`]: the direct light of partly shadowed pieces re-integrated
+    /// with more rays, and a slope per piece from a gather at its points.
+    pub gather: bool,
 }
 
 impl DiscontinuityParams {
@@ -72,6 +84,7 @@ impl DiscontinuityParams {
                 max_elements: mesh.max_patches,
                 ..UniformParams::default()
             },
+            gather: true,
         }
     }
 
@@ -112,8 +125,10 @@ pub struct DiscontinuitySolution {
     /// Elements on the input scene's patches ([`pull_back`]).
     pub solution: Solution,
     pub mesh: RemeshStats,
-    /// Wall time of the solve on the mesh (BVH build included), seconds.
+    /// Wall time of the solve on the mesh (BVH build and [`gather`] included), seconds.
     pub solve_s: f64,
+    /// What [`gather`] did (p = 0 solves with [`DiscontinuityParams::gather`]).
+    pub gather: Option<GatherStats>,
 }
 
 /// Remesh `scene` and solve on the pieces (module docs).
@@ -126,8 +141,9 @@ pub fn solve(
     let t = Instant::now();
     let accel = Accel::build(&meshed.scene);
     let solve = UniformParams { element_size: f64::INFINITY, ..params.solve };
-    let on_mesh =
+    let mut on_mesh =
         uniform::solve(&meshed.scene, &accel, &solve, progress).map_err(DiscontinuityError::Solve)?;
+    let gathered = params.gather.then(|| gather(&meshed.scene, &accel, &solve, &mut on_mesh));
     let solve_s = t.elapsed().as_secs_f64();
     let mut solution = pull_back(on_mesh, &meshed.origin, scene.patches.len());
     solution.method = match params.mesh.kind {
@@ -135,20 +151,27 @@ pub fn solve(
         MeshKind::Bsp => "discontinuity-bsp",
     }
     .into();
-    Ok(DiscontinuitySolution { solution, mesh: meshed.stats, solve_s })
+    Ok(DiscontinuitySolution { solution, mesh: meshed.stats, solve_s, gather: gathered })
 }
 
 /// [`solve`] with the Galerkin solver of [`super::linear`] on the pieces (order and continuity
 /// from `linear`; its element size is not used: one element per piece). Continuous coefficients
 /// are shared between the pieces of one input patch (the CDT is conforming). Returns the solution
-/// on the input scene and each element's coefficients ([`crate::reconstruction::Nodal`]).
+/// on the input scene and each element's coefficients ([`crate::reconstruction::Nodal`]). A
+/// continuous basis on the (ungraded) BSP mesh runs on its pieces made conforming first
+/// ([`crate::mesh::remesh::conform`]: the T-vertices inserted, pieces that gained corners fanned
+/// into triangles).
 pub fn solve_galerkin(
     scene: &Scene,
     params: &DiscontinuityParams,
     linear: &LinearParams,
     progress: Progress,
 ) -> Result<(DiscontinuitySolution, Vec<Vec<Rgb>>), DiscontinuityError> {
-    let meshed = discontinuity_scene(scene, &params.mesh)?;
+    let mut meshed = discontinuity_scene(scene, &params.mesh)?;
+    if linear.continuous && params.mesh.kind == MeshKind::Bsp && params.mesh.grade.is_none() {
+        // Shared vertex values need the pieces to meet corner to corner.
+        conform(&mut meshed, scene);
+    }
     let t = Instant::now();
     let accel = Accel::build(&meshed.scene);
     let per_element = linear.order.functions(4);
@@ -164,7 +187,7 @@ pub fn solve_galerkin(
         MeshKind::Bsp => "discontinuity-bsp",
     }
     .into();
-    Ok((DiscontinuitySolution { solution, mesh: meshed.stats, solve_s }, on_mesh.coefficients))
+    Ok((DiscontinuitySolution { solution, mesh: meshed.stats, solve_s, gather: None }, on_mesh.coefficients))
 }
 
 /// The discontinuity mesh of `mesh` as the top level of the hierarchical solver with `params`
@@ -192,7 +215,206 @@ pub fn solve_hierarchical(
         MeshKind::Bsp => "hierarchical on discontinuity-bsp",
     }
     .into();
-    Ok(DiscontinuitySolution { solution, mesh: meshed.stats, solve_s })
+    Ok(DiscontinuitySolution { solution, mesh: meshed.stats, solve_s, gather: None })
+}
+
+/// Shadow rays of a piece–emitter pair whose solve estimate is partly visible ([`gather`]).
+pub const PARTIAL_RAYS: u32 = 256;
+/// Emitter samples per side at each gather point (`side²` shadow rays per point and emitter).
+pub const GATHER_EMITTER_SIDE: u32 = 8;
+/// Shadow rays of a piece–piece pair for the gather's indirect part.
+pub const GATHER_PAIR_RAYS: u32 = 4;
+
+/// What [`gather`] did.
+#[derive(Copy, Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct GatherStats {
+    /// Piece–emitter pairs re-integrated with [`PARTIAL_RAYS`] rays.
+    pub partial_pairs: usize,
+    /// Pieces given a slope.
+    pub slopes: usize,
+    pub seconds: f64,
+}
+
+/// Two corrections of a p = 0 solve on the pieces of a discontinuity mesh (`solution`: the
+/// uniform solve of `scene` with `solve`, one element per piece, not yet pulled back), both
+/// aimed at what constant elements with 16 shadow rays per pair leave in a penumbra:
+///
+/// 1. **The direct light of partly shadowed pieces, re-integrated.** A piece whose coupling to
+///    an emitter piece came out partly visible in the solve (0 < V < 1 with `solve.rays` rays)
+///    gets that coupling again with [`PARTIAL_RAYS`] rays (the solve's own estimate is
+///    recomputed: [`uniform::pair_coupling`] is keyed by the pair), and
+///    `B_i += ρ_i (F_ij V_ij⁽²⁵⁶⁾ − F_ij V_ij⁽ⁿ⁾) B_j`. Adaptive sampling where V ∈ (0, 1) only:
+///    fully lit and umbra pieces, where every ray agreed, keep the solve's value.
+/// 2. **A slope per piece** (`SolvedElement::slope`, as the hierarchical solver's leaves carry
+///    one): the gathered irradiance `H(x) = Σ_j B_j F(x → j) v_j(x)` at the piece's points
+///    `x_k = c + (v_k − c) / 2` (the 3-point Gauss rule on a triangle), F the unoccluded
+///    point-to-polygon form factor (closed form), v_j the visible fraction from x of an emitter
+///    piece (a [`GATHER_EMITTER_SIDE`]² grid, kernel-weighted) and of any other piece the
+///    pair's ([`GATHER_PAIR_RAYS`] rays); the slope is ρ_i times the least-squares gradient of
+///    H in the piece's plane. The piece's average B_i is kept, so the slope moves light within
+///    the piece, not between pieces.
+///
+/// The energy balance is the solve's (before step 1). A solve without shadow rays (`rays` 0: no
+/// occlusion) is left as it is.
+pub fn gather(scene: &Scene, accel: &Accel, solve: &UniformParams, solution: &mut Solution) -> GatherStats {
+    let t = Instant::now();
+    let elems: Vec<Element> = solution
+        .elements
+        .iter()
+        .map(|e| Element { patch: e.patch, vertices: e.vertices.clone(), area: e.area })
+        .collect();
+    let n = elems.len();
+    let settings = CouplingSettings {
+        rays: solve.rays,
+        seed: solve.seed,
+        ff_tolerance: solve.ff_tolerance,
+        ff_abs_tolerance: solve.ff_tolerance / n.max(1) as f64,
+    };
+    let emitters: Vec<usize> =
+        (0..n).filter(|&j| scene.patches[elems[j].patch].emission != Rgb::ZERO).collect();
+    let b: Vec<Rgb> = solution.elements.iter().map(|e| e.radiosity).collect();
+    let normals: Vec<DVec3> = elems.iter().map(|e| scene.patches[e.patch].normal).collect();
+    let per_piece: Vec<(Rgb, Option<Slope>, usize)> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let rho = scene.patches[elems[i].patch].reflectance;
+            if rho == Rgb::ZERO || solve.rays == 0 {
+                return (Rgb::ZERO, None, 0);
+            }
+            // 1. Partly visible emitter couplings, again with more rays.
+            let mut delta = Rgb::ZERO;
+            let mut partial = 0;
+            for &j in &emitters {
+                let Some((fv, ..)) = pair_coupling(accel, &elems, i, j, &settings) else { continue };
+                let unoccluded = CouplingSettings { rays: 0, ..settings };
+                let Some((f, ..)) = pair_coupling(accel, &elems, i, j, &unoccluded) else { continue };
+                let v = fv / f;
+                if v > 0.0 && v < 1.0 - 1e-12 {
+                    let more = CouplingSettings { rays: PARTIAL_RAYS, ..settings };
+                    let good = pair_coupling(accel, &elems, i, j, &more).map_or(0.0, |c| c.0);
+                    delta += b[j] * (good - fv);
+                    partial += 1;
+                }
+            }
+            // 2. The gathered irradiance at the piece's points, and its gradient.
+            let c = polygon_centroid(&elems[i].vertices);
+            let points: Vec<DVec3> = elems[i].vertices.iter().map(|&v| c.lerp(v, 0.5)).collect();
+            let n_i = normals[i];
+            let mut h = vec![Rgb::ZERO; points.len()];
+            let mut ff = vec![0.0; points.len()];
+            for j in 0..n {
+                if elems[j].patch == elems[i].patch || b[j] == Rgb::ZERO {
+                    continue;
+                }
+                let mut any = false;
+                for (k, &x) in points.iter().enumerate() {
+                    ff[k] = point_to_polygon(x, n_i, &elems[j].vertices).max(0.0);
+                    any |= ff[k] > 0.0;
+                }
+                if !any {
+                    continue;
+                }
+                if emitters.binary_search(&j).is_ok() {
+                    for (k, &x) in points.iter().enumerate() {
+                        if ff[k] > 0.0 {
+                            let v = point_visible(accel, (x, n_i, elems[i].patch), (&elems[j], normals[j]));
+                            h[k] += b[j] * (ff[k] * v);
+                        }
+                    }
+                } else {
+                    let (a, z) = (i.min(j), i.max(j));
+                    let v = visible_fraction(
+                        accel,
+                        &elems[a].vertices,
+                        elems[a].patch as u32,
+                        &elems[z].vertices,
+                        elems[z].patch as u32,
+                        GATHER_PAIR_RAYS,
+                        solve.seed ^ 0x9a7e_5105_0000_0001,
+                        ((a as u64) << 32) | z as u64,
+                    );
+                    for k in 0..points.len() {
+                        h[k] += b[j] * (ff[k] * v);
+                    }
+                }
+            }
+            let slope =
+                plane_gradient(&points, &h, n_i).map(|g| Slope { centroid: c, d: g.map(|d| rho.mul_rgb(d)) });
+            (rho.mul_rgb(delta), slope, partial)
+        })
+        .collect();
+    let mut stats = GatherStats::default();
+    for (e, (delta, slope, partial)) in solution.elements.iter_mut().zip(per_piece) {
+        e.radiosity = (e.radiosity + delta).map(|v| v.max(0.0));
+        stats.partial_pairs += partial;
+        stats.slopes += usize::from(slope.is_some());
+        e.slope = slope;
+    }
+    solution.patch_radiosity = Solution::patch_averages(solution.patch_radiosity.len(), &solution.elements);
+    stats.seconds = t.elapsed().as_secs_f64();
+    stats
+}
+
+/// The kernel-weighted fraction of `emitter` (a convex piece, normal `n_e`) that `x` (on patch
+/// `patch`, normal `n`) sees: a [`GATHER_EMITTER_SIDE`]² grid on each triangle of its fan, area
+/// weighted, each ray weighted by cos θ_x cos θ_y / r² (so ∫ K V / ∫ K, the factor of the point's
+/// form factor that is visible). 1 when no sample faces `x`.
+fn point_visible(
+    accel: &Accel,
+    (x, n, patch): (DVec3, DVec3, usize),
+    (emitter, n_e): (&Element, DVec3),
+) -> f64 {
+    let side = GATHER_EMITTER_SIDE;
+    let s = f64::from(side);
+    let v = &emitter.vertices;
+    let mut last = crate::accel::NO_HIT;
+    let (mut seen, mut all) = (0.0, 0.0);
+    for t in 1..v.len() - 1 {
+        let tri = [v[0], v[t], v[t + 1]];
+        let w = polygon_area(&tri) / (s * s);
+        for q in 0..side * side {
+            let (u, r) = ((f64::from(q % side) + 0.5) / s, (f64::from(q / side) + 0.5) / s);
+            let y = point_on_polygon(&tri, u, r);
+            let d = y - x;
+            let r2 = d.length_squared();
+            let k = w * n.dot(d).max(0.0) * (-n_e.dot(d)).max(0.0) / (r2 * r2);
+            if k <= 0.0 {
+                continue;
+            }
+            all += k;
+            if !accel.occluded_cached(x, y, [patch as u32, emitter.patch as u32], &mut last) {
+                seen += k;
+            }
+        }
+    }
+    if all > 0.0 { seen / all } else { 1.0 }
+}
+
+/// The least-squares gradient, in the plane of normal `n`, of the values `h` at `points` (≥ 3,
+/// not collinear), per channel, as world-axis components; `None` when the points do not span
+/// the plane.
+fn plane_gradient(points: &[DVec3], h: &[Rgb], n: DVec3) -> Option<[Rgb; 3]> {
+    let (t, b) = orthonormal_basis(n);
+    let m = points.len() as f64;
+    let c = points.iter().copied().sum::<DVec3>() / m;
+    let hm = h.iter().copied().sum::<Rgb>() * (1.0 / m);
+    let (mut uu, mut uw, mut ww) = (0.0, 0.0, 0.0);
+    let (mut uh, mut wh) = (Rgb::ZERO, Rgb::ZERO);
+    for (&x, &hk) in points.iter().zip(h) {
+        let (u, w) = ((x - c).dot(t), (x - c).dot(b));
+        uu += u * u;
+        uw += u * w;
+        ww += w * w;
+        uh += (hk - hm) * u;
+        wh += (hk - hm) * w;
+    }
+    let det = uu * ww - uw * uw;
+    if !(det > 1e-12 * (uu + ww) * (uu + ww)) {
+        return None;
+    }
+    let gu = (uh * ww - wh * uw) * (1.0 / det);
+    let gw = (wh * uu - uh * uw) * (1.0 / det);
+    Some([0, 1, 2].map(|a| gu * t[a] + gw * b[a]))
 }
 
 /// A solution of a remeshed scene as a solution of its input scene: each element's patch `q`
@@ -262,6 +484,47 @@ mod tests {
             .unwrap();
         let (hb, fb) = (sol.patch_radiosity[lit].mean(), flat.patch_radiosity[lit].mean());
         assert!((hb - fb).abs() < 0.05 * fb, "lit receiver: hierarchical {hb} vs p = 0 {fb}");
+    }
+
+    /// The gradient of an affine field is recovered exactly from three or more points in any
+    /// plane; collinear points give none.
+    #[test]
+    fn plane_gradient_recovers_an_affine_field() {
+        let n = DVec3::new(1.0, 2.0, -0.5).normalize();
+        let (t, b) = orthonormal_basis(n);
+        let g = t * 0.7 - b * 1.3; // in the plane
+        let field = |x: DVec3| Rgb::new(2.0 + g.dot(x), 1.0 - 2.0 * g.dot(x), 0.5);
+        let points = [DVec3::ZERO, t, b, t + b * 0.3];
+        let h: Vec<Rgb> = points.iter().map(|&x| field(x)).collect();
+        let d = plane_gradient(&points, &h, n).unwrap();
+        for a in 0..3 {
+            assert!((d[a].r() - g[a]).abs() < 1e-12 && (d[a].g() + 2.0 * g[a]).abs() < 1e-12, "{d:?}");
+            assert!(d[a].b().abs() < 1e-12);
+        }
+        assert!(plane_gradient(&[DVec3::ZERO, t, t * 2.0], &h[..3], n).is_none());
+    }
+
+    /// The gather on shadow-narrow's BSP: every lit piece gets a slope, the pieces the solve saw
+    /// partly shadowed from the lamp are re-integrated, and each receiver's average stays within
+    /// a few percent of the ungathered solve's (the gather moves light within pieces, and only
+    /// the partial pieces' averages change).
+    #[test]
+    fn gather_gives_slopes_and_keeps_the_averages() {
+        let scene = Scene::load("builtin:shadow-narrow").unwrap();
+        let off = solve(
+            &scene,
+            &DiscontinuityParams { gather: false, ..DiscontinuityParams::bsp() },
+            &mut |_, _| {},
+        )
+        .unwrap();
+        let on = solve(&scene, &DiscontinuityParams::bsp(), &mut |_, _| {}).unwrap();
+        let g = on.gather.unwrap();
+        assert!(off.gather.is_none() && off.solution.elements.iter().all(|e| e.slope.is_none()));
+        assert!(g.partial_pairs > 0 && g.slopes > 0, "{g:?}");
+        let receiver = crate::exact::SingleBounce::new(&scene).unwrap().receiver;
+        let (a, b) = (off.solution.patch_radiosity[receiver].g(), on.solution.patch_radiosity[receiver].g());
+        assert!((a - b).abs() < 0.05 * a, "receiver average {a} → {b}");
+        assert!(on.solution.is_physical());
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //!
 //! ```text
 //! p = 0   uniform            → uniform::solve (classical, one value per element)
-//!         discontinuity-*    → discontinuity::solve (remesh, uniform solve on the pieces)
+//!         discontinuity-*    → discontinuity::solve (remesh, uniform solve on the pieces; constant
+//!                               elements, without `discontinuity::gather`'s slopes)
 //! p = 1   uniform            → linear::solve (Galerkin, vertex values)
 //!         discontinuity-*    → discontinuity::solve_galerkin (Galerkin on the pieces)
 //! ```
@@ -253,7 +254,10 @@ pub fn solve(scene: &Scene, params: &MeshSolveParams, progress: Progress) -> Res
         },
         None => linear_params,
     };
-    let dmesh = DiscontinuityParams { solve: uniform_params, ..DiscontinuityParams::with_mesh(mesh) };
+    // p = 0 here is the lecture's constant element (the h vs p figures set it beside p = 1), so
+    // without the gather's slopes, which `radlab solve`/`reference`/`artifacts` apply.
+    let dmesh =
+        DiscontinuityParams { solve: uniform_params, gather: false, ..DiscontinuityParams::with_mesh(mesh) };
     let (solution, coefficients, meshing_s) = match (params.method, params.order) {
         // `validate` refused it already; an error, not a panic, if that ever changes.
         (MeshMethod::Quadtree, _) => return Err("the quadtree is not a mesh solve".into()),
