@@ -231,3 +231,25 @@ fn the_discontinuity_mesh_as_the_top_level_of_hierarchical_refinement() {
     assert_eq!(plain["params"]["mesh"]["max_patches"], 10_000, "{}", plain["params"]);
     assert_eq!(off["meshing"]["stats"]["output_patches"].as_u64(), Some(pieces));
 }
+
+/// `--dmesh-gather false` keeps the p = 0 solve's plain constants on a discontinuity mesh: the
+/// receiver's radiosity then differs from the default's, which re-gathers the partly shadowed
+/// pieces' direct light with more rays (`solver::discontinuity::gather`).
+#[test]
+fn dmesh_gather_can_be_turned_off() {
+    let (on, _) = solve_and_dump(&["--mesh", "discontinuity-cdt"], "gather-on");
+    let (off, _) = solve_and_dump(&["--mesh", "discontinuity-cdt", "--dmesh-gather", "false"], "gather-off");
+    let receiver = |doc: &serde_json::Value| doc["patches"][0]["radiosity"].clone();
+    assert_eq!(on["patches"].as_array().unwrap().len(), off["patches"].as_array().unwrap().len());
+    assert_ne!(receiver(&on), receiver(&off), "the gather changed nothing on shadow-narrow's receiver");
+    let out = radlab(&[
+        "solve",
+        "builtin:shadow-narrow",
+        "-q",
+        "--mesh",
+        "discontinuity-cdt",
+        "--dmesh-gather",
+        "maybe",
+    ]);
+    assert!(!out.status.success());
+}

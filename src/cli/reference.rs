@@ -62,6 +62,10 @@ pub struct Args {
     /// The graded mesh's smooth gradient (as `radlab solve --dmesh-smooth`).
     #[arg(long)]
     pub dmesh_smooth: Option<f64>,
+    /// dmesh-*: re-gather partly shadowed pieces and give every piece a slope after the p = 0
+    /// solve (as `radlab solve --dmesh-gather`; default true).
+    #[arg(long)]
+    pub dmesh_gather: Option<bool>,
     /// The graded mesh's penumbra weight (as `radlab solve --dmesh-penumbra-weight`).
     #[arg(long)]
     pub dmesh_penumbra_weight: Option<f64>,
@@ -376,6 +380,7 @@ fn solve(
         "dmesh-cdt" | "dmesh-bsp" => {
             use radlab::solver::discontinuity::{self, DiscontinuityParams};
             let mut p = DiscontinuityParams::with_mesh(remesh_params(args, method)?);
+            p.gather = args.dmesh_gather.unwrap_or(p.gather);
             p.solve.rays = args.solve_rays.unwrap_or(p.solve.rays);
             p.solve.seed = args.solve_seed.unwrap_or(p.solve.seed);
             let d = match &linear {

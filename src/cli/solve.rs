@@ -163,6 +163,11 @@ pub struct SolverArgs {
     /// (default 100; 1: plain L2 allocation).
     #[arg(long)]
     pub dmesh_penumbra_weight: Option<f64>,
+    /// After a p = 0 solve on a discontinuity mesh, re-gather the partly shadowed pieces' direct
+    /// light with more rays and give every piece a slope (`solver::discontinuity::gather`;
+    /// default true; false: the solve's plain constants).
+    #[arg(long)]
+    pub dmesh_gather: Option<bool>,
 
     /// Hierarchical preset the flags below modify: interactive, quality, lecture, splash2.
     #[arg(long, default_value = "quality")]
@@ -696,6 +701,9 @@ pub fn solve_scene(
         Plan::Discontinuity(kind) => {
             let mut p = DiscontinuityParams::with_mesh(remesh_params(a, Plan::Discontinuity(kind), kind)?);
             p.solve.seed = a.seed;
+            if let Some(g) = a.dmesh_gather {
+                p.gather = g;
+            }
             if let Some(v) = a.rays {
                 p.solve.rays = v;
             }
