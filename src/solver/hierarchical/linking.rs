@@ -178,9 +178,13 @@ impl HierarchicalSolver {
         let make = |pair: &Pairing| -> Made {
             match *pair {
                 Pairing::Cluster(a, b) => {
-                    let (vis, cast) = tree.visibility(&self.hier, &self.accel, a, b, rays, seed);
                     let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
-                    let frame = cluster::link_frame(na, nb, (nb.center - na.center).normalize());
+                    let w = (nb.center - na.center).normalize();
+                    let frame = cluster::link_frame(na, nb, w);
+                    if cluster::carries_nothing(na, nb, w, frame) {
+                        return (None, None, 0);
+                    }
+                    let (vis, cast) = tree.visibility(&self.hier, &self.accel, a, b, rays, seed);
                     (Some(ClusterLink { a, b, vis, frame }), None, u64::from(cast))
                 }
                 Pairing::Patches(p, q) => {

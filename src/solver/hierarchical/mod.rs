@@ -178,7 +178,8 @@ pub struct HierarchicalStats {
     pub links_full: usize,
     pub links_partial: usize,
     pub links_none: usize,
-    /// Input patch pairs left unlinked because they face away or are fully occluded.
+    /// Input patch pairs left unlinked because they face away or are fully occluded (clustered:
+    /// also the pairs of nodes accepted for a cluster link whose transfer is zero both ways).
     pub pairs_skipped: usize,
     pub depth_histogram: Vec<usize>,
     pub rays: u64,
