@@ -247,6 +247,11 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn cluster_link_views(&self, max: usize) -> Vec<ClusterLinkView> {
         let Some(tree) = &self.clusters else { return Vec::new() };
+        let index = cluster_index(tree);
+        let end = |node: u32| match index[node as usize] {
+            u32::MAX => ClusterEnd::Patch(tree.patch(node)),
+            i => ClusterEnd::Cluster(i),
+        };
         let ends = |l: &ClusterLink| {
             let (na, nb) = (&tree.nodes[l.a as usize], &tree.nodes[l.b as usize]);
             let d = na.center.distance(nb.center).max(f64::MIN_POSITIVE);
@@ -269,7 +274,7 @@ impl HierarchicalSolver {
             .map(|(_, i)| {
                 let l = &self.cluster_links[i as usize];
                 let (from, to, ff) = ends(l);
-                ClusterLinkView { from, to, vis: l.vis, ff }
+                ClusterLinkView { from, to, vis: l.vis, ff, ends: [end(l.a), end(l.b)] }
             })
             .collect()
     }
@@ -285,8 +290,7 @@ impl HierarchicalSolver {
             links[l.a as usize] += 1;
             links[l.b as usize] += 1;
         }
-        // Node id → index among the clusters (parents come before their children).
-        let mut index = vec![u32::MAX; tree.len()];
+        let index = cluster_index(tree);
         let mut infos = Vec::new();
         let mut patch_cluster = vec![u32::MAX; self.hier.roots];
         for (i, n) in tree.nodes.iter().enumerate() {
@@ -297,7 +301,6 @@ impl HierarchicalSolver {
                 }
                 continue;
             }
-            index[i] = infos.len() as u32;
             infos.push(ClusterInfo {
                 depth: n.depth,
                 bmin: n.bmin,
@@ -461,4 +464,21 @@ impl HierarchicalSolver {
         self.initial_cache = Some((key, lists, skipped));
         total
     }
+}
+
+/// Node id → index among the tree's clusters (nodes of two patches or more, in tree order, as
+/// [`HierarchicalSolver::cluster_infos`] lists them); `u32::MAX` for a leaf.
+fn cluster_index(tree: &ClusterTree) -> Vec<u32> {
+    let mut next = 0;
+    tree.nodes
+        .iter()
+        .map(|n| {
+            if n.is_leaf() {
+                u32::MAX
+            } else {
+                next += 1;
+                next - 1
+            }
+        })
+        .collect()
 }

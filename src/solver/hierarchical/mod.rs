@@ -254,6 +254,16 @@ pub struct ClusterLinkView {
     pub vis: f32,
     /// The larger unoccluded form factor of the two directions (point approximation).
     pub ff: f64,
+    /// The two ends (the link's `from`, then `to`).
+    pub ends: [ClusterEnd; 2],
+}
+
+/// One end of a cluster link: a cluster (its index in [`Snapshot::clusters`], the list of
+/// [`HierarchicalSolver::cluster_infos`]) or a single input patch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum ClusterEnd {
+    Cluster(u32),
+    Patch(u32),
 }
 
 /// Read-only view of one node of the cluster tree ([`cluster`]).
