@@ -66,7 +66,7 @@ fn links_grow_as_the_elements_in_furnished_rooms() {
     // node of the element hierarchy) and against input patches, at four sizes of the generated
     // room, and the power balance of each (issue 17: slope ≤ 1.1, links per element bounded).
     // Measured (docs/scale.md, session 15): 35.4, 42.0, 43.9, 39.2 links per element and 136,
-    // 120, 103, 108 per patch at 2k, 3k, 4k, 5k; slopes 1.07 against elements, 0.73 against
+    // 120, 103, 108 per patch at 2k, 3k, 4k, 5k; slopes 1.07 against elements, 0.71 against
     // patches. Before cluster links that carry nothing were dropped: 38.9 … 51.0 per element,
     // slope 1.37 (1.55 with session 14's refinement).
     let (mut by_element, mut by_patch) = (Vec::new(), Vec::new());
