@@ -35,6 +35,7 @@
 //!   reference when one exists) on a log colour scale.
 
 use crate::math::{DVec3, Rgb, polygon_centroid, polygon_normal};
+use crate::solver::hierarchical::ClusterEnd;
 use std::collections::HashMap;
 
 /// One element as the viewer sees it (leaf or interior). `id` indexes the element list.
@@ -912,11 +913,14 @@ pub const CLUSTER_LINK_DASHES: usize = 6;
 /// §1) that pass `filter`'s minimum F and visibility classes, coloured by log₁₀ F on `scale`
 /// (the element links' scale, so both read on one colour bar; `None`: the cluster links' own),
 /// at most `filter.max_lines` of them, taken in the order given (the viewer keeps them largest
-/// F first). `filter.element` does not apply: a cluster link has no element at its ends.
+/// F first). `picked`, when given, keeps only the links with an end among those nodes: the
+/// picked element's patch and the clusters holding it ([`cluster_chain`]), whose links the
+/// element gathers through (`filter.element` itself names an element, not a cluster).
 #[must_use]
 pub fn cluster_link_lines(
     links: &[crate::solver::hierarchical::ClusterLinkView],
     filter: &LinkFilter,
+    picked: Option<&[ClusterEnd]>,
     scale: Option<LogScale>,
     alpha: f32,
 ) -> LinkLines {
@@ -924,7 +928,8 @@ pub fn cluster_link_lines(
     let kept: Vec<_> = links
         .iter()
         .filter(|l| {
-            l.ff >= f64::from(filter.min_ff)
+            picked.is_none_or(|on| l.ends.iter().any(|e| on.contains(e)))
+                && l.ff >= f64::from(filter.min_ff)
                 && match class(l.vis) {
                     VisClass::Full => filter.full,
                     VisClass::Partial => filter.partial,
@@ -943,6 +948,24 @@ pub fn cluster_link_lines(
         }
     }
     LinkLines { shown: matched.min(filter.max_lines), lines, matched, scale }
+}
+
+/// The cluster-link ends an element of input patch `patch` gathers through: the patch itself,
+/// then the clusters holding it, smallest first (`clusters` and `patch_cluster` as
+/// [`crate::solver::hierarchical::Snapshot`] has them; only the patch when it has none).
+#[must_use]
+pub fn cluster_chain(
+    clusters: &[crate::solver::hierarchical::ClusterInfo],
+    patch_cluster: &[u32],
+    patch: u32,
+) -> Vec<ClusterEnd> {
+    let mut chain = vec![ClusterEnd::Patch(patch)];
+    let mut at = patch_cluster.get(patch as usize).copied().filter(|&c| c != u32::MAX);
+    while let Some(i) = at {
+        chain.push(ClusterEnd::Cluster(i));
+        at = clusters.get(i as usize).and_then(|c| c.parent);
+    }
+    chain
 }
 
 /// The twelve edges of every cluster's bounding box whose depth is in `depths` (inclusive),

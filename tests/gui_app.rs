@@ -1523,6 +1523,45 @@ fn links_overlay_draws_the_cluster_links() {
     h.get_by_label("cluster links (dashed)").click();
     settle(&mut h);
     check(&mut h, "gui_cluster_links");
+    // The refinement replay's frames after the first refinement carry their cluster links too
+    // (the strongest REPLAY_CLUSTER_LINKS), as the solve's intermediate pictures do.
+    let frames = h.state().replay.frames();
+    assert!(frames >= 3, "{frames} replay frames");
+    for i in 1..frames {
+        h.state_mut().replay.position = i;
+        let f = Arc::clone(h.state().replay.frame().expect("a frame"));
+        let want = f.stats.cluster_links.min(radlab::viewer::worker::REPLAY_CLUSTER_LINKS);
+        if i + 1 < frames {
+            assert!(want > 0, "frame {i} has cluster links");
+            assert_eq!(f.cluster_links.len(), want, "frame {i} carries the strongest");
+        }
+    }
+    h.state_mut().replay.position = frames - 1;
+    // "Picked element only": the cluster links of the picked element's patch and of the
+    // clusters holding it, and no others.
+    h.state_mut().pick_relative(0.5, 0.85);
+    h.run_steps(2);
+    let id = h.state().selected.expect("an element is picked");
+    h.state_mut().display.selected_links_only = true;
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    let chain = radlab::overlay::cluster_chain(&v.clusters, &v.patch_cluster, v.elements[id as usize].patch);
+    assert!(chain.len() >= 3, "the patch and the clusters above it: {chain:?}");
+    let on_chain = |l: &&radlab::solver::hierarchical::ClusterLinkView| {
+        l.ends.iter().any(|e| chain.contains(e)) && l.vis > radlab::overlay::VIS_CLASS_EPS
+    };
+    let mine = v.cluster_links.iter().filter(on_chain).count();
+    assert!(mine > 0, "the picked element gathers through cluster links");
+    assert!(mine < v.cluster_links.len() / 2, "{mine} of {} are the picked element's", v.cluster_links.len());
+    let legend = h.state().cluster_link_legend().expect("a legend line");
+    let drawn = mine.min(max_lines);
+    assert!(
+        legend.starts_with(&format!(
+            "- - cluster links (dashed): {drawn} drawn, the picked element's ({mine} of"
+        )),
+        "{legend}"
+    );
+    check(&mut h, "gui_cluster_links_picked");
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
 

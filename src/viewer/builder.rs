@@ -153,10 +153,21 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
     // Cluster links on the element links' colour scale (their own when no element link shows).
     let mut cluster_link_stats = None;
     let mut link_scale = link_scale;
-    if let Some(filter) = s.links.as_ref().filter(|f| s.cluster_links && f.element.is_none())
+    if let Some(filter) = s.links.as_ref().filter(|_| s.cluster_links)
         && !v.cluster_links.is_empty()
     {
-        let cl = overlay::cluster_link_lines(&v.cluster_links, filter, link_scale, s.link_alpha);
+        // "Picked element only": the links of its patch and of the clusters holding it.
+        let picked = filter
+            .element
+            .map(|id| v.elements.get(id as usize).map_or(u32::MAX, |e| e.patch))
+            .map(|patch| overlay::cluster_chain(&v.clusters, &v.patch_cluster, patch));
+        let cl = overlay::cluster_link_lines(
+            &v.cluster_links,
+            filter,
+            picked.as_deref(),
+            link_scale,
+            s.link_alpha,
+        );
         links.extend(geometry::lines(&cl.lines, s.origin));
         cluster_link_stats = Some((cl.shown, cl.matched));
         link_scale = link_scale.or(cl.scale);

@@ -181,7 +181,8 @@ impl View for DisplayPanel {
                     "Also the links between clusters (or a cluster and a patch), dashed between \
                          the two ends' centres, coloured by F on the same scale: {} in this solve, \
                          the {CLUSTER_LINKS_KEPT} with the largest F kept for drawing, at most \
-                         \"max lines\" of them drawn; not with \"picked element only\"",
+                         \"max lines\" of them drawn; with \"picked element only\", those of the \
+                         picked element's patch and of the clusters holding it",
                     view.stats.cluster_links
                 ))
                 .on_disabled_hover_text("This solve does not cluster: it has no cluster links");

@@ -262,11 +262,14 @@ pub fn cluster_link_note(d: &Display, view: &ViewData, stats: Option<(usize, usi
     }
     Some(match stats {
         _ if !d.cluster_links => format!("cluster links: {total} (not drawn)"),
-        _ if d.selected_links_only => format!("cluster links: {total} (not with one element's links)"),
-        None if view.cluster_links.is_empty() => {
-            format!("cluster links: {total} (drawn once the solve ends)")
-        }
+        None if view.cluster_links.is_empty() => format!("cluster links: {total} (none kept to draw)"),
         None => format!("cluster links: {total}"),
+        Some((shown, matched)) if d.selected_links_only => {
+            let kept = view.cluster_links.len();
+            format!(
+                "- - cluster links (dashed): {shown} drawn, the picked element's ({matched} of {kept} kept)"
+            )
+        }
         Some((shown, matched)) => {
             let mut s = format!("- - cluster links (dashed): {shown} drawn of {total}");
             if shown < total {

@@ -46,13 +46,17 @@ pub struct ViewData {
     pub patch_cluster: Vec<u32>,
     /// The cluster links with the largest form factors, largest first, at most
     /// [`CLUSTER_LINKS_KEPT`] of the solver's `stats.cluster_links` (the links overlay draws
-    /// them dashed). Empty in a solve's intermediate pictures and replay frames.
+    /// them dashed); [`REPLAY_CLUSTER_LINKS`] in a refinement replay's frames.
     pub cluster_links: Vec<ClusterLinkView>,
 }
 
 /// Most cluster links a [`ViewData`] carries: a 100 k-triangle room has 4 M (64 bytes each),
 /// and the overlay draws a few thousand at most.
 pub const CLUSTER_LINKS_KEPT: usize = 50_000;
+
+/// Most cluster links a refinement replay frame carries (a frame a round, within
+/// `REPLAY_BUDGET_BYTES`): the strongest 5 000, a few hundred kB a frame.
+pub const REPLAY_CLUSTER_LINKS: usize = 5_000;
 
 /// What the viewer adds to a discontinuity-mesh solve (issue 16 §2; docs/meshing.md): the D-mesh
 /// as the hierarchical solver's top level, at p = 0 only (the Mesh menu greys it out at p = 1);
@@ -236,27 +240,28 @@ impl ViewData {
     /// push-pull, `unpushed`), with its settings and its strongest cluster links.
     #[must_use]
     pub fn of_solver(s: &HierarchicalSolver, unpushed: bool) -> Arc<ViewData> {
-        let mut view = Self::of_solver_with(s, unpushed, true);
-        // The solver builds only the strongest, largest first.
-        let links = s.cluster_link_views(CLUSTER_LINKS_KEPT);
-        if !links.is_empty() {
-            Arc::make_mut(&mut view).cluster_links = links;
-        }
-        view
+        Self::of_solver_with(s, unpushed, true, CLUSTER_LINKS_KEPT)
     }
 
-    /// [`ViewData::of_solver`] without the cluster links (a solve's intermediate pictures), and
+    /// [`ViewData::of_solver`] with at most `cluster_links` cluster links (the strongest) and
     /// without the error estimates (every estimate 0) when `estimates` is false: the refinement
-    /// replay's frames, which show radiosity only.
+    /// replay's frames, which show radiosity only and keep [`REPLAY_CLUSTER_LINKS`].
     #[must_use]
-    pub fn of_solver_with(s: &HierarchicalSolver, unpushed: bool, estimates: bool) -> Arc<ViewData> {
+    pub fn of_solver_with(
+        s: &HierarchicalSolver,
+        unpushed: bool,
+        estimates: bool,
+        cluster_links: usize,
+    ) -> Arc<ViewData> {
         let snapshot = s.snapshot_with(estimates);
         let view = if unpushed {
             ViewData::from_gathered_snapshot(snapshot, &s.push_pull_preview())
         } else {
             ViewData::from_snapshot(snapshot)
         };
-        Arc::new(ViewData { params: s.params(), ..view })
+        // The solver builds only the strongest, largest first.
+        let cluster_links = s.cluster_link_views(cluster_links);
+        Arc::new(ViewData { params: s.params(), cluster_links, ..view })
     }
 
     /// Bytes this state holds (elements and links), about.
@@ -545,11 +550,13 @@ fn run(
                             // The first round's picture at once, then at most every PARTIAL_EVERY.
                             let mut last: Option<std::time::Instant> = None;
                             // The replay's frames: where the solve starts, then each round.
-                            let mut frames = vec![ViewData::of_solver_with(s, unpushed, false)];
+                            let mut frames =
+                                vec![ViewData::of_solver_with(s, unpushed, false, REPLAY_CLUSTER_LINKS)];
                             let mut budget = REPLAY_BUDGET_BYTES.saturating_sub(frames[0].bytes());
                             let mut on_round = |s: &HierarchicalSolver| {
                                 if budget > 0 {
-                                    let frame = ViewData::of_solver_with(s, false, false);
+                                    let frame =
+                                        ViewData::of_solver_with(s, false, false, REPLAY_CLUSTER_LINKS);
                                     budget = budget.saturating_sub(frame.bytes());
                                     if budget > 0 {
                                         frames.push(frame);
@@ -563,9 +570,7 @@ fn run(
                                 let now = std::time::Instant::now();
                                 if last.is_none_or(|t| now.duration_since(t) >= PARTIAL_EVERY) {
                                     last = Some(now);
-                                    let _ = tx.send(Reply::Partial {
-                                        view: ViewData::of_solver_with(s, false, true),
-                                    });
+                                    let _ = tx.send(Reply::Partial { view: ViewData::of_solver(s, false) });
                                     notify();
                                 }
                             };

@@ -178,9 +178,13 @@ impl HierarchicalSolver {
         let make = |pair: &Pairing| -> Made {
             match *pair {
                 Pairing::Cluster(a, b) => {
-                    let (vis, cast) = tree.visibility(&self.hier, &self.accel, a, b, rays, seed);
                     let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
-                    let frame = cluster::link_frame(na, nb, (nb.center - na.center).normalize());
+                    let w = (nb.center - na.center).normalize();
+                    let frame = cluster::link_frame(na, nb, w);
+                    if cluster::carries_nothing(na, nb, w, frame) {
+                        return (None, None, 0);
+                    }
+                    let (vis, cast) = tree.visibility(&self.hier, &self.accel, a, b, rays, seed);
                     (Some(ClusterLink { a, b, vis, frame }), None, u64::from(cast))
                 }
                 Pairing::Patches(p, q) => {
@@ -243,6 +247,11 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn cluster_link_views(&self, max: usize) -> Vec<ClusterLinkView> {
         let Some(tree) = &self.clusters else { return Vec::new() };
+        let index = cluster_index(tree);
+        let end = |node: u32| match index[node as usize] {
+            u32::MAX => ClusterEnd::Patch(tree.patch(node)),
+            i => ClusterEnd::Cluster(i),
+        };
         let ends = |l: &ClusterLink| {
             let (na, nb) = (&tree.nodes[l.a as usize], &tree.nodes[l.b as usize]);
             let d = na.center.distance(nb.center).max(f64::MIN_POSITIVE);
@@ -265,7 +274,7 @@ impl HierarchicalSolver {
             .map(|(_, i)| {
                 let l = &self.cluster_links[i as usize];
                 let (from, to, ff) = ends(l);
-                ClusterLinkView { from, to, vis: l.vis, ff }
+                ClusterLinkView { from, to, vis: l.vis, ff, ends: [end(l.a), end(l.b)] }
             })
             .collect()
     }
@@ -281,8 +290,7 @@ impl HierarchicalSolver {
             links[l.a as usize] += 1;
             links[l.b as usize] += 1;
         }
-        // Node id → index among the clusters (parents come before their children).
-        let mut index = vec![u32::MAX; tree.len()];
+        let index = cluster_index(tree);
         let mut infos = Vec::new();
         let mut patch_cluster = vec![u32::MAX; self.hier.roots];
         for (i, n) in tree.nodes.iter().enumerate() {
@@ -293,7 +301,6 @@ impl HierarchicalSolver {
                 }
                 continue;
             }
-            index[i] = infos.len() as u32;
             infos.push(ClusterInfo {
                 depth: n.depth,
                 bmin: n.bmin,
@@ -457,4 +464,21 @@ impl HierarchicalSolver {
         self.initial_cache = Some((key, lists, skipped));
         total
     }
+}
+
+/// Node id → index among the tree's clusters (nodes of two patches or more, in tree order, as
+/// [`HierarchicalSolver::cluster_infos`] lists them); `u32::MAX` for a leaf.
+fn cluster_index(tree: &ClusterTree) -> Vec<u32> {
+    let mut next = 0;
+    tree.nodes
+        .iter()
+        .map(|n| {
+            if n.is_leaf() {
+                u32::MAX
+            } else {
+                next += 1;
+                next - 1
+            }
+        })
+        .collect()
 }

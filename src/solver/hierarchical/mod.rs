@@ -178,7 +178,8 @@ pub struct HierarchicalStats {
     pub links_full: usize,
     pub links_partial: usize,
     pub links_none: usize,
-    /// Input patch pairs left unlinked because they face away or are fully occluded.
+    /// Input patch pairs left unlinked because they face away or are fully occluded (clustered:
+    /// also the pairs of nodes accepted for a cluster link whose transfer is zero both ways).
     pub pairs_skipped: usize,
     pub depth_histogram: Vec<usize>,
     pub rays: u64,
@@ -253,6 +254,16 @@ pub struct ClusterLinkView {
     pub vis: f32,
     /// The larger unoccluded form factor of the two directions (point approximation).
     pub ff: f64,
+    /// The two ends (the link's `from`, then `to`).
+    pub ends: [ClusterEnd; 2],
+}
+
+/// One end of a cluster link: a cluster (its index in [`Snapshot::clusters`], the list of
+/// [`HierarchicalSolver::cluster_infos`]) or a single input patch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum ClusterEnd {
+    Cluster(u32),
+    Patch(u32),
 }
 
 /// Read-only view of one node of the cluster tree ([`cluster`]).
