@@ -39,7 +39,8 @@ use super::hierarchical::HierarchicalSolver;
 use super::linear::LinearParams;
 use super::params::HierarchicalParams;
 use super::uniform::{
-    self, COARSE_FF_TOLERANCE, CouplingSettings, Element, UniformParams, mesh_scene, pair_coupling,
+    self, COARSE_FF_TOLERANCE, CouplingSettings, Element, UniformParams, mesh_scene, pair_form_factors,
+    pair_visibility,
 };
 use super::{Progress, Slope, Solution};
 use crate::accel::Accel;
@@ -48,7 +49,7 @@ use crate::math::{DVec3, Rgb, orthonormal_basis, polygon_area, polygon_centroid}
 use crate::mesh::MeshError;
 use crate::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, conform, discontinuity_scene};
 use crate::scene::Scene;
-use crate::visibility::{point_on_polygon, visible_fraction};
+use crate::visibility::point_on_polygon;
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -242,7 +243,7 @@ pub struct GatherStats {
 /// 1. **The direct light of partly shadowed pieces, re-integrated.** A piece whose coupling to
 ///    an emitter piece came out partly visible in the solve (0 < V < 1 with `solve.rays` rays)
 ///    gets that coupling again with [`PARTIAL_RAYS`] rays (the solve's own estimate is
-///    recomputed: [`uniform::pair_coupling`] is keyed by the pair), and
+///    recomputed: [`uniform::pair_visibility`] is keyed by the pair; F once), and
 ///    `B_i += ρ_i (F_ij V_ij⁽²⁵⁶⁾ − F_ij V_ij⁽ⁿ⁾) B_j`. Adaptive sampling where V ∈ (0, 1) only:
 ///    fully lit and umbra pieces, where every ray agreed, keep the solve's value.
 /// 2. **A slope per piece** (`SolvedElement::slope`, as the hierarchical solver's leaves carry
@@ -264,12 +265,7 @@ pub fn gather(scene: &Scene, accel: &Accel, solve: &UniformParams, solution: &mu
         .map(|e| Element { patch: e.patch, vertices: e.vertices.clone(), area: e.area })
         .collect();
     let n = elems.len();
-    let settings = CouplingSettings {
-        rays: solve.rays,
-        seed: solve.seed,
-        ff_tolerance: solve.ff_tolerance,
-        ff_abs_tolerance: solve.ff_tolerance / n.max(1) as f64,
-    };
+    let settings = CouplingSettings::new(solve.rays, solve.seed, solve.ff_tolerance, n);
     let emitters: Vec<usize> =
         (0..n).filter(|&j| scene.patches[elems[j].patch].emission != Rgb::ZERO).collect();
     let b: Vec<Rgb> = solution.elements.iter().map(|e| e.radiosity).collect();
@@ -285,14 +281,13 @@ pub fn gather(scene: &Scene, accel: &Accel, solve: &UniformParams, solution: &mu
             let mut delta = Rgb::ZERO;
             let mut partial = 0;
             for &j in &emitters {
-                let Some((fv, ..)) = pair_coupling(accel, &elems, i, j, &settings) else { continue };
-                let unoccluded = CouplingSettings { rays: 0, ..settings };
-                let Some((f, ..)) = pair_coupling(accel, &elems, i, j, &unoccluded) else { continue };
-                let v = fv / f;
+                // The solve's estimate of the pair's V (same rays, seed and key), then, where it
+                // is partial, a better one; F (the costly cubature) once.
+                let Some((f, ..)) = pair_form_factors(&elems, i, j, &settings) else { continue };
+                let v = pair_visibility(accel, &elems, i, j, settings.rays, settings.seed);
                 if v > 0.0 && v < 1.0 - 1e-12 {
-                    let more = CouplingSettings { rays: PARTIAL_RAYS, ..settings };
-                    let good = pair_coupling(accel, &elems, i, j, &more).map_or(0.0, |c| c.0);
-                    delta += b[j] * (good - fv);
+                    let good = pair_visibility(accel, &elems, i, j, PARTIAL_RAYS, settings.seed);
+                    delta += b[j] * (f * good - f * v);
                     partial += 1;
                 }
             }
@@ -322,16 +317,13 @@ pub fn gather(scene: &Scene, accel: &Accel, solve: &UniformParams, solution: &mu
                         }
                     }
                 } else {
-                    let (a, z) = (i.min(j), i.max(j));
-                    let v = visible_fraction(
+                    let v = pair_visibility(
                         accel,
-                        &elems[a].vertices,
-                        elems[a].patch as u32,
-                        &elems[z].vertices,
-                        elems[z].patch as u32,
+                        &elems,
+                        i,
+                        j,
                         GATHER_PAIR_RAYS,
                         solve.seed ^ 0x9a7e_5105_0000_0001,
-                        ((a as u64) << 32) | z as u64,
                     );
                     for k in 0..points.len() {
                         h[k] += b[j] * (ff[k] * v);

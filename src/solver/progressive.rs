@@ -128,12 +128,7 @@ pub fn solve(
     let t_start = Instant::now();
     let elems = mesh_scene(scene, params.element_size, params.max_elements)?;
     let n = elems.len();
-    let settings = CouplingSettings {
-        rays: params.rays,
-        seed: params.seed,
-        ff_tolerance: params.ff_tolerance,
-        ff_abs_tolerance: params.ff_tolerance / n.max(1) as f64,
-    };
+    let settings = CouplingSettings::new(params.rays, params.seed, params.ff_tolerance, n);
     let rho: Vec<Rgb> = elems.iter().map(|e| scene.patches[e.patch].reflectance).collect();
     let emis: Vec<Rgb> = elems.iter().map(|e| scene.patches[e.patch].emission).collect();
     let emitted: Rgb = emis.iter().zip(&elems).map(|(e, el)| *e * el.area).sum();

@@ -265,12 +265,21 @@ pub struct CouplingSettings {
     pub ff_abs_tolerance: f64,
 }
 
+impl CouplingSettings {
+    /// The settings for a mesh of `n` elements: each form factor's absolute accuracy is
+    /// `ff_tolerance / n`, so a row of n of them sums to `ff_tolerance`.
+    #[must_use]
+    pub fn new(rays: u32, seed: u64, ff_tolerance: f64, n: usize) -> Self {
+        CouplingSettings { rays, seed, ff_tolerance, ff_abs_tolerance: ff_tolerance / n.max(1) as f64 }
+    }
+}
+
 /// The coupling of one unordered pair (i < j): `(F_ij V_ij, F_ji V_ji, rays cast, kernel
 /// evaluations)`, or `None` when it is zero without a ray cast (same patch, facing away).
 ///
 /// F is integrated over the smaller element (the lower index on a tie) and the other direction
-/// follows by reciprocity; V is keyed by the pair, so it is the same in both directions and for
-/// every solver that uses this function.
+/// follows by reciprocity ([`pair_form_factors`]); V is keyed by the pair, so it is the same in
+/// both directions and for every solver that uses this function ([`pair_visibility`]).
 #[must_use]
 pub fn pair_coupling(
     accel: &Accel,
@@ -279,6 +288,21 @@ pub fn pair_coupling(
     j: usize,
     s: &CouplingSettings,
 ) -> Option<(f64, f64, u64, u64)> {
+    let (fij, fji, evaluations) = pair_form_factors(elems, i, j, s)?;
+    let vis = if s.rays == 0 { 1.0 } else { pair_visibility(accel, elems, i, j, s.rays, s.seed) };
+    Some((fij * vis, fji * vis, u64::from(s.rays), evaluations))
+}
+
+/// The unoccluded form factors `(F_ij, F_ji, kernel evaluations)` of a pair, or `None` when
+/// they are zero (same patch, facing away): F integrated over the smaller element (the lower
+/// index on a tie) to `s`'s accuracy, the other direction by reciprocity.
+#[must_use]
+pub fn pair_form_factors(
+    elems: &[Element],
+    i: usize,
+    j: usize,
+    s: &CouplingSettings,
+) -> Option<(f64, f64, u64)> {
     let (ei, ej) = (&elems[i], &elems[j]);
     if ei.patch == ej.patch || i == j {
         return None;
@@ -291,23 +315,25 @@ pub fn pair_coupling(
     }
     let back = q.value * from.area / to.area;
     let (fij, fji) = if i_small { (q.value, back) } else { (back, q.value) };
+    Some((fij, fji, q.evaluations))
+}
+
+/// The visible fraction of the pair (i, j) with `rays` rays and `seed`, keyed by the unordered
+/// pair: the same estimate for (j, i).
+#[must_use]
+pub fn pair_visibility(accel: &Accel, elems: &[Element], i: usize, j: usize, rays: u32, seed: u64) -> f64 {
     let (a, b) = (i.min(j), i.max(j));
-    let vis = if s.rays == 0 {
-        1.0
-    } else {
-        let (ea, eb) = (&elems[a], &elems[b]);
-        visible_fraction(
-            accel,
-            &ea.vertices,
-            ea.patch as u32,
-            &eb.vertices,
-            eb.patch as u32,
-            s.rays,
-            s.seed,
-            ((a as u64) << 32) | b as u64,
-        )
-    };
-    Some((fij * vis, fji * vis, u64::from(s.rays), q.evaluations))
+    let (ea, eb) = (&elems[a], &elems[b]);
+    visible_fraction(
+        accel,
+        &ea.vertices,
+        ea.patch as u32,
+        &eb.vertices,
+        eb.patch as u32,
+        rays,
+        seed,
+        ((a as u64) << 32) | b as u64,
+    )
 }
 
 /// Wrap a progress callback so rayon workers can report through it (monotone: a report never
@@ -367,12 +393,7 @@ pub fn solve(
     let t_start = Instant::now();
     let elems = mesh_scene(scene, params.element_size, params.max_elements)?;
     let n = elems.len();
-    let settings = CouplingSettings {
-        rays: params.rays,
-        seed: params.seed,
-        ff_tolerance: params.ff_tolerance,
-        ff_abs_tolerance: params.ff_tolerance / n.max(1) as f64,
-    };
+    let settings = CouplingSettings::new(params.rays, params.seed, params.ff_tolerance, n);
 
     // Form factors: upper triangle in parallel, rows in order.
     let total_pairs = (n as u64) * (n as u64).saturating_sub(1) / 2;

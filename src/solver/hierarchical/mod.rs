@@ -355,9 +355,9 @@ pub struct HierarchicalSolver {
     /// The oracle's compact copy of every element's (b_max, max channel of B) during
     /// refinement; cleared afterwards, as B changes.
     oracle_b: Vec<[f64; 2]>,
-    /// The row check's excess per element during refinement (`refine::row_split`): the largest
-    /// Σ F·V − 1 of a leaf below it where that exceeds `row_tol`, else 0; empty when off.
-    row_excess: Vec<f32>,
+    /// The row check's floor per element during refinement (`refine::row_floors`): the smallest
+    /// F·V of its links that `refine::row_split` pushes down, 0 for none; empty when off.
+    row_floor: Vec<f32>,
     /// Stop casting a new link's rays once they settle what the next refinement pass does
     /// with it (on by default; off only to check that it changes nothing).
     early_exit: bool,
@@ -422,7 +422,7 @@ impl HierarchicalSolver {
             gather_plan: GatherPlan::default(),
             plan_valid: false,
             oracle_b: Vec::new(),
-            row_excess: Vec::new(),
+            row_floor: Vec::new(),
             early_exit: true,
             full_error_passes: false,
             pair_memo: PairMemo::default(),

@@ -175,23 +175,33 @@ pub(super) fn push_down<S: Sums>(
     (max_change, max_reflected, absorbed, escaped)
 }
 
-/// The absorbed and escaped power of the elements as they are (see `energy_pass`).
-pub(super) fn energy_sums<S: Sums>(els: &[Element], chain: &mut Vec<S>) -> (Rgb, Rgb) {
-    let mut absorbed = Rgb::ZERO;
-    let mut escaped = Rgb::ZERO;
+/// Every leaf of the elements as they are, with its irradiance H and its row Σ F·V (own and
+/// inherited links, with the slopes' shift): `f(id, leaf, H, row)`, leaves in id order.
+pub(super) fn for_each_leaf_row<S: Sums>(
+    els: &[Element],
+    chain: &mut Vec<S>,
+    mut f: impl FnMut(usize, &Element, Rgb, f64),
+) {
     chain.clear();
     chain.reserve(els.len());
-    for e in els {
+    for (i, e) in els.iter().enumerate() {
         let up = if e.parent == NONE { S::default() } else { chain[e.parent as usize] };
         let own = up.down(e);
         chain.push(own);
         if e.is_leaf() {
-            let h = own.irradiance();
-            absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-            let fv = up.inherited_fv() + e.fv_sum + own.fv_shift();
-            escaped += e.radiosity * (e.area * (1.0 - fv));
+            f(i, e, own.irradiance(), up.inherited_fv() + e.fv_sum + own.fv_shift());
         }
     }
+}
+
+/// The absorbed and escaped power of the elements as they are (see `energy_pass`).
+pub(super) fn energy_sums<S: Sums>(els: &[Element], chain: &mut Vec<S>) -> (Rgb, Rgb) {
+    let mut absorbed = Rgb::ZERO;
+    let mut escaped = Rgb::ZERO;
+    for_each_leaf_row(els, chain, |_, e, h, fv| {
+        absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
+        escaped += e.radiosity * (e.area * (1.0 - fv));
+    });
     (absorbed, escaped)
 }
 
@@ -204,33 +214,23 @@ pub(super) const ROW_SLACK: f64 = 1e-3;
 /// [`ROW_SLACK`] and adds more than `eps` to the leaf's answer (ρ · H · excess / row: a dim
 /// corner's excess moves little light), else 0; 0 for leaves.
 pub(super) fn row_excess<S: Sums>(els: &[Element], chain: &mut Vec<S>, eps: f64) -> Vec<f32> {
+    // A leaf marks its parent; a leaf keeps no excess of its own: its own links are its exact
+    // averages, and splitting them would not move the inherited ones.
     let mut ex = vec![0.0f32; els.len()];
-    chain.clear();
-    chain.reserve(els.len());
-    for (i, e) in els.iter().enumerate() {
-        let up = if e.parent == NONE { S::default() } else { chain[e.parent as usize] };
-        let own = up.down(e);
-        chain.push(own);
-        if e.is_leaf() {
-            let row = up.inherited_fv() + e.fv_sum + own.fv_shift();
-            let over = row - 1.0;
-            // What the excess adds to the leaf's answer: ρ times its share of the irradiance.
-            let err = e.reflectance.max_channel() * own.irradiance().max_channel() * over / row;
-            if over > ROW_SLACK && err > eps {
-                ex[i] = over as f32;
-            }
+    for_each_leaf_row(els, chain, |_, e, h, row| {
+        let over = row - 1.0;
+        // What the excess adds to the leaf's answer: ρ times its share of the irradiance.
+        let err = e.reflectance.max_channel() * h.max_channel() * over / row;
+        if over > ROW_SLACK && err > eps && e.parent != NONE {
+            let p = &mut ex[e.parent as usize];
+            *p = p.max(over as f32);
         }
-    }
-    // Up to the ancestors (parents have smaller ids than their children). A leaf keeps no
-    // excess of its own: its own links are its exact averages, and splitting them would not
-    // move the inherited ones.
+    });
+    // Up the ancestors (parents have smaller ids than their children).
     for i in (0..els.len()).rev() {
         let p = els[i].parent;
         if p != NONE && ex[i] > ex[p as usize] {
             ex[p as usize] = ex[i];
-        }
-        if els[i].is_leaf() {
-            ex[i] = 0.0;
         }
     }
     ex

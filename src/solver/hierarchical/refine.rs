@@ -262,7 +262,7 @@ impl HierarchicalSolver {
         // before the first gather). Not with cluster links: their transfer is a bounded
         // approximation whose share of a row no element link's split corrects (furnished-2k
         // `interactive`: 175 k links, then 505 k and the budget).
-        self.row_excess =
+        self.row_floor =
             if self.gathered_once && self.cluster_links.is_empty() { self.row_floors() } else { Vec::new() };
         let mut refined = 0;
         let mut total_links = self.links.len();
@@ -423,7 +423,7 @@ impl HierarchicalSolver {
                 e.stop = *kept;
             }
         }
-        self.row_excess = Vec::new();
+        self.row_floor = Vec::new();
         self.update_sums(&changed.take_sorted());
         self.converged = false;
         self.stats.links_created += new_links as u64;
@@ -516,8 +516,9 @@ impl HierarchicalSolver {
     }
 
     /// Per element, the smallest F·V of its links that the row check splits (0: none): of an
-    /// element with leaves below it whose row exceeds 1 + `row_tol` by up to x, its largest
-    /// links that together carry [`ROW_SHARE`]·x (all of them if they carry less).
+    /// element with leaves below it whose row exceeds 1 by up to x where that matters
+    /// (`push_pull::row_excess`), its largest links that together carry [`ROW_SHARE`]·x (all of
+    /// them if they carry less).
     pub(super) fn row_floors(&mut self) -> Vec<f32> {
         let mut ex = self.row_excess_now();
         let lists = &self.links.by_receiver;
@@ -551,10 +552,10 @@ impl HierarchicalSolver {
     /// whose row exceeds it inherits a coarse link's average F where its own share is smaller
     /// (a wall's leaf by the corner, whose view the adjacent wall fills, inherits the whole
     /// wall's share of the far walls); its radiosity follows the row, and the solve creates
-    /// light (cube-one-light `interactive`: escaped −0.45 % of the emitted power). Pushing the
+    /// light (table-room `interactive`: escaped −2.1 % of the emitted power). Pushing the
     /// ancestors' links down a level replaces their averages by the children's own.
     pub(super) fn row_split(&self, a: u32, b: u32, link: &Link) -> Option<u32> {
-        if self.row_excess.is_empty() {
+        if self.row_floor.is_empty() {
             return None;
         }
         let v = f64::from(link.vis).clamp(0.0, 1.0);
@@ -563,7 +564,7 @@ impl HierarchicalSolver {
             return None;
         }
         let wants = |x: u32| {
-            let floor = f64::from(self.row_excess.get(x as usize).copied().unwrap_or(0.0));
+            let floor = f64::from(self.row_floor.get(x as usize).copied().unwrap_or(0.0));
             let e = self.hier.get(x);
             floor > 0.0 && g / e.area >= floor && self.can_split(e).is_ok()
         };
