@@ -421,6 +421,23 @@ mod tests {
         assert!(matches!(glb(&scene, &sol, &opts(1.0)), Err(BakeError::Empty)));
     }
 
+    /// FNV-1a (64-bit): a hash whose value is fixed by its definition, for golden bytes.
+    fn fnv1a(bytes: &[u8]) -> u64 {
+        bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+    }
+
+    /// The element bake (no lightmap) of a fixed solution, byte for byte as before the lightmap
+    /// existed (the hash was taken from the bake code of commit 9b76e76).
+    #[test]
+    fn the_element_bake_bytes_are_unchanged() {
+        let scene = builtin::build("cornell").unwrap();
+        let sol = one_element_per_patch(&scene);
+        let glb = glb(&scene, &sol, &opts(0.1)).unwrap();
+        let text = gltf(&scene, &sol, &opts(0.1)).unwrap();
+        assert_eq!((glb.len(), fnv1a(&glb)), (12_696, 0xd8f0_56ab_78c1_3150));
+        assert_eq!((text.len(), fnv1a(text.as_bytes())), (20_464, 0xb70f_716f_d9fc_1be5));
+    }
+
     #[test]
     fn the_extension_chooses_the_format() {
         assert_eq!(BakeFormat::from_path(Path::new("a/b.GLB")).unwrap(), BakeFormat::Glb);
