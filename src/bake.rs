@@ -31,6 +31,11 @@
 //! ```
 //! Output is deterministic: the same solution gives the same bytes.
 
+mod lightmap;
+
+pub use lightmap::{Chart, Lightmap, LightmapParams, TEXEL_RULE};
+
+use crate::math::DVec3;
 use crate::scene::Scene;
 use crate::solver::Solution;
 use base64::Engine as _;
@@ -46,11 +51,18 @@ emission: glTF emissiveFactor x KHR_materials_emissive_strength (W/m^2 for a sce
 pub const COLOR_RULE: &str =
     "COLOR_0 = clamp(B * exposure, 0, 1), linear RGB; _RADIOSITY = B, linear RGB, unclamped";
 
+/// What the two texture coordinate sets of the lightmap form hold; written to the extras.
+pub const LIGHTMAP_TEXCOORD_RULE: &str = "TEXCOORD_1 = the vertex in the lightmap atlas (images[0]); TEXCOORD_0 = the \
+vertex in its patch's own plane, in scene units from the corner of the patch's bounding box (a planar map for \
+tiling textures; the baked material does not use it)";
+
 const GL_FLOAT: u32 = 5126;
 const GL_UNSIGNED_INT: u32 = 5125;
 const GL_ARRAY_BUFFER: u32 = 34962;
 const GL_ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const GL_TRIANGLES: u32 = 4;
+const GL_LINEAR: u32 = 9729;
+const GL_CLAMP_TO_EDGE: u32 = 33071;
 const GLB_MAGIC: &[u8; 4] = b"glTF";
 const GLB_CHUNK_JSON: u32 = 0x4E4F_534A;
 const GLB_CHUNK_BIN: u32 = 0x004E_4942;
@@ -103,11 +115,52 @@ pub enum BakeError {
     NonFinite { element: usize, patch: usize },
     #[error("the bake would be {bytes} bytes, over the 4 GiB a glTF buffer or GLB file can hold")]
     TooLarge { bytes: u64 },
+    #[error(
+        "lightmap size {0}: must be a power of two from {min} to {max}",
+        min = LightmapParams::MIN_SIZE,
+        max = LightmapParams::MAX_SIZE
+    )]
+    BadLightmapSize(u32),
+    #[error(
+        "a {size}x{size} lightmap cannot hold {charts} charts of one texel each with their gutter; use a larger size"
+    )]
+    LightmapTooSmall { size: u32, charts: usize },
+    #[error(transparent)]
+    Locate(#[from] crate::metrics::MetricsError),
 }
 
-/// The solution as a GLB file's bytes.
+/// What geometry a bake holds.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum BakeForm {
+    /// Every leaf element as its own flat polygon coloured by `COLOR_0` (the default).
+    Elements,
+    /// The original meshes — one polygon per input patch — with `TEXCOORD_1` into one lightmap
+    /// atlas, embedded as a PNG ([`lightmap`]).
+    Lightmap(LightmapParams),
+}
+
+/// The solution as a GLB file's bytes (the element form).
 pub fn glb(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<Vec<u8>, BakeError> {
-    let (doc, bin) = document(scene, solution, opts)?;
+    glb_as(scene, solution, opts, BakeForm::Elements)
+}
+
+/// The solution in `form` as a GLB file's bytes; a lightmap is a buffer view of the BIN chunk.
+pub fn glb_as(
+    scene: &Scene,
+    solution: &Solution,
+    opts: &BakeOptions,
+    form: BakeForm,
+) -> Result<Vec<u8>, BakeError> {
+    let (mut doc, mut bin, image) = document(scene, solution, opts, form)?;
+    if let Some(png) = image {
+        let views = doc["bufferViews"].as_array_mut().expect("document() writes bufferViews as an array");
+        views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": png.len()}));
+        doc["images"][0]["bufferView"] = json!(views.len() - 1);
+        doc["images"][0]["mimeType"] = json!("image/png");
+        bin.extend_from_slice(&png);
+        pad(&mut bin, 0);
+        doc["buffers"][0]["byteLength"] = json!(bin.len());
+    }
     let mut json = serde_json::to_vec(&doc).expect("a serde_json::Value always serialises");
     pad(&mut json, b' ');
     let total = 12 + 8 + json.len() as u64 + 8 + bin.len() as u64;
@@ -125,43 +178,92 @@ pub fn glb(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<Vec
     Ok(out)
 }
 
-/// The solution as self-contained glTF JSON text (the buffer as a base64 `data:` URI).
+/// The solution as self-contained glTF JSON text (the buffer as a base64 `data:` URI; the
+/// element form).
 pub fn gltf(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<String, BakeError> {
-    let (mut doc, bin) = document(scene, solution, opts)?;
-    doc["buffers"][0]["uri"] = Value::String(format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&bin)
-    ));
+    gltf_as(scene, solution, opts, BakeForm::Elements)
+}
+
+/// The solution in `form` as self-contained glTF JSON text: the buffer, and a lightmap, as
+/// base64 `data:` URIs.
+pub fn gltf_as(
+    scene: &Scene,
+    solution: &Solution,
+    opts: &BakeOptions,
+    form: BakeForm,
+) -> Result<String, BakeError> {
+    let (mut doc, bin, image) = document(scene, solution, opts, form)?;
+    let b64 = |bytes: &[u8]| base64::engine::general_purpose::STANDARD.encode(bytes);
+    doc["buffers"][0]["uri"] = Value::String(format!("data:application/octet-stream;base64,{}", b64(&bin)));
+    if let Some(png) = image {
+        doc["images"][0]["uri"] = Value::String(format!("data:image/png;base64,{}", b64(&png)));
+    }
     let mut text = serde_json::to_string_pretty(&doc).expect("a serde_json::Value always serialises");
     text.push('\n');
     Ok(text)
 }
 
-/// The bytes of a bake in `format`.
+/// The bytes of a bake in `format` (the element form).
 pub fn bake(
     scene: &Scene,
     solution: &Solution,
     opts: &BakeOptions,
     format: BakeFormat,
 ) -> Result<Vec<u8>, BakeError> {
+    bake_as(scene, solution, opts, BakeForm::Elements, format)
+}
+
+/// The bytes of a bake in `form` and `format`.
+pub fn bake_as(
+    scene: &Scene,
+    solution: &Solution,
+    opts: &BakeOptions,
+    form: BakeForm,
+    format: BakeFormat,
+) -> Result<Vec<u8>, BakeError> {
     match format {
-        BakeFormat::Glb => glb(scene, solution, opts),
-        BakeFormat::Gltf => gltf(scene, solution, opts).map(String::into_bytes),
+        BakeFormat::Glb => glb_as(scene, solution, opts, form),
+        BakeFormat::Gltf => gltf_as(scene, solution, opts, form).map(String::into_bytes),
     }
 }
 
-/// One primitive's vertex streams, before packing.
+/// One primitive's vertex streams, before packing: `colors` and `radiosity` in the element form,
+/// `uv0` and `uv1` in the lightmap form.
 #[derive(Default)]
 struct Streams {
     positions: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,
     colors: Vec<[f32; 3]>,
     radiosity: Vec<[f32; 3]>,
+    uv0: Vec<[f32; 2]>,
+    uv1: Vec<[f32; 2]>,
     indices: Vec<u32>,
 }
 
-/// The glTF JSON (without the buffer's URI) and the binary buffer, 4-byte aligned.
-fn document(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<(Value, Vec<u8>), BakeError> {
+impl Streams {
+    /// A polygon's vertices (each vertex its own) and its fan: a triangle once, a quad (planar,
+    /// convex) as two triangles.
+    fn push_polygon(&mut self, vertices: &[DVec3], normal: [f32; 3]) {
+        let base = self.positions.len() as u32;
+        for v in vertices {
+            self.positions.push(v.to_array().map(|c| c as f32));
+            self.normals.push(normal);
+        }
+        for k in 1..vertices.len() as u32 - 1 {
+            self.indices.extend([base, base + k, base + k + 1]);
+        }
+    }
+}
+
+/// The glTF JSON (without the buffer's URI), the binary buffer (4-byte aligned) and, in the
+/// lightmap form, the lightmap's PNG (placed by the container: `images[0]` is left without a
+/// source).
+fn document(
+    scene: &Scene,
+    solution: &Solution,
+    opts: &BakeOptions,
+    form: BakeForm,
+) -> Result<(Value, Vec<u8>, Option<Vec<u8>>), BakeError> {
     if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
         return Err(BakeError::BadExposure(opts.exposure));
     }
@@ -198,24 +300,16 @@ fn document(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<(V
         for (m, c) in b_max.iter_mut().zip(e.radiosity.0) {
             *m = m.max(c);
         }
-        let color = exposed.map(|c| c.clamp(0.0, 1.0) as f32);
-        let radiosity = e.radiosity.0.map(|c| c as f32);
-        let normal = unit_f32(patch.normal.to_array());
-        let s = &mut streams[mesh_of_patch[e.patch]];
-        let base = s.positions.len() as u32;
-        for v in &e.vertices {
-            s.positions.push(v.to_array().map(|c| c as f32));
-            s.normals.push(normal);
-            s.colors.push(color);
-            s.radiosity.push(radiosity);
-        }
-        // A fan: a triangle once, a quad (planar, convex) as two triangles.
-        for k in 1..e.vertices.len() as u32 - 1 {
-            s.indices.extend([base, base + k, base + k + 1]);
+        if form == BakeForm::Elements {
+            let s = &mut streams[mesh_of_patch[e.patch]];
+            let n = e.vertices.len();
+            s.push_polygon(&e.vertices, unit_f32(patch.normal.to_array()));
+            s.colors.extend(std::iter::repeat_n(exposed.map(|c| c.clamp(0.0, 1.0) as f32), n));
+            s.radiosity.extend(std::iter::repeat_n(e.radiosity.0.map(|c| c as f32), n));
         }
     }
 
-    let info = json!({
+    let mut info = json!({
         "exposure": opts.exposure,
         "exposure_rule": opts.exposure_rule,
         "units": UNITS,
@@ -229,6 +323,36 @@ fn document(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<(V
         "params": opts.params,
         "radlab_version": env!("CARGO_PKG_VERSION"),
     });
+    let mut material = json!({
+        "name": "radlab baked radiosity (unlit, COLOR_0)",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "doubleSided": false,
+        "extensions": {"KHR_materials_unlit": {}},
+    });
+    let mut lightmap = None;
+    if let BakeForm::Lightmap(params) = form {
+        let map = Lightmap::bake(scene, solution, opts.exposure, params)?;
+        for c in &map.charts {
+            let patch = &scene.patches[c.patch];
+            let s = &mut streams[mesh_of_patch[c.patch]];
+            s.push_polygon(&patch.vertices, unit_f32(patch.normal.to_array()));
+            s.uv0.extend(patch.vertices.iter().map(|&v| c.plane_uv(v)));
+            s.uv1.extend(patch.vertices.iter().map(|&v| c.uv(v, params.size)));
+        }
+        info["color"] = json!(lightmap::TEXEL_RULE);
+        info["lightmap"] = json!({
+            "size": params.size,
+            "padding": params.padding,
+            "texels_per_unit": map.texels_per_unit,
+            "charts": map.charts.len(),
+            "coverage": map.coverage(),
+            "clipped_texels": map.clipped_texels,
+            "texcoord": LIGHTMAP_TEXCOORD_RULE,
+        });
+        material["name"] = json!("radlab baked radiosity (unlit, lightmap on TEXCOORD_1)");
+        material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0, "texCoord": 1});
+        lightmap = Some(map);
+    }
     let mut bin: Vec<u8> = Vec::new();
     let mut accessors: Vec<Value> = Vec::new();
     let mut views: Vec<Value> = Vec::new();
@@ -238,28 +362,22 @@ fn document(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<(V
         if s.indices.is_empty() {
             continue; // a mesh whose patches have no elements (none of radlab's solvers does this)
         }
-        let (lo, hi) = bounds(&s.positions);
-        let mut vec3 = |data: &[[f32; 3]], min_max: Option<([f32; 3], [f32; 3])>| {
-            let view = push_view(
-                &mut views,
-                &mut bin,
-                data.iter().flatten().flat_map(|f| f.to_le_bytes()),
-                GL_ARRAY_BUFFER,
-            );
-            let mut acc =
-                json!({"bufferView": view, "componentType": GL_FLOAT, "count": data.len(), "type": "VEC3"});
-            if let Some((lo, hi)) = min_max {
-                // As f64 of the f32 values, so the JSON numbers equal the stored floats exactly.
-                acc["min"] = json!(lo.map(f64::from));
-                acc["max"] = json!(hi.map(f64::from));
-            }
-            accessors.push(acc);
-            accessors.len() - 1
-        };
-        let position = vec3(&s.positions, Some((lo, hi)));
-        let normal = vec3(&s.normals, None);
-        let color = vec3(&s.colors, None);
-        let radiosity = vec3(&s.radiosity, None);
+        let mut floats =
+            |data: &[_], min_max: bool| push_floats(&mut accessors, &mut views, &mut bin, data, min_max);
+        let mut attributes = json!({
+            "POSITION": floats(&s.positions, true),
+            "NORMAL": floats(&s.normals, false),
+        });
+        if !s.colors.is_empty() {
+            attributes["COLOR_0"] = json!(floats(&s.colors, false));
+            attributes["_RADIOSITY"] = json!(floats(&s.radiosity, false));
+        }
+        if !s.uv0.is_empty() {
+            attributes["TEXCOORD_0"] =
+                json!(push_floats(&mut accessors, &mut views, &mut bin, &s.uv0, false));
+            attributes["TEXCOORD_1"] =
+                json!(push_floats(&mut accessors, &mut views, &mut bin, &s.uv1, false));
+        }
         let view = push_view(
             &mut views,
             &mut bin,
@@ -272,7 +390,7 @@ fn document(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<(V
         meshes.push(json!({
             "name": name,
             "primitives": [{
-                "attributes": {"POSITION": position, "NORMAL": normal, "COLOR_0": color, "_RADIOSITY": radiosity},
+                "attributes": attributes,
                 "indices": indices,
                 "material": 0,
                 "mode": GL_TRIANGLES,
@@ -283,7 +401,7 @@ fn document(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<(V
     if u32::try_from(bytes).is_err() {
         return Err(BakeError::TooLarge { bytes });
     }
-    let doc = json!({
+    let mut doc = json!({
         "asset": {
             "version": "2.0",
             "generator": concat!("radlab ", env!("CARGO_PKG_VERSION"), " (baked radiosity)"),
@@ -294,17 +412,17 @@ fn document(scene: &Scene, solution: &Solution, opts: &BakeOptions) -> Result<(V
         "scenes": [{"name": scene.name, "nodes": (0..nodes.len()).collect::<Vec<_>>(), "extras": {"radlab": info}}],
         "nodes": nodes,
         "meshes": meshes,
-        "materials": [{
-            "name": "radlab baked radiosity (unlit, COLOR_0)",
-            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
-            "doubleSided": false,
-            "extensions": {"KHR_materials_unlit": {}},
-        }],
+        "materials": [material],
         "accessors": accessors,
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],
     });
-    Ok((doc, bin))
+    if lightmap.is_some() {
+        doc["samplers"] = json!([{"magFilter": GL_LINEAR, "minFilter": GL_LINEAR, "wrapS": GL_CLAMP_TO_EDGE, "wrapT": GL_CLAMP_TO_EDGE}]);
+        doc["textures"] = json!([{"name": "radlab lightmap", "sampler": 0, "source": 0}]);
+        doc["images"] = json!([{"name": "radlab lightmap"}]);
+    }
+    Ok((doc, bin, lightmap.map(|m| m.png())))
 }
 
 /// A unit vector in f32 (normalised again after rounding, for the validator's unit-length check).
@@ -314,16 +432,39 @@ fn unit_f32(n: [f64; 3]) -> [f32; 3] {
     if len > 0.0 { f.map(|c| c / len) } else { [0.0, 0.0, 1.0] }
 }
 
-fn bounds(points: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
-    let mut lo = [f32::INFINITY; 3];
-    let mut hi = [f32::NEG_INFINITY; 3];
+fn bounds<const N: usize>(points: &[[f32; N]]) -> ([f32; N], [f32; N]) {
+    let mut lo = [f32::INFINITY; N];
+    let mut hi = [f32::NEG_INFINITY; N];
     for p in points {
-        for c in 0..3 {
+        for c in 0..N {
             lo[c] = lo[c].min(p[c]);
             hi[c] = hi[c].max(p[c]);
         }
     }
     (lo, hi)
+}
+
+/// Append a tightly packed f32 VEC2 or VEC3 accessor (with its min and max if `min_max`) and its
+/// buffer view; its index.
+fn push_floats<const N: usize>(
+    accessors: &mut Vec<Value>,
+    views: &mut Vec<Value>,
+    bin: &mut Vec<u8>,
+    data: &[[f32; N]],
+    min_max: bool,
+) -> usize {
+    let view = push_view(views, bin, data.iter().flatten().flat_map(|f| f.to_le_bytes()), GL_ARRAY_BUFFER);
+    let kind = if N == 2 { "VEC2" } else { "VEC3" };
+    let mut acc = json!({"bufferView": view, "componentType": GL_FLOAT, "count": data.len(), "type": kind});
+    if min_max {
+        let (lo, hi) = bounds(data);
+        // As f64 of the f32 values, so the JSON numbers equal the stored floats exactly.
+        let numbers = |v: [f32; N]| v.map(f64::from).to_vec();
+        acc["min"] = json!(numbers(lo));
+        acc["max"] = json!(numbers(hi));
+    }
+    accessors.push(acc);
+    accessors.len() - 1
 }
 
 /// Append a buffer view (4-byte aligned, as every accessor here is f32 or u32); its index.

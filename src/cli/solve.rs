@@ -5,6 +5,7 @@
 use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use radlab::accel::Accel;
+use radlab::bake::{BakeForm, LightmapParams};
 use radlab::basis::Order;
 use radlab::math::Rgb;
 use radlab::mesh::remesh::{MeshKind, RemeshParams, RemeshStats};
@@ -308,6 +309,11 @@ pub struct Args {
     /// 99th percentile of the luminance the default camera sees at --width × --height maps to 1).
     #[arg(long, requires = "bake")]
     pub bake_exposure: Option<f64>,
+    /// Bake the original meshes (one polygon per input patch) with a SIZE×SIZE lightmap instead
+    /// of the refined elements: TEXCOORD_1 into one atlas, embedded as an sRGB PNG, unlit. SIZE is
+    /// a power of two from 64 to 8192.
+    #[arg(long, value_name = "SIZE", requires = "bake")]
+    pub bake_lightmap: Option<u32>,
     /// No progress bar, no summary (errors still go to stderr).
     #[arg(long, short)]
     pub quiet: bool,
@@ -742,7 +748,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let a = &args.solver;
     set_threads(a.threads)?;
     let bake_format = match &args.bake {
-        Some(out) => Some(check_bake_path(out, &args.scene, args.bake_exposure)?),
+        Some(out) => Some(check_bake_path(out, &args.scene, args.bake_exposure, args.bake_lightmap)?),
         None => None,
     };
     plan(a)?;
@@ -822,10 +828,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             scene_label: args.scene.clone(),
             params: Some(params_json.clone()),
         };
-        let bytes = radlab::bake::bake(&scene, solution, &opts, format)
+        let t = Instant::now();
+        let form = args
+            .bake_lightmap
+            .map_or(BakeForm::Elements, |size| BakeForm::Lightmap(LightmapParams::new(size)));
+        let bytes = radlab::bake::bake_as(&scene, solution, &opts, form, format)
             .with_context(|| format!("baking {}", path.display()))?;
-        std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))?;
-        baked = Some((path, exposure));
+        let bake_s = t.elapsed().as_secs_f64();
+        std::fs::write(path, &bytes).with_context(|| format!("writing {}", path.display()))?;
+        baked = Some((path, exposure, bytes.len(), bake_s));
     }
     // Built only when asked for: every patch's entry is 2 kB of JSON values (0.2 GB at 100 k).
     if let Some(target) = args.json.as_deref() {
@@ -847,12 +858,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some((m, solve_s)) = &solved.remesh {
             println!("  mesh {}: {}, solve {solve_s:.3} s", mesh.name(), m.describe());
         }
-        if let Some((path, exposure)) = baked {
-            println!(
-                "  baked {} elements to {} (COLOR_0 = B × {exposure:.6e}, clamped to [0, 1])",
-                solution.elements.len(),
-                path.display()
-            );
+        if let Some((path, exposure, bytes, bake_s)) = baked {
+            let kb = bytes as f64 / 1e3;
+            match args.bake_lightmap {
+                None => println!(
+                    "  baked {} elements to {} (COLOR_0 = B × {exposure:.6e}, clamped to [0, 1]; {kb:.0} kB, {bake_s:.2} s)",
+                    solution.elements.len(),
+                    path.display()
+                ),
+                Some(size) => println!(
+                    "  baked {} patches with a {size}×{size} lightmap to {} (texel = sRGB(clamp(B × {exposure:.6e}, 0, 1)); {kb:.0} kB, {bake_s:.2} s)",
+                    scene.patches.len(),
+                    path.display()
+                ),
+            }
         }
     }
     Ok(())
@@ -907,13 +926,23 @@ fn dump_json(spec: &str, solved: &Solved) -> serde_json::Value {
 }
 
 /// Check `--bake PATH` before the solve, so a bad path fails at once: a known extension, an
-/// existing folder, not the input scene itself, and a usable `--bake-exposure`.
+/// existing folder, not the input scene itself, a usable `--bake-exposure` and `--bake-lightmap`.
 fn check_bake_path(
     out: &Path,
     scene_spec: &str,
     exposure: Option<f64>,
+    lightmap: Option<u32>,
 ) -> anyhow::Result<radlab::bake::BakeFormat> {
     let format = radlab::bake::BakeFormat::from_path(out)?;
+    if let Some(size) = lightmap {
+        if LightmapParams::new(size).check().is_err() {
+            bail!(
+                "--bake-lightmap {size}: must be a power of two from {} to {}",
+                LightmapParams::MIN_SIZE,
+                LightmapParams::MAX_SIZE
+            );
+        }
+    }
     if let Some(x) = exposure
         && !(x.is_finite() && x > 0.0)
     {
