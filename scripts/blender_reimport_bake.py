@@ -18,6 +18,11 @@ range of its linear values, and compares each face corner's colour with COLOR_0 
 vertex it came from (Blender may store colours as 8-bit sRGB, so up to COLOR_TOL apart). It also
 reports the `_RADIOSITY` attribute, the material's shader nodes and the `radlab` extras Blender
 kept as the scene's custom property. Exit status 1 if a mesh lacks colours or a colour differs.
+
+A lightmap bake (`--bake-lightmap SIZE`, an image in the file) is checked instead for the lightmap
+on the second UV map: every mesh has two UV maps, the second equals TEXCOORD_1 (Blender flips v:
+(u, 1 - v)), and the material's Image Texture node shows the file's image (SIZE x SIZE, sRGB)
+through a UV Map node naming that second map.
 """
 
 import json
@@ -45,12 +50,63 @@ def read_glb(path):
 
 def vec3s(doc, blob, index):
     """A tightly packed VEC3 float accessor as a list of tuples."""
+    return vecs(doc, blob, index, 3)
+
+
+def vecs(doc, blob, index, n):
+    """A tightly packed VEC`n` float accessor as a list of tuples."""
     acc = doc["accessors"][index]
     view = doc["bufferViews"][acc["bufferView"]]
-    assert acc["componentType"] == 5126 and acc["type"] == "VEC3" and "byteStride" not in view
+    assert acc["componentType"] == 5126 and acc["type"] == f"VEC{n}" and "byteStride" not in view
     start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
-    flat = struct.unpack_from(f"<{3 * acc['count']}f", blob, start)
-    return [flat[i : i + 3] for i in range(0, len(flat), 3)]
+    flat = struct.unpack_from(f"<{n * acc['count']}f", blob, start)
+    return [flat[i : i + n] for i in range(0, len(flat), n)]
+
+
+def check_lightmap(doc, blob, objects):
+    """The lightmap form: TEXCOORD_1 as Blender's second UV map, wired to the image. Failures."""
+    import bpy
+    failures = []
+    size = doc["asset"]["extras"]["radlab"]["lightmap"]["size"]
+    uv1 = {m["name"]: vecs(doc, blob, m["primitives"][0]["attributes"]["TEXCOORD_1"], 2) for m in doc["meshes"]}
+    for obj in objects:
+        mesh = obj.data
+        name = mesh.name if mesh.name in uv1 else obj.name
+        layers = [layer.name for layer in mesh.uv_layers]
+        if len(layers) < 2 or name not in uv1:
+            failures.append(f"{obj.name}: UV maps {layers}")
+            continue
+        want = uv1[name]
+        got = [tuple(d.uv) for d in mesh.uv_layers[1].data]
+        expect = [(want[loop.vertex_index][0], 1.0 - want[loop.vertex_index][1]) for loop in mesh.loops]
+        worst = max(abs(a - b) for g, e in zip(got, expect) for a, b in zip(g, e))
+        if worst > 1e-6:
+            failures.append(f"{obj.name}: second UV map differs from TEXCOORD_1 by {worst:.2e}")
+        print(f"  {obj.name}: {len(mesh.polygons)} faces; UV maps {layers}; max |UV 2 - TEXCOORD_1| {worst:.1e}")
+        for slot in obj.material_slots:
+            tex = [n for n in slot.material.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"]
+            if len(tex) != 1 or tex[0].image is None:
+                failures.append(f"{obj.name}: no image texture in {slot.material.name}")
+                continue
+            image = tex[0].image
+            feeds = [link.from_node for link in tex[0].inputs["Vector"].links]
+            uv_map = feeds[0].uv_map if feeds and feeds[0].bl_idname == "ShaderNodeUVMap" else None
+            if uv_map != layers[1] or tuple(image.size) != (size, size) or image.colorspace_settings.name != "sRGB":
+                failures.append(
+                    f"{obj.name}: image {tuple(image.size)} {image.colorspace_settings.name} through UV map {uv_map}"
+                )
+    for mat in bpy.data.materials:
+        for n in mat.node_tree.nodes if mat.node_tree else []:
+            if n.bl_idname == "ShaderNodeTexImage":
+                img = n.image
+                feeds = [link.from_node for link in n.inputs["Vector"].links]
+                via = ", ".join(f"{f.bl_idname} '{getattr(f, 'uv_map', '')}'" for f in feeds)
+                print(
+                    f"material '{mat.name}': image '{img.name}' {img.size[0]}x{img.size[1]} "
+                    f"{img.colorspace_settings.name}, packed {img.packed_file is not None}, interpolation "
+                    f"{n.interpolation}, extension {n.extension}, vector from {via}"
+                )
+    return failures
 
 
 def channel_range(values):
@@ -68,6 +124,22 @@ def main(argv):
     import bpy  # here, so that --help-like misuse fails before Blender loads
 
     doc, blob = read_glb(path)
+    if "images" in doc:
+        info = doc["asset"]["extras"]["radlab"]
+        print(f"blender {bpy.app.version_string}; file {path}")
+        print(f"lightmap bake: scene {info['scene']}, {info['patches']} patches, lightmap {info['lightmap']['size']}")
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        bpy.ops.import_scene.gltf(filepath=path)
+        objects = sorted((o for o in bpy.data.objects if o.type == "MESH"), key=lambda o: o.name)
+        print(f"imported {len(objects)} mesh objects (the file has {len(doc['meshes'])} meshes)")
+        failures = check_lightmap(doc, blob, objects)
+        if len(objects) != len(doc["meshes"]):
+            failures.append("mesh count differs")
+        if failures:
+            print("FAILED: " + "; ".join(failures))
+            return 1
+        print("OK: every mesh re-imported with the lightmap on its second UV map")
+        return 0
     file_colors, file_radiosity = {}, {}
     for mesh in doc["meshes"]:
         attrs = mesh["primitives"][0]["attributes"]

@@ -151,7 +151,7 @@ pub fn glb_as(
     opts: &BakeOptions,
     form: BakeForm,
 ) -> Result<Vec<u8>, BakeError> {
-    let (mut doc, mut bin, image) = document(scene, solution, opts, form)?;
+    let Document { json: mut doc, mut bin, image } = document(scene, solution, opts, form)?;
     if let Some(png) = image {
         let views = doc["bufferViews"].as_array_mut().expect("document() writes bufferViews as an array");
         views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": png.len()}));
@@ -192,7 +192,7 @@ pub fn gltf_as(
     opts: &BakeOptions,
     form: BakeForm,
 ) -> Result<String, BakeError> {
-    let (mut doc, bin, image) = document(scene, solution, opts, form)?;
+    let Document { json: mut doc, bin, image } = document(scene, solution, opts, form)?;
     let b64 = |bytes: &[u8]| base64::engine::general_purpose::STANDARD.encode(bytes);
     doc["buffers"][0]["uri"] = Value::String(format!("data:application/octet-stream;base64,{}", b64(&bin)));
     if let Some(png) = image {
@@ -255,15 +255,23 @@ impl Streams {
     }
 }
 
-/// The glTF JSON (without the buffer's URI), the binary buffer (4-byte aligned) and, in the
-/// lightmap form, the lightmap's PNG (placed by the container: `images[0]` is left without a
-/// source).
+/// A bake before its container places the buffer and the image.
+struct Document {
+    /// The glTF JSON, without the buffer's URI.
+    json: Value,
+    /// The binary buffer, 4-byte aligned.
+    bin: Vec<u8>,
+    /// The lightmap form's PNG, for the container to place (`images[0]` has no source yet).
+    image: Option<Vec<u8>>,
+}
+
+/// The bake of `solution` in `form`, before its container.
 fn document(
     scene: &Scene,
     solution: &Solution,
     opts: &BakeOptions,
     form: BakeForm,
-) -> Result<(Value, Vec<u8>, Option<Vec<u8>>), BakeError> {
+) -> Result<Document, BakeError> {
     if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
         return Err(BakeError::BadExposure(opts.exposure));
     }
@@ -422,7 +430,7 @@ fn document(
         doc["textures"] = json!([{"name": "radlab lightmap", "sampler": 0, "source": 0}]);
         doc["images"] = json!([{"name": "radlab lightmap"}]);
     }
-    Ok((doc, bin, lightmap.map(|m| m.png())))
+    Ok(Document { json: doc, bin, image: lightmap.map(|m| m.png()) })
 }
 
 /// A unit vector in f32 (normalised again after rounding, for the validator's unit-length check).

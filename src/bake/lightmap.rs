@@ -26,7 +26,8 @@
 //!                          o────────► a  (a ∥ v1 − v0)  │ shelf 2 …                │   edge texels
 //!                             w                         └──────────────────────────┘
 //! ```
-//! 1. Chart: a = (v1 − v0)/|v1 − v0|, b = n × a; the patch's bounding box in (a, b) is w × h.
+//! 1. Chart: a = (v1 − v0)/|v1 − v0|, b = n × a (turned to (b, −a) where that makes the box
+//!    wider than tall); the patch's bounding box in (a, b) is w × h.
 //! 2. Size: ⌈w d⌉ × ⌈h d⌉ texels, at least 1 × 1, plus `padding` texels on every side; sorted by
 //!    height (then width, then patch index) and placed left to right in shelves. d is bisected
 //!    between 0 and √(size² / Σ w h); if even 1 × 1 charts do not fit, the bake is refused.
@@ -109,9 +110,19 @@ pub struct Chart {
 
 impl Chart {
     fn new(patch: usize, p: &Patch) -> Chart {
+        let a = (p.vertices[1] - p.vertices[0]).normalize();
+        let chart = Chart::in_frame(patch, p, [a, p.normal.cross(a).normalize()]);
+        // Landscape: the frame turned a quarter (b, −a: still right-handed, the polygon still
+        // counter-clockwise) where the box is taller than wide, so shelves waste less.
+        if chart.extent[1] > chart.extent[0] {
+            Chart::in_frame(patch, p, [chart.axes[1], -chart.axes[0]])
+        } else {
+            chart
+        }
+    }
+
+    fn in_frame(patch: usize, p: &Patch, axes: [DVec3; 2]) -> Chart {
         let origin = p.vertices[0];
-        let a = (p.vertices[1] - origin).normalize();
-        let axes = [a, p.normal.cross(a).normalize()];
         let polygon: Vec<[f64; 2]> =
             p.vertices.iter().map(|&v| [(v - origin).dot(axes[0]), (v - origin).dot(axes[1])]).collect();
         let mut lo = [f64::INFINITY; 2];

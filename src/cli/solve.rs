@@ -934,14 +934,14 @@ fn check_bake_path(
     lightmap: Option<u32>,
 ) -> anyhow::Result<radlab::bake::BakeFormat> {
     let format = radlab::bake::BakeFormat::from_path(out)?;
-    if let Some(size) = lightmap {
-        if LightmapParams::new(size).check().is_err() {
-            bail!(
-                "--bake-lightmap {size}: must be a power of two from {} to {}",
-                LightmapParams::MIN_SIZE,
-                LightmapParams::MAX_SIZE
-            );
-        }
+    if let Some(size) = lightmap
+        && LightmapParams::new(size).check().is_err()
+    {
+        bail!(
+            "--bake-lightmap {size}: must be a power of two from {} to {}",
+            LightmapParams::MIN_SIZE,
+            LightmapParams::MAX_SIZE
+        );
     }
     if let Some(x) = exposure
         && !(x.is_finite() && x > 0.0)
