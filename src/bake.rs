@@ -22,18 +22,26 @@
 //! custom properties). The piecewise-constant solution is baked as it is: each element has its
 //! own vertices (none shared), so colours do not blend across element edges.
 //!
+//! **The lightmap form** ([`BakeForm::Lightmap`], `--bake-lightmap SIZE`) bakes the original
+//! meshes instead — one polygon per input patch — with `TEXCOORD_1` into one SIZE × SIZE atlas
+//! of the solution's reconstruction, an sRGB PNG that the unlit material shows as its base
+//! colour (`texCoord: 1`); `TEXCOORD_0` is each patch's planar map in scene units (glTF wants
+//! texture coordinate sets numbered from 0). The atlas, its charts and its texels: [`lightmap`].
+//!
 //! ## Layout
 //! ```text
 //!   one node + mesh + primitive per input mesh name (patch.mesh, first-appearance order)
 //!   accessors per primitive: POSITION, NORMAL, COLOR_0, _RADIOSITY (f32), indices (u32)
-//!   .glb : 12-byte header ─ JSON chunk (space-padded) ─ BIN chunk (zero-padded)
-//!   .gltf: JSON with the one buffer as a base64 data: URI
+//!       lightmap form:       POSITION, NORMAL, TEXCOORD_0, TEXCOORD_1 (f32), indices (u32)
+//!                            + sampler (LINEAR, no mipmaps, clamp), texture, image (PNG)
+//!   .glb : 12-byte header ─ JSON chunk (space-padded) ─ BIN chunk (zero-padded; the PNG last)
+//!   .gltf: JSON with the one buffer (and the PNG) as base64 data: URIs
 //! ```
 //! Output is deterministic: the same solution gives the same bytes.
 
-mod lightmap;
+pub mod lightmap;
 
-pub use lightmap::{Chart, Lightmap, LightmapParams, TEXEL_RULE};
+pub use lightmap::{Lightmap, LightmapParams, TEXEL_RULE};
 
 use crate::math::DVec3;
 use crate::scene::Scene;

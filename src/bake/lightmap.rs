@@ -41,7 +41,7 @@
 //! The texture coordinates of a vertex are its position in the chart mapped to the atlas, the
 //! chart's box onto its interior texels: uv = (x + w_t (p_a − lo_a)/w, y + h_t (p_b − lo_b)/h) /
 //! size. Work and memory are bounded by the size (at most 8192² texels, 3 bytes each) and the
-//! patch count; the bytes are deterministic (parallel per chart, assembled in patch order).
+//! patch count; the bytes are deterministic (atlas rows in parallel, each written by one task).
 
 use super::BakeError;
 use crate::image::srgb_encode;
@@ -86,6 +86,34 @@ impl LightmapParams {
             && (Self::MIN_SIZE..=Self::MAX_SIZE).contains(&self.size)
             && self.padding < Self::MIN_SIZE / 4;
         if ok { Ok(()) } else { Err(BakeError::BadLightmapSize(self.size)) }
+    }
+}
+
+/// 8-bit sRGB of linear values without a `powf` per texel: level k is taken where
+/// t_k ≤ v < t_(k+1), t_k the linear value that [`srgb_encode`] maps to (k − ½)/255 (found by
+/// bisection), i.e. round(255 · srgb_encode(clamp(v, 0, 1))).
+struct Srgb8 {
+    thresholds: [f64; 255],
+}
+
+impl Srgb8 {
+    fn new() -> Srgb8 {
+        Srgb8 {
+            thresholds: std::array::from_fn(|k| {
+                let target = (k as f64 + 0.5) / 255.0;
+                let (mut lo, mut hi) = (0.0, 1.0);
+                for _ in 0..64 {
+                    let mid = 0.5 * (lo + hi);
+                    if srgb_encode(mid) < target { lo = mid } else { hi = mid }
+                }
+                hi
+            }),
+        }
+    }
+
+    fn level(&self, linear: f64) -> u8 {
+        // NaN (never here: the bake checks B) would read as 0.
+        self.thresholds.partition_point(|&t| t <= linear) as u8
     }
 }
 
@@ -232,44 +260,46 @@ impl Lightmap {
         let reconstruction = PiecewiseConstant::new(scene, &solution.elements)?;
         let size = params.size as usize;
         let p = params.padding;
-        // Each chart's block, gutter included, in parallel; copied in patch order.
-        let blocks: Vec<(Vec<[u8; 3]>, usize)> = charts
-            .par_iter()
-            .map(|c| {
-                let mut clipped = 0;
-                let interior: Vec<[u8; 3]> = (0..c.h)
-                    .flat_map(|j| (0..c.w).map(move |i| (i, j)))
-                    .map(|(i, j)| {
-                        let b = reconstruction.radiosity_at(c.patch, c.texel_point(i, j));
-                        let exposed = b.0.map(|v| v * exposure);
-                        if exposed.iter().any(|v| !(0.0..=1.0).contains(v)) {
-                            clipped += 1;
-                        }
-                        exposed.map(|v| (srgb_encode(v.clamp(0.0, 1.0)) * 255.0).round() as u8)
-                    })
-                    .collect();
-                let (bw, bh) = (c.w + 2 * p, c.h + 2 * p);
-                let block = (0..bh)
-                    .flat_map(|j| (0..bw).map(move |i| (i, j)))
-                    .map(|(i, j)| {
-                        let ii = i.saturating_sub(p).min(c.w - 1);
-                        let jj = j.saturating_sub(p).min(c.h - 1);
-                        interior[(jj * c.w + ii) as usize]
-                    })
-                    .collect();
-                (block, clipped)
-            })
-            .collect();
-        let mut rgb = vec![0u8; size * size * 3];
-        let mut clipped_texels = 0;
-        for (c, (block, clipped)) in charts.iter().zip(blocks) {
-            clipped_texels += clipped;
-            let bw = (c.w + 2 * p) as usize;
-            for (row, texels) in block.chunks_exact(bw).enumerate() {
-                let start = ((c.y - p) as usize + row) * size + (c.x - p) as usize;
-                rgb[3 * start..3 * (start + bw)].copy_from_slice(texels.as_flattened());
+        // The charts each atlas row crosses, gutter included.
+        let mut crossing: Vec<Vec<u32>> = vec![Vec::new(); size];
+        for (k, c) in charts.iter().enumerate() {
+            for y in c.y - p..c.y + c.h + p {
+                crossing[y as usize].push(k as u32);
             }
         }
+        let srgb8 = Srgb8::new();
+        // Rows in parallel, each written by itself: the bytes do not depend on the thread count.
+        let mut rgb = vec![0u8; size * size * 3];
+        let clipped_texels = rgb
+            .par_chunks_mut(3 * size)
+            .zip(&crossing)
+            .enumerate()
+            .map(|(y, (row, crossing))| {
+                let mut clipped = 0;
+                for &k in crossing {
+                    let c = &charts[k as usize];
+                    // A gutter row above or below the chart repeats its first or last row.
+                    let j = (y as u32).saturating_sub(c.y).min(c.h - 1);
+                    let gutter_row = j != (y as u32).wrapping_sub(c.y);
+                    for i in 0..c.w {
+                        let b = reconstruction.radiosity_at(c.patch, c.texel_point(i, j));
+                        let exposed = b.0.map(|v| v * exposure);
+                        if !gutter_row && exposed.iter().any(|v| !(0.0..=1.0).contains(v)) {
+                            clipped += 1;
+                        }
+                        let at = 3 * (c.x + i) as usize;
+                        row[at..at + 3].copy_from_slice(&exposed.map(|v| srgb8.level(v)));
+                    }
+                    // The gutter left and right repeats the row's first and last texel.
+                    let (first, last) = (3 * c.x as usize, 3 * (c.x + c.w - 1) as usize);
+                    for g in 1..=p as usize {
+                        row.copy_within(first..first + 3, first - 3 * g);
+                        row.copy_within(last..last + 3, last + 3 * g);
+                    }
+                }
+                clipped
+            })
+            .sum();
         Ok(Lightmap { params, texels_per_unit, charts, rgb, clipped_texels })
     }
 
@@ -453,6 +483,16 @@ mod tests {
             }
         }
         assert!(inside >= 3 * charts.len(), "{inside} texel centres on their patches");
+    }
+
+    #[test]
+    fn srgb8_levels_are_the_rounded_encoding() {
+        let s = Srgb8::new();
+        for i in 0..=100_000 {
+            let v = f64::from(i) / 100_000.0;
+            assert_eq!(s.level(v), (srgb_encode(v) * 255.0).round() as u8, "{v}");
+        }
+        assert_eq!((s.level(-1.0), s.level(0.0), s.level(1.0), s.level(7.0)), (0, 0, 255, 255));
     }
 
     #[test]
