@@ -305,8 +305,9 @@ pub struct Args {
     /// exposure and units in `extras`): PATH.glb, or PATH.gltf with the buffer embedded.
     #[arg(long, value_name = "PATH")]
     pub bake: Option<PathBuf>,
-    /// COLOR_0 = clamp(B × this, 0, 1) in the bake; default: the --png image's exposure (the
-    /// 99th percentile of the luminance the default camera sees at --width × --height maps to 1).
+    /// COLOR_0 (or a lightmap texel) = clamp(B × this, 0, 1) in the bake; default: the --png
+    /// image's exposure (the 99th percentile of the luminance the default camera sees at --width ×
+    /// --height maps to 1).
     #[arg(long, requires = "bake")]
     pub bake_exposure: Option<f64>,
     /// Bake the original meshes (one polygon per input patch) with a SIZE×SIZE lightmap instead
