@@ -307,23 +307,54 @@ fn validate(validator: &Path, files: &[PathBuf]) -> Vec<(u64, u64, u64, String)>
     lines.iter().map(|l| serde_json::from_str(l).unwrap()).collect()
 }
 
+type Baker = dyn Fn(&Scene, &Solution, &BakeOptions) -> Vec<u8>;
+
+/// Every built-in scene solved as `solve` does and baked by `glb` into `dir`/NAME.glb, and
+/// cornell also by `gltf` into cornell.gltf; the files, in that order.
+fn bake_every_builtin(dir: &Path, glb: &Baker, gltf: &Baker) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    for (name, _) in builtin::BUILTINS {
+        let (scene, sol, exposure) = solve(name);
+        let opts = options(&format!("builtin:{name}"), exposure);
+        let path = dir.join(format!("{name}.glb"));
+        std::fs::write(&path, glb(&scene, &sol, &opts)).unwrap();
+        files.push(path);
+        if *name == "cornell" {
+            let text = dir.join(format!("{name}.gltf"));
+            std::fs::write(&text, gltf(&scene, &sol, &opts)).unwrap();
+            files.push(text);
+        }
+    }
+    files
+}
+
+/// Runs the validator on `files` and asserts 0 errors and 0 warnings on each; each file's name
+/// and messages (the infos), for further checks.
+fn assert_valid(validator: &Path, files: &[PathBuf]) -> Vec<(String, String)> {
+    let reports = validate(validator, files);
+    let mut bad = Vec::new();
+    let mut out = Vec::new();
+    for (file, (errors, warnings, infos, msgs)) in files.iter().zip(reports) {
+        let name = file.file_name().unwrap().to_string_lossy().into_owned();
+        eprintln!("gltf-validator {name}: {errors} errors, {warnings} warnings, {infos} infos");
+        if errors > 0 || warnings > 0 {
+            bad.push(format!("{name}: {msgs}"));
+        }
+        out.push((name, msgs));
+    }
+    assert!(bad.is_empty(), "validator issues:\n{}", bad.join("\n"));
+    out
+}
+
 #[test]
 fn khronos_validator_reports_nothing_on_the_bake_of_every_builtin_scene() {
     let Some(validator) = validator_dir() else { return };
     let dir = temp_dir("validator");
-    let mut files = Vec::new();
-    for (name, _) in builtin::BUILTINS {
-        let (scene, sol, exposure) = solve(name);
-        let label = format!("builtin:{name}");
-        let glb = dir.join(format!("{name}.glb"));
-        std::fs::write(&glb, bake::glb(&scene, &sol, &options(&label, exposure)).unwrap()).unwrap();
-        files.push(glb);
-        if *name == "cornell" {
-            let text = dir.join(format!("{name}.gltf"));
-            std::fs::write(&text, bake::gltf(&scene, &sol, &options(&label, exposure)).unwrap()).unwrap();
-            files.push(text);
-        }
-    }
+    let files = bake_every_builtin(
+        &dir,
+        &|scene, sol, opts| bake::glb(scene, sol, opts).unwrap(),
+        &|scene, sol, opts| bake::gltf(scene, sol, opts).unwrap().into_bytes(),
+    );
     // A control: the validator, as called here, does report a broken file (POSITION's max off).
     let mut broken: Value =
         serde_json::from_slice(&std::fs::read(dir.join("cornell.gltf")).unwrap()).unwrap();
@@ -333,16 +364,7 @@ fn khronos_validator_reports_nothing_on_the_bake_of_every_builtin_scene() {
     let control = validate(&validator, std::slice::from_ref(&broken_file));
     assert!(control[0].0 > 0, "the validator found nothing wrong with a broken file: {:?}", control[0]);
 
-    let reports = validate(&validator, &files);
-    let mut bad = Vec::new();
-    for (file, (errors, warnings, infos, msgs)) in files.iter().zip(&reports) {
-        let name = file.file_name().unwrap().to_string_lossy();
-        eprintln!("gltf-validator {name}: {errors} errors, {warnings} warnings, {infos} infos");
-        if *errors > 0 || *warnings > 0 {
-            bad.push(format!("{name}: {msgs}"));
-        }
-    }
-    assert!(bad.is_empty(), "validator issues:\n{}", bad.join("\n"));
+    assert_valid(&validator, &files);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -667,17 +689,11 @@ fn cli_bakes_a_lightmap_and_refuses_bad_sizes_with_one_line() {
 
     // The .gltf form through the CLI: the image as a data: URI.
     let text = dir.join("cornell.gltf");
-    let out = radlab(&[
-        "solve",
-        "builtin:cornell",
-        "--preset",
-        "interactive",
-        "--bake",
-        &s(&text),
-        "--bake-lightmap",
-        "64",
-        "-q",
-    ]);
+    let text_path = s(&text);
+    let mut args: Vec<&str> =
+        "solve builtin:cornell --preset interactive --bake-lightmap 64 -q".split(' ').collect();
+    args.extend(["--bake", &text_path]);
+    let out = radlab(&args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let json: Value = serde_json::from_slice(&std::fs::read(&text).unwrap()).unwrap();
     assert!(json["images"][0]["uri"].as_str().unwrap().starts_with("data:image/png;base64,"));
@@ -706,34 +722,22 @@ fn cli_bakes_a_lightmap_and_refuses_bad_sizes_with_one_line() {
 fn khronos_validator_reports_nothing_on_the_lightmap_bake_of_every_builtin_scene() {
     let Some(validator) = validator_dir() else { return };
     let dir = temp_dir("validator-lightmap");
-    let mut files = Vec::new();
-    for (name, _) in builtin::BUILTINS {
-        let (scene, sol, exposure) = solve(name);
-        let label = format!("builtin:{name}");
-        let glb = dir.join(format!("{name}.glb"));
-        std::fs::write(&glb, lightmap_bake(&scene, &sol, &label, exposure, 256)).unwrap();
-        files.push(glb);
-        if *name == "cornell" {
-            let form = BakeForm::Lightmap(LightmapParams::new(1024));
-            let text = dir.join(format!("{name}.gltf"));
-            std::fs::write(&text, bake::gltf_as(&scene, &sol, &options(&label, exposure), form).unwrap())
-                .unwrap();
-            files.push(text);
+    let bake_at = |size: u32| {
+        move |scene: &Scene, sol: &Solution, opts: &BakeOptions| {
+            bake::bake_as(scene, sol, opts, BakeForm::Lightmap(LightmapParams::new(size)), BakeFormat::Glb)
+                .unwrap()
         }
-    }
-    let reports = validate(&validator, &files);
-    let mut bad = Vec::new();
-    for (file, (errors, warnings, infos, msgs)) in files.iter().zip(&reports) {
-        let name = file.file_name().unwrap().to_string_lossy();
-        eprintln!("gltf-validator {name}: {errors} errors, {warnings} warnings, {infos} infos");
-        if *errors > 0 || *warnings > 0 {
-            bad.push(format!("{name}: {msgs}"));
-        }
+    };
+    let gltf_1024 = |scene: &Scene, sol: &Solution, opts: &BakeOptions| {
+        bake::bake_as(scene, sol, opts, BakeForm::Lightmap(LightmapParams::new(1024)), BakeFormat::Gltf)
+            .unwrap()
+    };
+    let files = bake_every_builtin(&dir, &bake_at(256), &gltf_1024);
+    for (name, msgs) in assert_valid(&validator, &files) {
         // The infos are only TEXCOORD_0 (the planar map) not being used by the material.
         for m in msgs.split("; ").filter(|m| !m.is_empty()) {
             assert!(m.starts_with("UNUSED_OBJECT") && m.contains("TEXCOORD_0"), "{name}: {m}");
         }
     }
-    assert!(bad.is_empty(), "validator issues:\n{}", bad.join("\n"));
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -153,14 +153,8 @@ impl Chart {
         let origin = p.vertices[0];
         let polygon: Vec<[f64; 2]> =
             p.vertices.iter().map(|&v| [(v - origin).dot(axes[0]), (v - origin).dot(axes[1])]).collect();
-        let mut lo = [f64::INFINITY; 2];
-        let mut hi = [f64::NEG_INFINITY; 2];
-        for q in &polygon {
-            for k in 0..2 {
-                lo[k] = lo[k].min(q[k]);
-                hi[k] = hi[k].max(q[k]);
-            }
-        }
+        let lo = [0, 1].map(|k| polygon.iter().map(|q| q[k]).fold(f64::INFINITY, f64::min));
+        let hi = [0, 1].map(|k| polygon.iter().map(|q| q[k]).fold(f64::NEG_INFINITY, f64::max));
         let extent = [hi[0] - lo[0], hi[1] - lo[1]];
         Chart { patch, origin, axes, polygon, lo, extent, x: 0, y: 0, w: 0, h: 0 }
     }
