@@ -2,10 +2,10 @@
 //! one square texture atlas that the original (unrefined) meshes address through `TEXCOORD_1`.
 //!
 //! Each patch gets its own chart, at one texel density d (texels per scene unit) for the whole
-//! scene, so every square metre of wall gets the same number of texels [the usual lightmap rule:
-//! Lévy et al. 2002, "Least squares conformal maps", §1, for the uniform-density goal]. A chart is
-//! the patch laid flat in its own plane; the charts are shelf-packed [Jylänki 2010, "A thousand
-//! ways to pack the bin", §2 SHELF-NF] and d is the largest that fits (bisection).
+//! scene, so every square metre of wall gets the same number of texels. A chart is the patch laid
+//! flat in its own plane (a patch is planar, so the map is exact: no distortion); the charts are
+//! shelf-packed, tallest first [Jylänki 2010, "A thousand ways to pack the bin", the SHELF
+//! next-fit rule] and d is the largest that fits (bisection).
 //!
 //! A texel holds the solution's own reconstruction at its centre — the radiosity of the leaf
 //! element that contains it, linear in the element's slope where it has one
