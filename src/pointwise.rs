@@ -305,6 +305,88 @@ pub fn score_reconstruction_in_band<R: Reconstruction + ?Sized>(
     score_values(scene, solution, points, reference, band, &values, &owner)
 }
 
+/// A solution's own error estimate ([`SolvedElement::error_estimate`]) checked against the
+/// pointwise ruler: the global estimate beside the measured figure, and how well the
+/// per-element estimates rank each element's own pointwise error.
+#[derive(Clone, Debug, Serialize)]
+pub struct EstimateCheck {
+    /// The solver's estimate of the pointwise rel L2 of the reflected radiosity
+    /// ([`crate::solver::hierarchical::estimate::global_relative_l2`]).
+    pub global_estimate: f64,
+    /// Spearman's ρ between the per-element estimates and [`per_element_pointwise`] over the
+    /// elements holding at least [`ESTIMATE_CHECK_MIN_POINTS`] points.
+    pub spearman: f64,
+    /// Elements ranked.
+    pub elements: usize,
+}
+
+/// Elements holding fewer reference points than this are left out of [`EstimateCheck`]'s
+/// ranking: their own error is too noisy to rank.
+pub const ESTIMATE_CHECK_MIN_POINTS: usize = 8;
+
+/// Each element's own pointwise error: the RMS over the reference points inside it of the
+/// reconstruction's error (mean over channels, area-weighted, debiased by the points' noise,
+/// as the scene's rel L2 is), in units of B, with the number of points; `None` for elements
+/// holding no point.
+pub fn per_element_pointwise(
+    scene: &Scene,
+    solution: &Solution,
+    points: &[RefPoint],
+    reference: &[Estimate],
+) -> Result<Vec<Option<(f64, usize)>>, MetricsError> {
+    if points.len() != reference.len() {
+        return Err(MetricsError::LengthMismatch { solution: points.len(), reference: reference.len() });
+    }
+    let pc = PiecewiseConstant::new(scene, &solution.elements)?;
+    let owner = pc.owners(points);
+    // Per element: Σ a, Σ a (Δ² − σ²) (mean over channels), points.
+    let mut acc = vec![(0.0, 0.0, 0usize); solution.elements.len()];
+    for ((p, r), o) in points.iter().zip(reference).zip(&owner) {
+        let Some(e) = *o else { continue };
+        let d = pc.value_of(p.patch, Some(e), p.position) - r.radiosity;
+        let sq = (d.mul_rgb(d) - r.std_error.mul_rgb(r.std_error)).mean();
+        let s = &mut acc[e];
+        s.0 += p.area;
+        s.1 += p.area * sq;
+        s.2 += 1;
+    }
+    Ok(acc.into_iter().map(|(a, sq, n)| (n > 0 && a > 0.0).then(|| ((sq / a).max(0.0).sqrt(), n))).collect())
+}
+
+/// [`EstimateCheck`] of a solution whose elements carry error estimates; `None` without
+/// estimates, without reflected light or with fewer than 3 elements to rank.
+pub fn check_estimate(
+    scene: &Scene,
+    solution: &Solution,
+    points: &[RefPoint],
+    reference: &[Estimate],
+) -> Result<Option<EstimateCheck>, MetricsError> {
+    let global =
+        crate::solver::hierarchical::estimate::global_relative_l2(solution.elements.iter().map(|e| {
+            let emission = scene.patches.get(e.patch).map_or(Rgb::ZERO, |p| p.emission);
+            (e.area, (e.radiosity - emission).mean(), e.error_estimate)
+        }));
+    let Some(global_estimate) = global else { return Ok(None) };
+    let own = per_element_pointwise(scene, solution, points, reference)?;
+    let (est, err): (Vec<f64>, Vec<f64>) = solution
+        .elements
+        .iter()
+        .zip(&own)
+        .filter_map(|(e, o)| match (e.error_estimate, o) {
+            (Some(x), Some((err, n))) if *n >= ESTIMATE_CHECK_MIN_POINTS => Some((x, *err)),
+            _ => None,
+        })
+        .unzip();
+    if est.len() < 3 {
+        return Ok(None);
+    }
+    Ok(Some(EstimateCheck {
+        global_estimate,
+        spearman: crate::metrics::spearman(&est, &err),
+        elements: est.len(),
+    }))
+}
+
 /// The reference as a function of position: the piecewise-linear interpolant of point values
 /// (e.g. a cached Monte Carlo reference's estimates) over the Delaunay triangulation of each
 /// patch's points in the patch's plane (`spade`); a query outside the points' convex hull (near

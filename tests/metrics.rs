@@ -8,8 +8,8 @@ use radlab::math::{Rgb, polygon_area, polygon_centroid};
 use radlab::metrics::{self, compare_resampled, compare_solution, resample};
 use radlab::pointwise::{self, PiecewiseConstant, Reconstruction};
 use radlab::reference::{
-    Control, Estimate, PointParams, RefElement, ReferenceParams, estimate_at, estimate_elements,
-    reference_mesh, reference_points,
+    Cell, Control, Estimate, PointParams, PointSet, RefElement, RefPoint, ReferenceParams, estimate_at,
+    estimate_elements, reference_mesh, reference_points,
 };
 use radlab::scene::Scene;
 use radlab::solver::hierarchical::HierarchicalSolver;
@@ -189,29 +189,49 @@ fn spearman_detects_rank_agreement() {
     assert!((metrics::spearman(&x, &y2) - 0.9).abs() < EXACT);
 }
 
-/// Paths per leaf of the reference the estimate is ranked against: its noise caps the measurable
-/// Spearman (at 512 paths the table room's |ΔB| against two independent references agreed only to
-/// 0.5, at 4096 to 0.82).
-const RANKING_SAMPLES: u32 = 4096;
+/// Paths per reference point of the ranking: each leaf holds its `WITHIN_POINTS` (9) sample
+/// points, 4 608 paths a leaf (the element-average ranking before it used 4 096 per leaf; its
+/// noise caps the measurable Spearman: at 512 paths a leaf the table room's |ΔB| against two
+/// independent references agreed only to 0.5, at 4096 to 0.82).
+const RANKING_PATHS: u32 = 512;
 
-/// How well the hierarchical solver's own error estimate ranks its true error |ΔB| on the
-/// solution's own leaves: (Spearman, leaves, rel L2).
-fn estimate_correlation(scene: &Arc<Scene>, p: HierarchicalParams) -> (f64, usize, f64) {
+/// How well the hierarchical solver's own error estimate ranks its true error on the solution's
+/// own leaves: Spearman against each leaf's own pointwise error (the RMS over its 3 × 3 sample
+/// points of the reconstruction's error, debiased by the points' noise,
+/// [`pointwise::per_element_pointwise`]), the quantity the per-element estimate estimates.
+/// Returns (Spearman, leaves ranked, pointwise rel L2, estimate / measured).
+fn estimate_correlation(scene: &Arc<Scene>, p: HierarchicalParams) -> (f64, usize, f64, f64) {
+    use radlab::solver::hierarchical::estimate::sample_points;
     let mut s = HierarchicalSolver::new(scene.clone(), p).unwrap();
     s.solve(&mut |_, _| {});
     let sol = s.solution();
     let acc = Accel::build(scene);
-    let els: Vec<RefElement> = sol.elements.iter().map(RefElement::from).collect();
-    let est = estimate_elements(
+    let points: Vec<RefPoint> = sol
+        .elements
+        .iter()
+        .flat_map(|e| {
+            let area = e.area / 9.0;
+            sample_points(&e.vertices).map(|x| RefPoint {
+                patch: e.patch,
+                position: x,
+                area,
+                cell: Cell { patch: e.patch as u32, level: 0, i: 0, j: 0 },
+            })
+        })
+        .collect();
+    let set = PointSet { grids: vec![(1, 1); scene.patches.len()], points };
+    let reference = estimate_at(
         scene,
         &acc,
-        &els,
-        &ReferenceParams { samples: RANKING_SAMPLES, ..ReferenceParams::quick() },
+        &set,
+        &ReferenceParams { samples: RANKING_PATHS, ..ReferenceParams::quick() },
+        &Control::default(),
     )
     .unwrap();
-    let rho = metrics::estimate_rank_correlation(&sol, &est).unwrap();
-    let l2 = compare_solution(scene, &sol, &est).unwrap().scene.l2;
-    (rho, sol.elements.len(), l2)
+    let check = pointwise::check_estimate(scene, &sol, &set.points, &reference).unwrap().unwrap();
+    let l2 =
+        pointwise::compare_solution_points(scene, &sol, &set.points, &reference).unwrap().scene.l2_debiased;
+    (check.spearman, check.elements, l2, check.global_estimate / l2)
 }
 
 /// The two settings the ranking is measured at: the interactive preset with a coarse area floor
@@ -234,45 +254,42 @@ fn hierarchical_error_estimate_ranks_the_true_error() {
     ] {
         let scene = Arc::new(scene);
         for ((preset, p), floor) in ranking_presets().into_iter().zip(floors) {
-            let (rho, n, l2) = estimate_correlation(&scene, p);
+            let (rho, n, l2, ratio) = estimate_correlation(&scene, p);
             eprintln!(
-                "{name} [{preset}]: Spearman(error_estimate, |ΔB|) = {rho:.3} over {n} leaves (rel L2 {l2:.3})"
+                "{name} [{preset}]: Spearman(error_estimate, own pointwise error) = {rho:.3} over {n} leaves (pointwise rel L2 {l2:.3}, estimate / measured {ratio:.2})"
             );
             if rho <= floor {
                 failures.push(format!("{name} [{preset}]: Spearman {rho:.3} ≤ floor {floor} ({n} leaves)"));
+            }
+            // The global estimate within a factor 2 of the measured (issue 15 §4; measured
+            // 0.61–0.94 here).
+            if !(0.5..=2.0).contains(&ratio) {
+                failures.push(format!("{name} [{preset}]: estimate / measured {ratio:.2}"));
             }
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("; "));
 }
 
-// Floors: measured Spearman at each of `ranking_presets()` (RANKING_SAMPLES paths per leaf) minus
-// a margin of 0.15 for solver changes under them (the lead retunes the refinement) and for the
-// reference's noise. When the solver gets more accurate, |ΔB| nears the reference's noise and
-// the measurable Spearman falls (table room, interactive: 0.80 at 3afb2b9 with rel L2 10 %,
-// 0.50 at 783d698 with rel L2 5.5 %). Session 11 lowered the floors below to measured − 0.1:
-// leaves now gather their ancestors' links along the links' slopes (`Link::slope`), which
-// removes most of the first-order inherited-link error that the estimate's main term measures,
-// so what is left ranks worse (table room, lecture: 0.939 → 0.598). The per-element ranking the
-// issue asks for (Spearman ≥ 0.7) needs an estimate of the remaining error: open (issue 15 §4).
+// Floors: measured Spearman at each of `ranking_presets()` minus a margin of 0.1 for solver
+// changes under them and for the reference's noise. Session 16 ranks against each leaf's own
+// *pointwise* error (9 points × RANKING_PATHS paths a leaf), the quantity the per-element
+// estimate now estimates (module docs of `estimate`: the mean error δ and the within-leaf
+// variation w); before, against the error of the leaf's average (|ΔB|, 4096 paths a leaf).
+// History against |ΔB|: cornell 0.679 / 0.787 (783d698), 0.590 / 0.667 (session 11, slopes
+// pushed), 0.464 / 0.708 (session 15, the row check); table room 0.497 / 0.939, 0.265 / 0.598,
+// 0.341; boxes_on_floor 0.602 / 0.850, 0.562 / 0.587, 0.370. Session 16's estimate against
+// |ΔB|, for comparison: cornell 0.510 / 0.745, table room 0.369 / 0.630, boxes_on_floor
+// 0.098 / 0.617 (w ranks the pointwise error, not the average's). The issue asks for ≥ 0.7:
+// met on cornell's and splash_room's settings against the cached 65 k-point references (see
+// the closing note), not here on the table room and boxes_on_floor.
 
-/// Cornell: measured 0.679 over 761 leaves and 0.787 over 1745 (main 783d698; the previous
-/// ancestor-chain bound: 0.348 at 7b02b38).
-/// Session 11 (slopes pushed): 0.590 over 812 and 0.667 over 1760; 0.532 over 839 after the
-/// confirmed all-visible estimates. Session 15: 0.464 over 863 and 0.708 over 1760 once the row
-/// check pushes coarse links down where a leaf's row exceeds 1 (`interactive`: pointwise rel L2
-/// 8.25 → 7.25 %; what it removes is error of the kind the estimate ranks best), so the first
-/// floor is measured − 0.1 again.
-const SPEARMAN_FLOOR_CORNELL: [f64; 2] = [0.36, 0.56];
-/// Table room: measured 0.497 over 572 leaves and 0.939 over 1637 (783d698; previous estimate: −0.127).
-/// Session 11: 0.265 over 569 and 0.598 over 1637; 0.341 over 575 after the confirmed
-/// all-visible estimates.
-const SPEARMAN_FLOOR_TABLE_ROOM: [f64; 2] = [0.16, 0.49];
-/// boxes_on_floor: measured 0.602 over 1046 leaves and 0.850 over 1772 (783d698; previous
-/// estimate: 0.030).
-/// Session 11: 0.562 over 1070 and 0.587 over 1778 with slopes; 0.370 over 1088 (rel L2 7.0 →
-/// 6.3 %) once all-visible estimates of input patch pairs were confirmed (`initial_linking`).
-const SPEARMAN_FLOOR_BOXES: [f64; 2] = [0.27, 0.48];
+/// Cornell: measured 0.680 over 863 leaves and 0.685 over 1760 (session 16).
+const SPEARMAN_FLOOR_CORNELL: [f64; 2] = [0.58, 0.58];
+/// Table room: measured 0.423 over 578 leaves and 0.535 over 1637 (session 16).
+const SPEARMAN_FLOOR_TABLE_ROOM: [f64; 2] = [0.32, 0.43];
+/// boxes_on_floor: measured 0.374 over 1136 leaves and 0.620 over 1778 (session 16).
+const SPEARMAN_FLOOR_BOXES: [f64; 2] = [0.27, 0.52];
 
 #[test]
 fn resampled_comparison_of_a_real_solve_is_consistent() {

@@ -690,6 +690,17 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
             score.element_average.per_element.len()
         )?;
         print_report(&score.element_average, false, &mut log)?;
+        if let Some(c) = radlab::pointwise::check_estimate(&scene, &sol, points, &entry.estimates)? {
+            writeln!(
+                log,
+                "the solver's own error estimate (no reference): pointwise rel L2 {:.2} %, measured/estimate {:.2}; per element: Spearman {:.3} against each element's own pointwise error, over the {} elements holding ≥ {} points",
+                100.0 * c.global_estimate,
+                score.pointwise.scene.l2_debiased / c.global_estimate,
+                c.spearman,
+                c.elements,
+                radlab::pointwise::ESTIMATE_CHECK_MIN_POINTS
+            )?;
+        }
         if args.exact {
             print_artifacts(&scene, &sol, &mut log)?;
         }

@@ -951,7 +951,7 @@ pub(super) fn coupling_in(hier: &Hierarchy, acc: transfer::Accuracy, r: u32, s: 
 
 impl HierarchicalSolver {
     /// The area-weighted mean over the leaves of the reflected radiosity B − E (largest channel).
-    pub(super) fn mean_reflected(&self) -> f64 {
+    pub(crate) fn mean_reflected(&self) -> f64 {
         let (mut sum, mut area) = (0.0, 0.0);
         for e in self.hier.elements.iter().filter(|e| e.is_leaf()) {
             sum += (e.radiosity - e.emission).max_channel().max(0.0) * e.area;
