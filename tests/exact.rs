@@ -459,7 +459,7 @@ fn the_error_oracle_converges_as_its_threshold_halves() {
 ///
 /// | scene | ε 0.2 | ε 0.1 | ε 0.05 |
 /// |---|---|---|---|
-/// | shadow-wide | 1.26, 0.81 | 1.12, 0.78 | 0.98, 0.79 |
+/// | shadow-wide | 1.24, 0.81 | 1.08, 0.78 | 0.92, 0.79 |
 /// | shadow-narrow | 0.57, 0.98 | 0.51, 0.83 | 0.50, 0.96 |
 ///
 /// shadow-narrow's penumbra (~0.03 wide) is two leaves at the area floor wide; there the

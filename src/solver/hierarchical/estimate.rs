@@ -48,8 +48,10 @@
 //!
 //! **What is evaluated where** (the cost): rays only for links that are not fully visible and
 //! could bring the leaf more than `SAMPLE_SHARE` (2 %) of the mean reflected radiosity (ρ B_q
-//! F_l); a hidden link (V_l = 0) only if one probe ray from some sample point gets through (the
-//! solver's rays can miss a sliver of light). An inherited fully visible (or negligible) link is
+//! F_l); a hidden link (V_l = 0) only if it is the leaf's own and one probe ray from some sample
+//! point gets through (the solver's rays can miss a sliver of light; probing the inherited hidden
+//! links too made furnished-4k's estimate take minutes, for the same figures on the rooms and
+//! the shadow scenes). An inherited fully visible (or negligible) link is
 //! evaluated at the leaf's centroid only, into r; an own link at the nine points, with its V.
 //! The rays' own noise (8 rays a point) is left in w: subtracting its binomial variance, an
 //! upper bound for stratified rays, made the estimate low and ranked worse (table-room ε 0.2:
@@ -77,7 +79,7 @@
 //! settings; the white furnace, exact, still reads a negligible estimate (unit test).
 //!
 //! Cost: the nine kernels per own link and the rays. Measured (release, 2 threads, a shared
-//! machine): splash_room at the `splash2` preset, 0.31 s of CPU for the solve, 1.65 s with the
+//! machine): splash_room at the `splash2` preset, 0.31 s of CPU for the solve, 1.44 s with the
 //! estimate (session 15's: about 0.2 s). `solution()` and `snapshot()` pay it on every call;
 //! `solution_with(false)` skips it; `radlab bench` times the solve without it.
 
@@ -218,7 +220,7 @@ pub fn sample_points(v: &[DVec3]) -> [DVec3; WITHIN_POINTS] {
 /// (r_x, w_x) of leaf x (module docs). Every link through which x gathers (its own and its
 /// ancestors') is compared with what x shows through it, the link's average plus its slope.
 /// A link that could bring x more than `cutoff` (ρ B_q F_l) and is not fully visible (hidden
-/// ones only if a probe ray per sample point gets through) is evaluated at x's sample points
+/// ones only if they are x's own and a probe ray from some sample point gets through) is evaluated at x's sample points
 /// with the visibility seen from each: its mean error over the points goes into r (for an own
 /// link, only the visibility's part: its kernel average is the Galerkin coefficient, exact),
 /// its variation into w. An own link otherwise: its kernel at the points, with its V, into w.
@@ -258,7 +260,7 @@ fn local_terms(solver: &HierarchicalSolver, x: u32, cutoff: f64) -> (Rgb, Rgb) {
             };
             let sampled = v < 1.0
                 && rho * src.radiosity.max_channel() * ff >= cutoff
-                && (v > 0.0 || pts.iter().enumerate().any(|(k, p)| visibility(*p, k, 1) > 0.0));
+                && (v > 0.0 || (a == x && pts.iter().enumerate().any(|(k, p)| visibility(*p, k, 1) > 0.0)));
             if v <= 0.0 && !sampled {
                 continue;
             }
