@@ -163,24 +163,38 @@ pub(super) type ReceiverDecision = (u32, Verdict);
 
 /// What a new pair's links share, both directions alike: the Galerkin coupling (NaN when not
 /// yet computed, for a link the next pass replaces), the visibility estimate, whether it is
-/// only the early-exit placeholder, and the rays it cost.
+/// only the early-exit placeholder, whether the pair straddles (`pair_sides`, symmetric), and
+/// the rays it cost.
 #[derive(Copy, Clone, Debug)]
 pub(super) struct PairOutcome {
     g: f64,
     vis: f32,
     unmeasured: bool,
+    straddle: bool,
     rays: u64,
 }
 
-/// Shards of the per-pass memo of new pairs: a split pair is replaced in both receivers' lists
-/// in the same pass (the verdicts are symmetric), and the second receiver reuses the first one's
-/// coupling and visibility instead of computing them again.
-pub(super) struct PairMemo(Vec<std::sync::Mutex<PairMap>>);
+/// The new pairs of one split link, in child order (None: the pair has no link, which is
+/// symmetric too: same patch, facing away, or a zero coupling).
+pub(super) type SplitOutcome = [Option<PairOutcome>; 4];
 
-/// A memo shard: pair keys are already well mixed (`pair_key` packs two ids; the hasher mixes
-/// them once with splitmix64 instead of SipHash, a third of the memo's cost).
+/// Shards of the per-pass memo of split links: a split pair is replaced in both receivers'
+/// lists in the same pass (the verdicts are symmetric: both split the same element), and the
+/// second receiver reuses the first one's four new pairs (coupling, visibility) instead of
+/// computing them again. Keyed by the split link, not by each new pair: one look-up per four
+/// links (the memo's hash probes and locks, two cache misses each, were 9 % of a `splash2`
+/// solve when each new pair had its own entry).
+pub(super) struct PairMemo(Vec<MemoShard>);
+
+/// One shard, on its own cache lines: the two threads lock neighbouring shards all the time.
+#[repr(align(128))]
+#[derive(Default)]
+pub(super) struct MemoShard(std::sync::Mutex<PairMap>);
+
+/// A memo shard: keys are already well mixed (`pair_key` packs two ids; the hasher mixes them
+/// once with splitmix64 instead of SipHash, a third of the memo's cost).
 pub(super) type PairMap =
-    std::collections::HashMap<u64, PairOutcome, std::hash::BuildHasherDefault<KeyHasher>>;
+    std::collections::HashMap<u64, SplitOutcome, std::hash::BuildHasherDefault<KeyHasher>>;
 
 /// splitmix64 of a `u64` key (see `PairMap`).
 #[derive(Default)]
@@ -202,24 +216,24 @@ impl std::hash::Hasher for KeyHasher {
 
 impl Default for PairMemo {
     fn default() -> Self {
-        PairMemo((0..64).map(|_| std::sync::Mutex::default()).collect())
+        PairMemo((0..64).map(|_| MemoShard::default()).collect())
     }
 }
 
 impl PairMemo {
     fn shard(&self, key: u64) -> std::sync::MutexGuard<'_, PairMap> {
         let i = ((key ^ (key >> 32)) % self.0.len() as u64) as usize;
-        self.0[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+        self.0[i].0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }
-    fn get(&self, key: u64) -> Option<PairOutcome> {
+    fn get(&self, key: u64) -> Option<SplitOutcome> {
         self.shard(key).get(&key).copied()
     }
-    fn put(&self, key: u64, out: PairOutcome) {
+    fn put(&self, key: u64, out: SplitOutcome) {
         self.shard(key).insert(key, out);
     }
     fn clear(&mut self) {
         for s in &mut self.0 {
-            s.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner).clear();
+            s.0.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner).clear();
         }
     }
 }
@@ -638,19 +652,39 @@ impl HierarchicalSolver {
         // depend on how the work is divided.
         let new_of = |&(i, side): &(u32, Split)| -> NewLinks {
             let l = &old[i as usize];
-            let mut last = NO_HIT;
+            let (parent, other) = if side == Split::Source { (l.source, r) } else { (r, l.source) };
+            let children = self.hier.get(parent).children().expect("split in phase B");
+            let ends = |c: u32| if side == Split::Source { (r, c) } else { (c, l.source) };
+            // The mirror link splits the same element: keyed by (split element, other end),
+            // both directions find the same entry.
+            let key = pair_key(parent, other);
             let mut out = [None; 4];
             let mut rays = 0;
-            let parent = if side == Split::Source { l.source } else { r };
-            for (k, c) in self.hier.get(parent).children().expect("split in phase B").into_iter().enumerate()
-            {
-                let (nl, nr) = match side {
-                    Split::Source => self.make_link(r, c, &mut last),
-                    Split::Receiver => self.make_link(c, l.source, &mut last),
-                };
-                out[k] = nl;
-                rays += nr;
+            if let Some(made) = self.pair_memo.get(key) {
+                for (k, (c, o)) in children.into_iter().zip(made).enumerate() {
+                    let (receiver, source) = ends(c);
+                    if let Some(o) = o {
+                        out[k] = Some(self.mirror_link(receiver, source, o));
+                        // Rays are counted once, by the receiver with the lower id, whichever
+                        // direction computed them.
+                        rays += if receiver < source { o.rays } else { 0 };
+                    }
+                }
+                return (out, rays);
             }
+            let mut last = NO_HIT;
+            let mut made: SplitOutcome = [None; 4];
+            for (k, c) in children.into_iter().enumerate() {
+                let (receiver, source) = ends(c);
+                let (nl, outcome) = self.make_link(receiver, source, &mut last);
+                out[k] = nl;
+                made[k] = outcome;
+                rays += match outcome {
+                    Some(o) if receiver < source => o.rays,
+                    _ => 0,
+                };
+            }
+            self.pair_memo.put(key, made);
             (out, rays)
         };
         // Few splits: made one by one below, without a list.
@@ -708,7 +742,8 @@ impl HierarchicalSolver {
         rep
     }
 
-    /// A link receiver ← source, or None when the source contributes nothing geometrically.
+    /// A link receiver ← source, or None when the source contributes nothing geometrically;
+    /// and what the mirror link source ← receiver can be made of (see `PairMemo`).
     ///
     /// `last`: the shadow cache (see [`Accel::occluded_cached`]) shared by nearby pairs.
     /// With the link comes the next refinement pass's decision on it (see `decide`).
@@ -717,37 +752,36 @@ impl HierarchicalSolver {
         receiver: u32,
         source: u32,
         last: &mut u32,
-    ) -> (Option<(Link, Decision)>, u64) {
+    ) -> (Option<(Link, Decision)>, Option<PairOutcome>) {
         let p = self.hier.get(receiver);
         let q = self.hier.get(source);
         if p.patch == q.patch {
-            return (None, 0);
+            return (None, None);
         }
         let sides = pair_sides(p, q);
         if !sides.facing {
-            return (None, 0);
+            return (None, None);
         }
         let key = pair_key(receiver.min(source), receiver.max(source));
-        // The mirror link, made earlier in this pass, settled the pair (its rays are counted
-        // once, by the receiver with the lower id, whichever direction computed them).
-        let canonical = receiver < source;
-        if let Some(out) = self.pair_memo.get(key) {
-            let mut link = new_link(
-                (p, receiver),
-                (q, source),
-                out.g,
-                out.vis,
-                sides.straddle,
-                self.params.conservative,
-            );
-            link.unmeasured = out.unmeasured;
-            return (Some((link, self.decide(receiver, p, &link))), if canonical { out.rays } else { 0 });
-        }
         let (made, cast, g) = self.make_pair_link(receiver, source, sides, key, last);
-        if let Some((l, _)) = &made {
-            self.pair_memo.put(key, PairOutcome { g, vis: l.vis, unmeasured: l.unmeasured, rays: cast });
-        }
-        (made, if canonical { cast } else { 0 })
+        let outcome = made.as_ref().map(|(l, _)| PairOutcome {
+            g,
+            vis: l.vis,
+            unmeasured: l.unmeasured,
+            straddle: sides.straddle,
+            rays: cast,
+        });
+        (made, outcome)
+    }
+
+    /// The link receiver ← source of a pair its mirror link made earlier in this pass.
+    fn mirror_link(&self, receiver: u32, source: u32, out: PairOutcome) -> (Link, Decision) {
+        let p = self.hier.get(receiver);
+        let q = self.hier.get(source);
+        let mut link =
+            new_link((p, receiver), (q, source), out.g, out.vis, out.straddle, self.params.conservative);
+        link.unmeasured = out.unmeasured;
+        (link, self.decide(receiver, p, &link))
     }
 
     /// `make_link` of a pair not made yet in this pass; also returns the pair's coupling (NaN
