@@ -103,9 +103,10 @@ fn point_to_polygon_unit(p: DVec3, n: DVec3, verts: &[DVec3], src_n: DVec3) -> f
 /// [`point_to_polygon_general`] for a polygon of `K` ≤ 4 vertices known at compile time: the
 /// same floating-point operations in the same order, so the same bits (tested on random
 /// polygons), but each vertex's offset from `p` and height over the tangent plane computed
-/// once (the general loop computes both twice), no index arithmetic, the loops unrolled, and
-/// no clip copy when the whole polygon lies in front of the tangent plane (most evaluations).
-/// The rare point in the source's plane takes the general path.
+/// once (the general loop computes both twice), no index arithmetic, the loops unrolled, no
+/// clip copy when the whole polygon lies in front of the tangent plane (most evaluations), and
+/// the edge terms four at a time ([`edge_terms4`]). The rare point in the source's plane takes
+/// the general path.
 #[inline]
 fn point_to_small_polygon<const K: usize>(p: DVec3, n: DVec3, verts: [DVec3; K], src_n: DVec3) -> f64 {
     if src_n == DVec3::ZERO {
@@ -128,30 +129,20 @@ fn point_to_small_polygon<const K: usize>(p: DVec3, n: DVec3, verts: [DVec3; K],
         let h = n.dot(a);
         if h.abs() <= CLIP_REL * scale { 0.0 } else { h }
     });
-    let next = |i: usize| if i + 1 == K { 0 } else { i + 1 };
-    let mut sum = 0.0;
-    if h.iter().all(|&h| h >= 0.0) {
-        // Nothing clipped: the contour is the polygon itself.
-        // Four lanes whatever K (a triangle's fourth lane repeats its first edge, unused).
+    let sum = if h.iter().all(|&h| h >= 0.0) {
+        // Nothing clipped: the contour is the polygon itself, one group of four lanes (a
+        // triangle's fourth repeats its first edge, unused).
         let from: [DVec3; 4] = std::array::from_fn(|i| a[i % K]);
         let to: [DVec3; 4] = std::array::from_fn(|i| a[(i + 1) % K]);
         match edge_terms4(from, to, n) {
-            Some(terms) => {
-                for t in &terms[..K] {
-                    sum += t;
-                }
-            }
-            None => {
-                for i in 0..K {
-                    sum += edge_term(a[i], a[next(i)], n);
-                }
-            }
+            Some(terms) => terms[..K].iter().fold(0.0, |sum, t| sum + t),
+            None => (0..K).fold(0.0, |sum, i| sum + edge_term(a[i], a[(i + 1) % K], n)),
         }
     } else {
         let mut clipped = [DVec3::ZERO; 8];
         let mut m = 0usize;
         for i in 0..K {
-            let j = next(i);
+            let j = if i + 1 == K { 0 } else { i + 1 };
             let (da, db) = (h[i], h[j]);
             if da >= 0.0 {
                 clipped[m] = a[i];
@@ -166,10 +157,8 @@ fn point_to_small_polygon<const K: usize>(p: DVec3, n: DVec3, verts: [DVec3; K],
         if m < 3 {
             return 0.0;
         }
-        for i in 0..m {
-            sum += edge_term(clipped[i], clipped[if i + 1 == m { 0 } else { i + 1 }], n);
-        }
-    }
+        contour_sum(&clipped[..m], n)
+    };
     let f = -sum / (2.0 * PI);
     if f.is_nan() { 0.0 } else { f.clamp(0.0, 1.0) }
 }
@@ -280,6 +269,28 @@ fn angle(y: f64, x: f64) -> f64 {
     let a = base + t * g;
     let a = if swap { std::f64::consts::FRAC_PI_2 - a } else { a };
     if x < 0.0 { PI - a } else { a }
+}
+
+/// Σ [`edge_term`] over the edges of the closed contour `c` (vectors from the receiver point),
+/// in order, four edges at a time by [`edge_terms4`] (a last group of fewer repeats its first
+/// edge in the unused lanes); edge by edge if a group meets one of `angle`'s special cases.
+#[inline(always)]
+fn contour_sum(c: &[DVec3], n: DVec3) -> f64 {
+    let m = c.len();
+    let next = |e: usize| if e + 1 == m { 0 } else { e + 1 };
+    let mut sum = 0.0;
+    for first in (0..m).step_by(4) {
+        let edge = |i: usize| if first + i < m { first + i } else { first };
+        let from: [DVec3; 4] = std::array::from_fn(|i| c[edge(i)]);
+        let to: [DVec3; 4] = std::array::from_fn(|i| c[next(edge(i))]);
+        let Some(terms) = edge_terms4(from, to, n) else {
+            return (0..m).fold(0.0, |sum, e| sum + edge_term(c[e], c[next(e)], n));
+        };
+        for t in &terms[..(m - first).min(4)] {
+            sum += t;
+        }
+    }
+    sum
 }
 
 /// [`edge_term`] of four edges `a[i] → b[i]` lane by lane: the same operations as `edge_term`
