@@ -163,14 +163,17 @@ pub(super) type ReceiverDecision = (u32, Verdict);
 
 /// What a new pair's links share, both directions alike: the Galerkin coupling (NaN when not
 /// yet computed, for a link the next pass replaces), the visibility estimate, whether it is
-/// only the early-exit placeholder, whether the pair straddles (`pair_sides`, symmetric), and
-/// the rays it cost.
+/// only the early-exit placeholder, the rays it cost, and the oracle's geometry of the link that computed it (`new_link`: `fmax`
+/// and `bound` are symmetric in the pair, and the mirror splits the same element, so its
+/// `split_source` is the opposite).
 #[derive(Copy, Clone, Debug)]
 pub(super) struct PairOutcome {
     g: f64,
     vis: f32,
     unmeasured: bool,
-    straddle: bool,
+    split_source: bool,
+    fmax: f32,
+    bound: f32,
     rays: u64,
 }
 
@@ -768,19 +771,41 @@ impl HierarchicalSolver {
             g,
             vis: l.vis,
             unmeasured: l.unmeasured,
-            straddle: sides.straddle,
+            split_source: l.split_source,
+            fmax: l.fmax,
+            bound: l.bound,
             rays: cast,
         });
         (made, outcome)
     }
 
-    /// The link receiver ← source of a pair its mirror link made earlier in this pass.
+    /// The link receiver ← source of a pair its mirror link made earlier in this pass: what
+    /// `new_link` would make of the outcome, without recomputing the symmetric estimates.
     fn mirror_link(&self, receiver: u32, source: u32, out: PairOutcome) -> (Link, Decision) {
         let p = self.hier.get(receiver);
-        let q = self.hier.get(source);
-        let mut link =
-            new_link((p, receiver), (q, source), out.g, out.vis, out.straddle, self.params.conservative);
-        link.unmeasured = out.unmeasured;
+        let link = Link {
+            source,
+            ff: (out.g / p.area) as f32,
+            g: out.g as f32,
+            vis: out.vis,
+            fmax: out.fmax,
+            bound: out.bound,
+            split_source: !out.split_source,
+            unmeasured: out.unmeasured,
+            slope_set: false,
+            slope: [0.0; 2],
+            src_slope: [0.0; 2],
+        };
+        #[cfg(debug_assertions)]
+        {
+            let q = self.hier.get(source);
+            let straddle = pair_sides(p, q).straddle;
+            let mut made =
+                new_link((p, receiver), (q, source), out.g, out.vis, straddle, self.params.conservative);
+            made.unmeasured = out.unmeasured;
+            // (Debug formatting: an unmeasured link's coupling is NaN, which `==` rejects.)
+            debug_assert_eq!(format!("{link:?}"), format!("{made:?}"), "the mirror of a pair's link");
+        }
         (link, self.decide(receiver, p, &link))
     }
 
