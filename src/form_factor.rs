@@ -928,7 +928,7 @@ mod tests {
     fn small_polygon_kernel_is_the_general_one_bit_for_bit() {
         let mut rng = Pcg32::keyed(7, 15);
         let mut r = move || rng.next_f64();
-        let mut unit =
+        let unit =
             |r: &mut dyn FnMut() -> f64| DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5).normalize_or_zero();
         let (mut compared, mut positive, mut clipped, mut in_plane) = (0, 0, 0, 0);
         for case in 0..40_000 {
