@@ -92,6 +92,9 @@ impl IdSet {
     }
 }
 
+/// Receivers whose link lists the oracle's first pass loads together (see `refine_inner`).
+pub(super) const TOUCH_AHEAD: usize = 16;
+
 /// A receiver with at least this many links to split computes their replacements in parallel.
 pub(super) const PARALLEL_SPLITS: usize = 32;
 
@@ -319,11 +322,25 @@ impl HierarchicalSolver {
             } else {
                 match pending.take() {
                     Some(d) => d,
-                    None => (0..self.hier.len() as u32)
-                        .into_par_iter()
-                        .filter(|&r| !self.links.by_receiver[r as usize].is_empty())
-                        .map(|r| self.decide_receiver(r, None))
-                        .collect(),
+                    None => {
+                        let lists = &self.links.by_receiver;
+                        let ids: Vec<u32> = (0..self.hier.len() as u32).collect();
+                        ids.par_chunks(TOUCH_AHEAD)
+                            .flat_map_iter(|chunk| {
+                                // Each list is its own allocation: load the first link of all of
+                                // the chunk's lists at once, so their cache misses overlap
+                                // instead of stalling one receiver after the other.
+                                let touched = chunk.iter().fold(0u32, |acc, &r| {
+                                    acc ^ lists[r as usize].first().map_or(0, |l| l.source)
+                                });
+                                std::hint::black_box(touched);
+                                chunk
+                                    .iter()
+                                    .filter(|&&r| !lists[r as usize].is_empty())
+                                    .map(|&r| self.decide_receiver(r, None))
+                            })
+                            .collect()
+                    }
                 }
             };
             pass_changed.clear();
