@@ -700,6 +700,19 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
                 c.elements,
                 radlab::pointwise::ESTIMATE_CHECK_MIN_POINTS
             )?;
+            let cluster_links = sol
+                .stats
+                .extra
+                .as_ref()
+                .and_then(|x| x.get("cluster_links"))
+                .and_then(serde_json::Value::as_u64)
+                .unwrap_or(0);
+            if cluster_links > 0 {
+                writeln!(
+                    log,
+                    "  (the estimate leaves out the error of the solve's {cluster_links} cluster links)"
+                )?;
+            }
         }
         if args.exact {
             print_artifacts(&scene, &sol, &mut log)?;

@@ -1013,10 +1013,18 @@ pub fn solution_json(
         (e.area, (e.radiosity - scene.patches[e.patch].emission).mean(), e.error_estimate)
     }))
     .map(|global| {
-        json!({
+        let mut e = json!({
             "global_rel_l2": global,
             "what": "the solver's own estimate of the relative L2 error of the reflected radiosity (no reference)",
-        })
+        });
+        // The estimate re-evaluates element links only (solver::hierarchical::estimate).
+        let cluster_links = stats.get("cluster_links").and_then(serde_json::Value::as_u64).unwrap_or(0);
+        if cluster_links > 0 {
+            e["not_covered"] = json!(format!(
+                "the error of the solve's {cluster_links} cluster links: the estimate reads low on clustered solves (furnished-4k quality: 1.36 % against 9.21 % measured)"
+            ));
+        }
+        e
     });
     json!({
         "scene": spec,
