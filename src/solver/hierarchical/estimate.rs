@@ -78,9 +78,9 @@
 //! √(V(1−V)), a weight fitted to the data) read 0.42–2.43 × the measured on the same nine
 //! settings; the white furnace, exact, still reads a negligible estimate (unit test).
 //!
-//! Cost: the nine kernels per own link and the rays. Measured (release, 2 threads, a shared
-//! machine): splash_room at the `splash2` preset, 0.31 s of CPU for the solve, 1.44 s with the
-//! estimate (session 15's: about 0.2 s). `solution()` and `snapshot()` pay it on every call;
+//! Cost: the nine kernels per own link and the rays. Measured (release, 2 threads, a quiet
+//! machine, end of session 16): splash_room at the `splash2` preset, 0.16 s wall for the solve,
+//! 0.63 s with the estimate (session 15's estimate: about 0.1 s); cornell `quality` 0.37 → 0.50 s. `solution()` and `snapshot()` pay it on every call;
 //! `solution_with(false)` skips it; `radlab bench` times the solve without it.
 
 use super::HierarchicalSolver;
