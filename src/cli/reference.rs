@@ -638,7 +638,12 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     if let Some(method) = &args.compare {
         let (sol, coefficients) = solve(args, method, &scene, &accel, &mut log)?;
         let band_params = radlab::penumbra::BandParams::standard();
-        let band = radlab::penumbra::band(&scene, &accel, points, &entry.estimates, &band_params);
+        // The band costs side² rays per point and facing emitter patch: skipped (and said so)
+        // above BAND_RAY_BUDGET, as on a furnished room whose lamps are many small polygons.
+        let emitters = scene.patches.iter().filter(|p| p.emission.mean() > 0.0).count();
+        let band_rays = points.len() as f64 * emitters as f64 * f64::from(band_params.side).powi(2);
+        let band = (band_rays <= BAND_RAY_BUDGET)
+            .then(|| radlab::penumbra::band(&scene, &accel, points, &entry.estimates, &band_params));
         let kind =
             args.reconstruction.as_deref().unwrap_or(if coefficients.is_some() { "nodal" } else { "flat" });
         let nodal_coefficients = match (kind, coefficients) {
@@ -656,7 +661,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
                     &r,
                     points,
                     &entry.estimates,
-                    Some(&band),
+                    band.as_deref(),
                 )?
             }
             None => radlab::pointwise::score_solution_in_band(
@@ -664,7 +669,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
                 &sol,
                 points,
                 &entry.estimates,
-                Some(&band),
+                band.as_deref(),
             )?,
         };
         writeln!(log, "{}:", radlab::pointwise::label(&score.pointwise, points.len()))?;
@@ -682,6 +687,12 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
                 )?;
                 print_report(&b.report, false, &mut log)?;
             }
+            None if band.is_none() => writeln!(
+                log,
+                "penumbra band: skipped ({} points × {emitters} emitter patches × {}² rays = {band_rays:.1e} rays, above the budget of {BAND_RAY_BUDGET:.0e})",
+                thousands(points.len()),
+                band_params.side
+            )?,
             None => writeln!(log, "penumbra band: no point of the reference is in a penumbra")?,
         }
         writeln!(
@@ -738,6 +749,10 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// Most rays `reference --compare` spends on the penumbra band (points × emitter patches ×
+/// side²): about two minutes on 2 cores; above it the band is skipped and the output says so.
+const BAND_RAY_BUDGET: f64 = 2e9;
 
 /// With `--compare METHOD --exact`: the five meshing artifacts ([`radlab::artifacts`]) of the
 /// solution against the closed form, one row each.
