@@ -213,14 +213,25 @@ impl Image {
     /// Write an 8-bit sRGB PNG.
     pub fn write_png(&self, path: &Path) -> std::io::Result<()> {
         let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-        let mut enc = png::Encoder::new(file, self.width as u32, self.height as u32);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-        let mut writer = enc.write_header().map_err(std::io::Error::other)?;
-        writer.write_image_data(&self.to_rgb8()).map_err(std::io::Error::other)?;
-        writer.finish().map_err(std::io::Error::other)
+        encode_srgb8_png(file, self.width as u32, self.height as u32, &self.to_rgb8())
     }
+}
+
+/// Encode `rgb` (width × height 8-bit RGB triples, rows top down) as a PNG tagged sRGB into
+/// `out`; the same input gives the same bytes.
+pub fn encode_srgb8_png<W: std::io::Write>(
+    out: W,
+    width: u32,
+    height: u32,
+    rgb: &[u8],
+) -> std::io::Result<()> {
+    let mut enc = png::Encoder::new(out, width, height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+    let mut writer = enc.write_header().map_err(std::io::Error::other)?;
+    writer.write_image_data(rgb).map_err(std::io::Error::other)?;
+    writer.finish().map_err(std::io::Error::other)
 }
 
 /// What a pixel sees.

@@ -361,12 +361,10 @@ pub fn check_estimate(
     points: &[RefPoint],
     reference: &[Estimate],
 ) -> Result<Option<EstimateCheck>, MetricsError> {
-    let global =
-        crate::solver::hierarchical::estimate::global_relative_l2(solution.elements.iter().map(|e| {
-            let emission = scene.patches.get(e.patch).map_or(Rgb::ZERO, |p| p.emission);
-            (e.area, (e.radiosity - emission).mean(), e.error_estimate)
-        }));
-    let Some(global_estimate) = global else { return Ok(None) };
+    let Some(global_estimate) = crate::solver::hierarchical::estimate::solution_relative_l2(scene, solution)
+    else {
+        return Ok(None);
+    };
     let own = per_element_pointwise(scene, solution, points, reference)?;
     let (est, err): (Vec<f64>, Vec<f64>) = solution
         .elements

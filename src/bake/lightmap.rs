@@ -308,13 +308,8 @@ impl Lightmap {
     #[must_use]
     pub fn png(&self) -> Vec<u8> {
         let mut out = Vec::new();
-        let mut enc = png::Encoder::new(&mut out, self.params.size, self.params.size);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-        let mut writer = enc.write_header().expect("writing a PNG header to memory");
-        writer.write_image_data(&self.rgb).expect("the atlas holds size² RGB texels");
-        writer.finish().expect("finishing a PNG in memory");
+        crate::image::encode_srgb8_png(&mut out, self.params.size, self.params.size, &self.rgb)
+            .expect("the atlas holds size² RGB texels, encoded to memory");
         out
     }
 }

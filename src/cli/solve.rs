@@ -1009,10 +1009,7 @@ pub fn solution_json(
     // The solver's own estimate of its global error (issue 15 §4): the per-element estimates
     // (units of B) against the reflected radiosity, area-weighted, as the pointwise ruler
     // weighs its points — no reference needed.
-    let estimate = radlab::solver::hierarchical::estimate::global_relative_l2(sol.elements.iter().map(|e| {
-        (e.area, (e.radiosity - scene.patches[e.patch].emission).mean(), e.error_estimate)
-    }))
-    .map(|global| {
+    let estimate = radlab::solver::hierarchical::estimate::solution_relative_l2(scene, sol).map(|global| {
         let mut e = json!({
             "global_rel_l2": global,
             "what": "the solver's own estimate of the relative L2 error of the reflected radiosity (no reference)",

@@ -130,6 +130,16 @@ pub fn global_relative_l2(leaves: impl IntoIterator<Item = (f64, f64, Option<f64
     (any && den > 0.0).then(|| (num / den).sqrt())
 }
 
+/// [`global_relative_l2`] of a [`crate::solver::Solution`]'s elements (their `error_estimate`s;
+/// an element of a patch the scene lacks counts as not emitting).
+#[must_use]
+pub fn solution_relative_l2(scene: &crate::scene::Scene, solution: &crate::solver::Solution) -> Option<f64> {
+    global_relative_l2(solution.elements.iter().map(|e| {
+        let emission = scene.patches.get(e.patch).map_or(Rgb::ZERO, |p| p.emission);
+        (e.area, (e.radiosity - emission).mean(), e.error_estimate)
+    }))
+}
+
 /// The signed, transported residual δ of every leaf (per channel, units of B; zero on interior
 /// elements): the first-order change of the leaf's radiosity if its inherited links were
 /// evaluated at the leaf itself. `B + δ` is a defect-corrected solution. Measured on the
@@ -162,10 +172,9 @@ fn local_errors(solver: &HierarchicalSolver) -> (Vec<Rgb>, Vec<Rgb>) {
     (transport(hier, solver.links(), &r), w)
 }
 
-/// `x − centroid` of element `e` in its tangent basis (`orthonormal_basis(e.normal)`), the frame
-/// of its links' slopes.
-fn tangent_offset(e: &crate::hierarchy::Element, x: DVec3) -> (f64, f64) {
-    let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+/// `x − centroid` of element `e` in its tangent basis `(t1, t2)` (`orthonormal_basis(e.normal)`,
+/// the frame of its links' slopes).
+fn tangent_offset(e: &crate::hierarchy::Element, (t1, t2): (DVec3, DVec3), x: DVec3) -> (f64, f64) {
     let d = x - e.centroid;
     (d.dot(t1), d.dot(t2))
 }
@@ -194,11 +203,7 @@ pub fn sample_points(v: &[DVec3]) -> [DVec3; WITHIN_POINTS] {
     if v.len() == 4 {
         const T: [f64; 3] = [1.0 / 6.0, 0.5, 5.0 / 6.0];
         for (k, p) in pts.iter_mut().enumerate() {
-            let (u, t) = (T[k % 3], T[k / 3]);
-            *p = v[0] * ((1.0 - u) * (1.0 - t))
-                + v[1] * (u * (1.0 - t))
-                + v[2] * (u * t)
-                + v[3] * ((1.0 - u) * t);
+            *p = crate::visibility::point_on_polygon(v, T[k % 3], T[k / 3]);
         }
     } else {
         // Barycentric (a, b) of the 6 upward and 3 downward sub-triangles' centroids.
@@ -220,8 +225,8 @@ pub fn sample_points(v: &[DVec3]) -> [DVec3; WITHIN_POINTS] {
 /// (r_x, w_x) of leaf x (module docs). Every link through which x gathers (its own and its
 /// ancestors') is compared with what x shows through it, the link's average plus its slope.
 /// A link that could bring x more than `cutoff` (ρ B_q F_l) and is not fully visible (hidden
-/// ones only if they are x's own and a probe ray from some sample point gets through) is evaluated at x's sample points
-/// with the visibility seen from each: its mean error over the points goes into r (for an own
+/// ones only if they are x's own and a probe ray from some sample point gets through) is
+/// evaluated at x's sample points with the visibility seen from each: its mean error over the points goes into r (for an own
 /// link, only the visibility's part: its kernel average is the Galerkin coefficient, exact),
 /// its variation into w. An own link otherwise: its kernel at the points, with its V, into w.
 /// An inherited link otherwise: its kernel at x's centroid, with its V, into r.
@@ -230,14 +235,16 @@ fn local_terms(solver: &HierarchicalSolver, x: u32, cutoff: f64) -> (Rgb, Rgb) {
     let leaf = hier.get(x);
     let pts = sample_points(leaf.vertices());
     let rho = leaf.reflectance.max_channel();
+    let seed = solver.params().seed;
     let inv = 1.0 / WITHIN_POINTS as f64;
     let mut r = Rgb::ZERO;
     // Per sample point: what all the links bring there against what the leaf shows.
     let mut dev = [Rgb::ZERO; WITHIN_POINTS];
     for a in hier.ancestors(x) {
         let ae = hier.get(a);
-        let shifts = pts.map(|p| tangent_offset(ae, p));
-        let centre = tangent_offset(ae, leaf.centroid);
+        let basis = crate::math::orthonormal_basis(ae.normal);
+        let shifts = pts.map(|p| tangent_offset(ae, basis, p));
+        let centre = tangent_offset(ae, basis, leaf.centroid);
         for l in &links.by_receiver[a as usize] {
             let v = f64::from(l.vis).clamp(0.0, 1.0);
             let (src, ff) = (hier.get(l.source), f64::from(l.ff));
@@ -254,7 +261,7 @@ fn local_terms(solver: &HierarchicalSolver, x: u32, cutoff: f64) -> (Rgb, Rgb) {
                     (&[p; 3], leaf.patch, leaf.normal),
                     (src.vertices(), src.patch, src.normal),
                     rays,
-                    solver.params().seed,
+                    seed,
                     key,
                 )
             };
