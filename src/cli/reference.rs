@@ -44,9 +44,10 @@ pub struct Args {
     pub cache_dir: Option<PathBuf>,
     /// Also solve the scene with this method (`hierarchical`, `uniform`, `progressive`,
     /// `dmesh-cdt` / `dmesh-bsp`: the uniform solver at p = 0 on a discontinuity mesh, one element
-    /// per piece, or `hierarchical-dmesh-cdt` / `hierarchical-dmesh-bsp`: the discontinuity mesh
-    /// as the top level of the hierarchical solver, `--preset` and the `--solve-*` flags as for
-    /// `hierarchical`) and print its error against the reference per patch, for the scene and,
+    /// per piece, `hierarchical-dmesh-cdt` / `hierarchical-dmesh-bsp`: the discontinuity mesh
+    /// as the top level of the hierarchical solver, or `hierarchical-contact`: the contact mesh
+    /// as its top level (`radlab solve --mesh contact`); `--preset` and the `--solve-*` flags as
+    /// for `hierarchical`) and print its error against the reference per patch, for the scene and,
     /// with the pointwise ruler, over the penumbra band ([`radlab::penumbra`]).
     #[arg(long)]
     pub compare: Option<String>,
@@ -110,6 +111,17 @@ pub struct Args {
     /// the mean reflected radiosity). Default: the preset's.
     #[arg(long)]
     pub solve_bf_eps_rel: Option<f64>,
+    /// Aeps of --compare hierarchical, a fraction of the scene's total area (as `radlab solve
+    /// --aeps-rel`). Default: the preset's.
+    #[arg(long)]
+    pub solve_aeps_rel: Option<f64>,
+    /// Link budget of --compare hierarchical (as `radlab solve --max-links`). Default: the preset's.
+    #[arg(long)]
+    pub solve_max_links: Option<usize>,
+    /// Deepest quadtree level of --compare hierarchical (as `radlab solve --max-depth`). Default:
+    /// the preset's.
+    #[arg(long)]
+    pub solve_max_depth: Option<u8>,
     /// Clustering of --compare hierarchical (off, auto, on). Default: the preset's (auto).
     #[arg(long, value_enum)]
     pub solve_cluster: Option<radlab::solver::params::Clustering>,
@@ -119,6 +131,11 @@ pub struct Args {
     /// Not cached.
     #[arg(long, conflicts_with_all = ["compare", "images", "element_size"])]
     pub point_file: Option<PathBuf>,
+    /// With --compare and the pointwise ruler: write every point's reference and solution as CSV
+    /// (`patch,x,y,z,area,ref_r,ref_g,ref_b,sigma_r,sigma_g,sigma_b,sol_r,sol_g,sol_b`), to see
+    /// where the error lies.
+    #[arg(long, requires = "compare")]
+    pub point_errors: Option<PathBuf>,
     /// With --compare: write PREFIX_solution.png and PREFIX_error.png (per-element relative error,
     /// colour bar) from the scene's default camera.
     #[arg(long)]
@@ -347,7 +364,7 @@ fn solve(
             s.solve(&mut |_, _| {});
             s.solution()
         }
-        "hierarchical-dmesh-cdt" | "hierarchical-dmesh-bsp" => {
+        "hierarchical-dmesh-cdt" | "hierarchical-dmesh-bsp" | "hierarchical-contact" => {
             let p = hierarchical_params(args)?;
             let mesh = remesh_params(args, method)?;
             let d = radlab::solver::discontinuity::solve_hierarchical(scene, &mesh, p, &mut |_, _| {})?;
@@ -400,7 +417,7 @@ fn solve(
             d.solution
         }
         other => anyhow::bail!(
-            "--compare {other}: expected hierarchical, uniform, progressive, dmesh-cdt, dmesh-bsp, hierarchical-dmesh-cdt or hierarchical-dmesh-bsp"
+            "--compare {other}: expected hierarchical, uniform, progressive, dmesh-cdt, dmesh-bsp, hierarchical-dmesh-cdt, hierarchical-dmesh-bsp or hierarchical-contact"
         ),
     };
     let secs = t0.elapsed().as_secs_f64();
@@ -410,6 +427,31 @@ fn solve(
         writeln!(log, "order 1 ({}), Galerkin: {unknowns} unknowns", lp.label())?;
     }
     Ok((sol, coefficients))
+}
+
+/// `--point-errors`: one CSV row per point (reference, its standard error, the solution there).
+fn write_point_errors(
+    path: &std::path::Path,
+    points: &[radlab::reference::points::RefPoint],
+    reference: &[radlab::reference::Estimate],
+    values: &[radlab::math::Rgb],
+) -> anyhow::Result<()> {
+    use std::io::Write as _;
+    let file = std::fs::File::create(path).with_context(|| format!("{}: cannot create", path.display()))?;
+    let mut out = std::io::BufWriter::new(file);
+    let write = |out: &mut std::io::BufWriter<std::fs::File>| -> std::io::Result<()> {
+        writeln!(out, "patch,x,y,z,area,ref_r,ref_g,ref_b,sigma_r,sigma_g,sigma_b,sol_r,sol_g,sol_b")?;
+        for ((p, e), v) in points.iter().zip(reference).zip(values) {
+            let (x, r, s) = (p.position, e.radiosity, e.std_error);
+            writeln!(
+                out,
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                p.patch, x.x, x.y, x.z, p.area, r.0[0], r.0[1], r.0[2], s.0[0], s.0[1], s.0[2], v.0[0], v.0[1], v.0[2]
+            )?;
+        }
+        out.flush()
+    };
+    write(&mut out).with_context(|| format!("{}: cannot write", path.display()))
 }
 
 /// The hierarchical solver's settings of --compare hierarchical and hierarchical-dmesh-*:
@@ -427,8 +469,13 @@ fn hierarchical_params(args: &Args) -> anyhow::Result<radlab::solver::params::Hi
         p.bf_eps = e;
         p.bf_relative = true;
     }
+    if let Some(a) = args.solve_aeps_rel {
+        p.aeps = radlab::solver::params::AreaEps::Relative(a);
+    }
+    p.max_links = args.solve_max_links.unwrap_or(p.max_links);
+    p.max_depth = args.solve_max_depth.unwrap_or(p.max_depth);
     p.cluster = args.solve_cluster.unwrap_or(p.cluster);
-    p.validate().map_err(anyhow::Error::msg).context("invalid --solve-rays / --solve-bf-eps-rel")?;
+    p.validate().map_err(anyhow::Error::msg).context("invalid --solve-* flag")?;
     Ok(p)
 }
 
@@ -439,6 +486,13 @@ fn remesh_params(args: &Args, method: &str) -> anyhow::Result<radlab::mesh::reme
     use super::solve::BudgetArg;
     use radlab::mesh::remesh::RemeshParams;
     let hierarchical = method.starts_with("hierarchical-");
+    if method == "hierarchical-contact" {
+        anyhow::ensure!(
+            args.dmesh_min_angle.is_none() && args.dmesh_budget.is_none(),
+            "--compare hierarchical-contact: the contact mesh is an ungraded BSP (drop --dmesh-min-angle / --dmesh-budget)"
+        );
+        return Ok(RemeshParams::contacts());
+    }
     let mut p = if method.ends_with("-cdt") { RemeshParams::cdt() } else { RemeshParams::bsp() };
     if hierarchical {
         p.max_patches = radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES;
@@ -674,6 +728,20 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         };
         writeln!(log, "{}:", radlab::pointwise::label(&score.pointwise, points.len()))?;
         print_report(&score.pointwise, true, &mut log)?;
+        if let Some(path) = &args.point_errors {
+            let values = match &nodal_coefficients {
+                Some(c) => radlab::pointwise::evaluate(
+                    &radlab::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?,
+                    points,
+                ),
+                None => radlab::pointwise::evaluate(
+                    &radlab::pointwise::PiecewiseConstant::new(&scene, &sol.elements)?,
+                    points,
+                ),
+            };
+            write_point_errors(path, points, &entry.estimates, &values)?;
+            writeln!(log, "wrote {} ({} points)", path.display(), thousands(points.len()))?;
+        }
         match &score.penumbra {
             Some(b) => {
                 let total: f64 = points.iter().map(|p| p.area).sum();

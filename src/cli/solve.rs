@@ -61,6 +61,10 @@ pub enum MeshArg {
     DiscontinuityCdt,
     /// Campbell & Fussell's BSP discontinuity mesh, one element per piece.
     DiscontinuityBsp,
+    /// The input patches cut along their contacts with other patches (D0 lines: an object
+    /// standing on a floor, a panel hung on a wall), the top level that the hierarchical solver
+    /// then refines as its oracle asks (`RemeshParams::contacts`).
+    Contact,
 }
 
 impl MeshArg {
@@ -72,6 +76,7 @@ impl MeshArg {
             MeshArg::Uniform => "uniform",
             MeshArg::DiscontinuityCdt => "discontinuity-cdt",
             MeshArg::DiscontinuityBsp => "discontinuity-bsp",
+            MeshArg::Contact => "contact",
         }
     }
 }
@@ -117,8 +122,11 @@ impl BudgetArg {
     /// The grading the flags ask for on a D-mesh solved by `plan` (hierarchical: `auto` unless
     /// told; the uniform solver: `off`, as its n² couplings make every piece count).
     fn for_plan(a: &SolverArgs, plan: Plan) -> Option<radlab::mesh::grade::Budget> {
-        let default =
-            if matches!(plan, Plan::DiscontinuityHierarchical(_)) { BudgetArg::Auto } else { BudgetArg::Off };
+        let default = if matches!(plan, Plan::DiscontinuityHierarchical(_)) && a.mesh != Some(MeshArg::Contact) {
+            BudgetArg::Auto
+        } else {
+            BudgetArg::Off
+        };
         match plan {
             Plan::Discontinuity(_) | Plan::DiscontinuityHierarchical(_) => {
                 BudgetArg::grading(a.dmesh_budget, default)
@@ -470,9 +478,14 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
         (MeshArg::DiscontinuityCdt, Some(Method::Hierarchical)) => {
             Plan::DiscontinuityHierarchical(MeshKind::Cdt)
         }
-        (MeshArg::DiscontinuityBsp, Some(Method::Hierarchical)) => {
+        (MeshArg::DiscontinuityBsp | MeshArg::Contact, Some(Method::Hierarchical)) => {
             Plan::DiscontinuityHierarchical(MeshKind::Bsp)
         }
+        (MeshArg::Contact, None) => Plan::DiscontinuityHierarchical(MeshKind::Bsp),
+        (MeshArg::Contact, Some(m)) => bail!(
+            "--mesh contact is the top level of the hierarchical solver (--method hierarchical), not of --method {}",
+            format!("{m:?}").to_lowercase()
+        ),
         (MeshArg::Quadtree, Some(m)) => bail!(
             "--mesh quadtree is the hierarchical solver's own mesh; --method {} meshes uniformly (use --mesh uniform)",
             format!("{m:?}").to_lowercase()
@@ -503,7 +516,7 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
     }
     if a.dmesh_budget.is_some() && !discontinuity {
         bail!(
-            "--dmesh-budget applies to --mesh discontinuity-cdt and discontinuity-bsp (not {})",
+            "--dmesh-budget applies to --mesh discontinuity-cdt, discontinuity-bsp and contact (not {})",
             mesh.name()
         );
     }
@@ -572,6 +585,9 @@ fn remesh_params(a: &SolverArgs, plan: Plan, kind: MeshKind) -> anyhow::Result<R
     };
     let grade =
         BudgetArg::for_plan(a, plan).map(|b| grade_params(b, a.dmesh_smooth, a.dmesh_penumbra_weight));
+    if a.mesh == Some(MeshArg::Contact) {
+        return Ok(RemeshParams { grade, ..RemeshParams::contacts() });
+    }
     RemeshParams::for_solve(kind, a.dmesh_min_angle, a.dmesh_max_area, grade, max_patches)
         .context("invalid --dmesh-min-angle / --dmesh-max-area / --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")
 }

@@ -399,6 +399,67 @@ fn events(
     }
 }
 
+/// Largest gap, as a fraction of the scene's diagonal, between a receiver and an edge of another
+/// patch for [`scene_contacts`] to count the edge's shadow as a contact.
+pub const NEAR_CONTACT_GAP: f64 = 0.01;
+
+/// The D0 segments of patch `receiver` of a scene alone: where every other patch touches or
+/// crosses it (an object standing on it, a wall meeting it). The radiosity jumps there from the
+/// hidden side's to the lit side's whatever the emitters, and no refinement of elements that
+/// straddle the line removes the jump (their error falls only as √h); the EV/VE events bound
+/// penumbrae, which a hierarchical oracle refines by itself.
+///
+/// *Near* contacts count too: an edge of another patch that runs within `gap` of the receiver
+/// (in front of it, at a height at most a tenth of the edge's length), e.g. a panel hung 7 units
+/// off splash_room's wall or a shelf's back, casts a shadow whose penumbra is a sliver of the gap
+/// wide whatever the emitters; its orthogonal projection onto the receiver stands for that
+/// line. (With `gap` 0 only true contacts are found.)
+pub fn scene_contacts(
+    patches: &[Patch],
+    receiver: usize,
+    snap: f64,
+    gap: f64,
+) -> Result<CriticalSet, super::MeshError> {
+    let r = &patches[receiver];
+    let plane = ReceiverPlane::new(&r.vertices, snap)?;
+    let mut out = CriticalSet::default();
+    let others: Vec<(usize, &Patch)> = patches.iter().enumerate().filter(|&(i, _)| i != receiver).collect();
+    contacts(r, &plane, &others, &mut out);
+    if gap > 0.0 {
+        for &(id, other) in &others {
+            for [a, b] in near_contact_segments(r, &plane, other, gap) {
+                let order = Discontinuity::D0;
+                out.push(CriticalSegment { a, b, order, event: Event::Contact, occluder: id, emitter: None });
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The orthogonal projections onto `receiver` of the edges of `other` that run within `gap` in
+/// front of it, no higher than a tenth of their own length, and not on it (those are
+/// [`contact_segment`]'s), clipped to the receiver.
+#[must_use]
+pub fn near_contact_segments(receiver: &Patch, plane: &ReceiverPlane, other: &Patch, gap: f64) -> Vec<[DVec3; 2]> {
+    let tol = 1e-9 * scale(receiver, other);
+    let n = other.vertices.len();
+    let mut out = Vec::new();
+    for k in 0..n {
+        let (a, b) = (other.vertices[k], other.vertices[(k + 1) % n]);
+        let (ha, hb) = (height(receiver, a), height(receiver, b));
+        let top = ha.max(hb);
+        let near = ha >= -tol && hb >= -tol && top <= gap && top <= 0.1 * a.distance(b);
+        if !near || top <= tol {
+            continue;
+        }
+        let (pa, pb) = (a - receiver.normal * ha, b - receiver.normal * hb);
+        if let Some(s) = plane.clip(plane.to_2d(pa), plane.to_2d(pb)) {
+            out.push([plane.to_3d(s.a), plane.to_3d(s.b)]);
+        }
+    }
+    out
+}
+
 /// The critical segments of patch `receiver` of a scene: D0 with every other patch, EV/VE with
 /// every emitter (other than the receiver) and every other patch as a potential occluder.
 /// Segment `occluder` and `emitter` fields are patch indices.

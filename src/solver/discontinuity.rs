@@ -200,23 +200,65 @@ pub fn solve_hierarchical(
     params: HierarchicalParams,
     progress: Progress,
 ) -> Result<DiscontinuitySolution, DiscontinuityError> {
-    params.validate().map_err(DiscontinuityError::Solve)?;
-    let meshed = discontinuity_scene(scene, mesh)?;
-    let t = Instant::now();
-    let pieces = Arc::new(meshed.scene);
-    let accel = Arc::new(Accel::build(&pieces));
-    let bvh_s = t.elapsed().as_secs_f64();
-    let mut solver = HierarchicalSolver::with_accel(Arc::clone(&pieces), accel, params, bvh_s);
-    solver.solve(progress);
-    let on_mesh = solver.solution_with(false);
-    let solve_s = t.elapsed().as_secs_f64();
-    let mut solution = pull_back(on_mesh, &meshed.origin, scene.patches.len());
-    solution.method = match mesh.kind {
-        MeshKind::Cdt => "hierarchical on discontinuity-cdt",
-        MeshKind::Bsp => "hierarchical on discontinuity-bsp",
+    let mut on_mesh = HierarchicalOnMesh::new(scene, mesh, params)?;
+    on_mesh.solver.solve(progress);
+    Ok(on_mesh.finish())
+}
+
+/// [`solve_hierarchical`] in its steps, for a caller that needs the solver between them (its
+/// cancel handle, as `radlab bench` uses it): the mesh and the solver on its pieces, not yet
+/// solved.
+pub struct HierarchicalOnMesh {
+    pub solver: HierarchicalSolver,
+    origin: Vec<usize>,
+    input_patches: usize,
+    stats: RemeshStats,
+    kind: MeshKind,
+    events: crate::mesh::remesh::Events,
+    started: Instant,
+}
+
+impl HierarchicalOnMesh {
+    /// Mesh `scene` and set the hierarchical solver up on the pieces (BVH built).
+    pub fn new(
+        scene: &Scene,
+        mesh: &RemeshParams,
+        params: HierarchicalParams,
+    ) -> Result<HierarchicalOnMesh, DiscontinuityError> {
+        params.validate().map_err(DiscontinuityError::Solve)?;
+        let meshed = discontinuity_scene(scene, mesh)?;
+        let started = Instant::now();
+        let pieces = Arc::new(meshed.scene);
+        let accel = Arc::new(Accel::build(&pieces));
+        let bvh_s = started.elapsed().as_secs_f64();
+        let solver = HierarchicalSolver::with_accel(Arc::clone(&pieces), accel, params, bvh_s);
+        Ok(HierarchicalOnMesh {
+            solver,
+            origin: meshed.origin,
+            input_patches: scene.patches.len(),
+            stats: meshed.stats,
+            kind: mesh.kind,
+            events: mesh.events,
+            started,
+        })
     }
-    .into();
-    Ok(DiscontinuitySolution { solution, mesh: meshed.stats, solve_s, gather: None })
+
+    /// The solved hierarchy's leaves pulled back onto the input scene; `solve_s` counts from
+    /// [`Self::new`]'s BVH on.
+    #[must_use]
+    pub fn finish(self) -> DiscontinuitySolution {
+        use crate::mesh::remesh::Events;
+        let on_mesh = self.solver.solution_with(false);
+        let solve_s = self.started.elapsed().as_secs_f64();
+        let mut solution = pull_back(on_mesh, &self.origin, self.input_patches);
+        solution.method = match (self.events, self.kind) {
+            (Events::Contacts, _) => "hierarchical on contact mesh",
+            (Events::All, MeshKind::Cdt) => "hierarchical on discontinuity-cdt",
+            (Events::All, MeshKind::Bsp) => "hierarchical on discontinuity-bsp",
+        }
+        .into();
+        DiscontinuitySolution { solution, mesh: self.stats, solve_s, gather: None }
+    }
 }
 
 /// Shadow rays of a piece–emitter pair whose solve estimate is partly visible ([`gather`]).
