@@ -4,7 +4,8 @@
 //!
 //! ```text
 //! for scene:   pointwise reference R at N adaptive points (crate::reference::points, cached on disk)
-//!   for method ∈ {uniform(h), progressive(shots), hierarchical(Feps/Aeps, BFeps, rays)}:
+//!   for method ∈ {uniform(h), progressive(shots), hierarchical(Feps/Aeps, BFeps, rays; quadtree
+//!                 or contact mesh)}:
 //!     t   = median wall time of `repeats` solves (BVH built once, outside the timing)
 //!     err = pointwise::score_solution(solution, R)       pointwise rel L1/L2/L∞/p95, energy
 //!                                                        residual; element-average rel L2 beside it
@@ -172,6 +173,10 @@ pub enum Method {
     Uniform(UniformParams),
     Progressive(ProgressiveParams),
     Hierarchical(HierarchicalParams),
+    /// The hierarchical solver with the contact mesh as its top level
+    /// ([`crate::mesh::remesh::RemeshParams::contacts`]); its rows are hierarchical rows
+    /// (`mesh=contact` in their settings).
+    HierarchicalContact(HierarchicalParams),
 }
 
 impl Method {
@@ -180,7 +185,7 @@ impl Method {
         match self {
             Method::Uniform(_) => "uniform",
             Method::Progressive(_) => "progressive",
-            Method::Hierarchical(_) => "hierarchical",
+            Method::Hierarchical(_) | Method::HierarchicalContact(_) => "hierarchical",
         }
     }
 
@@ -192,12 +197,13 @@ impl Method {
             Method::Progressive(p) => {
                 format!("h={} shots={} rays={}", g3(p.element_size), p.max_shots, p.rays)
             }
-            Method::Hierarchical(p) => {
+            Method::Hierarchical(p) | Method::HierarchicalContact(p) => {
                 let aeps = match p.aeps {
                     AreaEps::Absolute(a) => g3(a),
-                    AreaEps::Relative(r) => format!("{r:.0e}A"),
+                    AreaEps::Relative(r) => format!("{r:.1e}A").replace(".0e", "e"),
                 };
-                format!("{:?} feps={} aeps={aeps} bfeps={} rays={}", p.oracle, p.feps, p.bf_eps, p.rays)
+                let mesh = if matches!(self, Method::HierarchicalContact(_)) { " mesh=contact" } else { "" };
+                format!("{:?} feps={} aeps={aeps} bfeps={} rays={}{mesh}", p.oracle, p.feps, p.bf_eps, p.rays)
                     .to_lowercase()
             }
         }
@@ -222,21 +228,35 @@ impl Method {
             Method::Hierarchical(p) => {
                 p.validate()?;
                 let mut s = HierarchicalSolver::with_accel(scene.clone(), accel.clone(), *p, 0.0);
-                let cancel = s.cancel_handle();
-                let (done_tx, done_rx) = mpsc::channel::<()>();
-                let watchdog = std::thread::spawn(move || {
-                    if done_rx.recv_timeout(budget) == Err(mpsc::RecvTimeoutError::Timeout) {
-                        cancel.store(true, Ordering::Relaxed);
-                    }
-                });
-                let report = s.solve(&mut |_, _| {});
+                let cancelled = run_within(&mut s, budget);
                 let secs = t0.elapsed().as_secs_f64();
-                let _ = done_tx.send(());
-                let _ = watchdog.join();
-                Ok((!report.cancelled).then(|| (s.solution(), secs)))
+                Ok((!cancelled).then(|| (s.solution(), secs)))
+            }
+            Method::HierarchicalContact(p) => {
+                use crate::solver::discontinuity::HierarchicalOnMesh;
+                let mesh = crate::mesh::remesh::RemeshParams::contacts();
+                let mut on_mesh = HierarchicalOnMesh::new(scene, &mesh, *p).map_err(|e| e.to_string())?;
+                let cancelled = run_within(&mut on_mesh.solver, budget);
+                let secs = t0.elapsed().as_secs_f64();
+                Ok((!cancelled).then(|| (on_mesh.finish().solution, secs)))
             }
         }
     }
+}
+
+/// Solve, cancelling through the solver's cancel handle after `budget`; true if cancelled.
+fn run_within(s: &mut HierarchicalSolver, budget: Duration) -> bool {
+    let cancel = s.cancel_handle();
+    let (done_tx, done_rx) = mpsc::channel::<()>();
+    let watchdog = std::thread::spawn(move || {
+        if done_rx.recv_timeout(budget) == Err(mpsc::RecvTimeoutError::Timeout) {
+            cancel.store(true, Ordering::Relaxed);
+        }
+    });
+    let report = s.solve(&mut |_, _| {});
+    let _ = done_tx.send(());
+    let _ = watchdog.join();
+    report.cancelled
 }
 
 /// Three significant digits, without trailing zeros.
@@ -324,8 +344,23 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
         }
     };
     out.extend(hier.into_iter().map(Method::Hierarchical));
+    if mode != Mode::Quick {
+        // The error oracle on the contact mesh, halving its threshold with the area floor
+        // shrinking in step (6e-4 · eps of the scene's area; at the quadtree rows' fixed 1e-4
+        // the floor, not the threshold, ends the refinement).
+        for eps in [0.4, 0.2, 0.1, 0.05, 0.025] {
+            out.push(Method::HierarchicalContact(HierarchicalParams {
+                bf_eps: eps,
+                aeps: AreaEps::Relative(CONTACT_AEPS_PER_EPS * eps),
+                ..HierarchicalParams::quality()
+            }));
+        }
+    }
     out
 }
+
+/// The contact-mesh rows' area floor per unit of error threshold (see [`sweep`]).
+pub const CONTACT_AEPS_PER_EPS: f64 = 6e-4;
 
 /// One measured (scene, method, settings) point.
 #[derive(Clone, Debug, Serialize)]

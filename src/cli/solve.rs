@@ -122,11 +122,12 @@ impl BudgetArg {
     /// The grading the flags ask for on a D-mesh solved by `plan` (hierarchical: `auto` unless
     /// told; the uniform solver: `off`, as its n² couplings make every piece count).
     fn for_plan(a: &SolverArgs, plan: Plan) -> Option<radlab::mesh::grade::Budget> {
-        let default = if matches!(plan, Plan::DiscontinuityHierarchical(_)) && a.mesh != Some(MeshArg::Contact) {
-            BudgetArg::Auto
-        } else {
-            BudgetArg::Off
-        };
+        let default =
+            if matches!(plan, Plan::DiscontinuityHierarchical(_)) && a.mesh != Some(MeshArg::Contact) {
+                BudgetArg::Auto
+            } else {
+                BudgetArg::Off
+            };
         match plan {
             Plan::Discontinuity(_) | Plan::DiscontinuityHierarchical(_) => {
                 BudgetArg::grading(a.dmesh_budget, default)

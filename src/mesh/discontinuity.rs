@@ -440,7 +440,12 @@ pub fn scene_contacts(
 /// front of it, no higher than a tenth of their own length, and not on it (those are
 /// [`contact_segment`]'s), clipped to the receiver.
 #[must_use]
-pub fn near_contact_segments(receiver: &Patch, plane: &ReceiverPlane, other: &Patch, gap: f64) -> Vec<[DVec3; 2]> {
+pub fn near_contact_segments(
+    receiver: &Patch,
+    plane: &ReceiverPlane,
+    other: &Patch,
+    gap: f64,
+) -> Vec<[DVec3; 2]> {
     let tol = 1e-9 * scale(receiver, other);
     let n = other.vertices.len();
     let mut out = Vec::new();
