@@ -238,7 +238,7 @@ impl Method {
                 let mut on_mesh = HierarchicalOnMesh::new(scene, &mesh, *p).map_err(|e| e.to_string())?;
                 let cancelled = run_within(&mut on_mesh.solver, budget);
                 let secs = t0.elapsed().as_secs_f64();
-                Ok((!cancelled).then(|| (on_mesh.finish().solution, secs)))
+                Ok((!cancelled).then(|| (on_mesh.finish(false).solution, secs)))
             }
         }
     }

@@ -367,7 +367,10 @@ fn solve(
         "hierarchical-dmesh-cdt" | "hierarchical-dmesh-bsp" | "hierarchical-contact" => {
             let p = hierarchical_params(args)?;
             let mesh = remesh_params(args, method)?;
-            let d = radlab::solver::discontinuity::solve_hierarchical(scene, &mesh, p, &mut |_, _| {})?;
+            // With the solver's own estimates, as for --compare hierarchical.
+            let mut on_mesh = radlab::solver::discontinuity::HierarchicalOnMesh::new(scene, &mesh, p)?;
+            on_mesh.solver.solve(&mut |_, _| {});
+            let d = on_mesh.finish(true);
             writeln!(log, "\n{method}: {}, solve {:.3} s", d.mesh.describe(), d.solve_s)?;
             d.solution
         }

@@ -718,7 +718,10 @@ pub fn solve_scene(
         Plan::DiscontinuityHierarchical(kind) => {
             let mesh = remesh_params(a, Plan::DiscontinuityHierarchical(kind), kind)?;
             let p = hierarchical_params(a)?;
-            let d = discontinuity::solve_hierarchical(scene, &mesh, p, progress).with_context(solving)?;
+            let mut on_mesh =
+                discontinuity::HierarchicalOnMesh::new(scene, &mesh, p).with_context(solving)?;
+            on_mesh.solver.solve(progress);
+            let d = on_mesh.finish(a.estimate);
             remesh = Some((d.mesh, d.solve_s));
             (d.solution, json!({ "mesh": mesh, "solve": p }))
         }

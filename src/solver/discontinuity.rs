@@ -202,7 +202,7 @@ pub fn solve_hierarchical(
 ) -> Result<DiscontinuitySolution, DiscontinuityError> {
     let mut on_mesh = HierarchicalOnMesh::new(scene, mesh, params)?;
     on_mesh.solver.solve(progress);
-    Ok(on_mesh.finish())
+    Ok(on_mesh.finish(false))
 }
 
 /// [`solve_hierarchical`] in its steps, for a caller that needs the solver between them (its
@@ -243,13 +243,15 @@ impl HierarchicalOnMesh {
         })
     }
 
-    /// The solved hierarchy's leaves pulled back onto the input scene; `solve_s` counts from
-    /// [`Self::new`]'s BVH on.
+    /// The solved hierarchy's leaves pulled back onto the input scene, with the solver's own
+    /// per-element error estimates if `estimates` ([`HierarchicalSolver::solution_with`]; they
+    /// are computed on the pieces, which carry their input patch's material); `solve_s` counts
+    /// from [`Self::new`]'s BVH on, the estimates not included.
     #[must_use]
-    pub fn finish(self) -> DiscontinuitySolution {
+    pub fn finish(self, estimates: bool) -> DiscontinuitySolution {
         use crate::mesh::remesh::Events;
-        let on_mesh = self.solver.solution_with(false);
         let solve_s = self.started.elapsed().as_secs_f64();
+        let on_mesh = self.solver.solution_with(estimates);
         let mut solution = pull_back(on_mesh, &self.origin, self.input_patches);
         solution.method = match (self.events, self.kind) {
             (Events::Contacts, _) => "hierarchical on contact mesh",
