@@ -202,7 +202,11 @@ impl Method {
                     AreaEps::Absolute(a) => g3(a),
                     AreaEps::Relative(r) => format!("{r:.1e}A").replace(".0e", "e"),
                 };
-                let mesh = if matches!(self, Method::HierarchicalContact(_)) { " mesh=contact" } else { "" };
+                let mesh = if matches!(self, Method::HierarchicalContact(_)) {
+                    format!(" {CONTACT_MARK}")
+                } else {
+                    String::new()
+                };
                 format!("{:?} feps={} aeps={aeps} bfeps={} rays={}{mesh}", p.oracle, p.feps, p.bf_eps, p.rays)
                     .to_lowercase()
             }
@@ -838,6 +842,49 @@ pub fn markdown(report: &BenchReport) -> String {
             ratio(0.01)
         ));
     }
+    s.push_str(&convergence_lines(report));
+    s
+}
+
+/// How many steps of `errors` rise by more than `resolution`.
+fn rises_beyond(errors: &[f64], resolution: f64) -> usize {
+    errors.windows(2).filter(|w| w[1] > w[0] + resolution).count()
+}
+
+/// The settings word that marks the contact-mesh rows ([`Method::HierarchicalContact`]).
+const CONTACT_MARK: &str = "mesh=contact";
+
+/// Issue 15 §3's convergence check, per scene: the contact-mesh rows' errors in sweep order
+/// (each halving the threshold), and whether each halving lowered the error — a rise counts only
+/// above the reference's resolution; a run over budget ends the sequence.
+fn convergence_lines(report: &BenchReport) -> String {
+    let mut s = String::new();
+    for sc in &report.scenes {
+        let rows: Vec<&Row> = report
+            .rows
+            .iter()
+            .filter(|r| r.scene == sc.scene && r.settings.contains(CONTACT_MARK) && r.status == "ok")
+            .collect();
+        if rows.len() < 2 {
+            continue;
+        }
+        if s.is_empty() {
+            s.push_str("\nConvergence of the error oracle on the contact mesh, each row halving the threshold (pointwise rel L2, debiased):\n\n");
+        }
+        let seq: Vec<String> = rows.iter().map(|r| pct(r.error())).collect();
+        let errors: Vec<f64> = rows.iter().map(|r| r.error()).collect();
+        let rises = rises_beyond(&errors, sc.resolution);
+        s.push_str(&format!(
+            "- {}: {} — {}\n",
+            sc.scene.trim_start_matches("builtin:"),
+            seq.join(" → "),
+            if rises == 0 {
+                "each halving lowered the error (within the resolution)".to_string()
+            } else {
+                format!("{rises} halving(s) raised it beyond the resolution")
+            }
+        ));
+    }
     s
 }
 
@@ -993,6 +1040,13 @@ mod tests {
         assert!((t - 10.0).abs() < 1e-9, "{t}");
         assert_eq!(time_to_reach(&pts, 0.001), None);
         assert_eq!(time_to_reach(&[(2.0, 0.001)], 0.01), Some(2.0));
+    }
+
+    #[test]
+    fn a_rise_counts_only_beyond_the_resolution() {
+        assert_eq!(rises_beyond(&[0.05, 0.03, 0.031, 0.01], 0.002), 0);
+        assert_eq!(rises_beyond(&[0.05, 0.03, 0.04, 0.01, 0.02], 0.002), 2);
+        assert_eq!(rises_beyond(&[0.05], 0.0), 0);
     }
 
     #[test]

@@ -301,3 +301,65 @@ fn compare_solves_the_dmesh_top_level_with_its_grading() {
     let (ok, text) = run(&["--dmesh-budget", "off", "--dmesh-smooth", "2"]);
     assert!(!ok && text.contains("--dmesh-smooth"), "{text}");
 }
+
+/// `radlab reference --batches N` merges N cached batches on batch 1's points (the noise falls
+/// as 1/√N); `--compare hierarchical-contact` solves on the contact mesh (cornell: the blocks'
+/// 8 footprint edges on the floor) with the solver's own estimate; `--point-errors` writes one
+/// CSV row per point; `radlab solve --mesh contact` refuses a solver other than hierarchical.
+#[test]
+fn batches_merge_and_the_contact_mesh_compares_with_point_errors() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("reference-batches");
+    let _ = std::fs::create_dir_all(&dir);
+    let csv = dir.join("points.csv");
+    let run = |args: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+            .args(args)
+            .arg("--cache-dir")
+            .arg(dir.join("cache"))
+            .output()
+            .unwrap();
+        let text =
+            format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        (out.status.success(), text)
+    };
+    let noise = |text: &str| -> f64 {
+        let at = text.find("; noise ").expect("a noise figure") + "; noise ".len();
+        text[at..].split_whitespace().next().unwrap().parse().unwrap()
+    };
+    let base = ["reference", "builtin:cornell", "--points", "2048", "--samples", "16"];
+    let (ok, one) = run(&base);
+    assert!(ok, "{one}");
+    let csv_arg = csv.to_str().unwrap();
+    let mut args = base.to_vec();
+    args.extend([
+        "--batches",
+        "4",
+        "--compare",
+        "hierarchical-contact",
+        "--preset",
+        "interactive",
+        "--point-errors",
+        csv_arg,
+    ]);
+    let (ok, four) = run(&args);
+    assert!(ok, "{four}");
+    assert!(four.contains("batch 4/4 (seed 3)"), "{four}");
+    let (n1, n4) = (noise(&one), noise(&four));
+    assert!(n4 < 0.7 * n1, "4 batches: noise {n4} % against {n1} % with one");
+    assert!(four.contains("hierarchical-contact: 8 critical segments"), "{four}");
+    assert!(
+        four.contains("pointwise rel L2") && four.contains("own error estimate (no reference)"),
+        "{four}"
+    );
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = rows.lines();
+    assert!(lines.next().unwrap().starts_with("patch,x,y,z,area,ref_r"), "{rows}");
+    assert!(lines.count() >= 2048);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+        .args(["solve", "builtin:cornell", "--mesh", "contact", "--method", "uniform"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--mesh contact"), "{out:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

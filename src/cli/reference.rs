@@ -29,6 +29,11 @@ pub struct Args {
     /// At least this many points (points ruler).
     #[arg(long, default_value_t = PointParams::standard().points)]
     pub points: u32,
+    /// Independent batches of `--samples` paths per point to merge (points ruler): batch b uses
+    /// seed `--seed + b` on batch 0's points, each cached on its own, as `radlab bench` computes
+    /// them (its batches are reused); the noise falls as 1/√batches.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub batches: u32,
     /// Largest element side of the reference mesh, in scene units (regions ruler; default: scene
     /// diagonal / 16).
     #[arg(long)]
@@ -678,6 +683,29 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
             file
         }
     };
+    if args.batches > 1 {
+        let mut batches = vec![std::mem::take(&mut entry.estimates)];
+        for b in 1..args.batches {
+            let seed = args.seed.wrapping_add(u64::from(b));
+            let (more, status) =
+                cache.get_or_compute_points(&scene, &accel, &params.batch(seed), &Control::default())?;
+            let (how, f) = match &status {
+                CacheStatus::Hit(f) => ("read".to_string(), f),
+                CacheStatus::Computed(f) => (format!("computed in {:.1} s", more.compute_s), f),
+                CacheStatus::Recomputed { file, why } => (format!("recomputed ({why})"), file),
+            };
+            writeln!(log, "batch {}/{} (seed {seed}): {how}, {}", b + 1, args.batches, f.display())?;
+            anyhow::ensure!(
+                more.set.points == entry.set.points,
+                "reference batch {} placed other points than batch 1 ({})",
+                b + 1,
+                f.display()
+            );
+            batches.push(more.estimates);
+        }
+        entry.estimates =
+            radlab::reference::merge_batches(&batches).context("reference batches of different lengths")?;
+    }
     let points = &entry.set.points;
     if args.exact {
         let sb = radlab::exact::SingleBounce::new(&scene).context("--exact")?;
