@@ -366,6 +366,9 @@ pub struct HierarchicalSolver {
     full_error_passes: bool,
     /// The new pairs of the current refinement pass (see `make_link`).
     pair_memo: PairMemo,
+    /// The error oracle's kernels at each element's child points per linked source, from the
+    /// last refinement (`oracle::ErrorField::kernels`): the next one evaluates only new pairs.
+    error_kernels: Vec<Vec<(u32, [f64; 4])>>,
     /// The cluster tree above the input patches (built at the first linking, when
     /// `params.cluster` applies; [`cluster`]).
     clusters: Option<Arc<ClusterTree>>,
@@ -426,6 +429,7 @@ impl HierarchicalSolver {
             early_exit: true,
             full_error_passes: false,
             pair_memo: PairMemo::default(),
+            error_kernels: Vec::new(),
             clusters: None,
             cluster_links: Vec::new(),
             cluster_xfer: ClusterTransfer::default(),

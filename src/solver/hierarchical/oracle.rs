@@ -83,6 +83,11 @@ pub(super) struct ErrorField {
     partial: Vec<Rgb>,
     /// ρ-less sampling term Σ_{own links} V B (F_rq − mean_k F(x_k → q)), signed.
     disc: Vec<Rgb>,
+    /// Per element, the exact kernel F(x_k → q) at its four child points for each source q of
+    /// its own links, sorted by q: what `own_terms` evaluated, for the decisions to look up
+    /// instead of evaluating again (a pair's kernel is geometry alone, fixed for the pair's
+    /// life, so an entry never goes stale).
+    pub kernels: Vec<Vec<(u32, [f64; 4])>>,
 }
 
 /// The four points where a split would put the children's centroids (see `hierarchy` for the
@@ -154,14 +159,19 @@ impl FitWeights {
 /// F(x → q) of the link r ← q with visibility `vis` and Galerkin coefficient `f` (r's average):
 /// the least-squares affine fit of the exact point kernel at r's four child points, times V,
 /// limited so that f + gradient·(x − centroid) stays ≥ 0 at r's vertices (so on all of r).
-pub(super) fn kernel_slope(r: &Element, q: &Element, vis: f64, f: f64) -> [f64; 2] {
+/// `known`: the kernel at r's child points if already evaluated (the error oracle's
+/// [`known_kernel`]), the same numbers.
+pub(super) fn kernel_slope(r: &Element, q: &Element, vis: f64, f: f64, known: Option<[f64; 4]>) -> [f64; 2] {
     let pts = child_points(r);
     let c = (pts[0] + pts[1] + pts[2] + pts[3]) * 0.25;
     let (t1, t2) = crate::math::orthonormal_basis(r.normal);
     let Some(w) = FitWeights::new(&pts, c, t1, t2) else {
         return [0.0; 2];
     };
-    let (k, mean) = kernel_at(r, &pts, q);
+    let (k, mean) = match known {
+        Some(k) => (k, kernel_mean(&k)),
+        None => kernel_at(r, &pts, q),
+    };
     let (mut gu, mut gv) = (0.0, 0.0);
     for ((ki, wu), wv) in k.iter().zip(w.u).zip(w.v) {
         gu += (ki - mean) * wu;
@@ -184,8 +194,20 @@ fn kernel_at(r: &Element, pts: &[DVec3; 4], q: &Element) -> ([f64; 4], f64) {
     for (fk, x) in f.iter_mut().zip(pts) {
         *fk = form_factor::point_to_polygon_oriented(*x, r.normal, q.vertices(), q.normal);
     }
-    let mean = 0.25 * (f[0] + f[1] + f[2] + f[3]);
-    (f, mean)
+    (f, kernel_mean(&f))
+}
+
+/// The kernel of the pair (r, q) at r's child points, if `kernels` (an error field's, per
+/// element, sorted by source) holds it.
+pub(super) fn known_kernel(kernels: &[Vec<(u32, [f64; 4])>], r: u32, q: u32) -> Option<[f64; 4]> {
+    let k = kernels.get(r as usize)?;
+    k.binary_search_by_key(&q, |&(s, _)| s).ok().map(|i| k[i].1)
+}
+
+/// The mean of the kernel at the four child points (one expression, so the same bits wherever
+/// the values come from).
+fn kernel_mean(f: &[f64; 4]) -> f64 {
+    0.25 * (f[0] + f[1] + f[2] + f[3])
 }
 
 /// The share of ε that a receiver's unsplit own links may add up to (module docs).
@@ -197,6 +219,8 @@ struct OwnTerms {
     partial: Rgb,
     disc: Rgb,
     cause: f64,
+    /// The own links' kernels at the child points, sorted by source (`ErrorField::kernels`).
+    kernels: Vec<(u32, [f64; 4])>,
 }
 
 /// F_rq of a link of `r`'s (or of its mirror: the pair's coupling over `r`'s area), the same
@@ -224,7 +248,9 @@ fn partial_weight(l: &Link) -> f64 {
 
 impl HierarchicalSolver {
     /// The error field of the current state (parallel over elements, deterministic).
-    pub(super) fn error_field(&self) -> ErrorField {
+    /// `known`: the kernels of an earlier field (`ErrorField::kernels`, per element), reused
+    /// where a pair is still linked.
+    pub(super) fn error_field(&self, known: &[Vec<(u32, [f64; 4])>]) -> ErrorField {
         let n = self.hier.len();
         let mut field = ErrorField {
             err: vec![0.0; n],
@@ -234,13 +260,18 @@ impl HierarchicalSolver {
             own_h: Vec::new(),
             partial: Vec::new(),
             disc: Vec::new(),
+            kernels: Vec::new(),
         };
-        let terms: Vec<OwnTerms> =
-            (0..n as u32).into_par_iter().with_min_len(64).map(|r| self.own_terms(r)).collect();
+        let terms: Vec<OwnTerms> = (0..n as u32)
+            .into_par_iter()
+            .with_min_len(64)
+            .map(|r| self.own_terms(r, known.get(r as usize).map_or(&[], Vec::as_slice)))
+            .collect();
         field.own_h = terms.iter().map(|t| t.h).collect();
         field.partial = terms.iter().map(|t| t.partial).collect();
         field.disc = terms.iter().map(|t| t.disc).collect();
         field.cause = terms.iter().map(|t| t.cause).collect();
+        field.kernels = terms.into_iter().map(|t| t.kernels).collect();
         self.sweep(&mut field, vec![true; n]);
         field
     }
@@ -260,7 +291,12 @@ impl HierarchicalSolver {
             dirty[r as usize] = true;
         }
         let todo: Vec<u32> = (0..n as u32).filter(|&r| dirty[r as usize]).collect();
-        let terms: Vec<OwnTerms> = todo.par_iter().with_min_len(16).map(|&r| self.own_terms(r)).collect();
+        let kernels = &field.kernels;
+        let terms: Vec<OwnTerms> = todo
+            .par_iter()
+            .with_min_len(16)
+            .map(|&r| self.own_terms(r, kernels.get(r as usize).map_or(&[], Vec::as_slice)))
+            .collect();
         field.err.resize(n, 0.0);
         field.spread.resize(n, 0.0);
         field.cause.resize(n, f64::INFINITY);
@@ -268,11 +304,13 @@ impl HierarchicalSolver {
         field.own_h.resize(n, [Rgb::ZERO; 4]);
         field.partial.resize(n, Rgb::ZERO);
         field.disc.resize(n, Rgb::ZERO);
+        field.kernels.resize_with(n, Vec::new);
         for (&r, t) in todo.iter().zip(terms) {
             field.own_h[r as usize] = t.h;
             field.partial[r as usize] = t.partial;
             field.disc[r as usize] = t.disc;
             field.cause[r as usize] = t.cause;
+            field.kernels[r as usize] = t.kernels;
         }
         self.sweep(field, dirty)
     }
@@ -327,8 +365,9 @@ impl HierarchicalSolver {
     }
 
     /// The exact terms of one element's own links: their part of h, the visibility term, and
-    /// the threshold `cause`.
-    fn own_terms(&self, r: u32) -> OwnTerms {
+    /// the threshold `cause`. `known`: kernels of r's pairs already evaluated (sorted by source),
+    /// the same numbers as evaluating them again.
+    fn own_terms(&self, r: u32, known: &[(u32, [f64; 4])]) -> OwnTerms {
         let e = self.hier.get(r);
         let pts = child_points(e);
         let mut h = [Rgb::ZERO; 4];
@@ -336,9 +375,14 @@ impl HierarchicalSolver {
         let mut disc = Rgb::ZERO;
         let own = &self.links.by_receiver[r as usize];
         let mut c = Vec::with_capacity(own.len());
+        let mut kernels = Vec::with_capacity(own.len());
         for l in own {
             let src = self.hier.get(l.source);
-            let (f, mean) = kernel_at(e, &pts, src);
+            let (f, mean) = match known.binary_search_by_key(&l.source, |&(q, _)| q) {
+                Ok(i) => (known[i].1, kernel_mean(&known[i].1)),
+                Err(_) => kernel_at(e, &pts, src),
+            };
+            kernels.push((l.source, f));
             let vb = src.radiosity * f64::from(l.vis).min(1.0);
             if vb.max_channel() > 0.0 {
                 for (hk, fk) in h.iter_mut().zip(f) {
@@ -360,7 +404,8 @@ impl HierarchicalSolver {
             cause = ck;
             tail -= ck;
         }
-        OwnTerms { h, partial, disc, cause }
+        kernels.sort_unstable_by_key(|&(q, _)| q);
+        OwnTerms { h, partial, disc, cause, kernels }
     }
 
     /// e_r (module docs) from h and the visibility term; 0 without own links.
@@ -387,9 +432,12 @@ impl HierarchicalSolver {
     }
 
     /// c_rq (module docs) and F̂_rq = mean_k F(x_k → q) of the link r ← q, from r's side.
-    fn link_variation(&self, r: u32, l: &Link, q: u32) -> (f64, f64) {
+    fn link_variation(&self, field: &ErrorField, r: u32, l: &Link, q: u32) -> (f64, f64) {
         let (re, qe) = (self.hier.get(r), self.hier.get(q));
-        let (f, mean) = kernel_at(re, &child_points(re), qe);
+        let (f, mean) = match known_kernel(&field.kernels, r, q) {
+            Some(f) => (f, kernel_mean(&f)),
+            None => kernel_at(re, &child_points(re), qe),
+        };
         (variation(re, qe, l, &f, mean), mean)
     }
 
@@ -412,7 +460,7 @@ impl HierarchicalSolver {
         let side = |x: &Element, xi: u32, yi: u32, var_y: f64| {
             let wanted = field.err[xi as usize] > eps
                 || x.reflectance.max_channel() * v * field.spread[yi as usize] * var_y > eps;
-            if wanted { self.link_variation(xi, link, yi) } else { (0.0, 0.0) }
+            if wanted { self.link_variation(field, xi, link, yi) } else { (0.0, 0.0) }
         };
         let (c_lo, f_lo) = side(elo, lo, hi, var_hi);
         let (c_hi, f_hi) = side(ehi, hi, lo, var_lo);

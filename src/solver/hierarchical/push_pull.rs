@@ -277,6 +277,7 @@ impl HierarchicalSolver {
     /// slope depends on its two elements and V only, so it is computed once per link).
     pub(super) fn fill_slopes(&mut self) {
         let hier = &self.hier;
+        let kernels = &self.error_kernels;
         let sums: Vec<[f64; 2]> = self
             .links
             .by_receiver
@@ -292,8 +293,22 @@ impl HierarchicalSolver {
                     // Both sides from the same inputs as the mirror link's: bit-identical.
                     (l.slope, l.src_slope) = if v > 0.0 {
                         (
-                            oracle::kernel_slope(re, se, v, g / re.area).map(|x| x as f32),
-                            oracle::kernel_slope(se, re, v, g / se.area).map(|x| x as f32),
+                            oracle::kernel_slope(
+                                re,
+                                se,
+                                v,
+                                g / re.area,
+                                oracle::known_kernel(kernels, r as u32, l.source),
+                            )
+                            .map(|x| x as f32),
+                            oracle::kernel_slope(
+                                se,
+                                re,
+                                v,
+                                g / se.area,
+                                oracle::known_kernel(kernels, l.source, r as u32),
+                            )
+                            .map(|x| x as f32),
                         )
                     } else {
                         ([0.0; 2], [0.0; 2])

@@ -310,7 +310,10 @@ impl HierarchicalSolver {
                 let ids: Vec<u32> = match err_field.as_mut() {
                     Some(f) if !self.full_error_passes => self.update_error_field(f, &pass_changed),
                     _ => {
-                        err_field = Some(self.error_field());
+                        let known = err_field
+                            .take()
+                            .map_or_else(|| std::mem::take(&mut self.error_kernels), |f| f.kernels);
+                        err_field = Some(self.error_field(&known));
                         (0..self.hier.len() as u32).collect()
                     }
                 };
@@ -458,6 +461,10 @@ impl HierarchicalSolver {
             }
         }
         self.row_floor = Vec::new();
+        // The error oracle's kernels serve the next refinement's field (`oracle::ErrorField`).
+        if let Some(f) = err_field {
+            self.error_kernels = f.kernels;
+        }
         self.update_sums(&changed.take_sorted());
         self.converged = false;
         self.stats.links_created += new_links as u64;
