@@ -56,6 +56,13 @@
 //!
 //! ε is `bf_eps` (absolute, or relative to the largest emission). Refinement stops at the Aeps
 //! floor and the maximum depth, as with the other oracles.
+//!
+//! **Cost.** F(x_k → q) at r's four child points depends on the pair's geometry alone, so it is
+//! evaluated once per pair and kept (`ErrorField::kernels`, per receiver sorted by source,
+//! carried from one refinement to the next): the field's update, the decisions on both sides of
+//! a pair and the links' slopes (`kernel_slope`) look it up. Bit-identical to evaluating it each
+//! time; on cornell's contact mesh at ε = 0.05 it took the solve's CPU from 4.6 s to 2.9 s, the
+//! shadow rays now being the largest part.
 
 use super::HierarchicalSolver;
 use crate::form_factor;
