@@ -1016,6 +1016,34 @@ fn huge_texture_headers_are_refused_before_decoding() {
     }
 }
 
+/// A file's textures may decode to 4 × `max_texture_pixels` in all, and that total is summed
+/// from the headers before any texture is decoded: `texture_budget_headers.gltf` (3 KB) has five
+/// data-URI images whose headers each declare 8192 × 8192 (four PNGs, one JPEG), each within the
+/// per-image cap, none with pixel data. The fifth takes the total over the budget and the file
+/// is refused naming it; were the images decoded first, the first one's missing data would be
+/// the error. With the cap raised so the five fit, the first image is decoded and fails.
+#[test]
+fn texture_budget_is_checked_from_the_headers_before_decoding() {
+    let name = "texture_budget_headers.gltf";
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions").join(name);
+    let (p, o) = (path.clone(), LoadOptions::default());
+    let e = within(30, move || load_err_with(&p, &o));
+    let msg = e.to_string();
+    assert!(matches!(e, SceneError::Image { index: 4, .. }), "{msg}");
+    assert!(msg.contains(name) && !msg.contains('\n'), "{msg}");
+    assert!(msg.contains("8192×8192 takes the textures' headers to 335544320 pixels"), "{msg}");
+    assert!(msg.contains("more than the limit of 268435456") && msg.contains("nothing decoded"), "{msg}");
+    let bytes = std::fs::read(&path).unwrap();
+    let e = load_slice(&bytes, None, Path::new(name), &LoadOptions::default()).unwrap_err();
+    assert_eq!(e.to_string(), msg.replacen(&path.display().to_string(), name, 1));
+    // Five 8192² images are exactly the budget of a cap of 5/4 × 8192²: the headers pass, and
+    // decoding the first (a header without pixels) is the error.
+    let roomy = LoadOptions { max_texture_pixels: 5 << 24, ..LoadOptions::default() };
+    let e = load_slice(&bytes, None, Path::new(name), &roomy).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, SceneError::Image { index: 0, .. }) && msg.contains("cannot decode"), "{msg}");
+}
+
 /// Loading reads and never writes: the file's bytes and modification time are unchanged, and a
 /// read-only file loads.
 #[test]
