@@ -64,6 +64,11 @@ fn slope(pts: &[(f64, f64)]) -> f64 {
         / ln.iter().map(|p| (p.0 - mx).powi(2)).sum::<f64>()
 }
 
+/// The links per element and per input patch `links_grow_as_the_elements_in_furnished_rooms`
+/// allows at 2 k–5 k: tighter than the bound README and docs/scale.md state for every size.
+const TESTED_LINKS_PER_ELEMENT: f64 = 60.0;
+const TESTED_LINKS_PER_PATCH: f64 = 160.0;
+
 #[test]
 fn links_grow_as_the_elements_in_furnished_rooms() {
     // Links (element links plus both directions of each cluster link) against elements (every
@@ -91,14 +96,56 @@ fn links_grow_as_the_elements_in_furnished_rooms() {
         let links = (st.links + 2 * st.cluster_links) as f64;
         let n = scene.patches.len() as f64;
         let elements = st.elements as f64;
-        assert!(links <= 60.0 * elements, "furnished-{size}: {:.1} links per element", links / elements);
-        assert!(links <= 160.0 * n, "furnished-{size}: {:.1} links per patch", links / n);
+        assert!(
+            links <= TESTED_LINKS_PER_ELEMENT * elements,
+            "furnished-{size}: {:.1} links per element",
+            links / elements
+        );
+        assert!(links <= TESTED_LINKS_PER_PATCH * n, "furnished-{size}: {:.1} links per patch", links / n);
         by_element.push((elements, links));
         by_patch.push((n, links));
     }
     let (se, sp) = (slope(&by_element), slope(&by_patch));
     assert!(se <= 1.1, "links ~ elements^{se:.2} ({by_element:?})");
     assert!(sp <= 1.1, "links ~ patches^{sp:.2} ({by_patch:?})");
+}
+
+/// README states the links-per-element bound docs/scale.md states ("The bound radlab states …
+/// at most N links per element and M per input patch"), the figures README lists are within it, and the test above asserts
+/// no looser bound than the one stated.
+#[test]
+fn readme_states_the_link_bound_of_docs_scale() {
+    let read = |name: &str| {
+        let text =
+            std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(name)).unwrap();
+        text.split_whitespace().collect::<Vec<_>>().join(" ").replace("**", "")
+    };
+    let bound = |name: &str, text: &str| -> (f64, f64) {
+        let at = text
+            .find("The bound radlab states")
+            .and_then(|b| text[b..].find("at most ").map(|a| b + a))
+            .unwrap_or_else(|| panic!("{name} states no bound"));
+        let words: Vec<&str> = text[at..].split(' ').take(11).collect();
+        assert_eq!(
+            [words[3], words[4], words[5], words[6], words[8], words[9], words[10]],
+            ["links", "per", "element", "and", "per", "input", "patch"],
+            "{name}: {words:?}"
+        );
+        (words[2].parse().unwrap(), words[7].parse().unwrap())
+    };
+    let (readme, scale) = (read("README.md"), read("docs/scale.md"));
+    let stated = bound("docs/scale.md", &scale);
+    assert_eq!(bound("README.md", &readme), stated);
+    assert!(TESTED_LINKS_PER_ELEMENT <= stated.0 && TESTED_LINKS_PER_PATCH <= stated.1);
+    let list = readme.split("links per element 2 k ").nth(1).expect("README lists links per element by size");
+    let figures: Vec<f64> = list
+        .split(';')
+        .next()
+        .unwrap()
+        .split(", ")
+        .map(|f| f.rsplit(' ').next().unwrap().parse().unwrap())
+        .collect();
+    assert!(figures.len() >= 9 && figures.iter().all(|&f| f <= stated.0), "{figures:?} against {stated:?}");
 }
 
 #[test]
