@@ -5,8 +5,8 @@
 use radlab::math::Rgb;
 use radlab::scene::Scene;
 use radlab::scene::builtin::load;
-use radlab::solver::hierarchical::HierarchicalSolver;
-use radlab::solver::params::{Clustering, HierarchicalParams};
+use radlab::solver::hierarchical::{ENERGY_TOLERANCE, HierarchicalSolver};
+use radlab::solver::params::{Clustering, HierarchicalParams, Oracle};
 use std::sync::Arc;
 
 fn solve(scene: &Scene, cluster: Clustering, p: HierarchicalParams) -> HierarchicalSolver {
@@ -165,6 +165,94 @@ fn clustered_solves_are_identical_for_one_and_two_threads() {
     assert!(one.2 > 1000, "furnished-2k must cluster: {} cluster links", one.2);
     assert_eq!((one.0, one.1, one.2), (two.0, two.1, two.2), "counts differ between 1 and 2 threads");
     assert!(one.3 == two.3, "radiosity differs between 1 and 2 threads");
+}
+
+/// The radiosity bits, element links and cluster links of a solver's state.
+fn state(s: &HierarchicalSolver) -> (Vec<u64>, usize, usize) {
+    let st = s.stats();
+    let bits = s.hierarchy().elements.iter().flat_map(|e| e.radiosity.0.map(f64::to_bits)).collect();
+    (bits, st.links, st.cluster_links)
+}
+
+/// `solve`'s HSA91 loop (its doc comment) driven through the step API only, as the viewer's
+/// Refine, Gather and Push-pull buttons drive it: refine; gather and push-pull `round_iterations`
+/// times, or to convergence once a refinement adds at most `settle` of the links; stop when a
+/// refinement of the converged solution adds none of note; gather on until the power balance
+/// closes to `ENERGY_TOLERANCE`.
+fn solve_by_steps(s: &mut HierarchicalSolver) {
+    let p = s.params();
+    let rounds = p.max_rounds.max(1);
+    for round in 0..rounds {
+        let was_converged = s.is_converged();
+        let new_links = s.refine_step().new_links;
+        let small = new_links as f64 <= p.settle * s.links().len() as f64;
+        let settled = round > 0 && was_converged && small;
+        if settled && new_links == 0 {
+            break;
+        }
+        let cap = if settled || round + 1 == rounds || p.oracle == Oracle::Feps || small {
+            p.max_iterations
+        } else {
+            p.round_iterations.min(p.max_iterations)
+        };
+        for _ in 0..cap {
+            s.gather_step();
+            s.push_pull_step();
+            if s.is_converged() {
+                break;
+            }
+        }
+        if settled || (p.oracle == Oracle::Feps && s.is_converged()) {
+            break;
+        }
+    }
+    for _ in 0..p.max_iterations {
+        if s.solution_with(false).energy.relative_residual() <= ENERGY_TOLERANCE {
+            break;
+        }
+        s.gather_step();
+        s.push_pull_step();
+    }
+}
+
+/// The step API on a clustered solve (issue 17 §1: "the step API works on clusters"): the
+/// smallest generated room that `Clustering::Auto` clusters (furnished-3k, 3 010 patches;
+/// furnished-2k's 1 998 link every pair), at the interactive preset. The first refine step links
+/// clusters; refine, gather and push-pull steps give `iterate`'s state bit for bit, cluster links
+/// included; and stepping to convergence gives `solve`'s solution bit for bit.
+#[test]
+fn clustered_solve_steps_as_iterate_and_solve_do() {
+    assert!(!Clustering::Auto.applies(load("furnished-2k").unwrap().patches.len()));
+    let scene = Arc::new(load("furnished-3k").unwrap());
+    assert!(Clustering::Auto.applies(scene.patches.len()), "{} patches", scene.patches.len());
+    let p = HierarchicalParams::interactive();
+    assert_eq!(p.cluster, Clustering::Auto);
+    let new = || HierarchicalSolver::new(Arc::clone(&scene), p).unwrap();
+
+    let (mut fused, mut steps) = (new(), new());
+    for k in 0..3 {
+        fused.iterate();
+        steps.refine_step();
+        let st = steps.stats();
+        assert!(st.clusters > 0 && st.cluster_links > 1000, "refine step {k}: {st:?}");
+        steps.gather_step();
+        steps.push_pull_step();
+        let (a, b) = (state(&fused), state(&steps));
+        assert!(a == b, "iteration {k}: links {}/{} cluster links {}/{}", a.1, b.1, a.2, b.2);
+        let (ea, eb) = (fused.solution_with(false).energy, steps.solution_with(false).energy);
+        assert_eq!(format!("{ea:?}"), format!("{eb:?}"));
+    }
+
+    let mut solved = new();
+    solved.solve(&mut |_, _| {});
+    let mut stepped = new();
+    solve_by_steps(&mut stepped);
+    let (a, b) = (state(&solved), state(&stepped));
+    assert!(a.2 > 1000, "solve made {} cluster links", a.2);
+    assert!(a == b, "solve against steps: links {}/{} cluster links {}/{}", a.1, b.1, a.2, b.2);
+    let (ea, eb) = (solved.solution_with(false).energy, stepped.solution_with(false).energy);
+    assert_eq!(format!("{ea:?}"), format!("{eb:?}"));
+    assert!(ea.relative_residual() <= ENERGY_TOLERANCE, "{ea:?}");
 }
 
 #[test]
