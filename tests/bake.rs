@@ -1,7 +1,7 @@
 //! The baked glTF (`radlab::bake`, `radlab solve --bake`): read back with the `gltf` crate and
 //! checked value by value against the solution; the CLI's refusals; and the Khronos glTF
-//! validator on the bake of every built-in scene (0 errors, 0 warnings), where Node and the
-//! validator are installed (`RADLAB_GLTF_VALIDATOR`, see `validator_dir`).
+//! validator on the bake of every built-in scene (0 errors, 0 warnings), wherever Node and the
+//! validator are installed (see `validator_dir`).
 
 use radlab::accel::Accel;
 use radlab::bake::{self, BakeForm, BakeFormat, BakeOptions, LightmapParams};
@@ -262,29 +262,70 @@ fn cli_bakes_and_refuses_bad_paths_with_one_line() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// The installed `gltf-validator` npm package (the folder holding its `package.json`), from
-/// `RADLAB_GLTF_VALIDATOR` (that folder, or an `npm install --prefix` folder holding
-/// `node_modules/gltf-validator`). `.ci/run` installs it and sets the variable; a set variable
-/// that does not lead to the package, or no `node`, fails the test instead of skipping it.
+/// The installed `gltf-validator` npm package (the folder holding its `package.json`), or `None`
+/// (with the reason printed) where the validator cannot run here.
+///
+/// With `RADLAB_GLTF_VALIDATOR` set (that folder, or an `npm install --prefix` folder holding
+/// `node_modules/gltf-validator`; `.ci/run` installs it and sets the variable), a variable that
+/// does not lead to the package, or no `node`, fails the test instead of skipping it. Without
+/// it the test runs wherever `node` runs and the package is found: under a `gltf-validator`
+/// folder in the cargo target folder or any folder above it (`.ci/run`'s
+/// `npm install --prefix target/gltf-validator`), where Node's `require` finds it from the
+/// repository, or in npm's global folder (`npm install -g`).
 fn validator_dir() -> Option<PathBuf> {
-    let Some(var) = std::env::var_os("RADLAB_GLTF_VALIDATOR") else {
-        eprintln!(
-            "SKIPPED: RADLAB_GLTF_VALIDATOR is not set (npm install --prefix DIR gltf-validator; \
-             RADLAB_GLTF_VALIDATOR=DIR); the Khronos validator did not run"
-        );
-        return None;
+    let node_runs = || Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
+    let package = |root: &Path| {
+        [root.join("node_modules/gltf-validator"), root.to_path_buf()].into_iter().find(|d| {
+            std::fs::read_to_string(d.join("package.json"))
+                .ok()
+                .and_then(|t| serde_json::from_str::<Value>(&t).ok())
+                .is_some_and(|v| v["name"] == "gltf-validator")
+        })
     };
-    let root = PathBuf::from(var);
-    // An `npm install --prefix` folder has a package.json of its own: look inside it first.
-    let dir = [root.join("node_modules/gltf-validator"), root.clone()]
-        .into_iter()
-        .find(|d| d.join("package.json").is_file())
-        .unwrap_or_else(|| {
+    if let Some(var) = std::env::var_os("RADLAB_GLTF_VALIDATOR") {
+        let root = PathBuf::from(var);
+        let dir = package(&root).unwrap_or_else(|| {
             panic!("RADLAB_GLTF_VALIDATOR={}: no gltf-validator package there", root.display())
         });
-    let node = Command::new("node").arg("--version").output();
-    assert!(node.is_ok_and(|o| o.status.success()), "RADLAB_GLTF_VALIDATOR is set but `node` does not run");
-    Some(dir)
+        assert!(node_runs(), "RADLAB_GLTF_VALIDATOR is set but `node` does not run");
+        return Some(dir);
+    }
+    if !node_runs() {
+        eprintln!("SKIPPED: `node` does not run here; the Khronos validator did not run");
+        return None;
+    }
+    let exe = std::env::current_exe().unwrap();
+    let npm_global = Command::new("npm")
+        .args(["root", "-g"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| PathBuf::from(String::from_utf8_lossy(&o.stdout).trim()));
+    let node_resolves = Command::new("node")
+        .args(["-p", "require.resolve('gltf-validator/package.json')"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .and_then(|o| {
+            PathBuf::from(String::from_utf8_lossy(&o.stdout).trim()).parent().map(Path::to_path_buf)
+        });
+    let found = exe
+        .ancestors()
+        .map(|a| a.join("gltf-validator"))
+        .chain(node_resolves)
+        .chain(npm_global)
+        .find_map(|root| package(&root));
+    if found.is_none() {
+        eprintln!(
+            "SKIPPED: `node` runs but no gltf-validator package was found (looked in a \
+             gltf-validator folder above {}, with Node's require from the repository and in npm's \
+             global folder; `npm install --prefix target/gltf-validator gltf-validator@2.0.0-dev.3.10` \
+             or RADLAB_GLTF_VALIDATOR=DIR); the Khronos validator did not run",
+            exe.display()
+        );
+    }
+    found
 }
 
 /// Runs the validator on every file; for each, (errors, warnings, infos, messages).

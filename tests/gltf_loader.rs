@@ -778,6 +778,20 @@ fn scene_roots_must_be_distinct_root_nodes() {
     assert_eq!(load_ok(&write_doc("root_ok", &d)).patches.len(), 1);
 }
 
+/// A file of tests/fuzz_regressions/ that loads: loaded from its path and from its bytes (as
+/// the fuzz target does), the two scenes the same; the scene and the seconds the path load took.
+fn load_regression_file(name: &str) -> (Scene, f64) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions").join(name);
+    let t = std::time::Instant::now();
+    let s = load_ok(&path);
+    let secs = t.elapsed().as_secs_f64();
+    let bytes = std::fs::read(&path).unwrap();
+    let from_bytes = load_slice(&bytes, None, Path::new(name), &LoadOptions::default()).unwrap();
+    assert_eq!(from_bytes.patches.len(), s.patches.len(), "{name}");
+    assert!(s.patches.iter().zip(&from_bytes.patches).all(|(a, b)| a.vertices == b.vertices), "{name}");
+    (s, secs)
+}
+
 /// Time limit for the linear-work tests below: each takes well under a second here, and the
 /// quadratic versions they guard against took minutes on the same input.
 const LINEAR_WORK_SECONDS: f64 = 20.0;
@@ -785,9 +799,19 @@ const LINEAR_WORK_SECONDS: f64 = 20.0;
 /// Many nodes instancing one primitive whose POSITION accessor is large but whose triangles use
 /// three of its vertices: the primitive is decoded once and each instance transforms only the
 /// vertices its triangles use. (Decoding the accessor again per instance was 4000 × 100 000
-/// vertex reads and hash inserts from a 1.6 MB file.)
+/// vertex reads and hash inserts from a 1.6 MB file.) The finding's shape is kept as a file,
+/// `tests/fuzz_regressions/many_instances.gltf` (40 KB: 600 nodes, each translated by its index
+/// along z, instancing one triangle of a 1000-vertex accessor); the timing needs the larger
+/// version built here.
 #[test]
 fn instancing_is_linear_in_the_triangles_it_adds() {
+    let (s, secs) = load_regression_file("many_instances.gltf");
+    assert_eq!(s.patches.len(), 600);
+    for (k, p) in s.patches.iter().enumerate() {
+        assert_eq!(p.vertices.len(), 3);
+        assert!(p.centroid.distance(DVec3::new(1.0 / 3.0, 1.0 / 3.0, k as f64)) < 1e-4, "{k}");
+    }
+    assert!(secs < LINEAR_WORK_SECONDS, "many_instances.gltf took {secs:.1} s");
     let mut positions = vec![[0.0f32; 3]; 100_000];
     for (k, p) in positions.iter_mut().enumerate() {
         *p = [k as f32, 1.0, 2.0];
@@ -811,8 +835,14 @@ fn instancing_is_linear_in_the_triangles_it_adds() {
 
 /// A fan: n triangles on the directed edge a→b and n on b→a, no two forming a planar quad. Each
 /// triangle looks at no more than a few merge partners per edge (all n of them made merging n²).
+/// The finding's shape is kept as a file, `tests/fuzz_regressions/triangle_fan.glb` (37 KB:
+/// n = 1000, u16 indices); the timing needs the larger fan built here.
 #[test]
 fn quad_merging_is_linear_on_shared_edges() {
+    let (s, secs) = load_regression_file("triangle_fan.glb");
+    assert_eq!(s.patches.len(), 2000);
+    assert!(s.patches.iter().all(|p| p.vertices.len() == 3));
+    assert!(secs < LINEAR_WORK_SECONDS, "triangle_fan.glb took {secs:.1} s");
     let n = 20_000;
     let mut positions = vec![[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0]];
     let mut indices = Vec::new();
@@ -1014,6 +1044,34 @@ fn huge_texture_headers_are_refused_before_decoding() {
             assert!(e.contains(name) && e.contains(size) && !e.contains('\n'), "{name}: {e}");
         }
     }
+}
+
+/// A file's textures may decode to 4 × `max_texture_pixels` in all, and that total is summed
+/// from the headers before any texture is decoded: `texture_budget_headers.gltf` (3 KB) has five
+/// data-URI images whose headers each declare 8192 × 8192 (four PNGs, one JPEG), each within the
+/// per-image cap, none with pixel data. The fifth takes the total over the budget and the file
+/// is refused naming it; were the images decoded first, the first one's missing data would be
+/// the error. With the cap raised so the five fit, the first image is decoded and fails.
+#[test]
+fn texture_budget_is_checked_from_the_headers_before_decoding() {
+    let name = "texture_budget_headers.gltf";
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions").join(name);
+    let (p, o) = (path.clone(), LoadOptions::default());
+    let e = within(30, move || load_err_with(&p, &o));
+    let msg = e.to_string();
+    assert!(matches!(e, SceneError::Image { index: 4, .. }), "{msg}");
+    assert!(msg.contains(name) && !msg.contains('\n'), "{msg}");
+    assert!(msg.contains("8192×8192 takes the textures' headers to 335544320 pixels"), "{msg}");
+    assert!(msg.contains("more than the limit of 268435456") && msg.contains("nothing decoded"), "{msg}");
+    let bytes = std::fs::read(&path).unwrap();
+    let e = load_slice(&bytes, None, Path::new(name), &LoadOptions::default()).unwrap_err();
+    assert_eq!(e.to_string(), msg.replacen(&path.display().to_string(), name, 1));
+    // Five 8192² images are exactly the budget of a cap of 5/4 × 8192²: the headers pass, and
+    // decoding the first (a header without pixels) is the error.
+    let roomy = LoadOptions { max_texture_pixels: 5 << 24, ..LoadOptions::default() };
+    let e = load_slice(&bytes, None, Path::new(name), &roomy).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, SceneError::Image { index: 0, .. }) && msg.contains("cannot decode"), "{msg}");
 }
 
 /// Loading reads and never writes: the file's bytes and modification time are unchanged, and a

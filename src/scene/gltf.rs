@@ -52,8 +52,8 @@
 //!   them as its base-colour texture, and one that exists must be a regular file inside the
 //!   folder in any case; a texture's size is read from its header and refused above
 //!   [`LoadOptions::max_texture_pixels`] (8192 × 8192) before it is decoded, and a file's
-//!   decoded textures may have `TEXTURE_BUDGET` (4) times that in all (kept at 3 bytes a
-//!   pixel; the image over the budget is refused once decoded). Nothing is ever written.
+//!   textures may have `TEXTURE_BUDGET` (4) times that in all (kept at 3 bytes a pixel),
+//!   summed from all their headers before any is decoded. Nothing is ever written.
 //! - **Structure the `gltf` crate assumes** and does not validate is checked first: an image has
 //!   one source (and a MIME type with a buffer view), a camera has the projection its type
 //!   names, and the nodes form disjoint trees, so the walk visits each node once (a node reused
@@ -76,7 +76,7 @@ use glam::{DMat3, DMat4, DQuat, DVec4};
 use gltf::accessor::{DataType, Dimensions};
 use serde::Serialize;
 use std::borrow::Cow;
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
 use std::rc::Rc;
@@ -226,7 +226,6 @@ pub fn load_slice(
         warnings: Vec::new(),
         shortened_names: 0,
         textures: HashMap::new(),
-        texture_pixels: 0,
     }
     .run(bytes)
 }
@@ -240,8 +239,6 @@ struct Loader<'a> {
     shortened_names: usize,
     /// Decoded base-colour textures by image index (`None`: unavailable, warned once).
     textures: HashMap<usize, Option<Rc<Texture>>>,
-    /// Pixels decoded so far over all textures (capped at `TEXTURE_BUDGET` × the per-image cap).
-    texture_pixels: u64,
 }
 
 /// What an instance of a mesh adds, found once per mesh.
@@ -329,6 +326,7 @@ impl Loader<'_> {
 
         let buffers = self.read_buffers(doc, blob)?;
         let materials = self.materials(doc)?;
+        self.check_texture_budget(doc, &instances, &meshes, &materials, &buffers)?;
         let default_mat = Mat {
             name: "default".into(),
             rho: Rgb::splat(0.5),
@@ -859,6 +857,50 @@ impl Loader<'_> {
             .collect())
     }
 
+    /// Refuse a file whose base-colour textures would decode to more than `TEXTURE_BUDGET` ×
+    /// [`LoadOptions::max_texture_pixels`] pixels in all, from their headers, before any is
+    /// decoded. Only the images of materials that instanced primitives use are counted; an
+    /// image whose header is unreadable or over the per-image cap is left to [`Loader::texture`],
+    /// which refuses it with its own cause when it is used.
+    fn check_texture_budget(
+        &mut self,
+        doc: &gltf::Document,
+        instances: &[Instance],
+        meshes: &[MeshInfo],
+        materials: &[Mat],
+        buffers: &[Cow<[u8]>],
+    ) -> Result<(), SceneError> {
+        let images: BTreeSet<usize> = instances
+            .iter()
+            .filter_map(|inst| meshes.get(inst.mesh))
+            .flat_map(|mesh| &mesh.primitives)
+            .filter_map(|&(_, material)| materials.get(material?)?.texture)
+            .map(|t| t.image)
+            .collect();
+        let budget = self.opts.max_texture_pixels.saturating_mul(TEXTURE_BUDGET);
+        let warnings = self.warnings.len();
+        let mut pixels: u64 = 0;
+        for image in images {
+            let Some((bytes, label)) = self.image_bytes(doc, image, buffers)? else { continue };
+            let Ok((w, h)) = Texture::header(&bytes, self.opts.max_texture_pixels) else { continue };
+            pixels = pixels.saturating_add(u64::from(w) * u64::from(h));
+            if pixels > budget {
+                return Err(SceneError::Image {
+                    file: self.file.clone(),
+                    index: image,
+                    cause: format!(
+                        "{label}: {w}×{h} takes the textures' headers to {pixels} pixels in all, \
+                         more than the limit of {budget} ({TEXTURE_BUDGET} × {}) (nothing decoded)",
+                        self.opts.max_texture_pixels
+                    ),
+                });
+            }
+        }
+        // `texture` warns about an image it cannot read when a primitive uses it.
+        self.warnings.truncate(warnings);
+        Ok(())
+    }
+
     /// An image decoded as a texture, once per image; `None` (warned) if it cannot be read
     /// here: a missing file, or a relative URI with no folder to resolve it in.
     fn texture(
@@ -880,16 +922,6 @@ impl Loader<'_> {
                         cause: format!("{label}: {cause}"),
                     }
                 })?;
-                let (w, h) = t.size();
-                self.texture_pixels = self.texture_pixels.saturating_add((w * h) as u64);
-                let budget = self.opts.max_texture_pixels.saturating_mul(TEXTURE_BUDGET);
-                if self.texture_pixels > budget {
-                    return Err(SceneError::Image {
-                        file: self.file.clone(),
-                        index: image,
-                        cause: format!("{label}: the textures have more than {budget} pixels in all"),
-                    });
-                }
                 Some(Rc::new(t))
             }
         };

@@ -81,23 +81,27 @@ fn linear_table() -> [f32; 256] {
     std::array::from_fn(|b| srgb_to_linear(b as f64 / 255.0) as f32)
 }
 
+/// A reader for PNG or JPEG bytes (the format guessed from them); an error for any other.
+fn image_reader(bytes: &[u8]) -> Result<image::ImageReader<std::io::Cursor<&[u8]>>, String> {
+    use image::{ImageFormat, ImageReader};
+    let r = ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| format!("cannot read the image: {}", one_line(&e)))?;
+    match r.format() {
+        Some(ImageFormat::Png | ImageFormat::Jpeg) => Ok(r),
+        Some(f) => Err(format!("{f:?} images are not supported (PNG and JPEG are)")),
+        None => Err("not a PNG or JPEG image".into()),
+    }
+}
+
 impl Texture {
-    /// Decode PNG or JPEG bytes, refusing images above [`MAX_SIDE`] on a side or above
-    /// `max_pixels` in all before decoding them. The error is one line without the file name.
-    pub fn decode(bytes: &[u8], max_pixels: u64) -> Result<Texture, String> {
-        use image::{ImageFormat, ImageReader, Limits};
-        let reader = || -> Result<ImageReader<std::io::Cursor<&[u8]>>, String> {
-            let r = ImageReader::new(std::io::Cursor::new(bytes))
-                .with_guessed_format()
-                .map_err(|e| format!("cannot read the image: {}", one_line(&e)))?;
-            match r.format() {
-                Some(ImageFormat::Png | ImageFormat::Jpeg) => Ok(r),
-                Some(f) => Err(format!("{f:?} images are not supported (PNG and JPEG are)")),
-                None => Err("not a PNG or JPEG image".into()),
-            }
-        };
-        let (w, h) =
-            reader()?.into_dimensions().map_err(|e| format!("bad image header: {}", one_line(&e)))?;
+    /// The width and height a PNG or JPEG header declares, read without decoding a pixel;
+    /// an error (one line, without the file name) for another format, a bad header, an empty
+    /// image, or one above [`MAX_SIDE`] on a side or above `max_pixels` in all.
+    pub fn header(bytes: &[u8], max_pixels: u64) -> Result<(u32, u32), String> {
+        let (w, h) = image_reader(bytes)?
+            .into_dimensions()
+            .map_err(|e| format!("bad image header: {}", one_line(&e)))?;
         let pixels = u64::from(w) * u64::from(h);
         if w > MAX_SIDE || h > MAX_SIDE || pixels > max_pixels {
             return Err(format!(
@@ -107,8 +111,17 @@ impl Texture {
         if pixels == 0 {
             return Err("image is empty (0 pixels)".into());
         }
-        let mut r = reader()?;
-        let mut limits = Limits::default();
+        Ok((w, h))
+    }
+
+    /// Decode PNG or JPEG bytes, refusing images above [`MAX_SIDE`] on a side or above
+    /// `max_pixels` in all before decoding them ([`Texture::header`]). The error is one line
+    /// without the file name.
+    pub fn decode(bytes: &[u8], max_pixels: u64) -> Result<Texture, String> {
+        let (w, h) = Texture::header(bytes, max_pixels)?;
+        let pixels = u64::from(w) * u64::from(h);
+        let mut r = image_reader(bytes)?;
+        let mut limits = image::Limits::default();
         limits.max_image_width = Some(MAX_SIDE);
         limits.max_image_height = Some(MAX_SIDE);
         // RGBA at 16 bits per channel, plus the 8-bit RGB copy.
