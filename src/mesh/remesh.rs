@@ -92,8 +92,10 @@ impl RemeshParams {
     /// A quadtree cannot refine a contact line away — an element straddling it holds the lit
     /// and the hidden side's average, and its error falls only as √h — while the penumbrae,
     /// which its oracle does refine, are left to it. Measured (`radlab reference … --compare
-    /// hierarchical-contact --preset quality --solve-aeps-rel 3e-5`, pointwise, 65 537 points):
-    /// cornell 2.26 → 0.92 % at BFeps 0.05 (its floor under the blocks), splash_room 3.8 → 2.95 %.
+    /// hierarchical|hierarchical-contact --preset quality --solve-bf-eps-rel 0.05
+    /// --solve-aeps-rel 3e-5`, pointwise, 65 537 points × 1 024 paths): quadtree → contact mesh,
+    /// cornell 2.26 → 1.24 %, splash_room 4.07 → 2.95 %; with the threshold halved again the
+    /// quadtree stalls and the contact mesh goes on (docs/meshing.md, docs/bench).
     #[must_use]
     pub const fn contacts() -> RemeshParams {
         RemeshParams {
