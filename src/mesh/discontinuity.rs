@@ -399,6 +399,21 @@ fn events(
     }
 }
 
+/// Patch `receiver`'s plane, every other patch with its index, and the receiver's D0 contacts
+/// with them ([`contact_segment`]).
+fn with_contacts(
+    patches: &[Patch],
+    receiver: usize,
+    snap: f64,
+) -> Result<(ReceiverPlane, Vec<(usize, &Patch)>, CriticalSet), super::MeshError> {
+    let r = &patches[receiver];
+    let plane = ReceiverPlane::new(&r.vertices, snap)?;
+    let mut out = CriticalSet::default();
+    let others: Vec<(usize, &Patch)> = patches.iter().enumerate().filter(|&(i, _)| i != receiver).collect();
+    contacts(r, &plane, &others, &mut out);
+    Ok((plane, others, out))
+}
+
 /// Largest gap, as a fraction of the scene's diagonal, between a receiver and an edge of another
 /// patch for [`scene_contacts`] to count the edge's shadow as a contact.
 pub const NEAR_CONTACT_GAP: f64 = 0.01;
@@ -421,10 +436,7 @@ pub fn scene_contacts(
     gap: f64,
 ) -> Result<CriticalSet, super::MeshError> {
     let r = &patches[receiver];
-    let plane = ReceiverPlane::new(&r.vertices, snap)?;
-    let mut out = CriticalSet::default();
-    let others: Vec<(usize, &Patch)> = patches.iter().enumerate().filter(|&(i, _)| i != receiver).collect();
-    contacts(r, &plane, &others, &mut out);
+    let (plane, others, mut out) = with_contacts(patches, receiver, snap)?;
     if gap > 0.0 {
         for &(id, other) in &others {
             for [a, b] in near_contact_segments(r, &plane, other, gap) {
@@ -474,10 +486,7 @@ pub fn scene_segments(
     snap: f64,
 ) -> Result<CriticalSet, super::MeshError> {
     let r = &patches[receiver];
-    let plane = ReceiverPlane::new(&r.vertices, snap)?;
-    let mut out = CriticalSet::default();
-    let others: Vec<(usize, &Patch)> = patches.iter().enumerate().filter(|&(i, _)| i != receiver).collect();
-    contacts(r, &plane, &others, &mut out);
+    let (plane, others, mut out) = with_contacts(patches, receiver, snap)?;
     for &(e, emitter) in others.iter().filter(|(_, p)| p.is_emitter()) {
         let occluders: Vec<(usize, &Patch)> = others.iter().copied().filter(|&(i, _)| i != e).collect();
         events(r, &plane, (e, emitter), &occluders, &mut out);
