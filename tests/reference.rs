@@ -355,6 +355,30 @@ fn batches_merge_and_the_contact_mesh_compares_with_point_errors() {
     let mut lines = rows.lines();
     assert!(lines.next().unwrap().starts_with("patch,x,y,z,area,ref_r"), "{rows}");
     assert!(lines.count() >= 2048);
+    // `radlab solve --mesh contact --estimate --json`: the method, the contact mesh's stats and
+    // the solver's own estimate in the JSON, the solution on the input patches.
+    let json = dir.join("contact.json");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+        .args([
+            "solve",
+            "builtin:cornell",
+            "--mesh",
+            "contact",
+            "--preset",
+            "interactive",
+            "--estimate",
+            "-q",
+        ])
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["method"], "hierarchical on contact mesh", "{}", v["method"]);
+    let global = v["error_estimate"]["global_rel_l2"].as_f64().expect("an estimate");
+    assert!(global > 0.0 && global < 1.0, "{global}");
+    assert_eq!(v["patches"].as_array().unwrap().len(), 20, "the input patches, not the pieces");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
         .args(["solve", "builtin:cornell", "--mesh", "contact", "--method", "uniform"])
         .output()
