@@ -399,13 +399,12 @@ fn events(
     }
 }
 
+/// A receiver's plane, every other patch with its index, and the segments found so far.
+type Receiver<'a> = (ReceiverPlane, Vec<(usize, &'a Patch)>, CriticalSet);
+
 /// Patch `receiver`'s plane, every other patch with its index, and the receiver's D0 contacts
 /// with them ([`contact_segment`]).
-fn with_contacts(
-    patches: &[Patch],
-    receiver: usize,
-    snap: f64,
-) -> Result<(ReceiverPlane, Vec<(usize, &Patch)>, CriticalSet), super::MeshError> {
+fn with_contacts(patches: &[Patch], receiver: usize, snap: f64) -> Result<Receiver<'_>, super::MeshError> {
     let r = &patches[receiver];
     let plane = ReceiverPlane::new(&r.vertices, snap)?;
     let mut out = CriticalSet::default();
