@@ -191,13 +191,18 @@ pub struct SolverArgs {
     /// Minimum element area, scene units² (hierarchical).
     #[arg(long, conflicts_with = "aeps_rel")]
     pub aeps: Option<f64>,
-    /// Minimum element area as a fraction of the scene's total area (hierarchical).
+    /// Minimum element area as a fraction of the scene's total area (hierarchical). With the
+    /// error oracle, shrink it with the threshold, e.g. 6e-4 × --bf-eps-rel as `radlab bench`'s
+    /// contact-mesh rows do: at the `quality` preset's fixed 1e-4 the floor, not the threshold,
+    /// ends the refinement below --bf-eps-rel ≈ 0.15.
     #[arg(long)]
     pub aeps_rel: Option<f64>,
     /// BF oracle threshold, absolute, units of B (hierarchical).
     #[arg(long, conflicts_with = "bf_eps_rel")]
     pub bf_eps: Option<f64>,
-    /// BF oracle threshold as a fraction of the scene's largest emission (hierarchical).
+    /// Oracle threshold, relative (hierarchical): BF, a fraction of the scene's largest
+    /// emission; the error oracle (`quality`), of its mean reflected radiosity, about the
+    /// pointwise error it allows (see --aeps-rel).
     #[arg(long)]
     pub bf_eps_rel: Option<f64>,
     /// Maximum subdivision depth below an input patch (hierarchical).
