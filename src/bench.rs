@@ -353,18 +353,16 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
         // shrinking in step (6e-4 · eps of the scene's area; at the quadtree rows' fixed 1e-4
         // the floor, not the threshold, ends the refinement).
         for eps in [0.4, 0.2, 0.1, 0.05, 0.025] {
-            out.push(Method::HierarchicalContact(HierarchicalParams {
-                bf_eps: eps,
-                aeps: AreaEps::Relative(CONTACT_AEPS_PER_EPS * eps),
-                ..HierarchicalParams::quality()
-            }));
+            out.push(Method::HierarchicalContact(crate::solver::discontinuity::contact_area_floor(
+                HierarchicalParams { bf_eps: eps, ..HierarchicalParams::quality() },
+            )));
         }
     }
     out
 }
 
 /// The contact-mesh rows' area floor per unit of error threshold (see [`sweep`]).
-pub const CONTACT_AEPS_PER_EPS: f64 = 6e-4;
+pub use crate::solver::discontinuity::CONTACT_AEPS_PER_EPS;
 
 /// One measured (scene, method, settings) point.
 #[derive(Clone, Debug, Serialize)]

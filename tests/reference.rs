@@ -379,6 +379,22 @@ fn batches_merge_and_the_contact_mesh_compares_with_point_errors() {
     let global = v["error_estimate"]["global_rel_l2"].as_f64().expect("an estimate");
     assert!(global > 0.0 && global < 1.0, "{global}");
     assert_eq!(v["patches"].as_array().unwrap().len(), 20, "the input patches, not the pieces");
+    // With the error oracle the contact mesh's area floor follows the threshold (6e-4 · X)
+    // unless an Aeps is given.
+    let aeps_of = |extra: &[&str]| -> f64 {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+            .args(["solve", "builtin:cornell", "--mesh", "contact", "--preset", "quality", "-q"])
+            .args(extra)
+            .arg("--json")
+            .arg(&json)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{out:?}");
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        v["params"]["solve"]["aeps"]["value"].as_f64().expect("a relative Aeps")
+    };
+    assert!((aeps_of(&["--bf-eps-rel", "0.2"]) - 1.2e-4).abs() < 1e-12);
+    assert!((aeps_of(&["--bf-eps-rel", "0.2", "--aeps-rel", "3e-4"]) - 3e-4).abs() < 1e-12);
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
         .args(["solve", "builtin:cornell", "--mesh", "contact", "--method", "uniform"])
         .output()

@@ -370,7 +370,10 @@ fn solve(
             s.solution()
         }
         "hierarchical-dmesh-cdt" | "hierarchical-dmesh-bsp" | "hierarchical-contact" => {
-            let p = hierarchical_params(args)?;
+            let mut p = hierarchical_params(args)?;
+            if method == "hierarchical-contact" && args.solve_aeps_rel.is_none() {
+                p = radlab::solver::discontinuity::contact_area_floor(p);
+            }
             let mesh = remesh_params(args, method)?;
             // With the solver's own estimates, as for --compare hierarchical.
             let mut on_mesh = radlab::solver::discontinuity::HierarchicalOnMesh::new(scene, &mesh, p)?;

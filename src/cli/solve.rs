@@ -63,7 +63,8 @@ pub enum MeshArg {
     DiscontinuityBsp,
     /// The input patches cut along their contacts with other patches (D0 lines: an object
     /// standing on a floor, a panel hung on a wall), the top level that the hierarchical solver
-    /// then refines as its oracle asks (`RemeshParams::contacts`).
+    /// then refines as its oracle asks (`RemeshParams::contacts`); with the error oracle its
+    /// area floor follows the threshold (6e-4 × --bf-eps-rel) unless --aeps/--aeps-rel is given.
     Contact,
 }
 
@@ -722,7 +723,10 @@ pub fn solve_scene(
         }
         Plan::DiscontinuityHierarchical(kind) => {
             let mesh = remesh_params(a, Plan::DiscontinuityHierarchical(kind), kind)?;
-            let p = hierarchical_params(a)?;
+            let mut p = hierarchical_params(a)?;
+            if a.mesh == Some(MeshArg::Contact) && a.aeps.is_none() && a.aeps_rel.is_none() {
+                p = discontinuity::contact_area_floor(p);
+            }
             let mut on_mesh =
                 discontinuity::HierarchicalOnMesh::new(scene, &mesh, p).with_context(solving)?;
             on_mesh.solver.solve(progress);

@@ -54,6 +54,26 @@ use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
 
+/// The contact mesh's area floor per unit of the error oracle's relative threshold: Aeps =
+/// 6e-4 · X of the scene's area ([`contact_area_floor`]; `radlab bench`'s contact rows).
+pub const CONTACT_AEPS_PER_EPS: f64 = 6e-4;
+
+/// `p` with its area floor shrinking with the error oracle's relative threshold X, Aeps =
+/// [`CONTACT_AEPS_PER_EPS`] · X of the scene's area (unchanged for the other oracles or an
+/// absolute threshold). What `radlab solve --mesh contact` and `radlab reference --compare
+/// hierarchical-contact` use unless told an Aeps: on the contact mesh the error then falls at
+/// each halving of X, where the `quality` preset's fixed 1e-4 stops the refinement below
+/// X ≈ 0.15 (docs/meshing.md).
+#[must_use]
+pub fn contact_area_floor(p: HierarchicalParams) -> HierarchicalParams {
+    use super::params::{AreaEps, Oracle};
+    if p.oracle == Oracle::Error && p.bf_relative {
+        HierarchicalParams { aeps: AreaEps::Relative(CONTACT_AEPS_PER_EPS * p.bf_eps), ..p }
+    } else {
+        p
+    }
+}
+
 /// The most pieces [`solve_hierarchical`]'s callers let a discontinuity mesh have (the CLI's cap
 /// for the hierarchical top level): the hierarchical solver clusters a scene of more than 3 000
 /// patches and links it in about linear memory (furnished-100k: 34 s, 1.3 GB, docs/scale.md),
