@@ -54,7 +54,7 @@
 use crate::accel::Accel;
 use crate::hard_cases;
 use crate::pointwise::{self, thousands};
-use crate::reference::{Cache, CacheStatus, Control, Estimate, PointParams, RefPoint, ReferenceParams};
+use crate::reference::{Cache, Control, Estimate, PointParams, RefPoint, ReferenceParams};
 use crate::scene::Scene;
 use crate::solver::Solution;
 use crate::solver::hierarchical::HierarchicalSolver;
@@ -632,13 +632,7 @@ fn reference_batches(
             .cache
             .get_or_compute_points(scene, accel, &params, &Control::default())
             .map_err(ref_err)?;
-        let (how, file) = match &status {
-            CacheStatus::Hit(f) => ("cached".to_string(), f),
-            CacheStatus::Computed(f) => (format!("computed in {:.1} s", entry.compute_s), f),
-            CacheStatus::Recomputed { file: f, why } => {
-                (format!("cache entry invalid ({why}); recomputed in {:.1} s", entry.compute_s), f)
-            }
-        };
+        let (how, file) = status.describe(entry.compute_s);
         let file = file.display().to_string();
         batches.push(entry.estimates);
         let points = entry.set.points;

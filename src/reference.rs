@@ -643,6 +643,21 @@ pub enum CacheStatus {
     Recomputed { file: PathBuf, why: String },
 }
 
+impl CacheStatus {
+    /// How the entry was obtained, in words ("cached", "computed in 12.3 s", …, with the
+    /// computation's `compute_s`), and its file.
+    #[must_use]
+    pub fn describe(&self, compute_s: f64) -> (String, &std::path::Path) {
+        match self {
+            CacheStatus::Hit(f) => ("cached".to_string(), f),
+            CacheStatus::Computed(f) => (format!("computed in {compute_s:.1} s"), f),
+            CacheStatus::Recomputed { file, why } => {
+                (format!("cache entry invalid ({why}); recomputed in {compute_s:.1} s"), file)
+            }
+        }
+    }
+}
+
 /// The on-disk cache: one JSON file per key in a folder.
 #[derive(Clone, Debug)]
 pub struct Cache {

@@ -358,23 +358,19 @@ fn batches_merge_and_the_contact_mesh_compares_with_point_errors() {
     // `radlab solve --mesh contact --estimate --json`: the method, the contact mesh's stats and
     // the solver's own estimate in the JSON, the solution on the input patches.
     let json = dir.join("contact.json");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
-        .args([
-            "solve",
-            "builtin:cornell",
-            "--mesh",
-            "contact",
-            "--preset",
-            "interactive",
-            "--estimate",
-            "-q",
-        ])
-        .arg("--json")
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{out:?}");
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    // `radlab solve builtin:cornell --mesh contact ARGS --json`, its JSON.
+    let solve_contact = |extra: &[&str]| -> serde_json::Value {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+            .args(["solve", "builtin:cornell", "--mesh", "contact", "-q"])
+            .args(extra)
+            .arg("--json")
+            .arg(&json)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{out:?}");
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+    };
+    let v = solve_contact(&["--preset", "interactive", "--estimate"]);
     assert_eq!(v["method"], "hierarchical on contact mesh", "{}", v["method"]);
     let global = v["error_estimate"]["global_rel_l2"].as_f64().expect("an estimate");
     assert!(global > 0.0 && global < 1.0, "{global}");
@@ -382,15 +378,7 @@ fn batches_merge_and_the_contact_mesh_compares_with_point_errors() {
     // With the error oracle the contact mesh's area floor follows the threshold (6e-4 · X)
     // unless an Aeps is given.
     let aeps_of = |extra: &[&str]| -> f64 {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
-            .args(["solve", "builtin:cornell", "--mesh", "contact", "--preset", "quality", "-q"])
-            .args(extra)
-            .arg("--json")
-            .arg(&json)
-            .output()
-            .unwrap();
-        assert!(out.status.success(), "{out:?}");
-        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let v = solve_contact(&[&["--preset", "quality"], extra].concat());
         v["params"]["solve"]["aeps"]["value"].as_f64().expect("a relative Aeps")
     };
     assert!((aeps_of(&["--bf-eps-rel", "0.2"]) - 1.2e-4).abs() < 1e-12);

@@ -692,11 +692,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
             let seed = args.seed.wrapping_add(u64::from(b));
             let (more, status) =
                 cache.get_or_compute_points(&scene, &accel, &params.batch(seed), &Control::default())?;
-            let (how, f) = match &status {
-                CacheStatus::Hit(f) => ("read".to_string(), f),
-                CacheStatus::Computed(f) => (format!("computed in {:.1} s", more.compute_s), f),
-                CacheStatus::Recomputed { file, why } => (format!("recomputed ({why})"), file),
-            };
+            let (how, f) = status.describe(more.compute_s);
             writeln!(log, "batch {}/{} (seed {seed}): {how}, {}", b + 1, args.batches, f.display())?;
             anyhow::ensure!(
                 more.set.points == entry.set.points,

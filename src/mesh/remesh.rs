@@ -191,19 +191,18 @@ pub struct RemeshedScene {
 /// refinement complete, seconds finding segments and meshing.
 type ReceiverResult = (Option<Vec<Vec<DVec3>>>, SegmentCounts, usize, bool, f64, f64);
 
+/// `gap`: the near-contact gap of [`Events::Contacts`] in scene units (computed once per scene).
 fn mesh_receiver(
     scene: &Scene,
     i: usize,
     params: &RemeshParams,
     accel: Option<&crate::accel::Accel>,
+    gap: f64,
 ) -> Result<ReceiverResult, MeshError> {
     let t0 = Instant::now();
     let set = match params.events {
         Events::All => scene_segments(&scene.patches, i, params.snap)?,
-        Events::Contacts => {
-            let gap = super::discontinuity::NEAR_CONTACT_GAP * scene.bounds().diagonal();
-            super::discontinuity::scene_contacts(&scene.patches, i, params.snap, gap)?
-        }
+        Events::Contacts => super::discontinuity::scene_contacts(&scene.patches, i, params.snap, gap)?,
     };
     // Graded: only the segments that bound a shadow the direct light shows.
     let ends = match (accel, &params.grade) {
@@ -244,9 +243,13 @@ pub fn discontinuity_scene(scene: &Scene, params: &RemeshParams) -> Result<Remes
     }
     let t0 = Instant::now();
     let accel = params.grade.is_some().then(|| crate::accel::Accel::build(scene));
+    let gap = match params.events {
+        Events::All => 0.0,
+        Events::Contacts => super::discontinuity::NEAR_CONTACT_GAP * scene.bounds().diagonal(),
+    };
     let results: Vec<ReceiverResult> = (0..scene.patches.len())
         .into_par_iter()
-        .map(|i| mesh_receiver(scene, i, params, accel.as_ref()))
+        .map(|i| mesh_receiver(scene, i, params, accel.as_ref(), gap))
         .collect::<Result<_, _>>()?;
     let mut stats = RemeshStats { input_patches: scene.patches.len(), ..RemeshStats::default() };
     // Every input patch as convex pieces: its mesh's, or itself.
