@@ -35,6 +35,10 @@ pub struct Link {
     /// `slope` is computed (the hierarchical solver fills it before a gather reads it).
     #[serde(skip)]
     pub slope_set: bool,
+    /// The pair's shaft is empty (`Accel::shaft_clear`): V = 1 exactly, for this pair and for
+    /// every pair of their descendants (their shafts lie inside this one).
+    #[serde(skip)]
+    pub clear: bool,
     /// How the link's transfer F(x → source)·V varies across the receiver: the gradient in x,
     /// per unit length, in the receiver's tangent basis [`crate::math::orthonormal_basis`] of its
     /// normal. The gather pushes it down with the irradiance, so a descendant of the receiver

@@ -536,6 +536,8 @@ struct Incoming {
     src: u32,
     /// V / (π d² + P_a + P_b): the link's visibility over its regularised distance term.
     coef: f32,
+    /// P_a + P_b, the distance term's regularisation (for the patch receivers' slopes).
+    reg: f32,
     frame: u8,
 }
 
@@ -556,6 +558,10 @@ pub struct ClusterTransfer {
     t: Vec<[Vec3Rgb; FRAMES.len()]>,
     u: Vec<Vec3Rgb>,
     w: Vec<[Vec3Rgb; FRAMES.len()]>,
+    /// Per patch, the gradient of what it gathers through its own cluster links, in its
+    /// tangent basis ([`crate::math::orthonormal_basis`] of its normal), per unit length:
+    /// filled by [`ClusterTransfer::irradiance`] (see [`ClusterTransfer::slopes`]).
+    slopes: Vec<[Rgb; 2]>,
 }
 
 /// A node as the transfer reads it.
@@ -601,12 +607,15 @@ impl ClusterTransfer {
         }
         start.push(total);
         let mut next = start.clone();
-        let mut incoming = vec![Incoming { src: 0, coef: 0.0, frame: 0 }; total as usize];
+        let mut incoming = vec![Incoming { src: 0, coef: 0.0, reg: 0.0, frame: 0 }; total as usize];
         for l in links {
-            let coef = (f64::from(l.vis) / distance_term(tree, l)) as f32;
+            let dt = distance_term(tree, l);
+            let coef = (f64::from(l.vis) / dt) as f32;
+            let d2 = tree.nodes[l.a as usize].center.distance_squared(tree.nodes[l.b as usize].center);
+            let reg = (dt - std::f64::consts::PI * d2).max(0.0) as f32;
             for (r, src) in [(l.a, l.b), (l.b, l.a)] {
                 let slot = &mut next[r as usize];
-                incoming[*slot as usize] = Incoming { src, coef, frame: l.frame };
+                incoming[*slot as usize] = Incoming { src, coef, reg, frame: l.frame };
                 *slot += 1;
             }
         }
@@ -715,27 +724,42 @@ impl ClusterTransfer {
                 }
             },
         );
-        let direct: Vec<Rgb> = (0..n)
+        let direct: Vec<(Rgb, [Rgb; 2])> = (0..n)
             .into_par_iter()
             .with_min_len(256)
             .map(|r| {
                 let patch = nodes[r].patch;
+                if patch == LEAF {
+                    return (Rgb::ZERO, [Rgb::ZERO; 2]);
+                }
+                let e = hier.get(patch);
+                let slope = PatchSlope::new(e);
                 let mut direct = Rgb::ZERO;
-                if patch != LEAF {
-                    let nrm = hier.get(patch).normal;
-                    for (omega, _, _, phi) in gather(r) {
-                        direct += phi * nrm.dot(omega).max(0.0);
+                let mut grad = [Rgb::ZERO; 2];
+                let links = &incoming[start[r] as usize..start[r + 1] as usize];
+                for ((omega, _, _, phi), inc) in gather(r).zip(links) {
+                    direct += phi * e.normal.dot(omega).max(0.0);
+                    if let Some(s) = &slope {
+                        let [gu, gv] = s.gradient(nodes[r].centre, nodes[inc.src as usize].centre, inc.reg);
+                        grad[0] += phi * gu;
+                        grad[1] += phi * gv;
                     }
                 }
-                direct
+                let grad = slope.map_or([Rgb::ZERO; 2], |s| s.limit(direct, grad));
+                (direct, grad)
             })
             .collect();
+        self.slopes.clear();
+        self.slopes.resize(hier.roots, [Rgb::ZERO; 2]);
         let mut h = vec![Rgb::ZERO; hier.roots];
         // Push U and W down (parents first; the root has none); leaves read their parent's
         // with their normal.
-        for (i, direct) in direct.iter().enumerate() {
+        for (i, (direct, grad)) in direct.iter().enumerate() {
             let parent = tree.nodes[i].parent;
             let Node { patch, slot, .. } = self.nodes[i];
+            if patch != LEAF {
+                self.slopes[patch as usize] = *grad;
+            }
             if parent == LEAF {
                 continue;
             }
@@ -761,6 +785,93 @@ impl ClusterTransfer {
             }
         }
         h
+    }
+
+    /// Per patch, how what it gathers through its own cluster links (a cluster at the other
+    /// end, the patch itself at this one) varies across it: the gradient, per unit length in
+    /// the patch's tangent basis, of the least-squares affine fit of the links' transfer at the
+    /// patch's four child points, limited so that the irradiance it adds stays ≥ 0 at every
+    /// vertex. As of the last [`ClusterTransfer::irradiance`].
+    ///
+    /// The transfer lands on each patch as one value at its centre (module docs); a wall lit by
+    /// a cluster of furniture beside it is brighter near it, and the value's mean over the
+    /// patch stays what the link delivers (the slope's shift averages to zero over the
+    /// patch's area), so the power balance does not change. Pushed down to the leaves as the
+    /// element links' slopes are (`push_slopes`).
+    #[must_use]
+    pub fn slopes(&self) -> &[[Rgb; 2]] {
+        &self.slopes
+    }
+}
+
+/// A patch's fit of its cluster links' transfer ([`ClusterTransfer::slopes`]).
+struct PatchSlope {
+    pts: [DVec3; 4],
+    /// The patch's centroid, where the slope's shift is zero (push-pull's).
+    centroid: DVec3,
+    normal: DVec3,
+    t1: DVec3,
+    t2: DVec3,
+    fit: super::oracle::FitWeights,
+    vertices: Vec<DVec3>,
+}
+
+impl PatchSlope {
+    fn new(e: &crate::hierarchy::Element) -> Option<PatchSlope> {
+        let pts = super::oracle::child_points(e);
+        let c = (pts[0] + pts[1] + pts[2] + pts[3]) * 0.25;
+        let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+        let fit = super::oracle::FitWeights::new(&pts, c, t1, t2)?;
+        Some(PatchSlope {
+            pts,
+            centroid: e.centroid,
+            normal: e.normal,
+            t1,
+            t2,
+            fit,
+            vertices: e.vertices().to_vec(),
+        })
+    }
+
+    /// The gradient (basis t1, t2) of the transfer from a node centred at `src` to this patch
+    /// (centred at `at`), relative to its value at `at`: the distance term π d² + reg and the
+    /// receiver's cosine evaluated at the fit points.
+    fn gradient(&self, at: DVec3, src: DVec3, reg: f32) -> [f64; 2] {
+        let reg = f64::from(reg);
+        let pi = std::f64::consts::PI;
+        let d0 = src - at;
+        let at_centre = pi * d0.length_squared() + reg;
+        let vals = self.pts.map(|x| {
+            let d = src - x;
+            let l2 = d.length_squared();
+            if !(l2 > 0.0) {
+                return 0.0;
+            }
+            at_centre / (pi * l2 + reg) * (self.normal.dot(d) / l2.sqrt()).max(0.0)
+        });
+        let mean = (vals[0] + vals[1] + vals[2] + vals[3]) * 0.25;
+        let (mut gu, mut gv) = (0.0, 0.0);
+        for ((v, wu), wv) in vals.iter().zip(self.fit.u).zip(self.fit.v) {
+            gu += (v - mean) * wu;
+            gv += (v - mean) * wv;
+        }
+        if gu.is_finite() && gv.is_finite() { [gu, gv] } else { [0.0; 2] }
+    }
+
+    /// `grad` scaled down, per channel, so that `value` plus the slope's shift stays ≥ 0 at
+    /// every vertex of the patch.
+    fn limit(&self, value: Rgb, grad: [Rgb; 2]) -> [Rgb; 2] {
+        let mut scale = [1.0f64; 3];
+        for v in &self.vertices {
+            let (du, dv) = ((*v - self.centroid).dot(self.t1), (*v - self.centroid).dot(self.t2));
+            for ch in 0..3 {
+                let shift = grad[0].0[ch] * du + grad[1].0[ch] * dv;
+                if shift < 0.0 && value.0[ch] + shift < 0.0 {
+                    scale[ch] = scale[ch].min((value.0[ch].max(0.0) / -shift).max(0.0));
+                }
+            }
+        }
+        grad.map(|g| Rgb(std::array::from_fn(|ch| g.0[ch] * scale[ch])))
     }
 }
 
@@ -937,6 +1048,60 @@ mod tests {
         for c in 0..3 {
             assert!((received.0[c] - sent.0[c]).abs() <= 1e-12 * sent.0[c].abs(), "{received:?} vs {sent:?}");
         }
+    }
+
+    /// A floor lit by a cluster (a cube) standing above one end of it gets the link's transfer
+    /// as a slope, not only a constant: brighter towards the cube, its mean unchanged (the
+    /// slope is about the floor's centroid), never negative at a corner.
+    #[test]
+    fn a_patch_gathers_a_cluster_links_slope_towards_its_source() {
+        let mut patches = vec![
+            Patch::new(
+                vec![
+                    DVec3::ZERO,
+                    DVec3::new(10.0, 0.0, 0.0),
+                    DVec3::new(10.0, 0.0, -10.0),
+                    DVec3::new(0.0, 0.0, -10.0),
+                ],
+                Rgb::splat(0.5),
+                Rgb::ZERO,
+                "floor",
+                0,
+                "floor",
+                "m",
+            )
+            .expect("valid floor"),
+        ];
+        patches.extend(cube(DVec3::new(8.5, 3.0, -5.0), 1.0, 0.3));
+        let hier = hierarchy(patches);
+        assert!(hier.get(0).normal.y > 0.99, "the floor faces up");
+        let tree = ClusterTree::build(&hier);
+        // The floor's leaf, and the largest cluster of cube faces.
+        let floor = (0..tree.len() as u32).find(|&i| members(&tree, i) == [0]).expect("the floor's leaf");
+        let cube_node = (0..tree.len() as u32)
+            .filter(|&i| !members(&tree, i).contains(&0))
+            .max_by_key(|&i| members(&tree, i).len())
+            .expect("a cluster of cube faces");
+        assert!(members(&tree, cube_node).len() >= 2, "a cluster, not a patch");
+        let (na, nb) = (&tree.nodes[floor as usize], &tree.nodes[cube_node as usize]);
+        let w = (nb.center - na.center).normalize();
+        let links = vec![ClusterLink { a: floor, b: cube_node, vis: 1.0, frame: link_frame(na, nb, w) }];
+        let mut x = ClusterTransfer::new(&tree, &links);
+        let h = x.irradiance(&tree, &hier, &|p| if p == 0 { Rgb::ZERO } else { Rgb::ONE });
+        let e = hier.get(0);
+        let [gu, gv] = x.slopes()[0];
+        assert!(h[0].0[0] > 0.0, "the floor gathers from the cube: {:?}", h[0]);
+        let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+        let grad = t1 * gu.0[0] + t2 * gv.0[0];
+        assert!(grad.x > 0.0, "brighter towards the cube (+x): gradient {grad}");
+        let at = |v: DVec3| h[0].0[0] + grad.dot(v - e.centroid);
+        let (near, far) = (at(DVec3::new(10.0, 0.0, -5.0)), at(DVec3::new(0.0, 0.0, -5.0)));
+        assert!(near > 1.5 * far, "near edge {near} vs far edge {far}");
+        for v in e.vertices() {
+            assert!(at(*v) >= -1e-12, "corner {v}: {}", at(*v));
+        }
+        // The cube's own faces gather nothing through the link from the black floor.
+        assert!((1..7).all(|p| x.slopes()[p] == [Rgb::ZERO; 2] && h[p] == Rgb::ZERO));
     }
 
     /// A 4 × 4 grid of squares making the unit square at height `z`, facing up or down.

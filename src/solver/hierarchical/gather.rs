@@ -209,8 +209,12 @@ impl HierarchicalSolver {
                     let e = &mut self.hier.elements[r as usize];
                     (e.gathered, e.gathered_full, e.gathered_slope) = (g, full, slope);
                 }
-                if let Some(h) = &cluster_h {
-                    self.hier.elements[root as usize].gathered += h[root as usize];
+                if let Some((h, slopes)) = &cluster_h {
+                    let e = &mut self.hier.elements[root as usize];
+                    e.gathered += h[root as usize];
+                    if self.params.push_slopes {
+                        add_slope(&mut e.gathered_slope, slopes[root as usize]);
+                    }
                 }
                 self.push_pull_root(root);
             }
@@ -231,9 +235,12 @@ impl HierarchicalSolver {
             self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
                 (e.gathered, e.gathered_full, e.gathered_slope) = plan.gather(r, |s| b[s as usize], mu);
             });
-            if let Some(h) = &cluster_h {
-                for (e, h) in self.hier.elements.iter_mut().zip(h) {
+            if let Some((h, slopes)) = &cluster_h {
+                for ((e, h), s) in self.hier.elements.iter_mut().zip(h).zip(slopes) {
                     e.gathered += *h;
+                    if self.params.push_slopes {
+                        add_slope(&mut e.gathered_slope, *s);
+                    }
                 }
             }
             self.b_prev = b;
@@ -256,4 +263,11 @@ impl HierarchicalSolver {
         }
         out
     }
+}
+
+/// Add a patch's cluster-link slope ([`cluster::ClusterTransfer::slopes`]) to its root
+/// element's gathered slope (the same tangent basis: the patch's normal).
+fn add_slope(slope: &mut [Rgb; 2], add: [Rgb; 2]) {
+    slope[0] += add[0];
+    slope[1] += add[1];
 }

@@ -313,14 +313,16 @@ impl HierarchicalSolver {
         (infos, patch_cluster)
     }
 
-    /// Every input patch's irradiance through the cluster links (None: no cluster links).
-    pub(super) fn cluster_irradiance(&mut self) -> Option<Vec<Rgb>> {
+    /// Every input patch's irradiance through the cluster links, and its slope
+    /// ([`ClusterTransfer::slopes`]; None: no cluster links).
+    pub(super) fn cluster_irradiance(&mut self) -> Option<(Vec<Rgb>, Vec<[Rgb; 2]>)> {
         let tree = self.clusters.as_ref()?;
         if self.cluster_links.is_empty() {
             return None;
         }
         let hier = &self.hier;
-        Some(self.cluster_xfer.irradiance(tree, hier, &|p| hier.get(p).radiosity))
+        let h = self.cluster_xfer.irradiance(tree, hier, &|p| hier.get(p).radiosity);
+        Some((h, self.cluster_xfer.slopes().to_vec()))
     }
 
     /// The form-factor accuracy of input patch pairs: they carry a closed scene's whole
@@ -375,13 +377,19 @@ impl HierarchicalSolver {
         // rays: the 32 rays were a third of a 100 k-patch room's rays).
         let confirm = if root { ROOT_CONFIRM_RAYS } else { self.params.zero_confirm * rays };
         let mut v = vis(rays, 0);
+        // With the error oracle, a pair whose rays all passed and whose shaft is empty sees
+        // itself whole: V = 1 without confirmation (as `make_pair_link`), and so do all the
+        // pairs below it.
+        let clear = v == 1.0
+            && self.params.oracle == Oracle::Error
+            && self.accel.shaft_clear(p.vertices(), q.vertices(), [p.patch, q.patch]);
         if v == 0.0 {
             // Confirm full occlusion with more rays before dropping the pair.
             if confirm == 0 || vis(confirm, 0x5EED) == 0.0 {
                 return (None, cast);
             }
             v = 1.0 / f64::from(confirm + rays);
-        } else if v == 1.0 && conservative && confirm > 0 {
+        } else if v == 1.0 && !clear && conservative && confirm > 0 {
             // All rays passed: the oracle keeps a fully visible link and splits a
             // partially visible one, whose children are estimated afresh, so an
             // accepted false 1 is a bright bias that only grows (splash_room
@@ -403,10 +411,11 @@ impl HierarchicalSolver {
             return (None, cast);
         }
         let v = v as f32;
-        let links = (
+        let mut links = (
             new_link((p, pi), (q, qi), g, v, sides.straddle, conservative),
             new_link((q, qi), (p, pi), g, v, sides.straddle, conservative),
         );
+        (links.0.clear, links.1.clear) = (clear, clear);
         (Some(links), cast)
     }
 

@@ -135,14 +135,14 @@ fn inherit(from: &[DVec3; 4], normal: DVec3, h: &[Rgb; 4], to: &[DVec3; 4]) -> [
 
 /// The least-squares affine fit of values at four points of a plane, as weights: the fitted
 /// gradient of values h_k is (Σ_k u_k (h_k − mean), Σ_k v_k (h_k − mean)) in the basis (t1, t2).
-struct FitWeights {
-    u: [f64; 4],
-    v: [f64; 4],
+pub(super) struct FitWeights {
+    pub(super) u: [f64; 4],
+    pub(super) v: [f64; 4],
 }
 
 impl FitWeights {
     /// None when the points are (nearly) collinear.
-    fn new(pts: &[DVec3; 4], c: DVec3, t1: DVec3, t2: DVec3) -> Option<FitWeights> {
+    pub(super) fn new(pts: &[DVec3; 4], c: DVec3, t1: DVec3, t2: DVec3) -> Option<FitWeights> {
         let uv = pts.map(|x| ((x - c).dot(t1), (x - c).dot(t2)));
         let (mut suu, mut suv, mut svv) = (0.0, 0.0, 0.0);
         for (u, v) in uv {

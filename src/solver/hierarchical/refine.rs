@@ -174,6 +174,7 @@ pub(super) struct PairOutcome {
     g: f64,
     vis: f32,
     unmeasured: bool,
+    clear: bool,
     split_source: bool,
     fmax: f32,
     bound: f32,
@@ -703,7 +704,7 @@ impl HierarchicalSolver {
             let mut made: SplitOutcome = [None; 4];
             for (k, c) in children.into_iter().enumerate() {
                 let (receiver, source) = ends(c);
-                let (nl, outcome) = self.make_link(receiver, source, &mut last);
+                let (nl, outcome) = self.make_link(receiver, source, l.clear, &mut last);
                 out[k] = nl;
                 made[k] = outcome;
                 rays += match outcome {
@@ -778,6 +779,7 @@ impl HierarchicalSolver {
         &self,
         receiver: u32,
         source: u32,
+        clear: bool,
         last: &mut u32,
     ) -> (Option<(Link, Decision)>, Option<PairOutcome>) {
         let p = self.hier.get(receiver);
@@ -790,11 +792,12 @@ impl HierarchicalSolver {
             return (None, None);
         }
         let key = pair_key(receiver.min(source), receiver.max(source));
-        let (made, cast, g) = self.make_pair_link(receiver, source, sides, key, last);
+        let (made, cast, g) = self.make_pair_link(receiver, source, sides, key, clear, last);
         let outcome = made.as_ref().map(|(l, _)| PairOutcome {
             g,
             vis: l.vis,
             unmeasured: l.unmeasured,
+            clear: l.clear,
             split_source: l.split_source,
             fmax: l.fmax,
             bound: l.bound,
@@ -817,6 +820,7 @@ impl HierarchicalSolver {
             split_source: !out.split_source,
             unmeasured: out.unmeasured,
             slope_set: false,
+            clear: out.clear,
             slope: [0.0; 2],
             src_slope: [0.0; 2],
         };
@@ -827,6 +831,7 @@ impl HierarchicalSolver {
             let mut made =
                 new_link((p, receiver), (q, source), out.g, out.vis, straddle, self.params.conservative);
             made.unmeasured = out.unmeasured;
+            made.clear = out.clear;
             // (Debug formatting: an unmeasured link's coupling is NaN, which `==` rejects.)
             debug_assert_eq!(format!("{link:?}"), format!("{made:?}"), "the mirror of a pair's link");
         }
@@ -841,6 +846,7 @@ impl HierarchicalSolver {
         source: u32,
         sides: PairSides,
         key: u64,
+        clear: bool,
         last: &mut u32,
     ) -> (Option<(Link, Decision)>, u64, f64) {
         let p = self.hier.get(receiver);
@@ -897,7 +903,10 @@ impl HierarchicalSolver {
         } else {
             Stop::Never
         };
-        let (vis, mut cast) = vis_with(rays, 0, stop);
+        // A pair below one whose shaft was empty (`clear`) lies in that shaft: it sees itself
+        // whole, V = 1 exactly, with no ray cast (error oracle, see below).
+        let mut shaft = error_oracle && clear;
+        let (vis, mut cast) = if shaft { (1.0, 0) } else { vis_with(rays, 0, stop) };
         let settled = match stop {
             Stop::Never => false,
             Stop::AtVisible => vis > 0.0,
@@ -934,6 +943,16 @@ impl HierarchicalSolver {
             // was 12 % dark keeping the zeros, 0.4 % with the fresh estimate).
             vis = v2;
         } else if vis == 1.0
+            && !shaft
+            && error_oracle
+            && self.accel.shaft_clear(lo.vertices(), hi.vertices(), [lo.patch, hi.patch])
+        {
+            // Every ray passed and the pair's shaft is empty (`Accel::shaft_clear`): V = 1
+            // exactly, for this pair and all those below it, without the confirmation's rays.
+            // (Tested only here: on pairs whose first rays are blocked the test is wasted.)
+            shaft = true;
+        } else if vis == 1.0
+            && !shaft
             && ((split_partial && self.params.conservative) || error_oracle)
             && self.params.zero_confirm > 0
         {
@@ -961,6 +980,7 @@ impl HierarchicalSolver {
             link.g = g as f32;
         }
         link.vis = vis as f32;
+        link.clear = shaft;
         (Some((link, self.decide(receiver, p, &link))), cast, g)
     }
 
@@ -1098,6 +1118,7 @@ pub(super) fn new_link(
         split_source: if nearly_equal(fpq, fqp) { q_larger } else { fpq > fqp },
         unmeasured: false,
         slope_set: false,
+        clear: false,
         slope: [0.0; 2],
         src_slope: [0.0; 2],
     }
