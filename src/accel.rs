@@ -521,9 +521,9 @@ impl Accel {
             let mut mask = 0xFF;
             for (nrm, d) in &planes32 {
                 let mut m = F8::splat(0.0);
-                for a in 0..3 {
-                    let side = usize::from(nrm[a] < 0.0);
-                    m = m.add(w.planes[a][side].mul(F8::splat(nrm[a])));
+                for (axis, &n) in w.planes.iter().zip(nrm) {
+                    let side = usize::from(n < 0.0);
+                    m = m.add(axis[side].mul(F8::splat(n)));
                 }
                 mask &= m.le_mask(F8::splat(*d));
                 if mask == 0 {

@@ -864,10 +864,10 @@ impl PatchSlope {
         let mut scale = [1.0f64; 3];
         for v in &self.vertices {
             let (du, dv) = ((*v - self.centroid).dot(self.t1), (*v - self.centroid).dot(self.t2));
-            for ch in 0..3 {
+            for (ch, scale) in scale.iter_mut().enumerate() {
                 let shift = grad[0].0[ch] * du + grad[1].0[ch] * dv;
                 if shift < 0.0 && value.0[ch] + shift < 0.0 {
-                    scale[ch] = scale[ch].min((value.0[ch].max(0.0) / -shift).max(0.0));
+                    *scale = scale.min((value.0[ch].max(0.0) / -shift).max(0.0));
                 }
             }
         }
