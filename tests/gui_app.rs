@@ -547,6 +547,17 @@ fn the_layout_does_not_jump() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// In the in-app file dialog: type `path` into its path field, press `button`, let it act.
+fn type_in_dialog(h: &mut Harness<'static, RadlabApp>, path: &str, button: &str) {
+    h.get_by_label("file path").focus();
+    h.run_steps(1);
+    h.get_by_label("file path").type_text(path);
+    h.run_steps(1);
+    h.get_by_label(button).click();
+    h.run_steps(1);
+    settle(h);
+}
+
 #[test]
 fn the_in_app_file_dialog_opens_a_scene() {
     let mut h = harness(opts());
@@ -560,13 +571,7 @@ fn the_in_app_file_dialog_opens_a_scene() {
     h.get_by_label("assets/").click();
     h.run_steps(2);
     assert!(h.query_by_label("scenes/").is_some(), "the listing shows the folder entered");
-    h.get_by_label("file path").focus();
-    h.run_steps(1);
-    h.get_by_label("file path").type_text("scenes/parallel.gltf");
-    h.run_steps(1);
-    h.get_by_label("Open").click();
-    h.run_steps(1);
-    settle(&mut h);
+    type_in_dialog(&mut h, "scenes/parallel.gltf", "Open");
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
     assert_eq!(h.state().view().leaves.len(), 2, "the chosen two-patch scene is loaded");
     assert!(h.query_by_label_contains("Open a glTF scene").is_none(), "the dialog closed");
@@ -581,14 +586,10 @@ fn export_baked_gltf_writes_a_glb() {
     settle(&mut h);
     let export = |h: &mut Harness<'static, RadlabApp>, path: &str| {
         h.get_by_label("Export baked glTF…").click();
+        h.run_steps(2);
+        h.get_by_label("Choose file…").click();
         h.run_steps(4);
-        h.get_by_label("file path").focus();
-        h.run_steps(1);
-        h.get_by_label("file path").type_text(path);
-        h.run_steps(1);
-        h.get_by_label("Export").click();
-        h.run_steps(1);
-        settle(h);
+        type_in_dialog(h, path, "Export");
     };
     export(&mut h, "not-a-gltf.obj");
     assert!(h.query_by_label_contains("not a .gltf/.glb file").is_some(), "refused in the dialog, one line");
@@ -1647,4 +1648,60 @@ fn the_mesh_menu_grades_the_dmesh_and_makes_it_the_hierarchys_top_level() {
     settle(&mut h);
     settle(&mut h);
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+/// File → Export baked glTF with the lightmap box ticked and a size chosen bakes as
+/// `radlab solve --bake-lightmap SIZE` does: the original meshes with TEXCOORD_1 into an
+/// embedded sRGB PNG of that size, the unlit material's base colour on the second UV set, no
+/// COLOR_0.
+#[test]
+fn export_baked_gltf_with_a_lightmap() {
+    let out = std::env::temp_dir().join(format!("radlab-gui-lightmap-{}.glb", std::process::id()));
+    let _ = std::fs::remove_file(&out);
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    let scene = cornell();
+    h.state_mut().set_scene(Arc::new(scene.clone()));
+    settle(&mut h);
+    h.get_by_label("Export baked glTF…").click();
+    h.run_steps(2);
+    assert!(disabled(&h, "256"), "no lightmap by default: its sizes are greyed out");
+    h.get_by_label("lightmap").click();
+    h.run_steps(2);
+    h.get_by_label("256").click();
+    h.run_steps(2);
+    assert!(h.query_by_label("Choose file…").is_some(), "the menu stays open while it is set");
+    h.get_by_label("Choose file…").click();
+    h.run_steps(4);
+    assert!(h.query_by_label_contains("with a 256×256 lightmap").is_some(), "the dialog says what it bakes");
+    type_in_dialog(&mut h, &out.to_string_lossy(), "Export");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    let line = format!("baked {} patches with a 256×256 lightmap to", scene.patches.len());
+    assert!(h.query_by_label_contains(&line).is_some(), "the status bar says what was written, as the CLI");
+    let bytes = std::fs::read(&out).expect("the bake was written");
+    let gltf = gltf::Gltf::from_slice(&bytes).expect("the gltf crate parses and validates the bake");
+    let bin = gltf.blob.as_deref().expect("a BIN chunk");
+    let material = gltf.materials().next().expect("one material");
+    let info =
+        material.pbr_metallic_roughness().base_color_texture().expect("the lightmap is the base colour");
+    assert_eq!(info.tex_coord(), 1, "the lightmap is on the second UV set");
+    let gltf::image::Source::View { view, mime_type } = info.texture().source().source() else {
+        panic!("a .glb holds its lightmap in a buffer view")
+    };
+    assert_eq!(mime_type, "image/png");
+    let png = png::Decoder::new(std::io::Cursor::new(&bin[view.offset()..view.offset() + view.length()]))
+        .read_info()
+        .expect("a PNG");
+    assert!(png.info().srgb.is_some(), "the lightmap PNG carries an sRGB chunk");
+    assert_eq!((png.info().width, png.info().height), (256, 256), "the size chosen");
+    let mut vertices = 0;
+    for mesh in gltf.meshes() {
+        for prim in mesh.primitives() {
+            assert!(prim.get(&gltf::Semantic::TexCoords(1)).is_some(), "TEXCOORD_1 on {:?}", mesh.name());
+            assert!(prim.get(&gltf::Semantic::Colors(0)).is_none(), "no COLOR_0: it would tint the lightmap");
+            vertices += prim.get(&gltf::Semantic::Positions).expect("positions").count();
+        }
+    }
+    let corners: usize = scene.patches.iter().map(|p| p.vertices.len()).sum();
+    assert_eq!(vertices, corners, "the original meshes: each patch once, not the elements");
+    let _ = std::fs::remove_file(&out);
 }

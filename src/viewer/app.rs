@@ -185,7 +185,7 @@ impl RadlabApp {
         let mut app = RadlabApp {
             scene: None,
             scene_spec: opts.scene.clone(),
-            top_bar: TopBar { spec_edit: opts.scene.clone() },
+            top_bar: TopBar { spec_edit: opts.scene.clone(), ..TopBar::default() },
             errors: Vec::new(),
             params: HierarchicalParams::preset(&preset).unwrap_or_else(HierarchicalParams::interactive),
             solver_panel: SolverPanel { preset },
@@ -1241,15 +1241,17 @@ impl RadlabApp {
     fn file_answer(&mut self, answer: Answer) {
         match answer {
             Answer::Chosen(Purpose::Open, path) => self.load_spec(&path.to_string_lossy()),
-            Answer::Chosen(Purpose::ExportBake { .. }, path) => self.export_bake(path),
+            Answer::Chosen(Purpose::ExportBake { lightmap, .. }, path) => self.export_bake(path, lightmap),
             Answer::Cancelled(_) => self.status_bar.message = "no file chosen".into(),
             Answer::FellBack(note) => self.status_bar.message = note,
         }
     }
 
     /// Write the solution shown as a baked glTF (on the solver thread), at the display's
-    /// exposure; the answer is one line in the status bar, or an error.
-    pub fn export_bake(&mut self, path: PathBuf) {
+    /// exposure: vertex colours per element, or with `lightmap` the original meshes with a
+    /// lightmap of that size (the CLI's `--bake-lightmap SIZE`); the answer is one line in the
+    /// status bar, or an error.
+    pub fn export_bake(&mut self, path: PathBuf, lightmap: Option<u32>) {
         let Some(scene) = &self.scene else { return };
         let overwrites_input = std::fs::canonicalize(&path)
             .is_ok_and(|p| std::fs::canonicalize(&scene.source).is_ok_and(|s| s == p));
@@ -1274,7 +1276,10 @@ impl RadlabApp {
             scene_label: self.scene_spec.clone(),
             params: serde_json::to_value(self.params).ok(),
         };
-        self.send(Command::Bake { path, options }, "baking");
+        let form = lightmap.map_or(crate::bake::BakeForm::Elements, |size| {
+            crate::bake::BakeForm::Lightmap(crate::bake::LightmapParams::new(size))
+        });
+        self.send(Command::Bake { path, options, form }, "baking");
     }
 
     fn request_screenshot(&mut self, ctx: &egui::Context) {

@@ -26,8 +26,9 @@ pub const PORTAL_FAILED_BELOW: Duration = Duration::from_millis(400);
 pub enum Purpose {
     /// A scene to open (.gltf/.glb).
     Open,
-    /// Where to write the baked solution (.glb/.gltf); the suggested file name.
-    ExportBake { suggested: String },
+    /// Where to write the baked solution (.glb/.gltf); the suggested file name, and the size of
+    /// the lightmap to bake (`None`: vertex colours per element, [`crate::bake::BakeForm`]).
+    ExportBake { suggested: String, lightmap: Option<u32> },
 }
 
 impl Purpose {
@@ -145,7 +146,7 @@ fn desktop_dialog(purpose: &Purpose) -> Option<PathBuf> {
     let d = rfd::FileDialog::new();
     match purpose {
         Purpose::Open => d.add_filter("glTF", &["gltf", "glb"]).pick_file(),
-        Purpose::ExportBake { suggested } => d
+        Purpose::ExportBake { suggested, .. } => d
             .add_filter("glTF binary", &["glb"])
             .add_filter("glTF JSON", &["gltf"])
             .set_file_name(suggested)
@@ -207,7 +208,7 @@ impl InAppDialog {
     /// The chosen path, or why it cannot be used (one line).
     fn resolve(&self) -> Result<PathBuf, String> {
         let typed = match (&self.purpose, self.path.trim()) {
-            (Purpose::ExportBake { suggested }, "") => suggested.as_str(),
+            (Purpose::ExportBake { suggested, .. }, "") => suggested.as_str(),
             (_, "") => return Err("type a file name or click a file".into()),
             (_, t) => t,
         };
@@ -237,6 +238,9 @@ impl InAppDialog {
             .show(ctx, |ui| {
                 if let Some(n) = &self.note {
                     ui.weak(n);
+                }
+                if let Purpose::ExportBake { lightmap: Some(size), .. } = self.purpose {
+                    ui.weak(format!("the original meshes with a {size}×{size} lightmap"));
                 }
                 ui.horizontal(|ui| {
                     if ui.button("Up").on_hover_text("The parent folder").clicked()
@@ -285,7 +289,7 @@ impl InAppDialog {
                 }
                 let hint = match &self.purpose {
                     Purpose::Open => "file name, or a path".to_owned(),
-                    Purpose::ExportBake { suggested } => suggested.clone(),
+                    Purpose::ExportBake { suggested, .. } => suggested.clone(),
                 };
                 let field = ui
                     .add(
@@ -351,7 +355,7 @@ mod tests {
         assert!(d.resolve().unwrap_err().contains("no such file"));
         d.path = "../fonts/LICENSE-DejaVu.txt".into();
         assert!(d.resolve().unwrap_err().contains("not a .gltf/.glb file"));
-        let mut e = InAppDialog::new(Purpose::ExportBake { suggested: "x.glb".into() }, None);
+        let mut e = InAppDialog::new(Purpose::ExportBake { suggested: "x.glb".into(), lightmap: None }, None);
         e.folder = std::env::temp_dir();
         assert!(e.resolve().is_ok(), "a new file in an existing folder");
         e.path = "no-such-folder/x.glb".into();

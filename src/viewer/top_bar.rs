@@ -1,4 +1,5 @@
-//! The top bar: the Lecture, View and Help menus, Open…, Export baked glTF…, the scene field and
+//! The top bar: the Lecture, View and Help menus, Open…, the Export baked glTF… menu (vertex
+//! colours per element, or a lightmap of a chosen size: [`BakeChoice`]), the scene field and
 //! Load, Screenshot, the Plots toggle, the Mesh menu ([`super::mesh_menu`]) and the name of the
 //! scene shown.
 
@@ -11,16 +12,65 @@ use super::replay::Replay;
 use super::split::SplitView;
 use super::view::View;
 use super::worker::DmeshOptions;
+use crate::bake::LightmapParams;
 use crate::figures::Figure;
 use crate::scene::Scene;
 use crate::solver::meshed::MeshSolveParams;
 use eframe::egui;
+use eframe::egui::PopupCloseBehavior;
+use eframe::egui::containers::menu::{MenuButton, MenuConfig};
 
 /// The top bar and the text of its scene field.
 #[derive(Clone, Debug, Default)]
 pub struct TopBar {
     /// The scene field: `builtin:NAME` or a path, opened by Load (or Enter).
     pub spec_edit: String,
+    /// The Export menu's choice of bake form.
+    pub bake: BakeChoice,
+}
+
+/// What the Export baked glTF menu bakes: vertex colours per element (the default), or the
+/// original meshes with a lightmap of `size` (as `radlab solve --bake-lightmap SIZE`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct BakeChoice {
+    pub lightmap: bool,
+    /// A power of two in [`LightmapParams::MIN_SIZE`]..=[`LightmapParams::MAX_SIZE`].
+    pub size: u32,
+}
+
+impl Default for BakeChoice {
+    fn default() -> Self {
+        BakeChoice { lightmap: false, size: 1024 }
+    }
+}
+
+impl BakeChoice {
+    /// The lightmap size to bake, if a lightmap is chosen.
+    #[must_use]
+    pub fn lightmap_size(&self) -> Option<u32> {
+        self.lightmap.then_some(self.size)
+    }
+
+    /// The menu's controls: the lightmap checkbox and its size.
+    fn ui(&mut self, ui: &mut egui::Ui) {
+        ui.checkbox(&mut self.lightmap, "lightmap").on_hover_text(
+            "Bake the original meshes (one polygon per input patch) with a SIZE×SIZE lightmap on a \
+             second UV set (TEXCOORD_1, an embedded PNG) instead of vertex colours per element: \
+             radlab solve --bake-lightmap SIZE",
+        );
+        // The sizes as buttons, not a combo box: a popup inside the menu's popup would close it.
+        ui.add_enabled_ui(self.lightmap, |ui| {
+            ui.label("lightmap size (texels):");
+            ui.horizontal_wrapped(|ui| {
+                let mut size = LightmapParams::MIN_SIZE;
+                while size <= LightmapParams::MAX_SIZE {
+                    ui.selectable_value(&mut self.size, size, size.to_string())
+                        .on_hover_text(format!("A {size}×{size} atlas"));
+                    size *= 2;
+                }
+            });
+        });
+    }
 }
 
 /// What the top bar is lent for one frame: the panels its menus open and close, and what it
@@ -74,16 +124,29 @@ impl View for TopBar {
             {
                 action = Some(TopBarAction::ChooseFile(Purpose::Open));
             }
-            let export =
-                ui.add_enabled(scene.is_some(), egui::Button::new("Export baked glTF…")).on_hover_text(
-                    "Write the solution shown as a .glb/.gltf: radiosity as vertex colours at the \
-                     viewer's exposure, unlit (docs/bake.md)",
-                );
-            if export.clicked() {
-                let name = scene.map_or("radlab".to_owned(), |s| s.name.clone());
-                let suggested = format!("{name}.glb");
-                action = Some(TopBarAction::ChooseFile(Purpose::ExportBake { suggested }));
-            }
+            let bake = &mut self.bake;
+            ui.add_enabled_ui(scene.is_some(), |ui| {
+                // The menu stays open while its checkbox and size are set.
+                let config = MenuConfig::new().close_behavior(PopupCloseBehavior::CloseOnClickOutside);
+                MenuButton::new("Export baked glTF…")
+                    .config(config)
+                    .ui(ui, |ui| {
+                        bake.ui(ui);
+                        if ui.button("Choose file…").on_hover_text("Where to write the bake").clicked() {
+                            let name = scene.map_or("radlab".to_owned(), |s| s.name.clone());
+                            let suggested = format!("{name}.glb");
+                            let lightmap = bake.lightmap_size();
+                            action =
+                                Some(TopBarAction::ChooseFile(Purpose::ExportBake { suggested, lightmap }));
+                            ui.close();
+                        }
+                    })
+                    .0
+                    .on_hover_text(
+                        "Write the solution shown as a .glb/.gltf at the viewer's exposure, unlit: \
+                         radiosity as vertex colours, or a lightmap (docs/bake.md)",
+                    );
+            });
             let edit = ui
                 .add(
                     egui::TextEdit::singleline(&mut self.spec_edit)

@@ -300,10 +300,12 @@ pub enum Command {
     /// answers `Done` with a [`StepKind::Solve`] report and the mesh's state. The hierarchical
     /// solver is left as it was.
     SolveMesh(MeshSolveParams, DmeshOptions),
-    /// Write the current solution as a baked glTF ([`crate::bake`]) to `path` (.glb/.gltf).
+    /// Write the current solution as a baked glTF ([`crate::bake`]) to `path` (.glb/.gltf), in
+    /// `form` (per-element vertex colours, or the original meshes with a lightmap).
     Bake {
         path: std::path::PathBuf,
         options: crate::bake::BakeOptions,
+        form: crate::bake::BakeForm,
     },
 }
 
@@ -528,9 +530,9 @@ fn run(
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => solve_mesh(s.scene(), (params, dmesh, s.params()), &s.cancel_handle(), tx, notify),
             },
-            Command::Bake { path, options } => match solver.as_ref() {
+            Command::Bake { path, options, form } => match solver.as_ref() {
                 None => Reply::Failed("no scene loaded".into()),
-                Some(s) => Reply::Baked(bake_to(s, unpushed, &path, &options)),
+                Some(s) => Reply::Baked(bake_to(s, unpushed, &path, &options, form)),
             },
             Command::Step(kind) => match solver.as_mut() {
                 None => Reply::Failed("no scene loaded".into()),
@@ -667,6 +669,7 @@ fn bake_to(
     unpushed: bool,
     path: &std::path::Path,
     options: &crate::bake::BakeOptions,
+    form: crate::bake::BakeForm,
 ) -> Result<String, String> {
     let fail = |e: &dyn std::fmt::Display| format!("export {}: {e}", path.display());
     let format = crate::bake::BakeFormat::from_path(path).map_err(|e| fail(&e))?;
@@ -677,9 +680,21 @@ fn bake_to(
             e.radiosity = v.elements[id as usize].radiosity;
         }
     }
-    let bytes = crate::bake::bake(s.scene(), &solution, options, format).map_err(|e| fail(&e))?;
+    let bytes = crate::bake::bake_as(s.scene(), &solution, options, form, format).map_err(|e| fail(&e))?;
     std::fs::write(path, bytes).map_err(|e| fail(&e))?;
-    Ok(format!("baked {} elements to {}", solution.elements.len(), path.display()))
+    Ok(match form {
+        crate::bake::BakeForm::Elements => {
+            format!("baked {} elements to {}", solution.elements.len(), path.display())
+        }
+        // The CLI's words (radlab solve --bake-lightmap).
+        crate::bake::BakeForm::Lightmap(m) => format!(
+            "baked {} patches with a {}×{} lightmap to {}",
+            s.scene().patches.len(),
+            m.size,
+            m.size,
+            path.display()
+        ),
+    })
 }
 
 #[cfg(test)]
