@@ -1122,16 +1122,22 @@ fn picking_in_a_split_pane_picks_in_that_panes_solution() {
 
 /// The lower half of the viewport's area (below the sliders and labels), as rendered.
 fn lower_viewport(h: &mut Harness<'static, RadlabApp>) -> RgbaImage {
+    viewport_below(h, 0.5)
+}
+
+/// The viewport's area below `fraction` of its height, as rendered.
+fn viewport_below(h: &mut Harness<'static, RadlabApp>, fraction: f32) -> RgbaImage {
     h.remove_cursor();
     h.run_steps(2);
     let img = h.render().expect("render");
     let (w, hh) = (img.width(), img.height());
     let r = h.state().viewport_rect();
+    let top = r.top() + fraction * r.height();
     RgbaImage { width: w, height: hh, pixels: img.into_raw() }.crop(
         r.left() as u32,
-        r.center().y as u32,
+        top as u32,
         r.width() as u32,
-        (r.height() / 2.0) as u32,
+        (r.bottom() - top) as u32,
     )
 }
 
@@ -1432,6 +1438,15 @@ fn solve_clustered(h: &mut Harness<'static, RadlabApp>) {
     settle(h);
 }
 
+/// A viewer showing `spec` solved with clustering on.
+fn clustered(spec: &str) -> Harness<'static, RadlabApp> {
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().load_spec(spec);
+    settle(&mut h);
+    solve_clustered(&mut h);
+    h
+}
+
 /// The clusters overlay draws the boxes of a clustered solve's cluster tree; it is greyed out
 /// while the solve does not cluster.
 #[test]
@@ -1489,10 +1504,7 @@ fn clusters_overlay_draws_the_cluster_boxes() {
 #[test]
 fn links_overlay_draws_the_cluster_links() {
     use radlab::overlay::CLUSTER_LINK_DASHES;
-    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
-    h.state_mut().load_spec("builtin:furnished-2k");
-    settle(&mut h);
-    solve_clustered(&mut h);
+    let mut h = clustered("builtin:furnished-2k");
     let v = Arc::clone(h.state().view());
     let total = v.stats.cluster_links;
     assert!(total > 0, "the clustered solve has cluster links");
@@ -1704,4 +1716,130 @@ fn export_baked_gltf_with_a_lightmap() {
     let corners: usize = scene.patches.iter().map(|p| p.vertices.len()).sum();
     assert_eq!(vertices, corners, "the original meshes: each patch once, not the elements");
     let _ = std::fs::remove_file(&out);
+}
+
+/// The clusters of `patch`, smallest first (walked here from `patch_cluster` and the parents).
+fn clusters_of(v: &radlab::viewer::worker::ViewData, patch: u32) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut at = v.patch_cluster.get(patch as usize).copied().filter(|&c| c != u32::MAX);
+    while let Some(i) = at {
+        out.push(i);
+        at = v.clusters[i as usize].parent;
+    }
+    out
+}
+
+/// With the cluster boxes drawn, a click picks the element and the smallest cluster around it
+/// at the levels shown: its box is outlined in orange, the inspector names it with its depth
+/// and patch count (the solver's), up / down walk the tree, and "picked element only" draws that
+/// cluster's cluster links.
+#[test]
+fn a_click_picks_a_cluster_and_the_inspector_walks_the_tree() {
+    use radlab::solver::hierarchical::ClusterEnd;
+    use radlab::viewer::builder::PICKED_CLUSTER_RGBA;
+    use radlab::viewer::display::CLUSTER_LEVELS;
+    let mut h = clustered("builtin:furnished-2k");
+    // Without the boxes a click picks the element only.
+    let r = h.state().viewport_rect();
+    let at = egui::Pos2::new(r.left() + 0.5 * r.width(), r.top() + 0.8 * r.height());
+    click_at(&mut h, at);
+    settle(&mut h);
+    assert!(h.state().selected.is_some());
+    assert_eq!(h.state().picked_cluster(), None, "no cluster picked while the boxes are hidden");
+    let element_only = viewport_below(&mut h, 0.0);
+    h.key_press(egui::Key::K);
+    settle(&mut h);
+    assert!(h.state().display.clusters);
+    h.state_mut().display.clusters_from = 1;
+    click_at(&mut h, at);
+    settle(&mut h);
+    let id = h.state().selected.expect("an element is picked");
+    let v = Arc::clone(h.state().view());
+    let chain = clusters_of(&v, v.elements[id as usize].patch);
+    let deepest = 1 + CLUSTER_LEVELS - 1;
+    let want = *chain.iter().find(|&&c| v.clusters[c as usize].depth <= deepest).expect("a cluster drawn");
+    assert_eq!(h.state().picked_cluster(), Some(want), "the smallest drawn cluster around the element");
+    let c = v.clusters[want as usize];
+    assert!(c.depth >= 1 && c.patches >= 2, "{c:?}");
+    // Its patches: those whose chain passes through it, as the solver counts them.
+    let members = (0..v.patch_cluster.len() as u32).filter(|&p| clusters_of(&v, p).contains(&want)).count();
+    assert_eq!(members as u32, c.patches, "the solver's patch count");
+    let title = format!("Cluster {want}: depth {}, {} patches", c.depth, c.patches);
+    assert!(h.query_by_label(&title).is_some(), "the inspector names it: {title}");
+    assert!(h.query_by_label(&format!("{} (counted: {members})", c.patches)).is_some());
+    // Its box is outlined in orange, over the picture of the element alone (boxes hidden).
+    let orange = PICKED_CLUSTER_RGBA.map(|x| (x * 255.0) as u8);
+    let picked = viewport_below(&mut h, 0.0);
+    let (before, after) = (
+        pixels_near(&element_only, [orange[0], orange[1], orange[2]]),
+        pixels_near(&picked, [orange[0], orange[1], orange[2]]),
+    );
+    assert!(after > before + 100, "the picked cluster's box in orange: {before} → {after} pixels");
+    // Up to the parent, down back towards the element, "to element" drops the cluster.
+    let parent = c.parent.expect("a cluster at depth ≥ 1 has a parent");
+    h.get_by_label("up: parent").click();
+    h.run_steps(2);
+    assert_eq!(h.state().picked_cluster(), Some(parent));
+    let parent_title =
+        format!("Cluster {parent}: depth {}, {} patches", c.depth - 1, v.clusters[parent as usize].patches);
+    assert!(h.query_by_label(&parent_title).is_some(), "{parent_title}");
+    h.get_by_label("down: child").click();
+    h.run_steps(2);
+    assert_eq!(h.state().picked_cluster(), Some(want));
+    // "Picked element only": the cluster's own cluster links, and no element link. Down from the
+    // picked cluster to the first with cluster links kept to draw (furnished-2k's top clusters
+    // have none).
+    let visible_links = |c: u32| {
+        v.cluster_links
+            .iter()
+            .filter(|l| l.ends.contains(&ClusterEnd::Cluster(c)) && l.vis > radlab::overlay::VIS_CLASS_EPS)
+            .count()
+    };
+    let below = chain.iter().position(|&c| c == want).expect("the picked cluster is on the chain");
+    let shown = *chain[..below]
+        .iter()
+        .rev()
+        .find(|&&c| visible_links(c) > 0)
+        .expect("a cluster between the picked one and the element with cluster links");
+    for _ in 0..below {
+        if h.state().picked_cluster() == Some(shown) {
+            break;
+        }
+        h.get_by_label("down: child").click();
+        h.run_steps(2);
+    }
+    assert_eq!(h.state().picked_cluster(), Some(shown));
+    let without = viewport_below(&mut h, 0.0);
+    h.get_by_label("show its cluster links in the viewport").click();
+    settle(&mut h);
+    assert!(h.state().display.selected_links_only);
+    let want = shown;
+    let mine = visible_links(want);
+    let max_lines = h.state().display.link_filter.max_lines;
+    let legend = h.state().cluster_link_legend().expect("a legend line");
+    let kept = v.cluster_links.len();
+    assert!(
+        legend.starts_with(&format!(
+            "- - cluster links (dashed): {} drawn, cluster {want}'s ({mine} of {kept} kept)",
+            mine.min(max_lines)
+        )),
+        "{legend}"
+    );
+    let with = viewport_below(&mut h, 0.0);
+    let changed =
+        with.pixels.chunks_exact(4).zip(without.pixels.chunks_exact(4)).filter(|(a, b)| a != b).count();
+    assert!(changed > 50, "cluster {want}'s {mine} cluster links drawn: {changed} pixels");
+    assert_eq!(h.state().link_stats(), (0, 0), "no element link: the cluster holds none");
+    check(&mut h, "gui_cluster_picked");
+    h.get_by_label("to element").click();
+    h.run_steps(2);
+    assert_eq!(h.state().picked_cluster(), None);
+    assert!(h.state().selected.is_some(), "the element stays picked");
+    // From the element, the inspector's list of its clusters picks any of them.
+    h.get_by_label_contains("clusters ·").click();
+    h.run_steps(2);
+    h.get_all_by_label("pick").last().expect("the root's row").click();
+    h.run_steps(2);
+    assert_eq!(h.state().picked_cluster(), chain.last().copied(), "the root picked from the list");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }

@@ -12,6 +12,7 @@ use super::artifacts::{ArtifactThread, Measured, Measurements};
 use super::bench::FrameBench;
 use super::builder::{self, Builder, Coloring};
 use super::camera::OrbitCamera;
+use super::clusters::{self, PickCluster};
 use super::display::{self, CLUSTER_LEVELS, Display, DisplayInput, DisplayPanel, Shading};
 use super::file_dialog::{Answer, FileDialogs, Purpose};
 use super::geometry::{BuildKey, ShownGeometry};
@@ -125,6 +126,10 @@ pub struct RadlabApp {
     /// The run whose solution `selected` belongs to when it was picked in a split view's pane
     /// (`None`: the current solution).
     pub selected_run: Option<usize>,
+    /// The cluster picked (an index into the current solution's `clusters`), reached from the
+    /// picked element: it counts only while it holds that element's patch
+    /// ([`RadlabApp::picked_cluster`]).
+    picked_cluster: Option<u32>,
     /// The link of the matrix block hovered this frame (highlighted in the viewport).
     matrix_hover: Option<Highlight>,
     /// The leaf under the pointer in the viewport, while the matrix window is open (its row and
@@ -224,6 +229,7 @@ impl RadlabApp {
             artifacts: Measurements::default(),
             selected: None,
             selected_run: None,
+            picked_cluster: None,
             matrix_hover: None,
             viewport_hover: None,
             has_wgpu,
@@ -409,6 +415,7 @@ impl RadlabApp {
         self.replay_frames = None;
         self.selected = None;
         self.selected_run = None;
+        self.picked_cluster = None;
         self.true_error = None;
         self.error_samples.clear();
         self.last_report = None;
@@ -882,10 +889,21 @@ impl RadlabApp {
         !self.mesh_view() || self.true_error().is_some()
     }
 
+    /// (element links drawn, element links that pass the filter) in the geometry shown.
+    #[must_use]
+    pub fn link_stats(&self) -> (usize, usize) {
+        self.geometry.link_stats
+    }
+
     /// The links legend's line on the cluster links (`None`: the solve has none).
     #[must_use]
     pub fn cluster_link_legend(&self) -> Option<String> {
-        legends::cluster_link_note(&self.display, &self.view, self.geometry.cluster_link_stats)
+        legends::cluster_link_note(
+            &self.display,
+            &self.view,
+            self.geometry.cluster_link_stats,
+            self.picked_cluster(),
+        )
     }
 
     /// What the error heatmap shows.
@@ -899,12 +917,13 @@ impl RadlabApp {
         let d = &self.display;
         let mesh_view = self.mesh_view();
         let picked = self.picked_here();
+        let picked_cluster = self.picked_cluster();
         let show_links = !mesh_view && (d.links || (picked.is_some() && d.selected_links_only));
         let links = show_links.then(|| {
             let mut filter = d.link_filter;
             filter.element = if d.selected_links_only {
-                // Nothing picked: nothing to show.
-                Some(picked.unwrap_or(u32::MAX))
+                // Nothing picked: nothing to show; a cluster picked: its cluster links only.
+                Some(picked.filter(|_| picked_cluster.is_none()).unwrap_or(u32::MAX))
             } else {
                 None
             };
@@ -930,6 +949,7 @@ impl RadlabApp {
             clusters: d
                 .clusters
                 .then(|| (d.clusters_from, d.clusters_from.saturating_add(CLUSTER_LEVELS - 1))),
+            picked_cluster,
         }
     }
 
@@ -1098,6 +1118,7 @@ impl RadlabApp {
                 display: &self.display,
                 view: &self.view,
                 picked: self.picked_here().is_some(),
+                picked_cluster: self.picked_cluster(),
                 link_stats: self.geometry.link_stats,
                 cluster_link_stats: self.geometry.cluster_link_stats,
                 link_scale: self.geometry.link_scale,
@@ -1192,9 +1213,33 @@ impl RadlabApp {
         }
     }
 
+    /// Pick the element under a viewport point; while the cluster boxes are drawn, the cluster
+    /// around it at the levels shown too ([`clusters::at_shown_level`]).
     fn pick_at(&mut self, pos: Pos2, rect: Rect) {
         self.selected = self.pick_id(pos, rect);
         self.selected_run = None;
+        let deepest = self.display.clusters_from.saturating_add(CLUSTER_LEVELS - 1);
+        self.picked_cluster = self
+            .selected
+            .filter(|_| self.display.clusters)
+            .and_then(|id| clusters::at_shown_level(&self.view, id, deepest));
+    }
+
+    /// The picked cluster: an index into the current solution's `clusters` that holds the
+    /// picked element's patch (`None` without one, or when the element is a split pane's run's).
+    #[must_use]
+    pub fn picked_cluster(&self) -> Option<u32> {
+        let c = self.picked_cluster?;
+        self.picked_here().filter(|&id| clusters::chain_of_element(&self.view, id).contains(&c)).map(|_| c)
+    }
+
+    /// Pick cluster `c` of the current solution (`None`: the element alone); ignored unless it
+    /// holds the picked element's patch (the inspector's up / down walk that chain).
+    pub fn pick_cluster(&mut self, c: Option<u32>) {
+        self.picked_cluster = c;
+        if c.is_some() && self.picked_cluster().is_none() {
+            self.picked_cluster = None;
+        }
     }
 
     /// The leaf under a viewport point.
@@ -1459,14 +1504,18 @@ impl eframe::App for RadlabApp {
                         // The true error is the current solution's.
                         let true_error = self.true_error().filter(|_| self.selected_run.is_none()).cloned();
                         let picked = self.picked().map(|(id, v)| (id, Arc::clone(v)));
+                        let cluster = self.picked_cluster();
                         let input = InspectorInput {
                             errors: &mut self.errors,
                             picked: picked.as_ref().map(|(id, v)| (*id, v)),
+                            cluster,
                             scene: self.scene.as_deref(),
                             true_error: true_error.as_deref().map(Vec::as_slice),
                             selected_links_only: &mut self.display.selected_links_only,
                         };
-                        self.inspector.ui(ui, input);
+                        if let Some(PickCluster(c)) = self.inspector.ui(ui, input) {
+                            self.pick_cluster(c);
+                        }
                         if self.plots.open {
                             ui.separator();
                             ui.heading("Convergence plots");

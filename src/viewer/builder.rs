@@ -54,7 +54,14 @@ pub struct Settings {
     pub critical: bool,
     /// Draw the cluster boxes of these depths (first, last).
     pub clusters: Option<(u8, u8)>,
+    /// The picked cluster (an index into the view's clusters): its box is drawn in
+    /// [`PICKED_CLUSTER_RGBA`], and with "picked element only" (a `links` filter naming an
+    /// element) its cluster links are drawn in place of the element's.
+    pub picked_cluster: Option<u32>,
 }
+
+/// The picked cluster's box: orange, apart from the boxes' viridis.
+pub const PICKED_CLUSTER_RGBA: [f32; 4] = [1.0, 0.45, 0.05, 1.0];
 
 /// One build job.
 #[derive(Clone, Debug)]
@@ -156,11 +163,15 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
     if let Some(filter) = s.links.as_ref().filter(|_| s.cluster_links)
         && !v.cluster_links.is_empty()
     {
-        // "Picked element only": the links of its patch and of the clusters holding it.
-        let picked = filter
-            .element
-            .map(|id| v.elements.get(id as usize).map_or(u32::MAX, |e| e.patch))
-            .map(|patch| overlay::cluster_chain(&v.clusters, &v.patch_cluster, patch));
+        // "Picked element only": the links of the picked cluster; else those of the element's
+        // patch and of the clusters holding it.
+        let picked = filter.element.map(|id| match s.picked_cluster {
+            Some(c) => vec![crate::solver::hierarchical::ClusterEnd::Cluster(c)],
+            None => {
+                let patch = v.elements.get(id as usize).map_or(u32::MAX, |e| e.patch);
+                overlay::cluster_chain(&v.clusters, &v.patch_cluster, patch)
+            }
+        });
         let cl = overlay::cluster_link_lines(
             &v.cluster_links,
             filter,
@@ -195,6 +206,11 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
             &overlay::cluster_lines(&v.clusters, depths.0..=depths.1, 0.9),
             s.origin,
         ));
+    }
+    if let Some(c) = s.picked_cluster.and_then(|c| v.clusters.get(c as usize)) {
+        let mut edges = overlay::cluster_lines(std::slice::from_ref(c), c.depth..=c.depth, 1.0);
+        edges.colors.fill(PICKED_CLUSTER_RGBA);
+        overlay.extend(geometry::lines(&edges, s.origin));
     }
     Built {
         seq: req.seq,
@@ -380,6 +396,7 @@ mod tests {
             depth_limit: None,
             critical: false,
             clusters: None,
+            picked_cluster: None,
         }
     }
 

@@ -248,7 +248,8 @@ impl View for DisplayPanel {
                 ui.checkbox(&mut d.clusters, "clusters").on_hover_text(format!(
                     "The cluster tree above the input patches: bounding boxes of {CLUSTER_LEVELS} levels from \
                      the depth chosen, coloured by depth. Clusters link groups of patches, so links grow \
-                     as n, not n² (K)"
+                     as n, not n² (K). While they are drawn, a click picks the smallest box drawn around \
+                     the element too (orange; the inspector walks up and down from it)"
                 ));
                 if let Some(m) = max_depth {
                     d.clusters_from = d.clusters_from.min(m);

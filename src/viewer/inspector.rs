@@ -1,9 +1,11 @@
-//! The inspector (right panel): the errors so far, then the picked element — its numbers, the
-//! clusters above its patch, and the links it gathers through (its own and its ancestors'),
-//! largest B·F·V first.
+//! The inspector (right panel): the errors so far, then the picked cluster when there is one
+//! ([`super::clusters`]), then the picked element — its numbers, the clusters above its patch
+//! (each can be picked), and the links it gathers through (its own and its ancestors'), largest
+//! B·F·V first.
 
+use super::clusters::{ClusterInput, ClusterSection, PickCluster};
 use super::view::View;
-use super::widgets::rgb_text;
+use super::widgets::{grid_row, rgb_text};
 use super::worker::ViewData;
 use crate::overlay;
 use crate::scene::Scene;
@@ -18,6 +20,8 @@ type LinkRow = (u32, u32, f32, f32, f64);
 pub struct Inspector {
     /// (solution, element, rows): computed once per solution and element, not every frame.
     rows: Option<(Arc<ViewData>, u32, Arc<Vec<LinkRow>>)>,
+    /// The picked cluster's section.
+    cluster: ClusterSection,
 }
 
 /// What the inspector is lent for one frame.
@@ -26,6 +30,8 @@ pub struct InspectorInput<'a> {
     pub errors: &'a mut Vec<String>,
     /// The picked element and the solution it is an element of.
     pub picked: Option<(u32, &'a Arc<ViewData>)>,
+    /// The picked cluster (an index into the picked solution's clusters), if any.
+    pub cluster: Option<u32>,
     pub scene: Option<&'a Scene>,
     /// Per-element true error against the reference, when it belongs to the picked solution.
     pub true_error: Option<&'a [f64]>,
@@ -41,10 +47,10 @@ pub fn error_label(true_error: bool) -> &'static str {
 
 impl View for Inspector {
     type Input<'a> = InspectorInput<'a>;
-    type Action = ();
+    type Action = PickCluster;
 
-    fn ui(&mut self, ui: &mut egui::Ui, input: InspectorInput<'_>) -> Option<()> {
-        let InspectorInput { errors, picked, scene, true_error, selected_links_only } = input;
+    fn ui(&mut self, ui: &mut egui::Ui, input: InspectorInput<'_>) -> Option<PickCluster> {
+        let InspectorInput { errors, picked, cluster, scene, true_error, selected_links_only } = input;
         if !errors.is_empty() {
             ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
             for e in errors.iter().rev().take(5) {
@@ -61,58 +67,67 @@ impl View for Inspector {
             return None;
         };
         let e = v.elements.get(id as usize)?;
+        let mut action = None;
+        if let Some(c) = cluster {
+            let input = ClusterInput { view: v, cluster: c, element: id, scene, selected_links_only };
+            action = self.cluster.ui(ui, input);
+            ui.separator();
+        }
         let error = match true_error {
             Some(t) => t.get(id as usize).copied().unwrap_or(0.0),
             None => e.error_estimate,
         };
         let err_label = error_label(true_error.is_some());
         egui::Grid::new("element").num_columns(2).striped(true).show(ui, |ui| {
-            let row = |ui: &mut egui::Ui, k: &str, val: String| {
-                ui.label(k);
-                ui.monospace(val);
-                ui.end_row();
-            };
-            row(ui, "element", format!("{} (patch {})", e.id, e.patch));
+            grid_row(ui, "element", format!("{} (patch {})", e.id, e.patch));
             if let Some(p) = scene.and_then(|s| s.patches.get(e.patch as usize)) {
-                row(ui, "patch name", p.name.clone());
+                grid_row(ui, "patch name", p.name.clone());
             }
-            row(ui, "depth", e.depth.to_string());
-            row(ui, "area", format!("{:.4e}", e.area));
-            row(ui, "E", rgb_text(e.emission));
-            row(ui, "ρ", rgb_text(e.reflectance));
-            row(ui, "B", rgb_text(e.radiosity));
+            grid_row(ui, "depth", e.depth.to_string());
+            grid_row(ui, "area", format!("{:.4e}", e.area));
+            grid_row(ui, "E", rgb_text(e.emission));
+            grid_row(ui, "ρ", rgb_text(e.reflectance));
+            grid_row(ui, "B", rgb_text(e.radiosity));
             if v.mesh.is_some() && true_error.is_none() {
-                row(ui, "error", "none (a mesh solve has no estimate)".to_owned());
+                grid_row(ui, "error", "none (a mesh solve has no estimate)".to_owned());
             } else {
-                row(ui, "error", format!("{error:.3e} ({err_label})"));
+                grid_row(ui, "error", format!("{error:.3e} ({err_label})"));
             }
-            row(ui, "stopped", e.stop.to_owned());
+            grid_row(ui, "stopped", e.stop.to_owned());
         });
         // Clustered solves: the clusters holding the element's patch, smallest first.
         // (A patch that is the whole tree, a one-patch scene, has no cluster: u32::MAX.)
         if let Some(&first) = v.patch_cluster.get(e.patch as usize).filter(|&&c| c != u32::MAX) {
             let mut chain = Vec::new();
             let mut at = Some(first);
-            while let Some(c) = at.and_then(|i| v.clusters.get(i as usize)) {
-                chain.push(*c);
+            while let Some((i, c)) = at.and_then(|i| v.clusters.get(i as usize).map(|c| (i, c))) {
+                chain.push((i, *c));
                 at = c.parent;
             }
-            let cluster_links: u32 = chain.iter().map(|c| c.links).sum();
+            let cluster_links: u32 = chain.iter().map(|(_, c)| c.links).sum();
             egui::CollapsingHeader::new(format!(
                 "in {} clusters · {cluster_links} cluster links",
                 chain.len()
             ))
             .id_salt("clusters of the patch")
             .show(ui, |ui| {
-                egui::Grid::new("clusters").num_columns(3).striped(true).show(ui, |ui| {
-                    for h in ["depth", "patches", "cluster links"] {
+                egui::Grid::new("clusters").num_columns(4).striped(true).show(ui, |ui| {
+                    for h in ["depth", "patches", "cluster links", ""] {
                         ui.strong(h);
                     }
                     ui.end_row();
-                    for c in &chain {
+                    for &(i, c) in &chain {
                         ui.monospace(c.depth.to_string());
                         ui.monospace(c.patches.to_string());
                         ui.monospace(c.links.to_string());
+                        let picked = cluster == Some(i);
+                        if ui
+                            .selectable_label(picked, "pick")
+                            .on_hover_text(format!("Pick cluster {i}: its box, numbers and links"))
+                            .clicked()
+                        {
+                            action = Some(PickCluster(Some(i)));
+                        }
                         ui.end_row();
                     }
                 });
@@ -121,7 +136,7 @@ impl View for Inspector {
             .on_hover_text(
                 "The cluster tree above this element's patch, from the smallest cluster up to \
                      the root: how many patches each holds and how many cluster links it has (the \
-                     header sums them)",
+                     header sums them); pick one to see its box and its links",
             );
         }
         ui.separator();
@@ -132,7 +147,7 @@ impl View for Inspector {
                 m.label(),
                 v.stats.links
             ));
-            return None;
+            return action;
         }
         // Links through which this element gathers: its own and its ancestors' (computed once
         // per solver state and element, not every frame).
@@ -172,8 +187,10 @@ impl View for Inspector {
                 }
             });
         });
-        ui.checkbox(selected_links_only, "show these links in the viewport")
-            .on_hover_text("Draw only these links, from the element and its ancestors");
-        None
+        if cluster.is_none() {
+            ui.checkbox(selected_links_only, "show these links in the viewport")
+                .on_hover_text("Draw only these links, from the element and its ancestors");
+        }
+        action
     }
 }

@@ -21,6 +21,8 @@ pub struct Legends<'a> {
     pub view: &'a ViewData,
     /// An element of the solution shown is picked (its links may be drawn).
     pub picked: bool,
+    /// The cluster picked (its cluster links are drawn instead of the element's).
+    pub picked_cluster: Option<u32>,
     /// (links drawn, links that pass the filter).
     pub link_stats: (usize, usize),
     /// (cluster links drawn, carried ones that pass the filter), when they are drawn.
@@ -120,7 +122,9 @@ impl Legends<'_> {
                 Color32::LIGHT_GRAY,
             );
             y += 18.0;
-            if let Some(note) = cluster_link_note(self.display, self.view, self.cluster_link_stats) {
+            if let Some(note) =
+                cluster_link_note(self.display, self.view, self.cluster_link_stats, self.picked_cluster)
+            {
                 let galley = painter.layout_no_wrap(note, egui::FontId::proportional(11.0), Color32::WHITE);
                 let box_r = Rect::from_min_size(Pos2::new(x, y), galley.size() + Vec2::new(8.0, 4.0));
                 painter.rect_filled(box_r, 4.0, bg);
@@ -253,9 +257,15 @@ pub fn highlight(
 
 /// The links legend's line on a clustered solve's cluster links: how many are drawn (dashed) of
 /// how many there are, or why none are; `stats`: (drawn, carried ones that pass the filter) of
-/// the geometry shown, when it drew them. `None` when the solve has no cluster links.
+/// the geometry shown, when it drew them; `picked_cluster`: the cluster whose links "picked
+/// element only" draws instead of the element's. `None` when the solve has no cluster links.
 #[must_use]
-pub fn cluster_link_note(d: &Display, view: &ViewData, stats: Option<(usize, usize)>) -> Option<String> {
+pub fn cluster_link_note(
+    d: &Display,
+    view: &ViewData,
+    stats: Option<(usize, usize)>,
+    picked_cluster: Option<u32>,
+) -> Option<String> {
     let total = view.stats.cluster_links;
     if total == 0 {
         return None;
@@ -266,9 +276,9 @@ pub fn cluster_link_note(d: &Display, view: &ViewData, stats: Option<(usize, usi
         None => format!("cluster links: {total}"),
         Some((shown, matched)) if d.selected_links_only => {
             let kept = view.cluster_links.len();
-            format!(
-                "- - cluster links (dashed): {shown} drawn, the picked element's ({matched} of {kept} kept)"
-            )
+            let whose =
+                picked_cluster.map_or("the picked element's".to_owned(), |c| format!("cluster {c}'s"));
+            format!("- - cluster links (dashed): {shown} drawn, {whose} ({matched} of {kept} kept)")
         }
         Some((shown, matched)) => {
             let mut s = format!("- - cluster links (dashed): {shown} drawn of {total}");

@@ -5,7 +5,7 @@
 //! - [`view`]: the small `View` trait every panel implements (one type per panel). The panels:
 //!   [`top_bar`] (menus, scene field) with [`mesh_menu`]; [`solver_panel`] (settings, steps,
 //!   progress line); [`reference_panel`]; [`display`] (the `Display` settings and their
-//!   section); [`inspector`]; [`plots`]; [`status_bar`]; [`history`] (the run history: every
+//!   section); [`inspector`] (with [`clusters`]: the picked cluster); [`plots`]; [`status_bar`]; [`history`] (the run history: every
 //!   solve kept, the table, the runs overlaid in the plots); [`split`] (two or three runs side by
 //!   side, one camera, one exposure; a click picks in a pane's run); [`replay`] (the last solve
 //!   round by round, the depth slider); [`matrix`] (the blocking form-factor matrix window).
@@ -34,6 +34,7 @@ pub mod artifacts;
 pub mod bench;
 pub mod builder;
 pub mod camera;
+pub mod clusters;
 pub mod display;
 pub mod file_dialog;
 pub mod five_times;

@@ -14,6 +14,13 @@ pub fn rgb_text(c: crate::math::Rgb) -> String {
     format!("{:.4} {:.4} {:.4}", c.r(), c.g(), c.b())
 }
 
+/// One row of a two-column inspector grid: a name, and its value in monospace.
+pub fn grid_row(ui: &mut egui::Ui, name: &str, value: String) {
+    ui.label(name);
+    ui.monospace(value);
+    ui.end_row();
+}
+
 /// A log slider with a typed value next to it.
 pub fn log_slider(ui: &mut egui::Ui, label: &str, v: &mut f64, lo: f64, hi: f64, tip: &str) {
     ui.horizontal(|ui| {
