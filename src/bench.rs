@@ -883,6 +883,13 @@ fn convergence_lines(report: &BenchReport) -> String {
 // ---------------------------------------------------------------------------------------------
 // The plot
 
+/// A time axis label: two decimals, or as many as a tick below 0.01 s needs to show one
+/// significant digit (0.001 s read "0.00").
+fn time_tick(x: f64) -> String {
+    let decimals = if x > 0.0 && x < 0.01 { (-x.log10()).ceil() as usize } else { 2 };
+    format!("{x:.decimals$}")
+}
+
 /// DejaVu Sans (Bitstream Vera licence, assets/fonts/LICENSE-DejaVu.txt), registered with plotters.
 static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 
@@ -946,7 +953,7 @@ pub fn plot_png(report: &BenchReport, path: &Path) -> Result<(), BenchError> {
                 .y_desc("pointwise relative L2 error")
                 .light_line_style(WHITE.mix(0.0))
                 .y_label_formatter(&|y| format!("{:.2}%", 100.0 * y))
-                .x_label_formatter(&|x| format!("{x:.2}"))
+                .x_label_formatter(&|x| time_tick(*x))
                 .label_style(("sans-serif", 13))
                 .draw()
                 .map_err(|e| err(&e))?;
@@ -1017,6 +1024,15 @@ pub(crate) fn write_png_rgb(path: &Path, w: u32, h: u32, rgb: &[u8]) -> Result<(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn time_ticks_show_a_significant_digit() {
+        assert_eq!(time_tick(0.001), "0.001");
+        assert_eq!(time_tick(0.0001), "0.0001");
+        assert_eq!(time_tick(0.01), "0.01");
+        assert_eq!(time_tick(0.1), "0.10");
+        assert_eq!(time_tick(10.0), "10.00");
+    }
 
     #[test]
     fn pareto_keeps_only_improving_points() {
