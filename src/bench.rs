@@ -58,7 +58,7 @@ use crate::reference::{Cache, Control, Estimate, PointParams, RefPoint, Referenc
 use crate::scene::Scene;
 use crate::solver::Solution;
 use crate::solver::hierarchical::HierarchicalSolver;
-use crate::solver::params::{AreaEps, HierarchicalParams};
+use crate::solver::params::{AreaEps, Clustering, HierarchicalParams};
 use crate::solver::progressive::{self, ProgressiveParams};
 use crate::solver::uniform::{self, UniformParams};
 use serde::Serialize;
@@ -202,11 +202,14 @@ impl Method {
                     AreaEps::Absolute(a) => g3(a),
                     AreaEps::Relative(r) => format!("{r:.1e}A").replace(".0e", "e"),
                 };
-                let mesh = if matches!(self, Method::HierarchicalContact(_)) {
+                let mut mesh = if matches!(self, Method::HierarchicalContact(_)) {
                     format!(" {CONTACT_MARK}")
                 } else {
                     String::new()
                 };
+                if p.cluster == Clustering::On {
+                    mesh.push_str(&format!(" {CLUSTER_MARK}"));
+                }
                 format!("{:?} feps={} aeps={aeps} bfeps={} rays={}{mesh}", p.oracle, p.feps, p.bf_eps, p.rays)
                     .to_lowercase()
             }
@@ -357,9 +360,26 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
                 HierarchicalParams { bf_eps: eps, ..HierarchicalParams::quality() },
             )));
         }
+        // The same, clustered above the contact mesh's patches, on scenes with enough patches
+        // for clusters to stand for many of them (splash_room's 527 pieces are linked pair by
+        // pair otherwise).
+        if scene.patches.len() >= CLUSTER_ROWS_MIN_PATCHES {
+            for eps in [0.4, 0.2, 0.1, 0.05] {
+                out.push(Method::HierarchicalContact(crate::solver::discontinuity::contact_area_floor(
+                    HierarchicalParams {
+                        bf_eps: eps,
+                        cluster: Clustering::On,
+                        ..HierarchicalParams::quality()
+                    },
+                )));
+            }
+        }
     }
     out
 }
+
+/// Scenes with fewer input patches get no clustered rows in [`sweep`].
+pub const CLUSTER_ROWS_MIN_PATCHES: usize = 100;
 
 /// The contact-mesh rows' area floor per unit of error threshold (see [`sweep`]).
 pub use crate::solver::discontinuity::CONTACT_AEPS_PER_EPS;
@@ -845,6 +865,8 @@ fn rises_beyond(errors: &[f64], resolution: f64) -> usize {
 
 /// The settings word that marks the contact-mesh rows ([`Method::HierarchicalContact`]).
 const CONTACT_MARK: &str = "mesh=contact";
+/// The settings word that marks clustered rows.
+const CLUSTER_MARK: &str = "cluster=on";
 
 /// Issue 15 §3's convergence check, per scene: the contact-mesh rows' errors in sweep order
 /// (each halving the threshold), and whether each halving lowered the error — a rise counts only
@@ -852,30 +874,38 @@ const CONTACT_MARK: &str = "mesh=contact";
 fn convergence_lines(report: &BenchReport) -> String {
     let mut s = String::new();
     for sc in &report.scenes {
-        let rows: Vec<&Row> = report
-            .rows
-            .iter()
-            .filter(|r| r.scene == sc.scene && r.settings.contains(CONTACT_MARK) && r.status == "ok")
-            .collect();
-        if rows.len() < 2 {
-            continue;
-        }
-        if s.is_empty() {
-            s.push_str("\nConvergence of the error oracle on the contact mesh, each row halving the threshold (pointwise rel L2, debiased):\n\n");
-        }
-        let seq: Vec<String> = rows.iter().map(|r| pct(r.error())).collect();
-        let errors: Vec<f64> = rows.iter().map(|r| r.error()).collect();
-        let rises = rises_beyond(&errors, sc.resolution);
-        s.push_str(&format!(
-            "- {}: {} — {}\n",
-            sc.scene.trim_start_matches("builtin:"),
-            seq.join(" → "),
-            if rises == 0 {
-                "each halving lowered the error (within the resolution)".to_string()
-            } else {
-                format!("{rises} halving(s) raised it beyond the resolution")
+        for clustered in [false, true] {
+            let rows: Vec<&Row> = report
+                .rows
+                .iter()
+                .filter(|r| {
+                    r.scene == sc.scene
+                        && r.settings.contains(CONTACT_MARK)
+                        && r.settings.contains(CLUSTER_MARK) == clustered
+                        && r.status == "ok"
+                })
+                .collect();
+            if rows.len() < 2 {
+                continue;
             }
-        ));
+            if s.is_empty() {
+                s.push_str("\nConvergence of the error oracle on the contact mesh, each row halving the threshold (pointwise rel L2, debiased):\n\n");
+            }
+            let seq: Vec<String> = rows.iter().map(|r| pct(r.error())).collect();
+            let errors: Vec<f64> = rows.iter().map(|r| r.error()).collect();
+            let rises = rises_beyond(&errors, sc.resolution);
+            s.push_str(&format!(
+                "- {}{}: {} — {}\n",
+                sc.scene.trim_start_matches("builtin:"),
+                if clustered { " (clustered)" } else { "" },
+                seq.join(" → "),
+                if rises == 0 {
+                    "each halving lowered the error (within the resolution)".to_string()
+                } else {
+                    format!("{rises} halving(s) raised it beyond the resolution")
+                }
+            ));
+        }
     }
     s
 }
@@ -1024,6 +1054,24 @@ pub(crate) fn write_png_rgb(path: &Path, w: u32, h: u32, rgb: &[u8]) -> Result<(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Clustered contact-mesh rows on scenes with many patches only, marked in their settings
+    /// (the convergence lines keep them apart from the unclustered ones).
+    #[test]
+    fn clustered_rows_only_where_clusters_can_stand_for_many_patches() {
+        let clustered = |name: &str| {
+            let scene = crate::scene::builtin::load(name).unwrap();
+            sweep(&scene, Mode::Standard)
+                .iter()
+                .filter(|m| matches!(m, Method::HierarchicalContact(p) if p.cluster == Clustering::On))
+                .map(Method::settings)
+                .collect::<Vec<_>>()
+        };
+        assert!(clustered("cornell").is_empty());
+        let rows = clustered("splash_room");
+        assert_eq!(rows.len(), 4, "{rows:?}");
+        assert!(rows.iter().all(|s| s.contains(CONTACT_MARK) && s.contains(CLUSTER_MARK)), "{rows:?}");
+    }
 
     #[test]
     fn time_ticks_show_a_significant_digit() {
