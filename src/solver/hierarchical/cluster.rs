@@ -732,11 +732,14 @@ impl ClusterTransfer {
                 if patch == LEAF {
                     return (Rgb::ZERO, [Rgb::ZERO; 2]);
                 }
+                let links = &incoming[start[r] as usize..start[r + 1] as usize];
+                if links.is_empty() {
+                    return (Rgb::ZERO, [Rgb::ZERO; 2]);
+                }
                 let e = hier.get(patch);
                 let slope = PatchSlope::new(e);
                 let mut direct = Rgb::ZERO;
                 let mut grad = [Rgb::ZERO; 2];
-                let links = &incoming[start[r] as usize..start[r + 1] as usize];
                 for ((omega, _, _, phi), inc) in gather(r).zip(links) {
                     direct += phi * e.normal.dot(omega).max(0.0);
                     if let Some(s) = &slope {
@@ -805,7 +808,7 @@ impl ClusterTransfer {
 }
 
 /// A patch's fit of its cluster links' transfer ([`ClusterTransfer::slopes`]).
-struct PatchSlope {
+struct PatchSlope<'a> {
     pts: [DVec3; 4],
     /// The patch's centroid, where the slope's shift is zero (push-pull's).
     centroid: DVec3,
@@ -813,11 +816,11 @@ struct PatchSlope {
     t1: DVec3,
     t2: DVec3,
     fit: super::oracle::FitWeights,
-    vertices: Vec<DVec3>,
+    vertices: &'a [DVec3],
 }
 
-impl PatchSlope {
-    fn new(e: &crate::hierarchy::Element) -> Option<PatchSlope> {
+impl<'a> PatchSlope<'a> {
+    fn new(e: &'a crate::hierarchy::Element) -> Option<PatchSlope<'a>> {
         let pts = super::oracle::child_points(e);
         let c = (pts[0] + pts[1] + pts[2] + pts[3]) * 0.25;
         let (t1, t2) = crate::math::orthonormal_basis(e.normal);
@@ -829,7 +832,7 @@ impl PatchSlope {
             t1,
             t2,
             fit,
-            vertices: e.vertices().to_vec(),
+            vertices: e.vertices(),
         })
     }
 
@@ -862,7 +865,7 @@ impl PatchSlope {
     /// every vertex of the patch.
     fn limit(&self, value: Rgb, grad: [Rgb; 2]) -> [Rgb; 2] {
         let mut scale = [1.0f64; 3];
-        for v in &self.vertices {
+        for v in self.vertices {
             let (du, dv) = ((*v - self.centroid).dot(self.t1), (*v - self.centroid).dot(self.t2));
             for (ch, scale) in scale.iter_mut().enumerate() {
                 let shift = grad[0].0[ch] * du + grad[1].0[ch] * dv;
