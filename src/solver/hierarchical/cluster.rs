@@ -825,15 +825,7 @@ impl<'a> PatchSlope<'a> {
         let c = (pts[0] + pts[1] + pts[2] + pts[3]) * 0.25;
         let (t1, t2) = crate::math::orthonormal_basis(e.normal);
         let fit = super::oracle::FitWeights::new(&pts, c, t1, t2)?;
-        Some(PatchSlope {
-            pts,
-            centroid: e.centroid,
-            normal: e.normal,
-            t1,
-            t2,
-            fit,
-            vertices: e.vertices(),
-        })
+        Some(PatchSlope { pts, centroid: e.centroid, normal: e.normal, t1, t2, fit, vertices: e.vertices() })
     }
 
     /// The gradient (basis t1, t2) of the transfer from a node centred at `src` to this patch
