@@ -42,6 +42,7 @@ use obvhs::aabb::Aabb;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::Ray;
 use obvhs::{Boundable, BvhBuildParams};
+use std::sync::OnceLock;
 use std::time::Duration;
 
 /// Relative tolerance (in local units, scene diagonal = 1) by which polygon edges are widened.
@@ -185,8 +186,9 @@ pub struct Accel {
     /// Polygons in BVH primitive order.
     polys: Vec<Poly>,
     /// Their vertices in the local frame (BVH order) and how many there are (3 or 4), for
-    /// [`Accel::shaft_clear`].
-    poly_verts: Vec<([Vec3A; 4], u8)>,
+    /// [`Accel::shaft_clear`]: made at its first call, so the solves that never test a shaft
+    /// (the BF oracle's) do not hold them (80 bytes a polygon, 80 MB for furnished-1m).
+    poly_verts: OnceLock<Vec<([Vec3A; 4], u8)>>,
     origin: DVec3,
     inv_scale: f64,
 }
@@ -245,20 +247,8 @@ impl Accel {
         let mut t = Duration::ZERO;
         let bvh = obvhs::cwbvh::builder::build_cwbvh(&polys, BvhBuildParams::very_slow_build(), &mut t);
         let ordered: Vec<Poly> = bvh.primitive_indices.iter().map(|&i| polys[i as usize]).collect();
-        let poly_verts = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| {
-                let v = &scene.patches[polys[i as usize].patch as usize].vertices;
-                let mut out = [Vec3A::ZERO; 4];
-                for (o, &q) in out.iter_mut().zip(v) {
-                    *o = to_local(q);
-                }
-                (out, v.len().min(4) as u8)
-            })
-            .collect();
         let (wide, stack_needs) = decode_wide(&bvh, &ordered);
-        Accel { bvh, wide, stack_needs, polys: ordered, poly_verts, origin, inv_scale }
+        Accel { bvh, wide, stack_needs, polys: ordered, poly_verts: OnceLock::new(), origin, inv_scale }
     }
 
     /// The first polygon (in traversal order) that blocks the shadow ray, or `None`. The
@@ -432,12 +422,28 @@ impl Accel {
     /// hull, too many vertices, a tree too deep for the wide traversal). Polygons that touch
     /// the hull's boundary within [`SHAFT_TOL`] (the floor a box stands on, a wall the two
     /// polygons both meet) do not count: a segment can only graze them.
+    ///
+    /// `scene` is the scene the tree was built from (its polygons' vertices are read from it
+    /// once); another scene, of a different patch count, answers `false`.
     #[must_use]
-    pub fn shaft_clear(&self, a: &[DVec3], b: &[DVec3], ignore: [u32; 2]) -> bool {
+    pub fn shaft_clear(&self, scene: &Scene, a: &[DVec3], b: &[DVec3], ignore: [u32; 2]) -> bool {
         const MAX: usize = 16;
-        if self.wide.is_empty() || a.len() + b.len() > MAX {
+        if self.wide.is_empty() || a.len() + b.len() > MAX || scene.patches.len() != self.polys.len() {
             return false;
         }
+        let poly_verts = self.poly_verts.get_or_init(|| {
+            self.polys
+                .iter()
+                .map(|p| {
+                    let v = &scene.patches[p.patch as usize].vertices;
+                    let mut out = [Vec3A::ZERO; 4];
+                    for (o, &q) in out.iter_mut().zip(v) {
+                        *o = self.to_local(q);
+                    }
+                    (out, v.len().min(4) as u8)
+                })
+                .collect()
+        });
         let mut pts = [DVec3::ZERO; MAX];
         let n = a.len() + b.len();
         for (o, &p) in pts.iter_mut().zip(a.iter().chain(b)) {
@@ -496,7 +502,7 @@ impl Accel {
         let pts32: Vec<Vec3A> = pts.iter().map(|p| Vec3A::new(p.x as f32, p.y as f32, p.z as f32)).collect();
         // Is polygon `id` (BVH order) outside the shaft?
         let separated = |id: usize| {
-            let (v, m) = &self.poly_verts[id];
+            let (v, m) = &poly_verts[id];
             let v = &v[..usize::from(*m)];
             let outside = planes32.iter().any(|(nrm, d)| {
                 let nrm = Vec3A::from_array(*nrm);
@@ -828,7 +834,7 @@ mod tests {
             let acc = Accel::build(&sc);
             let m = |v: Vec<DVec3>| v.into_iter().map(|p| p * s + off).collect::<Vec<_>>();
             // The strips lie in the floor (patch 0) and the ceiling (patch 1).
-            let clear = |a: Vec<DVec3>, b: Vec<DVec3>| acc.shaft_clear(&m(a), &m(b), [0, 1]);
+            let clear = |a: Vec<DVec3>, b: Vec<DVec3>| acc.shaft_clear(&sc, &m(a), &m(b), [0, 1]);
             assert!(
                 clear(strip(0.6, 1.0, 0.0, true), strip(0.6, 1.0, 2.0, false)),
                 "beside the blocker, {off} {s}"
@@ -845,7 +851,7 @@ mod tests {
             // Ignoring the blocker's two halves instead: nothing else stands there, and the
             // floor and ceiling the strips lie in count as outside (their own planes bound it).
             assert!(
-                acc.shaft_clear(&m(strip(0.0, 0.4, 0.0, true)), &m(strip(0.0, 0.4, 2.0, false)), [2, 3]),
+                acc.shaft_clear(&sc, &m(strip(0.0, 0.4, 0.0, true)), &m(strip(0.0, 0.4, 2.0, false)), [2, 3]),
                 "blocker ignored, {off} {s}"
             );
         }
@@ -867,7 +873,7 @@ mod tests {
             let (a0, a1) = span(&mut rng);
             let (b0, b1) = span(&mut rng);
             let (lo, hi) = (strip(a0, a1, 0.0, true), strip(b0, b1, 2.0, false));
-            if !acc.shaft_clear(&lo, &hi, [0, 1]) {
+            if !acc.shaft_clear(&sc, &lo, &hi, [0, 1]) {
                 blocked += 1;
                 continue;
             }

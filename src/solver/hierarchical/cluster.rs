@@ -558,10 +558,8 @@ pub struct ClusterTransfer {
     t: Vec<[Vec3Rgb; FRAMES.len()]>,
     u: Vec<Vec3Rgb>,
     w: Vec<[Vec3Rgb; FRAMES.len()]>,
-    /// Per patch, the gradient of what it gathers through its own cluster links, in its
-    /// tangent basis ([`crate::math::orthonormal_basis`] of its normal), per unit length:
-    /// filled by [`ClusterTransfer::irradiance`] (see [`ClusterTransfer::slopes`]).
-    slopes: Vec<[Rgb; 2]>,
+    /// Each patch's node (its leaf of the tree).
+    leaf: Vec<u32>,
 }
 
 /// A node as the transfer reads it.
@@ -631,8 +629,14 @@ impl ClusterTransfer {
                 };
                 Node { centre: node.center, patch, slot }
             })
-            .collect();
-        ClusterTransfer { start, incoming, nodes, clusters, ..ClusterTransfer::default() }
+            .collect::<Vec<Node>>();
+        let patches =
+            nodes.iter().filter(|n| n.patch != LEAF).map(|n| n.patch as usize + 1).max().unwrap_or(0);
+        let mut leaf = vec![LEAF; patches];
+        for (i, n) in nodes.iter().enumerate().filter(|(_, n)| n.patch != LEAF) {
+            leaf[n.patch as usize] = i as u32;
+        }
+        ClusterTransfer { start, incoming, nodes, clusters, leaf, ..ClusterTransfer::default() }
     }
 
     /// Irradiance of every patch (indexed by patch) through the cluster links, with patch
@@ -643,10 +647,43 @@ impl ClusterTransfer {
         hier: &Hierarchy,
         b: &(impl Fn(u32) -> Rgb + Sync),
     ) -> Vec<Rgb> {
+        self.transfer(tree, hier, b, false).0
+    }
+
+    /// [`ClusterTransfer::irradiance`] and, per patch, how what it gathers through its own
+    /// cluster links (a cluster at the other end, the patch itself at this one) varies across
+    /// it: the gradient, per unit length in the patch's tangent basis
+    /// ([`crate::math::orthonormal_basis`] of its normal), of the least-squares affine fit of
+    /// the links' transfer at the patch's four child points, limited so that the irradiance it
+    /// adds stays ≥ 0 at every vertex.
+    ///
+    /// The transfer lands on each patch as one value at its centre (module docs); a wall lit by
+    /// a cluster of furniture beside it is brighter near it, and the value's mean over the
+    /// patch stays what the link delivers (the slope's shift averages to zero over the
+    /// patch's area), so the power balance does not change. Pushed down to the leaves as the
+    /// element links' slopes are (`push_slopes`).
+    pub fn irradiance_and_slopes(
+        &mut self,
+        tree: &ClusterTree,
+        hier: &Hierarchy,
+        b: &(impl Fn(u32) -> Rgb + Sync),
+    ) -> (Vec<Rgb>, Vec<[Rgb; 2]>) {
+        self.transfer(tree, hier, b, true)
+    }
+
+    /// The irradiance, and the slopes when `with_slopes` (else no slopes, an empty list).
+    fn transfer(
+        &mut self,
+        tree: &ClusterTree,
+        hier: &Hierarchy,
+        b: &(impl Fn(u32) -> Rgb + Sync),
+        with_slopes: bool,
+    ) -> (Vec<Rgb>, Vec<[Rgb; 2]>) {
         let n = tree.len();
-        if self.start.len() != n + 1 {
+        if self.start.len() != n + 1 || self.leaf.len() != hier.roots {
             // No links (or a tree of another scene): nothing is gathered.
-            return vec![Rgb::ZERO; hier.roots];
+            let slopes = if with_slopes { vec![[Rgb::ZERO; 2]; hier.roots] } else { Vec::new() };
+            return (vec![Rgb::ZERO; hier.roots], slopes);
         }
         let m = self.clusters.len();
         // A patch's moments, S = A B n and T = A B |n| per frame.
@@ -724,45 +761,41 @@ impl ClusterTransfer {
                 }
             },
         );
-        let direct: Vec<(Rgb, [Rgb; 2])> = (0..n)
-            .into_par_iter()
-            .with_min_len(256)
-            .map(|r| {
-                let patch = nodes[r].patch;
-                if patch == LEAF {
-                    return (Rgb::ZERO, [Rgb::ZERO; 2]);
+        // What each patch gathers through its own links, at once with its normal (and their
+        // slope).
+        let leaf = &self.leaf;
+        let direct = |p: usize| {
+            let Some(r) = leaf.get(p).filter(|&&r| r != LEAF).map(|&r| r as usize) else {
+                return (Rgb::ZERO, [Rgb::ZERO; 2]);
+            };
+            let links = &incoming[start[r] as usize..start[r + 1] as usize];
+            if links.is_empty() {
+                return (Rgb::ZERO, [Rgb::ZERO; 2]);
+            }
+            let e = hier.get(p as u32);
+            let slope = if with_slopes { PatchSlope::new(e) } else { None };
+            let mut direct = Rgb::ZERO;
+            let mut grad = [Rgb::ZERO; 2];
+            for ((omega, _, _, phi), inc) in gather(r).zip(links) {
+                direct += phi * e.normal.dot(omega).max(0.0);
+                if let Some(s) = &slope {
+                    let [gu, gv] = s.gradient(nodes[r].centre, nodes[inc.src as usize].centre, inc.reg);
+                    grad[0] += phi * gu;
+                    grad[1] += phi * gv;
                 }
-                let links = &incoming[start[r] as usize..start[r + 1] as usize];
-                if links.is_empty() {
-                    return (Rgb::ZERO, [Rgb::ZERO; 2]);
-                }
-                let e = hier.get(patch);
-                let slope = PatchSlope::new(e);
-                let mut direct = Rgb::ZERO;
-                let mut grad = [Rgb::ZERO; 2];
-                for ((omega, _, _, phi), inc) in gather(r).zip(links) {
-                    direct += phi * e.normal.dot(omega).max(0.0);
-                    if let Some(s) = &slope {
-                        let [gu, gv] = s.gradient(nodes[r].centre, nodes[inc.src as usize].centre, inc.reg);
-                        grad[0] += phi * gu;
-                        grad[1] += phi * gv;
-                    }
-                }
-                let grad = slope.map_or([Rgb::ZERO; 2], |s| s.limit(direct, grad));
-                (direct, grad)
-            })
-            .collect();
-        self.slopes.clear();
-        self.slopes.resize(hier.roots, [Rgb::ZERO; 2]);
-        let mut h = vec![Rgb::ZERO; hier.roots];
+            }
+            (direct, slope.map_or([Rgb::ZERO; 2], |s| s.limit(direct, grad)))
+        };
+        let (mut h, slopes): (Vec<Rgb>, Vec<[Rgb; 2]>) = if with_slopes {
+            (0..hier.roots).into_par_iter().with_min_len(256).map(direct).unzip()
+        } else {
+            ((0..hier.roots).into_par_iter().with_min_len(256).map(|p| direct(p).0).collect(), Vec::new())
+        };
         // Push U and W down (parents first; the root has none); leaves read their parent's
         // with their normal.
-        for (i, (direct, grad)) in direct.iter().enumerate() {
+        for i in 0..n {
             let parent = tree.nodes[i].parent;
             let Node { patch, slot, .. } = self.nodes[i];
-            if patch != LEAF {
-                self.slopes[patch as usize] = *grad;
-            }
             if parent == LEAF {
                 continue;
             }
@@ -784,30 +817,14 @@ impl ClusterTransfer {
                 for f in 0..FRAMES.len() {
                     hw += dot(&self.w[up][f], abs_in(f, nrm));
                 }
-                h[patch as usize] = *direct + clamp0(hw * 0.5);
+                h[patch as usize] += clamp0(hw * 0.5);
             }
         }
-        h
-    }
-
-    /// Per patch, how what it gathers through its own cluster links (a cluster at the other
-    /// end, the patch itself at this one) varies across it: the gradient, per unit length in
-    /// the patch's tangent basis, of the least-squares affine fit of the links' transfer at the
-    /// patch's four child points, limited so that the irradiance it adds stays ≥ 0 at every
-    /// vertex. As of the last [`ClusterTransfer::irradiance`].
-    ///
-    /// The transfer lands on each patch as one value at its centre (module docs); a wall lit by
-    /// a cluster of furniture beside it is brighter near it, and the value's mean over the
-    /// patch stays what the link delivers (the slope's shift averages to zero over the
-    /// patch's area), so the power balance does not change. Pushed down to the leaves as the
-    /// element links' slopes are (`push_slopes`).
-    #[must_use]
-    pub fn slopes(&self) -> &[[Rgb; 2]] {
-        &self.slopes
+        (h, slopes)
     }
 }
 
-/// A patch's fit of its cluster links' transfer ([`ClusterTransfer::slopes`]).
+/// A patch's fit of its cluster links' transfer ([`ClusterTransfer::irradiance_and_slopes`]).
 struct PatchSlope<'a> {
     pts: [DVec3; 4],
     /// The patch's centroid, where the slope's shift is zero (push-pull's).
@@ -1082,9 +1099,10 @@ mod tests {
         let w = (nb.center - na.center).normalize();
         let links = vec![ClusterLink { a: floor, b: cube_node, vis: 1.0, frame: link_frame(na, nb, w) }];
         let mut x = ClusterTransfer::new(&tree, &links);
-        let h = x.irradiance(&tree, &hier, &|p| if p == 0 { Rgb::ZERO } else { Rgb::ONE });
+        let (h, slopes) =
+            x.irradiance_and_slopes(&tree, &hier, &|p| if p == 0 { Rgb::ZERO } else { Rgb::ONE });
         let e = hier.get(0);
-        let [gu, gv] = x.slopes()[0];
+        let [gu, gv] = slopes[0];
         assert!(h[0].0[0] > 0.0, "the floor gathers from the cube: {:?}", h[0]);
         let (t1, t2) = crate::math::orthonormal_basis(e.normal);
         let grad = t1 * gu.0[0] + t2 * gv.0[0];
@@ -1096,7 +1114,9 @@ mod tests {
             assert!(at(*v) >= -1e-12, "corner {v}: {}", at(*v));
         }
         // The cube's own faces gather nothing through the link from the black floor.
-        assert!((1..7).all(|p| x.slopes()[p] == [Rgb::ZERO; 2] && h[p] == Rgb::ZERO));
+        assert!((1..7).all(|p| slopes[p] == [Rgb::ZERO; 2] && h[p] == Rgb::ZERO));
+        // The same irradiance without the slopes.
+        assert_eq!(x.irradiance(&tree, &hier, &|p| if p == 0 { Rgb::ZERO } else { Rgb::ONE }), h);
     }
 
     /// A 4 × 4 grid of squares making the unit square at height `z`, facing up or down.

@@ -212,8 +212,8 @@ impl HierarchicalSolver {
                 if let Some((h, slopes)) = &cluster_h {
                     let e = &mut self.hier.elements[root as usize];
                     e.gathered += h[root as usize];
-                    if self.params.push_slopes {
-                        add_slope(&mut e.gathered_slope, slopes[root as usize]);
+                    if let Some(s) = slopes.get(root as usize) {
+                        add_slope(&mut e.gathered_slope, *s);
                     }
                 }
                 self.push_pull_root(root);
@@ -236,11 +236,12 @@ impl HierarchicalSolver {
                 (e.gathered, e.gathered_full, e.gathered_slope) = plan.gather(r, |s| b[s as usize], mu);
             });
             if let Some((h, slopes)) = &cluster_h {
-                for ((e, h), s) in self.hier.elements.iter_mut().zip(h).zip(slopes) {
+                for (e, h) in self.hier.elements.iter_mut().zip(h) {
                     e.gathered += *h;
-                    if self.params.push_slopes {
-                        add_slope(&mut e.gathered_slope, *s);
-                    }
+                }
+                // Empty without `push_slopes`.
+                for (e, s) in self.hier.elements.iter_mut().zip(slopes) {
+                    add_slope(&mut e.gathered_slope, *s);
                 }
             }
             self.b_prev = b;

@@ -332,16 +332,21 @@ impl HierarchicalSolver {
         (infos, patch_cluster)
     }
 
-    /// Every input patch's irradiance through the cluster links, and its slope
-    /// ([`ClusterTransfer::slopes`]; None: no cluster links).
+    /// Every input patch's irradiance through the cluster links, and with `push_slopes` its
+    /// slope ([`ClusterTransfer::irradiance_and_slopes`]; else no slopes; None: no cluster
+    /// links).
     pub(super) fn cluster_irradiance(&mut self) -> Option<(Vec<Rgb>, Vec<[Rgb; 2]>)> {
         let tree = self.clusters.as_ref()?;
         if self.cluster_links.is_empty() {
             return None;
         }
         let hier = &self.hier;
-        let h = self.cluster_xfer.irradiance(tree, hier, &|p| hier.get(p).radiosity);
-        Some((h, self.cluster_xfer.slopes().to_vec()))
+        let b = |p: u32| hier.get(p).radiosity;
+        Some(if self.params.push_slopes {
+            self.cluster_xfer.irradiance_and_slopes(tree, hier, &b)
+        } else {
+            (self.cluster_xfer.irradiance(tree, hier, &b), Vec::new())
+        })
     }
 
     /// The form-factor accuracy of input patch pairs: they carry a closed scene's whole
@@ -401,7 +406,7 @@ impl HierarchicalSolver {
         // pairs below it.
         let clear = v == 1.0
             && self.params.oracle == Oracle::Error
-            && self.accel.shaft_clear(p.vertices(), q.vertices(), [p.patch, q.patch]);
+            && self.accel.shaft_clear(&self.scene, p.vertices(), q.vertices(), [p.patch, q.patch]);
         if v == 0.0 {
             // Confirm full occlusion with more rays before dropping the pair.
             if confirm == 0 || vis(confirm, 0x5EED) == 0.0 {

@@ -945,7 +945,7 @@ impl HierarchicalSolver {
         } else if vis == 1.0
             && !shaft
             && error_oracle
-            && self.accel.shaft_clear(lo.vertices(), hi.vertices(), [lo.patch, hi.patch])
+            && self.accel.shaft_clear(&self.scene, lo.vertices(), hi.vertices(), [lo.patch, hi.patch])
         {
             // Every ray passed and the pair's shaft is empty (`Accel::shaft_clear`): V = 1
             // exactly, for this pair and all those below it, without the confirmation's rays.
