@@ -127,6 +127,10 @@ pub struct Args {
     /// the preset's.
     #[arg(long)]
     pub solve_max_depth: Option<u8>,
+    /// Relative tolerance of --compare hierarchical's link coefficients (as `radlab solve
+    /// --link-tol`). Default: the preset's.
+    #[arg(long)]
+    pub solve_link_tol: Option<f64>,
     /// Clustering of --compare hierarchical (off, auto, on). Default: the preset's (auto).
     #[arg(long, value_enum)]
     pub solve_cluster: Option<radlab::solver::params::Clustering>,
@@ -498,6 +502,7 @@ fn hierarchical_params(args: &Args) -> anyhow::Result<radlab::solver::params::Hi
     }
     p.max_links = args.solve_max_links.unwrap_or(p.max_links);
     p.max_depth = args.solve_max_depth.unwrap_or(p.max_depth);
+    p.link_tol = args.solve_link_tol.unwrap_or(p.link_tol);
     p.cluster = args.solve_cluster.unwrap_or(p.cluster);
     p.validate().map_err(anyhow::Error::msg).context("invalid --solve-* flag")?;
     Ok(p)

@@ -502,7 +502,13 @@ impl HierarchicalSolver {
 
     /// How accurately link coefficients are computed.
     pub(super) fn accuracy(&self) -> transfer::Accuracy {
-        transfer::Accuracy { tol: self.params.link_tol, five_times: self.params.five_times }
+        let tol =
+            if self.params.oracle == Oracle::Error && self.params.bf_relative && self.params.link_tol > 0.0 {
+                self.params.link_tol.max(transfer::LINK_TOL_PER_EPS * self.params.bf_eps)
+            } else {
+                self.params.link_tol
+            };
+        transfer::Accuracy { tol, five_times: self.params.five_times }
     }
 
     /// The pair's Galerkin coupling (see [`coupling_in`]).

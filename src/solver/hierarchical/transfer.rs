@@ -25,8 +25,16 @@
 //!   five-times rule (optional, centroids ≥ 5 diameters of either apart) ──► disk formula
 //!   link_tol = 0 (SPLASH-2's rule) ──► the kernel at the smaller element's centroid (1 point)
 //!   otherwise ──► n×n Gauss–Legendre, n = ⌈ln(1/link_tol) / (2 ln ρ)⌉, ρ = 1 + 2g/s + √((1 + 2g/s)² − 1);
-//!                 straddling, touching, or n > MAX_GAUSS ──► adaptive cubature to link_tol
+//!                 straddling (apart) ──► the same n over the part in front of the other's plane
+//!                 touching (g ≤ 0), or n > MAX_GAUSS ──► adaptive cubature to link_tol
 //! ```
+//!
+//! A straddling pair (a wall and a shelf whose plane cuts it) that is apart exchanges nothing
+//! behind the cutting plane and a transfer analytic in x in front of it (it falls to 0 linearly
+//! at the plane), so a Gauss rule over the clipped pieces
+//! ([`form_factor::polygon_to_polygon_fixed`]) converges as for any pair at that distance. On
+//! splash_room's clustered contact mesh (ε = 0.2) such pairs had been 7 863 adaptive
+//! integrations of 93 kernel evaluations each; 219 remain adaptive (the closer ones).
 //!
 //! For an analytic integrand whose nearest singularity lies a distance g from an interval of
 //! length s, the n-point Gauss rule converges like ρ^(−2n) with that ρ [Trefethen 2008, "Is
@@ -67,6 +75,16 @@ pub(super) const ROOT_ABS_TOL: f64 = 1e-8;
 /// cube-one-light −0.105 %; now −0.007 % each).
 const ONE_POINT_ROOT_TOL: f64 = 1e-4;
 pub(super) const ELEMENT_ABS_TOL: f64 = 1e-8;
+/// The error oracle at a relative threshold ε computes refined links' coefficients to
+/// `max(link_tol, LINK_TOL_PER_EPS · ε)` (`HierarchicalSolver::accuracy`): the lecture's "only
+/// compute things to the required precision". The oracle accepts an element whose gathered
+/// radiosity is wrong by ε of the mean; a coefficient off by ε/20 moves its link's transfer by a
+/// twentieth of that, and a receiver sums many links whose quadrature errors do not share a
+/// sign. Reciprocity, and so the power balance, stay exact at any tolerance (one G per pair).
+/// Measured on splash_room's clustered contact mesh at ε = 0.2 (`quality`, 4-batch reference,
+/// interleaved medians of 7 solves, 2 threads): 0.574 → 0.458 s, 1.01 → 0.80 s CPU, pointwise
+/// rel L2 6.64 → 6.66 % (ε = 0.3: 8.48 → 8.40 %).
+pub(super) const LINK_TOL_PER_EPS: f64 = 0.05;
 /// `min_gap` of [`coupling`] when nothing bounds the pair's distance but its centroids.
 pub(super) const NO_GAP_BOUND: f64 = f64::NEG_INFINITY;
 /// Largest Gauss–Legendre order per axis; a pair that needs more is integrated adaptively.
@@ -91,6 +109,10 @@ pub(super) enum Rule {
     Disk,
     /// n×n Gauss–Legendre over the integrated element.
     Gauss(usize),
+    /// n×n Gauss–Legendre over each piece of the integrated element's part in front of the
+    /// other's plane (a straddling pair apart from each other: the transfer is smooth there and
+    /// 0 behind, so the rule integrates the smooth part only).
+    GaussClipped(usize),
     /// Adaptive cubature to a relative tolerance.
     Adaptive,
 }
@@ -129,13 +151,19 @@ fn rule_gap(x: &Element, y: &Element, straddle: bool, root: bool, acc: Accuracy,
     if acc.tol <= 0.0 {
         return Rule::Gauss(1);
     }
-    if straddle || gap <= 0.0 || x.diam <= 0.0 {
+    if gap <= 0.0 || x.diam <= 0.0 {
         return Rule::Adaptive;
     }
     let r = 2.0 * gap / x.diam;
     let rho = 1.0 + r + ((1.0 + r) * (1.0 + r) - 1.0).sqrt();
     let n = ((1.0 / acc.tol).ln() / (2.0 * rho.ln())).ceil();
-    if !n.is_finite() || n > MAX_GAUSS as f64 { Rule::Adaptive } else { Rule::Gauss((n as usize).max(1)) }
+    if !n.is_finite() || n > MAX_GAUSS as f64 {
+        Rule::Adaptive
+    } else if straddle {
+        Rule::GaussClipped((n as usize).max(1))
+    } else {
+        Rule::Gauss((n as usize).max(1))
+    }
 }
 
 /// The distance between the two elements' bounding boxes: a lower bound of their distance.
@@ -173,6 +201,9 @@ pub(super) fn coupling(
     let g = match rule_gap(x, y, straddle, root, acc, min_gap) {
         Rule::Disk => x.area * form_factor::disk(x.centroid, x.normal, y.centroid, y.normal, y.area),
         Rule::Gauss(n) => x.area * gauss(x, y, n),
+        Rule::GaussClipped(n) => {
+            x.area * form_factor::polygon_to_polygon_fixed(x.vertices(), y.vertices(), n)
+        }
         Rule::Adaptive => {
             let (rel, abs) = if root && acc.tol <= 0.0 {
                 (ONE_POINT_ROOT_TOL, ROOT_ABS_TOL)
@@ -279,6 +310,41 @@ mod tests {
             let ba = coupling(hr.get(1), 1, hr.get(0), 0, false, false, ACC, NO_GAP_BOUND);
             assert_eq!(ab.to_bits(), ba.to_bits(), "dx {dx} h {h} s {s}");
             assert!(ab > 0.0);
+        }
+    }
+
+    /// A pair apart whose one element straddles the other's plane (a wall cut by a shelf's
+    /// plane) takes the Gauss rule over the part in front, and meets the tolerance as the
+    /// adaptive rule does, for either element integrated over.
+    #[test]
+    fn straddling_pairs_apart_meet_the_tolerance() {
+        for (x0, lo, hi, s) in [(2.0, -0.5, 0.5, 1.0), (1.5, -0.2, 0.6, 0.8), (4.0, -1.0, 0.3, 2.0)] {
+            // A wall facing −x at x = x0, from z = lo to hi (the floor's plane z = 0 cuts it).
+            let wall = patch(vec![
+                DVec3::new(x0, 0.0, lo),
+                DVec3::new(x0, 0.0, hi),
+                DVec3::new(x0, s, hi),
+                DVec3::new(x0, s, lo),
+            ]);
+            let hr = hier(vec![floor(), wall]);
+            let (p, q) = (hr.get(0), hr.get(1));
+            let exact = p.area * form_factor::polygon_to_polygon(p.vertices(), q.vertices(), 1e-11);
+            assert!(exact > 0.0);
+            for tol in [1e-2, 1e-3, 1e-4, 1e-6] {
+                let acc = Accuracy { tol, five_times: false };
+                let g = coupling(p, 0, q, 1, true, false, acc, NO_GAP_BOUND);
+                let rel = (g - exact).abs() / exact;
+                let (x, y) = if p.area < q.area { (p, q) } else { (q, p) };
+                let chosen = rule(x, y, true, false, acc);
+                assert!(
+                    rel < tol,
+                    "x0 {x0} lo {lo} hi {hi} tol {tol}: {g} vs {exact} ({rel:.2e}, rule {chosen:?})"
+                );
+                // (x0 = 1.5 is near: the bounding spheres overlap, adaptive.)
+                if tol >= 1e-3 && x0 >= 2.0 {
+                    assert!(matches!(chosen, Rule::GaussClipped(_)), "x0 {x0} tol {tol}: {chosen:?}");
+                }
+            }
         }
     }
 
