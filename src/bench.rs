@@ -436,6 +436,10 @@ pub struct Crossing {
     pub target: f64,
     /// `None`: not reached by any setting of the sweep.
     pub time_s: Option<f64>,
+    /// When not reached: where the power law through the method's last rows reaches the target
+    /// ([`extrapolate_time`]), an estimate beyond what was measured. `None` when reached, or
+    /// when the rows do not fall with time.
+    pub extrapolated_s: Option<f64>,
 }
 
 /// The per-scene summary.
@@ -460,6 +464,9 @@ pub struct SceneSummary {
     pub crossings: Vec<Crossing>,
     /// Per target: t(hierarchical) / min t(other methods), when both reached it.
     pub ratios: Vec<(f64, Option<f64>)>,
+    /// Per target, when hierarchical reached it and no other method did: t(hierarchical) /
+    /// min of the others' extrapolated times (an estimate, labelled as such in the report).
+    pub ratios_extrapolated: Vec<(f64, Option<f64>)>,
 }
 
 /// Everything a bench run measured.
@@ -522,6 +529,45 @@ pub fn time_to_reach(points: &[(f64, f64)], target: f64) -> Option<f64> {
     None
 }
 
+/// Rows of the lower envelope that [`extrapolate_time`] fits.
+pub const EXTRAPOLATE_POINTS: usize = 3;
+
+/// Where a method that did not reach `target` would, if its error kept falling as it does over
+/// its last [`EXTRAPOLATE_POINTS`] rows on the lower envelope: the least-squares power law
+/// err = c · t^(−a) through them (a line in log t – log err), solved for `target`. `None` with
+/// fewer rows, when the envelope already reaches the target, or when the fitted error does not
+/// fall with time (a ≤ 0). An estimate beyond the measured range, never a measurement: a uniform
+/// mesh's error falls ever more slowly where shadow edges cut its elements, so the power law of
+/// its last rows is, if anything, optimistic for it.
+#[must_use]
+pub fn extrapolate_time(points: &[(f64, f64)], target: f64) -> Option<f64> {
+    let env = pareto(points);
+    if env.len() < EXTRAPOLATE_POINTS || env.last()?.1 <= target || !(target > 0.0) {
+        return None;
+    }
+    let tail: Vec<(f64, f64)> = env[env.len() - EXTRAPOLATE_POINTS..]
+        .iter()
+        .filter(|(t, e)| *t > 0.0 && *e > 0.0)
+        .map(|(t, e)| (t.ln(), e.ln()))
+        .collect();
+    if tail.len() < EXTRAPOLATE_POINTS {
+        return None;
+    }
+    let n = tail.len() as f64;
+    let (mx, my) = (tail.iter().map(|p| p.0).sum::<f64>() / n, tail.iter().map(|p| p.1).sum::<f64>() / n);
+    let sxx: f64 = tail.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
+    let sxy: f64 = tail.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    if !(sxx > 0.0) {
+        return None;
+    }
+    let slope = sxy / sxx;
+    if !(slope < 0.0) {
+        return None;
+    }
+    let t = (mx + (target.ln() - my) / slope).exp();
+    t.is_finite().then_some(t)
+}
+
 /// Load `builtin:NAME`, `hard:NAME` or a path.
 fn load(spec: &str) -> Result<Scene, BenchError> {
     hard_cases::load_scene(spec).map_err(|source| BenchError::Scene { spec: spec.into(), source })
@@ -568,10 +614,12 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
         }
         let mut crossings = Vec::new();
         let mut ratios = Vec::new();
+        let mut ratios_extrapolated = Vec::new();
         let mut resolved = Vec::new();
         for &target in &TARGETS {
             let mut hier = None;
             let mut best_other: Option<f64> = None;
+            let mut best_extrapolated: Option<f64> = None;
             for m in ["uniform", "progressive", "hierarchical"] {
                 let pts: Vec<(f64, f64)> = scene_rows
                     .iter()
@@ -579,14 +627,28 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
                     .map(|r| (r.time_s, r.error()))
                     .collect();
                 let t = time_to_reach(&pts, target);
+                let extrapolated = if t.is_none() { extrapolate_time(&pts, target) } else { None };
                 if m == "hierarchical" {
                     hier = t;
                 } else if let Some(t) = t {
                     best_other = Some(best_other.map_or(t, |b: f64| b.min(t)));
+                } else if let Some(t) = extrapolated {
+                    best_extrapolated = Some(best_extrapolated.map_or(t, |b: f64| b.min(t)));
                 }
-                crossings.push(Crossing { method: m.into(), target, time_s: t });
+                crossings.push(Crossing {
+                    method: m.into(),
+                    target,
+                    time_s: t,
+                    extrapolated_s: extrapolated,
+                });
             }
             ratios.push((target, hier.zip(best_other).map(|(h, o)| h / o).filter(|_| resolves(target))));
+            ratios_extrapolated.push((
+                target,
+                hier.zip(best_extrapolated)
+                    .filter(|_| best_other.is_none() && resolves(target))
+                    .map(|(h, o)| h / o),
+            ));
             resolved.push((target, resolves(target)));
         }
         scenes.push(SceneSummary {
@@ -601,6 +663,7 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
             resolved,
             crossings,
             ratios,
+            ratios_extrapolated,
         });
         rows.extend(scene_rows);
     }
@@ -761,6 +824,16 @@ fn secs(t: Option<f64>) -> String {
     t.map_or_else(|| "not reached".into(), |t| format!("{t:.3} s"))
 }
 
+/// An extrapolated time, to two significant digits (it is an estimate).
+fn secs_rough(t: f64) -> String {
+    if t >= 100.0 {
+        let p = 10f64.powi(t.log10().floor() as i32 - 1);
+        format!("{} s", thousands(((t / p).round() * p) as usize))
+    } else {
+        format!("{t:.2} s")
+    }
+}
+
 /// The report as Markdown: the full table, then per scene the time to 1 % and 5 % and the ratio.
 #[must_use]
 pub fn markdown(report: &BenchReport) -> String {
@@ -813,15 +886,17 @@ pub fn markdown(report: &BenchReport) -> String {
     );
     for sc in &report.scenes {
         for m in ["uniform", "progressive", "hierarchical"] {
-            let t = |target: f64| {
-                sc.crossings
-                    .iter()
-                    .find(|c| c.method == m && (c.target - target).abs() < 1e-12)
-                    .and_then(|c| c.time_s)
+            let crossing = |target: f64| {
+                sc.crossings.iter().find(|c| c.method == m && (c.target - target).abs() < 1e-12)
             };
             let cell = |target: f64| {
                 let ok = sc.resolved.iter().any(|&(t, r)| (t - target).abs() < 1e-12 && r);
-                if ok { secs(t(target)) } else { "unresolved".to_string() }
+                let c = crossing(target);
+                match (ok, c.and_then(|c| c.time_s), c.and_then(|c| c.extrapolated_s)) {
+                    (false, _, _) => "unresolved".to_string(),
+                    (true, None, Some(x)) => format!("not reached (extrapolated ~{})", secs_rough(x)),
+                    (true, t, _) => secs(t),
+                }
             };
             let best = report
                 .rows
@@ -853,6 +928,21 @@ pub fn markdown(report: &BenchReport) -> String {
             ratio(0.05),
             ratio(0.01)
         ));
+        let extrapolated = |target: f64| {
+            sc.ratios_extrapolated
+                .iter()
+                .find(|(t, _)| (t - target).abs() < 1e-12)
+                .and_then(|(_, r)| *r)
+                .map(|r| format!("{r:.2}× (estimate)"))
+        };
+        if extrapolated(0.05).is_some() || extrapolated(0.01).is_some() {
+            s.push_str(&format!(
+                "| {} | | hierarchical / best other's **extrapolated** time | {} | {} | |\n",
+                sc.scene.trim_start_matches("builtin:"),
+                extrapolated(0.05).unwrap_or_else(|| "n/a".into()),
+                extrapolated(0.01).unwrap_or_else(|| "n/a".into())
+            ));
+        }
     }
     s.push_str(&convergence_lines(report));
     s
@@ -1096,6 +1186,27 @@ mod tests {
         assert!((t - 10.0).abs() < 1e-9, "{t}");
         assert_eq!(time_to_reach(&pts, 0.001), None);
         assert_eq!(time_to_reach(&[(2.0, 0.001)], 0.01), Some(2.0));
+    }
+
+    /// The power law through the last three envelope rows is solved for the target; only the
+    /// last three count, and a method that reached the target, or whose error does not fall,
+    /// gets no estimate.
+    #[test]
+    fn unreached_targets_are_extrapolated_from_the_last_rows() {
+        // err = 0.8 · t^(−1/4) from t = 1 on; an early outlier row that the fit must ignore.
+        let law = |t: f64| 0.8 * t.powf(-0.25);
+        let pts = [(0.01, 5.0), (1.0, law(1.0)), (4.0, law(4.0)), (16.0, law(16.0))];
+        let t = extrapolate_time(&pts, 0.05).unwrap();
+        // 0.8 t^(−1/4) = 0.05 at t = 16⁴ = 65 536.
+        assert!((t / 65_536.0 - 1.0).abs() < 1e-9, "{t}");
+        assert_eq!(time_to_reach(&pts, 0.05), None);
+        // Reached: no estimate.
+        assert_eq!(extrapolate_time(&pts, 0.5), None);
+        // Too few rows, or an error that does not fall with time.
+        assert_eq!(extrapolate_time(&pts[2..], 0.05), None);
+        assert_eq!(extrapolate_time(&[(1.0, 0.2), (2.0, 0.2), (4.0, 0.2)], 0.05), None);
+        assert_eq!(secs_rough(65_536.0), "66 000 s");
+        assert_eq!(secs_rough(12.345), "12.35 s");
     }
 
     #[test]

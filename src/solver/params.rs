@@ -150,8 +150,9 @@ pub struct HierarchicalParams {
     /// beyond); 0: the kernel at the smaller element's centroid, SPLASH-2's one-point rule.
     /// Input patch pairs are always integrated to 1e-7 where they are near. Exactness in
     /// closed scenes (Σ F = 1 per element) needs this at 1e-7 once the mesh is refined.
-    /// With the error oracle at a relative ε (`bf_relative`), the coefficients are computed to
-    /// `max(link_tol, transfer::LINK_TOL_PER_EPS · ε)`: no finer than the answer is asked for.
+    /// With the error oracle at a relative ε (`bf_relative`), the adaptive cubature of touching
+    /// and near pairs runs to `max(link_tol, transfer::LINK_TOL_PER_EPS · ε)`: no finer than the
+    /// answer is asked for.
     pub link_tol: f64,
     /// Push each link's variation across its receiver down with the irradiance (`Link::slope`):
     /// a descendant gathers a coarse link's transfer at its own centroid, not the receiver's

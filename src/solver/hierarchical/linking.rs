@@ -254,7 +254,11 @@ impl HierarchicalSolver {
     /// [`CLUSTERED_PAIR_TOL_FACTOR`] × `link_tol` (one point stays one point).
     fn clustered_pair_accuracy(&self) -> transfer::Accuracy {
         let acc = self.accuracy();
-        transfer::Accuracy { tol: acc.tol * CLUSTERED_PAIR_TOL_FACTOR, ..acc }
+        transfer::Accuracy {
+            tol: acc.tol * CLUSTERED_PAIR_TOL_FACTOR,
+            adaptive_tol: acc.adaptive_tol * CLUSTERED_PAIR_TOL_FACTOR,
+            ..acc
+        }
     }
 
     /// The `max` cluster links of largest form factor, largest first (ties: link order), as
@@ -352,10 +356,8 @@ impl HierarchicalSolver {
     /// The form-factor accuracy of input patch pairs: they carry a closed scene's whole
     /// answer, so to 1e-7 (one point with SPLASH-2's rule), never the disk formula.
     pub(super) fn root_accuracy(&self) -> transfer::Accuracy {
-        transfer::Accuracy {
-            tol: if self.params.link_tol > 0.0 { transfer::ROOT_REL_TOL } else { 0.0 },
-            five_times: false,
-        }
+        let tol = if self.params.link_tol > 0.0 { transfer::ROOT_REL_TOL } else { 0.0 };
+        transfer::Accuracy { tol, adaptive_tol: tol, five_times: false }
     }
 
     /// The two links of input patches `pi` < `qi` (p ← q, q ← p), or None when they face away

@@ -843,8 +843,8 @@ mod tests {
     /// The five-times rule's disk estimate against the exact coupling at five diameters or more
     /// (the lecture quotes the rule as good to about a percent; 3 % allows for off-axis pairs).
     const FIVE_TIMES_REL: f64 = 0.03;
-    const ACC: transfer::Accuracy = transfer::Accuracy { tol: 1e-6, five_times: false };
-    const ACC5: transfer::Accuracy = transfer::Accuracy { tol: 1e-6, five_times: true };
+    const ACC: transfer::Accuracy = transfer::Accuracy { tol: 1e-6, adaptive_tol: 1e-6, five_times: false };
+    const ACC5: transfer::Accuracy = transfer::Accuracy { tol: 1e-6, adaptive_tol: 1e-6, five_times: true };
 
     fn square(c: DVec3, side: f64, up: bool) -> Patch {
         let h = side / 2.0;

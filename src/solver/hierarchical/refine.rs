@@ -500,15 +500,17 @@ impl HierarchicalSolver {
         self.params.oracle == Oracle::Error
     }
 
-    /// How accurately link coefficients are computed.
+    /// How accurately link coefficients are computed: the Gauss rules to `link_tol`, the
+    /// adaptive cubature of touching and near pairs, with the error oracle at a relative ε, to
+    /// `max(link_tol, LINK_TOL_PER_EPS · ε)` (see [`transfer::LINK_TOL_PER_EPS`]).
     pub(super) fn accuracy(&self) -> transfer::Accuracy {
-        let tol =
-            if self.params.oracle == Oracle::Error && self.params.bf_relative && self.params.link_tol > 0.0 {
-                self.params.link_tol.max(transfer::LINK_TOL_PER_EPS * self.params.bf_eps)
-            } else {
-                self.params.link_tol
-            };
-        transfer::Accuracy { tol, five_times: self.params.five_times }
+        let p = &self.params;
+        let adaptive_tol = if p.oracle == Oracle::Error && p.bf_relative && p.link_tol > 0.0 {
+            p.link_tol.max(transfer::LINK_TOL_PER_EPS * p.bf_eps)
+        } else {
+            p.link_tol
+        };
+        transfer::Accuracy { tol: p.link_tol, adaptive_tol, five_times: p.five_times }
     }
 
     /// The pair's Galerkin coupling (see [`coupling_in`]).
