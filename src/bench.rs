@@ -436,9 +436,10 @@ pub struct Crossing {
     pub target: f64,
     /// `None`: not reached by any setting of the sweep.
     pub time_s: Option<f64>,
-    /// When not reached: where the power law through the method's last rows reaches the target
-    /// ([`extrapolate_time`]), an estimate beyond what was measured. `None` when reached, or
-    /// when the rows do not fall with time.
+    /// When the uniform rows did not reach the target: where the power law through their last
+    /// rows reaches it ([`extrapolate_time`]), an estimate beyond what was measured. `None` when
+    /// reached, for the other methods (progressive refinement converges to its fixed mesh's
+    /// answer: its error floors), or when the rows do not fall with time.
     pub extrapolated_s: Option<f64>,
 }
 
@@ -627,7 +628,10 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
                     .map(|r| (r.time_s, r.error()))
                     .collect();
                 let t = time_to_reach(&pts, target);
-                let extrapolated = if t.is_none() { extrapolate_time(&pts, target) } else { None };
+                // Only the uniform rows refine their mesh; progressive refinement converges to its
+                // fixed mesh's answer, whose error floors above the targets (no power law).
+                let extrapolated =
+                    if t.is_none() && m == "uniform" { extrapolate_time(&pts, target) } else { None };
                 if m == "hierarchical" {
                     hier = t;
                 } else if let Some(t) = t {
@@ -824,9 +828,16 @@ fn secs(t: Option<f64>) -> String {
     t.map_or_else(|| "not reached".into(), |t| format!("{t:.3} s"))
 }
 
+/// A ratio of times: two decimals, or two significant digits below 0.01 (1.2e-3×).
+fn times(r: f64) -> String {
+    if r > 0.0 && r < 0.01 { format!("{r:.1e}×") } else { format!("{r:.2}×") }
+}
+
 /// An extrapolated time, to two significant digits (it is an estimate).
 fn secs_rough(t: f64) -> String {
-    if t >= 100.0 {
+    if t >= 1e7 {
+        format!("{t:.1e} s")
+    } else if t >= 100.0 {
         let p = 10f64.powi(t.log10().floor() as i32 - 1);
         format!("{} s", thousands(((t / p).round() * p) as usize))
     } else {
@@ -933,7 +944,7 @@ pub fn markdown(report: &BenchReport) -> String {
                 .iter()
                 .find(|(t, _)| (t - target).abs() < 1e-12)
                 .and_then(|(_, r)| *r)
-                .map(|r| format!("{r:.2}× (estimate)"))
+                .map(|r| format!("{} (estimate)", times(r)))
         };
         if extrapolated(0.05).is_some() || extrapolated(0.01).is_some() {
             s.push_str(&format!(
@@ -1207,6 +1218,9 @@ mod tests {
         assert_eq!(extrapolate_time(&[(1.0, 0.2), (2.0, 0.2), (4.0, 0.2)], 0.05), None);
         assert_eq!(secs_rough(65_536.0), "66 000 s");
         assert_eq!(secs_rough(12.345), "12.35 s");
+        assert_eq!(secs_rough(1.8e19), "1.8e19 s");
+        assert_eq!(times(0.0012), "1.2e-3×");
+        assert_eq!(times(0.23), "0.23×");
     }
 
     #[test]
