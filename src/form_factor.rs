@@ -809,12 +809,19 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 /// apart compared with their size, not near contact (use [`polygon_to_polygon`] there).
 #[must_use]
 pub fn polygon_to_polygon_fixed(from: &[DVec3], to: &[DVec3], n: usize) -> f64 {
+    polygon_to_polygon_rule(from, to, &gauss_legendre(n))
+}
+
+/// [`polygon_to_polygon_fixed`] with the rule given (nodes and weights on [0, 1], as
+/// [`gauss_legendre`] makes them), for callers that keep the rules instead of computing one
+/// per pair.
+#[must_use]
+pub fn polygon_to_polygon_rule(from: &[DVec3], to: &[DVec3], rule: &[(f64, f64)]) -> f64 {
     let Some(p) = prepare(from, to) else { return 0.0 };
-    let rule = gauss_legendre(n);
     let mut sum = 0.0;
     for pc in pieces(&p.front) {
-        for &(u, wu) in &rule {
-            for &(v, wv) in &rule {
+        for &(u, wu) in rule {
+            for &(v, wv) in rule {
                 let j = pc.jacobian(u, v, p.normal_from);
                 if j > 0.0 {
                     sum +=

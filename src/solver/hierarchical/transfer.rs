@@ -33,7 +33,7 @@
 //! A straddling pair (a wall and a shelf whose plane cuts it) that is apart exchanges nothing
 //! behind the cutting plane and a transfer analytic in x in front of it (it falls to 0 linearly
 //! at the plane), so a Gauss rule over the clipped pieces
-//! ([`form_factor::polygon_to_polygon_fixed`]) converges as for any pair at that distance. On
+//! ([`form_factor::polygon_to_polygon_rule`]) converges as for any pair at that distance. On
 //! splash_room's clustered contact mesh (ε = 0.2) such pairs had been 7 863 adaptive
 //! integrations of 93 kernel evaluations each; 219 remain adaptive (the closer ones).
 //!
@@ -216,7 +216,7 @@ pub(super) fn coupling(
         Rule::Disk => x.area * form_factor::disk(x.centroid, x.normal, y.centroid, y.normal, y.area),
         Rule::Gauss(n) => x.area * gauss(x, y, n),
         Rule::GaussClipped(n) => {
-            x.area * form_factor::polygon_to_polygon_fixed(x.vertices(), y.vertices(), n)
+            x.area * form_factor::polygon_to_polygon_rule(x.vertices(), y.vertices(), &rules()[n - 1])
         }
         Rule::Adaptive => {
             let (rel, abs) = if root && acc.tol <= 0.0 {
