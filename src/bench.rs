@@ -11,6 +11,9 @@
 //!                                                        residual; element-average rel L2 beside it
 //!   curve(method) = lower envelope of (t, err) — the least error reached by time t
 //!   t(1 %), t(5 %) = log-log interpolation on the curve; ratio = t_hier / min t_other
+//!   uniform missed a target hierarchical reached → finer uniform rows (d/32, d/40, d/48) until
+//!     it reaches it or has run 10 × t_hier (each only if its predicted time fits the budget):
+//!     then t_hier / t_uniform < t_hier / (longest uniform run) is measured, not extrapolated
 //! ```
 //!
 //! ## The reference must resolve the targets
@@ -287,12 +290,7 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
         Mode::Full => &[4.0, 8.0, 12.0, 16.0, 24.0, 32.0],
     };
     for &k in uniform_div {
-        out.push(Method::Uniform(UniformParams {
-            element_size: d / k,
-            rays: 16,
-            ff_tolerance: uniform::COARSE_FF_TOLERANCE,
-            ..UniformParams::default()
-        }));
+        out.push(uniform_row(d / k));
     }
     let shots: &[u32] = match mode {
         Mode::Quick => &[100, 1000],
@@ -378,6 +376,40 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
     out
 }
 
+/// The uniform solver at element size `h`, as the sweep runs it.
+fn uniform_row(h: f64) -> Method {
+    Method::Uniform(UniformParams {
+        element_size: h,
+        rays: 16,
+        ff_tolerance: uniform::COARSE_FF_TOLERANCE,
+        ..UniformParams::default()
+    })
+}
+
+/// Finer uniform sizes (scene diagonal / k) that [`run`] adds after the sweep where the uniform
+/// rows missed a target that the hierarchical rows reached, until uniform reaches it or has run
+/// [`EXTEND_FACTOR`] times the hierarchical time to it (so that "uniform needs more than 10× the
+/// time" is measured, not extrapolated), each only if its predicted time fits the budget.
+#[must_use]
+pub fn uniform_extension(mode: Mode) -> &'static [f64] {
+    match mode {
+        Mode::Quick => &[],
+        Mode::Standard => &[32.0, 40.0, 48.0],
+        Mode::Full => &[40.0, 48.0, 64.0],
+    }
+}
+
+/// The uniform rows are extended until their slowest one has run this many times the
+/// hierarchical time to the target (the issue's "≤ 1/10 of uniform's time").
+pub const EXTEND_FACTOR: f64 = 10.0;
+
+/// Predicted time of a uniform row at diagonal / `k_next` from one at diagonal / `k`: elements
+/// grow as k², links (all pairs) and rays as k⁴.
+#[must_use]
+pub fn predict_uniform_time(t: f64, k: f64, k_next: f64) -> f64 {
+    t * (k_next / k).powi(4)
+}
+
 /// Scenes with fewer input patches get no clustered rows in [`sweep`].
 pub const CLUSTER_ROWS_MIN_PATCHES: usize = 100;
 
@@ -441,6 +473,9 @@ pub struct Crossing {
     /// reached, for the other methods (progressive refinement converges to its fixed mesh's
     /// answer: its error floors), or when the rows do not fall with time.
     pub extrapolated_s: Option<f64>,
+    /// When not reached: the longest time any of the method's rows ran, all with a larger error.
+    /// A measured lower bound on its time to the target (for uniform: finer meshes take longer).
+    pub not_reached_in_s: Option<f64>,
 }
 
 /// The per-scene summary.
@@ -468,6 +503,11 @@ pub struct SceneSummary {
     /// Per target, when hierarchical reached it and no other method did: t(hierarchical) /
     /// min of the others' extrapolated times (an estimate, labelled as such in the report).
     pub ratios_extrapolated: Vec<(f64, Option<f64>)>,
+    /// Per target, when hierarchical reached it and the uniform rows did not: t(hierarchical) /
+    /// the longest uniform run, all of whose errors were above the target. A measured upper bound
+    /// on hierarchical / uniform time to the target (the uniform rows are extended,
+    /// [`uniform_extension`], until it is at most 1 / [`EXTEND_FACTOR`]).
+    pub ratios_uniform_bound: Vec<(f64, Option<f64>)>,
 }
 
 /// Everything a bench run measured.
@@ -613,21 +653,25 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
             ));
             scene_rows.push(r);
         }
+        extend_uniform(config, spec, &scene, &accel, &points, reference, resolves, &mut scene_rows, log)?;
         let mut crossings = Vec::new();
         let mut ratios = Vec::new();
         let mut ratios_extrapolated = Vec::new();
+        let mut ratios_uniform_bound = Vec::new();
         let mut resolved = Vec::new();
         for &target in &TARGETS {
             let mut hier = None;
             let mut best_other: Option<f64> = None;
             let mut best_extrapolated: Option<f64> = None;
+            let mut uniform_not_reached_in: Option<f64> = None;
             for m in ["uniform", "progressive", "hierarchical"] {
-                let pts: Vec<(f64, f64)> = scene_rows
-                    .iter()
-                    .filter(|r| r.method == m && r.status == "ok")
-                    .map(|r| (r.time_s, r.error()))
-                    .collect();
+                let pts = curve(&scene_rows, m);
                 let t = time_to_reach(&pts, target);
+                let not_reached_in =
+                    if t.is_none() { pts.iter().map(|p| p.0).reduce(f64::max) } else { None };
+                if m == "uniform" {
+                    uniform_not_reached_in = not_reached_in;
+                }
                 // Only the uniform rows refine their mesh; progressive refinement converges to its
                 // fixed mesh's answer, whose error floors above the targets (no power law).
                 let extrapolated =
@@ -644,8 +688,13 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
                     target,
                     time_s: t,
                     extrapolated_s: extrapolated,
+                    not_reached_in_s: not_reached_in,
                 });
             }
+            ratios_uniform_bound.push((
+                target,
+                hier.zip(uniform_not_reached_in).filter(|_| resolves(target)).map(|(h, u)| h / u),
+            ));
             ratios.push((target, hier.zip(best_other).map(|(h, o)| h / o).filter(|_| resolves(target))));
             ratios_extrapolated.push((
                 target,
@@ -668,6 +717,7 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
             crossings,
             ratios,
             ratios_extrapolated,
+            ratios_uniform_bound,
         });
         rows.extend(scene_rows);
     }
@@ -678,6 +728,83 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
         rows,
         scenes,
     })
+}
+
+/// Points (time, error) of the rows of one method that ran.
+fn curve(rows: &[Row], method: &str) -> Vec<(f64, f64)> {
+    rows.iter().filter(|r| r.method == method && r.status == "ok").map(|r| (r.time_s, r.error())).collect()
+}
+
+/// Add finer uniform rows ([`uniform_extension`]) after the last uniform row while, for some
+/// resolved target that the hierarchical rows reached, the uniform rows have neither reached it
+/// nor run [`EXTEND_FACTOR`] × the hierarchical time to it, and the next size's predicted time
+/// ([`predict_uniform_time`]) fits the budget.
+#[allow(clippy::too_many_arguments)]
+fn extend_uniform(
+    config: &BenchConfig,
+    spec: &str,
+    scene: &Arc<Scene>,
+    accel: &Arc<Accel>,
+    points: &[RefPoint],
+    reference: &[Estimate],
+    resolves: impl Fn(f64) -> bool,
+    rows: &mut Vec<Row>,
+    log: &mut dyn FnMut(&str),
+) -> Result<(), BenchError> {
+    let d = scene.bounds().diagonal();
+    for &k_next in uniform_extension(config.mode) {
+        let hier = curve(rows, "hierarchical");
+        let uni = curve(rows, "uniform");
+        let Some(last) = rows.iter().rposition(|r| r.method == "uniform") else { return Ok(()) };
+        let (t_last, k_last) = match &rows[last] {
+            r if r.status == "ok" => (r.time_s, d / settings_h(&r.settings).unwrap_or(f64::NAN)),
+            _ => return Ok(()),
+        };
+        if !(k_last.is_finite() && k_next > k_last) {
+            continue;
+        }
+        let wanted = TARGETS.iter().any(|&target| resolves(target) && extension_wanted(&hier, &uni, target));
+        let predicted = predict_uniform_time(t_last, k_last, k_next);
+        if !wanted {
+            return Ok(());
+        }
+        if predicted > config.budget_s {
+            log(&format!(
+                "  uniform h = d/{k_next}: not run, predicted {predicted:.0} s exceeds the budget of {} s",
+                config.budget_s
+            ));
+            return Ok(());
+        }
+        let method = uniform_row(d / k_next);
+        let r = measure(config, spec, scene, accel, &method, points, reference)?;
+        log(&format!(
+            "  {:<12} {:<46} {:>7} el {:>9} links {:>8.3} s  pointwise L2 {:>7.3} %  {} (extended: uniform had not reached a target the hierarchical rows reached)",
+            r.method,
+            r.settings,
+            r.elements,
+            r.links,
+            r.time_s,
+            100.0 * r.error(),
+            r.status
+        ));
+        rows.insert(last + 1, r);
+    }
+    Ok(())
+}
+
+/// Whether the uniform rows (`uni`, (time, error) points) need a finer row for `target`: the
+/// hierarchical rows reached it, the uniform rows did not, and the slowest uniform row ran less
+/// than [`EXTEND_FACTOR`] × the hierarchical time to it.
+#[must_use]
+pub fn extension_wanted(hier: &[(f64, f64)], uni: &[(f64, f64)], target: f64) -> bool {
+    let slowest = uni.iter().map(|p| p.0).fold(0.0, f64::max);
+    time_to_reach(uni, target).is_none()
+        && time_to_reach(hier, target).is_some_and(|h| slowest < EXTEND_FACTOR * h)
+}
+
+/// The element size `h` of a uniform row's settings (`h=… rays=…`).
+fn settings_h(settings: &str) -> Option<f64> {
+    settings.split_whitespace().find_map(|w| w.strip_prefix("h=")).and_then(|v| v.parse().ok())
 }
 
 /// The reference's (noise, resolution) as relative L2 (a perfect solver's comparison with it).
@@ -828,9 +955,15 @@ fn secs(t: Option<f64>) -> String {
     t.map_or_else(|| "not reached".into(), |t| format!("{t:.3} s"))
 }
 
-/// A ratio of times: two decimals, or two significant digits below 0.01 (1.2e-3×).
+/// A ratio of times: two decimals, three below 0.1 (0.095×), two significant digits below 0.01 (1.2e-3×).
 fn times(r: f64) -> String {
-    if r > 0.0 && r < 0.01 { format!("{r:.1e}×") } else { format!("{r:.2}×") }
+    if r > 0.0 && r < 0.01 {
+        format!("{r:.1e}×")
+    } else if r > 0.0 && r < 0.1 {
+        format!("{r:.3}×")
+    } else {
+        format!("{r:.2}×")
+    }
 }
 
 /// An extrapolated time, to two significant digits (it is an estimate).
@@ -905,7 +1038,16 @@ pub fn markdown(report: &BenchReport) -> String {
                 let c = crossing(target);
                 match (ok, c.and_then(|c| c.time_s), c.and_then(|c| c.extrapolated_s)) {
                     (false, _, _) => "unresolved".to_string(),
-                    (true, None, Some(x)) => format!("not reached (extrapolated ~{})", secs_rough(x)),
+                    (true, None, Some(x)) => format!(
+                        "not reached in {} (extrapolated ~{})",
+                        c.and_then(|c| c.not_reached_in_s)
+                            .map_or_else(|| "–".into(), |t| format!("{t:.3} s")),
+                        secs_rough(x)
+                    ),
+                    (true, None, None) => match c.and_then(|c| c.not_reached_in_s) {
+                        Some(t) => format!("not reached in {t:.3} s"),
+                        None => "not reached".into(),
+                    },
                     (true, t, _) => secs(t),
                 }
             };
@@ -946,6 +1088,21 @@ pub fn markdown(report: &BenchReport) -> String {
                 .and_then(|(_, r)| *r)
                 .map(|r| format!("{} (estimate)", times(r)))
         };
+        let bound = |target: f64| {
+            sc.ratios_uniform_bound
+                .iter()
+                .find(|(t, _)| (t - target).abs() < 1e-12)
+                .and_then(|(_, r)| *r)
+                .map(|r| format!("< {} (measured)", times(r)))
+        };
+        if bound(0.05).is_some() || bound(0.01).is_some() {
+            s.push_str(&format!(
+                "| {} | | hierarchical / **uniform** (uniform had not reached it in its longest run) | {} | {} | |\n",
+                sc.scene.trim_start_matches("builtin:"),
+                bound(0.05).unwrap_or_else(|| "n/a".into()),
+                bound(0.01).unwrap_or_else(|| "n/a".into())
+            ));
+        }
         if extrapolated(0.05).is_some() || extrapolated(0.01).is_some() {
             s.push_str(&format!(
                 "| {} | | hierarchical / best other's **extrapolated** time | {} | {} | |\n",
@@ -1221,6 +1378,24 @@ mod tests {
         assert_eq!(secs_rough(1.8e19), "1.8e19 s");
         assert_eq!(times(0.0012), "1.2e-3×");
         assert_eq!(times(0.23), "0.23×");
+        assert_eq!(times(0.0951), "0.095×");
+    }
+
+    #[test]
+    fn uniform_rows_extend_until_ten_times_the_hierarchical_time() {
+        // Hierarchical reaches 5 % at 2 s (log-log between its rows).
+        let hier = [(0.5, 0.08), (2.0, 0.05), (8.0, 0.03)];
+        let uni = [(1.0, 0.20), (6.0, 0.12)];
+        assert!(extension_wanted(&hier, &uni, 0.05), "6 s < 10 × 2 s");
+        let longer = [(1.0, 0.20), (6.0, 0.12), (21.0, 0.10)];
+        assert!(!extension_wanted(&hier, &longer, 0.05), "21 s ≥ 10 × 2 s: the bound is measured");
+        let reached = [(1.0, 0.20), (6.0, 0.04)];
+        assert!(!extension_wanted(&hier, &reached, 0.05), "uniform reached it");
+        assert!(!extension_wanted(&hier, &uni, 0.01), "hierarchical did not reach 1 %");
+        // Elements grow as k², pairs as k⁴.
+        assert!((predict_uniform_time(6.0, 24.0, 48.0) - 96.0).abs() < 1e-12);
+        assert_eq!(settings_h("h=90.2 rays=16"), Some(90.2));
+        assert_eq!(settings_h("bf feps=0.05"), None);
     }
 
     #[test]
