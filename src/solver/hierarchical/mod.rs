@@ -350,8 +350,12 @@ pub struct HierarchicalSolver {
     moment_world: Vec<[Rgb; 3]>,
     /// The links flattened for gathering (buffers kept between rebuilds).
     gather_plan: GatherPlan,
-    /// `gather_plan` matches the current links (cleared when links change).
+    /// `gather_plan` matches the current links but for the receivers in `plan_changed` (false:
+    /// rebuild it whole).
     plan_valid: bool,
+    /// Receivers whose link lists changed since `gather_plan` was made (refinements record
+    /// them; the next gather updates their entries).
+    plan_changed: Vec<u32>,
     /// The oracle's compact copy of every element's (b_max, max channel of B) during
     /// refinement; cleared afterwards, as B changes.
     oracle_b: Vec<[f64; 2]>,
@@ -424,6 +428,7 @@ impl HierarchicalSolver {
             moment_world: Vec::new(),
             gather_plan: GatherPlan::default(),
             plan_valid: false,
+            plan_changed: Vec::new(),
             oracle_b: Vec::new(),
             row_floor: Vec::new(),
             early_exit: true,
@@ -488,6 +493,7 @@ impl HierarchicalSolver {
         self.hier = Hierarchy::from_scene(&self.scene);
         self.links = LinkStore::new(self.hier.len());
         self.plan_valid = false;
+        self.plan_changed.clear();
         self.moment.clear();
         self.cluster_links.clear();
         self.cluster_fv.clear();

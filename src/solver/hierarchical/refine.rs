@@ -261,6 +261,8 @@ impl HierarchicalSolver {
         }
         self.oracle_b.clear();
         self.sync_oracle_b();
+        // The gather plan is updated where the link lists change (below), if it was whole.
+        let plan_whole = self.plan_valid;
         self.plan_valid = false;
         let mut changed = IdSet::default();
         if !self.linked {
@@ -466,7 +468,12 @@ impl HierarchicalSolver {
         if let Some(f) = err_field {
             self.error_kernels = f.kernels;
         }
-        self.update_sums(&changed.take_sorted());
+        let changed = changed.take_sorted();
+        self.update_sums(&changed);
+        if plan_whole {
+            self.plan_changed.extend_from_slice(&changed);
+            self.plan_valid = true;
+        }
         self.converged = false;
         self.stats.links_created += new_links as u64;
         self.stats.refine_s += t.elapsed().as_secs_f64();
