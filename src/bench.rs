@@ -641,16 +641,7 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
         let mut scene_rows: Vec<Row> = Vec::new();
         for method in sweep(&scene, config.mode) {
             let r = measure(config, spec, &scene, &accel, &method, &points, reference)?;
-            log(&format!(
-                "  {:<12} {:<46} {:>7} el {:>9} links {:>8.3} s  pointwise L2 {:>7.3} %  {}",
-                r.method,
-                r.settings,
-                r.elements,
-                r.links,
-                r.time_s,
-                100.0 * r.error(),
-                r.status
-            ));
+            log(&row_line(&r));
             scene_rows.push(r);
         }
         extend_uniform(config, spec, &scene, &accel, &points, reference, resolves, &mut scene_rows, log)?;
@@ -730,6 +721,20 @@ pub fn run(config: &BenchConfig, log: &mut dyn FnMut(&str)) -> Result<BenchRepor
     })
 }
 
+/// A measured row as the bench's log shows it.
+fn row_line(r: &Row) -> String {
+    format!(
+        "  {:<12} {:<46} {:>7} el {:>9} links {:>8.3} s  pointwise L2 {:>7.3} %  {}",
+        r.method,
+        r.settings,
+        r.elements,
+        r.links,
+        r.time_s,
+        100.0 * r.error(),
+        r.status
+    )
+}
+
 /// Points (time, error) of the rows of one method that ran.
 fn curve(rows: &[Row], method: &str) -> Vec<(f64, f64)> {
     rows.iter().filter(|r| r.method == method && r.status == "ok").map(|r| (r.time_s, r.error())).collect()
@@ -778,14 +783,8 @@ fn extend_uniform(
         let method = uniform_row(d / k_next);
         let r = measure(config, spec, scene, accel, &method, points, reference)?;
         log(&format!(
-            "  {:<12} {:<46} {:>7} el {:>9} links {:>8.3} s  pointwise L2 {:>7.3} %  {} (extended: uniform had not reached a target the hierarchical rows reached)",
-            r.method,
-            r.settings,
-            r.elements,
-            r.links,
-            r.time_s,
-            100.0 * r.error(),
-            r.status
+            "{} (extended: uniform had not reached a target the hierarchical rows reached)",
+            row_line(&r)
         ));
         rows.insert(last + 1, r);
     }

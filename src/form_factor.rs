@@ -437,7 +437,9 @@ struct Prepared {
     precision: f64,
 }
 
-fn prepare(from: &[DVec3], to: &[DVec3]) -> Option<Prepared> {
+/// Two polygons' unit normals, the area of `from` and the pair's size (the largest distance
+/// from `from`'s first vertex); `None` when either is degenerate or not finite.
+fn pair_frame(from: &[DVec3], to: &[DVec3]) -> Option<(DVec3, DVec3, f64, f64)> {
     if from.len() < 3 || to.len() < 3 || from.iter().chain(to).any(|v| !v.is_finite()) {
         return None;
     }
@@ -448,28 +450,18 @@ fn prepare(from: &[DVec3], to: &[DVec3]) -> Option<Prepared> {
         return None;
     }
     let scale = from.iter().chain(to).map(|v| (*v - from[0]).length()).fold(0.0, f64::max);
+    Some((nf, nt, area, scale))
+}
+
+fn prepare(from: &[DVec3], to: &[DVec3]) -> Option<Prepared> {
+    let (nf, nt, area, scale) = pair_frame(from, to)?;
     let eps = IN_PLANE_REL * scale;
     // Every vertex of one on or behind the other's plane: nothing is exchanged.
     let behind = |pts: &[DVec3], origin: DVec3, n: DVec3| pts.iter().all(|v| n.dot(*v - origin) <= eps);
     if behind(to, from[0], nf) || behind(from, to[0], nt) {
         return None;
     }
-    let origin = to[0];
-    let height = |v: DVec3| {
-        let h = nt.dot(v - origin);
-        if h.abs() <= eps { 0.0 } else { h }
-    };
-    let mut front = Vec::with_capacity(from.len() + 1);
-    for i in 0..from.len() {
-        let (a, b) = (from[i], from[(i + 1) % from.len()]);
-        let (ha, hb) = (height(a), height(b));
-        if ha >= 0.0 {
-            front.push(a);
-        }
-        if (ha > 0.0 && hb < 0.0) || (ha < 0.0 && hb > 0.0) {
-            front.push(a + (b - a) * (ha / (ha - hb)));
-        }
-    }
+    let mut front = clip_to_front(from, to[0], nt, eps);
     front.dedup();
     if front.len() > 1 && front.first() == front.last() {
         front.pop();
@@ -789,38 +781,11 @@ pub fn polygon_to_polygon(from: &[DVec3], to: &[DVec3], rel_tol: f64) -> f64 {
 /// needs hundreds of kernel evaluations to resolve the contact's log-singular derivative.
 #[must_use]
 pub fn polygon_to_polygon_axial(from: &[DVec3], to: &[DVec3]) -> Option<f64> {
-    if from.len() < 3 || to.len() < 3 || from.iter().chain(to).any(|v| !v.is_finite()) {
-        return None;
-    }
-    let (nf, nt) = (newell_normal(from), newell_normal(to));
-    let area = 0.5 * nf.length();
-    let (nf, nt) = (nf.normalize_or_zero(), nt.normalize_or_zero());
-    if !(area > 0.0 && area.is_finite()) || nf == DVec3::ZERO || nt == DVec3::ZERO {
-        return None;
-    }
-    let scale = from.iter().chain(to).map(|v| (*v - from[0]).length()).fold(0.0, f64::max);
+    let (nf, nt, area, scale) = pair_frame(from, to)?;
     let eps = IN_PLANE_REL * scale;
     // Only the part of each in front of the other's plane exchanges light: clip both (a clip
     // edge runs along the planes' intersection, parallel or perpendicular to axial edges).
-    let clip = |pts: &[DVec3], origin: DVec3, n: DVec3| -> Vec<DVec3> {
-        let h = |v: DVec3| {
-            let h = n.dot(v - origin);
-            if h.abs() <= eps { 0.0 } else { h }
-        };
-        let mut out = Vec::with_capacity(pts.len() + 1);
-        for i in 0..pts.len() {
-            let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
-            let (ha, hb) = (h(a), h(b));
-            if ha >= 0.0 {
-                out.push(a);
-            }
-            if (ha > 0.0 && hb < 0.0) || (ha < 0.0 && hb > 0.0) {
-                out.push(a + (b - a) * (ha / (ha - hb)));
-            }
-        }
-        out
-    };
-    let (from_c, to_c) = (clip(from, to[0], nt), clip(to, from[0], nf));
+    let (from_c, to_c) = (clip_to_front(from, to[0], nt, eps), clip_to_front(to, from[0], nf, eps));
     // Nothing in front, or only an edge: nothing exchanged (coplanar pairs too).
     if from_c.len() < 3 || to_c.len() < 3 {
         return Some(0.0);
@@ -861,6 +826,27 @@ pub fn polygon_to_polygon_axial(from: &[DVec3], to: &[DVec3]) -> Option<f64> {
     }
     let f = sum / (2.0 * PI * area);
     f.is_finite().then(|| f.clamp(0.0, 1.0))
+}
+
+/// The part of the convex polygon `pts` on or in front of the plane through `origin` with
+/// normal `n` (heights within `eps` count as on the plane).
+fn clip_to_front(pts: &[DVec3], origin: DVec3, n: DVec3, eps: f64) -> Vec<DVec3> {
+    let height = |v: DVec3| {
+        let h = n.dot(v - origin);
+        if h.abs() <= eps { 0.0 } else { h }
+    };
+    let mut out = Vec::with_capacity(pts.len() + 1);
+    for i in 0..pts.len() {
+        let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
+        let (ha, hb) = (height(a), height(b));
+        if ha >= 0.0 {
+            out.push(a);
+        }
+        if (ha > 0.0 && hb < 0.0) || (ha < 0.0 && hb > 0.0) {
+            out.push(a + (b - a) * (ha / (ha - hb)));
+        }
+    }
+    out
 }
 
 /// Edges count as parallel or perpendicular for [`polygon_to_polygon_axial`] when the cosine
