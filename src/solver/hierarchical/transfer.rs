@@ -34,10 +34,11 @@
 //!                 (form_factor::polygon_to_polygon_axial)
 //! ```
 //!
-//! The closed form made the white furnace's and cube-one-light's power balance close to 3e-6
-//! at `splash2` (escaped / emitted −7.7e-5 and −7.1e-5 with the 1e-4 cubature of their touching
-//! faces) and `splash2`'s initial linking on splash_room 0.027 → 0.021 s on one thread; its
-//! rotated table's pairs still take the cubature.
+//! The closed form made the white furnace's and cube-one-light's power balance close to 6e-8
+//! at `splash2` (escaped / emitted −6.0e-8 and −5.5e-8; −7.7e-5 and −7.1e-5 with the 1e-4
+//! cubature of their touching faces) and `splash2`'s initial linking on splash_room 0.027 →
+//! 0.021 s on one thread; its 221 touching pairs whose edges meet at other angles still take
+//! the cubature.
 //!
 //! A straddling pair (a wall and a shelf whose plane cuts it) that is apart exchanges nothing
 //! behind the cutting plane and a transfer analytic in x in front of it (it falls to 0 linearly
