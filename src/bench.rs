@@ -284,12 +284,7 @@ fn g3(x: f64) -> String {
 pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
     let d = scene.bounds().diagonal();
     let mut out = Vec::new();
-    let uniform_div: &[f64] = match mode {
-        Mode::Quick => &[4.0, 8.0],
-        Mode::Standard => &[4.0, 8.0, 12.0, 16.0, 24.0],
-        Mode::Full => &[4.0, 8.0, 12.0, 16.0, 24.0, 32.0],
-    };
-    for &k in uniform_div {
+    for &k in uniform_divisions(mode) {
         out.push(uniform_row(d / k));
     }
     let shots: &[u32] = match mode {
@@ -374,6 +369,16 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
         }
     }
     out
+}
+
+/// The uniform rows of the sweep: element sizes scene diagonal / k.
+#[must_use]
+pub fn uniform_divisions(mode: Mode) -> &'static [f64] {
+    match mode {
+        Mode::Quick => &[4.0, 8.0],
+        Mode::Standard => &[4.0, 8.0, 12.0, 16.0, 24.0],
+        Mode::Full => &[4.0, 8.0, 12.0, 16.0, 24.0, 32.0],
+    }
 }
 
 /// The uniform solver at element size `h`, as the sweep runs it.
@@ -757,22 +762,19 @@ fn extend_uniform(
     log: &mut dyn FnMut(&str),
 ) -> Result<(), BenchError> {
     let d = scene.bounds().diagonal();
+    // The last uniform row's size, diagonal / k.
+    let mut k_last = uniform_divisions(config.mode).last().copied().unwrap_or(f64::NAN);
     for &k_next in uniform_extension(config.mode) {
-        let hier = curve(rows, "hierarchical");
-        let uni = curve(rows, "uniform");
-        let Some(last) = rows.iter().rposition(|r| r.method == "uniform") else { return Ok(()) };
-        let (t_last, k_last) = match &rows[last] {
-            r if r.status == "ok" => (r.time_s, d / settings_h(&r.settings).unwrap_or(f64::NAN)),
-            _ => return Ok(()),
-        };
-        if !(k_last.is_finite() && k_next > k_last) {
-            continue;
-        }
-        let wanted = TARGETS.iter().any(|&target| resolves(target) && extension_wanted(&hier, &uni, target));
-        let predicted = predict_uniform_time(t_last, k_last, k_next);
-        if !wanted {
+        debug_assert!(k_next > k_last, "the extension refines the sweep's sizes");
+        let (hier, uni) = (curve(rows, "hierarchical"), curve(rows, "uniform"));
+        if !TARGETS.iter().any(|&target| resolves(target) && extension_wanted(&hier, &uni, target)) {
             return Ok(());
         }
+        let Some(last) = rows.iter().rposition(|r| r.method == "uniform") else { return Ok(()) };
+        if rows[last].status != "ok" {
+            return Ok(());
+        }
+        let predicted = predict_uniform_time(rows[last].time_s, k_last, k_next);
         if predicted > config.budget_s {
             log(&format!(
                 "  uniform h = d/{k_next}: not run, predicted {predicted:.0} s exceeds the budget of {} s",
@@ -787,6 +789,7 @@ fn extend_uniform(
             row_line(&r)
         ));
         rows.insert(last + 1, r);
+        k_last = k_next;
     }
     Ok(())
 }
@@ -799,11 +802,6 @@ pub fn extension_wanted(hier: &[(f64, f64)], uni: &[(f64, f64)], target: f64) ->
     let slowest = uni.iter().map(|p| p.0).fold(0.0, f64::max);
     time_to_reach(uni, target).is_none()
         && time_to_reach(hier, target).is_some_and(|h| slowest < EXTEND_FACTOR * h)
-}
-
-/// The element size `h` of a uniform row's settings (`h=… rays=…`).
-fn settings_h(settings: &str) -> Option<f64> {
-    settings.split_whitespace().find_map(|w| w.strip_prefix("h=")).and_then(|v| v.parse().ok())
 }
 
 /// The reference's (noise, resolution) as relative L2 (a perfect solver's comparison with it).
@@ -1067,52 +1065,39 @@ pub fn markdown(report: &BenchReport) -> String {
                 cell(0.01)
             ));
         }
-        let ratio = |target: f64| {
-            sc.ratios
-                .iter()
-                .find(|(t, _)| (t - target).abs() < 1e-12)
-                .and_then(|(_, r)| *r)
-                .map_or_else(|| "n/a".into(), |r| format!("{r:.2}×"))
-        };
+        let name = sc.scene.trim_start_matches("builtin:");
+        let ratio = |target: f64| at(&sc.ratios, target).map_or_else(|| "n/a".into(), |r| format!("{r:.2}×"));
         s.push_str(&format!(
-            "| {} | | **hierarchical / best other** | {} | {} | |\n",
-            sc.scene.trim_start_matches("builtin:"),
+            "| {name} | | **hierarchical / best other** | {} | {} | |\n",
             ratio(0.05),
             ratio(0.01)
         ));
-        let extrapolated = |target: f64| {
-            sc.ratios_extrapolated
-                .iter()
-                .find(|(t, _)| (t - target).abs() < 1e-12)
-                .and_then(|(_, r)| *r)
-                .map(|r| format!("{} (estimate)", times(r)))
+        // Rows shown only where a target has a value.
+        let mut optional_row = |label: &str, cell: &dyn Fn(f64) -> Option<String>| {
+            let (five, one) = (cell(0.05), cell(0.01));
+            if five.is_some() || one.is_some() {
+                let na = || "n/a".to_string();
+                s.push_str(&format!(
+                    "| {name} | | {label} | {} | {} | |\n",
+                    five.unwrap_or_else(na),
+                    one.unwrap_or_else(na)
+                ));
+            }
         };
-        let bound = |target: f64| {
-            sc.ratios_uniform_bound
-                .iter()
-                .find(|(t, _)| (t - target).abs() < 1e-12)
-                .and_then(|(_, r)| *r)
-                .map(|r| format!("< {} (measured)", times(r)))
-        };
-        if bound(0.05).is_some() || bound(0.01).is_some() {
-            s.push_str(&format!(
-                "| {} | | hierarchical / **uniform** (uniform had not reached it in its longest run) | {} | {} | |\n",
-                sc.scene.trim_start_matches("builtin:"),
-                bound(0.05).unwrap_or_else(|| "n/a".into()),
-                bound(0.01).unwrap_or_else(|| "n/a".into())
-            ));
-        }
-        if extrapolated(0.05).is_some() || extrapolated(0.01).is_some() {
-            s.push_str(&format!(
-                "| {} | | hierarchical / best other's **extrapolated** time | {} | {} | |\n",
-                sc.scene.trim_start_matches("builtin:"),
-                extrapolated(0.05).unwrap_or_else(|| "n/a".into()),
-                extrapolated(0.01).unwrap_or_else(|| "n/a".into())
-            ));
-        }
+        optional_row("hierarchical / **uniform** (uniform had not reached it in its longest run)", &|t| {
+            at(&sc.ratios_uniform_bound, t).map(|r| format!("< {} (measured)", times(r)))
+        });
+        optional_row("hierarchical / best other's **extrapolated** time", &|t| {
+            at(&sc.ratios_extrapolated, t).map(|r| format!("{} (estimate)", times(r)))
+        });
     }
     s.push_str(&convergence_lines(report));
     s
+}
+
+/// The value of a per-target list ([`SceneSummary::ratios`] and the like) at `target`.
+fn at(per_target: &[(f64, Option<f64>)], target: f64) -> Option<f64> {
+    per_target.iter().find(|(t, _)| (t - target).abs() < 1e-12).and_then(|(_, r)| *r)
 }
 
 /// How many steps of `errors` rise by more than `resolution`.
@@ -1380,6 +1365,43 @@ mod tests {
         assert_eq!(times(0.0951), "0.095×");
     }
 
+    /// The per-scene ratio rows: the measured bound and the estimate appear only where a target
+    /// has one, as in docs/bench/table.md.
+    #[test]
+    fn ratio_rows_show_where_a_target_has_a_value() {
+        let scene = |bound: Option<f64>| SceneSummary {
+            scene: "builtin:splash_room".into(),
+            patches: 219,
+            reference_points: 65_536,
+            reference_samples: 4096,
+            reference_batches: 4,
+            reference_noise: 0.02,
+            resolution: 0.003,
+            reference_cache: String::new(),
+            resolved: vec![(0.01, false), (0.05, true)],
+            crossings: Vec::new(),
+            ratios: vec![(0.01, None), (0.05, None)],
+            ratios_extrapolated: vec![(0.01, None), (0.05, Some(0.0046))],
+            ratios_uniform_bound: vec![(0.01, None), (0.05, bound)],
+        };
+        let report = |bound| BenchReport {
+            mode: Mode::Standard,
+            repeats: 3,
+            threads: 2,
+            rows: Vec::new(),
+            scenes: vec![scene(bound)],
+        };
+        let md = markdown(&report(Some(0.0601)));
+        for line in [
+            "| splash_room | | **hierarchical / best other** | n/a | n/a | |\n",
+            "| splash_room | | hierarchical / **uniform** (uniform had not reached it in its longest run) | < 0.060× (measured) | n/a | |\n",
+            "| splash_room | | hierarchical / best other's **extrapolated** time | 4.6e-3× (estimate) | n/a | |\n",
+        ] {
+            assert!(md.contains(line), "{line} in\n{md}");
+        }
+        assert!(!markdown(&report(None)).contains("(measured)"));
+    }
+
     #[test]
     fn uniform_rows_extend_until_ten_times_the_hierarchical_time() {
         // Hierarchical reaches 5 % at 2 s (log-log between its rows).
@@ -1393,8 +1415,11 @@ mod tests {
         assert!(!extension_wanted(&hier, &uni, 0.01), "hierarchical did not reach 1 %");
         // Elements grow as k², pairs as k⁴.
         assert!((predict_uniform_time(6.0, 24.0, 48.0) - 96.0).abs() < 1e-12);
-        assert_eq!(settings_h("h=90.2 rays=16"), Some(90.2));
-        assert_eq!(settings_h("bf feps=0.05"), None);
+        // The extension continues where the sweep's sizes end.
+        for mode in [Mode::Standard, Mode::Full] {
+            let (sweep_last, ext) = (uniform_divisions(mode).last().unwrap(), uniform_extension(mode));
+            assert!(ext.first().is_some_and(|k| k > sweep_last) && ext.windows(2).all(|w| w[1] > w[0]));
+        }
     }
 
     #[test]

@@ -781,6 +781,10 @@ pub fn polygon_to_polygon(from: &[DVec3], to: &[DVec3], rel_tol: f64) -> f64 {
 /// needs hundreds of kernel evaluations to resolve the contact's log-singular derivative.
 #[must_use]
 pub fn polygon_to_polygon_axial(from: &[DVec3], to: &[DVec3]) -> Option<f64> {
+    // Most pairs that are not axial show it in their own edges: decline before clipping.
+    if edge_dirs(from).any(|u| edge_dirs(to).any(|v| !axial_cos(u.dot(v)))) {
+        return None;
+    }
     let (nf, nt, area, scale) = pair_frame(from, to)?;
     let eps = IN_PLANE_REL * scale;
     // Only the part of each in front of the other's plane exchanges light: clip both (a clip
@@ -808,11 +812,11 @@ pub fn polygon_to_polygon_axial(from: &[DVec3], to: &[DVec3]) -> Option<f64> {
                 continue;
             }
             let cos = da.dot(dc);
+            if !axial_cos(cos) {
+                return None;
+            }
             if cos.abs() <= AXIAL_REL {
                 continue;
-            }
-            if (1.0 - cos.abs()) > AXIAL_REL {
-                return None;
             }
             let t = parallel_edges_log(a, da, la, c, lc, cos.signum());
             sum += t;
@@ -852,6 +856,16 @@ fn clip_to_front(pts: &[DVec3], origin: DVec3, n: DVec3, eps: f64) -> Vec<DVec3>
 /// Edges count as parallel or perpendicular for [`polygon_to_polygon_axial`] when the cosine
 /// of their angle is within this of ±1 or 0.
 const AXIAL_REL: f64 = 1e-12;
+
+/// The unit directions of a polygon's edges (zero for a repeated vertex).
+fn edge_dirs(p: &[DVec3]) -> impl Iterator<Item = DVec3> + '_ {
+    (0..p.len()).map(move |i| (p[(i + 1) % p.len()] - p[i]).normalize_or_zero())
+}
+
+/// Is `cos` that of parallel or perpendicular directions (within [`AXIAL_REL`])?
+fn axial_cos(cos: f64) -> bool {
+    cos.abs() <= AXIAL_REL || 1.0 - cos.abs() <= AXIAL_REL
+}
 
 /// ∫∫ ln r (dx · dy) over the segments x = a + s·u, s ∈ [0, la] and y = c + t·σu, t ∈ [0, lc]
 /// (σ = ±1: the second runs along or against the first): with w = s − σt + (a − c)·u and δ the

@@ -254,6 +254,11 @@ pub(super) fn coupling(
     {
         return x.area * f;
     }
+    by_rule(x, y, rule, root, acc)
+}
+
+/// G by `rule` over `x` (the smaller of the pair), ≥ 0.
+fn by_rule(x: &Element, y: &Element, rule: Rule, root: bool, acc: Accuracy) -> f64 {
     let g = match rule {
         Rule::Disk => x.area * form_factor::disk(x.centroid, x.normal, y.centroid, y.normal, y.area),
         Rule::Gauss(n) => x.area * gauss(x, y, n),
@@ -396,6 +401,13 @@ mod tests {
                     rel < tol,
                     "x0 {x0} lo {lo} hi {hi} tol {tol}: {g} vs {exact} ({rel:.2e}, rule {chosen:?})"
                 );
+                // The rule itself (axis-aligned, `coupling` takes the closed form).
+                let by = by_rule(x, y, chosen, false, acc);
+                let rel = (by - exact).abs() / exact;
+                assert!(
+                    rel < tol,
+                    "x0 {x0} lo {lo} hi {hi} tol {tol}: {chosen:?} {by} vs {exact} ({rel:.2e})"
+                );
                 // (x0 = 1.5 is near: the bounding spheres overlap, adaptive.)
                 if tol >= 1e-3 && x0 >= 2.0 {
                     assert!(matches!(chosen, Rule::GaussClipped(_)), "x0 {x0} tol {tol}: {chosen:?}");
@@ -440,6 +452,11 @@ mod tests {
             let chosen = rule(x, y, straddle, true, one_point);
             let rel = (g - exact).abs() / exact;
             assert!(rel < ONE_POINT_ROOT_TOL, "{:?}: {g} vs {exact} ({rel:.2e}, {chosen:?})", y.centroid);
+            // The rule itself (most of these pairs are axis-aligned: `coupling` takes the
+            // closed form).
+            let by = by_rule(x, y, chosen, true, one_point);
+            let rel = (by - exact).abs() / exact;
+            assert!(rel < ONE_POINT_ROOT_TOL, "{:?}: {chosen:?} {by} vs {exact} ({rel:.2e})", y.centroid);
             gauss += usize::from(matches!(chosen, Rule::Gauss(_) | Rule::GaussClipped(_)));
         }
         assert!(gauss >= 4, "{gauss} pairs took a Gauss rule");
