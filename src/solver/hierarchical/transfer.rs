@@ -29,16 +29,23 @@
 //!   otherwise ──► n×n Gauss–Legendre, n = ⌈ln(1/link_tol) / (2 ln ρ)⌉, ρ = 1 + 2g/s + √((1 + 2g/s)² − 1);
 //!                 straddling (apart) ──► the same n over the part in front of the other's plane
 //!                 touching (g ≤ 0), or n > MAX_GAUSS ──► adaptive cubature to link_tol
-//!   adaptive or n ≥ 3, and every edge pair parallel or perpendicular (rooms, boxes, shelves and
-//!                 their quadtree elements) ──► instead the exact double contour integral
+//!   adaptive ──► instead the double contour integral, to the same tolerances, where its error
+//!                 estimate meets them (form_factor::polygon_to_polygon_contour: closed form for
+//!                 parallel edge pairs, graded Gauss rules for the others)
+//!   n ≥ 3, and every edge pair parallel or perpendicular (rooms, boxes, shelves and their
+//!                 quadtree elements) ──► instead the exact double contour integral
 //!                 (form_factor::polygon_to_polygon_axial)
 //! ```
 //!
-//! The closed form made the white furnace's and cube-one-light's power balance close to 6e-8
-//! at `splash2` (escaped / emitted −6.0e-8 and −5.5e-8; −7.7e-5 and −7.1e-5 with the 1e-4
+//! The axial closed form made the white furnace's and cube-one-light's power balance close to
+//! 6e-8 at `splash2` (escaped / emitted −6.0e-8 and −5.5e-8; −7.7e-5 and −7.1e-5 with the 1e-4
 //! cubature of their touching faces) and `splash2`'s initial linking on splash_room 0.027 →
-//! 0.021 s on one thread; its 221 touching pairs whose edges meet at other angles still take
-//! the cubature.
+//! 0.021 s on one thread. The contour integral with oblique edge pairs then took the cubature's
+//! place for the touching pairs whose edges meet at other angles (turned furniture): on
+//! splash_room at `splash2` 311 of its 402 adaptive pairs, ~12× cheaper each (the rest, pairs
+//! whose terms cancel or whose rules disagree, keep the cubature); the clustered contact mesh
+//! at ε = 0.17 (`quality`) refines 6 % faster on one thread, the same links. Apart pairs keep
+//! their Gauss rules: the contour integral was no cheaper than 4×4 kernel evaluations there.
 //!
 //! A straddling pair (a wall and a shelf whose plane cuts it) that is apart exchanges nothing
 //! behind the cutting plane and a transfer analytic in x in front of it (it falls to 0 linearly
@@ -247,14 +254,35 @@ pub(super) fn coupling(
 ) -> f64 {
     let (x, y) = if integrate_over_a(a, a_id, b, b_id) { (a, b) } else { (b, a) };
     let rule = rule_gap(x, y, straddle, root, acc, min_gap);
-    // Axis-aligned pairs (rooms, boxes, their quadtree elements) have a closed form, cheaper
-    // than 3×3 kernel evaluations and exact.
-    if matches!(rule, Rule::Adaptive | Rule::Gauss(3..) | Rule::GaussClipped(3..))
-        && let Some(f) = form_factor::polygon_to_polygon_axial(x.vertices(), y.vertices())
-    {
-        return x.area * f;
+    // Near pairs take the double contour integral, a few dozen closed-form inner integrals per
+    // edge pair where the cubature spends hundreds of kernel evaluations on a contact's
+    // log-singular derivative (exact for axis-aligned pairs); axis-aligned pairs apart have it
+    // in closed form too, cheaper than 3×3 kernel evaluations.
+    let f = match rule {
+        Rule::Adaptive => {
+            let (rel, abs) = adaptive_tols(root, acc);
+            form_factor::polygon_to_polygon_contour(x.vertices(), y.vertices(), rel, abs)
+        }
+        Rule::Gauss(3..) | Rule::GaussClipped(3..) => {
+            form_factor::polygon_to_polygon_axial(x.vertices(), y.vertices())
+        }
+        _ => None,
+    };
+    match f {
+        Some(f) => x.area * f,
+        None => by_rule(x, y, rule, root, acc),
     }
-    by_rule(x, y, rule, root, acc)
+}
+
+/// The relative and absolute tolerances of the adaptive rule for a pair (see the constants).
+fn adaptive_tols(root: bool, acc: Accuracy) -> (f64, f64) {
+    if root && acc.tol <= 0.0 {
+        (ONE_POINT_ROOT_TOL, ROOT_ABS_TOL)
+    } else if root {
+        (ROOT_REL_TOL, ROOT_ABS_TOL)
+    } else {
+        (acc.adaptive_tol.max(ROOT_REL_TOL), ELEMENT_ABS_TOL)
+    }
 }
 
 /// G by `rule` over `x` (the smaller of the pair), ≥ 0.
@@ -266,13 +294,7 @@ fn by_rule(x: &Element, y: &Element, rule: Rule, root: bool, acc: Accuracy) -> f
             x.area * form_factor::polygon_to_polygon_rule(x.vertices(), y.vertices(), &rules()[n - 1])
         }
         Rule::Adaptive => {
-            let (rel, abs) = if root && acc.tol <= 0.0 {
-                (ONE_POINT_ROOT_TOL, ROOT_ABS_TOL)
-            } else if root {
-                (ROOT_REL_TOL, ROOT_ABS_TOL)
-            } else {
-                (acc.adaptive_tol.max(ROOT_REL_TOL), ELEMENT_ABS_TOL)
-            };
+            let (rel, abs) = adaptive_tols(root, acc);
             let q = form_factor::polygon_to_polygon_adaptive(x.vertices(), y.vertices(), rel, abs);
             x.area * q.value
         }
