@@ -803,16 +803,20 @@ pub fn polygon_to_polygon_axial(from: &[DVec3], to: &[DVec3]) -> Option<f64> {
 #[must_use]
 pub fn polygon_to_polygon_contour(from: &[DVec3], to: &[DVec3], rel_tol: f64, abs_tol: f64) -> Option<f64> {
     // The cheapest pair of rules that meets the tolerance where the oblique terms' sum is a
-    // few times the result; else the next pair, once.
+    // few times the result; else the finer pairs in turn (each costs a fraction of the
+    // cubature: on splash_room's root pairs at 1e-4 the first pair settles 235 of 402, all
+    // four 388).
     let k = OBLIQUE_RULES.iter().position(|&(_, n)| (n as f64).powi(-8) <= OBLIQUE_APRIORI * rel_tol);
     let k = k.unwrap_or(OBLIQUE_RULES.len() - 1);
     let rules = oblique_rules();
-    match contour(from, to, Some(&rules[k]), rel_tol, abs_tol) {
-        Err(Declined::Rule) if k + 1 < rules.len() => {
-            contour(from, to, Some(&rules[k + 1]), rel_tol, abs_tol).ok()
+    let mut out = contour(from, to, Some(&rules[k]), rel_tol, abs_tol);
+    for finer in &rules[k + 1..] {
+        if !matches!(out, Err(Declined::Rule)) {
+            break;
         }
-        out => out.ok(),
+        out = contour(from, to, Some(finer), rel_tol, abs_tol);
     }
+    out.ok()
 }
 
 /// A pair of Gauss–Legendre rules (the coarser, the finer) for [`oblique_edges_log`].
