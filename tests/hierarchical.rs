@@ -777,3 +777,25 @@ fn the_row_check_stops_light_creation() {
         assert!(off < -1e-3, "{name}: without the row check escaped {:.3} % (no light created)", 100.0 * off);
     }
 }
+
+/// The error oracle's tail share (`HierarchicalParams::cause_tail`) is a real knob: at the same
+/// threshold a larger share splits fewer of a wrong receiver's links (fewer links in all), the
+/// solve still conserves energy, and shares outside (0, 1] are refused.
+#[test]
+fn the_tail_share_trades_links_for_error() {
+    let scene = || radlab::scene::Scene::load("builtin:table-room").unwrap();
+    let base = HierarchicalParams { bf_eps: 0.1, bf_relative: true, ..HierarchicalParams::quality() };
+    assert_eq!(base.oracle, Oracle::Error);
+    assert_eq!(base.cause_tail, radlab::solver::params::DEFAULT_CAUSE_TAIL);
+    let links = |tail: f64| {
+        let s = solve(scene(), HierarchicalParams { cause_tail: tail, ..base });
+        let e = s.solution().energy;
+        assert!(e.relative_residual() < 1e-3, "tail {tail}: {e:?}");
+        s.stats().links
+    };
+    let (quarter, half, whole) = (links(0.25), links(0.5), links(1.0));
+    assert!(half < quarter && whole < half, "links {quarter} {half} {whole}");
+    for bad in [0.0, -0.1, 1.5, f64::NAN] {
+        assert!(HierarchicalParams { cause_tail: bad, ..base }.validate().is_err(), "{bad}");
+    }
+}

@@ -131,6 +131,10 @@ pub struct Args {
     /// --link-tol`). Default: the preset's.
     #[arg(long)]
     pub solve_link_tol: Option<f64>,
+    /// The error oracle's tail share of --compare hierarchical (as `radlab solve
+    /// --cause-tail`). Default: the preset's.
+    #[arg(long)]
+    pub solve_cause_tail: Option<f64>,
     /// Clustering of --compare hierarchical (off, auto, on). Default: the preset's (auto).
     #[arg(long, value_enum)]
     pub solve_cluster: Option<radlab::solver::params::Clustering>,
@@ -503,6 +507,7 @@ fn hierarchical_params(args: &Args) -> anyhow::Result<radlab::solver::params::Hi
     p.max_links = args.solve_max_links.unwrap_or(p.max_links);
     p.max_depth = args.solve_max_depth.unwrap_or(p.max_depth);
     p.link_tol = args.solve_link_tol.unwrap_or(p.link_tol);
+    p.cause_tail = args.solve_cause_tail.unwrap_or(p.cause_tail);
     p.cluster = args.solve_cluster.unwrap_or(p.cluster);
     p.validate().map_err(anyhow::Error::msg).context("invalid --solve-* flag")?;
     Ok(p)

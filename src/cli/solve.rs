@@ -275,6 +275,12 @@ pub struct SolverArgs {
     /// (hierarchical; see README, "Row check").
     #[arg(long)]
     pub row_tol: Option<f64>,
+    /// The error oracle's tail share: a wrong receiver's links are split, largest variation
+    /// first, until the others add up to at most this fraction of the threshold; in (0, 1],
+    /// 0.25 in every preset. Larger: fewer links and a higher error at a given threshold
+    /// (hierarchical, error oracle).
+    #[arg(long)]
+    pub cause_tail: Option<f64>,
     /// Cluster the input patches, so links grow as n, not n² (hierarchical; auto: scenes of
     /// 3000 patches or more; see README, "Clustering").
     #[arg(long, value_enum)]
@@ -435,6 +441,9 @@ pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalPara
     }
     if let Some(v) = args.row_tol {
         p.row_tol = v;
+    }
+    if let Some(v) = args.cause_tail {
+        p.cause_tail = v;
     }
     if let Some(v) = args.push_slopes {
         p.push_slopes = v;

@@ -5,6 +5,10 @@
 use serde::Serialize;
 
 /// Which test decides that a link is accurate enough (HSA91 §4; SPLASH-2 `radiosity`).
+/// The error oracle's tail share in every preset (`HierarchicalParams::cause_tail`; measured in
+/// `solver::hierarchical::oracle`).
+pub const DEFAULT_CAUSE_TAIL: f64 = 0.25;
+
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Oracle {
@@ -172,6 +176,11 @@ pub struct HierarchicalParams {
     /// emitted power, was −0.92…+0.24 % depending on the threshold) with 2.1× the links; at
     /// 0.03 it takes 6× the links for the same balance.
     pub row_tol: f64,
+    /// The error oracle's tail share (`solver::hierarchical::oracle`): of a receiver whose
+    /// answer is wrong, the links with the largest variation are split until the others add up
+    /// to at most this fraction of ε. Larger: fewer links per threshold, a higher error at a
+    /// given ε; [`DEFAULT_CAUSE_TAIL`] in every preset. In (0, 1].
+    pub cause_tail: f64,
     /// Clustering above the input patches (`Auto` in every preset).
     pub cluster: Clustering,
     /// Seed of the visibility jitter.
@@ -206,6 +215,7 @@ impl HierarchicalParams {
             link_tol: 1e-3,
             push_slopes: true,
             row_tol: 0.05,
+            cause_tail: DEFAULT_CAUSE_TAIL,
             cluster: Clustering::Auto,
             seed: 0,
         }
@@ -242,6 +252,7 @@ impl HierarchicalParams {
             link_tol: 1e-4,
             push_slopes: true,
             row_tol: 0.1,
+            cause_tail: DEFAULT_CAUSE_TAIL,
             cluster: Clustering::Auto,
             seed: 0,
         }
@@ -273,6 +284,7 @@ impl HierarchicalParams {
             link_tol: 1e-4,
             push_slopes: true,
             row_tol: 0.0,
+            cause_tail: DEFAULT_CAUSE_TAIL,
             cluster: Clustering::Auto,
             seed: 0,
         }
@@ -309,6 +321,7 @@ impl HierarchicalParams {
             link_tol: 0.0,
             push_slopes: false,
             row_tol: 0.0,
+            cause_tail: DEFAULT_CAUSE_TAIL,
             cluster: Clustering::Auto,
             seed: 0,
         }
@@ -350,6 +363,9 @@ impl HierarchicalParams {
         }
         if !(self.row_tol.is_finite() && (0.0..1.0).contains(&self.row_tol)) {
             return Err(format!("row-tol must be in [0, 1) (got {})", self.row_tol));
+        }
+        if !(self.cause_tail > 0.0 && self.cause_tail <= 1.0) {
+            return Err(format!("cause-tail must be in (0, 1] (got {})", self.cause_tail));
         }
         if !(self.link_tol.is_finite() && (0.0..1.0).contains(&self.link_tol)) {
             return Err(format!("link_tol must be in [0, 1) (got {})", self.link_tol));

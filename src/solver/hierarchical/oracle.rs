@@ -43,10 +43,13 @@
 //! A link r ← q is split on the receiver's side when r's answer is wrong (e_r > ε) and the link
 //! is one of its causes: its own variation across r, c_rq = ρ_r V B_q (max_k |F(x_k → q) − mean| +
 //! |F_rq − mean|) (+ its visibility term), is among the largest of r's own links, taken largest first until
-//! the rest add up to at most ε/4 (so the rest cannot make r wrong again on their own, and a
-//! receiver with thousands of small links does not split them all: with the earlier rule,
-//! c_rq ≥ e_r / (1 + n_r), table-room at ε = 0.025 made 214 664 links, now 156 600 at ε/2 and
-//! 336 730 at ε/4 for 3.3 % instead of 3.7 % pointwise). It is split on the source's side when
+//! the rest add up to at most `cause_tail` · ε, ε/4 in every preset (so the rest cannot make r
+//! wrong again on their own, and a receiver with thousands of small links does not split them
+//! all: with the earlier rule, c_rq ≥ e_r / (1 + n_r), table-room at ε = 0.025 made 214 664
+//! links, now 156 600 at ε/2 and 336 730 at ε/4 for 3.3 % instead of 3.7 % pointwise; session
+//! 21, against the 4-batch references: ε/2 puts splash_room's clustered contact mesh on a
+//! better error-against-time front, 5.78 % at ε = 0.17 in 0.44 s against 5.81 % in 0.64 s, but
+//! cornell's ε = 0.025 reads 1.06 % instead of 0.93 %). It is split on the source's side when
 //! q's radiosity varies (ΔB_q: q's own e_q, or the spread of its children's B) enough to matter
 //! through the kernel's variation across q: ρ_r F_rq V ΔB_q diam_q / distance > ε [Holzschuch &
 //! Sillion 1998, §3.1, the source-radiosity term]. Every decision
@@ -79,7 +82,7 @@ pub(super) struct ErrorField {
     /// ΔB: how much the element's radiosity varies across it.
     pub spread: Vec<f64>,
     /// The smallest c_rq (module docs) of the own links that cause e_r: the largest ones, until
-    /// the rest add up to at most `CAUSE_TAIL` ε (∞ without own links).
+    /// the rest add up to at most `cause_tail` · ε (∞ without own links).
     pub cause: Vec<f64>,
     /// h(x_k) at the element's four child points: its own links' exact terms plus the affine
     /// fit of its parent's h (module docs, "inherited links").
@@ -216,9 +219,6 @@ pub(super) fn known_kernel(kernels: &[Vec<(u32, [f64; 4])>], r: u32, q: u32) -> 
 fn kernel_mean(f: &[f64; 4]) -> f64 {
     0.25 * (f[0] + f[1] + f[2] + f[3])
 }
-
-/// The share of ε that a receiver's unsplit own links may add up to (module docs).
-const CAUSE_TAIL: f64 = 0.25;
 
 /// One element's own-link terms of the error field.
 struct OwnTerms {
@@ -400,12 +400,12 @@ impl HierarchicalSolver {
             partial += src.radiosity * (f64::from(l.ff) * partial_weight(l));
             c.push(variation(e, src, l, &f, mean));
         }
-        // The largest variations first, until the others add up to at most CAUSE_TAIL · ε.
+        // The largest variations first, until the others add up to at most cause_tail · ε.
         c.sort_unstable_by(|a, b| b.total_cmp(a));
         let mut tail: f64 = c.iter().sum();
         let mut cause = f64::INFINITY;
         for &ck in &c {
-            if tail <= CAUSE_TAIL * self.bf_eps {
+            if tail <= self.params.cause_tail * self.bf_eps {
                 break;
             }
             cause = ck;
