@@ -783,7 +783,7 @@ pub fn polygon_to_polygon(from: &[DVec3], to: &[DVec3], rel_tol: f64) -> f64 {
 #[must_use]
 pub fn polygon_to_polygon_axial(from: &[DVec3], to: &[DVec3]) -> Option<f64> {
     // Most pairs that are not axial show it in their own edges: decline before clipping.
-    if edge_dirs(from).any(|u| edge_dirs(to).any(|v| !axial_cos(u.dot(v)))) {
+    if edge_dirs(from).any(|u| edge_dirs(to).any(|v| !(perpendicular(u, v) || parallel(u, v)))) {
         return None;
     }
     contour(from, to, None, 0.0, 0.0).ok()
@@ -858,15 +858,11 @@ fn contour(
             if lc <= 0.0 {
                 continue;
             }
-            let cos = da.dot(dc);
-            if cos.abs() <= AXIAL_REL {
+            if perpendicular(da, dc) {
                 continue;
             }
-            // Parallel by the sine: the closed form takes the lines' distance at one point, off
-            // by sin θ times the length where they are not quite parallel (two faces of a turned
-            // box whose float vertices nearly share an edge: 1 − cos θ below 1e-12, and the
-            // distance changing by 2e-5 along a 160-long edge made F 3e-8 read 1e-7).
-            let t = if da.cross(dc).length() <= AXIAL_REL {
+            let cos = da.dot(dc);
+            let t = if parallel(da, dc) {
                 parallel_edges_log(a, da, la, c, lc, cos.signum())
             } else if let Some((coarse, fine)) = oblique {
                 let [tc, tf] = oblique_edges_log(a, da, la, c, dc, lc, [coarse, fine]);
@@ -1010,8 +1006,8 @@ fn clip_to_front(pts: &[DVec3], origin: DVec3, n: DVec3, eps: f64) -> Vec<DVec3>
     out
 }
 
-/// Edges count as parallel or perpendicular for [`polygon_to_polygon_axial`] when the cosine
-/// of their angle is within this of ±1 or 0.
+/// Edges count as perpendicular when the cosine of their angle is within this of 0, and as
+/// parallel when its sine is ([`perpendicular`], [`parallel`]).
 const AXIAL_REL: f64 = 1e-12;
 
 /// The unit directions of a polygon's edges (zero for a repeated vertex).
@@ -1019,9 +1015,19 @@ fn edge_dirs(p: &[DVec3]) -> impl Iterator<Item = DVec3> + '_ {
     (0..p.len()).map(move |i| (p[(i + 1) % p.len()] - p[i]).normalize_or_zero())
 }
 
-/// Is `cos` that of parallel or perpendicular directions (within [`AXIAL_REL`])?
-fn axial_cos(cos: f64) -> bool {
-    cos.abs() <= AXIAL_REL || 1.0 - cos.abs() <= AXIAL_REL
+/// Are the unit directions `u` and `v` perpendicular (within [`AXIAL_REL`])? Their edge pair
+/// adds nothing to the contour integral (dx · dy = 0).
+fn perpendicular(u: DVec3, v: DVec3) -> bool {
+    u.dot(v).abs() <= AXIAL_REL
+}
+
+/// Are the unit directions `u` and `v` parallel (within [`AXIAL_REL`])? By the sine, not the
+/// cosine: [`parallel_edges_log`] takes the lines' distance at one point, off by sin θ times
+/// the length where they are not quite parallel (two faces of a turned box whose float vertices
+/// nearly share an edge: 1 − cos θ below 1e-12, and the distance changing by 2e-5 along a
+/// 160-long edge made F 3e-8 read 1e-7).
+fn parallel(u: DVec3, v: DVec3) -> bool {
+    u.cross(v).length() <= AXIAL_REL
 }
 
 /// ∫∫ ln r (dx · dy) over the segments x = a + s·u, s ∈ [0, la] and y = c + t·σu, t ∈ [0, lc]
