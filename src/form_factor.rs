@@ -793,34 +793,29 @@ pub fn polygon_to_polygon_axial(from: &[DVec3], to: &[DVec3]) -> Option<f64> {
 /// [`polygon_to_polygon_axial`], for edges at any angle: parallel pairs in closed form
 /// ([`parallel_edges_log`]), the others with the inner integral in closed form and the outer
 /// by Gauss–Legendre rules graded towards where the integrand is singular
-/// ([`oblique_edges_log`]), to the relative tolerance `rel_tol` or the absolute `abs_tol` (in
+/// ([`ObliquePair`]), to the relative tolerance `rel_tol` or the absolute `abs_tol` (in
 /// units of F), whichever is looser. Touching, shared-edge and near pairs alike: where adaptive
 /// cubature spends hundreds of kernel evaluations on a contact's log-singular derivative, this
 /// costs a few dozen closed-form inner integrals per edge pair.
 /// `None` when the polygons are degenerate, when the contour terms cancel so far that rounding
 /// could exceed the tolerance (small pairs far apart: use a cubature rule there), or when the
-/// rules' error estimate does (see [`OBLIQUE_RULES`]).
+/// rules' error estimate still exceeds it with every edge pair on the finest rule (see
+/// [`OBLIQUE_LADDER`]).
 #[must_use]
 pub fn polygon_to_polygon_contour(from: &[DVec3], to: &[DVec3], rel_tol: f64, abs_tol: f64) -> Option<f64> {
-    // The cheapest pair of rules that meets the tolerance where the oblique terms' sum is a
-    // few times the result; else the finer pairs in turn (each costs a fraction of the
-    // cubature: on splash_room's root pairs at 1e-4 the first pair settles 235 of 402, all
-    // four 388).
-    let k = OBLIQUE_RULES.iter().position(|&(_, n)| (n as f64).powi(-8) <= OBLIQUE_APRIORI * rel_tol);
-    let k = k.unwrap_or(OBLIQUE_RULES.len() - 1);
-    let rules = oblique_rules();
-    let mut out = contour(from, to, Some(&rules[k]), rel_tol, abs_tol);
-    for finer in &rules[k + 1..] {
-        if !matches!(out, Err(Declined::Rule)) {
-            break;
-        }
-        out = contour(from, to, Some(finer), rel_tol, abs_tol);
-    }
-    out.ok()
+    // Start at the cheapest rule that meets the tolerance where the oblique terms' sum is a
+    // few times the result; the edge pairs whose estimate is largest then take the finer
+    // rules, one step at a time, until the sum meets it (on splash_room's root pairs at 1e-4,
+    // the first step settles 235 of 402).
+    let ladder = oblique_ladder();
+    let k = ladder.iter().skip(1).position(|r| (r.len() as f64).powi(-8) <= OBLIQUE_APRIORI * rel_tol);
+    let k = k.map_or(ladder.len() - 1, |k| k + 1);
+    contour(from, to, Some((ladder, k)), rel_tol, abs_tol).ok()
 }
 
-/// A pair of Gauss–Legendre rules (the coarser, the finer) for [`oblique_edges_log`].
-type RulePair = (Vec<(f64, f64)>, Vec<(f64, f64)>);
+/// Gauss–Legendre rules of growing order for [`ObliquePair`], and the rung of the first
+/// value (the rung below it gives its error estimate).
+type Ladder<'a> = (&'a [Vec<(f64, f64)>], usize);
 
 /// The double contour integral of [`polygon_to_polygon_axial`] / [`polygon_to_polygon_contour`]
 /// (`oblique`: the rules for edge pairs at other angles, else `Err` on the first); `rel_tol`
@@ -828,7 +823,7 @@ type RulePair = (Vec<(f64, f64)>, Vec<(f64, f64)>);
 fn contour(
     from: &[DVec3],
     to: &[DVec3],
-    oblique: Option<&RulePair>,
+    oblique: Option<Ladder<'_>>,
     rel_tol: f64,
     abs_tol: f64,
 ) -> Result<f64, Declined> {
@@ -845,7 +840,9 @@ fn contour(
     if newell_normal(from).length() <= eps * eps || newell_normal(to).length() <= eps * eps {
         return Ok(0.0);
     }
-    let (mut sum, mut magnitude, mut rule_error) = (0.0, 0.0, 0.0);
+    // The parallel pairs' closed forms, and the oblique pairs on their current rungs.
+    let (mut exact, mut exact_magnitude) = (0.0, 0.0);
+    let mut rungs: Vec<Rung> = Vec::new();
     for i in 0..from.len() {
         let (a, b) = (from[i], from[(i + 1) % from.len()]);
         let (da, la) = ((b - a).normalize_or_zero(), (b - a).length());
@@ -862,37 +859,79 @@ fn contour(
                 continue;
             }
             let cos = da.dot(dc);
-            let t = if parallel(da, dc) {
-                parallel_edges_log(a, da, la, c, lc, cos.signum())
-            } else if let Some((coarse, fine)) = oblique {
-                let [tc, tf] = oblique_edges_log(a, da, la, c, dc, lc, [coarse, fine]);
-                // Where an end is singular the rules converge as n⁻⁸ (module docs of
-                // `oblique_edges_log`): the finer rule's error is the rules' difference over
-                // (n_fine / n_coarse)⁸ − 1. Elsewhere they converge geometrically and this
-                // overstates it.
-                let ratio = (fine.len() as f64 / coarse.len() as f64).powi(8);
-                rule_error += cos.abs() * (tf - tc).abs() / (ratio - 1.0);
-                cos * tf
+            if parallel(da, dc) {
+                let t = parallel_edges_log(a, da, la, c, lc, cos.signum());
+                exact += t;
+                exact_magnitude += t.abs();
+            } else if let Some((ladder, k)) = oblique {
+                let pair = ObliquePair::new(a, da, la, c, dc, lc);
+                let (below, value) = (pair.integrate(&ladder[k - 1]), pair.integrate(&ladder[k]));
+                rungs.push(Rung { pair, cos, rung: k, value, error: rung_error(below, value) * cos.abs() });
             } else {
                 return Err(Declined::Geometry);
-            };
-            sum += t;
-            magnitude += t.abs();
+            }
         }
     }
-    if magnitude == 0.0 {
-        return Ok(0.0);
+    loop {
+        let sum = exact + rungs.iter().map(|r| r.cos * r.value).sum::<f64>();
+        let magnitude = exact_magnitude + rungs.iter().map(|r| (r.cos * r.value).abs()).sum::<f64>();
+        if magnitude == 0.0 {
+            return Ok(0.0);
+        }
+        // What may be wrong, against what is allowed (in units of the sum, 2π A F).
+        let allowed = (rel_tol * sum.abs()).max(abs_tol * 2.0 * PI * area);
+        if !(sum.abs() > 1e-7 * magnitude || CONTOUR_ROUNDING * magnitude <= allowed) {
+            return Err(Declined::Cancellation);
+        }
+        let rule_error: f64 = rungs.iter().map(|r| r.error).sum();
+        if rule_error <= allowed {
+            let f = sum / (2.0 * PI * area);
+            return if f.is_finite() { Ok(f.clamp(0.0, 1.0)) } else { Err(Declined::Geometry) };
+        }
+        // The edge pair with the largest estimate that has a finer rule takes it (the first
+        // of equals: the order of the edges decides, not the sort).
+        let Some((ladder, _)) = oblique else { return Err(Declined::Rule) };
+        let worst = rungs
+            .iter_mut()
+            .filter(|r| r.rung + 1 < ladder.len())
+            .reduce(|best, r| if r.error > best.error { r } else { best });
+        let Some(r) = worst else { return Err(Declined::Rule) };
+        r.rung += 1;
+        let below = r.value;
+        r.value = r.pair.integrate(&ladder[r.rung]);
+        r.error = rung_error(below, r.value) * r.cos.abs();
+        if !r.error.is_finite() {
+            return Err(Declined::Rule);
+        }
     }
-    // What may be wrong, against what is allowed (in units of the sum, 2π A F).
-    let allowed = (rel_tol * sum.abs()).max(abs_tol * 2.0 * PI * area);
-    if !(sum.abs() > 1e-7 * magnitude || CONTOUR_ROUNDING * magnitude <= allowed) {
-        return Err(Declined::Cancellation);
-    }
-    if !(rule_error <= allowed) {
-        return Err(Declined::Rule);
-    }
-    let f = sum / (2.0 * PI * area);
-    if f.is_finite() { Ok(f.clamp(0.0, 1.0)) } else { Err(Declined::Geometry) }
+}
+
+/// An oblique edge pair of [`contour`] on its rung of the ladder: its ∫∫ ln r ds dt by that
+/// rule (`value`, the caller multiplies by `cos`) and the estimate of its error (times |cos|).
+struct Rung {
+    pair: ObliquePair,
+    cos: f64,
+    rung: usize,
+    value: f64,
+    error: f64,
+}
+
+/// The error of an edge pair's value by rung `k` of the ladder, from its value by rung `k − 1`:
+/// twice their difference. The difference bounds the coarser rule's error, and the finer rule's
+/// is smaller; the factor 2 guards against two rules that agree by chance, which a single edge
+/// pair can, where a sum over all of a polygon's edges on the same rule rarely does. (Measured on
+/// splash_room's contour couplings against 96-node rules, `splash2` and `quality`: the n⁻⁸
+/// model's |difference| / ((n_k / n_{k−1})⁸ − 1), the estimate while every edge pair climbed
+/// together, let 21 of 552 and 44 of 14 690 couplings exceed their tolerance, up to 14 times,
+/// once the edge pairs stop on different rungs; the plain difference 1 of each; twice it none.)
+fn rung_error(below: f64, value: f64) -> f64 {
+    2.0 * (value - below).abs()
+}
+
+/// The Gauss–Legendre rules of [`OBLIQUE_LADDER`], computed once.
+fn oblique_ladder() -> &'static [Vec<(f64, f64)>] {
+    static RULES: OnceLock<Vec<Vec<(f64, f64)>>> = OnceLock::new();
+    RULES.get_or_init(|| OBLIQUE_LADDER.iter().map(|&n| gauss_legendre(n)).collect())
 }
 
 /// Rounding of the contour terms' sum, relative to their magnitude (generous: f64 sums of a
@@ -906,21 +945,21 @@ enum Declined {
     Geometry,
     /// The terms cancel so far that rounding could exceed the tolerance.
     Cancellation,
-    /// The oblique terms' error estimate exceeds the tolerance.
+    /// The oblique terms' error estimate exceeds the tolerance on the finest rule.
     Rule,
 }
 
-/// The node counts (coarser, finer) of the rule pairs of [`polygon_to_polygon_contour`]: the
-/// finer gives the value, their difference its error estimate.
-const OBLIQUE_RULES: [(usize, usize); 4] = [(4, 6), (6, 8), (8, 12), (12, 16)];
+/// The node counts of the Gauss–Legendre rules [`polygon_to_polygon_contour`] climbs, edge pair
+/// by edge pair: a rule gives the value, its difference from the rule below the error estimate.
+const OBLIQUE_LADDER: [usize; 7] = [4, 6, 8, 12, 16, 24, 32];
 
-/// [`polygon_to_polygon_contour`] starts with the first rule pair whose finer rule's n⁻⁸ is
-/// below this times the tolerance: on the test's touching pairs the error is ~5 n⁻⁸ of the
-/// oblique terms' sum, which is 0.4–12 times the result.
+/// [`polygon_to_polygon_contour`] starts each edge pair on the first rule whose n⁻⁸ is below
+/// this times the tolerance: on the test's touching pairs the error is ~5 n⁻⁸ of the oblique
+/// terms' sum, which is 0.4–12 times the result.
 const OBLIQUE_APRIORI: f64 = 0.1;
 
-/// ∫∫ ln r ds dt over the segments x = a + s·u, s ∈ [0, la] and y = c + t·v, t ∈ [0, lc], u and
-/// v unit and not parallel (the caller multiplies by u·v), by each of two `rules`.
+/// An edge pair at an oblique angle: segments x = a + s·u, s ∈ [0, la] and y = c + t·v,
+/// t ∈ [0, lc], u and v unit and not parallel, with the cuts of the outer interval.
 ///
 /// The inner integral is closed: with p = x(s), τ = (p − c)·v and h the distance from p to y's
 /// line, ∫₀^lc ln |p − y(t)| dt = G(lc − τ) − G(−τ), G(w) = ½ w ln(w² + h²) − w + h atan(w / h).
@@ -929,45 +968,55 @@ const OBLIQUE_APRIORI: f64 = 0.1;
 /// there and each piece integrated by a Gauss–Legendre rule in u with
 /// s = s₀ + (s₁ − s₀)(3u² − 2u³), which grades the nodes towards both ends and turns an s ln s
 /// singularity there into u³ ln u, where an n-point rule errs by O(n⁻⁸).
-fn oblique_edges_log(
+struct ObliquePair {
     a: DVec3,
     u: DVec3,
-    la: f64,
     c: DVec3,
     v: DVec3,
     lc: f64,
-    rules: [&[(f64, f64)]; 2],
-) -> [f64; 2] {
-    let g = |w: f64, h: f64, h2: f64| {
-        let r2 = w * w + h2;
-        let log = if r2 > 0.0 { 0.5 * w * r2.ln() } else { 0.0 };
-        let at = if h > 0.0 { h * (w / h).atan() } else { 0.0 };
-        log - w + at
-    };
-    let inner = |s: f64| {
-        let d = a + u * s - c;
-        // (The distance to the line by the cross product: |d|² − τ² cancels where it is small.)
-        let h = d.cross(v).length();
-        let tau = d.dot(v);
-        g(lc - tau, h, h * h) - g(-tau, h, h * h)
-    };
-    // Where x passes closest to y's ends and to y's line.
-    let (w0, b) = (a - c, u.dot(v));
-    let cross = (b * w0.dot(v) - w0.dot(u)) / u.cross(v).length_squared();
-    let mut cuts = [0.0, (c - a).dot(u), (c + v * lc - a).dot(u), cross, la];
-    let tiny = 1e-9 * la;
-    for x in &mut cuts[1..4] {
-        if !(x.is_finite() && *x > tiny && *x < la - tiny) {
-            *x = 0.0;
+    /// The outer interval's ends and cuts, sorted (unused cuts at 0).
+    cuts: [f64; 5],
+    /// Pieces shorter than this are skipped.
+    tiny: f64,
+}
+
+impl ObliquePair {
+    fn new(a: DVec3, u: DVec3, la: f64, c: DVec3, v: DVec3, lc: f64) -> ObliquePair {
+        // Where x passes closest to y's ends and to y's line.
+        let (w0, b) = (a - c, u.dot(v));
+        let cross = (b * w0.dot(v) - w0.dot(u)) / u.cross(v).length_squared();
+        let mut cuts = [0.0, (c - a).dot(u), (c + v * lc - a).dot(u), cross, la];
+        let tiny = 1e-9 * la;
+        for x in &mut cuts[1..4] {
+            if !(x.is_finite() && *x > tiny && *x < la - tiny) {
+                *x = 0.0;
+            }
         }
+        cuts.sort_unstable_by(f64::total_cmp);
+        ObliquePair { a, u, c, v, lc, cuts, tiny }
     }
-    cuts.sort_unstable_by(f64::total_cmp);
-    rules.map(|rule| {
+
+    /// ∫∫ ln r ds dt over the pair (the caller multiplies by u·v) by the graded `rule`.
+    fn integrate(&self, rule: &[(f64, f64)]) -> f64 {
+        let g = |w: f64, h: f64, h2: f64| {
+            let r2 = w * w + h2;
+            let log = if r2 > 0.0 { 0.5 * w * r2.ln() } else { 0.0 };
+            let at = if h > 0.0 { h * (w / h).atan() } else { 0.0 };
+            log - w + at
+        };
+        let inner = |s: f64| {
+            let d = self.a + self.u * s - self.c;
+            // (The distance to the line by the cross product: |d|² − τ² cancels where it is
+            // small.)
+            let h = d.cross(self.v).length();
+            let tau = d.dot(self.v);
+            g(self.lc - tau, h, h * h) - g(-tau, h, h * h)
+        };
         let mut sum = 0.0;
-        for w in cuts.windows(2) {
+        for w in self.cuts.windows(2) {
             let (s0, s1) = (w[0], w[1]);
             let len = s1 - s0;
-            if !(len > tiny) {
+            if !(len > self.tiny) {
                 continue;
             }
             for &(t, wt) in rule {
@@ -976,13 +1025,7 @@ fn oblique_edges_log(
             }
         }
         sum
-    })
-}
-
-/// The rule pairs of [`OBLIQUE_RULES`], computed once.
-fn oblique_rules() -> &'static [RulePair] {
-    static RULES: OnceLock<Vec<RulePair>> = OnceLock::new();
-    RULES.get_or_init(|| OBLIQUE_RULES.iter().map(|&(c, f)| (gauss_legendre(c), gauss_legendre(f))).collect())
+    }
 }
 
 /// The part of the convex polygon `pts` on or in front of the plane through `origin` with
@@ -1352,10 +1395,10 @@ mod tests {
         // The converged value (the rules at 64 and 128 nodes agree to 3e-12 of it; adaptive
         // cubature stops at its 2 M evaluation cap at 3.2264e-8).
         let exact = 3.226_79e-8;
-        let fine = (gauss_legendre(64), gauss_legendre(128));
-        let f = contour(&a, &b, Some(&fine), 1.0, 1.0).unwrap();
+        let fine = [gauss_legendre(64), gauss_legendre(128)];
+        let f = contour(&a, &b, Some((&fine, 1)), 1.0, 1.0).unwrap();
         assert!((f - exact).abs() < 1e-12, "{f}");
-        let back = contour(&b, &a, Some(&fine), 1.0, 1.0).unwrap() * polygon_area(&b) / polygon_area(&a);
+        let back = contour(&b, &a, Some((&fine, 1)), 1.0, 1.0).unwrap() * polygon_area(&b) / polygon_area(&a);
         assert!((back - exact).abs() < 1e-12, "{back}");
         for (rel, abs) in [(1e-4, 1e-8), (1e-7, 1e-8), (1e-7, 1e-10)] {
             for (from, to, scale) in [(&a, &b, 1.0), (&b, &a, polygon_area(&b) / polygon_area(&a))] {
@@ -1367,6 +1410,42 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Two adjacent faces of a turned box in splash_room (outward normals at 90°), whose float
+    /// vertices are up to 2e-3 apart along their shared 232-long edge: they see each other only
+    /// through slivers, F = 7.0e-7 and 8.6e-8. The terms of the nearly parallel edge pairs are ~1e6 times
+    /// the sum and cancel, so at the solver's tolerance for input patches (1e-4, or 1e-8 in
+    /// F) three edge pairs climb to the 32-node rule while the others stay on 6 nodes. The
+    /// result meets the tolerance both ways round, and reciprocity holds to it.
+    #[test]
+    fn contour_climbs_only_the_edge_pairs_that_need_it() {
+        let v = DVec3::new;
+        let a = vec![
+            v(298.4709167480469, -566.6668090820313, 97.59332275390625),
+            v(509.4880065917969, -518.14697265625, 179.592041015625),
+            v(500.6932067871094, -485.80908203125, 176.1739501953125),
+            v(289.6761169433594, -534.3289184570313, 94.17523193359375),
+        ];
+        let b = vec![
+            v(289.6761169433594, -534.3289184570313, 94.17523193359375),
+            v(500.6932067871094, -485.8091125488281, 176.17462158203125),
+            v(635.9310913085938, -485.8091125488281, -65.50457763671875),
+            v(424.91400146484375, -534.3289184570313, -147.50396728515625),
+        ];
+        let (aa, ab) = (polygon_area(&a), polygon_area(&b));
+        for (from, to) in [(&a, &b), (&b, &a)] {
+            let exact = polygon_to_polygon(from, to, 1e-10);
+            assert!(exact > 5e-8, "{exact}");
+            let f =
+                polygon_to_polygon_contour(from, to, 1e-4, 1e-8).expect("settled by the contour integral");
+            assert!((f - exact).abs() <= (1e-4 * exact).max(1e-8), "{f} vs {exact}");
+        }
+        let (fab, fba) = (
+            polygon_to_polygon_contour(&a, &b, 1e-4, 1e-8).unwrap(),
+            polygon_to_polygon_contour(&b, &a, 1e-4, 1e-8).unwrap(),
+        );
+        assert!((aa * fab - ab * fba).abs() <= 1e-8 * (aa + ab), "reciprocity");
     }
 
     /// The fixed-size kernel (`point_to_small_polygon`, with its four-lane edge terms) gives
