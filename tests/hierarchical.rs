@@ -242,6 +242,111 @@ fn iterate_matches_separate_gather_and_push_pull_steps() {
     }
 }
 
+/// Push-pull is area-weighted and exact (issue 15 §2): a gather followed by push-pull moves no
+/// power between levels. After each step, every interior element holds the area average of its
+/// children (pull: A B = Σ A_c B_c), and the power the leaves reflect is the power gathered at
+/// every level, each element's own links' irradiance reflected over its area
+/// (push: Σ_leaves A (B − E) = Σ_elements ρ A H_own; a slope moves light within an element's
+/// leaves, about its centroid, and adds none). With slopes (`interactive`) and without
+/// (`splash2`), on a closed box, on table-room and on trapezoids (whose children differ in area,
+/// so that a plain average of them would fail), after refinements that leave links at many
+/// levels.
+#[test]
+fn a_gather_and_push_pull_move_no_power_between_levels() {
+    let trapezoids = radlab::scene::Scene::new(
+        "trapezoids",
+        "test:trapezoids",
+        vec![
+            common::quad([[0., 0., 0.], [2., 0., 0.], [1.5, 1., 0.], [0.2, 1., 0.]], 0.6, 0.0, "floor"),
+            common::quad([[0., 0., 0.], [0.3, 0., 0.8], [1.2, 0., 0.8], [2., 0., 0.]], 0.4, 0.0, "wall"),
+            common::quad([[0., 0., 1.], [0., 1., 1.], [1., 1., 1.], [1., 0., 1.]], 0.5, 1.0, "light"),
+        ],
+    );
+    for (scene, name) in [
+        (common::cube_one_light(0.5), "cube-one-light"),
+        (common::table_room(), "table-room"),
+        (trapezoids, "trapezoids"),
+    ] {
+        let scene = Arc::new(scene);
+        for (preset, p) in [
+            (
+                "interactive",
+                HierarchicalParams { bf_eps: 0.02, bf_relative: false, ..HierarchicalParams::interactive() },
+            ),
+            (
+                "splash2",
+                HierarchicalParams {
+                    aeps: AreaEps::Relative(1e-4),
+                    bf_eps: 0.005,
+                    ..HierarchicalParams::splash2()
+                },
+            ),
+        ] {
+            let mut s = HierarchicalSolver::new(Arc::clone(&scene), p).unwrap();
+            let (mut levels, mut interior) = (0, 0);
+            for round in 0..3 {
+                s.refine_step();
+                s.gather_step();
+                s.push_pull_step();
+                let els = s.snapshot().elements;
+                levels = els.iter().map(|e| e.depth).max().unwrap_or(0);
+                // Elements above the leaves that gather through links of their own.
+                interior =
+                    els.iter().filter(|e| e.children.is_some() && e.gathered.max_channel() > 0.0).count();
+                let (mut reflected, mut gathered) = ([0.0; 3], [0.0; 3]);
+                for e in &els {
+                    for c in 0..3 {
+                        gathered[c] += e.reflectance.0[c] * e.area * e.gathered.0[c];
+                    }
+                    match e.children {
+                        None => {
+                            for c in 0..3 {
+                                reflected[c] += e.area * (e.radiosity.0[c] - e.emission.0[c]);
+                            }
+                        }
+                        Some(kids) => {
+                            for c in 0..3 {
+                                let own = e.area * e.radiosity.0[c];
+                                let sum: f64 = kids
+                                    .iter()
+                                    .map(|&k| {
+                                        let k = &els[k as usize];
+                                        k.area * k.radiosity.0[c]
+                                    })
+                                    .sum();
+                                assert!(
+                                    (own - sum).abs() <= 1e-9 * own.abs().max(sum.abs()).max(1e-300),
+                                    "{name} {preset} round {round}: element {} holds {own}, its children {sum}",
+                                    e.id
+                                );
+                            }
+                        }
+                    }
+                }
+                for c in 0..3 {
+                    assert!(gathered[c] > 0.0, "{name} {preset}: nothing gathered");
+                    assert!(
+                        (reflected[c] - gathered[c]).abs() <= 1e-9 * gathered[c],
+                        "{name} {preset} round {round}, channel {c}: the leaves reflect {} of {} gathered",
+                        reflected[c],
+                        gathered[c]
+                    );
+                }
+            }
+            assert!(levels >= 3, "{name} {preset}: a deeper mesh wanted, it has {levels} levels");
+            assert!(interior > 0, "{name} {preset}: no element above the leaves gathers: nothing is pushed");
+            if name == "trapezoids" {
+                let els = s.snapshot().elements;
+                let unequal = els.iter().filter_map(|e| e.children).any(|k| {
+                    let a = k.map(|c| els[c as usize].area);
+                    a.iter().any(|x| (x / a[0] - 1.0).abs() > 0.05)
+                });
+                assert!(unequal, "trapezoids: children of unequal area wanted");
+            }
+        }
+    }
+}
+
 /// The early exits of link visibility (stop at the first unblocked ray, or at the first mix of
 /// unblocked and blocked rays, when that settles what the next pass does) cast fewer rays and
 /// change nothing else: the same elements, links and radiosity bits as casting every ray.
