@@ -295,13 +295,13 @@ fn a_gather_and_push_pull_move_no_power_between_levels() {
                     els.iter().filter(|e| e.children.is_some() && e.gathered.max_channel() > 0.0).count();
                 let (mut reflected, mut gathered) = ([0.0; 3], [0.0; 3]);
                 for e in &els {
-                    for c in 0..3 {
-                        gathered[c] += e.reflectance.0[c] * e.area * e.gathered.0[c];
+                    for (c, g) in gathered.iter_mut().enumerate() {
+                        *g += e.reflectance.0[c] * e.area * e.gathered.0[c];
                     }
                     match e.children {
                         None => {
-                            for c in 0..3 {
-                                reflected[c] += e.area * (e.radiosity.0[c] - e.emission.0[c]);
+                            for (c, r) in reflected.iter_mut().enumerate() {
+                                *r += e.area * (e.radiosity.0[c] - e.emission.0[c]);
                             }
                         }
                         Some(kids) => {
