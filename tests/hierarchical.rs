@@ -745,38 +745,49 @@ fn links_are_mirror_images_with_reciprocal_form_factors() {
 
 /// Energy balance of converged solves (issue 15 §2): mirror links make what a source sends
 /// through a pair exactly what the receiver gathers, so `relative_residual` is left only with the
-/// last gather's change (the presets' tolerances: ≤ 1e-3 of the largest reflected radiosity).
-/// Measured (session 9, release): interactive 1.1e-4–2.9e-4, quality 5.6e-5–1.7e-4 on these
-/// scenes; the point kernel at one centroid left 1.5e-3–3e-2 here (and 5 % on splash_room).
-/// `splash2` iterates to SPLASH-2's own tolerance (0.005 of the largest radiosity), which
-/// leaves up to 8e-3 (table-room): its bound is that tolerance, times 2.
+/// last gather's change, which every solve iterates below `ENERGY_TOLERANCE` (1e-3).
 const BALANCE_TOL: f64 = 1e-3;
-const SPLASH2_BALANCE_TOL: f64 = 0.01;
-/// Energy created in the closed rooms (absorbed − emitted, relative to emitted), BF oracle:
-/// measured 4.1 % (table-room, interactive), 3.3 % (cube-one-light, interactive), 1.3 % / 0.4 %
-/// (quality). Issue 15 asks for none; a leaf's total form factor over links at several levels is
-/// 1 only on average (see `a_refined_furnace_conserves_power`), and brighter leaves with sums
-/// above 1 create light. Open: this bound guards against it getting worse.
-const CREATED_TOL: f64 = 0.05;
+/// Light created (−escaped / emitted, and absorbed beyond emitted), to the balance's own 1e-3: a
+/// leaf's total form factor over links at several levels is 1 only on average (see
+/// `a_refined_furnace_conserves_power`), and the row check (`row_tol`) pushes down the links of
+/// leaves whose rows exceed 1. Measured (session 22, release): the furnace at `lecture`, whose
+/// Feps oracle runs without the row check, −7.5e-4; cube-one-light at `lecture` −2.7e-4; every
+/// other scene and preset ≥ −6e-8 (the exact furnace's rounding).
+const CREATED_TOL: f64 = 1e-3;
+/// Open (README, "Row check"): cube-one-light `interactive` stops at its link budget (538 k of
+/// 500 k links) half-way through its refinement, before the row check can act, and creates
+/// 0.45 % of its light (with `--max-links 2000000`: 5.8e-6, 1.86 M links). One more pass of the
+/// row check within a quarter more links left 0.44 % (session 22). Bounded here so that it
+/// cannot get worse unseen.
+const KNOWN_CREATED: &[(&str, &str, f64)] = &[("cube-one-light", "interactive", 5e-3)];
 
+/// Every built-in scene at every preset, as the presets are: the balance closes to 1e-3 and no
+/// light is created beyond it.
 #[test]
 fn every_preset_conserves_energy() {
-    for preset in ["interactive", "quality", "splash2"] {
-        for scene in [
-            radlab::scene::Scene::load("builtin:cornell").unwrap(),
-            common::table_room(),
-            common::cube_one_light(0.5),
-        ] {
-            let name = scene.name.clone();
-            let s = solve(scene, HierarchicalParams::preset(preset).unwrap());
+    for &(scene_name, _) in radlab::scene::builtin::BUILTINS {
+        let scene = radlab::scene::Scene::load(&format!("builtin:{scene_name}")).unwrap();
+        for preset in HierarchicalParams::PRESETS {
+            let s = solve(scene.clone(), HierarchicalParams::preset(preset).unwrap());
             let e = s.solution().energy;
             let r = e.relative_residual();
-            let tol = if preset == "splash2" { SPLASH2_BALANCE_TOL } else { BALANCE_TOL };
-            assert!(r <= tol, "{preset} on {name}: residual {r:.2e} ({e:?})");
-            assert!(
-                e.absorbed.max_channel() <= e.emitted.max_channel() * (1.0 + CREATED_TOL),
-                "{preset} on {name}: absorbed more than emitted ({e:?})"
-            );
+            assert!(r <= BALANCE_TOL, "{preset} on {scene_name}: residual {r:.2e} ({e:?})");
+            let created = KNOWN_CREATED
+                .iter()
+                .find(|k| k.0 == scene_name && k.1 == preset)
+                .map_or(CREATED_TOL, |k| k.2);
+            for c in 0..3 {
+                let emitted = e.emitted.0[c];
+                assert!(
+                    e.escaped.0[c] >= -created * emitted,
+                    "{preset} on {scene_name}: light created, channel {c}: escaped {:.2e} of the emitted ({e:?})",
+                    e.escaped.0[c] / emitted
+                );
+                assert!(
+                    e.absorbed.0[c] <= emitted * (1.0 + created),
+                    "{preset} on {scene_name}: absorbed more than emitted ({e:?})"
+                );
+            }
         }
     }
 }
