@@ -745,6 +745,23 @@ impl Cache {
         self.dir.join(format!("points-v{FORMAT_VERSION}-{key:016x}.json"))
     }
 
+    /// The pointwise reference for these settings (its layout batch) if the cache holds a valid
+    /// entry; never computes (the viewer's look-up before it offers to compute one).
+    /// With the entry, its file.
+    pub fn read_points(
+        &self,
+        scene: &Scene,
+        params: &PointParams,
+    ) -> Result<(CachedPoints, PathBuf), String> {
+        let params = params.batch(params.layout_seed);
+        let key = points::points_cache_key(scene, &params);
+        let file = self.points_file_for(key);
+        if !file.exists() {
+            return Err(format!("no entry {}", file.display()));
+        }
+        read_points_entry(&file, key, None).map(|c| (c, file))
+    }
+
     /// The pointwise reference for these settings ([`points`]): from the cache if a valid entry
     /// exists, else computed and written. A batch whose seed is not the layout seed reuses (or
     /// first computes) the layout's entry and re-estimates its points; its file holds only the

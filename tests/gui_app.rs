@@ -12,7 +12,7 @@ use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use radlab::math::{DVec3, Rgb};
-use radlab::reference::{Cache, ReferenceParams};
+use radlab::reference::{Cache, PointParams, ReferenceParams};
 use radlab::render::RgbaImage;
 use radlab::render::snapshot::{self, Thresholds};
 use radlab::scene::{Patch, Scene};
@@ -286,12 +286,17 @@ fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
     assert!((h.state().params().feps - 0.2).abs() < 1e-9);
 }
 
-/// Reference settings for a test: a rough reference (16 paths per region) keeps it fast; it is
-/// seeded, so snapshots are stable. Its cache is an empty folder of its own (returned).
+/// Reference settings for a test: a rough pointwise reference (1024 points, 16 paths each) keeps
+/// it fast; it is seeded, so snapshots are stable. Its cache is an empty folder of its own
+/// (returned).
 fn quick_reference(name: &str) -> (std::path::PathBuf, RefSettings) {
     let dir = std::env::temp_dir().join(format!("radlab-gui-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let params = ReferenceParams { samples: 16, ..ReferenceParams::quick() };
+    let params = PointParams {
+        points: 1024,
+        paths: ReferenceParams { samples: 16, ..ReferenceParams::quick() },
+        ..PointParams::quick()
+    };
     (dir.clone(), RefSettings { params, cache: Cache::at(dir) })
 }
 
@@ -317,6 +322,20 @@ fn reference_feeds_the_true_error_and_the_error_plot() {
     assert_eq!(s.len(), 2, "{s:?}");
     assert!(s[1][0] > 0.0, "solver time advanced: {s:?}");
     assert!(s[1][1] < 0.5 * s[0][1], "solving lowers the true error: {s:?}");
+    // The figure is the pointwise ruler's (issue 15 §1), the very number `radlab reference
+    // --compare` computes from the same cache entry, and the panel says so.
+    let (cached, _) =
+        reference.cache.read_points(&cornell(), &reference.params).expect("cached by the viewer");
+    let scene = cornell();
+    let leaves = h.state().view().solved_leaves();
+    let pc = radlab::pointwise::PiecewiseConstant::new(&scene, &leaves).unwrap();
+    let values = radlab::pointwise::evaluate(&pc, &cached.set.points);
+    let report =
+        radlab::pointwise::compare_points(&scene, &cached.set.points, &values, &cached.estimates, 0.0)
+            .unwrap();
+    assert!((report.scene.l2_debiased - s[1][1]).abs() < 1e-12, "{} vs {s:?}", report.scene.l2_debiased);
+    assert!(h.query_by_label_contains("pointwise rel L2").is_some(), "the panel names the ruler");
+    assert!(h.query_by_label_contains("points × 16 paths").is_some(), "the panel gives the points");
     h.get_by_label("error heatmap").click();
     settle(&mut h);
     check(&mut h, "gui_reference");
@@ -361,7 +380,10 @@ fn reference_computation_shows_progress_and_can_be_cancelled() {
     let _ = std::fs::remove_dir_all(&dir);
     // Far more paths than the test waits for (minutes of work): only a cancel ends it early.
     let reference = RefSettings {
-        params: ReferenceParams { samples: 1 << 16, ..ReferenceParams::quick() },
+        params: PointParams {
+            paths: ReferenceParams { samples: 1 << 16, ..ReferenceParams::quick() },
+            ..PointParams::quick()
+        },
         cache: Cache::at(&dir),
     };
     let mut h = harness(ViewerOptions { reference, ..opts() });
@@ -506,7 +528,10 @@ fn the_layout_does_not_jump() {
     let dir = std::env::temp_dir().join(format!("radlab-gui-layout-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let reference = RefSettings {
-        params: ReferenceParams { samples: 1 << 16, ..ReferenceParams::quick() },
+        params: PointParams {
+            paths: ReferenceParams { samples: 1 << 16, ..ReferenceParams::quick() },
+            ..PointParams::quick()
+        },
         cache: Cache::at(&dir),
     };
     let mut h = harness(ViewerOptions { reference, ..opts() });

@@ -792,7 +792,7 @@ impl RadlabApp {
         self.reference.cancel();
     }
 
-    /// (regions finished, regions) of the reference computation.
+    /// (work finished, work) of the reference computation.
     #[must_use]
     pub fn reference_progress(&self) -> (usize, usize) {
         self.reference.progress()
@@ -821,8 +821,8 @@ impl RadlabApp {
     fn apply_ref(&mut self, r: RefReply) {
         let current = |source: &str, s: &Self| s.scene.as_ref().is_some_and(|sc| sc.source == source);
         match r {
-            RefReply::Computing { source, regions, samples } if current(&source, self) => {
-                self.ref_state = RefState::Computing { regions, samples, since: Instant::now() };
+            RefReply::Computing { source, points, samples } if current(&source, self) => {
+                self.ref_state = RefState::Computing { points, samples, since: Instant::now() };
             }
             RefReply::Missing { source } if current(&source, self) => self.ref_state = RefState::Missing,
             RefReply::Cancelled { source } if current(&source, self) => {
@@ -831,12 +831,12 @@ impl RadlabApp {
             }
             RefReply::Solution { source, view } if current(&source, self) => {
                 self.reference.view = Some(Arc::clone(&view));
-                let samples = self.opts.reference.params.samples;
+                let samples = self.opts.reference.params.paths.samples;
                 let name = self.scene_name().to_owned();
                 self.history.record_reference(&name, samples, view);
             }
-            RefReply::Ready { source, regions, samples, how } if current(&source, self) => {
-                self.ref_state = RefState::Ready { regions, samples, how };
+            RefReply::Ready { source, points, samples, how } if current(&source, self) => {
+                self.ref_state = RefState::Ready { points, samples, how };
                 self.reference.rescore();
                 self.score_runs();
             }

@@ -4,7 +4,7 @@
 //!
 //! The reference is the best the viewer has: the closed form on a single-bounce scene
 //! ([`crate::exact::SingleBounce`], e.g. builtin:shadow-narrow), else the scene's cached Monte
-//! Carlo reference (its regions, piecewise constant — as the error heatmap reads it), else none
+//! Carlo reference (its points' cells, piecewise constant), else none
 //! (the answer says to compute one).
 //!
 //! ```text

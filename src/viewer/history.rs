@@ -18,7 +18,7 @@
 //! ## Error
 //! A run's error is the relative L2 error of its solution against the scene's reference when
 //! there is one (the reference thread scores every solver state, [`super::reference`]; that is
-//! the regions ruler of `radlab reference --ruler regions`), else the solver's own estimate of
+//! the pointwise ruler of `radlab reference`), else the solver's own estimate of
 //! that number without a reference
 //! ([`crate::solver::hierarchical::estimate::global_relative_l2`]), always labelled as an
 //! estimate.
@@ -89,11 +89,12 @@ impl RunError {
 pub enum RunKind {
     /// A Solve of the hierarchical solver.
     Solve,
-    /// The scene's Monte Carlo reference (`radlab reference --ruler regions`), shown as a run so
-    /// that the split view can set it beside solves; left out of the plots.
+    /// The scene's Monte Carlo reference (`radlab reference`, pointwise), shown as a run (its
+    /// points' cells the elements) so that the split view can set it beside solves; left out of
+    /// the plots.
     Reference {
-        regions: usize,
-        /// Paths per region.
+        points: usize,
+        /// Paths per point.
         samples: u32,
         /// Its relative standard error (area-weighted, against the reflected radiosity).
         noise: Option<f64>,
@@ -156,8 +157,8 @@ impl Run {
         match (self.kind, &self.mesh) {
             (RunKind::Solve, Some(m)) => mesh_settings(m),
             (RunKind::Solve, None) => thresholds(&self.params),
-            (RunKind::Reference { regions, samples, .. }, _) => {
-                format!("Monte Carlo reference: {regions} regions × {samples} paths (radlab reference)")
+            (RunKind::Reference { points, samples, .. }, _) => {
+                format!("Monte Carlo reference: {points} points × {samples} paths (radlab reference)")
             }
         }
     }
@@ -166,7 +167,7 @@ impl Run {
     #[must_use]
     pub fn numbers(&self) -> String {
         if let RunKind::Reference { .. } = self.kind {
-            return format!("{} regions · {}", self.elements, self.error().label());
+            return format!("{} points · {}", self.elements, self.error().label());
         }
         format!(
             "{} elements · {} links · {:.2} s · {}",
@@ -323,10 +324,10 @@ impl RunHistory {
 
     /// Keep the scene's reference as a run (once per scene and reference settings).
     pub fn record_reference(&mut self, scene: &str, samples: u32, view: Arc<ViewData>) {
-        let regions = view.leaves.len();
+        let points = view.leaves.len();
         let same = |r: &Run| {
             r.scene == scene
-                && matches!(r.kind, RunKind::Reference { regions: n, samples: s, .. } if n == regions && s == samples)
+                && matches!(r.kind, RunKind::Reference { points: n, samples: s, .. } if n == points && s == samples)
         };
         if let Some(r) = self.runs.iter_mut().find(|r| same(r)) {
             r.view.get_or_insert(view);
@@ -336,12 +337,12 @@ impl RunHistory {
         let noise = estimate_of(&view);
         self.push(Run {
             number: 0,
-            kind: RunKind::Reference { regions, samples, noise },
+            kind: RunKind::Reference { points, samples, noise },
             scene: scene.to_owned(),
             preset: "reference".to_owned(),
             params: view.params,
             mesh: None,
-            elements: regions,
+            elements: points,
             links: 0,
             time_s: 0.0,
             estimate: None,

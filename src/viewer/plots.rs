@@ -68,25 +68,28 @@ impl View for Plots {
                 p.line(Line::new("n²", PlotPoints::from(vec![[lo, 2.0 * lo], [hi, 2.0 * hi]])));
             });
         ui.label("Error against solver time, runs in this window (log₁₀)").on_hover_text(
-            "Relative L2 error against the reference when the scene has one, else the solver's own \
-             estimate (series marked \"estimate\"); one point per solve",
+            "Pointwise relative L2 error against the reference (its noise taken out) when the scene \
+             has one, else the solver's own estimate (series marked \"estimate\"); one point per \
+             solve",
         );
         Plot::new("runs_error_vs_time")
             .height(150.0)
             .legend(Legend::default())
             .x_axis_label("solver time (s)")
-            .y_axis_label("log₁₀ rel. L2 error")
+            .y_axis_label("log₁₀ pointwise rel. L2 error")
             .show(ui, |p| overlay(p, history.error_series()));
         if error_samples.is_empty() {
             ui.weak("Error against time appears when a reference solution is loaded.");
         } else {
-            ui.label("Error against the reference (rel L2, log₁₀) vs solver time since the last restart");
+            ui.label(
+                "Error against the reference (pointwise rel L2, log₁₀) vs solver time since the last restart",
+            );
             let pts: Vec<[f64; 2]> =
                 error_samples.iter().filter(|p| p[1] > 0.0).map(|p| [p[0], p[1].log10()]).collect();
             Plot::new("error_vs_time")
                 .height(150.0)
                 .x_axis_label("solver time (s)")
-                .y_axis_label("log₁₀ error")
+                .y_axis_label("log₁₀ pointwise error")
                 .show(ui, |p| {
                     p.line(Line::new("error", PlotPoints::from(pts.clone())));
                     p.points(Points::new("steps", PlotPoints::from(pts)).radius(3.0));

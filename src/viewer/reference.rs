@@ -2,17 +2,17 @@
 //! Monte Carlo reference of [`crate::reference`] for the loaded scene on its own thread,
 //! `radlab-reference`, and then scores every new solver state against it, off the UI thread:
 //!
-//! - the **true error per element** shown by the error heatmap: |B_i − B̂(i)| (mean over
-//!   channels, units of B), where B̂(i) is the reference averaged over leaf i
-//!   ([`crate::metrics::resample`] of the piecewise-constant reference onto the leaf);
-//! - the **relative L2 error** of the whole solution ([`crate::metrics`]: the solution resampled
-//!   onto the reference regions), a point of the error-against-time plot.
+//! - the **true error per element** shown by the error heatmap: the mean |B_i − B̂| at 3 × 3
+//!   points of leaf i, B̂ the reference interpolated linearly between its points
+//!   ([`crate::pointwise::PointInterpolant`]; units of B);
+//! - the **pointwise relative L2 error** of the whole solution (the issue 15 ruler,
+//!   [`crate::pointwise`]: the leaves evaluated at the reference's points, debiased), a point of
+//!   the error-against-time plot.
 //!
-//! The reference uses the mesh and settings of `radlab reference --ruler regions` (regions of
-//! diagonal / 16, [`ReferenceParams::standard`]) and its disk cache, so a reference computed on
-//! the command line with that ruler is found here and the other way round (the command line's
-//! default is now the pointwise ruler, [`crate::pointwise`], which the viewer does not use yet). Its resolution limits the per-element
-//! error: a leaf finer than the reference regions is compared with the region's average.
+//! The reference is `radlab reference`'s pointwise one (its default: at least 65 536 points,
+//! denser where the answer varies fast, 1024 paths each, [`PointParams::standard`]) with its
+//! disk cache, so a reference computed on the command line is found here and the other way
+//! round. It is drawn as the points' cells.
 //!
 //! A computation reports its progress (regions finished) and can be cancelled through a shared
 //! [`Control`]; a cancelled computation leaves no cache entry and the scene without reference.
@@ -25,32 +25,23 @@
 
 use super::worker::ViewData;
 use crate::accel::Accel;
-use crate::metrics;
 use crate::overlay::ElementView;
-use crate::reference::{
-    Cache, CacheStatus, Control, Estimate, RefElement, ReferenceError, ReferenceParams, cache_key,
-    reference_mesh,
-};
+use crate::reference::{Cache, CacheStatus, Control, Estimate, PointParams, RefPoint, ReferenceError};
 use crate::scene::Scene;
-use crate::solver::SolvedElement;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
 
-/// Reference regions are this fraction of the scene's bounding-box diagonal across (the default
-/// of `radlab reference --ruler regions`, so both share cache entries).
-pub const REGION_FRACTION_OF_DIAGONAL: f64 = 1.0 / 16.0;
-
 /// Where the reference comes from.
 #[derive(Clone, Debug)]
 pub struct RefSettings {
-    pub params: ReferenceParams,
+    pub params: PointParams,
     pub cache: Cache,
 }
 
 impl Default for RefSettings {
     fn default() -> Self {
-        RefSettings { params: ReferenceParams::standard(), cache: Cache::default_location() }
+        RefSettings { params: PointParams::standard(), cache: Cache::default_location() }
     }
 }
 
@@ -66,10 +57,10 @@ pub enum RefCommand {
 /// What the reference thread answers.
 #[derive(Clone, Debug)]
 pub enum RefReply {
-    /// Computing: regions × paths per region, for the progress line.
+    /// Computing: at least `points` points × paths per point, for the progress line.
     Computing {
         source: String,
-        regions: usize,
+        points: usize,
         samples: u32,
     },
     /// No cached reference for this scene (and none was asked for).
@@ -78,7 +69,7 @@ pub enum RefReply {
     },
     Ready {
         source: String,
-        regions: usize,
+        points: usize,
         samples: u32,
         how: String,
     },
@@ -86,8 +77,9 @@ pub enum RefReply {
     Cancelled {
         source: String,
     },
-    /// The reference as a solver state to draw (its regions the leaves, their estimates the
-    /// radiosity, the standard error the error estimate; no links): sent just before `Ready`.
+    /// The reference as a solver state to draw (its points' cells the leaves, their estimates
+    /// the radiosity, the standard error the error estimate; no links): sent just before
+    /// `Ready`.
     Solution {
         source: String,
         view: Arc<ViewData>,
@@ -101,51 +93,49 @@ pub enum RefReply {
 pub struct Evaluation {
     pub view_seq: u64,
     pub solver_time_s: f64,
-    /// |B − B̂| per element id (units of B; 0 for interior elements).
+    /// Each leaf's error, the mean |B − B̂| at 3 × 3 points of the leaf, B̂ the reference
+    /// interpolated linearly between its points (units of B; 0 for interior elements).
     pub per_element: Vec<f64>,
-    /// Relative L2 error of the solution against the reference (see [`crate::metrics`]).
+    /// Pointwise relative L2 error of the solution against the reference, debiased by its noise
+    /// (see [`crate::pointwise`]).
     pub rel_l2: f64,
 }
 
 /// The reference of one scene.
 struct Loaded {
     scene: Arc<Scene>,
-    mesh: Vec<RefElement>,
+    points: Vec<RefPoint>,
+    /// Each point's cell (to draw the reference).
+    cells: Vec<crate::reference::RefElement>,
     estimates: Vec<Estimate>,
 }
 
 /// Score a solver state against a reference.
 fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> Result<Evaluation, String> {
     let leaves = view.solved_leaves();
-    // Scene norm: the solution resampled onto the reference regions.
-    let values = metrics::resample(&r.scene, &leaves, &r.mesh).map_err(|e| e.to_string())?;
-    let regions: Vec<(usize, f64)> =
-        r.mesh.iter().map(|m| (m.patch, crate::math::polygon_area(&m.vertices))).collect();
-    let report = metrics::compare_regions(&r.scene, &regions, &values, &r.estimates, 0.0)
+    let pc = crate::pointwise::PiecewiseConstant::new(&r.scene, &leaves).map_err(|e| e.to_string())?;
+    let values = crate::pointwise::evaluate(&pc, &r.points);
+    let report = crate::pointwise::compare_points(&r.scene, &r.points, &values, &r.estimates, 0.0)
         .map_err(|e| e.to_string())?;
-    // Per leaf: the reference resampled onto the leaf.
-    let reference_elements: Vec<SolvedElement> = r
-        .mesh
-        .iter()
-        .zip(&r.estimates)
-        .map(|(m, est)| SolvedElement {
-            patch: m.patch,
-            vertices: m.vertices.clone(),
-            area: crate::math::polygon_area(&m.vertices),
-            radiosity: est.radiosity,
-            error_estimate: None,
-            slope: None,
-        })
-        .collect();
-    let leaf_regions: Vec<RefElement> =
-        leaves.iter().map(|l| RefElement { patch: l.patch, vertices: l.vertices.clone() }).collect();
-    let reference_at_leaves =
-        metrics::resample(&r.scene, &reference_elements, &leaf_regions).map_err(|e| e.to_string())?;
+    // Per leaf: the mean |B − B̂| at 3 × 3 points of the leaf, B̂ the reference interpolated
+    // linearly between its points (a leaf finer than the points' spacing holds none of them).
+    let reference: Vec<crate::math::Rgb> = r.estimates.iter().map(|e| e.radiosity).collect();
+    use crate::pointwise::Reconstruction as _;
+    let interp = crate::pointwise::PointInterpolant::new(&r.scene, &r.points, &reference)
+        .map_err(|e| e.to_string())?;
     let mut per_element = vec![0.0; view.elements.len()];
-    for ((&l, leaf), b_ref) in view.leaves.iter().zip(&leaves).zip(&reference_at_leaves) {
-        per_element[l as usize] = (leaf.radiosity - *b_ref).map(f64::abs).mean();
+    const AT: [f64; 3] = [1.0 / 6.0, 0.5, 5.0 / 6.0];
+    for (&l, leaf) in view.leaves.iter().zip(&leaves) {
+        let mut sum = 0.0;
+        for u in AT {
+            for v in AT {
+                let x = crate::visibility::point_on_polygon(&leaf.vertices, u, v);
+                sum += (leaf.radiosity - interp.radiosity_at(leaf.patch, x)).map(f64::abs).mean();
+            }
+        }
+        per_element[l as usize] = sum / 9.0;
     }
-    Ok(Evaluation { view_seq, solver_time_s, per_element, rel_l2: report.scene.l2 })
+    Ok(Evaluation { view_seq, solver_time_s, per_element, rel_l2: report.scene.l2_debiased })
 }
 
 /// Handle of the reference thread (it ends when this is dropped).
@@ -226,7 +216,7 @@ impl RefThread {
         }
     }
 
-    /// (regions finished, regions) of the newest computation; (0, 0) before it starts.
+    /// (work finished, work) of the newest computation; (0, 0) before it starts.
     #[must_use]
     pub fn progress(&self) -> (usize, usize) {
         self.control.as_ref().map_or((0, 0), |c| c.progress())
@@ -266,11 +256,11 @@ impl RefThread {
     }
 }
 
-/// The reference as a solver state: one leaf per region (at depth 0 of its patch), the region's
-/// estimate as its radiosity and the mean of its standard error as its error estimate.
+/// The reference as a solver state: one leaf per point's cell (at depth 0 of its patch), the
+/// point's estimate as its radiosity and the mean of its standard error as its error estimate.
 fn solution_view(r: &Loaded) -> Arc<ViewData> {
     let elements: Vec<ElementView> = r
-        .mesh
+        .cells
         .iter()
         .zip(&r.estimates)
         .enumerate()
@@ -286,7 +276,7 @@ fn solution_view(r: &Loaded) -> Arc<ViewData> {
                 area,
                 est.radiosity,
                 e,
-                "reference region",
+                "reference point's cell",
             )
         })
         .collect();
@@ -304,30 +294,28 @@ fn load(
         return (RefReply::Cancelled { source: scene.source.clone() }, None);
     }
     let source = scene.source.clone();
-    let mesh = match reference_mesh(&scene, scene.bounds().diagonal() * REGION_FRACTION_OF_DIAGONAL) {
-        Ok(m) => m,
-        Err(e) => return (RefReply::Failed(e.to_string()), None),
+    let params = settings.params.batch(settings.params.layout_seed);
+    let samples = params.paths.samples;
+    let loaded = |scene: Arc<Scene>, c: crate::reference::CachedPoints| {
+        let cells = c.set.cell_regions(&scene);
+        Loaded { scene, points: c.set.points, cells, estimates: c.estimates }
     };
-    let (regions, samples) = (mesh.len(), settings.params.samples);
-    let key = cache_key(&scene, &mesh, &settings.params);
     if !compute {
-        return match settings.cache.read(key, mesh.len()) {
-            Ok(c) => (
-                RefReply::Ready {
-                    source,
-                    regions,
-                    samples,
-                    how: format!("cached {}", settings.cache.file_for(key).display()),
-                },
-                Some(Loaded { scene, mesh, estimates: c.estimates }),
-            ),
+        return match settings.cache.read_points(&scene, &params) {
+            Ok((c, file)) => {
+                let points = c.set.points.len();
+                (
+                    RefReply::Ready { source, points, samples, how: format!("cached {}", file.display()) },
+                    Some(loaded(scene, c)),
+                )
+            }
             Err(_) => (RefReply::Missing { source }, None),
         };
     }
-    progress(RefReply::Computing { source: source.clone(), regions, samples });
+    progress(RefReply::Computing { source: source.clone(), points: params.points as usize, samples });
     let started = Instant::now();
     let accel = Accel::build(&scene);
-    match settings.cache.get_or_compute_with(&scene, &accel, &mesh, &settings.params, control) {
+    match settings.cache.get_or_compute_points(&scene, &accel, &params, control) {
         Ok((c, status)) => {
             let how = match status {
                 CacheStatus::Hit(f) => format!("cached {}", f.display()),
@@ -335,10 +323,8 @@ fn load(
                     format!("computed in {:.1} s, saved {}", started.elapsed().as_secs_f64(), f.display())
                 }
             };
-            (
-                RefReply::Ready { source, regions, samples, how },
-                Some(Loaded { scene, mesh, estimates: c.estimates }),
-            )
+            let points = c.set.points.len();
+            (RefReply::Ready { source, points, samples, how }, Some(loaded(scene, c)))
         }
         Err(ReferenceError::Cancelled) => (RefReply::Cancelled { source }, None),
         Err(e) => (RefReply::Failed(e.to_string()), None),
@@ -380,7 +366,7 @@ impl RefClient {
         }
     }
 
-    /// (regions finished, regions) of the computation.
+    /// (work finished, work) of the computation.
     #[must_use]
     pub fn progress(&self) -> (usize, usize) {
         self.thread.as_ref().map_or((0, 0), RefThread::progress)
@@ -458,7 +444,14 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("radlab-viewer-ref-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let settings = RefSettings {
-            params: ReferenceParams { samples: 8, ..ReferenceParams::quick() },
+            params: PointParams {
+                points: 256,
+                paths: crate::reference::ReferenceParams {
+                    samples: 8,
+                    ..crate::reference::ReferenceParams::quick()
+                },
+                ..PointParams::quick()
+            },
             cache: Cache::at(&dir),
         };
         let scene = Arc::new(Scene::load("builtin:cube-one-light").unwrap());
@@ -474,7 +467,7 @@ mod tests {
             matches!(replies.last(), Some(RefReply::Ready { how, .. }) if how.starts_with("computed")),
             "{replies:?}"
         );
-        // The reference to draw came with it: a leaf per region, lit.
+        // The reference to draw came with it: a leaf per point's cell, lit.
         let Some(RefReply::Solution { view, .. }) = replies.iter().rev().nth(1) else {
             panic!("{replies:?}")
         };

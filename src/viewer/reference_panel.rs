@@ -21,12 +21,12 @@ pub enum RefState {
     /// Not cached: the "Compute reference" button offers to compute it.
     Missing,
     Computing {
-        regions: usize,
+        points: usize,
         samples: u32,
         since: Instant,
     },
     Ready {
-        regions: usize,
+        points: usize,
         samples: u32,
         how: String,
     },
@@ -40,9 +40,9 @@ pub struct ReferencePanel;
 /// What the Reference section is lent for one frame.
 pub struct ReferenceInput<'a> {
     pub state: &'a RefState,
-    /// (regions finished, regions) of a computation.
+    /// (work finished, work) of a computation.
     pub progress: (usize, usize),
-    /// The current state's rel L2 error against the reference, once scored.
+    /// The current state's pointwise rel L2 error against the reference, once scored.
     pub error: Option<f64>,
 }
 
@@ -98,10 +98,10 @@ fn contents(ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAct
                 action = Some(ReferenceAction::Compute);
             }
         }
-        RefState::Computing { regions, samples, since } => {
+        RefState::Computing { points, samples, since } => {
             let (done, total) = progress;
-            let total = if total == 0 { regions } else { total };
-            ui.label(format!("{regions} regions × {samples} paths"));
+            let total = if total == 0 { points } else { total };
+            ui.label(format!("≥ {} points × {samples} paths", crate::pointwise::thousands(points)));
             ui.add(
                 egui::ProgressBar::new(done as f32 / total.max(1) as f32)
                     .desired_width(PANEL_CONTENT_W)
@@ -116,11 +116,14 @@ fn contents(ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAct
             }
             ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
         }
-        RefState::Ready { regions, samples, how } => {
-            ui.label(format!("{regions} regions × {samples} paths")).on_hover_text(how);
+        RefState::Ready { points, samples, how } => {
+            ui.label(format!("{} points × {samples} paths", crate::pointwise::thousands(points)))
+                .on_hover_text(how);
             if let Some(e) = error {
-                ui.label(format!("rel L2 error {:.2} %", e * 100.0))
-                    .on_hover_text("of the current state; the plots show it against solver time");
+                ui.label(format!("pointwise rel L2 {:.2} %", e * 100.0)).on_hover_text(
+                    "of the current state at the reference's points, its noise taken out; the plots \
+                     show it against solver time",
+                );
             }
         }
         RefState::Failed(e) => {
