@@ -4,11 +4,11 @@
 
 use serde::Serialize;
 
-/// Which test decides that a link is accurate enough (HSA91 §4; SPLASH-2 `radiosity`).
 /// The error oracle's tail share in every preset (`HierarchicalParams::cause_tail`; measured in
 /// `solver::hierarchical::oracle`).
 pub const DEFAULT_CAUSE_TAIL: f64 = 0.25;
 
+/// Which test decides that a link is accurate enough (HSA91 §4; SPLASH-2 `radiosity`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Oracle {
