@@ -394,8 +394,9 @@ pub fn check_estimate(
 /// what the points resolve (the adaptive reference places more points where B varies fast) and
 /// no finer: a discontinuity of the true B (a D0 contact) is a steep ramp across one triangle, and
 /// the points' noise is carried along (not smoothed).
-pub struct PointInterpolant<'a> {
-    scene: &'a Scene,
+pub struct PointInterpolant {
+    /// Each patch's emission (the value of a patch without points).
+    emission: Vec<Rgb>,
     patches: Vec<Option<PatchInterpolant>>,
 }
 
@@ -420,10 +421,10 @@ impl spade::HasPosition for InterpolationVertex {
     }
 }
 
-impl<'a> PointInterpolant<'a> {
+impl PointInterpolant {
     /// Triangulate `points` (with `values`, same order) patch by patch. Errors if the lengths
     /// differ or a point names a patch the scene lacks; of points at one position, one is kept.
-    pub fn new(scene: &'a Scene, points: &[RefPoint], values: &[Rgb]) -> Result<Self, MetricsError> {
+    pub fn new(scene: &Scene, points: &[RefPoint], values: &[Rgb]) -> Result<Self, MetricsError> {
         if points.len() != values.len() {
             return Err(MetricsError::LengthMismatch { solution: values.len(), reference: points.len() });
         }
@@ -455,11 +456,11 @@ impl<'a> PointInterpolant<'a> {
                 Some(PatchInterpolant { plane, triangulation })
             })
             .collect();
-        Ok(PointInterpolant { scene, patches })
+        Ok(PointInterpolant { emission: scene.patches.iter().map(|p| p.emission).collect(), patches })
     }
 }
 
-impl PointInterpolant<'_> {
+impl PointInterpolant {
     /// Index (in the list given to [`Self::new`]) of the point of `patch` nearest to `x`;
     /// `None` when the patch has no points.
     #[must_use]
@@ -470,11 +471,11 @@ impl PointInterpolant<'_> {
     }
 }
 
-impl Reconstruction for PointInterpolant<'_> {
+impl Reconstruction for PointInterpolant {
     fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
         use spade::{PositionInTriangulation as At, Triangulation as _};
         let Some(Some(pi)) = self.patches.get(patch) else {
-            return self.scene.patches.get(patch).map_or(Rgb::ZERO, |p| p.emission);
+            return self.emission.get(patch).copied().unwrap_or(Rgb::ZERO);
         };
         let t = &pi.triangulation;
         let q = pi.plane.to_2d(x);

@@ -57,12 +57,12 @@ pub struct Args {
 }
 
 /// The reference of the measurement and how to name it.
-enum Ruler<'a> {
+enum Ruler {
     Exact(radlab::exact::SingleBounce),
-    Points { interpolant: PointInterpolant<'a>, label: String },
+    Points { interpolant: PointInterpolant, label: String },
 }
 
-impl Reconstruction for Ruler<'_> {
+impl Reconstruction for Ruler {
     fn radiosity_at(&self, patch: usize, x: DVec3) -> Rgb {
         match self {
             Ruler::Exact(sb) => sb.patch_radiosity_at(patch, x),

@@ -14,7 +14,7 @@
 //! disk cache, so a reference computed on the command line is found here and the other way
 //! round. It is drawn as the points' cells.
 //!
-//! A computation reports its progress (regions finished) and can be cancelled through a shared
+//! A computation reports its progress and can be cancelled through a shared
 //! [`Control`]; a cancelled computation leaves no cache entry and the scene without reference.
 //!
 //! ```text
@@ -108,6 +108,9 @@ struct Loaded {
     /// Each point's cell (to draw the reference).
     cells: Vec<crate::reference::RefElement>,
     estimates: Vec<Estimate>,
+    /// The reference interpolated linearly between its points (the heatmap's B̂), triangulated
+    /// once per reference, not per solver state.
+    interp: crate::pointwise::PointInterpolant,
 }
 
 /// Score a solver state against a reference.
@@ -119,10 +122,7 @@ fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> R
         .map_err(|e| e.to_string())?;
     // Per leaf: the mean |B − B̂| at 3 × 3 points of the leaf, B̂ the reference interpolated
     // linearly between its points (a leaf finer than the points' spacing holds none of them).
-    let reference: Vec<crate::math::Rgb> = r.estimates.iter().map(|e| e.radiosity).collect();
     use crate::pointwise::Reconstruction as _;
-    let interp = crate::pointwise::PointInterpolant::new(&r.scene, &r.points, &reference)
-        .map_err(|e| e.to_string())?;
     let mut per_element = vec![0.0; view.elements.len()];
     const AT: [f64; 3] = [1.0 / 6.0, 0.5, 5.0 / 6.0];
     for (&l, leaf) in view.leaves.iter().zip(&leaves) {
@@ -130,7 +130,7 @@ fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> R
         for u in AT {
             for v in AT {
                 let x = crate::visibility::point_on_polygon(&leaf.vertices, u, v);
-                sum += (leaf.radiosity - interp.radiosity_at(leaf.patch, x)).map(f64::abs).mean();
+                sum += (leaf.radiosity - r.interp.radiosity_at(leaf.patch, x)).map(f64::abs).mean();
             }
         }
         per_element[l as usize] = sum / 9.0;
@@ -296,19 +296,24 @@ fn load(
     let source = scene.source.clone();
     let params = settings.params.batch(settings.params.layout_seed);
     let samples = params.paths.samples;
-    let loaded = |scene: Arc<Scene>, c: crate::reference::CachedPoints| {
+    let loaded = |scene: Arc<Scene>, c: crate::reference::CachedPoints| -> Result<Loaded, String> {
         let cells = c.set.cell_regions(&scene);
-        Loaded { scene, points: c.set.points, cells, estimates: c.estimates }
+        let values: Vec<crate::math::Rgb> = c.estimates.iter().map(|e| e.radiosity).collect();
+        let interp = crate::pointwise::PointInterpolant::new(&scene, &c.set.points, &values)
+            .map_err(|e| e.to_string())?;
+        Ok(Loaded { scene, points: c.set.points, cells, estimates: c.estimates, interp })
+    };
+    // Ready with the loaded reference, or why it cannot be used.
+    let ready = |source: String, how: String, scene: Arc<Scene>, c: crate::reference::CachedPoints| {
+        let points = c.set.points.len();
+        match loaded(scene, c) {
+            Ok(l) => (RefReply::Ready { source, points, samples, how }, Some(l)),
+            Err(e) => (RefReply::Failed(e), None),
+        }
     };
     if !compute {
         return match settings.cache.read_points(&scene, &params) {
-            Ok((c, file)) => {
-                let points = c.set.points.len();
-                (
-                    RefReply::Ready { source, points, samples, how: format!("cached {}", file.display()) },
-                    Some(loaded(scene, c)),
-                )
-            }
+            Ok((c, file)) => ready(source, format!("cached {}", file.display()), scene, c),
             Err(_) => (RefReply::Missing { source }, None),
         };
     }
@@ -323,8 +328,7 @@ fn load(
                     format!("computed in {:.1} s, saved {}", started.elapsed().as_secs_f64(), f.display())
                 }
             };
-            let points = c.set.points.len();
-            (RefReply::Ready { source, points, samples, how }, Some(loaded(scene, c)))
+            ready(source, how, scene, c)
         }
         Err(ReferenceError::Cancelled) => (RefReply::Cancelled { source }, None),
         Err(e) => (RefReply::Failed(e.to_string()), None),
