@@ -76,7 +76,7 @@ impl View for Plots {
             .height(150.0)
             .legend(Legend::default())
             .x_axis_label("solver time (s)")
-            .y_axis_label("log₁₀ pointwise rel. L2 error")
+            .y_axis_label("log₁₀ pointwise error")
             .show(ui, |p| overlay(p, history.error_series()));
         if error_samples.is_empty() {
             ui.weak("Error against time appears when a reference solution is loaded.");
