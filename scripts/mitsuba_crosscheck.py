@@ -171,7 +171,7 @@ def main():
         json.dump({"rows": rows, "agree": agree, "points": len(rows)}, open(args.json_out, "w"), indent=1)
     with open(args.out, "w") as f:
         f.write("# Reference cross-check against Mitsuba 3\n\n")
-        f.write("Issue 15 §1: radlab's independent Monte Carlo reference (`radlab reference --point-file`, "
+        f.write("radlab's independent Monte Carlo reference (`radlab reference --point-file`, "
                 "`radlab::reference::estimate_points`) against Mitsuba 3 "
                 f"({mi.__version__}, variant `scalar_rgb`, `path` integrator, unbounded depth) at "
                 f"{len(rows)} points of `{args.scene}`: two fixed points on every patch but the light. "
