@@ -169,14 +169,44 @@ fn nonsense_combinations_are_refused_with_one_line() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(needle) && err.trim().lines().count() == 1, "{flags:?}: {err}");
     }
-    // Today's defaults are unchanged: --method alone picks its mesh.
+    // --method alone picks its mesh; without flags the default preset runs on its top level,
+    // the contact mesh; the teaching presets on the quadtree.
     let out = radlab(&["solve", "builtin:parallel", "--method", "uniform", "--json", "-"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!((doc["method"].as_str(), doc["mesh"].as_str()), (Some("uniform"), Some("uniform")));
     let out = radlab(&["solve", "builtin:parallel", "--json", "-"]);
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!((doc["method"].as_str(), doc["mesh"].as_str()), (Some("hierarchical"), Some("quadtree")));
+    assert_eq!(
+        (doc["method"].as_str(), doc["mesh"].as_str()),
+        (Some("hierarchical on contact mesh"), Some("contact"))
+    );
+    assert_eq!(doc["params"]["solve"]["oracle"], "error", "{}", doc["params"]);
+    assert_eq!(doc["params"]["solve"]["bf_eps"], 0.05, "{}", doc["params"]);
+    for preset in ["bf", "lecture", "splash2"] {
+        let out = radlab(&["solve", "builtin:parallel", "--preset", preset, "--json", "-"]);
+        let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!((doc["method"].as_str(), doc["mesh"].as_str()), (Some("hierarchical"), Some("quadtree")));
+    }
+    // One threshold whatever the oracle: --threshold sets the error oracle's ε (its area floor
+    // following), the BF oracle's BFeps, Feps.
+    for (flags, key, value) in [
+        (&["--threshold", "0.2"][..], "bf_eps", 0.2),
+        (&["--preset", "bf", "--threshold", "1e-3"][..], "bf_eps", 1e-3),
+        (&["--preset", "lecture", "--threshold", "0.05"][..], "feps", 0.05),
+    ] {
+        let mut args = vec!["solve", "builtin:parallel", "--json", "-"];
+        args.extend(flags);
+        let out = radlab(&args);
+        assert!(out.status.success(), "{flags:?}: {}", String::from_utf8_lossy(&out.stderr));
+        let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let params =
+            if doc["params"]["solve"].is_object() { &doc["params"]["solve"] } else { &doc["params"] };
+        assert_eq!(params[key].as_f64(), Some(value), "{flags:?}: {params}");
+    }
+    let out = radlab(&["solve", "builtin:parallel", "--preset", "ultra"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("draft, interactive, quality, fine, reference"), "{err}");
 }
 
 /// `--dmesh-budget N` grades the discontinuity mesh to exactly N patches (every patch included:

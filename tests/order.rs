@@ -193,7 +193,7 @@ fn cli_order_flag() {
     for (args, needle) in [
         (
             vec!["solve", "builtin:shadow-narrow", "--method", "hierarchical", "--order", "1"],
-            "not implemented on --mesh quadtree",
+            "--order 1 is not implemented on the hierarchical solver",
         ),
         (vec!["solve", "builtin:shadow-narrow", "--method", "uniform", "--order", "2"], "supported orders"),
         (vec!["solve", "builtin:shadow-narrow", "--method", "uniform", "--continuous"], "needs --order 1"),

@@ -194,7 +194,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let unknowns =
         sol.stats.extra.as_ref().and_then(|x| x.get("unknowns")).and_then(serde_json::Value::as_u64);
-    let order = match (solved.order, solved.continuous) {
+    let (order_n, continuous) = solved.spec.order();
+    let order = match (order_n, continuous) {
         (0, _) => "p0".to_string(),
         (_, true) => "p1-continuous".to_string(),
         _ => "p1-discontinuous".to_string(),
@@ -204,7 +205,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "{}: {} on the {} mesh, {order}, {} elements{}; ruler: {ruler_label}",
         args.scene,
         sol.method,
-        solved.mesh.name(),
+        solved.spec.mesh_name(),
         thousands(sol.elements.len()),
         unknowns.map_or_else(String::new, |u| format!(", {} unknowns", thousands(u as usize)))
     )?;
@@ -232,14 +233,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let doc = json!({
             "scene": args.scene,
             "method": sol.method,
-            "mesh": solved.mesh.name(),
-            "order": solved.order,
+            "mesh": solved.spec.mesh_name(),
+            "order": order_n,
             "basis": order,
             "elements": sol.elements.len(),
             "unknowns": unknowns,
             "ruler": ruler_label,
             "params": params,
-            "solver_params": solved.params,
+            "solver_params": solved.spec.params_json(),
             "pointwise": pointwise.map(|(l2, noise, band, per_patch)| json!({"rel_l2": l2, "noise": noise, "penumbra_band_rel_l2": band, "per_patch": per_patch})),
             "artifacts": report,
             "fractions": {

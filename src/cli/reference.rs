@@ -47,7 +47,8 @@ pub struct Args {
     /// Cache folder (default: $RADLAB_CACHE, else .radlab-cache/ in the current directory).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
-    /// Also solve the scene with this method (`hierarchical`, `uniform`, `progressive`,
+    /// Also solve the scene with this method (`preset`: as `--preset` solves it, on its own top
+    /// level, as `radlab solve` does; `hierarchical`, `uniform`, `progressive`,
     /// `dmesh-cdt` / `dmesh-bsp`: the uniform solver at p = 0 on a discontinuity mesh, one element
     /// per piece, `hierarchical-dmesh-cdt` / `hierarchical-dmesh-bsp`: the discontinuity mesh
     /// as the top level of the hierarchical solver, or `hierarchical-contact`: the contact mesh
@@ -85,7 +86,9 @@ pub struct Args {
     /// five meshing artifacts of the solution ([`radlab::artifacts`]).
     #[arg(long)]
     pub exact: bool,
-    /// Hierarchical preset for --compare (interactive, quality, lecture, splash2).
+    /// Preset for --compare (the ladder: draft, interactive, quality, fine, reference; on the
+    /// quadtree: bf, lecture, splash2; see `radlab solve --preset`). `--compare preset` solves as
+    /// the preset does, on its own top level; `--compare hierarchical` on the quadtree.
     #[arg(long, default_value = "interactive")]
     pub preset: String,
     /// Element order of --compare uniform / dmesh-cdt / dmesh-bsp: 0 constant (the classical
@@ -377,6 +380,25 @@ fn solve(
             s.solve(&mut |_, _| {});
             s.solution()
         }
+        "preset" => {
+            use radlab::solver::spec::{self, Preset, SolveSpec};
+            let top = Preset::from_name(&args.preset).map_or(spec::TopLevel::Patches, Preset::top);
+            let plan = spec::Plan::Hierarchical { params: hierarchical_params(args)?, top };
+            let solve_spec = SolveSpec { plan, estimate: true };
+            let scene = std::sync::Arc::new(scene.clone());
+            let accel = std::sync::Arc::new(Accel::build(&scene));
+            let solved = spec::solve(&scene, &accel, 0.0, &solve_spec, &mut |_, _| {}, None)?;
+            if let Some((m, solve_s)) = &solved.remesh {
+                writeln!(
+                    log,
+                    "\n{method} {} ({}): {}, solve {solve_s:.3} s",
+                    args.preset,
+                    solve_spec.mesh_name(),
+                    m.describe()
+                )?;
+            }
+            solved.solution
+        }
         "hierarchical-dmesh-cdt" | "hierarchical-dmesh-bsp" | "hierarchical-contact" => {
             let mut p = hierarchical_params(args)?;
             if method == "hierarchical-contact" && args.solve_aeps_rel.is_none() {
@@ -489,9 +511,10 @@ fn write_point_errors(
 /// The hierarchical solver's settings of --compare hierarchical and hierarchical-dmesh-*:
 /// `--preset` modified by the `--solve-*` flags.
 fn hierarchical_params(args: &Args) -> anyhow::Result<radlab::solver::params::HierarchicalParams> {
-    use radlab::solver::params::HierarchicalParams;
-    let mut p = HierarchicalParams::preset(&args.preset)
-        .with_context(|| format!("--preset {}: one of {:?}", args.preset, HierarchicalParams::PRESETS))?;
+    use radlab::solver::spec::Preset;
+    let mut p = Preset::from_name(&args.preset)
+        .with_context(|| format!("--preset {}: one of {}", args.preset, Preset::names()))?
+        .hierarchical();
     p.rays = args.solve_rays.unwrap_or(p.rays);
     p.seed = args.solve_seed.unwrap_or(p.seed);
     if let Some(o) = args.solve_oracle {

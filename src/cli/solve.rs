@@ -7,15 +7,15 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use radlab::accel::Accel;
 use radlab::bake::{BakeForm, LightmapParams};
 use radlab::basis::Order;
-use radlab::math::Rgb;
-use radlab::mesh::remesh::{MeshKind, RemeshParams, RemeshStats};
+use radlab::mesh::remesh::{MeshKind, RemeshParams};
 use radlab::scene::Scene;
 use radlab::solver::discontinuity::{self, DiscontinuityParams};
-use radlab::solver::hierarchical::HierarchicalSolver;
-use radlab::solver::linear::{self, LinearParams};
+use radlab::solver::linear::LinearParams;
 use radlab::solver::params::{AreaEps, HierarchicalParams, Oracle};
-use radlab::solver::progressive::{self, ProgressiveParams};
-use radlab::solver::uniform::{self, UniformParams};
+use radlab::solver::progressive::ProgressiveParams;
+pub use radlab::solver::spec::Solved;
+use radlab::solver::spec::{self, Plan as SpecPlan, Preset, SolveSpec};
+use radlab::solver::uniform::UniformParams;
 use radlab::solver::{PhaseTimes, Solution};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -121,16 +121,15 @@ impl BudgetArg {
     }
 
     /// The grading the flags ask for on a D-mesh solved by `plan` (hierarchical: `auto` unless
-    /// told; the uniform solver: `off`, as its n² couplings make every piece count).
-    fn for_plan(a: &SolverArgs, plan: Plan) -> Option<radlab::mesh::grade::Budget> {
-        let default =
-            if matches!(plan, Plan::DiscontinuityHierarchical(_)) && a.mesh != Some(MeshArg::Contact) {
-                BudgetArg::Auto
-            } else {
-                BudgetArg::Off
-            };
+    /// told; the uniform solver and the contact mesh: `off`).
+    fn for_plan(a: &SolverArgs, plan: Route, mesh: MeshArg) -> Option<radlab::mesh::grade::Budget> {
+        let default = if matches!(plan, Route::DiscontinuityHierarchical(_)) && mesh != MeshArg::Contact {
+            BudgetArg::Auto
+        } else {
+            BudgetArg::Off
+        };
         match plan {
-            Plan::Discontinuity(_) | Plan::DiscontinuityHierarchical(_) => {
+            Route::Discontinuity(_) | Route::DiscontinuityHierarchical(_) => {
                 BudgetArg::grading(a.dmesh_budget, default)
             }
             _ => None,
@@ -180,10 +179,19 @@ pub struct SolverArgs {
     #[arg(long)]
     pub dmesh_gather: Option<bool>,
 
-    /// Hierarchical preset the flags below modify: interactive, quality, lecture, splash2.
+    /// Preset the flags below modify. The ladder, each step halving the error oracle's threshold
+    /// on the contact mesh: draft (0.2), interactive (0.1), quality (0.05, the default), fine
+    /// (0.025), reference (0.0125). On the quadtree, for teaching and comparison: bf (the BF
+    /// oracle), lecture (the lecture's Feps Refine), splash2 (the SPLASH-2 program's settings).
     #[arg(long, default_value = "quality")]
     pub preset: String,
-    /// Refinement oracle (hierarchical).
+    /// The oracle's threshold, whatever the oracle: the error oracle's ε (an error of B relative
+    /// to the scene's mean reflected radiosity; its area floor follows it, 6e-4 × ε of the
+    /// scene's area, unless --aeps/--aeps-rel is given), the BF oracle's BFeps (relative to the
+    /// brightest emission) or Feps (hierarchical).
+    #[arg(long)]
+    pub threshold: Option<f64>,
+    /// Refinement oracle (hierarchical): error (the ladder's), bf or feps.
     #[arg(long, value_enum)]
     pub oracle: Option<OracleArg>,
     /// Form-factor threshold of Refine (hierarchical).
@@ -397,29 +405,42 @@ impl LazyBar {
     }
 }
 
+/// The preset `--preset` names.
+pub fn preset(args: &SolverArgs) -> anyhow::Result<Preset> {
+    Preset::from_name(&args.preset)
+        .with_context(|| format!("unknown preset {:?} (one of {})", args.preset, Preset::names()))
+}
+
+/// The hierarchical solver's settings: the preset's, modified by the flags. The one threshold
+/// (`--threshold`, or the oracle's own flag) is resolved by [`spec::with_threshold`]; with the
+/// error oracle the area floor follows it unless `--aeps`/`--aeps-rel` is given.
 pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalParams> {
-    let mut p = HierarchicalParams::preset(&args.preset).with_context(|| {
-        format!("unknown preset {:?} (one of {})", args.preset, HierarchicalParams::PRESETS.join(", "))
-    })?;
+    let mut p = preset(args)?.hierarchical();
     if let Some(o) = args.oracle {
         p.oracle = o.into();
     }
+    let floor_follows = args.aeps.is_none() && args.aeps_rel.is_none();
+    if let Some(v) = args.threshold {
+        p = spec::with_threshold(p, v, floor_follows);
+    }
     if let Some(v) = args.feps {
         p.feps = v;
-    }
-    if let Some(v) = args.aeps {
-        p.aeps = AreaEps::Absolute(v);
-    }
-    if let Some(v) = args.aeps_rel {
-        p.aeps = AreaEps::Relative(v);
     }
     if let Some(v) = args.bf_eps {
         p.bf_eps = v;
         p.bf_relative = false;
     }
     if let Some(v) = args.bf_eps_rel {
-        p.bf_eps = v;
-        p.bf_relative = true;
+        p = HierarchicalParams { bf_eps: v, bf_relative: true, ..p };
+        if p.oracle == Oracle::Error && floor_follows {
+            p = discontinuity::contact_area_floor(p);
+        }
+    }
+    if let Some(v) = args.aeps {
+        p.aeps = AreaEps::Absolute(v);
+    }
+    if let Some(v) = args.aeps_rel {
+        p.aeps = AreaEps::Relative(v);
     }
     if let Some(v) = args.max_depth {
         p.max_depth = v;
@@ -468,36 +489,42 @@ pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalPara
 
 /// What `--method` and `--mesh` resolve to.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum Plan {
+pub enum Route {
     Hierarchical,
     Uniform,
     Progressive,
     /// The uniform (p = 0) or Galerkin (p = 1) solve on a discontinuity mesh.
     Discontinuity(MeshKind),
-    /// The discontinuity mesh as the top level of the hierarchical solver.
+    /// A mesh (the contact mesh, or a discontinuity mesh) as the top level of the hierarchical
+    /// solver.
     DiscontinuityHierarchical(MeshKind),
 }
 
 /// Resolve `--method`, `--mesh`, `--order` and the mesh flags, refusing the combinations that
-/// make no sense with a one-line reason.
-pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
+/// make no sense with a one-line reason. Without `--mesh`, the hierarchical solver runs on the
+/// preset's top level (the contact mesh on the ladder, the quadtree for bf, lecture, splash2).
+pub fn plan(a: &SolverArgs) -> anyhow::Result<(Route, MeshArg)> {
+    let preset_mesh = match preset(a)?.top() {
+        spec::TopLevel::Patches => MeshArg::Quadtree,
+        spec::TopLevel::Mesh(_) => MeshArg::Contact,
+    };
     let mesh = a.mesh.unwrap_or(match a.method {
-        None | Some(Method::Hierarchical) => MeshArg::Quadtree,
+        None | Some(Method::Hierarchical) => preset_mesh,
         Some(Method::Uniform | Method::Progressive) => MeshArg::Uniform,
     });
     let plan = match (mesh, a.method) {
-        (MeshArg::Quadtree, None | Some(Method::Hierarchical)) => Plan::Hierarchical,
-        (MeshArg::Uniform, None | Some(Method::Uniform)) => Plan::Uniform,
-        (MeshArg::Uniform, Some(Method::Progressive)) => Plan::Progressive,
-        (MeshArg::DiscontinuityCdt, None | Some(Method::Uniform)) => Plan::Discontinuity(MeshKind::Cdt),
-        (MeshArg::DiscontinuityBsp, None | Some(Method::Uniform)) => Plan::Discontinuity(MeshKind::Bsp),
+        (MeshArg::Quadtree, None | Some(Method::Hierarchical)) => Route::Hierarchical,
+        (MeshArg::Uniform, None | Some(Method::Uniform)) => Route::Uniform,
+        (MeshArg::Uniform, Some(Method::Progressive)) => Route::Progressive,
+        (MeshArg::DiscontinuityCdt, None | Some(Method::Uniform)) => Route::Discontinuity(MeshKind::Cdt),
+        (MeshArg::DiscontinuityBsp, None | Some(Method::Uniform)) => Route::Discontinuity(MeshKind::Bsp),
         (MeshArg::DiscontinuityCdt, Some(Method::Hierarchical)) => {
-            Plan::DiscontinuityHierarchical(MeshKind::Cdt)
+            Route::DiscontinuityHierarchical(MeshKind::Cdt)
         }
         (MeshArg::DiscontinuityBsp | MeshArg::Contact, Some(Method::Hierarchical)) => {
-            Plan::DiscontinuityHierarchical(MeshKind::Bsp)
+            Route::DiscontinuityHierarchical(MeshKind::Bsp)
         }
-        (MeshArg::Contact, None) => Plan::DiscontinuityHierarchical(MeshKind::Bsp),
+        (MeshArg::Contact, None) => Route::DiscontinuityHierarchical(MeshKind::Bsp),
         (MeshArg::Contact, Some(m)) => bail!(
             "--mesh contact is the top level of the hierarchical solver (--method hierarchical), not of --method {}",
             format!("{m:?}").to_lowercase()
@@ -515,9 +542,9 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
             format!("{other:?}").to_lowercase()
         ),
     };
-    let discontinuity = matches!(plan, Plan::Discontinuity(_) | Plan::DiscontinuityHierarchical(_));
-    let hierarchical = matches!(plan, Plan::Hierarchical | Plan::DiscontinuityHierarchical(_));
-    if a.element_size.is_some() && !matches!(plan, Plan::Uniform | Plan::Progressive) {
+    let discontinuity = matches!(plan, Route::Discontinuity(_) | Route::DiscontinuityHierarchical(_));
+    let hierarchical = matches!(plan, Route::Hierarchical | Route::DiscontinuityHierarchical(_));
+    if a.element_size.is_some() && !matches!(plan, Route::Uniform | Route::Progressive) {
         bail!(
             "--element-size applies to --mesh uniform; --mesh {} sizes its own elements{}",
             mesh.name(),
@@ -537,13 +564,13 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
         );
     }
     if (a.dmesh_smooth.is_some() || a.dmesh_penumbra_weight.is_some())
-        && BudgetArg::for_plan(a, plan).is_none()
+        && BudgetArg::for_plan(a, plan, mesh).is_none()
     {
         bail!(
             "--dmesh-smooth and --dmesh-penumbra-weight tune a graded discontinuity mesh (--dmesh-budget N|auto; auto is the default with --method hierarchical)"
         );
     }
-    if a.continuous && BudgetArg::for_plan(a, plan).is_some() {
+    if a.continuous && BudgetArg::for_plan(a, plan, mesh).is_some() {
         bail!(
             "--dmesh-budget grades the mesh with cuts that end on a neighbour's edge (T-vertices): a continuous basis needs a conforming mesh"
         );
@@ -553,16 +580,19 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Plan, MeshArg)> {
             "--ff-tol applies to --mesh uniform and the discontinuity meshes (the hierarchical solver's links use their own kernel)"
         );
     }
+    if !hierarchical && a.threshold.is_some() {
+        bail!("--threshold sets the hierarchical solver's oracle; --mesh {} has no oracle", mesh.name());
+    }
     match a.order {
         0 if a.continuous => bail!("--continuous needs --order 1 (constant elements share no values)"),
         0 => {}
-        1 if plan == Plan::Hierarchical => bail!(
+        1 if plan == Route::Hierarchical => bail!(
             "--order 1 is not implemented on --mesh quadtree (the hierarchical solver's elements are constant); use --mesh uniform, discontinuity-cdt or discontinuity-bsp"
         ),
         1 if hierarchical => bail!(
-            "--order 1 is not implemented with --method hierarchical (its elements are constant); drop --method hierarchical to solve the discontinuity mesh at order 1"
+            "--order 1 is not implemented on the hierarchical solver (its elements are constant); use --mesh uniform, discontinuity-cdt or discontinuity-bsp"
         ),
-        1 if plan == Plan::Progressive => {
+        1 if plan == Route::Progressive => {
             bail!(
                 "--order 1 needs the Galerkin solver (--method uniform); progressive shoots constant elements"
             )
@@ -593,61 +623,26 @@ pub fn grade_params(
 
 /// The discontinuity mesh `--dmesh-*` asks for (kind from `--mesh`, grading by the plan:
 /// [`BudgetArg::for_plan`]).
-fn remesh_params(a: &SolverArgs, plan: Plan, kind: MeshKind) -> anyhow::Result<RemeshParams> {
-    let max_patches = if matches!(plan, Plan::DiscontinuityHierarchical(_)) {
+fn remesh_params(a: &SolverArgs, plan: Route, mesh: MeshArg, kind: MeshKind) -> anyhow::Result<RemeshParams> {
+    let max_patches = if matches!(plan, Route::DiscontinuityHierarchical(_)) {
         radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES
     } else {
         RemeshParams::cdt().max_patches
     };
     let grade =
-        BudgetArg::for_plan(a, plan).map(|b| grade_params(b, a.dmesh_smooth, a.dmesh_penumbra_weight));
-    if a.mesh == Some(MeshArg::Contact) {
+        BudgetArg::for_plan(a, plan, mesh).map(|b| grade_params(b, a.dmesh_smooth, a.dmesh_penumbra_weight));
+    if mesh == MeshArg::Contact {
         return Ok(RemeshParams { grade, ..RemeshParams::contacts() });
     }
     RemeshParams::for_solve(kind, a.dmesh_min_angle, a.dmesh_max_area, grade, max_patches)
         .context("invalid --dmesh-min-angle / --dmesh-max-area / --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")
 }
 
-/// A solved scene and what made it.
-pub struct Solved {
-    pub solution: Solution,
-    /// The solver's settings, as JSON.
-    pub params: serde_json::Value,
-    pub mesh: MeshArg,
-    pub order: u32,
-    /// Order 1 with one value per mesh vertex shared by the elements of a patch.
-    pub continuous: bool,
-    /// The hierarchical solver, for its hierarchy and links.
-    pub hierarchical: Option<HierarchicalSolver>,
-    /// Each element's basis coefficients at order 1 (vertex values, in vertex order); `None` at
-    /// order 0 (one coefficient per element: its radiosity).
-    pub coefficients: Option<Vec<Vec<Rgb>>>,
-    /// On a discontinuity mesh: what meshing did (its times) and the solve's wall time (s).
-    pub remesh: Option<(RemeshStats, f64)>,
-}
-
-impl Solved {
-    /// Every element's basis coefficients: its order-1 vertex values, or its one constant.
-    #[must_use]
-    pub fn element_coefficients(&self) -> Vec<Vec<Rgb>> {
-        self.coefficients
-            .clone()
-            .unwrap_or_else(|| self.solution.elements.iter().map(|e| vec![e.radiosity]).collect())
-    }
-}
-
-/// Solve `scene` as `a` says ([`plan`]); `spec` names the scene in errors.
-pub fn solve_scene(
-    a: &SolverArgs,
-    spec: &str,
-    scene: &Arc<Scene>,
-    accel: &Arc<Accel>,
-    bvh_s: f64,
-    progress: radlab::solver::Progress,
-) -> anyhow::Result<Solved> {
-    let (plan, mesh) = plan(a)?;
+/// The [`SolveSpec`] the flags ask for ([`plan`], the preset and the flags that modify it).
+pub fn solve_spec(a: &SolverArgs, scene: &Scene) -> anyhow::Result<SolveSpec> {
+    let (route, mesh) = plan(a)?;
     let default_size = scene.bounds().diagonal() / 8.0;
-    let solving = || format!("solving {spec}");
+    let invalid = |e: String| anyhow::Error::msg(e).context("invalid parameters");
     let linear = |element_size: f64| -> anyhow::Result<LinearParams> {
         let mut p = LinearParams {
             seed: a.seed,
@@ -662,30 +657,19 @@ pub fn solve_scene(
         if let Some(v) = a.tolerance {
             p.tolerance = v;
         }
-        p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
+        p.validate().map_err(invalid)?;
         Ok(p)
     };
-    let (mut hierarchical, mut coefficients, mut remesh) = (None, None, None);
-    let (solution, params) = match plan {
-        Plan::Hierarchical => {
-            let p = hierarchical_params(a)?;
-            let mut s = HierarchicalSolver::with_accel(Arc::clone(scene), Arc::clone(accel), p, bvh_s);
-            s.solve(progress);
-            // Per-element error estimates only on request (--dump-hierarchy computes its own):
-            // they double the time on a refined scene.
-            let sol = s.solution_with(a.estimate);
-            hierarchical = Some(s);
-            (sol, serde_json::to_value(p)?)
+    let plan = match route {
+        Route::Hierarchical => {
+            SpecPlan::Hierarchical { params: hierarchical_params(a)?, top: spec::TopLevel::Patches }
         }
-        Plan::Uniform if a.order == 1 => {
-            let p = linear(a.element_size.unwrap_or(default_size))?;
-            let sol = linear::solve(scene, accel, &p, progress)
-                .map_err(anyhow::Error::msg)
-                .with_context(solving)?;
-            coefficients = Some(sol.coefficients);
-            (sol.solution, serde_json::to_value(p)?)
+        Route::DiscontinuityHierarchical(kind) => {
+            let remesh = remesh_params(a, route, mesh, kind)?;
+            SpecPlan::Hierarchical { params: hierarchical_params(a)?, top: spec::TopLevel::Mesh(remesh) }
         }
-        Plan::Uniform => {
+        Route::Uniform if a.order == 1 => SpecPlan::Linear(linear(a.element_size.unwrap_or(default_size))?),
+        Route::Uniform => {
             let mut p = UniformParams {
                 seed: a.seed,
                 element_size: a.element_size.unwrap_or(default_size),
@@ -700,13 +684,10 @@ pub fn solve_scene(
             if let Some(v) = a.ff_tol {
                 p.ff_tolerance = v;
             }
-            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
-            let sol = uniform::solve(scene, accel, &p, progress)
-                .map_err(anyhow::Error::msg)
-                .with_context(solving)?;
-            (sol, serde_json::to_value(p)?)
+            p.validate().map_err(invalid)?;
+            SpecPlan::Uniform(p)
         }
-        Plan::Progressive => {
+        Route::Progressive => {
             let mut p = ProgressiveParams {
                 seed: a.seed,
                 element_size: a.element_size.unwrap_or(default_size),
@@ -724,27 +705,11 @@ pub fn solve_scene(
             if let Some(v) = a.ff_tol {
                 p.ff_tolerance = v;
             }
-            p.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
-            let sol = progressive::solve(scene, accel, &p, progress)
-                .map_err(anyhow::Error::msg)
-                .with_context(solving)?;
-            (sol, serde_json::to_value(p)?)
+            p.validate().map_err(invalid)?;
+            SpecPlan::Progressive(p)
         }
-        Plan::DiscontinuityHierarchical(kind) => {
-            let mesh = remesh_params(a, Plan::DiscontinuityHierarchical(kind), kind)?;
-            let mut p = hierarchical_params(a)?;
-            if a.mesh == Some(MeshArg::Contact) && a.aeps.is_none() && a.aeps_rel.is_none() {
-                p = discontinuity::contact_area_floor(p);
-            }
-            let mut on_mesh =
-                discontinuity::HierarchicalOnMesh::new(scene, &mesh, p).with_context(solving)?;
-            on_mesh.solver.solve(progress);
-            let d = on_mesh.finish(a.estimate);
-            remesh = Some((d.mesh, d.solve_s));
-            (d.solution, json!({ "mesh": mesh, "solve": p }))
-        }
-        Plan::Discontinuity(kind) => {
-            let mut p = DiscontinuityParams::with_mesh(remesh_params(a, Plan::Discontinuity(kind), kind)?);
+        Route::Discontinuity(kind) => {
+            let mut p = DiscontinuityParams::with_mesh(remesh_params(a, route, mesh, kind)?);
             p.solve.seed = a.seed;
             if let Some(g) = a.dmesh_gather {
                 p.gather = g;
@@ -758,29 +723,31 @@ pub fn solve_scene(
             if let Some(v) = a.ff_tol {
                 p.solve.ff_tolerance = v;
             }
-            p.solve.validate().map_err(anyhow::Error::msg).context("invalid parameters")?;
-            let (d, params) = if a.order == 1 {
-                let lp = linear(f64::INFINITY)?;
-                let (d, c) = discontinuity::solve_galerkin(scene, &p, &lp, progress).with_context(solving)?;
-                coefficients = Some(c);
-                (d, json!({ "mesh": p.mesh, "solve": lp }))
-            } else {
-                (discontinuity::solve(scene, &p, progress).with_context(solving)?, serde_json::to_value(p)?)
-            };
-            remesh = Some((d.mesh, d.solve_s));
-            (d.solution, params)
+            p.solve.validate().map_err(invalid)?;
+            let linear = if a.order == 1 { Some(linear(f64::INFINITY)?) } else { None };
+            SpecPlan::Discontinuity { params: p, linear }
         }
     };
-    Ok(Solved {
-        solution,
-        params,
-        mesh,
-        order: a.order,
-        continuous: a.continuous,
-        hierarchical,
-        coefficients,
-        remesh,
-    })
+    Ok(SolveSpec { plan, estimate: a.estimate })
+}
+
+/// Solve `scene` as `a` says ([`solve_spec`], [`radlab::solver::spec::solve`]); `spec` names the
+/// scene in errors.
+pub fn solve_scene(
+    a: &SolverArgs,
+    spec: &str,
+    scene: &Arc<Scene>,
+    accel: &Arc<Accel>,
+    bvh_s: f64,
+    progress: radlab::solver::Progress,
+) -> anyhow::Result<Solved> {
+    let s = solve_spec(a, scene)?;
+    let solved = radlab::solver::spec::solve(scene, accel, bvh_s, &s, progress, None)
+        .with_context(|| format!("solving {spec}"))?;
+    for note in &solved.notes {
+        eprintln!("radlab: {spec}: {note}");
+    }
+    Ok(solved)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -804,10 +771,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let accel = Arc::new(Accel::build(&scene));
     let bvh_s = t.elapsed().as_secs_f64();
 
-    let (plan, mesh) = plan(a)?;
-    let label = match plan {
-        Plan::Discontinuity(_) | Plan::DiscontinuityHierarchical(_) => mesh.name().to_string(),
-        _ => format!("{plan:?}").to_lowercase(),
+    let (route, mesh) = plan(a)?;
+    let label = match route {
+        Route::Discontinuity(_) | Route::DiscontinuityHierarchical(_) => mesh.name().to_string(),
+        _ => format!("{route:?}").to_lowercase(),
     };
     let mut bar = LazyBar::new(&label, args.quiet);
     let mut solved = solve_scene(a, &args.scene, &scene, &accel, bvh_s, &mut |d, n| bar.update(d, n))?;
@@ -819,7 +786,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         total: t_total.elapsed().as_secs_f64(),
         ..solution.stats.time_s
     };
-    let params_json = solved.params.clone();
+    let params_json = solved.spec.params_json();
     if let Some(path) = &args.dump_hierarchy {
         let f = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
         serde_json::to_writer(std::io::BufWriter::new(f), &dump_json(&args.scene, &solved))
@@ -880,9 +847,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Built only when asked for: every patch's entry is 2 kB of JSON values (0.2 GB at 100 k).
     if let Some(target) = args.json.as_deref() {
         let mut doc = solution_json(&args.scene, &scene, solution, params_json);
-        doc["order"] = json!(a.order);
-        doc["mesh"] = json!(mesh.name());
-        doc["continuous"] = json!(a.continuous);
+        let (order, continuous) = solved.spec.order();
+        doc["order"] = json!(order);
+        doc["mesh"] = json!(solved.spec.mesh_name());
+        doc["continuous"] = json!(continuous);
         if let Some((m, solve_s)) = &solved.remesh {
             doc["meshing"] = json!({ "stats": m, "meshing_s": m.total_s, "solve_s": solve_s });
         }
@@ -895,7 +863,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !args.quiet && args.json.as_deref() != Some("-") {
         print_summary(&args.scene, solution);
         if let Some((m, solve_s)) = &solved.remesh {
-            println!("  mesh {}: {}, solve {solve_s:.3} s", mesh.name(), m.describe());
+            println!("  mesh {}: {}, solve {solve_s:.3} s", solved.spec.mesh_name(), m.describe());
         }
         if let Some((path, exposure, bytes, bake_s)) = baked {
             let kb = bytes as f64 / 1e3;
@@ -918,7 +886,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// The `--dump-hierarchy` document (format: docs/meshing.md, "The element dump").
 fn dump_json(spec: &str, solved: &Solved) -> serde_json::Value {
-    let basis = match (solved.order, solved.continuous) {
+    let (order, continuous) = solved.spec.order();
+    let basis = match (order, continuous) {
         (1, true) => "p1-continuous",
         (1, false) => "p1-discontinuous",
         _ => "p0",
@@ -927,8 +896,8 @@ fn dump_json(spec: &str, solved: &Solved) -> serde_json::Value {
         "format": "radlab-elements-1",
         "scene": spec,
         "method": solved.solution.method,
-        "mesh": solved.mesh.name(),
-        "order": solved.order,
+        "mesh": solved.spec.mesh_name(),
+        "order": order,
         "basis": basis,
     });
     if let Some(s) = &solved.hierarchical {

@@ -27,6 +27,7 @@ pub mod meshed;
 pub use hierarchical::estimate;
 pub mod params;
 pub mod progressive;
+pub mod spec;
 pub mod uniform;
 
 use crate::math::{DVec3, Rgb};

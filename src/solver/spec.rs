@@ -1,0 +1,665 @@
+//! What solves a scene, said once: a [`SolveSpec`] (the solver, the mesh it runs on, the element
+//! order and every setting) and one [`solve`] that runs it. `radlab solve`, the benchmarks and
+//! the studies build a spec, from a [`Preset`] and their flags, and call [`solve`].
+//!
+//! ```text
+//!  Preset ──► SolveSpec { plan, estimate } ──► solve(scene, accel, spec, progress, cancel)
+//!                 │
+//!                 ├─ Hierarchical { params, top: Patches }      HSA91 on the input patches
+//!                 ├─ Hierarchical { params, top: Mesh(remesh) } the contact or a discontinuity
+//!                 │                                             mesh as the top level
+//!                 ├─ Uniform / Linear / Progressive            a uniform mesh, p = 0 or 1
+//!                 └─ Discontinuity { params, linear }          a discontinuity mesh, p = 0 or 1
+//! ```
+//!
+//! ## The preset ladder
+//! The default path is hierarchical radiosity [Hanrahan, Salzman, Aupperle 1991] on the contact
+//! mesh (each input patch cut where other patches touch it, `RemeshParams::contacts`), refined
+//! by the error oracle: a receiver is split where its gathered radiosity varies across it by more
+//! than ε times the scene's mean reflected radiosity (`solver::hierarchical::oracle`). Each step of
+//! the ladder halves ε, and the area floor follows it (`discontinuity::contact_area_floor`):
+//!
+//! ```text
+//!   draft 0.2 ─► interactive 0.1 ─► quality 0.05 (default) ─► fine 0.025 ─► reference 0.0125
+//! ```
+//!
+//! The teaching presets keep the lecture's and SPLASH-2's oracles on the quadtree: `bf` (the
+//! BF oracle), `lecture` (Refine with Feps alone) and `splash2` (the SPLASH-2 program's settings).
+
+use super::discontinuity::{self, DiscontinuityParams, HierarchicalOnMesh};
+use super::hierarchical::HierarchicalSolver;
+use super::linear::{self, LinearParams};
+use super::params::{AreaEps, HierarchicalParams, Oracle};
+use super::progressive::{self, ProgressiveParams};
+use super::uniform::{self, UniformParams};
+use super::{Progress, Solution};
+use crate::accel::Accel;
+use crate::math::Rgb;
+use crate::mesh::remesh::{Events, MeshKind, RemeshParams, RemeshStats};
+use crate::scene::Scene;
+use serde::Serialize;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// A named starting point for a solve.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// The ladder's coarsest step: ε = 0.2.
+    Draft,
+    /// ε = 0.1: fast enough to drag a slider on the built-in rooms.
+    Interactive,
+    /// ε = 0.05: the default.
+    Quality,
+    /// ε = 0.025.
+    Fine,
+    /// ε = 0.0125: the ladder's finest step.
+    Reference,
+    /// The BF oracle on the quadtree (HSA91's B·F criterion, with the row check).
+    Bf,
+    /// The lecture's Refine: the Feps oracle alone, on the quadtree.
+    Lecture,
+    /// The SPLASH-2 `radiosity` program's settings on the quadtree.
+    Splash2,
+}
+
+impl Preset {
+    /// Every preset: the ladder, coarse to fine, then the teaching presets.
+    pub const ALL: [Preset; 8] = [
+        Preset::Draft,
+        Preset::Interactive,
+        Preset::Quality,
+        Preset::Fine,
+        Preset::Reference,
+        Preset::Bf,
+        Preset::Lecture,
+        Preset::Splash2,
+    ];
+
+    /// The ladder, coarse to fine: each step halves the previous one's threshold.
+    pub const LADDER: [Preset; 5] =
+        [Preset::Draft, Preset::Interactive, Preset::Quality, Preset::Fine, Preset::Reference];
+
+    /// The preset of `radlab solve` and the viewer.
+    pub const DEFAULT: Preset = Preset::Quality;
+
+    /// The name the CLI and the viewer use.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Preset::Draft => "draft",
+            Preset::Interactive => "interactive",
+            Preset::Quality => "quality",
+            Preset::Fine => "fine",
+            Preset::Reference => "reference",
+            Preset::Bf => "bf",
+            Preset::Lecture => "lecture",
+            Preset::Splash2 => "splash2",
+        }
+    }
+
+    /// The preset named `name`.
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Preset> {
+        Preset::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// Every name, comma-separated (error messages).
+    #[must_use]
+    pub fn names() -> String {
+        Preset::ALL.map(Preset::name).join(", ")
+    }
+
+    /// One line on what the preset does (help texts, tooltips).
+    #[must_use]
+    pub fn description(self) -> String {
+        match self.threshold_rel() {
+            Some(eps) => format!(
+                "contact mesh, error oracle at {eps} of the mean reflected radiosity{}",
+                if self == Preset::DEFAULT { " (default)" } else { "" }
+            ),
+            None => match self {
+                Preset::Bf => "quadtree, BF oracle (B·F against 2e-3 of the brightest emission)".into(),
+                Preset::Lecture => "quadtree, the lecture's Refine (Feps 0.02 alone)".into(),
+                _ => "quadtree, the SPLASH-2 radiosity program's settings (BFeps 0.015, Aeps 2000)".into(),
+            },
+        }
+    }
+
+    /// The error oracle's relative threshold ε of a ladder step; `None` for the teaching presets.
+    #[must_use]
+    pub const fn threshold_rel(self) -> Option<f64> {
+        match self {
+            Preset::Draft => Some(0.2),
+            Preset::Interactive => Some(0.1),
+            Preset::Quality => Some(0.05),
+            Preset::Fine => Some(0.025),
+            Preset::Reference => Some(0.0125),
+            Preset::Bf | Preset::Lecture | Preset::Splash2 => None,
+        }
+    }
+
+    /// The hierarchical solver's settings of this preset.
+    #[must_use]
+    pub fn hierarchical(self) -> HierarchicalParams {
+        match self.threshold_rel() {
+            Some(eps) => ladder_params(eps),
+            None => match self {
+                Preset::Bf => HierarchicalParams::interactive(),
+                Preset::Lecture => HierarchicalParams::lecture(),
+                _ => HierarchicalParams::splash2(),
+            },
+        }
+    }
+
+    /// The top level the preset refines: the contact mesh on the ladder, the input patches
+    /// (the quadtree) for the teaching presets.
+    #[must_use]
+    pub fn top(self) -> TopLevel {
+        if self.threshold_rel().is_some() {
+            TopLevel::Mesh(RemeshParams::contacts())
+        } else {
+            TopLevel::Patches
+        }
+    }
+
+    /// The whole solve of this preset.
+    #[must_use]
+    pub fn spec(self) -> SolveSpec {
+        SolveSpec {
+            plan: Plan::Hierarchical { params: self.hierarchical(), top: self.top() },
+            estimate: false,
+        }
+    }
+}
+
+/// The hierarchical settings of a ladder step at relative threshold `eps`: the error oracle, its
+/// area floor following the threshold (`discontinuity::contact_area_floor`), clustered where it
+/// pays (`Clustering::Auto`), the row check at [`ladder_row_tol`] and a link budget that grows
+/// as the threshold shrinks ([`ladder_max_links`]).
+#[must_use]
+pub fn ladder_params(eps: f64) -> HierarchicalParams {
+    discontinuity::contact_area_floor(HierarchicalParams {
+        oracle: Oracle::Error,
+        bf_eps: eps,
+        bf_relative: true,
+        row_tol: ladder_row_tol(eps),
+        max_links: ladder_max_links(eps),
+        ..HierarchicalParams::quality()
+    })
+}
+
+/// The row check's tolerance on the ladder (`HierarchicalParams::row_tol`): a leaf whose row of
+/// F·V exceeds 1 has its ancestors' largest links pushed down where the excess adds more than
+/// this fraction of the mean reflected radiosity to its answer. The excess of a leaf creates
+/// light in proportion to its area, so the coarse steps, whose leaves are large, check tighter:
+/// 0.05 from ε = 0.2 up (at 0.1, table-room's draft created 2e-3 of the emitted power), 0.1
+/// below, where it creates none on the built-in scenes and 0.05 would double table-room's links
+/// at `quality`.
+#[must_use]
+pub fn ladder_row_tol(eps: f64) -> f64 {
+    if eps >= 0.2 { 0.05 } else { 0.1 }
+}
+
+/// The ladder's link budget: 4 M at ε = 0.05, growing as 1/ε (a finer step refines further, and
+/// a budget that stopped it half-way would leave it less accurate than the step before).
+#[must_use]
+pub fn ladder_max_links(eps: f64) -> usize {
+    let scaled = 4.0e6 * 0.05 / eps.max(1e-6);
+    scaled.clamp(4.0e6, 64.0e6) as usize
+}
+
+/// The one threshold of an oracle, resolved in one place: Feps for the form-factor oracle, BFeps
+/// for the BF oracle, ε (an error of B, relative to the mean reflected radiosity) for the error
+/// oracle. Relative thresholds are read as the oracle reads them (`HierarchicalParams::bf_relative`).
+#[must_use]
+pub fn threshold(p: &HierarchicalParams) -> f64 {
+    match p.oracle {
+        Oracle::Feps => p.feps,
+        Oracle::Bf | Oracle::Error => p.bf_eps,
+    }
+}
+
+/// `p` with its oracle's threshold set to `value` (relative where the oracle reads it so: BF to the
+/// brightest emission, the error oracle to the mean reflected radiosity). With the error oracle
+/// and `floor_follows`, the area floor follows the threshold as on the ladder.
+#[must_use]
+pub fn with_threshold(p: HierarchicalParams, value: f64, floor_follows: bool) -> HierarchicalParams {
+    match p.oracle {
+        Oracle::Feps => HierarchicalParams { feps: value, ..p },
+        Oracle::Bf => HierarchicalParams { bf_eps: value, bf_relative: true, ..p },
+        Oracle::Error => {
+            let q = HierarchicalParams { bf_eps: value, bf_relative: true, ..p };
+            if floor_follows { discontinuity::contact_area_floor(q) } else { q }
+        }
+    }
+}
+
+/// What the hierarchical solver refines.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub enum TopLevel {
+    /// The input patches, each the root of a quadtree (HSA91).
+    Patches,
+    /// A mesh of the input patches (the contact mesh, or a discontinuity mesh) as the top level.
+    Mesh(RemeshParams),
+}
+
+/// The solver and its settings.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub enum Plan {
+    /// Hierarchical radiosity on `top`.
+    Hierarchical { params: HierarchicalParams, top: TopLevel },
+    /// A uniform mesh with constant elements, the full matrix, Gauss–Seidel.
+    Uniform(UniformParams),
+    /// A uniform mesh with linear / bilinear elements, Galerkin (`LinearParams::order`).
+    Linear(LinearParams),
+    /// Southwell shooting on a uniform mesh (progressive refinement).
+    Progressive(ProgressiveParams),
+    /// The uniform solver on a discontinuity mesh, one element per piece; with `linear`, the
+    /// Galerkin solve at p = 1 on its pieces.
+    Discontinuity { params: DiscontinuityParams, linear: Option<LinearParams> },
+}
+
+/// A whole solve: the plan, and whether the hierarchical solver adds its per-element error
+/// estimates to the solution (about as costly again as the solve).
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct SolveSpec {
+    pub plan: Plan,
+    pub estimate: bool,
+}
+
+impl Default for SolveSpec {
+    fn default() -> Self {
+        Preset::DEFAULT.spec()
+    }
+}
+
+impl SolveSpec {
+    /// The preset named `name` ([`Preset::from_name`]).
+    #[must_use]
+    pub fn preset(name: &str) -> Option<SolveSpec> {
+        Preset::from_name(name).map(Preset::spec)
+    }
+
+    /// The hierarchical settings, if the plan is hierarchical.
+    #[must_use]
+    pub fn hierarchical(&self) -> Option<&HierarchicalParams> {
+        match &self.plan {
+            Plan::Hierarchical { params, .. } => Some(params),
+            _ => None,
+        }
+    }
+
+    /// The name of the mesh the solve runs on: quadtree, contact, uniform, discontinuity-cdt,
+    /// discontinuity-bsp.
+    #[must_use]
+    pub fn mesh_name(&self) -> &'static str {
+        let dmesh = |m: &RemeshParams| match (m.events, m.kind) {
+            (Events::Contacts, _) => "contact",
+            (Events::All, MeshKind::Cdt) => "discontinuity-cdt",
+            (Events::All, MeshKind::Bsp) => "discontinuity-bsp",
+        };
+        match &self.plan {
+            Plan::Hierarchical { top: TopLevel::Patches, .. } => "quadtree",
+            Plan::Hierarchical { top: TopLevel::Mesh(m), .. } => dmesh(m),
+            Plan::Uniform(_) | Plan::Linear(_) | Plan::Progressive(_) => "uniform",
+            Plan::Discontinuity { params, .. } => dmesh(&params.mesh),
+        }
+    }
+
+    /// The element order (0 or 1) and whether a p = 1 basis is continuous.
+    #[must_use]
+    pub fn order(&self) -> (u32, bool) {
+        match &self.plan {
+            Plan::Linear(l) | Plan::Discontinuity { linear: Some(l), .. } => {
+                (u32::from(l.order == crate::basis::Order::Linear), l.continuous)
+            }
+            _ => (0, false),
+        }
+    }
+
+    /// The settings as JSON (`radlab solve --json`'s `params`).
+    #[must_use]
+    pub fn params_json(&self) -> serde_json::Value {
+        use serde_json::json;
+        let v = |x: &dyn erased::Ser| x.to_json();
+        match &self.plan {
+            Plan::Hierarchical { params, top: TopLevel::Patches } => v(params),
+            Plan::Hierarchical { params, top: TopLevel::Mesh(m) } => json!({ "mesh": m, "solve": params }),
+            Plan::Uniform(p) => v(p),
+            Plan::Linear(p) => v(p),
+            Plan::Progressive(p) => v(p),
+            Plan::Discontinuity { params, linear: None } => v(params),
+            Plan::Discontinuity { params, linear: Some(l) } => json!({ "mesh": params.mesh, "solve": l }),
+        }
+    }
+
+    /// Reject what cannot be solved, with one line naming the setting.
+    pub fn validate(&self) -> Result<(), SolveError> {
+        let invalid = |e: String| SolveError::Invalid(e);
+        match &self.plan {
+            Plan::Hierarchical { params, .. } => params.validate().map_err(invalid),
+            Plan::Uniform(p) => p.validate().map_err(invalid),
+            Plan::Linear(p) => p.validate().map_err(invalid),
+            Plan::Progressive(p) => p.validate().map_err(invalid),
+            Plan::Discontinuity { params, linear } => {
+                params.solve.validate().map_err(invalid)?;
+                linear.as_ref().map_or(Ok(()), |l| l.validate().map_err(invalid))
+            }
+        }
+    }
+}
+
+/// Serialize any settings struct to JSON without naming its type.
+mod erased {
+    pub trait Ser {
+        fn to_json(&self) -> serde_json::Value;
+    }
+    impl<T: serde::Serialize> Ser for T {
+        fn to_json(&self) -> serde_json::Value {
+            serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
+        }
+    }
+}
+
+/// Why a solve did not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SolveError {
+    #[error("invalid parameters: {0}")]
+    Invalid(String),
+    #[error("{0}")]
+    Failed(String),
+}
+
+/// A solved scene and what made it.
+pub struct Solved {
+    pub solution: Solution,
+    pub spec: SolveSpec,
+    /// The hierarchical solver on the input patches, for its hierarchy and links (`None` on a
+    /// mesh top level, whose elements lie on the mesh's pieces).
+    pub hierarchical: Option<HierarchicalSolver>,
+    /// Each element's basis coefficients at order 1 (vertex values, in vertex order); `None` at
+    /// order 0 (one coefficient per element: its radiosity).
+    pub coefficients: Option<Vec<Vec<Rgb>>>,
+    /// On a contact or discontinuity mesh: what meshing did (its times) and the solve's wall
+    /// time (s).
+    pub remesh: Option<(RemeshStats, f64)>,
+    /// What the solve changed in the spec to run, one line each (a discontinuity mesh graded to
+    /// fit the p = 1 solver's cap): the CLI prints them on stderr.
+    pub notes: Vec<String>,
+}
+
+impl Solved {
+    /// Every element's basis coefficients: its order-1 vertex values, or its one constant.
+    #[must_use]
+    pub fn element_coefficients(&self) -> Vec<Vec<Rgb>> {
+        self.coefficients
+            .clone()
+            .unwrap_or_else(|| self.solution.elements.iter().map(|e| vec![e.radiosity]).collect())
+    }
+}
+
+/// Solve `scene` (with its BVH `accel`, built in `bvh_s` seconds) as `spec` says. Setting
+/// `cancel` makes a hierarchical solve stop at its next sub-step (the mesh solvers run to the
+/// end); the solution is then the state reached.
+pub fn solve(
+    scene: &Arc<Scene>,
+    accel: &Arc<Accel>,
+    bvh_s: f64,
+    spec: &SolveSpec,
+    progress: Progress,
+    cancel: Option<&Arc<AtomicBool>>,
+) -> Result<Solved, SolveError> {
+    spec.validate()?;
+    let failed = SolveError::Failed;
+    let (mut hierarchical, mut coefficients, mut remesh) = (None, None, None);
+    let mut notes = Vec::new();
+    let solution = match &spec.plan {
+        Plan::Hierarchical { params, top: TopLevel::Patches } => {
+            let mut s = HierarchicalSolver::with_accel(Arc::clone(scene), Arc::clone(accel), *params, bvh_s);
+            forward_solve(&mut s, cancel, progress);
+            let sol = s.solution_with(spec.estimate);
+            hierarchical = Some(s);
+            sol
+        }
+        Plan::Hierarchical { params, top: TopLevel::Mesh(mesh) } => {
+            let mut on_mesh =
+                HierarchicalOnMesh::new(scene, mesh, *params).map_err(|e| failed(e.to_string()))?;
+            forward_solve(&mut on_mesh.solver, cancel, progress);
+            let d = on_mesh.finish(spec.estimate);
+            remesh = Some((d.mesh, d.solve_s));
+            d.solution
+        }
+        Plan::Uniform(p) => uniform::solve(scene, accel, p, progress).map_err(failed)?,
+        Plan::Linear(p) => {
+            let s = linear::solve(scene, accel, p, progress).map_err(failed)?;
+            coefficients = Some(s.coefficients);
+            s.solution
+        }
+        Plan::Progressive(p) => progressive::solve(scene, accel, p, progress).map_err(failed)?,
+        Plan::Discontinuity { params, linear: None } => {
+            let d = discontinuity::solve(scene, params, progress).map_err(|e| failed(e.to_string()))?;
+            remesh = Some((d.mesh, d.solve_s));
+            d.solution
+        }
+        Plan::Discontinuity { params, linear: Some(l) } => {
+            let params = &fit_to_unknowns(scene, params, l, &mut notes)?;
+            let (d, c) = discontinuity::solve_galerkin(scene, params, l, progress)
+                .map_err(|e| failed(e.to_string()))?;
+            coefficients = Some(c);
+            remesh = Some((d.mesh, d.solve_s));
+            d.solution
+        }
+    };
+    Ok(Solved { solution, spec: *spec, hierarchical, coefficients, remesh, notes })
+}
+
+/// A p = 1 solve on an ungraded, non-conforming discontinuity mesh whose pieces need more
+/// unknowns than the Galerkin solver's cap (`LinearParams::max_unknowns`, O(n²) memory) is
+/// graded to the most pieces that fit (`mesh::grade`: small in the penumbrae, larger elsewhere)
+/// instead of refused; `notes` says so. A continuous basis needs the conforming ungraded mesh
+/// and keeps the cap's error.
+fn fit_to_unknowns(
+    scene: &Scene,
+    params: &DiscontinuityParams,
+    linear: &LinearParams,
+    notes: &mut Vec<String>,
+) -> Result<DiscontinuityParams, SolveError> {
+    let per_element = linear.order.functions(4).max(1);
+    let fits = linear.max_unknowns / per_element;
+    if params.mesh.grade.is_some() || linear.continuous {
+        return Ok(*params);
+    }
+    let meshed = crate::mesh::remesh::discontinuity_scene(scene, &params.mesh)
+        .map_err(|e| SolveError::Failed(format!("discontinuity mesh: {e}")))?;
+    let pieces = meshed.scene.patches.len();
+    if pieces <= fits {
+        return Ok(*params);
+    }
+    notes.push(format!(
+        "the {} mesh has {pieces} pieces, more than the {fits} that fit p = 1's cap of {} unknowns: graded to {fits}",
+        SolveSpec { plan: Plan::Discontinuity { params: *params, linear: None }, estimate: false }.mesh_name(),
+        linear.max_unknowns
+    ));
+    let mut mesh = params.mesh;
+    mesh.grade = Some(crate::mesh::grade::GradeParams::with_budget(fits));
+    mesh.cdt = crate::mesh::cdt::CdtParams::unrefined();
+    mesh.max_patches = mesh.max_patches.max(fits);
+    Ok(DiscontinuityParams { mesh, ..*params })
+}
+
+/// Run `s.solve`, stopping it when `cancel` is set: the flag is checked at each progress report
+/// and forwarded to the solver's own.
+fn forward_solve(s: &mut HierarchicalSolver, cancel: Option<&Arc<AtomicBool>>, progress: Progress) {
+    match cancel {
+        None => {
+            s.solve(progress);
+        }
+        Some(outer) => {
+            let inner = s.cancel_handle();
+            let outer = Arc::clone(outer);
+            let mut forwarded = move |d: u64, n: u64| {
+                if outer.load(Ordering::Relaxed) {
+                    inner.store(true, Ordering::Relaxed);
+                }
+                progress(d, n);
+            };
+            s.solve(&mut forwarded);
+        }
+    }
+}
+
+/// The relative area floor of `p`, if it is relative.
+#[must_use]
+pub fn area_floor_rel(p: &HierarchicalParams) -> Option<f64> {
+    match p.aeps {
+        AreaEps::Relative(a) => Some(a),
+        AreaEps::Absolute(_) => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::remesh::RemeshParams;
+
+    fn load(name: &str) -> (Arc<Scene>, Arc<Accel>) {
+        let scene = Arc::new(Scene::load(&format!("builtin:{name}")).unwrap());
+        let accel = Arc::new(Accel::build(&scene));
+        (scene, accel)
+    }
+
+    #[test]
+    fn the_ladder_halves_its_threshold_on_the_contact_mesh() {
+        let eps: Vec<f64> = Preset::LADDER.iter().map(|p| p.threshold_rel().unwrap()).collect();
+        for w in eps.windows(2) {
+            assert!((w[1] - w[0] / 2.0).abs() < 1e-15, "{eps:?}");
+        }
+        for p in Preset::LADDER {
+            let spec = p.spec();
+            let h = spec.hierarchical().unwrap();
+            assert_eq!(h.oracle, Oracle::Error, "{}", p.name());
+            assert_eq!(threshold(h), p.threshold_rel().unwrap());
+            assert_eq!(spec.mesh_name(), "contact", "{}", p.name());
+            // The area floor follows the threshold.
+            let floor = area_floor_rel(h).unwrap();
+            assert!((floor - discontinuity::CONTACT_AEPS_PER_EPS * threshold(h)).abs() < 1e-18);
+            assert!(h.validate().is_ok());
+        }
+        for p in [Preset::Bf, Preset::Lecture, Preset::Splash2] {
+            assert_eq!(p.spec().mesh_name(), "quadtree", "{}", p.name());
+            assert_eq!(p.threshold_rel(), None);
+        }
+        assert_eq!(SolveSpec::default(), SolveSpec::preset("quality").unwrap());
+        for p in Preset::ALL {
+            assert_eq!(Preset::from_name(p.name()), Some(p));
+        }
+        assert_eq!(Preset::from_name("ultra"), None);
+    }
+
+    #[test]
+    fn one_threshold_whatever_the_oracle() {
+        let e = with_threshold(Preset::Quality.hierarchical(), 0.2, true);
+        assert_eq!(threshold(&e), 0.2);
+        assert_eq!(area_floor_rel(&e), Some(discontinuity::CONTACT_AEPS_PER_EPS * 0.2));
+        let kept = with_threshold(Preset::Quality.hierarchical(), 0.2, false);
+        assert_eq!(area_floor_rel(&kept), area_floor_rel(&Preset::Quality.hierarchical()));
+        let f = with_threshold(Preset::Lecture.hierarchical(), 0.05, true);
+        assert_eq!((f.feps, threshold(&f)), (0.05, 0.05));
+        let b = with_threshold(Preset::Splash2.hierarchical(), 1e-3, true);
+        assert!(b.bf_relative && threshold(&b) == 1e-3);
+    }
+
+    /// Every plan runs through the one entry, and each reports the mesh it ran on.
+    #[test]
+    fn every_plan_solves_through_one_entry() {
+        let (scene, accel) = load("shadow-narrow");
+        let coarse = |eps| SolveSpec {
+            plan: Plan::Hierarchical { params: ladder_params(eps), top: Preset::Draft.top() },
+            estimate: false,
+        };
+        let size = scene.bounds().diagonal() / 4.0;
+        let plans = [
+            (coarse(0.4), "contact"),
+            (Preset::Bf.spec(), "quadtree"),
+            (
+                SolveSpec {
+                    plan: Plan::Uniform(UniformParams { element_size: size, ..UniformParams::default() }),
+                    estimate: false,
+                },
+                "uniform",
+            ),
+            (
+                SolveSpec {
+                    plan: Plan::Linear(LinearParams {
+                        element_size: size,
+                        order: crate::basis::Order::Linear,
+                        ..LinearParams::default()
+                    }),
+                    estimate: false,
+                },
+                "uniform",
+            ),
+            (
+                SolveSpec {
+                    plan: Plan::Discontinuity { params: DiscontinuityParams::bsp(), linear: None },
+                    estimate: false,
+                },
+                "discontinuity-bsp",
+            ),
+        ];
+        for (spec, mesh) in plans {
+            assert_eq!(spec.mesh_name(), mesh);
+            let s = solve(&scene, &accel, 0.0, &spec, &mut |_, _| {}, None).unwrap();
+            assert!(s.solution.is_physical(), "{mesh}");
+            assert_eq!(s.solution.patch_radiosity.len(), scene.patches.len(), "{mesh}");
+            assert_eq!(s.coefficients.is_some(), spec.order().0 == 1, "{mesh}");
+            assert_eq!(s.remesh.is_some(), mesh.starts_with("discontinuity") || mesh == "contact", "{mesh}");
+        }
+    }
+
+    /// A p = 1 solve on a discontinuity mesh with more pieces than the cap's unknowns is graded
+    /// to fit, and says so, instead of refusing.
+    #[test]
+    fn a_p1_discontinuity_mesh_over_the_cap_is_graded_to_fit() {
+        let (scene, accel) = load("shadow-narrow");
+        let params = DiscontinuityParams::with_mesh(RemeshParams::cdt());
+        let pieces =
+            crate::mesh::remesh::discontinuity_scene(&scene, &params.mesh).unwrap().scene.patches.len();
+        // A cap that holds a third of the pieces' four unknowns each.
+        let fits = pieces / 3;
+        let linear = LinearParams {
+            order: crate::basis::Order::Linear,
+            max_unknowns: 4 * fits,
+            element_size: f64::INFINITY,
+            ..LinearParams::default()
+        };
+        let spec = SolveSpec { plan: Plan::Discontinuity { params, linear: Some(linear) }, estimate: false };
+        let s = solve(&scene, &accel, 0.0, &spec, &mut |_, _| {}, None).unwrap();
+        assert_eq!(s.notes.len(), 1, "{:?}", s.notes);
+        assert!(s.notes[0].contains(&format!("graded to {fits}")), "{}", s.notes[0]);
+        assert!(s.solution.elements.len() <= fits, "{} elements, {fits} fit", s.solution.elements.len());
+        assert!(s.solution.is_physical());
+        // Continuous: grading would leave T-vertices, so the cap's refusal stands.
+        let continuous = LinearParams { continuous: true, ..linear };
+        let spec =
+            SolveSpec { plan: Plan::Discontinuity { params, linear: Some(continuous) }, estimate: false };
+        assert!(solve(&scene, &accel, 0.0, &spec, &mut |_, _| {}, None).is_err());
+    }
+
+    /// A cancel flag set before the solve stops the hierarchical solve at its first sub-step.
+    #[test]
+    fn a_set_cancel_flag_stops_the_solve() {
+        let (scene, accel) = load("cornell");
+        let cancel = Arc::new(AtomicBool::new(true));
+        let full = solve(&scene, &accel, 0.0, &Preset::Draft.spec(), &mut |_, _| {}, None).unwrap();
+        let stopped =
+            solve(&scene, &accel, 0.0, &Preset::Draft.spec(), &mut |_, _| {}, Some(&cancel)).unwrap();
+        assert!(
+            stopped.solution.stats.elements < full.solution.stats.elements,
+            "cancelled {} against {} elements",
+            stopped.solution.stats.elements,
+            full.solution.stats.elements
+        );
+    }
+}
