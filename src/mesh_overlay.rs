@@ -170,9 +170,10 @@ impl Artifact {
     }
 }
 
-/// A small cross at a grid point, in its patch's plane, lifted.
+/// A small cross at a grid point, in its patch's plane, lifted (nothing for a patch the scene
+/// does not have: samples of another scene).
 fn push_cross(list: &mut LineList, scene: &Scene, m: &PointMark, color: [f32; 4]) {
-    let normal = scene.patches[m.patch].normal;
+    let Some(normal) = scene.patches.get(m.patch).map(|p| p.normal) else { return };
     let (u, v) = orthonormal_basis(normal);
     let lift = normal * (LIFT * scene.bounds().diagonal());
     let r = 0.35 * m.size;
@@ -248,10 +249,11 @@ pub fn critical_edges(scene: &Scene) -> CriticalEdges {
     out
 }
 
-/// Lift a segment off its receiver and draw it three times side by side (module docs).
+/// Lift a segment off its receiver and draw it three times side by side (module docs; nothing
+/// for a patch the scene does not have).
 pub fn push_thick(list: &mut LineList, scene: &Scene, patch: usize, a: DVec3, b: DVec3, color: [f32; 4]) {
+    let Some(normal) = scene.patches.get(patch).map(|p| p.normal) else { return };
     let diag = scene.bounds().diagonal();
-    let normal = scene.patches[patch].normal;
     let lift = normal * (LIFT * diag);
     let side = (b - a).cross(normal).normalize_or_zero() * (WIDTH * diag);
     for k in [-1.0, 0.0, 1.0] {

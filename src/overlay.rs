@@ -62,17 +62,22 @@ pub struct ElementView {
 }
 
 impl ElementView {
+    /// The valid vertices (at most four, whatever `n_vertices` says).
     #[must_use]
     pub fn verts(&self) -> &[DVec3] {
-        &self.vertices[..usize::from(self.n_vertices)]
+        &self.vertices[..usize::from(self.n_vertices).min(4)]
     }
+    /// Area centroid (the origin for an element without vertices).
     #[must_use]
     pub fn centroid(&self) -> DVec3 {
-        polygon_centroid(self.verts())
+        let v = self.verts();
+        if v.is_empty() { DVec3::ZERO } else { polygon_centroid(v) }
     }
+    /// Unit normal (zero for an element without vertices or area).
     #[must_use]
     pub fn normal(&self) -> DVec3 {
-        polygon_normal(self.verts())
+        let v = self.verts();
+        if v.is_empty() { DVec3::ZERO } else { polygon_normal(v) }
     }
 }
 
@@ -648,12 +653,15 @@ impl Seams {
         for &i in seam {
             let edge = &self.edges[i];
             let (Some(ta), Some(tb)) = (edge.param(a, self.tol), edge.param(b, self.tol)) else { continue };
+            // Strictly inside: more than `tol` from either end. A leaf edge no longer than
+            // 2·tol along the seam (a sliver, a collapsed corner) has no inside.
             let (lo, hi) = (ta.min(tb) + self.tol, ta.max(tb) - self.tol);
-            let first = edge.points.partition_point(|p| p.0 <= lo);
-            let inside = &edge.points[first..edge.points.partition_point(|p| p.0 < hi)];
-            if inside.is_empty() {
+            if !(lo < hi) {
                 continue;
             }
+            let first = edge.points.partition_point(|p| p.0 <= lo);
+            let last = edge.points.partition_point(|p| p.0 < hi);
+            let Some(inside) = edge.points.get(first..last).filter(|s| !s.is_empty()) else { continue };
             // Fraction along a → b of each point already there, and of the new ones.
             let len = (b - a).length();
             let s_of = |p: DVec3| (p - a).dot(b - a) / (len * len);
@@ -1073,6 +1081,9 @@ pub fn pick(elements: &[ElementView], leaves: &[u32], origin: DVec3, dir: DVec3)
     for &l in leaves {
         let e = &elements[l as usize];
         let v = e.verts();
+        if v.len() < 3 {
+            continue;
+        }
         let n = e.normal();
         let denom = n.dot(dir);
         if denom.abs() < 1e-300 {

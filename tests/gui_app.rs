@@ -1868,3 +1868,59 @@ fn a_click_picks_a_cluster_and_the_inspector_walks_the_tree() {
     assert_eq!(h.state().picked_cluster(), chain.last().copied(), "the root picked from the list");
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
+
+/// A panic on a viewer thread (here the display build of the refinement replay's pane, made to
+/// panic by a state whose leaf list points past its elements) is answered: the status bar and
+/// the error list say which thread panicked and why, nothing waits for the build; a scripted
+/// run (`--screenshot`) exits with an error instead of waiting for a picture that will not come.
+#[test]
+fn a_panic_on_the_display_thread_is_reported_not_waited_for() {
+    let shot = std::env::temp_dir().join(format!("radlab-gui-panic-{}.png", std::process::id()));
+    for scripted in [false, true] {
+        let mut h = harness(ViewerOptions {
+            solve_on_start: true,
+            screenshot: scripted.then(|| shot.clone()),
+            ..opts()
+        });
+        h.state_mut().set_scene(Arc::new(cornell()));
+        // Solved, and no frame drawn yet: a scripted run now waits a few frames for its picture.
+        h.state_mut().wait_for_solver();
+        let good = Arc::clone(h.state().view());
+        let mut broken = (*good).clone();
+        broken.leaves.push(broken.elements.len() as u32 + 5);
+        let replay = &mut h.state_mut().replay;
+        replay.set_frames(vec![Arc::new(broken)], Arc::clone(&good));
+        replay.position = 0;
+        replay.on = true;
+        for _ in 0..20 {
+            h.run_steps(1);
+            h.state_mut().wait_for_solver();
+            if !h.state().errors().is_empty() {
+                break;
+            }
+        }
+        let errors = h.state().errors().to_vec();
+        assert!(
+            errors.len() == 1 && errors[0].starts_with("the display thread panicked"),
+            "scripted {scripted}: {errors:?}"
+        );
+        assert!(!h.state().replay.building(), "the failed build counts as answered");
+        if scripted {
+            assert_eq!(h.state().exit_code, Some(1), "a scripted run ends with an error");
+            assert_eq!(h.state().exit_error(), Some(errors[0].as_str()), "and says which");
+            continue;
+        }
+        assert_eq!(h.state().exit_code, None, "a window stays open");
+        h.run_steps(2);
+        assert!(
+            h.query_all_by_label_contains("the display thread panicked").count() >= 2,
+            "shown in the status bar and the error list"
+        );
+        // The thread goes on: the next frame is built, and nothing else fails.
+        h.state_mut().replay.position = 1;
+        settle(&mut h);
+        assert!(!h.state().replay.building());
+        assert_eq!(h.state().errors().len(), 1, "{:?}", h.state().errors());
+    }
+    let _ = std::fs::remove_file(&shot);
+}

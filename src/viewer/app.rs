@@ -156,6 +156,8 @@ pub struct RadlabApp {
     last_ui_cpu_s: Option<f64>,
     /// Set when the window should close (scripted runs); read by the runner.
     pub exit_code: Option<i32>,
+    /// Why a scripted run failed (its first failure, one line): the runner's error message.
+    exit_error: Option<String>,
     /// Leave the side panels unfilled: the window's clear colour (the native runner sets it to
     /// the panel colour) shows through. On a CPU rasteriser egui's textured, blended fill of the
     /// panels costs ~25 ms of CPU per frame at 1280×800; the clear is nearly free. Off by default
@@ -244,6 +246,7 @@ impl RadlabApp {
             pending_pick: opts.pick,
             loading: false,
             exit_code: None,
+            exit_error: None,
             last_ui_s: 0.0,
             last_ui_cpu_s: None,
             panels_from_clear: false,
@@ -380,10 +383,7 @@ impl RadlabApp {
             Ok(s) => self.set_scene(Arc::new(s)),
             Err(e) => {
                 self.errors.push(format!("cannot open {spec}: {e}"));
-                if self.script != Script::None {
-                    eprintln!("radlab: error: cannot open {spec}: {e}");
-                    self.exit_code = Some(1);
-                }
+                self.script_failed(format!("cannot open {spec}: {e}"));
             }
         }
     }
@@ -657,6 +657,7 @@ impl RadlabApp {
         self.poll_geometry(true);
         self.split.wait();
         self.replay.wait();
+        self.report_thread_panics();
     }
 
     fn poll_worker(&mut self) {
@@ -767,12 +768,47 @@ impl RadlabApp {
                 if let Some(v) = self.held_view.take() {
                     self.set_view(v);
                 }
-                if self.script != Script::None {
-                    eprintln!("radlab: error: {e}");
-                    self.exit_code = Some(1);
-                }
+                self.script_failed(e.clone());
+                self.status_bar.message.clone_from(&e);
                 self.errors.push(e);
             }
+        }
+    }
+
+    /// A scripted run cannot go on: it ends with an error, whose message is its first
+    /// failure's (`message`, one line; nothing in a window: the error list shows it).
+    fn script_failed(&mut self, message: String) {
+        if self.script != Script::None {
+            self.exit_code = Some(1);
+            self.exit_error.get_or_insert(message);
+        }
+    }
+
+    /// Why the scripted run failed (`exit_code` 1), in one line.
+    #[must_use]
+    pub fn exit_error(&self) -> Option<&str> {
+        self.exit_error.as_deref()
+    }
+
+    /// A viewer thread panicked (`message`: one line from [`super::panics::catching`]): the
+    /// status bar and the error list say so; a scripted run ends with it as its error instead
+    /// of waiting for an answer that will not come.
+    fn thread_panicked(&mut self, message: String) {
+        self.script_failed(message.clone());
+        self.status_bar.message.clone_from(&message);
+        self.errors.push(message);
+    }
+
+    /// Report the display builds (viewport, split panes, replay) and artifact measurements
+    /// that panicked since the last call.
+    fn report_thread_panics(&mut self) {
+        let mut panics = Vec::new();
+        panics.extend(self.geometry.take_failure());
+        panics.extend(self.split.take_failures());
+        panics.extend(self.replay.take_failure());
+        panics.extend(self.artifacts.take_panic());
+        for p in panics {
+            self.thread_panicked(p);
         }
     }
 
@@ -855,6 +891,10 @@ impl RadlabApp {
             RefReply::Failed(e) => {
                 self.ref_state = RefState::Failed(e.clone());
                 self.errors.push(e);
+            }
+            RefReply::Panicked(e) => {
+                self.ref_state = RefState::Failed(e.clone());
+                self.thread_panicked(e);
             }
             // Answers about a scene no longer shown.
             RefReply::Computing { .. }
@@ -1349,17 +1389,21 @@ impl RadlabApp {
             let name = self.scene.as_ref().map_or("radlab".to_owned(), |s| s.name.clone());
             PathBuf::from(format!("{name}-{}.png", self.geometry.generation))
         });
-        match shot.save_png(&path) {
-            Ok(()) => self.status_bar.message = format!("saved {}", path.display()),
+        let saved = match shot.save_png(&path) {
+            Ok(()) => {
+                self.status_bar.message = format!("saved {}", path.display());
+                true
+            }
             Err(e) => {
                 self.errors.push(format!("screenshot: {e}"));
-                if self.script != Script::None {
-                    self.exit_code = Some(1);
-                }
+                self.script_failed(format!("screenshot: {e}"));
+                false
             }
-        }
+        };
         if self.script == Script::WaitingShot {
-            println!("radlab: wrote {}", path.display());
+            if saved {
+                println!("radlab: wrote {}", path.display());
+            }
             self.script = Script::Done;
             self.exit_code.get_or_insert(0);
         }
@@ -1540,6 +1584,7 @@ impl eframe::App for RadlabApp {
             }
         });
 
+        self.report_thread_panics();
         self.handle_screenshot(&ctx);
         self.run_script(&ctx);
         if self.busy() {

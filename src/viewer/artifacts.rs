@@ -12,7 +12,11 @@
 //!        (newest only; the UI draws samples                  measure_samples on the view's
 //!         only for the state they were measured on)           elements, grid ≤ 40 000 points
 //! ```
+//!
+//! A measurement that panics is answered with the panic's message ([`super::panics`]; the
+//! overlay says it, the app reports it once, [`Measurements::take_panic`]) and the thread goes on.
 
+use super::panics;
 use super::worker::ViewData;
 use crate::artifacts::{ArtifactParams, ArtifactReport, ArtifactSamples, measure_samples};
 use crate::exact::SingleBounce;
@@ -54,7 +58,12 @@ pub struct Measured {
 pub struct Reply {
     pub seq: u64,
     pub result: Result<Measured, String>,
+    /// The measurement panicked (`result` holds the message).
+    pub panicked: bool,
 }
+
+/// Name of the thread in its panic messages.
+const THREAD: &str = "artifacts";
 
 /// Measure one job (the thread runs this; tests may call it directly).
 pub fn measure(job: &Job) -> Result<Measured, String> {
@@ -122,7 +131,11 @@ impl ArtifactThread {
                             Err(TryRecvError::Disconnected) => return,
                         }
                     }
-                    if done_tx.send(Reply { seq: job.seq, result: measure(&job) }).is_err() {
+                    let (result, panicked) = match panics::catching(THREAD, || measure(&job)) {
+                        Ok(result) => (result, false),
+                        Err(e) => (Err(e), true),
+                    };
+                    if done_tx.send(Reply { seq: job.seq, result, panicked }).is_err() {
                         return;
                     }
                     notify();
@@ -148,13 +161,27 @@ impl ArtifactThread {
     /// The newest answer, if any (never blocks).
     pub fn poll(&mut self) -> Option<Reply> {
         let mut last = None;
-        while let Ok(r) = self.rx.try_recv() {
-            last = Some(r);
+        loop {
+            match self.rx.try_recv() {
+                Ok(r) => last = Some(r),
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => {
+                    last = self.stopped().or(last);
+                    break;
+                }
+            }
         }
         if let Some(r) = &last {
             self.received = Some(r.seq);
         }
         last
+    }
+
+    /// The thread is gone: the newest job, if unanswered, is answered with that.
+    fn stopped(&mut self) -> Option<Reply> {
+        let seq = self.sent.filter(|_| self.busy())?;
+        self.received = Some(seq);
+        Some(Reply { seq, result: Err(format!("the {THREAD} thread stopped")), panicked: true })
     }
 
     /// Block until the newest job is answered, and return the answer (tests, scripted runs).
@@ -167,7 +194,7 @@ impl ArtifactThread {
                         return Some(r);
                     }
                 }
-                Err(_) => return None,
+                Err(_) => return self.stopped(),
             }
         }
         None
@@ -183,6 +210,8 @@ pub struct Measurements {
     /// The (state, with a reference) of the newest job sent, and its number.
     job: Option<(u64, bool)>,
     seq: u64,
+    /// The message of the newest measurement that panicked, until taken.
+    panic: Option<String>,
 }
 
 impl Measurements {
@@ -242,12 +271,20 @@ impl Measurements {
     pub fn poll(&mut self, wait: bool) {
         let Some(t) = &mut self.thread else { return };
         let reply = if wait { t.wait() } else { t.poll() };
-        if let Some(r) = reply
-            && r.seq == self.seq
+        let Some(r) = reply else { return };
+        if r.panicked {
+            self.panic = r.result.as_ref().err().cloned();
+        }
+        if r.seq == self.seq
             && let Some((view_seq, with_ref)) = self.job
         {
             self.answer = Some((view_seq, with_ref, r.result));
         }
+    }
+
+    /// The message of the newest measurement that panicked (once).
+    pub fn take_panic(&mut self) -> Option<String> {
+        self.panic.take()
     }
 
     /// Forget the answers (another scene).

@@ -8,7 +8,12 @@
 //!        (only when the key changes)        builds the newest       (uploads it, keeps the
 //!                                           queued request only      old one until then)
 //! ```
+//!
+//! A build that panics is answered with [`BuildFailed`] ([`super::panics`]): the request counts
+//! as answered (nothing waits for it), the picture shown stays, and the thread goes on with the
+//! next request.
 
+use super::panics;
 use super::worker::ViewData;
 use crate::artifacts::ArtifactSamples;
 use crate::math::DVec3;
@@ -100,6 +105,22 @@ pub struct Built {
     pub critical: Option<SegmentCounts>,
     /// Wall time of the build, seconds.
     pub build_s: f64,
+}
+
+/// A build that panicked: its request's sequence number and what happened.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BuildFailed {
+    pub seq: u64,
+    /// One line: "the display thread panicked at …".
+    pub message: String,
+}
+
+/// Name of the builder thread in its panic messages.
+const THREAD: &str = "display";
+
+/// [`build`], a panic in it caught: the build, or why there is none.
+pub fn try_build(req: &Request) -> Result<Built, BuildFailed> {
+    panics::catching(THREAD, || build(req)).map_err(|message| BuildFailed { seq: req.seq, message })
 }
 
 /// A scene's critical edges, kept between builds (found once per scene).
@@ -275,18 +296,20 @@ pub fn auto_exposure(view: &ViewData) -> Option<f32> {
 /// Handle of the builder thread (it ends when this is dropped).
 pub struct Builder {
     tx: Sender<Request>,
-    rx: Receiver<Built>,
+    rx: Receiver<Result<Built, BuildFailed>>,
     /// Sequence number of the newest request sent.
     pub requested: Option<u64>,
-    /// Sequence number of the newest build handed out.
+    /// Sequence number of the newest answer received (a build handed out, or a failure).
     received: Option<u64>,
+    /// The newest failed build not taken yet ([`Builder::take_failure`]).
+    failed: Option<BuildFailed>,
 }
 
 impl Builder {
     /// Start the thread; `notify` is called after each build (the UI's repaint request).
     pub fn spawn(notify: impl Fn() + Send + 'static) -> Result<Builder, String> {
         let (tx, job_rx) = channel::<Request>();
-        let (done_tx, rx) = channel::<Built>();
+        let (done_tx, rx) = channel::<Result<Built, BuildFailed>>();
         std::thread::Builder::new()
             .name("radlab-display".into())
             .spawn(move || {
@@ -300,14 +323,20 @@ impl Builder {
                             Err(TryRecvError::Disconnected) => return,
                         }
                     }
-                    if done_tx.send(build_cached(&req, &mut cache)).is_err() {
+                    let seq = req.seq;
+                    let answer = panics::catching(THREAD, || build_cached(&req, &mut cache));
+                    let answer = answer.map_err(|message| {
+                        cache = None; // possibly half written
+                        BuildFailed { seq, message }
+                    });
+                    if done_tx.send(answer).is_err() {
                         return;
                     }
                     notify();
                 }
             })
             .map_err(|e| format!("cannot start the display thread: {e}"))?;
-        Ok(Builder { tx, rx, requested: None, received: None })
+        Ok(Builder { tx, rx, requested: None, received: None, failed: None })
     }
 
     /// Queue a build.
@@ -318,34 +347,74 @@ impl Builder {
         }
     }
 
-    /// The newest finished build, if any (never blocks).
+    /// The newest finished build, if any (never blocks). A failed build is kept for
+    /// [`Builder::take_failure`].
     pub fn poll(&mut self) -> Option<Built> {
         let mut last = None;
-        while let Ok(b) = self.rx.try_recv() {
-            last = Some(b);
-        }
-        if let Some(b) = &last {
-            self.received = Some(b.seq);
+        loop {
+            match self.rx.try_recv() {
+                Ok(answer) => last = self.receive(answer).or(last),
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => {
+                    self.stopped();
+                    break;
+                }
+            }
         }
         last
     }
 
-    /// Block until the newest request is built, and return it unless it was handed out already
-    /// (tests and scripted runs only; never in `ui`).
+    /// Block until the newest request is answered, and return its build unless it was handed
+    /// out already or failed (tests and scripted runs only; never in `ui`).
     pub fn wait(&mut self) -> Option<Built> {
         let want = self.requested?;
-        if self.received.is_some_and(|r| r >= want) {
+        let answered = |r: Option<u64>| r.is_some_and(|r| r >= want);
+        if answered(self.received) {
             return None;
         }
         loop {
             match self.rx.recv() {
-                Ok(b) if b.seq >= want => {
-                    self.received = Some(b.seq);
-                    return Some(b);
+                Ok(answer) => {
+                    let built = self.receive(answer);
+                    if answered(self.received) {
+                        return built;
+                    }
                 }
-                Ok(_) => {}
-                Err(_) => return None,
+                Err(_) => {
+                    self.stopped();
+                    return None;
+                }
             }
+        }
+    }
+
+    /// The newest build that failed since the last call, if any.
+    pub fn take_failure(&mut self) -> Option<BuildFailed> {
+        self.failed.take()
+    }
+
+    /// Note an answer: a build is handed out, a failure kept.
+    fn receive(&mut self, answer: Result<Built, BuildFailed>) -> Option<Built> {
+        match answer {
+            Ok(b) => {
+                self.received = Some(b.seq);
+                Some(b)
+            }
+            Err(f) => {
+                self.received = Some(f.seq);
+                self.failed = Some(f);
+                None
+            }
+        }
+    }
+
+    /// The thread is gone: the newest request will not be answered, so it failed.
+    fn stopped(&mut self) {
+        if let Some(want) = self.requested
+            && self.received.is_none_or(|r| r < want)
+        {
+            self.received = Some(want);
+            self.failed = Some(BuildFailed { seq: want, message: format!("the {THREAD} thread stopped") });
         }
     }
 }
@@ -422,6 +491,44 @@ mod tests {
         assert_eq!(built.geometry.links.len(), 2);
         assert_eq!(built.link_stats, (1, 1));
         assert!(built.auto_ev.is_some());
+    }
+
+    #[test]
+    fn a_build_that_panics_is_answered_and_the_thread_goes_on() {
+        let mut b = Builder::spawn(|| {}).unwrap();
+        let request = |seq: u64, view: Arc<ViewData>| Request {
+            seq,
+            view,
+            view_seq: 0,
+            true_error: None,
+            settings: settings(),
+            scene: None,
+            artifacts: None,
+        };
+        // A leaf index past the element list: the mesh build panics.
+        let broken = Arc::new(ViewData { leaves: vec![0, 9], ..(*view()).clone() });
+        b.request(request(1, Arc::clone(&broken)));
+        assert!(b.wait().is_none(), "no build");
+        let f = b.take_failure().expect("the failure is kept");
+        assert_eq!(f.seq, 1);
+        assert!(f.message.starts_with("the display thread panicked"), "{}", f.message);
+        assert!(b.wait().is_none() && b.take_failure().is_none(), "answered once: nothing waits for it");
+        // The thread survived: the next request builds.
+        b.request(request(2, view()));
+        assert_eq!(b.wait().map(|built| built.seq), Some(2));
+        // Without waiting: the failure comes with the poll that sees it.
+        b.request(request(3, broken));
+        let deadline = Instant::now() + std::time::Duration::from_secs(60);
+        while b.received < Some(3) {
+            assert!(b.poll().is_none());
+            assert!(Instant::now() < deadline, "no answer");
+            std::thread::yield_now();
+        }
+        assert_eq!(b.take_failure().map(|f| f.seq), Some(3));
+        assert!(try_build(&request(4, view())).is_ok());
+        assert!(
+            try_build(&request(5, Arc::new(ViewData { leaves: vec![7], ..ViewData::default() }))).is_err()
+        );
     }
 
     #[test]

@@ -4,8 +4,10 @@
 //! A build is asked for only when its [`BuildKey`] changes (the solver state, the true error,
 //! the artifact samples or the display settings); it runs on the `radlab-display` thread
 //! ([`super::builder`]) and the viewport keeps showing the previous geometry until it is done.
+//! A build that panicked keeps the previous geometry too, and says why once
+//! ([`ShownGeometry::take_failure`]).
 
-use super::builder::{self, Builder, Built, Request, Settings};
+use super::builder::{self, BuildFailed, Builder, Built, Request, Settings};
 use crate::mesh::discontinuity::SegmentCounts;
 use crate::mesh_overlay::Artifact;
 use crate::overlay::LogScale;
@@ -47,6 +49,8 @@ pub struct ShownGeometry {
     pub error_scale: Option<LogScale>,
     /// How long the last build took, seconds.
     pub rebuild_s: f64,
+    /// Why the newest failed build failed, until taken.
+    failure: Option<String>,
 }
 
 impl ShownGeometry {
@@ -67,6 +71,7 @@ impl ShownGeometry {
             link_scale: None,
             error_scale: None,
             rebuild_s: 0.0,
+            failure: None,
         }
     }
 
@@ -90,18 +95,38 @@ impl ShownGeometry {
                 b.request(req);
                 None
             }
-            None => {
-                let built = builder::build(&req);
-                self.show(built, auto_exposure)
-            }
+            None => match builder::try_build(&req) {
+                Ok(built) => self.show(built, auto_exposure),
+                Err(f) => {
+                    self.fail(f);
+                    None
+                }
+            },
         }
     }
 
     /// Pick up a finished build (`wait`: block for it; tests, scripted runs); returns the auto
     /// exposure to apply, as [`ShownGeometry::request`].
     pub fn poll(&mut self, wait: bool, auto_exposure: bool) -> Option<f32> {
-        let b = self.builder.as_mut().and_then(|b| if wait { b.wait() } else { b.poll() })?;
-        self.show(b, auto_exposure)
+        let b = self.builder.as_mut()?;
+        let built = if wait { b.wait() } else { b.poll() };
+        let failed = b.take_failure();
+        let ev = built.and_then(|built| self.show(built, auto_exposure));
+        if let Some(f) = failed {
+            self.fail(f);
+        }
+        ev
+    }
+
+    /// A build failed: the geometry shown stays, and the request counts as answered.
+    fn fail(&mut self, f: BuildFailed) {
+        self.shown_seq = self.shown_seq.max(f.seq);
+        self.failure = Some(f.message);
+    }
+
+    /// Why the newest failed build failed (once; `None` when none failed since the last call).
+    pub fn take_failure(&mut self) -> Option<String> {
+        self.failure.take()
     }
 
     fn show(&mut self, b: Built, auto_exposure: bool) -> Option<f32> {

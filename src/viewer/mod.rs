@@ -23,6 +23,8 @@
 //! - [`help`]: keyboard shortcuts, the Help menu and window.
 //! - [`lecture`]: the Lecture menu (the figures of [`crate::figures`]) and the caption panel.
 //! - [`options`]: how the viewer starts (`ViewerOptions`).
+//! - [`panics`]: a panic on any of these threads becomes a message and, in a scripted run, an
+//!   error exit.
 //! - [`reference`](mod@reference): the `radlab-reference` thread: cached/computed reference, true error.
 //! - [`widgets`]: small widgets the panels share (the log slider).
 //! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
@@ -48,6 +50,7 @@ pub mod matrix;
 pub mod mesh_menu;
 pub mod options;
 pub mod pane;
+pub mod panics;
 pub mod plots;
 pub mod reference;
 pub mod reference_panel;
@@ -95,6 +98,9 @@ pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
         return Err(ViewerError::NoDisplay);
     }
     let scripted = opts.screenshot.is_some() || opts.bench_frames.is_some();
+    // A panic caught on a viewer thread is reported by the app (status bar; a scripted run's
+    // one-line error), not printed by the default hook as well.
+    panics::install_hook();
     let mut native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("radlab")
@@ -112,7 +118,7 @@ pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
         // Measure drawing, not the display's refresh.
         native.wgpu_options.surface.present_mode = eframe::wgpu::PresentMode::AutoNoVsync;
     }
-    let exit = Arc::new(Mutex::new(None::<i32>));
+    let exit: ExitSlot = Arc::new(Mutex::new(None));
     let exit_app = Arc::clone(&exit);
     let result = eframe::run_native(
         "radlab",
@@ -124,19 +130,23 @@ pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
         }),
     );
     result.map_err(|e| ViewerError::Window(e.to_string()))?;
-    let code = exit.lock().map_or(None, |g| *g);
+    let code = exit.lock().map_or(None, |mut g| g.take());
     match code {
-        Some(c) if c != 0 && scripted => {
-            Err(ViewerError::Script("the scripted run failed (see above)".into()))
+        // One line on stderr: the run's first failure (the binary prints it).
+        Some((c, why)) if c != 0 && scripted => {
+            Err(ViewerError::Script(why.unwrap_or_else(|| "the scripted run failed".into())))
         }
         _ => Ok(()),
     }
 }
 
-/// Passes the app's exit code out of eframe.
+/// The app's exit code and, when it failed, why (one line), passed out of eframe.
+type ExitSlot = Arc<Mutex<Option<(i32, Option<String>)>>>;
+
+/// Passes the app's exit code, and why it failed, out of eframe.
 struct ExitReporter {
     app: RadlabApp,
-    exit: Arc<Mutex<Option<i32>>>,
+    exit: ExitSlot,
 }
 
 impl eframe::App for ExitReporter {
@@ -150,7 +160,7 @@ impl eframe::App for ExitReporter {
         if let Some(c) = self.app.exit_code
             && let Ok(mut g) = self.exit.lock()
         {
-            *g = Some(c);
+            *g = Some((c, self.app.exit_error().map(str::to_owned)));
         }
     }
 }

@@ -4,10 +4,11 @@
 //!
 //! A pane builds its geometry on its own `radlab-display` thread ([`super::builder`]) whenever the
 //! state or the display settings change, and draws through the viewport's renderer into a slot
-//! of its own ([`crate::render::ViewportCallback::slot`]). [`pick`] finds the element under a
-//! point of a pane (or of the viewport).
+//! of its own ([`crate::render::ViewportCallback::slot`]). A build that panics leaves the pane's
+//! picture as it was and says why once ([`Pane::take_failure`]). [`pick`] finds the element under
+//! a point of a pane (or of the viewport).
 
-use super::builder::{self, Builder, Settings};
+use super::builder::{self, BuildFailed, Builder, Settings};
 use super::camera::OrbitCamera;
 use super::worker::ViewData;
 use crate::math::DVec3;
@@ -51,8 +52,10 @@ pub struct Pane {
     geometry: Arc<Geometry>,
     /// Bumped when `geometry` changes (the renderer uploads only then).
     generation: u64,
-    /// Sequence number of the build shown.
+    /// Sequence number of the newest build answered (shown, or failed).
     shown_seq: Option<u64>,
+    /// Why the newest failed build failed, until taken.
+    failure: Option<String>,
 }
 
 impl Pane {
@@ -67,6 +70,7 @@ impl Pane {
             geometry: Arc::new(Geometry::default()),
             generation: 0,
             shown_seq: None,
+            failure: None,
         }
     }
 
@@ -74,6 +78,30 @@ impl Pane {
         self.geometry = geometry;
         self.generation += 1;
         self.shown_seq = Some(seq);
+    }
+
+    /// A build failed: the picture stays, and the request counts as answered.
+    fn fail(&mut self, f: BuildFailed) {
+        self.shown_seq = self.shown_seq.max(Some(f.seq));
+        self.failure = Some(f.message);
+    }
+
+    /// Pick up the builder's answers (`wait`: block for the newest).
+    fn pick_up(&mut self, wait: bool) {
+        let Some(b) = self.builder.as_mut() else { return };
+        let built = if wait { b.wait() } else { b.poll() };
+        let failed = b.take_failure();
+        if let Some(built) = built {
+            self.show(built.seq, built.geometry);
+        }
+        if let Some(f) = failed {
+            self.fail(f);
+        }
+    }
+
+    /// Why the newest failed build failed (once; `None` when none failed since the last call).
+    pub fn take_failure(&mut self) -> Option<String> {
+        self.failure.take()
     }
 
     /// Ask for the geometry of `view` (identified by `key`) with `settings` if it is not the one
@@ -98,19 +126,18 @@ impl Pane {
             match &mut self.builder {
                 Some(b) => b.request(req),
                 // No thread: build here (slower, correct).
-                None => self.show(req.seq, builder::build(&req).geometry),
+                None => match builder::try_build(&req) {
+                    Ok(built) => self.show(req.seq, built.geometry),
+                    Err(f) => self.fail(f),
+                },
             }
         }
-        if let Some(b) = self.builder.as_mut().and_then(Builder::poll) {
-            self.show(b.seq, b.geometry);
-        }
+        self.pick_up(false);
     }
 
     /// Block until the newest geometry is built (tests and scripted runs only).
     pub fn wait(&mut self) {
-        if let Some(b) = self.builder.as_mut().and_then(Builder::wait) {
-            self.show(b.seq, b.geometry);
-        }
+        self.pick_up(true);
     }
 
     /// True while the newest geometry asked for is not shown yet.

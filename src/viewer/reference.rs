@@ -16,6 +16,8 @@
 //!
 //! A computation reports its progress and can be cancelled through a shared
 //! [`Control`]; a cancelled computation leaves no cache entry and the scene without reference.
+//! A command that panics is answered [`RefReply::Panicked`] ([`super::panics`]), and the thread
+//! goes on with the next one.
 //!
 //! ```text
 //!  UI ── Load{scene, compute} ──► "radlab-reference": cache look-up / estimate (seconds–minutes)
@@ -23,6 +25,7 @@
 //!  UI ── Evaluate{view} ────────► per-element error + rel L2 ── Reply ──► UI (heatmap, plot)
 //! ```
 
+use super::panics;
 use super::worker::ViewData;
 use crate::accel::Accel;
 use crate::overlay::ElementView;
@@ -86,6 +89,9 @@ pub enum RefReply {
     },
     Evaluated(Evaluation),
     Failed(String),
+    /// The command panicked (one line: "the reference thread panicked at …"); a `Load` leaves
+    /// the scene without reference.
+    Panicked(String),
 }
 
 /// The score of one solver state.
@@ -138,6 +144,9 @@ fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> R
     Ok(Evaluation { view_seq, solver_time_s, per_element, rel_l2: report.scene.l2_debiased })
 }
 
+/// Name of the reference thread in its panic messages.
+const THREAD: &str = "reference";
+
 /// Handle of the reference thread (it ends when this is dropped).
 pub struct RefThread {
     tx: Sender<RefCommand>,
@@ -160,22 +169,38 @@ impl RefThread {
                 while let Ok(cmd) = cmd_rx.recv() {
                     let reply = match cmd {
                         RefCommand::Load { scene, compute, control } => {
-                            let (reply, l) = load(&settings, scene, compute, &control, &|r| {
-                                let _ = reply_tx.send(r);
-                                notify();
+                            let answer = panics::catching(THREAD, || {
+                                let (reply, l) = load(&settings, scene, compute, &control, &|r| {
+                                    let _ = reply_tx.send(r);
+                                    notify();
+                                });
+                                if let Some(l) = &l {
+                                    let source = l.scene.source.clone();
+                                    let _ =
+                                        reply_tx.send(RefReply::Solution { source, view: solution_view(l) });
+                                }
+                                (reply, l)
                             });
-                            if let Some(l) = &l {
-                                let source = l.scene.source.clone();
-                                let _ = reply_tx.send(RefReply::Solution { source, view: solution_view(l) });
+                            match answer {
+                                Ok((reply, l)) => {
+                                    loaded = l;
+                                    reply
+                                }
+                                Err(e) => {
+                                    loaded = None;
+                                    RefReply::Panicked(e)
+                                }
                             }
-                            loaded = l;
-                            reply
                         }
                         RefCommand::Evaluate { view, view_seq, solver_time_s } => match &loaded {
-                            Some(r) => match evaluate(r, &view, view_seq, solver_time_s) {
-                                Ok(e) => RefReply::Evaluated(e),
-                                Err(e) => RefReply::Failed(format!("reference comparison: {e}")),
-                            },
+                            Some(r) => {
+                                match panics::catching(THREAD, || evaluate(r, &view, view_seq, solver_time_s))
+                                {
+                                    Ok(Ok(e)) => RefReply::Evaluated(e),
+                                    Ok(Err(e)) => RefReply::Failed(format!("reference comparison: {e}")),
+                                    Err(e) => RefReply::Panicked(e),
+                                }
+                            }
                             None => RefReply::Failed("no reference loaded".into()),
                         },
                     };
@@ -230,7 +255,16 @@ impl RefThread {
 
     /// Next reply, if any (never blocks).
     pub fn poll(&mut self) -> Option<RefReply> {
-        let r = self.rx.try_recv().ok()?;
+        let r = match self.rx.try_recv() {
+            Ok(r) => r,
+            Err(std::sync::mpsc::TryRecvError::Empty) => return None,
+            // Gone with commands unanswered: nothing waits for them.
+            Err(std::sync::mpsc::TryRecvError::Disconnected) if self.pending > 0 => {
+                self.pending = 0;
+                return Some(RefReply::Panicked(format!("the {THREAD} thread stopped")));
+            }
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => return None,
+        };
         if !matches!(r, RefReply::Computing { .. } | RefReply::Solution { .. }) {
             self.pending = self.pending.saturating_sub(1);
         }
@@ -249,7 +283,7 @@ impl RefThread {
                 }
                 Err(_) => {
                     self.pending = 0;
-                    on_reply(RefReply::Failed("the reference thread stopped".into()));
+                    on_reply(RefReply::Panicked(format!("the {THREAD} thread stopped")));
                 }
             }
         }
@@ -509,8 +543,12 @@ mod tests {
                 }
             })
             .collect();
-        let view = ViewData { leaves: (0..elements.len() as u32).collect(), elements, ..ViewData::default() };
-        t.send(RefCommand::Evaluate { view: Arc::new(view), view_seq: 7, solver_time_s: 0.5 });
+        let view = Arc::new(ViewData {
+            leaves: (0..elements.len() as u32).collect(),
+            elements,
+            ..ViewData::default()
+        });
+        t.send(RefCommand::Evaluate { view: Arc::clone(&view), view_seq: 7, solver_time_s: 0.5 });
         let mut eval = None;
         t.wait_idle(|r| {
             if let RefReply::Evaluated(e) = r {
@@ -523,6 +561,22 @@ mod tests {
         // The lit faces have B > 0 in the reference, so B = 0 is wrong by B̂ everywhere.
         assert!(e.per_element.iter().all(|&x| x > 0.0), "{:?}", e.per_element);
         assert!(e.rel_l2 > 0.5, "all-black solution: rel L2 {}", e.rel_l2);
+
+        // A state that makes the scoring panic (a leaf past the element list) is answered, and
+        // the thread scores the next one.
+        let broken = ViewData { leaves: vec![0, 99], ..(*view).clone() };
+        t.send(RefCommand::Evaluate { view: Arc::new(broken), view_seq: 8, solver_time_s: 0.5 });
+        t.send(RefCommand::Evaluate { view: Arc::clone(&view), view_seq: 9, solver_time_s: 0.5 });
+        let mut answers = Vec::new();
+        t.wait_idle(|r| answers.push(r));
+        assert!(!t.busy());
+        match &answers[..] {
+            [RefReply::Panicked(p), RefReply::Evaluated(e)] => {
+                assert!(p.starts_with("the reference thread panicked"), "{p}");
+                assert_eq!(e.view_seq, 9);
+            }
+            other => panic!("{other:?}"),
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -111,6 +111,11 @@ impl Replay {
         self.pane.building()
     }
 
+    /// Why the frame's failed build failed, once.
+    pub fn take_failure(&mut self) -> Option<String> {
+        self.pane.take_failure()
+    }
+
     /// What frame `i` is, in words.
     #[must_use]
     pub fn describe(&self, i: usize) -> String {

@@ -100,6 +100,11 @@ impl SplitView {
     pub fn building(&self) -> bool {
         self.slots.iter().any(Pane::building)
     }
+
+    /// Why the panes' failed builds failed, since the last call.
+    pub fn take_failures(&mut self) -> Vec<String> {
+        self.slots.iter_mut().filter_map(Pane::take_failure).collect()
+    }
 }
 
 impl View for SplitView {

@@ -376,7 +376,15 @@ impl Worker {
         let skip = Arc::clone(&skip_through);
         std::thread::Builder::new()
             .name("radlab-solver".into())
-            .spawn(move || run(&cmd_rx, &skip, &reply_tx, &notify))
+            .spawn(move || {
+                // A panic ends the thread (the solver may be half changed): its message is the
+                // last answer, and what is still queued is answered "stopped".
+                if let Err(e) = super::panics::catching("solver", || run(&cmd_rx, &skip, &reply_tx, &notify))
+                {
+                    let _ = reply_tx.send(Reply::Failed(e));
+                    notify();
+                }
+            })
             .map_err(|e| format!("cannot start the solver thread: {e}"))?;
         Ok(Worker { tx, rx, cancel: None, in_flight: 0, sent: 0, skip_through })
     }
@@ -624,7 +632,10 @@ fn solve_mesh(
                 let _ = ptx.send(Reply::Progress { done, total });
             }
         };
-        let _ = done_tx.send(solve_on_mesh(&on, &params, dmesh, hierarchical, &mut progress));
+        let solved = super::panics::catching("mesh solve", || {
+            solve_on_mesh(&on, &params, dmesh, hierarchical, &mut progress)
+        });
+        let _ = done_tx.send(solved.flatten());
     });
     if let Err(e) = spawned {
         return Reply::Failed(format!("cannot start the mesh solve's thread: {e}"));
