@@ -393,7 +393,7 @@ fn solve(
                     log,
                     "\n{method} {} ({}): {}, solve {solve_s:.3} s",
                     args.preset,
-                    solve_spec.mesh_name(),
+                    solved.spec.mesh_name(),
                     m.describe()
                 )?;
             }

@@ -506,7 +506,7 @@ pub enum Route {
 pub fn plan(a: &SolverArgs) -> anyhow::Result<(Route, MeshArg)> {
     let preset_mesh = match preset(a)?.top() {
         spec::TopLevel::Patches => MeshArg::Quadtree,
-        spec::TopLevel::Mesh(_) => MeshArg::Contact,
+        spec::TopLevel::Mesh(_) | spec::TopLevel::Auto => MeshArg::Contact,
     };
     let mesh = a.mesh.unwrap_or(match a.method {
         None | Some(Method::Hierarchical) => preset_mesh,
@@ -663,6 +663,10 @@ pub fn solve_spec(a: &SolverArgs, scene: &Scene) -> anyhow::Result<SolveSpec> {
     let plan = match route {
         Route::Hierarchical => {
             SpecPlan::Hierarchical { params: hierarchical_params(a)?, top: spec::TopLevel::Patches }
+        }
+        // The preset's own top level (the ladder's contact mesh below a size, the patches above).
+        Route::DiscontinuityHierarchical(_) if a.mesh.is_none() && a.dmesh_budget.is_none() => {
+            SpecPlan::Hierarchical { params: hierarchical_params(a)?, top: preset(a)?.top() }
         }
         Route::DiscontinuityHierarchical(kind) => {
             let remesh = remesh_params(a, route, mesh, kind)?;
