@@ -169,7 +169,7 @@ const fn meshing(
         method: mesh.method.name(),
         mesh,
         submenu: Some(MESHING),
-        ..Figure::base(name, slide, scene, "interactive", HierarchicalParams::interactive())
+        ..Figure::base(name, slide, scene, "bf", HierarchicalParams::interactive())
     }
 }
 
@@ -254,12 +254,12 @@ pub const FIGURES: &[Figure] = &[
             "bf-refinement",
             "Refining by B·F instead of F",
             "builtin:cornell",
-            "interactive",
+            "bf",
             HierarchicalParams::interactive(),
         )
     },
     Figure {
-        method: "hierarchical, error oracle (quality preset)",
+        method: "hierarchical on the contact mesh, error oracle (quality preset)",
         camera: TABLE_FROM_ABOVE,
         caption: "A converged, finely refined solution of the table room: the reference the \
                   uniform meshes of the next figures are measured against. The shadow under the \
@@ -271,7 +271,7 @@ pub const FIGURES: &[Figure] = &[
             "Reference solution vs. a uniform mesh",
             "builtin:table-room",
             "quality",
-            HierarchicalParams::quality(),
+            crate::solver::spec::Preset::Quality.hierarchical(),
         )
     },
     Figure {
@@ -335,7 +335,7 @@ pub const FIGURES: &[Figure] = &[
             "adaptive-meshing",
             "Adaptive meshing",
             "builtin:table-room",
-            "interactive",
+            "bf",
             HierarchicalParams::interactive(),
         )
     },
@@ -352,7 +352,7 @@ pub const FIGURES: &[Figure] = &[
             "penumbra-links",
             "Penumbras and umbras",
             "builtin:table-room",
-            "interactive",
+            "bf",
             HierarchicalParams::interactive(),
         )
     },
@@ -368,7 +368,7 @@ pub const FIGURES: &[Figure] = &[
             "narrow-penumbra",
             "Penumbras and umbras: a narrow penumbra",
             "builtin:shadow-narrow",
-            "interactive",
+            "bf",
             HierarchicalParams::interactive(),
         )
     },
@@ -539,7 +539,7 @@ pub const FIGURES: &[Figure] = &[
             "linear-links",
             "O(n) interactions",
             "builtin:cornell",
-            "interactive",
+            "bf",
             HierarchicalParams::interactive(),
         )
     },
@@ -554,7 +554,7 @@ pub const FIGURES: &[Figure] = &[
             "one-gather",
             "Gather: the first bounce",
             "builtin:cornell",
-            "interactive",
+            "bf",
             HierarchicalParams::interactive(),
         )
     },
@@ -571,7 +571,7 @@ pub const FIGURES: &[Figure] = &[
             "recursive-gather",
             "Recursive gather and push-pull",
             "builtin:cornell",
-            "interactive",
+            "bf",
             HierarchicalParams::interactive(),
         )
     },
@@ -621,7 +621,12 @@ mod tests {
             assert!(!scene.patches.is_empty(), "{}", f.name);
             assert!(f.scene.starts_with("builtin:"), "{}: figures use built-in scenes", f.name);
             f.params.validate().unwrap_or_else(|e| panic!("{}: {e}", f.name));
-            assert!(HierarchicalParams::preset(f.preset).is_some(), "{}: preset {}", f.name, f.preset);
+            assert!(
+                crate::solver::spec::Preset::from_name(f.preset).is_some(),
+                "{}: preset {}",
+                f.name,
+                f.preset
+            );
             for &b in f.sweep_bf_eps {
                 HierarchicalParams { bf_eps: b, ..f.params }.validate().unwrap();
             }

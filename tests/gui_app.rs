@@ -81,8 +81,10 @@ fn opts() -> ViewerOptions {
     ViewerOptions {
         scene: String::new(),
         reference: RefSettings { cache, ..RefSettings::default() },
-        // These tests step the solver by hand from the input patches.
+        // These tests step the solver by hand from the input patches: the quadtree's BF preset
+        // (the ladder's presets refine the contact mesh; `the_default_path_steps_on_the_contact_mesh`).
         solve_on_start: false,
+        preset: "bf".into(),
         // Tests must not depend on (or open) a desktop file dialog.
         desktop_file_dialog: false,
         ..ViewerOptions::default()
@@ -1923,4 +1925,57 @@ fn a_panic_on_the_display_thread_is_reported_not_waited_for() {
         assert_eq!(h.state().errors().len(), 1, "{:?}", h.state().errors());
     }
     let _ = std::fs::remove_file(&shot);
+}
+
+/// The viewer's default preset is a step of the ladder: the solver thread refines the contact
+/// mesh, whose pieces the view shows on the input patches they were cut from; Refine, Gather,
+/// Push-pull and Solve step it, and a teaching preset goes back to the quadtree.
+#[test]
+fn the_default_path_steps_on_the_contact_mesh() {
+    let defaults = ViewerOptions::default();
+    assert_eq!(defaults.preset, "interactive");
+    let mut h = harness(ViewerOptions { preset: defaults.preset, ..opts() });
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    let patches = cornell().patches.len();
+    let loaded = Arc::clone(h.state().view());
+    // The contact mesh cuts the floor under the blocks and the blocks' faces: more pieces than
+    // patches, each on an input patch.
+    assert!(loaded.elements.len() > patches, "{} elements on {patches} patches", loaded.elements.len());
+    assert!(loaded.elements.iter().all(|e| (e.patch as usize) < patches));
+    // The error oracle's first Refine, before anything is gathered, links the pieces; once the
+    // reflected light is known, the next one splits where it varies.
+    for kind in ["Refine step", "Gather step", "Push-pull", "Refine step", "Gather step", "Push-pull"] {
+        h.get_by_label(kind).click();
+        settle(&mut h);
+        assert!(h.state().errors().is_empty(), "{kind}: {:?}", h.state().errors());
+    }
+    let stepped = Arc::clone(h.state().view());
+    assert!(
+        stepped.elements.len() > loaded.elements.len(),
+        "Refine split the contact mesh's pieces: {} elements after two rounds, {} loaded",
+        stepped.elements.len(),
+        loaded.elements.len()
+    );
+    assert!(stepped.stats.links > 0 && !stepped.residuals.is_empty());
+    assert!(brightest_leaf(&h, 0) > 0.0, "the floor is lit after a gather and push-pull");
+    h.get_by_label("Solve").click();
+    settle(&mut h);
+    let solved = Arc::clone(h.state().view());
+    assert_eq!(h.state().last_report().map(|r| r.kind), Some(StepKind::Solve));
+    assert!(solved.elements.len() > stepped.elements.len());
+    // The leaves tile the input patches: their areas add up to the scene's.
+    let leaf_area: f64 = solved.leaves.iter().map(|&l| solved.elements[l as usize].area).sum();
+    let scene_area = cornell().total_area();
+    assert!((leaf_area / scene_area - 1.0).abs() < 1e-9, "leaves {leaf_area}, scene {scene_area}");
+    // A teaching preset refines the quadtree of the input patches again.
+    h.state_mut().select_preset("bf");
+    settle(&mut h);
+    assert_eq!(h.state().params(), radlab::solver::spec::Preset::Bf.hierarchical());
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    let roots = |v: &radlab::viewer::worker::ViewData| v.elements.iter().filter(|e| e.depth == 0).count();
+    assert!(roots(&solved) > patches, "the contact mesh's pieces are the roots: {}", roots(&solved));
+    h.state_mut().wait_for_solver();
+    settle(&mut h);
+    assert_eq!(roots(h.state().view()), patches, "the quadtree's roots are the input patches");
 }

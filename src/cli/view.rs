@@ -37,7 +37,8 @@ pub struct Args {
     /// e.g. `--overlay quadtree,links`.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "none")]
     pub overlay: Vec<Overlay>,
-    /// Solver preset: interactive, quality, lecture, splash2.
+    /// Solver preset: the ladder draft, interactive, quality, fine, reference (the error oracle
+    /// on the contact mesh); bf, lecture, splash2 (on the quadtree).
     #[arg(long, default_value = "interactive")]
     pub preset: String,
     /// Benchmark: solve, draw N frames, print the median frame time and exit.
@@ -180,11 +181,11 @@ fn parse_point(s: &str) -> Result<[f32; 2], String> {
 #[cfg(feature = "gui")]
 pub fn run(args: Args) -> anyhow::Result<()> {
     use radlab::viewer::ViewerOptions;
-    if radlab::solver::params::HierarchicalParams::preset(&args.preset).is_none() {
+    if radlab::solver::spec::Preset::from_name(&args.preset).is_none() {
         anyhow::bail!(
             "--preset {:?}: unknown preset (one of {})",
             args.preset,
-            radlab::solver::params::HierarchicalParams::PRESETS.join(", ")
+            radlab::solver::spec::Preset::names()
         );
     }
     if args.bench_frames == Some(0) {

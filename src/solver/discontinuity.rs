@@ -65,9 +65,9 @@ pub const CONTACT_AEPS_PER_EPS: f64 = 6e-4;
 /// each halving of X, where the `quality` preset's fixed 1e-4 stops the refinement below
 /// X ≈ 0.15 (docs/meshing.md).
 #[must_use]
-pub fn contact_area_floor(p: HierarchicalParams) -> HierarchicalParams {
+pub const fn contact_area_floor(p: HierarchicalParams) -> HierarchicalParams {
     use super::params::{AreaEps, Oracle};
-    if p.oracle == Oracle::Error && p.bf_relative {
+    if matches!(p.oracle, Oracle::Error) && p.bf_relative {
         HierarchicalParams { aeps: AreaEps::Relative(CONTACT_AEPS_PER_EPS * p.bf_eps), ..p }
     } else {
         p

@@ -141,7 +141,7 @@ impl Preset {
 
     /// The hierarchical solver's settings of this preset.
     #[must_use]
-    pub fn hierarchical(self) -> HierarchicalParams {
+    pub const fn hierarchical(self) -> HierarchicalParams {
         match self.threshold_rel() {
             Some(eps) => ladder_params(eps),
             None => match self {
@@ -175,7 +175,7 @@ impl Preset {
 /// pays (`Clustering::Auto`), the row check at [`ladder_row_tol`] and a link budget that grows
 /// as the threshold shrinks ([`ladder_max_links`]).
 #[must_use]
-pub fn ladder_params(eps: f64) -> HierarchicalParams {
+pub const fn ladder_params(eps: f64) -> HierarchicalParams {
     discontinuity::contact_area_floor(HierarchicalParams {
         oracle: Oracle::Error,
         bf_eps: eps,
@@ -194,14 +194,14 @@ pub fn ladder_params(eps: f64) -> HierarchicalParams {
 /// below, where it creates none on the built-in scenes and 0.05 would double table-room's links
 /// at `quality`.
 #[must_use]
-pub fn ladder_row_tol(eps: f64) -> f64 {
+pub const fn ladder_row_tol(eps: f64) -> f64 {
     if eps >= 0.2 { 0.05 } else { 0.1 }
 }
 
 /// The ladder's link budget: 4 M at ε = 0.05, growing as 1/ε (a finer step refines further, and
 /// a budget that stopped it half-way would leave it less accurate than the step before).
 #[must_use]
-pub fn ladder_max_links(eps: f64) -> usize {
+pub const fn ladder_max_links(eps: f64) -> usize {
     let scaled = 4.0e6 * 0.05 / eps.max(1e-6);
     scaled.clamp(4.0e6, 64.0e6) as usize
 }

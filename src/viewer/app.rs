@@ -47,6 +47,7 @@ use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
 use crate::solver::meshed::{MeshMethod, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
+use crate::solver::spec::{Preset, TopLevel};
 use eframe::egui::{self, Color32, Pos2, Rect, Sense};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -66,6 +67,8 @@ pub struct RadlabApp {
     /// Errors shown in the UI (load failures, solver failures); never a crash.
     errors: Vec<String>,
     params: HierarchicalParams,
+    /// The top level the solver thread's solver refines (its last Load): the preset's.
+    loaded_top: TopLevel,
     solver_panel: SolverPanel,
     /// The mesh solved on: `method` [`MeshMethod::Quadtree`] is the hierarchical solver (with
     /// `params`), anything else a mesh solve with these settings.
@@ -181,11 +184,7 @@ impl RadlabApp {
         let worker = Worker::spawn(move || ctx.request_repaint());
         let ctx = cc.egui_ctx.clone();
         let display_builder = Builder::spawn(move || ctx.request_repaint());
-        let preset = if HierarchicalParams::preset(&opts.preset).is_some() {
-            opts.preset.clone()
-        } else {
-            "interactive".into()
-        };
+        let preset = Preset::from_name(&opts.preset).unwrap_or(Preset::Interactive);
         // Until a scene is loaded: framing the unit cube around the origin.
         let start =
             OrbitCamera::frame_all(&crate::scene::Bounds { min: DVec3::splat(-1.0), max: DVec3::splat(1.0) });
@@ -194,8 +193,9 @@ impl RadlabApp {
             scene_spec: opts.scene.clone(),
             top_bar: TopBar { spec_edit: opts.scene.clone(), ..TopBar::default() },
             errors: Vec::new(),
-            params: HierarchicalParams::preset(&preset).unwrap_or_else(HierarchicalParams::interactive),
-            solver_panel: SolverPanel { preset },
+            params: preset.hierarchical(),
+            loaded_top: preset.top(),
+            solver_panel: SolverPanel { preset: preset.name().to_owned() },
             mesh: opts.mesh.unwrap_or(MeshSolveParams::new(MeshMethod::Quadtree)),
             dmesh: DmeshOptions::default(),
             worker: None,
@@ -430,7 +430,9 @@ impl RadlabApp {
         }
         self.scene = Some(Arc::clone(&scene));
         let params = self.params;
-        self.send(Command::Load { scene, params }, "loading");
+        let top = self.top();
+        self.loaded_top = top;
+        self.send(Command::Load { scene, params, top }, "loading");
         self.loading = self.worker.is_some();
         if self.opts.solve_on_start {
             self.step(StepKind::Solve);
@@ -538,6 +540,24 @@ impl RadlabApp {
         self.send(Command::Step(kind), label);
     }
 
+    /// Choose a preset by name, as the Solver panel's preset box does: its settings and its top
+    /// level (a new solver where that changes). Unknown names are shown as an error.
+    pub fn select_preset(&mut self, name: &str) {
+        let Some(preset) = Preset::from_name(name) else {
+            self.errors.push(format!("unknown preset {name:?} (one of {})", Preset::names()));
+            return;
+        };
+        name.clone_into(&mut self.solver_panel.preset);
+        self.set_params(preset.hierarchical());
+    }
+
+    /// The top level the current preset refines ([`Preset::top`]; the last preset chosen while
+    /// its settings are edited).
+    #[must_use]
+    pub fn top(&self) -> TopLevel {
+        Preset::from_name(&self.solver_panel.preset).map_or(TopLevel::Patches, Preset::top)
+    }
+
     /// Change the solver parameters: restart the solver with them (and re-solve with auto-run).
     pub fn set_params(&mut self, p: HierarchicalParams) {
         if p == self.params {
@@ -553,7 +573,16 @@ impl RadlabApp {
         {
             w.cancel();
         }
-        self.send(Command::SetParams(p), "restarting");
+        let top = self.top();
+        match self.scene.clone() {
+            // Another preset's top level (the ladder's contact mesh, the teaching presets'
+            // patches): a new solver on it.
+            Some(scene) if top != self.loaded_top => {
+                self.loaded_top = top;
+                self.send(Command::Load { scene, params: p, top }, "meshing");
+            }
+            _ => self.send(Command::SetParams(p), "restarting"),
+        }
         if self.auto_run {
             self.resolve_pending = true;
             // Only when something is shown: a first solve has nothing to keep.
@@ -695,7 +724,13 @@ impl RadlabApp {
             Reply::Replay { frames } => self.replay_frames = Some(frames),
             Reply::Loaded { view, .. } => {
                 self.loading = false;
-                self.set_view(view);
+                // A reload on another top level (a preset change) keeps the last picture until
+                // its solve is done, as a parameter change does.
+                if self.hold_view {
+                    self.held_view = Some(view);
+                } else {
+                    self.set_view(view);
+                }
                 self.progress = None;
                 self.solver_time_s = 0.0;
                 self.error_samples.clear();

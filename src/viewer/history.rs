@@ -247,10 +247,10 @@ pub fn preset_name(p: &HierarchicalParams) -> String {
     if p.oracle == Oracle::Feps && p.feps == 0.0 {
         return "uniform mesh".to_owned();
     }
-    HierarchicalParams::PRESETS
+    crate::solver::spec::Preset::ALL
         .iter()
-        .find(|name| HierarchicalParams::preset(name).as_ref() == Some(p))
-        .map_or_else(|| "custom".to_owned(), |n| (*n).to_owned())
+        .find(|preset| preset.hierarchical() == *p)
+        .map_or_else(|| "custom".to_owned(), |preset| preset.name().to_owned())
 }
 
 /// The solver's estimate of the relative L2 error of a solver state (its leaves).
@@ -625,7 +625,7 @@ mod tests {
         assert_eq!(h.len(), KEEP_SOLUTIONS + 3);
         assert_eq!(h.kept(), KEEP_SOLUTIONS, "memory is bounded");
         assert!(h.runs()[0].view.is_none() && h.runs().last().unwrap().view.is_some());
-        assert_eq!(h.runs()[2].preset, "interactive");
+        assert_eq!(h.runs()[2].preset, "bf");
         // A picked run keeps its solution when it ages past the window.
         let newest_old = h.runs()[3].number;
         h.toggle_pick(newest_old);

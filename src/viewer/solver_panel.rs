@@ -7,6 +7,7 @@ use super::widgets::log_slider;
 use crate::solver::hierarchical::{StepKind, StepReport};
 use crate::solver::meshed::MeshMethod;
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
+use crate::solver::spec::Preset;
 use eframe::egui;
 use std::time::Instant;
 
@@ -111,17 +112,24 @@ impl SolverPanel {
         egui::ComboBox::from_label("preset")
             .selected_text(&self.preset)
             .show_ui(ui, |ui| {
-                for name in HierarchicalParams::PRESETS {
-                    if ui.selectable_label(self.preset == name, name).clicked() {
+                for preset in Preset::ALL {
+                    let name = preset.name();
+                    if ui
+                        .selectable_label(self.preset == name, name)
+                        .on_hover_text(preset.description())
+                        .clicked()
+                    {
                         self.preset = name.to_owned();
-                        if let Some(q) = HierarchicalParams::preset(name) {
-                            p = q;
-                        }
+                        p = preset.hierarchical();
                     }
                 }
             })
             .response
-            .on_hover_text("Named solver settings (all sliders below at once)");
+            .on_hover_text(
+                "Named solver settings (all sliders below at once): the ladder draft … reference \
+                 refines the contact mesh by the error oracle, each step halving its threshold; \
+                 bf, lecture and splash2 refine the quadtree",
+            );
         egui::ComboBox::from_label("oracle")
             .selected_text(format!("{:?}", p.oracle))
             .show_ui(ui, |ui| {

@@ -17,6 +17,7 @@ use crate::solver::hierarchical::{
 };
 use crate::solver::meshed::{MeshMethod, MeshSolution, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
+use crate::solver::spec::{Plan, SolveSpec, TopLevel};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
@@ -264,6 +265,40 @@ impl ViewData {
         Arc::new(ViewData { params: s.params(), cluster_links, ..view })
     }
 
+    /// [`ViewData::of_solver_with`] for a solver on a mesh of the input scene: `origin[i]` is the
+    /// input patch the solver's patch `i` was cut from, and the view's elements (and its
+    /// patch-to-cluster table) are on the input patches, as every view of the viewer is.
+    #[must_use]
+    pub fn of_solver_on(
+        s: &HierarchicalSolver,
+        unpushed: bool,
+        estimates: bool,
+        cluster_links: usize,
+        origin: Option<&[usize]>,
+    ) -> Arc<ViewData> {
+        let view = Self::of_solver_with(s, unpushed, estimates, cluster_links);
+        let Some(origin) = origin else { return view };
+        let mut view = Arc::unwrap_or_clone(view);
+        for e in &mut view.elements {
+            if let Some(&o) = origin.get(e.patch as usize) {
+                e.patch = o as u32;
+            }
+        }
+        if !view.patch_cluster.is_empty() {
+            let inputs = origin.iter().copied().max().map_or(0, |m| m + 1);
+            let mut per_input = vec![u32::MAX; inputs];
+            for (piece, &c) in view.patch_cluster.iter().enumerate() {
+                if let Some(&o) = origin.get(piece)
+                    && per_input[o] == u32::MAX
+                {
+                    per_input[o] = c;
+                }
+            }
+            view.patch_cluster = per_input;
+        }
+        Arc::new(view)
+    }
+
     /// Bytes this state holds (elements and links), about.
     #[must_use]
     pub fn bytes(&self) -> usize {
@@ -287,10 +322,13 @@ impl ViewData {
 /// What the UI asks of the solver thread.
 #[derive(Clone, Debug)]
 pub enum Command {
-    /// Replace the solver (new scene, or a scene reloaded).
+    /// Replace the solver (new scene, or a scene reloaded) on `top`: the input patches, or a
+    /// mesh of them (the preset ladder's contact mesh, [`TopLevel::Auto`] resolved by the scene's
+    /// size). On a mesh, the views' elements are on the input patches the pieces were cut from.
     Load {
         scene: Arc<Scene>,
         params: HierarchicalParams,
+        top: TopLevel,
     },
     /// Restart with new parameters (keeps the BVH).
     SetParams(HierarchicalParams),
@@ -489,9 +527,11 @@ fn run(
     notify: &(impl Fn() + Send),
 ) {
     let mut solver: Option<HierarchicalSolver> = None;
+    // The input scene, and on a mesh top level the input patch of each of the solver's patches.
+    let mut input: Option<Arc<Scene>> = None;
+    let mut origin: Origin = None;
     // The solver has gathered since its last push-pull: show the pushed-pulled values.
     let mut unpushed = false;
-    let view_of = ViewData::of_solver;
     let send = |r: Reply| {
         let ok = tx.send(r).is_ok();
         notify();
@@ -511,10 +551,23 @@ fn run(
         if matches!(cmd, Command::Load { .. } | Command::SetParams(_) | Command::Reset) {
             unpushed = false;
         }
+        let view_of = |s: &HierarchicalSolver, unpushed: bool| {
+            ViewData::of_solver_on(
+                s,
+                unpushed,
+                true,
+                CLUSTER_LINKS_KEPT,
+                origin.as_deref().map(Vec::as_slice),
+            )
+        };
         let reply = match cmd {
-            Command::Load { scene, params } => match HierarchicalSolver::new(scene, params) {
-                Ok(s) => {
-                    let r = Reply::Loaded { cancel: s.cancel_handle(), view: view_of(&s, false) };
+            Command::Load { scene, params, top } => match solver_on(&scene, params, top) {
+                Ok((s, o)) => {
+                    let on = o.as_deref().map(Vec::as_slice);
+                    let view = ViewData::of_solver_on(&s, false, true, CLUSTER_LINKS_KEPT, on);
+                    origin = o;
+                    input = Some(scene);
+                    let r = Reply::Loaded { cancel: s.cancel_handle(), view };
                     solver = Some(s);
                     r
                 }
@@ -534,13 +587,18 @@ fn run(
                     Reply::Done { report: None, view: view_of(s, false) }
                 }
             },
-            Command::SolveMesh(params, dmesh) => match solver.as_ref() {
-                None => Reply::Failed("no scene loaded".into()),
-                Some(s) => solve_mesh(s.scene(), (params, dmesh, s.params()), &s.cancel_handle(), tx, notify),
+            Command::SolveMesh(params, dmesh) => match (solver.as_ref(), input.as_ref()) {
+                (Some(s), Some(scene)) => {
+                    solve_mesh(scene, (params, dmesh, s.params()), &s.cancel_handle(), tx, notify)
+                }
+                _ => Reply::Failed("no scene loaded".into()),
             },
-            Command::Bake { path, options, form } => match solver.as_ref() {
-                None => Reply::Failed("no scene loaded".into()),
-                Some(s) => Reply::Baked(bake_to(s, unpushed, &path, &options, form)),
+            Command::Bake { path, options, form } => match (solver.as_ref(), input.as_ref()) {
+                (Some(s), Some(scene)) => {
+                    let on = (scene, origin.as_deref().map(Vec::as_slice));
+                    Reply::Baked(bake_to(s, on, unpushed, &path, &options, form))
+                }
+                _ => Reply::Failed("no scene loaded".into()),
             },
             Command::Step(kind) => match solver.as_mut() {
                 None => Reply::Failed("no scene loaded".into()),
@@ -560,13 +618,14 @@ fn run(
                             // The first round's picture at once, then at most every PARTIAL_EVERY.
                             let mut last: Option<std::time::Instant> = None;
                             // The replay's frames: where the solve starts, then each round.
+                            let on = origin.as_deref().map(Vec::as_slice);
                             let mut frames =
-                                vec![ViewData::of_solver_with(s, unpushed, false, REPLAY_CLUSTER_LINKS)];
+                                vec![ViewData::of_solver_on(s, unpushed, false, REPLAY_CLUSTER_LINKS, on)];
                             let mut budget = REPLAY_BUDGET_BYTES.saturating_sub(frames[0].bytes());
                             let mut on_round = |s: &HierarchicalSolver| {
                                 if budget > 0 {
                                     let frame =
-                                        ViewData::of_solver_with(s, false, false, REPLAY_CLUSTER_LINKS);
+                                        ViewData::of_solver_on(s, false, false, REPLAY_CLUSTER_LINKS, on);
                                     budget = budget.saturating_sub(frame.bytes());
                                     if budget > 0 {
                                         frames.push(frame);
@@ -580,7 +639,8 @@ fn run(
                                 let now = std::time::Instant::now();
                                 if last.is_none_or(|t| now.duration_since(t) >= PARTIAL_EVERY) {
                                     last = Some(now);
-                                    let _ = tx.send(Reply::Partial { view: ViewData::of_solver(s, false) });
+                                    let view = ViewData::of_solver_on(s, false, true, CLUSTER_LINKS_KEPT, on);
+                                    let _ = tx.send(Reply::Partial { view });
                                     notify();
                                 }
                             };
@@ -604,6 +664,29 @@ fn run(
         if !send(reply) {
             break;
         }
+    }
+}
+
+/// On a mesh top level, the input patch of each of the solver's patches (`None`: the solver is on
+/// the input patches).
+type Origin = Option<Arc<Vec<usize>>>;
+
+/// The hierarchical solver on `top` of `scene` (the scene's size resolves [`TopLevel::Auto`]),
+/// and on a mesh the input patch of each of its patches.
+fn solver_on(
+    scene: &Arc<Scene>,
+    params: HierarchicalParams,
+    top: TopLevel,
+) -> Result<(HierarchicalSolver, Origin), String> {
+    let spec = SolveSpec { plan: Plan::Hierarchical { params, top }, estimate: false }.resolved(scene);
+    match spec.plan {
+        Plan::Hierarchical { top: TopLevel::Mesh(mesh), .. } => {
+            let meshed = crate::mesh::remesh::discontinuity_scene(scene, &mesh)
+                .map_err(|e| format!("{}: {e}", scene.name))?;
+            let s = HierarchicalSolver::new(Arc::new(meshed.scene), params)?;
+            Ok((s, Some(Arc::new(meshed.origin))))
+        }
+        _ => Ok((HierarchicalSolver::new(Arc::clone(scene), params)?, None)),
     }
 }
 
@@ -677,6 +760,7 @@ fn solve_mesh(
 /// push-pull, as the view shows them) and write the file.
 fn bake_to(
     s: &HierarchicalSolver,
+    (scene, origin): (&Arc<Scene>, Option<&[usize]>),
     unpushed: bool,
     path: &std::path::Path,
     options: &crate::bake::BakeOptions,
@@ -691,7 +775,10 @@ fn bake_to(
             e.radiosity = v.elements[id as usize].radiosity;
         }
     }
-    let bytes = crate::bake::bake_as(s.scene(), &solution, options, form, format).map_err(|e| fail(&e))?;
+    if let Some(origin) = origin {
+        solution = crate::solver::discontinuity::pull_back(solution, origin, scene.patches.len());
+    }
+    let bytes = crate::bake::bake_as(scene, &solution, options, form, format).map_err(|e| fail(&e))?;
     std::fs::write(path, bytes).map_err(|e| fail(&e))?;
     Ok(match form {
         crate::bake::BakeForm::Elements => {
@@ -700,7 +787,7 @@ fn bake_to(
         // The CLI's words (radlab solve --bake-lightmap).
         crate::bake::BakeForm::Lightmap(m) => format!(
             "baked {} patches with a {}×{} lightmap to {}",
-            s.scene().patches.len(),
+            scene.patches.len(),
             m.size,
             m.size,
             path.display()
@@ -713,7 +800,7 @@ mod tests {
     use super::*;
 
     fn load(w: &mut Worker, spec: &str, params: HierarchicalParams) -> Arc<ViewData> {
-        w.send(Command::Load { scene: Arc::new(Scene::load(spec).unwrap()), params });
+        w.send(Command::Load { scene: Arc::new(Scene::load(spec).unwrap()), params, top: TopLevel::Patches });
         let mut view = None;
         w.wait_idle(|r| {
             if let Reply::Loaded { view: v, .. } = r {
