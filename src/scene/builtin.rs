@@ -86,10 +86,14 @@ fn asset(name: &str) -> Option<&'static [u8]> {
 }
 
 /// Load a built-in scene by name from its embedded glTF (the same loader as files use), or
-/// generate a furnished room (`furnished-SIZE[-sSEED]`, [`super::furnished`]).
+/// generate a furnished room (`furnished-SIZE[-sSEED]`, [`super::furnished`]) or a family's
+/// scene (`FAMILY-SIZE[-sSEED]`, [`super::families`]).
 pub fn load(name: &str) -> Result<Scene, SceneError> {
     if let Some(params) = super::furnished::parse(name) {
         return super::furnished::load(name, params);
+    }
+    if let Some(params) = super::families::parse(name) {
+        return super::families::load(name, params);
     }
     let bytes = asset(name).ok_or_else(|| SceneError::UnknownBuiltin { name: name.into() })?;
     let label = format!("builtin:{name}");

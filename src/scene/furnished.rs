@@ -66,6 +66,13 @@ pub fn parse(name: &str) -> Option<Result<FurnishedParams, String>> {
 }
 
 fn parse_rest(rest: &str) -> Result<FurnishedParams, String> {
+    let (triangles, seed) = parse_size_seed(rest, MIN_TRIANGLES, MAX_TRIANGLES)?;
+    Ok(FurnishedParams { triangles, seed })
+}
+
+/// Parse `SIZE[-sSEED]`: a triangle count with an optional `k` (10³) or `m` (10⁶) suffix in
+/// `min..=max`, and a seed (default 0).
+pub(super) fn parse_size_seed(rest: &str, min: usize, max: usize) -> Result<(usize, u64), String> {
     let (size, seed) = match rest.split_once("-s") {
         Some((size, seed)) => {
             let seed = seed.parse::<u64>().map_err(|_| format!("seed {seed:?} is not a whole number"))?;
@@ -73,6 +80,11 @@ fn parse_rest(rest: &str) -> Result<FurnishedParams, String> {
         }
         None => (rest, 0),
     };
+    Ok((parse_triangles(size, min, max)?, seed))
+}
+
+/// Parse a triangle count such as `10k`, `30000` or `1m` in `min..=max`.
+pub(super) fn parse_triangles(size: &str, min: usize, max: usize) -> Result<usize, String> {
     let (digits, scale) = match size.as_bytes().last() {
         Some(b'k' | b'K') => (&size[..size.len() - 1], 1_000),
         Some(b'm' | b'M') => (&size[..size.len() - 1], 1_000_000),
@@ -83,12 +95,10 @@ fn parse_rest(rest: &str) -> Result<FurnishedParams, String> {
         return Err(bad());
     }
     let triangles = digits.parse::<usize>().ok().and_then(|n| n.checked_mul(scale)).ok_or_else(bad)?;
-    if !(MIN_TRIANGLES..=MAX_TRIANGLES).contains(&triangles) {
-        return Err(format!(
-            "{triangles} triangles is outside the generator's range {MIN_TRIANGLES}..={MAX_TRIANGLES}"
-        ));
+    if !(min..=max).contains(&triangles) {
+        return Err(format!("{triangles} triangles is outside the generator's range {min}..={max}"));
     }
-    Ok(FurnishedParams { triangles, seed })
+    Ok(triangles)
 }
 
 /// Load `builtin:NAME` for a furnished-room name: parse it and generate the room.

@@ -64,9 +64,10 @@
 //!   `MAX_NAME_BYTES` are shortened, since every patch carries them. The output is bounded by
 //!   the triangle cap.
 //!
-//! The writer ([`write_gltf`]) produces the inverse: one data-URI buffer, one mesh per run of
-//! patches with the same mesh name, one material per distinct (ρ, E), quads as two triangles
-//! `(0 1 2)(0 2 3)` that the loader merges back, and the scene camera as a camera node.
+//! The writer ([`write_gltf`], [`write_glb`]) produces the inverse: one buffer (a data URI, or
+//! the .glb's BIN chunk), one mesh per run of patches with the same mesh name, one material per
+//! distinct (ρ, E), quads as two triangles `(0 1 2)(0 2 3)` that the loader merges back, and the
+//! scene camera as a camera node.
 
 use super::texture::{Texture, Wrap};
 use super::{PLANARITY_TOL, Patch, RHO_MAX, Scene, SceneError, Viewpoint, is_convex};
@@ -1347,7 +1348,8 @@ impl Loader<'_> {
 }
 
 /// Is this quad (from two triangles) planar and strictly convex, as `Scene::validate` requires?
-fn mergeable(quad: &[DVec3]) -> bool {
+/// (Generated scenes use it to emit as quads exactly the triangle pairs this loader merges.)
+pub(crate) fn mergeable(quad: &[DVec3]) -> bool {
     let Ok(p) = Patch::new(quad.to_vec(), Rgb::ZERO, Rgb::ZERO, "", 0, "", "") else { return false };
     let diam = p.diameter();
     if quad.iter().any(|v| (p.normal.dot(*v) - p.plane_d()).abs() > PLANARITY_TOL * diam) {
@@ -1531,7 +1533,9 @@ struct OutView {
 struct OutBuffer {
     #[serde(rename = "byteLength")]
     byte_length: usize,
-    uri: String,
+    /// A data: URI in a .gltf; none in a .glb, whose buffer is its BIN chunk.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    uri: Option<String>,
 }
 
 const GL_FLOAT: u32 = 5126;
@@ -1542,7 +1546,59 @@ const GL_TRIANGLES: u32 = 4;
 
 /// The glTF JSON text for a scene (see [`write_gltf`]); deterministic.
 pub fn gltf_string(scene: &Scene) -> Result<String, SceneError> {
-    let bad = |cause: String| SceneError::InvalidGltf { file: PathBuf::from(&scene.source), cause };
+    let (mut root, bin) = out_root(scene)?;
+    root.buffers.push(OutBuffer {
+        byte_length: bin.len(),
+        uri: Some(format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&bin)
+        )),
+    });
+    let mut s = serde_json::to_string_pretty(&root).map_err(|e| out_error(scene, &e))?;
+    s.push('\n');
+    Ok(s)
+}
+
+/// The scene as binary glTF (.glb): the JSON of [`gltf_string`] with the one buffer in the BIN
+/// chunk instead of a data URI [Khronos glTF 2.0 specification, §4.4 (GLB file format)]. A
+/// 12-byte header, the JSON chunk padded with spaces and the BIN chunk padded with zeros to
+/// 4 bytes; deterministic.
+pub fn glb_bytes(scene: &Scene) -> Result<Vec<u8>, SceneError> {
+    const MAGIC: &[u8; 4] = b"glTF";
+    const CHUNK_JSON: u32 = 0x4E4F_534A;
+    const CHUNK_BIN: u32 = 0x004E_4942;
+    let (mut root, mut bin) = out_root(scene)?;
+    root.buffers.push(OutBuffer { byte_length: bin.len(), uri: None });
+    let mut json = serde_json::to_vec(&root).map_err(|e| out_error(scene, &e))?;
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let length = u32::try_from(total)
+        .map_err(|_| out_error(scene, &format!("{total} bytes is more than a .glb can hold (4 GiB)")))?;
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&length.to_le_bytes());
+    for (kind, chunk) in [(CHUNK_JSON, &json), (CHUNK_BIN, &bin)] {
+        out.extend_from_slice(&(chunk.len() as u32).to_le_bytes());
+        out.extend_from_slice(&kind.to_le_bytes());
+        out.extend_from_slice(chunk);
+    }
+    Ok(out)
+}
+
+fn out_error(scene: &Scene, cause: &dyn std::fmt::Display) -> SceneError {
+    SceneError::InvalidGltf { file: PathBuf::from(&scene.source), cause: cause.to_string() }
+}
+
+/// The document without its buffer, and the buffer's bytes: one mesh per run of patches with one
+/// mesh name, one material per distinct (ρ, E), the camera.
+fn out_root(scene: &Scene) -> Result<(OutRoot, Vec<u8>), SceneError> {
+    let bad = |cause: String| out_error(scene, &cause);
     let mut root = OutRoot {
         asset: OutAsset { version: "2.0", generator: "radlab" },
         extensions_used: Vec::new(),
@@ -1693,16 +1749,7 @@ pub fn gltf_string(scene: &Scene) -> Result<String, SceneError> {
         });
     }
 
-    root.buffers.push(OutBuffer {
-        byte_length: bin.len(),
-        uri: format!(
-            "data:application/octet-stream;base64,{}",
-            base64::engine::general_purpose::STANDARD.encode(&bin)
-        ),
-    });
-    let mut s = serde_json::to_string_pretty(&root).map_err(|e| bad(e.to_string()))?;
-    s.push('\n');
-    Ok(s)
+    Ok((root, bin))
 }
 
 fn push_view(root: &mut OutRoot, bin: &mut Vec<u8>, bytes: impl Iterator<Item = u8>, target: u32) -> usize {
@@ -1719,5 +1766,12 @@ fn push_view(root: &mut OutRoot, bin: &mut Vec<u8>, bytes: impl Iterator<Item = 
 /// same patches in the same order (f32 precision), quads included.
 pub fn write_gltf(scene: &Scene, path: &Path) -> Result<(), SceneError> {
     let text = gltf_string(scene)?;
-    std::fs::write(path, text).map_err(|source| SceneError::Io { file: path.to_path_buf(), source })
+    std::fs::write(path, text).map_err(|source| SceneError::Write { file: path.to_path_buf(), source })
+}
+
+/// Write a scene as binary glTF (.glb, [`glb_bytes`]). Loading the file gives back the same
+/// patches in the same order (f32 precision), quads included.
+pub fn write_glb(scene: &Scene, path: &Path) -> Result<(), SceneError> {
+    let bytes = glb_bytes(scene)?;
+    std::fs::write(path, bytes).map_err(|source| SceneError::Write { file: path.to_path_buf(), source })
 }

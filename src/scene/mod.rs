@@ -5,10 +5,11 @@
 //! front side; `doubleSided` glTF materials become two back-to-back patches.
 //!
 //! Submodules: [`gltf`] (import), [`builtin`] (the built-in scenes), [`furnished`] (generated
-//! furnished rooms), [`texture`]; validation lives here.
+//! furnished rooms), [`families`] (generated scene families), [`texture`]; validation lives here.
 
 pub mod builtin;
 pub mod decal;
+pub mod families;
 pub mod furnished;
 pub mod gltf;
 pub mod texture;
@@ -31,6 +32,12 @@ pub const PLANARITY_TOL: f64 = 1e-6;
 pub enum SceneError {
     #[error("{file}: cannot read: {source}")]
     Io {
+        file: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{file}: cannot write: {source}")]
+    Write {
         file: PathBuf,
         #[source]
         source: std::io::Error,
