@@ -59,7 +59,7 @@ pub const CLUSTER_LINKS_KEPT: usize = 50_000;
 /// `REPLAY_BUDGET_BYTES`): the strongest 5 000, a few hundred kB a frame.
 pub const REPLAY_CLUSTER_LINKS: usize = 5_000;
 
-/// What the viewer adds to a discontinuity-mesh solve (issue 16 §2; docs/meshing.md): the D-mesh
+/// What the viewer adds to a discontinuity-mesh solve (docs/meshing.md): the D-mesh
 /// as the hierarchical solver's top level, at p = 0 only (the Mesh menu greys it out at p = 1);
 /// ignored on the uniform mesh. Grading is the mesh's own setting
 /// ([`MeshSolveParams::grade`], built as `radlab solve --dmesh-budget` builds it).
@@ -605,7 +605,15 @@ fn run(
                 Some(s) => {
                     let report = match kind {
                         StepKind::Refine => s.refine_step(),
-                        StepKind::Gather => s.gather_step(),
+                        // Each Gather moves one bounce: a gather not yet pushed and pulled is
+                        // pushed and pulled first, as the lecture's loop does between gathers
+                        // (else the second gather reads the radiosities the first one read).
+                        StepKind::Gather => {
+                            if unpushed {
+                                s.push_pull_step();
+                            }
+                            s.gather_step()
+                        }
                         StepKind::PushPull => s.push_pull_step(),
                         StepKind::Iterate => s.iterate(),
                         StepKind::Solve => {
@@ -842,6 +850,37 @@ mod tests {
         let mut failed = false;
         w2.wait_idle(|r| failed |= matches!(r, Reply::Failed(_)));
         assert!(failed);
+    }
+
+    #[test]
+    fn each_gather_moves_one_bounce() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        load(&mut w, "builtin:cornell", HierarchicalParams::interactive());
+        let mut step = |kind| {
+            w.send(Command::Step(kind));
+            let mut view = None;
+            w.wait_idle(|r| {
+                if let Reply::Done { view: v, .. } = r {
+                    view = Some(v);
+                }
+            });
+            view.expect("a step answers")
+        };
+        step(StepKind::Refine);
+        // The light the leaves reflect, area-weighted: each bounce adds to it.
+        let reflected = |v: &ViewData| -> f64 {
+            v.leaves
+                .iter()
+                .map(|&l| &v.elements[l as usize])
+                .map(|e| (e.radiosity - e.emission).mean() * e.area)
+                .sum()
+        };
+        let first = reflected(&step(StepKind::Gather));
+        let second = reflected(&step(StepKind::Gather));
+        let third = reflected(&step(StepKind::Gather));
+        assert!(first > 0.0, "the first gather lights the room");
+        assert!(second > first * 1.01, "the second gather adds the second bounce: {first} then {second}");
+        assert!(third > second, "and the third the third: {second} then {third}");
     }
 
     #[test]
