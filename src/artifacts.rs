@@ -1,5 +1,5 @@
 //! The five meshing artifacts of the lecture, measured: for a solution against a reference, one
-//! number per artifact (issue 16 §3).
+//! number per artifact.
 //!
 //! The reference is anything that gives B at any point of any patch ([`Reconstruction`]): the
 //! closed form of a single-bounce scene ([`crate::exact::SingleBounce::patch_radiosity_at`]), or

@@ -1,7 +1,7 @@
 //! A solved scene baked into a glTF 2.0 asset that any viewer shows as solved.
 //!
 //! Radiosity is view-independent: a diffuse surface leaves radiance L = B/π in every direction
-//! [Cohen & Wallace 1993, §2.4], so the solution *is* a coloured mesh. Every leaf element of a
+//! [Cohen & Wallace 1993, sec. 2.4], so the solution *is* a coloured mesh. Every leaf element of a
 //! [`Solution`] becomes one flat-coloured polygon (a quad as two triangles) with per-vertex
 //!
 //! ```text
@@ -11,7 +11,7 @@
 //!
 //! and POSITION, NORMAL (the patch's plane) and indices, under one material with
 //! `KHR_materials_unlit` and base colour 1, so a viewer shows COLOR_0 unlit: the lighting as
-//! solved [Khronos glTF 2.0 specification §3.7.2 (attributes); KHR_materials_unlit]. The material
+//! solved [Khronos glTF 2.0 specification, sec. 3.7.2 (attributes); KHR_materials_unlit]. The material
 //! is single-sided, as radlab's patches are: a patch radiates and receives on its front only (a
 //! `doubleSided` input material already became two back-to-back patches, each baked with its own
 //! radiosity).
@@ -584,7 +584,7 @@ mod tests {
     }
 
     /// The element bake (no lightmap) of a fixed solution, byte for byte as before the lightmap
-    /// existed (the hash was taken from the bake code of commit 9b76e76).
+    /// existed (the hash was taken from the element bake written before the lightmap was added).
     #[test]
     fn the_element_bake_bytes_are_unchanged() {
         let scene = builtin::build("cornell").unwrap();

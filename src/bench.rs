@@ -370,7 +370,7 @@ pub fn sweep(scene: &Scene, mode: Mode) -> Vec<Method> {
                 )));
             }
             // And with the oracle's tail share at [`FAST_CAUSE_TAIL`]: fewer links per
-            // threshold, a better error against time (issue 15's "5.9 % in ≤ 0.4 s").
+            // threshold, a better error against time.
             for eps in [0.34, 0.17] {
                 out.push(Method::HierarchicalContact(crate::solver::discontinuity::contact_area_floor(
                     HierarchicalParams {
@@ -434,7 +434,7 @@ pub fn predict_uniform_time(t: f64, k: f64, k_next: f64) -> f64 {
 pub const CLUSTER_ROWS_MIN_PATCHES: usize = 100;
 
 /// The tail share of [`sweep`]'s fast clustered rows (`HierarchicalParams::cause_tail`; the
-/// presets' is [`DEFAULT_CAUSE_TAIL`]). Session 21 on splash_room's clustered contact mesh at
+/// presets' is [`DEFAULT_CAUSE_TAIL`]). Measured on splash_room's clustered contact mesh at
 /// X = 0.17: 5.78 % in 0.38 s against 5.81 % in 0.57 s with the presets' share.
 pub const FAST_CAUSE_TAIL: f64 = 0.5;
 
@@ -1133,7 +1133,7 @@ const CLUSTER_MARK: &str = "cluster=on";
 /// presets'.
 const TAIL_MARK: &str = "tail=";
 
-/// Issue 15 §3's convergence check, per scene: the contact-mesh rows' errors in sweep order
+/// The convergence check, per scene: the contact-mesh rows' errors in sweep order
 /// (each halving the threshold), and whether each halving lowered the error — a rise counts only
 /// above the reference's resolution; a run over budget ends the sequence.
 fn convergence_lines(report: &BenchReport) -> String {

@@ -638,7 +638,7 @@ mod tests {
                 assert_eq!(f.mesh.order, crate::basis::Order::Linear, "{}: true p = 1 needs p = 1", f.name);
             }
         }
-        // The meshing slides of the lecture (issue 18 §1).
+        // The meshing slides of the lecture.
         for name in [
             "irradiance-discontinuities",
             "bsp-mesh",

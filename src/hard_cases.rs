@@ -6,7 +6,7 @@
 //! orders of magnitude), ρ → 1 in an enclosure (the system `(I − ρF) B = E` nearly singular),
 //! translation by 1e6 and scale by 1e±4 (float precision, unit independence), one-sidedness,
 //! a non-planar quad, an open scene, full occlusion, and two plates at a tiny distance (where
-//! HSA91's link count grows as Feps shrinks). [The lecture, "Problems"; Hanrahan et al. 1991 §5;
+//! HSA91's link count grows as Feps shrinks). [The lecture, "Problems"; Hanrahan et al. 1991, sec. 5;
 //! Lischinski et al. 1992, "Discontinuity meshing".]
 //!
 //! Where a closed form exists the case carries it as per-patch expected average radiosity,

@@ -13,7 +13,7 @@
 //!   v0 ── m01 ── v1   2 ne [c m12 v2 m23]    v0─m01─v1   2 [m20 m12 v2]
 //!                     3 nw [m30 c m23 v3]                3 [m12 m20 m01] (centre)
 //! ```
-//! [Hanrahan, Salzman, Aupperle 1991, §3: "quadtree" subdivision of input polygons]
+//! [Hanrahan, Salzman, Aupperle 1991, sec. 3: "quadtree" subdivision of input polygons]
 
 use crate::math::{DVec3, Rgb, polygon_area, polygon_centroid};
 use crate::scene::Scene;

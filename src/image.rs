@@ -3,7 +3,7 @@
 //! `shade(element)`. Used by `radlab solve --png` and for error images.
 //!
 //! Radiosity is view-independent: for a diffuse surface the radiance leaving it is L = B/π in
-//! every direction [Cohen & Wallace 1993, §2.4], so an image of a solution is just B (up to the
+//! every direction [Cohen & Wallace 1993, sec. 2.4], so an image of a solution is just B (up to the
 //! constant π) of the first surface each pixel sees. [`radiosity_image`] shows linear B scaled so
 //! the 99th percentile of the visible pixels' luminance maps to white, then sRGB-encoded
 //! (IEC 61966-2-1); [`value_image`] maps any per-element value through a colour map and draws a

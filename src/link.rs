@@ -1,7 +1,7 @@
 //! Links: "receiver gathers from source" interactions of hierarchical radiosity.
 //!
 //! A link records the form factor F (receiver ← source), the visible fraction V and the oracle's
-//! estimate of the link's error [Hanrahan, Salzman, Aupperle 1991, §4]. Links are stored per
+//! estimate of the link's error [Hanrahan, Salzman, Aupperle 1991, sec. 4]. Links are stored per
 //! receiver (`Vec<Link>` indexed by element id), so the receiver id is implicit and a link takes
 //! 44 bytes: gather runs in parallel over receivers without locks.
 //! In the lecture's notation the receiver is p and the source is q.

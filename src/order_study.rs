@@ -1,4 +1,4 @@
-//! h- against p-refinement, measured (issue 16 §1; the lecture's "element order and
+//! h- against p-refinement, measured (the lecture's "element order and
 //! continuity"): the pointwise error of Galerkin solutions ([`crate::solver::linear`]) of order
 //! p = 0 and p = 1 on a sequence of uniform meshes, against the exact single-bounce answer
 //! ([`crate::exact`]: no reference noise).

@@ -5,7 +5,7 @@
 //! ## What is drawn
 //! - **Radiosity**: each leaf element's B (flat), or Gouraud-interpolated vertex values
 //!   (smooth). Vertex values are the average of the leaves that share the vertex as a corner
-//!   ("nodal averaging", Cohen & Wallace 1993, §9.2.1); a vertex that lies inside a larger
+//!   ("nodal averaging", Cohen & Wallace 1993, sec. 9.2.1); a vertex that lies inside a larger
 //!   neighbour's edge (a *T-vertex*: the quadtree's midpoints between elements of different
 //!   depth, anywhere along the edge in a BSP or graded discontinuity mesh) instead takes the
 //!   value interpolated along that edge [Baum, Mann, Smith & Winget 1991], so the shading has no
@@ -25,7 +25,7 @@
 //!   every corner takes one canonical position shared by all patches, so both sides of a seam
 //!   draw the same vertices and the rasteriser leaves no background pixel between them.
 //! - **Quadtree**: every leaf's edges, coloured by its depth below the input patch (the HSA91
-//!   quadtree, Hanrahan, Salzman & Aupperle 1991, §3). Drawn by the mesh shader from each
+//!   quadtree, Hanrahan, Salzman & Aupperle 1991, sec. 3). Drawn by the mesh shader from each
 //!   vertex's position in its leaf's parameter square, so it costs no extra geometry; see
 //!   `crate::render`.
 //! - **Links**: a line between the centroids of receiver and source for each link
@@ -917,8 +917,8 @@ pub fn link_lines(
 /// the element links' solid lines.
 pub const CLUSTER_LINK_DASHES: usize = 6;
 
-/// Dashed lines between the two ends' centres of the cluster links (clustered solves, issue 17
-/// §1) that pass `filter`'s minimum F and visibility classes, coloured by log₁₀ F on `scale`
+/// Dashed lines between the two ends' centres of the cluster links (clustered solves) that pass
+/// `filter`'s minimum F and visibility classes, coloured by log₁₀ F on `scale`
 /// (the element links' scale, so both read on one colour bar; `None`: the cluster links' own),
 /// at most `filter.max_lines` of them, taken in the order given (the viewer keeps them largest
 /// F first). `picked`, when given, keeps only the links with an end among those nodes: the
@@ -977,7 +977,7 @@ pub fn cluster_chain(
 }
 
 /// The twelve edges of every cluster's bounding box whose depth is in `depths` (inclusive),
-/// coloured by depth (viridis over the range shown): the cluster overlay (issue 17 §1).
+/// coloured by depth (viridis over the range shown): the cluster overlay.
 #[must_use]
 pub fn cluster_lines(
     clusters: &[crate::solver::hierarchical::ClusterInfo],

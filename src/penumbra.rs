@@ -1,6 +1,6 @@
 //! The **penumbra band** of a pointwise reference: the points that see part, but not all, of
 //! the direct light — where a shadow's value is strictly between umbra and fully lit, and where
-//! constant elements show as blocky shadows (issue 16 §3, artifact A).
+//! constant elements show as blocky shadows (the lecture's artifact A).
 //!
 //! For a point x of patch p (normal n) and each emitter e ≠ p (E_e ≠ 0), with F_e(x) the
 //! unoccluded point-to-polygon form factor (Lambert's closed form,

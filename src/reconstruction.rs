@@ -5,7 +5,7 @@
 //! - **Gouraud from vertex averages** ([`gouraud`] + [`Nodal`]): every mesh vertex of a patch
 //!   takes the area-weighted average of the elements around it, and each element interpolates
 //!   its vertices' values with its p = 1 basis (linear on triangles, bilinear on quads) — what
-//!   most radiosity systems display [Cohen & Wallace 1993, §9.2];
+//!   most radiosity systems display [Cohen & Wallace 1993, sec. 9.2];
 //! - **the element's own p = 1 function** ([`Nodal`] of a
 //!   [`crate::solver::linear::LinearSolution`]'s coefficients): what a Galerkin p = 1 solve
 //!   computed, discontinuous across element edges when the basis is.

@@ -7,7 +7,7 @@
 //! B(x) = E(x) + ρ(x) H(x),   H(x) = ∫_Ω L_in(x, ω) cos θ dω = ∫_Ω B(y(x, ω))/π cos θ dω
 //! ```
 //!
-//! [Kajiya 1986, "The Rendering Equation"; Cohen & Wallace 1993, §2.4; the lecture, slide
+//! [Kajiya 1986, "The Rendering Equation"; Cohen & Wallace 1993, sec. 2.4; the lecture, slide
 //! "Radiosity equation"]. H is estimated by a path from x:
 //! - **next-event estimation**: one emitter point y, emitter k chosen ∝ its power Φ_k = E_k A_k,
 //!   y uniform on its area (solid-angle pdf p_light = P(k) r² / (A_k cosθ_y));

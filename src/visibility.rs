@@ -47,10 +47,10 @@ fn jitter(bits: u64) -> f64 {
 /// source stratum (a·k + b) mod m of the m = cols × rows strata of the near-square grid, with
 /// c, b and the stride a (co-prime with m) drawn from the estimate's own key. Each side's n rays
 /// fall in n distinct strata, and, over the keys, each ray's receiver and source points are
-/// independent and uniform on their regions, so the estimate is unbiased. (Until session 14 the
-/// pairing was one fixed pattern for every estimate, and with n < m the same strata were never
-/// sampled: for two facing squares with a blocker over one corner, 4 rays read V = 0.998 on
-/// average against the exact 0.968, test `estimates_average_to_the_exact_fraction`.)
+/// independent and uniform on their regions, so the estimate is unbiased. (One fixed pairing for
+/// every estimate would, with n < m, never sample some strata: for two facing squares with a
+/// blocker over one corner, 4 rays read V = 0.998 on average against the exact 0.968; the test
+/// `estimates_average_to_the_exact_fraction` checks the average.)
 #[derive(Copy, Clone, Debug)]
 struct PairStrata {
     strata: Strata,

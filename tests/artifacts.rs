@@ -127,7 +127,7 @@ fn cli_prints_the_artifacts_table() {
     assert!(text.contains("E unresolved              0.0 %"), "{text}");
 }
 
-/// The thin occluder (issue 16 §4): on `builtin:thin-pole` the pole's shadow — a streak a few
+/// The thin occluder: on `builtin:thin-pole` the pole's shadow — a streak a few
 /// hundredths wide from its foot outward — is a feature of the closed form (B: its points lie
 /// far below the floor's mean). The hierarchical solver at the default preset (`quality`,
 /// `radlab solve`'s) misses it: its links from the floor to the small lamp see the pole with

@@ -1,4 +1,4 @@
-//! glTF as Blender writes it (issue 17 §2): the scenes in `tests/scenes/blender/`, authored and
+//! glTF as Blender writes it: the scenes in `tests/scenes/blender/`, authored and
 //! exported by Blender's own exporter (`scripts/blender_scenes.py`, docs/blender_gltf.md), load
 //! as authored. Each scene is there twice, as `.glb` and as glTF-separate (`.gltf` + `.bin` +
 //! image files); both must give the same patches.

@@ -269,8 +269,8 @@ fn builtin_cubes_match_exact_solution() {
     }
 }
 
-/// What the default form-factor tolerance must give on a closed box with one element per face
-/// (issue 15 §5): the exact 6×6 solution to 1e-9, relative, every face and channel.
+/// What the default form-factor tolerance must give on a closed box with one element per face:
+/// the exact 6×6 solution to 1e-9, relative, every face and channel.
 const EXACT_BOX_TARGET: f64 = 1e-9;
 
 /// Largest relative difference, over patches and channels, between a solution and the exact one.
@@ -283,8 +283,8 @@ fn worst_relative(s: &Solution, exact: &[Rgb]) -> f64 {
 }
 
 /// The catalog values the closed forms above must reproduce (Howell C-14 and C-11 for the unit
-/// cube, to 10 digits: adjacent 0.2000437761, opposite 0.1998248957; the issue's "0.1998202406"
-/// for the opposite faces is a typo — with it the six faces would not sum to 1).
+/// cube, to 10 digits: adjacent 0.2000437761, opposite 0.1998248957; "0.1998202406" for the
+/// opposite faces is a typo — with it the six faces would not sum to 1).
 #[test]
 fn cube_closed_forms_match_the_catalog() {
     assert!((f_adjacent() - 0.200_043_776_1).abs() < 1e-10, "{}", f_adjacent());
@@ -319,8 +319,8 @@ fn default_ff_tolerance_gives_exact_closed_boxes() {
     }
 }
 
-/// Progressive refinement converges to the uniform solver's answer on the same mesh (issue 15
-/// §5: 1e-6) on the Cornell box (occlusion by the blocks, coloured walls, an emitter with ρ > 0),
+/// Progressive refinement converges to the uniform solver's answer on the same mesh (to 1e-6)
+/// on the Cornell box (occlusion by the blocks, coloured walls, an emitter with ρ > 0),
 /// element by element, relative to each element's B. Both solve the same system (the same
 /// per-pair couplings), so the form-factor tolerance does not matter here: the coarse one keeps
 /// the test fast.

@@ -1,4 +1,4 @@
-//! Clustering above the input patches (issue 17 §1, `solver::hierarchical::cluster`): what a
+//! Clustering above the input patches (`solver::hierarchical::cluster`): what a
 //! clustered solve gives against linking every pair, how its links grow with the scene, and
 //! that it is deterministic and reciprocal.
 
@@ -56,7 +56,7 @@ fn small_scenes_solve_alike_clustered_or_not() {
 }
 
 /// The error oracle accepts a cluster link only below a share of its threshold
-/// (`ERROR_CLUSTER_SHARE`, docs/scale.md "Session 18"), so its clustered solve stays near the
+/// (`ERROR_CLUSTER_SHARE`, docs/scale.md), so its clustered solve stays near the
 /// unclustered one. Measured (patches' area-weighted rel L2 difference, `quality`, row check
 /// off): splash_room at X = 0.1 0.26 % (0.33 % with the whole ε), furnished-2k at X = 0.4
 /// 1.28 % (8.90 % with the whole ε, 31 648 cluster links instead of 82 874).
@@ -94,11 +94,10 @@ const TESTED_LINKS_PER_PATCH: f64 = 160.0;
 fn links_grow_as_the_elements_in_furnished_rooms() {
     // Links (element links plus both directions of each cluster link) against elements (every
     // node of the element hierarchy) and against input patches, at four sizes of the generated
-    // room, and the power balance of each (issue 17: slope ≤ 1.1, links per element bounded).
-    // Measured (docs/scale.md, session 15): 35.4, 42.0, 43.9, 39.2 links per element and 136,
-    // 120, 103, 108 per patch at 2k, 3k, 4k, 5k; slopes 1.07 against elements, 0.71 against
-    // patches. Before cluster links that carry nothing were dropped: 38.9 … 51.0 per element,
-    // slope 1.37 (1.55 with session 14's refinement).
+    // room, and the power balance of each (asserted: slope ≤ 1.1, links per element bounded).
+    // Measured (docs/scale.md): 35.4, 42.0, 43.9, 39.2 links per element and 136, 120, 103, 108
+    // per patch at 2k, 3k, 4k, 5k; slopes 1.07 against elements, 0.71 against patches. Keeping
+    // the cluster links that carry nothing gave 38.9 … 51.0 per element, slope 1.37.
     let (mut by_element, mut by_patch) = (Vec::new(), Vec::new());
     for size in ["2k", "3k", "4k", "5k"] {
         let scene = load(&format!("furnished-{size}")).unwrap();
@@ -236,7 +235,7 @@ fn solve_by_steps(s: &mut HierarchicalSolver) {
     }
 }
 
-/// The step API on a clustered solve (issue 17 §1: "the step API works on clusters"): the
+/// The step API on a clustered solve: the
 /// smallest generated room that `Clustering::Auto` clusters (furnished-3k, 3 010 patches;
 /// furnished-2k's 1 998 link every pair), at the interactive preset. The first refine step links
 /// clusters; refine, gather and push-pull steps give `iterate`'s state bit for bit, cluster links

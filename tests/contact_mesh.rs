@@ -1,5 +1,5 @@
-//! The contact mesh as the hierarchical solver's top level ([`RemeshParams::contacts`], issue 15
-//! §3): where an object stands on a surface the radiosity jumps from the hidden side's 0 to the
+//! The contact mesh as the hierarchical solver's top level ([`RemeshParams::contacts`]):
+//! where an object stands on a surface the radiosity jumps from the hidden side's 0 to the
 //! lit side's, and a quadtree leaf that straddles the line holds their average whatever its size
 //! (its error falls only as √h). Cut along the contacts, no leaf straddles them.
 //!

@@ -1,4 +1,4 @@
-//! Discontinuity meshing (issue 16 §2): critical segments against closed-form shadow geometry,
+//! Discontinuity meshing: critical segments against closed-form shadow geometry,
 //! the constrained Delaunay and BSP meshes' invariants, D0 at a contact, and a solve on the mesh.
 
 use glam::DVec2;

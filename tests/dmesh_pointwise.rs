@@ -1,5 +1,5 @@
-//! A solve on a discontinuity mesh scored with the pointwise ruler of the **input** scene (issue
-//! 16 §2/§4): the reference points lie on the input patches, the D-mesh solution is pulled back
+//! A solve on a discontinuity mesh scored with the pointwise ruler of the **input** scene: the
+//! reference points lie on the input patches, the D-mesh solution is pulled back
 //! to them ([`radlab::solver::discontinuity::pull_back`]), and on the exact single-bounce scenes
 //! its pointwise error — over the scene and over the penumbra band ([`radlab::penumbra`]) — is
 //! compared with a uniform solve of at least as many elements.
@@ -67,14 +67,14 @@ fn uniform_at_least(scene: &Scene, accel: &Accel, count: usize) -> Solution {
 /// | shadow-wide | dmesh-bsp | 42 | 11.9 % | 12.1 % |
 /// | shadow-wide | uniform | 42 | 29.1 % | 26.6 % |
 ///
-/// Without the gather (constant elements as the solve leaves them; docs/meshing.md, measured
-/// before issue 15's visibility fix) the
-/// D-mesh's penumbra stayed at ~44 % on shadow-narrow (a strip one element across: a linear
-/// ramp's best constant is off by half its RMS) and it **lost** to uniform on shadow-wide (CDT
-/// 24.0 % against 14.5 %: the 1 × 1 lamp stays one source element, and the solve's unweighted
-/// visibility across so large a source is biased in the unit-wide penumbrae). The gather's
-/// slope follows the ramp inside a piece, and its point visibility (kernel-weighted, 64 rays per
-/// point) is not biased that way, so the D-mesh now wins on both scenes (asserted on both).
+/// Without the gather (constant elements as the solve leaves them; docs/meshing.md, measured with
+/// an earlier visibility sampler) the D-mesh's penumbra stayed at ~44 % on shadow-narrow (a strip
+/// one element across: a linear ramp's best constant is off by half its RMS) and it **lost** to
+/// uniform on shadow-wide (CDT 24.0 % against 14.5 %: the 1 × 1 lamp stays one source element,
+/// and the solve's unweighted visibility across so large a source is biased in the unit-wide
+/// penumbrae). The gather's slope follows the ramp inside a piece, and its point visibility
+/// (kernel-weighted, 64 rays per point) is not biased that way, so the D-mesh now wins on both
+/// scenes (asserted on both).
 #[test]
 fn discontinuity_mesh_beats_uniform_on_a_narrow_penumbra() {
     for name in ["builtin:shadow-narrow", "builtin:shadow-wide"] {
@@ -111,8 +111,8 @@ fn discontinuity_mesh_beats_uniform_on_a_narrow_penumbra() {
 /// Grading (src/mesh/grade.rs) at equal element count: the CDT graded to the ungraded CDT's
 /// 428 patches puts thin slabs inside the penumbra strips instead of one element across each.
 /// Measured without the gather (4 096 exact points; the test prints them): penumbra band
-/// 42.9 % → 10.8 %, scene 7.0 % → 3.5 % (372 splits). Asserted: the band's error at most a third of the ungraded mesh's (issue 16
-/// §4's ratio, here against the D-mesh itself), the scene's lower, the count equal.
+/// 42.9 % → 10.8 %, scene 7.0 % → 3.5 % (372 splits). Asserted: the band's error at most a third
+/// of the ungraded mesh's (here the D-mesh itself), the scene's lower, the count equal.
 #[test]
 fn graded_discontinuity_mesh_resolves_the_narrow_penumbra() {
     use radlab::mesh::cdt::CdtParams;
@@ -217,9 +217,9 @@ fn auto_budget_top_level_beats_the_ungraded_one_on_table_room() {
 /// [`discontinuity::gather`] on the graded CDT of shadow-narrow (428 pieces, as above): the
 /// direct light of the partly shadowed pieces with 256 rays instead of 16, and a slope per piece
 /// from the irradiance gathered at its points. Measured (4 096 exact points; the test prints
-/// them): band 10.8 % → 3.6 %, scene 3.5 % → 0.5 % (194 partial pairs re-integrated). Asserted: the band at most a third of the
-/// ungathered one's and within issue 16 §4's 5 % for a narrow penumbra, the scene lower, the
-/// element count unchanged, every reflecting piece given a slope.
+/// them): band 10.8 % → 3.6 %, scene 3.5 % → 0.5 % (194 partial pairs re-integrated). Asserted:
+/// the band at most a third of the ungathered one's and within 5 % (the target for a narrow
+/// penumbra), the scene lower, the element count unchanged, every reflecting piece given a slope.
 #[test]
 fn gather_brings_the_narrow_penumbra_under_five_percent_with_constant_elements() {
     use radlab::mesh::cdt::CdtParams;
@@ -258,13 +258,13 @@ fn gather_brings_the_narrow_penumbra_under_five_percent_with_constant_elements()
     assert!(b_scene < a_scene, "scene {b_scene} vs ungathered {a_scene}");
 }
 
-/// Issue 16 §4's first target on table-room: the graded CDT (p = 0, with the gather) at the
-/// `quality` quadtree's element count against that quadtree, scored against an 8 192-point ×
-/// 256-path reference (the ruler of the test above). Measured with the cached 65 537 × 1 024
-/// reference (docs/meshing.md): 1 004 elements each, band 3.24 % against 13.49 % (0.24×), scene
-/// 1.26 % against 5.21 %; with this test's ruler (the test prints it; 1 872 band points) band
-/// 2.40 % against 13.01 %, scene 0.00 % (below its noise) against 4.83 %. Asserted: the band's debiased error at most a third of the
-/// quadtree's, the scene's lower.
+/// On table-room: the graded CDT (p = 0, with the gather) at the `quality` quadtree's element
+/// count against that quadtree, scored against an 8 192-point × 256-path reference (the ruler of
+/// the test above). Measured with the cached 65 537 × 1 024 reference (docs/meshing.md): 1 004
+/// elements each, band 3.24 % against 13.49 % (0.24×), scene 1.26 % against 5.21 %; with this
+/// test's ruler (the test prints it; 1 872 band points) band 2.40 % against 13.01 %, scene
+/// 0.00 % (below its noise) against 4.83 %. Asserted: the band's debiased error at most a third
+/// of the quadtree's, the scene's lower.
 #[test]
 fn graded_cdt_beats_the_quadtree_on_table_room_at_equal_element_count() {
     use radlab::mesh::grade::GradeParams;

@@ -215,7 +215,7 @@ fn exact_matches_monte_carlo_in_the_penumbra() {
 
 /// The piecewise-constant solution at a point of the receiver: the leaf element that contains it.
 ///
-/// A local helper, TO BE REPLACED by the general pointwise metric (issue 15 §1) once it lands.
+/// A local helper; [`radlab::pointwise`] holds the general pointwise metric that could replace it.
 fn solution_at(sol: &Solution, patch: usize, x: DVec3, normal: DVec3) -> Rgb {
     let inside = |vs: &[DVec3]| {
         let k = vs.len();
@@ -376,10 +376,10 @@ fn uniform_solver_against_the_exact_answer() {
     }
 }
 
-/// The hierarchical solver scored against the exact answer: known to be poor today (its links'
-/// coefficients are the point kernel at one centroid; they are being rewritten, issue 15 §2–3).
-/// Measured on this branch (release; `quality` is what this test runs, `interactive` was run
-/// the same way):
+/// The hierarchical solver scored against the exact answer. The table was measured (release;
+/// `quality` is what this test runs, `interactive` was run the same way) with the links'
+/// coefficients taken as the point kernel at one centroid, not the Galerkin coefficients of
+/// `solver::hierarchical::transfer`:
 ///
 /// | scene | preset | receiver leaves | links | element avg rel L2 (max) | pointwise rel L2 | penumbra | energy residual |
 /// |---|---|---|---|---|---|---|---|
@@ -451,7 +451,7 @@ fn the_error_oracle_converges_as_its_threshold_halves() {
     }
 }
 
-/// The solver's own error estimate (issue 15 §4) against the exact answer, with no reference
+/// The solver's own error estimate against the exact answer, with no reference
 /// noise: on both single-bounce scenes at three thresholds of the error oracle, the global
 /// estimate against the pointwise rel L2 measured against the closed form at the receiver's
 /// GRID × GRID points, and the per-element estimates' ranking of each receiver leaf's own

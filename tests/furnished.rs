@@ -1,4 +1,4 @@
-//! The generated furnished rooms (issue 17 §1, `src/scene/furnished.rs`): size on target,
+//! The generated furnished rooms (`src/scene/furnished.rs`): size on target,
 //! deterministic, valid, lit, inside their room; reachable as `builtin:furnished-…`.
 
 use radlab::math::DVec3;
@@ -7,7 +7,7 @@ use radlab::scene::furnished::{FurnishedParams, SIZES, generate};
 use radlab::scene::{Scene, SceneError};
 use std::collections::HashSet;
 
-/// The generator aims at the target count; ±10 % is what issue 17 allows.
+/// The generator aims at the target count; the test allows ±10 %.
 const COUNT_TOLERANCE: f64 = 0.10;
 
 fn room(triangles: usize, seed: u64) -> Scene {

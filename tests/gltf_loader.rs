@@ -1,4 +1,4 @@
-//! The glTF loader on good and bad input: one test per case of issue 2 §3. Every bad file is
+//! The glTF loader on good and bad input, one test per case. Every bad file is
 //! built in a fresh temporary folder; every error must be a `SceneError` whose message names the
 //! file, never a panic.
 
@@ -722,7 +722,7 @@ fn check_no_panic(bytes: &[u8], label: &Path, opts: &LoadOptions, round: usize) 
     }
 }
 
-// ------------------------------------------------------------------ hostile files (issue 17 §4)
+// ------------------------------------------------------------------ hostile files
 
 /// The fuzz findings kept as files (tests/fuzz_regressions/): each was a panic or work out of
 /// proportion to the file, and each is now a one-line error naming the file and the cause. Each
@@ -738,7 +738,7 @@ fn fuzz_regression_files_are_one_line_errors() {
         ("camera_without_projection.gltf", "camera 0 lacks the projection its type names"),
         // 19 nodes, each the next one's parent twice over: 2^18 mesh instances from 1 KB.
         ("node_dag.gltf", "node 1 has two parents (0 and 0)"),
-        // A truncated JPEG in the BIN chunk: the image crate's error spans two lines (session 9).
+        // A truncated JPEG in the BIN chunk: the image crate's error spans two lines.
         ("truncated_jpeg.glb", "bad image header: Format error decoding Jpeg"),
     ];
     for (name, cause) in cases {
@@ -762,7 +762,7 @@ fn fuzz_regression_files_are_one_line_errors() {
     assert_eq!(load_ok(&write_doc("camera_ok", &d)).patches.len(), 1);
 }
 
-/// glTF nodes form disjoint trees [glTF 2.0 §3.5.3]; a scene that lists a node twice or lists a
+/// glTF nodes form disjoint trees [glTF 2.0, sec. 3.5.3]; a scene that lists a node twice or lists a
 /// child as a root would walk a subtree many times.
 #[test]
 fn scene_roots_must_be_distinct_root_nodes() {

@@ -324,7 +324,7 @@ fn reference_feeds_the_true_error_and_the_error_plot() {
     assert_eq!(s.len(), 2, "{s:?}");
     assert!(s[1][0] > 0.0, "solver time advanced: {s:?}");
     assert!(s[1][1] < 0.5 * s[0][1], "solving lowers the true error: {s:?}");
-    // The figure is the pointwise ruler's (issue 15 §1), the very number `radlab reference
+    // The figure is the pointwise ruler's, the very number `radlab reference
     // --compare` computes from the same cache entry, and the panel says so.
     let (cached, _) =
         reference.cache.read_points(&cornell(), &reference.params).expect("cached by the viewer");

@@ -6,8 +6,7 @@ use radlab::solver::hierarchical::HierarchicalSolver;
 use radlab::solver::params::{AreaEps, HierarchicalParams, Oracle};
 use std::sync::Arc;
 
-/// Furnace: B = E/(1−ρ) exactly; 1e-6 relative is the issue's target (15 §2), without any
-/// normalisation.
+/// Furnace: B = E/(1−ρ) exactly, to 1e-6 relative, without any normalisation.
 const FURNACE_TOL: f64 = 1e-6;
 
 fn solve(scene: radlab::scene::Scene, p: HierarchicalParams) -> HierarchicalSolver {
@@ -242,7 +241,7 @@ fn iterate_matches_separate_gather_and_push_pull_steps() {
     }
 }
 
-/// Push-pull is area-weighted and exact (issue 15 §2): a gather followed by push-pull moves no
+/// Push-pull is area-weighted and exact: a gather followed by push-pull moves no
 /// power between levels. After each step, every interior element holds the area average of its
 /// children (pull: A B = Σ A_c B_c), and the power the leaves reflect is the power gathered at
 /// every level, each element's own links' irradiance reflected over its area
@@ -711,7 +710,7 @@ fn confirming_zero_estimates_removes_the_dark_bias_of_few_rays() {
     assert!(unconfirmed / fine < 1.0 - 2.0 * FEW_RAYS_MEAN_TOL, "unconfirmed {unconfirmed} against {fine}");
 }
 
-/// Links are mirror images with one Galerkin coupling (issue 15 §2): for every link r ← s there
+/// Links are mirror images with one Galerkin coupling: for every link r ← s there
 /// is a link s ← r with the same visibility and A_r F_rs = A_s F_sr. The form factors are
 /// stored as f32, so the products agree to f32 rounding (6e-8 relative; 1e-6 allows for the
 /// division by two different areas).
@@ -743,14 +742,14 @@ fn links_are_mirror_images_with_reciprocal_form_factors() {
     }
 }
 
-/// Energy balance of converged solves (issue 15 §2): mirror links make what a source sends
+/// Energy balance of converged solves: mirror links make what a source sends
 /// through a pair exactly what the receiver gathers, so `relative_residual` is left only with the
 /// last gather's change, which every solve iterates below `ENERGY_TOLERANCE` (1e-3).
 const BALANCE_TOL: f64 = 1e-3;
 /// Light created (−escaped / emitted, and absorbed beyond emitted), to the balance's own 1e-3: a
 /// leaf's total form factor over links at several levels is 1 only on average (see
 /// `a_refined_furnace_conserves_power`), and the row check (`row_tol`) pushes down the links of
-/// leaves whose rows exceed 1. Measured (session 22, release): the furnace at `lecture`, whose
+/// leaves whose rows exceed 1. Measured (release): the furnace at `lecture`, whose
 /// Feps oracle runs without the row check, −7.5e-4; cube-one-light at `lecture` −2.7e-4, at
 /// `interactive` −5.8e-6 (−0.45 % while its link budget stopped it half-way, see
 /// `HierarchicalParams::interactive`); every other scene and preset ≥ −6e-8 (the exact
@@ -784,7 +783,7 @@ fn every_preset_conserves_energy() {
     }
 }
 
-/// The error oracle models only what the scene needs (issue 15 §3): the white furnace, whose
+/// The error oracle models only what the scene needs: the white furnace, whose
 /// total gathered radiosity is uniform across every face (Σ_q F(x → q) = 1 at every point),
 /// is not refined at all and is exact; cube-one-light, whose faces' irradiance varies, is.
 #[test]
@@ -844,10 +843,10 @@ fn the_error_oracle_update_changes_nothing() {
 }
 
 /// The `quality` preset creates no light in the closed rooms: escaped ≥ 0 in every channel, so
-/// absorbed ≤ emitted (issue 15 §2). Before session 14 table-room escaped −0.8 % of its light
-/// (all-visible estimates accepted unconfirmed by the error oracle, and a visibility sampler
-/// biased by one fixed pairing of strata) and splash_room −1.9 % (its poster, lying in the plane
-/// of wall 1, received the same light as the wall under it: `scene::decal`).
+/// absorbed ≤ emitted. What it guards against: table-room escaped −0.8 % of its light with
+/// all-visible estimates accepted unconfirmed by the error oracle and a visibility sampler
+/// biased by one fixed pairing of strata, and splash_room −1.9 % with its poster, lying in the
+/// plane of wall 1, receiving the same light as the wall under it (hence `scene::decal`).
 #[test]
 fn quality_creates_no_light_in_the_closed_rooms() {
     for name in ["table-room", "splash_room"] {
@@ -865,8 +864,8 @@ fn quality_creates_no_light_in_the_closed_rooms() {
 
 /// The row check (`HierarchicalParams::row_tol`) stops the light that coarse inherited links
 /// created where a leaf's row of F·V exceeded 1: without it, cube-one-light `quality` escaped
-/// −0.33 % of its emitted power and table-room `interactive` −2.1 %; with it +0.11 % and +0.8 %
-/// (session 15). Both halves are asserted, so the test fails if the check stops acting.
+/// −0.33 % of its emitted power and table-room `interactive` −2.1 %; with it +0.11 % and +0.8 %.
+/// Both halves are asserted, so the test fails if the check stops acting.
 #[test]
 fn the_row_check_stops_light_creation() {
     let escaped = |name: &str, p: HierarchicalParams| {

@@ -258,8 +258,8 @@ fn hierarchical_error_estimate_ranks_the_true_error() {
     ] {
         let scene = Arc::new(scene);
         for ((preset, p), floor) in ranking_presets().into_iter().zip(floors) {
-            // The global estimate within a factor 2 of the measured (issue 15 §4; measured
-            // 0.61–0.94 here).
+            // The global estimate within a factor 2 of the measured (measured 0.61–0.94
+            // here).
             judge(&format!("{name} [{preset}]"), estimate_correlation(&scene, p), floor, &mut failures);
         }
     }
@@ -267,7 +267,7 @@ fn hierarchical_error_estimate_ranks_the_true_error() {
 }
 
 /// Print one ranking ([`estimate_correlation`]'s tuple) and note where its Spearman is at or
-/// below `floor` or its estimate / measured outside [1/2, 2] (issue 15 §4's factor).
+/// below `floor` or its estimate / measured outside [1/2, 2].
 fn judge(label: &str, (rho, n, l2, ratio): (f64, usize, f64, f64), floor: f64, failures: &mut Vec<String>) {
     eprintln!(
         "{label}: Spearman(error_estimate, own pointwise error) = {rho:.3} over {n} leaves (pointwise rel L2 {l2:.3}, estimate / measured {ratio:.2})"
@@ -280,7 +280,7 @@ fn judge(label: &str, (rho, n, l2, ratio): (f64, usize, f64, f64), floor: f64, f
     }
 }
 
-/// Issue 15 §4 on the solver's most accurate path: the `quality` preset's error oracle on the
+/// The error estimate on the solver's most accurate path: the `quality` preset's error oracle on the
 /// contact mesh (`RemeshParams::contacts`, the area floor 6e-4 · X as `radlab bench`'s rows), at
 /// X = 0.1 on cornell and table-room, ranked as above (9 points × RANKING_PATHS paths a leaf).
 /// Against the 4-batch 65 537-point references (`radlab reference builtin:S --batches 4 --compare
@@ -320,23 +320,20 @@ fn the_error_estimate_ranks_the_contact_meshs_error() {
 const CONTACT_SPEARMAN_FLOOR: [f64; 2] = [0.19, 0.44];
 
 // Floors: measured Spearman at each of `ranking_presets()` minus a margin of 0.1 for solver
-// changes under them and for the reference's noise. Session 16 ranks against each leaf's own
+// changes under them and for the reference's noise. The ranking is against each leaf's own
 // *pointwise* error (9 points × RANKING_PATHS paths a leaf), the quantity the per-element
-// estimate now estimates (module docs of `estimate`: the mean error δ and the within-leaf
-// variation w); before, against the error of the leaf's average (|ΔB|, 4096 paths a leaf).
-// History against |ΔB|: cornell 0.679 / 0.787 (783d698), 0.590 / 0.667 (session 11, slopes
-// pushed), 0.464 / 0.708 (session 15, the row check); table room 0.497 / 0.939, 0.265 / 0.598,
-// 0.341; boxes_on_floor 0.602 / 0.850, 0.562 / 0.587, 0.370. Session 16's estimate against
-// |ΔB|, for comparison: cornell 0.510 / 0.745, table room 0.369 / 0.630, boxes_on_floor
-// 0.098 / 0.617 (w ranks the pointwise error, not the average's). The issue asks for ≥ 0.7:
-// met on cornell's and splash_room's settings against the cached 65 k-point references (see
-// the closing note), not here on the table room and boxes_on_floor.
+// estimate estimates (module docs of `estimate`: the mean error δ and the within-leaf
+// variation w), not against the error of the leaf's average (|ΔB|, 4096 paths a leaf). The
+// estimate against |ΔB|, for comparison: cornell 0.510 / 0.745, table room 0.369 / 0.630,
+// boxes_on_floor 0.098 / 0.617 (w ranks the pointwise error, not the average's). The target
+// is ≥ 0.7: met on cornell's and splash_room's settings against the cached 65 k-point
+// references (see the closing note), not here on the table room and boxes_on_floor.
 
-/// Cornell: measured 0.680 over 863 leaves and 0.685 over 1760 (session 16).
+/// Cornell: measured 0.680 over 863 leaves and 0.685 over 1760.
 const SPEARMAN_FLOOR_CORNELL: [f64; 2] = [0.58, 0.58];
-/// Table room: measured 0.423 over 578 leaves and 0.535 over 1637 (session 16).
+/// Table room: measured 0.423 over 578 leaves and 0.535 over 1637.
 const SPEARMAN_FLOOR_TABLE_ROOM: [f64; 2] = [0.32, 0.43];
-/// boxes_on_floor: measured 0.374 over 1136 leaves and 0.620 over 1778 (session 16).
+/// boxes_on_floor: measured 0.374 over 1136 leaves and 0.620 over 1778.
 const SPEARMAN_FLOOR_BOXES: [f64; 2] = [0.27, 0.52];
 
 #[test]
@@ -464,7 +461,7 @@ fn pointwise_error_of_the_reference_itself_is_zero_and_closures_reconstruct() {
     assert!(pointwise::compare_points(&scene, &set.points[1..], &values[1..], &reference, 0.0).is_err());
 }
 
-/// Issue 15 §1: the pointwise ruler sees a shadow. On table-room, against a pointwise reference
+/// The pointwise ruler sees a shadow. On table-room, against a pointwise reference
 /// of 8192 points × 256 paths (noise 4.6 %, resolution 1.2 %), measured (deterministic):
 /// - a uniform solution at h = d/4 (72 elements) reads 18.0 % pointwise, at h = d/16 (614
 ///   elements) 6.7 %: ratio 2.69 (against the standard 65 537-point × 1024-path reference: 18.5 %

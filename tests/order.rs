@@ -1,4 +1,4 @@
-//! Element order (issue 16 §1): the Galerkin solver with p = 0 and p = 1 elements
+//! Element order: the Galerkin solver with p = 0 and p = 1 elements
 //! ([`radlab::solver::linear`]) — the lecture's h-vs-p claim measured on exact single-bounce
 //! scenes ([`radlab::order_study`]), a closed box at p = 1, p = 1 on the discontinuity mesh, and
 //! the CLI's `--order`.

@@ -10,7 +10,7 @@
 //! A texel holds the solution's own reconstruction at its centre — the radiosity of the leaf
 //! element that contains it, linear in the element's slope where it has one
 //! ([`crate::pointwise::PiecewiseConstant`]) — exposed and clipped as `COLOR_0` is, then
-//! sRGB-encoded, because glTF decodes a base-colour texture from sRGB [glTF 2.0 §3.9.2]:
+//! sRGB-encoded, because glTF decodes a base-colour texture from sRGB [glTF 2.0, sec. 3.9.2]:
 //!
 //! ```text
 //!   texel = round(255 · sRGB(clamp(B(x) · exposure, 0, 1)))     x = the texel's centre on the patch

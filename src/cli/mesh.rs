@@ -1,8 +1,9 @@
 //! `radlab mesh SCENE [--kind cdt|bsp] [--min-angle DEG] [--max-area F] [--budget N] [--solve]
-//! [--json PATH]`: the scene's discontinuity mesh (issue 16 §2, `radlab::mesh`): critical
-//! segments by kind, constraints inserted, receivers remeshed, patches before and after, and the
-//! meshing time; with `--budget N|auto`, graded to N patches (or a budget chosen from the scene) ([`radlab::mesh::grade`]); with `--solve`,
-//! also a uniform p = 0 solve on the mesh and its time (meshing against solving).
+//! [--json PATH]`: the scene's discontinuity mesh (`radlab::mesh`): critical segments by kind,
+//! constraints inserted, receivers remeshed, patches before and after, and the meshing time;
+//! with `--budget N|auto`, graded to N patches (or a budget chosen from the scene)
+//! ([`radlab::mesh::grade`]); with `--solve`, also a uniform p = 0 solve on the mesh and its
+//! time (meshing against solving).
 
 use super::solve::load_scene;
 use anyhow::Context as _;

@@ -1017,7 +1017,7 @@ pub fn solution_json(
             obj.entry(k.clone()).or_insert_with(|| v.clone());
         }
     }
-    // The solver's own estimate of its global error (issue 15 §4): the per-element estimates
+    // The solver's own estimate of its global error: the per-element estimates
     // (units of B) against the reflected radiosity, area-weighted, as the pointwise ruler
     // weighs its points — no reference needed.
     let estimate = radlab::solver::hierarchical::estimate::solution_relative_l2(scene, sol).map(|global| {

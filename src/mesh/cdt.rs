@@ -1,6 +1,6 @@
 //! Heckbert's discontinuity mesh: a constrained Delaunay triangulation of the receiver whose
 //! constraints are its boundary and its critical segments [Heckbert 1992, "Discontinuity
-//! meshing for radiosity", §4; the lecture's "Heckbert constrained DT mesh"].
+//! meshing for radiosity", sec. 4; the lecture's "Heckbert constrained DT mesh"].
 //!
 //! A triangulation T of the receiver is *constrained Delaunay* for a set of segments S when
 //! every segment of S is a union of edges of T and every triangle's circumcircle contains no

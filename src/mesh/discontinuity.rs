@@ -45,7 +45,7 @@
 //! An EV or VE event is generically D2 (the visible area is C¹ across it). It is D1 when the
 //! wedge plane also contains an edge of the other polygon — an emitter edge and an occluder edge
 //! in one plane (the EE degeneracy, e.g. parallel edges of axis-aligned squares): the occluder
-//! edge's shadow then sweeps across a whole emitter edge at once [Heckbert 1992, §3].
+//! edge's shadow then sweeps across a whole emitter edge at once [Heckbert 1992, sec. 3].
 //!
 //! ## Limiting the work
 //! [`occluder_matters`] keeps an occluder only if it can block a segment from the emitter to the
@@ -59,11 +59,11 @@
 //! ## Left out (the output is a superset of part of the true discontinuities)
 //! - **EEE events** (an emitter edge and two occluder edges, none sharing a vertex): their
 //!   surfaces are quadrics and their curves on the receiver are conics [Teller 1992; Heckbert
-//!   1992, §3]. They exist only with two or more occluders whose shadows overlap.
+//!   1992, sec. 3]. They exist only with two or more occluders whose shadows overlap.
 //! - **Events between occluders** (EV/VE where the vertex and the edge both belong to occluders,
 //!   lying in one emitter-vertex plane): the boundaries of one occluder's shadow *inside* another's
-//!   (Lischinski et al. §4 trace them through the scene). Where shadows do not overlap they do not
-//!   occur.
+//!   (Lischinski et al., sec. 4, trace them through the scene). Where shadows do not overlap
+//!   they do not occur.
 //! - **Visibility of the segments**: a segment is not clipped where a second occluder hides the
 //!   event (the wedge is blocked between emitter and receiver), so some segments lie where the
 //!   radiosity is smooth, e.g. inside another object's umbra. This only adds element edges.

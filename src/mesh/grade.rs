@@ -1,7 +1,7 @@
 //! A graded discontinuity mesh: the pieces of a discontinuity mesh (and the patches it left
 //! whole) split further, small where the direct light varies — inside the penumbrae, between the
 //! D1/D2 lines that bound them — and large elsewhere, within one element budget for the whole
-//! scene (issue 16 §4: "elements small inside the penumbra, large elsewhere").
+//! scene.
 //!
 //! A constant element K of area A_K that approximates B by its mean has the squared L2 error
 //! A_K · Var_K(B). The mesher estimates it from the **direct** light each piece reflects, which
@@ -21,7 +21,7 @@
 //! ceiling and in the umbrae: a linear function of gradient G varies by G² A / 12 over a square
 //! of area A), so every reflecting patch gets elements by its area too. Greedy refinement then
 //! splits the piece of largest `err_K` in two until the budget is spent [the greedy allocation
-//! of an L2 error; cf. Lischinski, Tampieri & Greenberg 1992, §5, who refine a discontinuity
+//! of an L2 error; cf. Lischinski, Tampieri & Greenberg 1992, sec. 5, who refine a discontinuity
 //! mesh by the variation of the illumination]:
 //!
 //! ```text

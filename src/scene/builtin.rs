@@ -32,7 +32,7 @@
 //!   height 2 and two overlapping occluders at heights 1 and 0.6: penumbrae about a unit wide,
 //!   overlapping shadows (inclusion–exclusion). `shadow-narrow`: a 0.2 × 0.2 lamp (E = 250) at
 //!   height 2 and one occluder at height 0.25, near the receiver: a penumbra about 0.03 wide.
-//! - `thin-pole`: a single-bounce scene with a thin occluder (issue 16 §4): the 2 × 2 receiver,
+//! - `thin-pole`: a single-bounce scene with a thin occluder: the 2 × 2 receiver,
 //!   a 0.06 × 0.06 lamp (E = 3 000) at height 2 over its centre, and a black pole 0.02 × 0.02 ×
 //!   1.2 standing on the floor at x = 0.35 (four sides and a top). Its shadow is a dark streak
 //!   from the foot outward, about 0.02–0.05 wide and 0.4 long, with narrow penumbrae: a

@@ -1,4 +1,4 @@
-//! Generated furnished rooms (issue 17 §1): the scenes clustering is measured on.
+//! Generated furnished rooms: the scenes clustering is measured on.
 //!
 //! `builtin:furnished-SIZE[-sSEED]`: a room of `SIZE` triangles (within 2 %), made
 //! the way rooms modelled in Blender are: tables with chairs, desks with desk lamps, lounge

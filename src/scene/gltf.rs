@@ -1,7 +1,7 @@
 //! glTF 2.0 import and export of radiosity scenes.
 //!
-//! A glTF file [Khronos glTF 2.0 specification, §3.7 (meshes), §3.9 (materials)] becomes a list
-//! of planar convex patches:
+//! A glTF file [Khronos glTF 2.0 specification, sec. 3.7 (meshes), sec. 3.9 (materials)] becomes
+//! a list of planar convex patches:
 //!
 //! - **Geometry**: every `TRIANGLES` primitive of every mesh instance, with the node's world
 //!   transform applied (`M = M_root · … · M_node`, f64). A transform with det(M) < 0 mirrors the
@@ -558,12 +558,12 @@ impl Loader<'_> {
     /// What the spec requires, gltf-json does not validate, and the `gltf` crate (or a linear
     /// walk of the scene) relies on:
     /// - an image has a `uri` or a `bufferView`, not both, and a `bufferView` image has a
-    ///   `mimeType` [glTF 2.0 §5.18] (`Image::source` unwraps them);
+    ///   `mimeType` [glTF 2.0, sec. 5.18] (`Image::source` unwraps them);
     /// - a camera has the projection its `type` names (`Camera::projection` unwraps it);
-    /// - the nodes form disjoint trees [§3.5.3]: no node has two parents, a scene's root nodes
-    ///   have none and are listed once. A node reused as a child of several nodes (or listed
-    ///   many times) would describe exponentially many instances from a few bytes; as trees,
-    ///   the walk visits each node at most once.
+    /// - the nodes form disjoint trees [glTF 2.0, sec. 3.5.3]: no node has two parents, a
+    ///   scene's root nodes have none and are listed once. A node reused as a child of several
+    ///   nodes (or listed many times) would describe exponentially many instances from a few
+    ///   bytes; as trees, the walk visits each node at most once.
     fn check_structure(&self, root: &gltf::json::Root) -> Result<(), SceneError> {
         for (i, image) in root.images.iter().enumerate() {
             match (&image.uri, &image.buffer_view, &image.mime_type) {
@@ -623,7 +623,7 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// Split a GLB container into its JSON chunk and optional BIN chunk [glTF 2.0 §4.4].
+    /// Split a GLB container into its JSON chunk and optional BIN chunk [glTF 2.0, sec. 4.4].
     fn split_glb<'b>(&self, bytes: &'b [u8]) -> Result<(&'b [u8], Option<&'b [u8]>), SceneError> {
         fn u32_at(bytes: &[u8], at: usize) -> Option<u32> {
             bytes.get(at..at.checked_add(4)?).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
@@ -828,7 +828,7 @@ impl Loader<'_> {
         ))
     }
 
-    /// Texture coordinates: float, or normalized unsigned byte/short VEC2 [glTF 2.0 §3.7.2.1].
+    /// Texture coordinates: float, or normalized unsigned byte/short VEC2 [glTF 2.0, sec. 3.7.2.1].
     fn read_uvs(&self, acc: &gltf::Accessor, buffers: &[Cow<[u8]>]) -> Result<Vec<[f64; 2]>, SceneError> {
         let size = match acc.data_type() {
             DataType::F32 => 4,
@@ -1319,7 +1319,7 @@ impl Loader<'_> {
     }
 
     /// The camera node's placement: eye = node origin, looking down its −z, up = its +y
-    /// [glTF 2.0 §3.10]. glTF has no target; it is put at the distance of the scene's centre.
+    /// [glTF 2.0, sec. 3.10]. glTF has no target; it is put at the distance of the scene's centre.
     fn viewpoint(
         &mut self,
         doc: &gltf::Document,
@@ -1560,8 +1560,8 @@ pub fn gltf_string(scene: &Scene) -> Result<String, SceneError> {
 }
 
 /// The scene as binary glTF (.glb): the JSON of [`gltf_string`] with the one buffer in the BIN
-/// chunk instead of a data URI [Khronos glTF 2.0 specification, §4.4 (GLB file format)]. A
-/// 12-byte header, the JSON chunk padded with spaces and the BIN chunk padded with zeros to
+/// chunk instead of a data URI [Khronos glTF 2.0 specification, sec. 4.4 (GLB file format)].
+/// A 12-byte header, the JSON chunk padded with spaces and the BIN chunk padded with zeros to
 /// 4 bytes; deterministic.
 pub fn glb_bytes(scene: &Scene) -> Result<Vec<u8>, SceneError> {
     const MAGIC: &[u8; 4] = b"glTF";

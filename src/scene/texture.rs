@@ -1,6 +1,6 @@
 //! Base-colour textures of imported glTF, averaged into each triangle's reflectance.
 //!
-//! A glTF material's diffuse colour is `baseColorFactor × texel(uv)` [glTF 2.0 §3.9.2], the
+//! A glTF material's diffuse colour is `baseColorFactor × texel(uv)` [glTF 2.0, sec. 3.9.2], the
 //! texel in sRGB (decoded to linear here). Radiosity needs one reflectance per patch, so each
 //! triangle gets the mean of the texture over it, estimated from `SAMPLE_LEVELS²` stratified
 //! samples: the centroids of the triangle's sub-triangles after splitting each edge into
@@ -28,7 +28,7 @@ pub const MAX_SIDE: u32 = 8192;
 /// centroids of the `SAMPLE_LEVELS²` sub-triangles.
 pub const SAMPLE_LEVELS: usize = 4;
 
-/// How texture coordinates outside [0, 1] map into the image [glTF 2.0 §5.26].
+/// How texture coordinates outside [0, 1] map into the image [glTF 2.0, sec. 5.26].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Wrap {
     Repeat,
@@ -226,7 +226,7 @@ fn one_line(e: &dyn std::fmt::Display) -> String {
 
 #[cfg(test)]
 mod one_line_tests {
-    /// Found by fuzzing (session 9): a truncated JPEG's error spanned two lines.
+    /// Found by fuzzing: a truncated JPEG's decoder error spans two lines.
     #[test]
     fn decoder_messages_become_one_line() {
         assert_eq!(

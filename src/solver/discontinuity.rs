@@ -5,7 +5,7 @@
 //! with one element per patch then solves
 //!
 //! ```text
-//! B_i = E_i + ρ_i Σ_j F_ij V_ij B_j          over the pieces i, j   [Heckbert 1992, §3]
+//! B_i = E_i + ρ_i Σ_j F_ij V_ij B_j          over the pieces i, j   [Heckbert 1992, sec. 3]
 //! ```
 //!
 //! then [`gather`] re-integrates the direct light of the pieces that see an emitter partly (more

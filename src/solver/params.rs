@@ -8,7 +8,7 @@ use serde::Serialize;
 /// `solver::hierarchical::oracle`).
 pub const DEFAULT_CAUSE_TAIL: f64 = 0.25;
 
-/// Which test decides that a link is accurate enough (HSA91 §4; SPLASH-2 `radiosity`).
+/// Which test decides that a link is accurate enough (HSA91, sec. 4; SPLASH-2 `radiosity`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Oracle {
@@ -199,13 +199,13 @@ impl HierarchicalParams {
             bf_relative: true,
             rays: 4,
             max_depth: 12,
-            // 2 M, not 500 k (until session 22): the BF oracle refines a closed box for the light
+            // 2 M, not 500 k: the BF oracle refines a closed box for the light
             // that flows in it, and a refinement the budget stops half-way leaves leaves whose
             // rows of F·V exceed 1, before the row check can act (the budget is reached before
             // the first gather): cube-one-light created 0.45 % of its light at 538 k links, none
             // beyond 6e-6 at 1.86 M (2.2 s). The built-in scenes and figures stay far below it
             // (splash_room 76 k); the furnace reaches it (2.4 M, 2.7 s, 3e-4 created);
-            // furnished-30k now finishes its refinement (1.03 M links, 7.5 s instead of 6.1 s).
+            // furnished-30k finishes its refinement (1.03 M links, 7.5 s; 6.1 s stopped at 500 k).
             max_links: 2_000_000,
             // The energy balance's residual is the last gather's change: 3e-4 keeps it under 1e-3.
             tolerance: 3e-4,

@@ -1,6 +1,6 @@
 //! Progressive refinement radiosity: Southwell iteration on unshot power, with an ambient term
 //! for display [Cohen, Chen, Wallace, Greenberg 1988, "A Progressive Refinement Approach to
-//! Fast Radiosity Image Generation", SIGGRAPH '88, §3–4].
+//! Fast Radiosity Image Generation", SIGGRAPH '88, secs. 3–4].
 //!
 //! ```text
 //! pick the shooter s with the largest unshot power ΔB_s A_s
@@ -16,7 +16,7 @@
 //! over receivers) and cached per shooter within a memory budget, so at convergence the two
 //! solvers solve the same linear system.
 //!
-//! **Ambient term** (§4): the radiosity not yet distributed is approximated by a uniform
+//! **Ambient term** (sec. 4): the radiosity not yet distributed is approximated by a uniform
 //! ambient `B_amb = R · Σ_j ΔB_j A_j / Σ_j A_j` with `R = 1 / (1 − ρ_avg)` the interreflection
 //! factor of the area-averaged reflectance. It is for display only — the physical B stays in
 //! [`super::SolvedElement::radiosity`]; `stats.extra.ambient` holds `B_amb`, and

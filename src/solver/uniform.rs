@@ -1,6 +1,6 @@
 //! Classical radiosity on a uniform mesh: every patch split into elements no larger than a target
 //! size, the full form-factor matrix, and Gauss–Seidel [Goral et al. 1984; Cohen & Greenberg
-//! 1985; Cohen & Wallace 1993, §5.3]:
+//! 1985; Cohen & Wallace 1993, sec. 5.3]:
 //!
 //! ```text
 //! B_i = E_i + ρ_i Σ_j F_ij V_ij B_j          (per RGB channel)

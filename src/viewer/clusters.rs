@@ -1,4 +1,4 @@
-//! A cluster of a clustered solve, picked (issue 17 §1): which cluster a click picks, the walk
+//! A cluster of a clustered solve, picked: which cluster a click picks, the walk
 //! up and down the cluster tree from the picked element, and the inspector's section on the
 //! picked cluster — its depth, patches, area, box and the cluster links it holds.
 //!

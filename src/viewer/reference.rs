@@ -5,7 +5,7 @@
 //! - the **true error per element** shown by the error heatmap: the mean |B_i − B̂| at 3 × 3
 //!   points of leaf i, B̂ the reference interpolated linearly between its points
 //!   ([`crate::pointwise::PointInterpolant`]; units of B);
-//! - the **pointwise relative L2 error** of the whole solution (the issue 15 ruler,
+//! - the **pointwise relative L2 error** of the whole solution (the pointwise ruler,
 //!   [`crate::pointwise`]: the leaves evaluated at the reference's points, debiased), a point of
 //!   the error-against-time plot.
 //!

@@ -1,4 +1,4 @@
-//! The small interface of the viewer's panels (issue 18 §4, after the egui demo's `View`): a
+//! The small interface of the viewer's panels (after the egui demo's `View`): a
 //! panel is one type that keeps its own state, draws itself each frame from what the app lends
 //! it, and answers with what it asks the app to do. The app only lays the panels out and routes
 //! those answers, so a panel never reaches into the app (no import cycle) and can be tested alone.

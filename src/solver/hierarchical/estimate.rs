@@ -43,7 +43,7 @@
 //! the error of a discrete solution solves the radiosity equation driven by its residual], with
 //! the residual taken one level down (at the leaf's points) instead of by a second, finer solve;
 //! the visibility re-sampled at the receiver's points is the visibility term of Holzschuch &
-//! Sillion 1998 ("An exhaustive error-bounding algorithm for hierarchical radiosity", §3.2),
+//! Sillion 1998 ("An exhaustive error-bounding algorithm for hierarchical radiosity", sec. 3.2),
 //! measured instead of bounded.
 //!
 //! **What is evaluated where** (the cost): rays only for links that are not fully visible and
@@ -61,7 +61,7 @@
 //! Against the cached pointwise references (`radlab reference builtin:S --cache-dir DIR
 //! --compare hierarchical --preset quality --solve-bf-eps-rel X`, 65 537 points × 1024 paths;
 //! Spearman over the leaves holding ≥ 8 points, against each leaf's own debiased pointwise
-//! error), measured / estimate and Spearman, session 16:
+//! error), measured / estimate and Spearman:
 //!
 //! ```text
 //! scene        X = 0.2        X = 0.1        X = 0.05
@@ -74,14 +74,15 @@
 //! fully visible links within a leaf and the error of links below the sampling share. On the
 //! single-bounce scenes, against the closed form (tests/exact.rs), it is within 1.3× on
 //! shadow-wide and sees half the error on shadow-narrow, whose penumbra is two floor-sized
-//! leaves wide. The previous estimate (session 11–15: δ plus ½ × a transported visibility spread
-//! √(V(1−V)), a weight fitted to the data) read 0.42–2.43 × the measured on the same nine
-//! settings; the white furnace, exact, still reads a negligible estimate (unit test).
+//! leaves wide. A simpler estimate (δ plus ½ × a transported visibility spread √(V(1−V)), a
+//! weight fitted to the data) read 0.42–2.43 × the measured on the same nine settings; the
+//! white furnace, exact, still reads a negligible estimate (unit test).
 //!
 //! Cost: the nine kernels per own link and the rays. Measured (release, 2 threads, a quiet
-//! machine, end of session 16): splash_room at the `splash2` preset, 0.16 s wall for the solve,
-//! 0.63 s with the estimate (session 15's estimate: about 0.1 s); cornell `quality` 0.37 → 0.50 s. `solution()` and `snapshot()` pay it on every call;
-//! `solution_with(false)` skips it; `radlab bench` times the solve without it.
+//! machine): splash_room at the `splash2` preset, 0.16 s wall for the solve, 0.63 s with the
+//! estimate (the simpler estimate above: about 0.1 s); cornell `quality` 0.37 → 0.50 s.
+//! `solution()` and `snapshot()` pay it on every call; `solution_with(false)` skips it;
+//! `radlab bench` times the solve without it.
 
 use super::HierarchicalSolver;
 use crate::form_factor;
@@ -143,7 +144,7 @@ pub fn solution_relative_l2(scene: &crate::scene::Scene, solution: &crate::solve
 /// The signed, transported residual δ of every leaf (per channel, units of B; zero on interior
 /// elements): the first-order change of the leaf's radiosity if its inherited links were
 /// evaluated at the leaf itself. `B + δ` is a defect-corrected solution. Measured on the
-/// solution's own leaves against the reference (interactive preset, main b6d41b6): relative L2
+/// solution's own leaves against the reference (interactive preset): relative L2
 /// cornell 11.5 % → 8.5 %, table-room 10.0 % → 3.6 %, boxes_on_floor 10.5 % → 8.4 %; the
 /// white furnace without normalisation keeps 1 % of its error (tests). Not applied by the
 /// solver; offered to it.

@@ -1,4 +1,4 @@
-//! Gather (HSA91 §4): every receiver sums, over its own links, what its sources send, in
+//! Gather (HSA91, sec. 4): every receiver sums, over its own links, what its sources send, in
 //! parallel (Jacobi):
 //!
 //! ```text

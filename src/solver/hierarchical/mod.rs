@@ -92,13 +92,12 @@
 //!   all-visible estimate of a link split only when partial (and of an input patch pair) is
 //!   confirmed with more rays, a blocked one making it partial: accepted false ones made
 //!   splash_room's floor gather 11 % too much (escaped/emitted at `interactive` −11 % → +0.1 %).
-//! - **No per-leaf normalisation**: until session 9 an option scaled each leaf's inherited
-//!   irradiance so that its total form factor matched the point kernel at its centroid. It made
-//!   the white furnace exact with centroid links, but one scalar per leaf mixes sources of
-//!   different radiosity (Cornell's floor came out 15 % dark, tests/hierarchical.rs
-//!   `direct_light_is_not_biased_by_inherited_links`), and with Galerkin links it no longer
-//!   applies. Issue 15 §2 asked to remove it unless unbiased on cornell: removed. The furnace is
-//!   exact with the error oracle, which does not refine it ([`oracle`]).
+//! - **No per-leaf normalisation**: scaling each leaf's inherited irradiance so that its total
+//!   form factor matches the point kernel at its centroid makes the white furnace exact with
+//!   centroid links, but one scalar per leaf mixes sources of different radiosity (Cornell's
+//!   floor came out 15 % dark, tests/hierarchical.rs `direct_light_is_not_biased_by_inherited_links`),
+//!   and with Galerkin links it does not apply. The furnace is exact with the error oracle,
+//!   which does not refine it ([`oracle`]).
 //! - **Parallel and deterministic**: element ids are assigned serially in sorted order, visibility
 //!   jitter is keyed by the (receiver, source) ids, and parallel results are collected in order,
 //!   so every count and value is identical for any thread count.
@@ -312,8 +311,8 @@ fn disjoint_mut<T>(v: &mut [T], ids: impl Iterator<Item = u32>) -> Vec<&mut T> {
     out
 }
 
-/// A solve gathers on until its power balance closes to this (`EnergyBalance::relative_residual`;
-/// issue 15 §2 asks for 1e-3 at every preset).
+/// A solve gathers on until its power balance closes to this, at every preset
+/// (`EnergyBalance::relative_residual`).
 pub const ENERGY_TOLERANCE: f64 = 1e-3;
 
 /// The HSA91 solver with a step API.

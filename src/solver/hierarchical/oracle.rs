@@ -21,11 +21,11 @@
 //! (largest RGB channel). The first term is the receiver's variation of the total — a link
 //! whose contribution is uniform across r, or whose variation the other links cancel (in the
 //! white furnace Σ_q F(x → q) = 1 at every point), adds nothing, however much power it carries
-//! [Lischinski, Smits & Greenberg 1994, "Bounds and error estimates for radiosity", §4: the
+//! [Lischinski, Smits & Greenberg 1994, "Bounds and error estimates for radiosity", sec. 4: the
 //! error of a constant element is bounded by the spread of its gathered radiosity across it].
 //! The second is the uncertainty of partially visible links, whose visibility varies across the
 //! receiver in a way the link's average V hides (where the shadows are) [Holzschuch & Sillion
-//! 1998, "An exhaustive error-bounding algorithm for hierarchical radiosity", §3.2: the
+//! 1998, "An exhaustive error-bounding algorithm for hierarchical radiosity", sec. 3.2: the
 //! visibility term of a link's bound]. A third term catches what four points cannot see:
 //!
 //! ```text
@@ -38,21 +38,21 @@
 //! whose misses cancel (the furnace, Σ_q F = 1 at every point and on average) add nothing. On
 //! splash_room (ε = 0.1, 16 rays) this took the pointwise error from 19 % to 7 %: a lamp beside
 //! a wall left a 5× too dark spot there. [The same idea as the a-posteriori quadrature
-//! estimates of Lischinski, Smits & Greenberg 1994, §5: compare two rules of different order.]
+//! estimates of Lischinski, Smits & Greenberg 1994, sec. 5: compare two rules of different order.]
 //!
 //! A link r ← q is split on the receiver's side when r's answer is wrong (e_r > ε) and the link
 //! is one of its causes: its own variation across r, c_rq = ρ_r V B_q (max_k |F(x_k → q) − mean| +
 //! |F_rq − mean|) (+ its visibility term), is among the largest of r's own links, taken largest first until
 //! the rest add up to at most `cause_tail` · ε, ε/4 in every preset (so the rest cannot make r
 //! wrong again on their own, and a receiver with thousands of small links does not split them
-//! all: with the earlier rule, c_rq ≥ e_r / (1 + n_r), table-room at ε = 0.025 made 214 664
-//! links, now 156 600 at ε/2 and 336 730 at ε/4 for 3.3 % instead of 3.7 % pointwise; session
-//! 21, against the 4-batch references: ε/2 puts splash_room's clustered contact mesh on a
+//! all: with the rule c_rq ≥ e_r / (1 + n_r) instead, table-room at ε = 0.025 made 214 664
+//! links, against 156 600 at ε/2 and 336 730 at ε/4 for 3.3 % instead of 3.7 % pointwise;
+//! against the 4-batch references, ε/2 puts splash_room's clustered contact mesh on a
 //! better error-against-time front, 5.78 % at ε = 0.17 in 0.44 s against 5.81 % in 0.64 s, but
 //! cornell's ε = 0.025 reads 1.06 % instead of 0.93 %). It is split on the source's side when
 //! q's radiosity varies (ΔB_q: q's own e_q, or the spread of its children's B) enough to matter
 //! through the kernel's variation across q: ρ_r F_rq V ΔB_q diam_q / distance > ε [Holzschuch &
-//! Sillion 1998, §3.1, the source-radiosity term]. Every decision
+//! Sillion 1998, sec. 3.1, the source-radiosity term]. Every decision
 //! is taken for the pair (both directions, the larger element first when both ask), from
 //! quantities both sides compute alike, so a link and its mirror always agree and the links
 //! stay mirror images (energy conservation, see `transfer`).

@@ -1,4 +1,4 @@
-//! Push-pull (HSA91 §4): push each element's gathered irradiance down to its leaves (with the
+//! Push-pull (HSA91, sec. 4): push each element's gathered irradiance down to its leaves (with the
 //! links' slopes when `push_slopes` is on), reflect there, and pull the area-weighted average
 //! back up, so every level holds a consistent radiosity:
 //!

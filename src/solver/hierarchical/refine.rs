@@ -1,4 +1,4 @@
-//! Refine (HSA91 §4, the lecture's `Refine(p, q, Feps, Aeps)`): apply the oracle to every link
+//! Refine (HSA91, sec. 4, the lecture's `Refine(p, q, Feps, Aeps)`): apply the oracle to every link
 //! and replace the links it rejects by links to the children of the split side, until nothing
 //! splits.
 //!

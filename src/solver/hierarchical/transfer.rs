@@ -5,8 +5,8 @@
 //! G_pq = ∫_p ∫_q cosθ_p cosθ_q / (π r²) dA_q dA_p = ∫_p F(x → q) dA_x = A_p F_pq = A_q F_qp
 //! ```
 //!
-//! [Cohen & Wallace 1993, eq. 4.8 (the area-averaged form factor) and §4.4 (reciprocity);
-//! Hanrahan, Salzman, Aupperle 1991, §3 (links carry F between two elements of the hierarchy)].
+//! [Cohen & Wallace 1993, eq. 4.8 (the area-averaged form factor) and sec. 4.4 (reciprocity);
+//! Hanrahan, Salzman, Aupperle 1991, sec. 3 (links carry F between two elements of the hierarchy)].
 //! A link p ← q gathers `F_pq = G_pq / A_p`, the mirror link q ← p gathers `F_qp = G_pq / A_q`:
 //! what q sends to p through the pair is exactly what p receives, so the hierarchy conserves
 //! energy (the power balance of a converged solve is exact up to the iteration's tolerance).
@@ -366,7 +366,7 @@ mod tests {
     const ACC: Accuracy = Accuracy { tol: 1e-4, adaptive_tol: 1e-4, five_times: false };
 
     /// Parallel unit squares at distance 1: F = 0.1998248957 (Howell's catalog, C-11; the value
-    /// 0.1998202406 quoted in issue 15 is a typo, see tests/classical_solvers.rs); adjacent
+    /// 0.1998202406 is a typo, see tests/classical_solvers.rs); adjacent
     /// perpendicular squares: 0.2000437761. The root rule is adaptive (the pairs are near) and
     /// must hit both to its tolerance, ROOT_REL_TOL.
     #[test]
