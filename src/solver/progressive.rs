@@ -274,7 +274,7 @@ pub fn solve(
                 "shots": shots,
                 "unshot_fraction": fraction,
                 "ambient": ambient,
-                "ambient_note": "display radiosity = B + reflectance * ambient (Cohen et al. 1988, §4)",
+                "ambient_note": "display radiosity = B + reflectance * ambient (Cohen et al. 1988, sec. 4)",
                 "kernel_evaluations": evaluations,
                 "params": params,
             })),
