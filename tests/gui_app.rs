@@ -288,6 +288,45 @@ fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
     assert!((h.state().params().feps - 0.2).abs() < 1e-9);
 }
 
+/// A drag: the next value arrives while the previous value's solve runs. That solve is cancelled
+/// and its state is not shown: no frame shows an unsolved or half-refined restart, and the
+/// status does not report the superseded solve as cancelled.
+#[test]
+fn a_drag_never_shows_a_cancelled_solve() {
+    let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
+    h.state_mut().load_spec("builtin:table-room");
+    settle(&mut h);
+    let mut p = h.state().params();
+    // Fine enough that its solve is still running when the next value comes.
+    p.bf_eps = 1e-4;
+    p.aeps = radlab::solver::params::AreaEps::Relative(2e-5);
+    h.state_mut().set_params(p);
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while h.query_by_label_contains("solving").is_none() {
+        assert!(std::time::Instant::now() < deadline, "the first value's solve did not start");
+        h.run_steps(1);
+        assert!(h.state().view().stats.links > 0, "a frame showed the unsolved restart");
+    }
+    let mut q = p;
+    q.bf_eps = 2e-3;
+    h.state_mut().set_params(q);
+    while h.state().busy() || h.state().params() != q || h.state().view().params != q {
+        assert!(std::time::Instant::now() < deadline, "the drag's last solve did not arrive");
+        h.run_steps(1);
+        let v = h.state().view();
+        assert!(
+            v.stats.links > 0,
+            "a frame showed a restart or a cancelled solve: {} elements, last {:?}, busy {}",
+            v.elements.len(),
+            h.state().last_report(),
+            h.state().busy()
+        );
+        assert!(h.state().last_report().is_none_or(|r| !r.cancelled), "a superseded solve read as cancelled");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    assert_eq!(h.state().view().params, q);
+}
+
 /// Reference settings for a test: a rough pointwise reference (1024 points, 16 paths each) keeps
 /// it fast; it is seeded, so snapshots are stable. Its cache is an empty folder of its own
 /// (returned).

@@ -568,10 +568,12 @@ impl RadlabApp {
             return;
         }
         self.params = p;
+        // What runs or waits for the old settings is obsolete: the running step stops and the
+        // queued ones are dropped (a cancel alone is lost when it lands between two commands).
         if self.busy()
             && let Some(w) = &self.worker
         {
-            w.cancel();
+            w.cancel_all();
         }
         let top = self.top();
         match self.scene.clone() {
@@ -736,13 +738,22 @@ impl RadlabApp {
                 self.error_samples.clear();
             }
             Reply::Done { report, view } => {
-                if report.is_none() && self.hold_view {
+                // A restart, or a solve cancelled by the next restart (a slider dragged on):
+                // the last finished picture stays until the re-solve answers.
+                let superseded = self.hold_view && report.as_ref().is_none_or(|r| r.cancelled);
+                // A solve that finished on an earlier setting while the next one was queued: a
+                // finished picture, shown, but the hold goes on for the restart that follows.
+                let earlier = view.mesh.is_none() && view.params != self.params;
+                if superseded {
                     self.held_view = Some(view);
                 } else {
-                    self.hold_view = false;
+                    if !earlier {
+                        self.hold_view = false;
+                    }
                     self.held_view = None;
                     self.set_view(view);
                 }
+                let report = report.filter(|_| !superseded);
                 self.progress = None;
                 if report.is_none() {
                     // SetParams / Reset restart the solver: element ids start over.
