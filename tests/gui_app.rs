@@ -273,6 +273,7 @@ fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
     assert!(resolved.stats.links > 0, "solved again");
     assert_ne!((resolved.stats.leaves, resolved.stats.links), (solved.stats.leaves, solved.stats.links));
     assert_eq!(h.state().params().max_depth, 1);
+    assert!(h.query_by_value("bf (edited)").is_some(), "the preset box says the settings were changed");
 
     // Through the slider, frame by frame: no frame shows the unlit restart.
     h.get_by_label("Feps").set_value_accesskit(0.2);

@@ -109,8 +109,14 @@ impl SolverPanel {
         scene_area: Option<f64>,
     ) -> Option<HierarchicalParams> {
         let mut p = params;
+        // The box names the preset chosen last; settings changed since read "(edited)", so a
+        // preset's name never stands for values it does not use.
+        let shown = match Preset::from_name(&self.preset) {
+            Some(preset) if preset.hierarchical() != params => format!("{} (edited)", self.preset),
+            _ => self.preset.clone(),
+        };
         egui::ComboBox::from_label("preset")
-            .selected_text(&self.preset)
+            .selected_text(shown)
             .show_ui(ui, |ui| {
                 for preset in Preset::ALL {
                     let name = preset.name();
