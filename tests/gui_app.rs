@@ -230,9 +230,11 @@ fn drive_the_viewer() {
     check(&mut h, "gui_plots");
     h.get_by_label("Plots").click();
     settle(&mut h);
+    assert!(h.state().last_report().is_some());
     h.get_by_label("Reset").click();
     settle(&mut h);
     assert_eq!(h.state().view().leaves.len(), n_patches);
+    assert!(h.state().last_report().is_none(), "the solve's report does not outlive the Reset");
 }
 
 #[test]

@@ -756,7 +756,11 @@ impl RadlabApp {
                 let report = report.filter(|_| !superseded);
                 self.progress = None;
                 if report.is_none() {
-                    // SetParams / Reset restart the solver: element ids start over.
+                    // SetParams / Reset restart the solver: element ids start over, and the
+                    // last step's report no longer describes what is shown (unless held back).
+                    if !superseded {
+                        self.last_report = None;
+                    }
                     self.solver_time_s = 0.0;
                     self.error_samples.clear();
                     // (A pick in a split pane's run stays: that solution is kept.)
