@@ -1985,6 +1985,7 @@ fn the_default_path_steps_on_the_contact_mesh() {
     // patches, each on an input patch.
     assert!(loaded.elements.len() > patches, "{} elements on {patches} patches", loaded.elements.len());
     assert!(loaded.elements.iter().all(|e| (e.patch as usize) < patches));
+    assert!(h.query_by_label("Mesh: contact mesh + quadtree").is_some(), "the Mesh menu names the top level");
     // The error oracle's first Refine, before anything is gathered, links the pieces; once the
     // reflected light is known, the next one splits where it varies.
     for kind in ["Refine step", "Gather step", "Push-pull", "Refine step", "Gather step", "Push-pull"] {
@@ -2020,4 +2021,5 @@ fn the_default_path_steps_on_the_contact_mesh() {
     h.state_mut().wait_for_solver();
     settle(&mut h);
     assert_eq!(roots(h.state().view()), patches, "the quadtree's roots are the input patches");
+    assert!(h.query_by_label("Mesh: quadtree").is_some());
 }

@@ -551,6 +551,15 @@ impl RadlabApp {
         self.set_params(preset.hierarchical());
     }
 
+    /// What the solver thread's hierarchical solver refines on the scene shown: "quadtree" (the
+    /// input patches) or "contact" (the contact mesh).
+    #[must_use]
+    pub fn hierarchical_mesh(&self) -> &'static str {
+        let Some(scene) = &self.scene else { return "quadtree" };
+        let plan = crate::solver::spec::Plan::Hierarchical { params: self.params, top: self.loaded_top };
+        crate::solver::spec::SolveSpec { plan, estimate: false }.resolved(scene).mesh_name()
+    }
+
     /// The top level the current preset refines ([`Preset::top`]; the last preset chosen while
     /// its settings are edited).
     #[must_use]
@@ -1098,6 +1107,7 @@ impl RadlabApp {
     // Panels
 
     fn top_bar(&mut self, ui: &mut egui::Ui) {
+        let top = self.hierarchical_mesh();
         let input = TopBarInput {
             lecture: &mut self.lecture,
             split: &mut self.split,
@@ -1108,6 +1118,7 @@ impl RadlabApp {
             scene: self.scene.as_deref(),
             scene_spec: &self.scene_spec,
             mesh: (self.mesh, self.dmesh),
+            top,
         };
         match self.top_bar.ui(ui, input) {
             Some(TopBarAction::OpenFigure(f)) => self.open_figure(f),

@@ -16,17 +16,19 @@ use eframe::egui;
 pub struct MeshMenu;
 
 impl View for MeshMenu {
-    /// The mesh solved on now and the D-mesh options.
-    type Input<'a> = (MeshSolveParams, DmeshOptions);
+    /// The mesh solved on now, the D-mesh options, and what the hierarchical solver refines
+    /// ("quadtree", or "contact" for the contact mesh under its quadtrees).
+    type Input<'a> = (MeshSolveParams, DmeshOptions, &'static str);
     /// The mesh and settings chosen, when they changed.
     type Action = (MeshSolveParams, DmeshOptions);
 
     fn ui(
         &mut self,
         ui: &mut egui::Ui,
-        (mesh, dmesh): (MeshSolveParams, DmeshOptions),
+        (mesh, dmesh, top): (MeshSolveParams, DmeshOptions, &'static str),
     ) -> Option<(MeshSolveParams, DmeshOptions)> {
         let title = match mesh.method {
+            MeshMethod::Quadtree if top == "contact" => "Mesh: contact mesh + quadtree".to_owned(),
             MeshMethod::Quadtree => "Mesh: quadtree".to_owned(),
             _ => format!("Mesh: {}{}", mesh.label(), dmesh.label(&mesh)),
         };

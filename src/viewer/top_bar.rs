@@ -87,6 +87,9 @@ pub struct TopBarInput<'a> {
     pub scene_spec: &'a str,
     /// The mesh and the D-mesh options.
     pub mesh: (MeshSolveParams, DmeshOptions),
+    /// What the hierarchical solver refines: "quadtree" on the input patches, "contact" on the
+    /// contact mesh.
+    pub top: &'static str,
 }
 
 /// What the top bar asks of the app.
@@ -107,8 +110,18 @@ impl View for TopBar {
     type Action = TopBarAction;
 
     fn ui(&mut self, ui: &mut egui::Ui, input: TopBarInput<'_>) -> Option<TopBarAction> {
-        let TopBarInput { lecture, split, replay, history, show_help, show_plots, scene, scene_spec, mesh } =
-            input;
+        let TopBarInput {
+            lecture,
+            split,
+            replay,
+            history,
+            show_help,
+            show_plots,
+            scene,
+            scene_spec,
+            mesh,
+            top,
+        } = input;
         let mut action = None;
         ui.horizontal(|ui| {
             if let Some(f) = lecture.menu(ui) {
@@ -173,7 +186,7 @@ impl View for TopBar {
                 "Convergence plots under the inspector: residual per gather, links against elements \
                  (one point per solve), error against solver time",
             );
-            if let Some((m, d)) = MeshMenu.ui(ui, mesh) {
+            if let Some((m, d)) = MeshMenu.ui(ui, (mesh.0, mesh.1, top)) {
                 action = Some(TopBarAction::SetMesh(m, d));
             }
             ui.separator();
