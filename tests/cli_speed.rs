@@ -8,7 +8,7 @@ fn speed_benchmark_writes_rows_with_identical_counts_for_any_thread_count() {
     std::fs::create_dir_all(&dir).unwrap();
     let json = dir.join("speed.json");
     let out = Command::new(env!("CARGO_BIN_EXE_radlab"))
-        .args(["speed", "builtin:cornell", "--preset", "interactive", "--rays", "2,4", "--threads", "1,2"])
+        .args(["speed", "builtin:cornell", "--preset", "bf", "--rays", "2,4", "--threads", "1,2"])
         .args(["--repeats", "2", "--seeds", "2", "--json"])
         .arg(&json)
         .output()

@@ -30,7 +30,9 @@ pub struct Args {
     /// Scene (.gltf/.glb or builtin:NAME)
     #[arg(default_value = "builtin:splash_room")]
     pub scene: String,
-    /// Hierarchical preset: interactive, quality, lecture, splash2
+    /// Preset whose hierarchical settings are timed on the quadtree of the input patches (the
+    /// solver SPLASH-2's program runs): splash2 (default), bf, lecture, or a step of the ladder
+    /// (draft, interactive, quality, fine, reference: its error oracle, here on the quadtree).
     #[arg(long, default_value = "splash2")]
     pub preset: String,
     /// Rays per link, comma-separated
@@ -95,9 +97,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.threads.iter().any(|&t| t == 0 || t > 1024) {
         bail!("--threads must be between 1 and 1024");
     }
-    let preset = HierarchicalParams::preset(&args.preset).with_context(|| {
-        format!("unknown preset {:?} (interactive, quality, lecture, splash2)", args.preset)
-    })?;
+    let preset = radlab::solver::spec::Preset::from_name(&args.preset)
+        .with_context(|| {
+            format!("unknown preset {:?} (one of {})", args.preset, radlab::solver::spec::Preset::names())
+        })?
+        .hierarchical();
     let scene = Arc::new(super::solve::load_scene(&args.scene, 5_000_000)?);
     let accel = Arc::new(Accel::build(&scene));
     println!(
