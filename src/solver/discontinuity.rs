@@ -181,7 +181,10 @@ pub fn solve(
 /// on the input scene and each element's coefficients ([`crate::reconstruction::Nodal`]). A
 /// continuous basis on the (ungraded) BSP mesh runs on its pieces made conforming first
 /// ([`crate::mesh::remesh::conform`]: the T-vertices inserted, pieces that gained corners fanned
-/// into triangles).
+/// into triangles). An ungraded mesh whose pieces need more unknowns than `linear.max_unknowns`
+/// (the matrix is O(n²)) is graded to the most pieces that fit ([`crate::mesh::grade`]: small in
+/// the penumbrae, larger elsewhere; the stats' `graded` says so) instead of refused; a continuous
+/// basis needs the conforming ungraded mesh and keeps the cap's error.
 pub fn solve_galerkin(
     scene: &Scene,
     params: &DiscontinuityParams,
@@ -189,6 +192,16 @@ pub fn solve_galerkin(
     progress: Progress,
 ) -> Result<(DiscontinuitySolution, Vec<Vec<Rgb>>), DiscontinuityError> {
     let mut meshed = discontinuity_scene(scene, &params.mesh)?;
+    let fits = linear.max_unknowns / linear.order.functions(4).max(1);
+    if params.mesh.grade.is_none() && !linear.continuous && meshed.scene.patches.len() > fits {
+        let mesh = RemeshParams {
+            grade: Some(crate::mesh::grade::GradeParams::with_budget(fits)),
+            cdt: crate::mesh::cdt::CdtParams::unrefined(),
+            max_patches: params.mesh.max_patches.max(fits),
+            ..params.mesh
+        };
+        meshed = discontinuity_scene(scene, &mesh)?;
+    }
     if linear.continuous && params.mesh.kind == MeshKind::Bsp && params.mesh.grade.is_none() {
         // Shared vertex values need the pieces to meet corner to corner.
         conform(&mut meshed, scene);

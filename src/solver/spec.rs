@@ -329,14 +329,13 @@ impl SolveSpec {
     #[must_use]
     pub fn params_json(&self) -> serde_json::Value {
         use serde_json::json;
-        let v = |x: &dyn erased::Ser| x.to_json();
         match &self.plan {
-            Plan::Hierarchical { params, top: TopLevel::Patches | TopLevel::Auto } => v(params),
+            Plan::Hierarchical { params, top: TopLevel::Patches | TopLevel::Auto } => json!(params),
             Plan::Hierarchical { params, top: TopLevel::Mesh(m) } => json!({ "mesh": m, "solve": params }),
-            Plan::Uniform(p) => v(p),
-            Plan::Linear(p) => v(p),
-            Plan::Progressive(p) => v(p),
-            Plan::Discontinuity { params, linear: None } => v(params),
+            Plan::Uniform(p) => json!(p),
+            Plan::Linear(p) => json!(p),
+            Plan::Progressive(p) => json!(p),
+            Plan::Discontinuity { params, linear: None } => json!(params),
             Plan::Discontinuity { params, linear: Some(l) } => json!({ "mesh": params.mesh, "solve": l }),
         }
     }
@@ -369,18 +368,6 @@ impl SolveSpec {
                 params.solve.validate().map_err(invalid)?;
                 linear.as_ref().map_or(Ok(()), |l| l.validate().map_err(invalid))
             }
-        }
-    }
-}
-
-/// Serialize any settings struct to JSON without naming its type.
-mod erased {
-    pub trait Ser {
-        fn to_json(&self) -> serde_json::Value;
-    }
-    impl<T: serde::Serialize> Ser for T {
-        fn to_json(&self) -> serde_json::Value {
-            serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
         }
     }
 }
@@ -467,49 +454,22 @@ pub fn solve(
             d.solution
         }
         Plan::Discontinuity { params, linear: Some(l) } => {
-            let params = &fit_to_unknowns(scene, params, l, &mut notes)?;
             let (d, c) = discontinuity::solve_galerkin(scene, params, l, progress)
                 .map_err(|e| failed(e.to_string()))?;
+            if let (None, Some(g)) = (params.mesh.grade, &d.mesh.graded) {
+                notes.push(format!(
+                    "the {} mesh has more pieces than p = 1's cap of {} unknowns holds: graded to {}",
+                    spec.mesh_name(),
+                    l.max_unknowns,
+                    g.budget
+                ));
+            }
             coefficients = Some(c);
             remesh = Some((d.mesh, d.solve_s));
             d.solution
         }
     };
     Ok(Solved { solution, spec: *spec, hierarchical, coefficients, remesh, notes })
-}
-
-/// A p = 1 solve on an ungraded, non-conforming discontinuity mesh whose pieces need more
-/// unknowns than the Galerkin solver's cap (`LinearParams::max_unknowns`, O(n²) memory) is
-/// graded to the most pieces that fit (`mesh::grade`: small in the penumbrae, larger elsewhere)
-/// instead of refused; `notes` says so. A continuous basis needs the conforming ungraded mesh
-/// and keeps the cap's error.
-fn fit_to_unknowns(
-    scene: &Scene,
-    params: &DiscontinuityParams,
-    linear: &LinearParams,
-    notes: &mut Vec<String>,
-) -> Result<DiscontinuityParams, SolveError> {
-    let per_element = linear.order.functions(4).max(1);
-    let fits = linear.max_unknowns / per_element;
-    if params.mesh.grade.is_some() || linear.continuous {
-        return Ok(*params);
-    }
-    let meshed = crate::mesh::remesh::discontinuity_scene(scene, &params.mesh)
-        .map_err(|e| SolveError::Failed(format!("discontinuity mesh: {e}")))?;
-    let pieces = meshed.scene.patches.len();
-    if pieces <= fits {
-        return Ok(*params);
-    }
-    notes.push(format!(
-        "the {} mesh has {pieces} pieces, more than the {fits} that fit p = 1's cap of {} unknowns: graded to {fits}",
-        SolveSpec { plan: Plan::Discontinuity { params: *params, linear: None }, estimate: false }.mesh_name(),
-        linear.max_unknowns
-    ));
-    let mut mesh = params.mesh;
-    mesh.grade = Some(crate::mesh::grade::GradeParams::with_budget(fits));
-    mesh.cdt = crate::mesh::cdt::CdtParams::unrefined();
-    mesh.max_patches = mesh.max_patches.max(fits);
-    Ok(DiscontinuityParams { mesh, ..*params })
 }
 
 /// Run `s.solve`, stopping it when `cancel` is set: the flag is checked at each progress report
