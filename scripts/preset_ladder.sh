@@ -18,7 +18,7 @@ for s in cornell table-room splash_room; do
       times="$times $(python3 -c "import json,sys;print(round(json.load(open(sys.argv[1]))['stats']['time_s']['total'],3))" "$TMP/s.json")"
     done
     meta=$(python3 -c "import json,sys;d=json.load(open(sys.argv[1]));e=d['energy'];print(d['stats']['elements'],d['stats']['links'],round(e['escaped'][0]/e['emitted'][0],6),sep='\t')" "$TMP/s.json")
-    err=$("$B" reference "builtin:$s" --cache-dir "$CACHE" --batches 2 --compare preset --preset "$p" 2>&1 | grep "^scene: rel L1" | head -1)
+    err=$("$B" reference "builtin:$s" --cache-dir "$CACHE" --batches 2 --compare --preset "$p" 2>&1 | grep "^scene: rel L1" | head -1)
     printf "%s\t%s\t%s\t%s\t%s\n" "$s" "$p" "$meta" "$times" "$err"
   done
 done

@@ -68,7 +68,7 @@
 //! x ± δ n (n the segment's in-plane normal, δ = `near` × patch diameter, points off the patch
 //! dropped): `E_err = √(Σ |B(x) − B_ref(x)|²) / √(Σ |B_ref(x)|²)` (channels summed).
 //!
-//! Measured (release, `radlab reference builtin:SCENE --samples 16 --exact --compare METHOD`,
+//! Measured (release, `radlab reference builtin:SCENE --samples 16 --exact --compare`,
 //! standard settings, branch meshcli: the Gouraud view with T-vertices anchored; re-measured on
 //! branch mesh16 with E scoring only the shadow-bounding segments: on shadow-narrow all 32 bound
 //! the penumbra and nothing moved, on shadow-wide the uniform mesh's error beside E went from

@@ -107,13 +107,22 @@ fn furnace_has_no_artifacts() {
     assert_eq!(r.mach_bands.band_length, 0.0, "{:?}", r.mach_bands);
 }
 
-/// `radlab reference SCENE --exact --compare METHOD` prints the table; the D-mesh leaves no
+/// `radlab reference SCENE --exact --compare` prints the table; the D-mesh leaves no
 /// critical segment inside an element.
 #[test]
 fn cli_prints_the_artifacts_table() {
     let cache = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("artifacts-cli-cache");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
-        .args(["reference", "builtin:shadow-narrow", "--samples", "16", "--exact", "--compare", "dmesh-bsp"])
+        .args([
+            "reference",
+            "builtin:shadow-narrow",
+            "--samples",
+            "16",
+            "--exact",
+            "--compare",
+            "--mesh",
+            "discontinuity-bsp",
+        ])
         .arg("--cache-dir")
         .arg(&cache)
         .output()

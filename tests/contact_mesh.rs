@@ -98,7 +98,7 @@ fn the_contact_mesh_leaves_no_light_under_cornells_blocks() {
 /// with this ruler: cornell 4.24 / 2.28 / 0.20 % against the quadtree's 1.94 %, table-room
 /// 20.55 / 3.87 / 0.00 % against 0.81 %, resolution 1.2 %). The
 /// standard ruler (65 537 points × 1 024 paths, `radlab reference builtin:S --compare
-/// hierarchical-contact --preset quality --solve-bf-eps-rel X --solve-aeps-rel A`) reads, for
+/// hierarchical-contact --preset quality --bf-eps-rel X --aeps-rel A`) reads, for
 /// eps 0.2 / 0.1 / 0.05 / 0.025: cornell 4.34 / 2.63 / 0.92 / 0.48 %, table-room 20.74 / 4.25 /
 /// 1.40 / 0.72 % (docs/bench).
 #[test]

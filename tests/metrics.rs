@@ -284,7 +284,7 @@ fn judge(label: &str, (rho, n, l2, ratio): (f64, usize, f64, f64), floor: f64, f
 /// contact mesh (`RemeshParams::contacts`, the area floor 6e-4 · X as `radlab bench`'s rows), at
 /// X = 0.1 on cornell and table-room, ranked as above (9 points × RANKING_PATHS paths a leaf).
 /// Against the 4-batch 65 537-point references (`radlab reference builtin:S --batches 4 --compare
-/// hierarchical-contact --preset quality --solve-bf-eps-rel X --solve-aeps-rel A`) the nine
+/// hierarchical-contact --preset quality --bf-eps-rel X --aeps-rel A`) the nine
 /// settings X = 0.2 / 0.1 / 0.05 on cornell, table-room and splash_room read measured/estimate
 /// 1.18–1.51 and Spearman 0.720–0.845 (README). This test's per-leaf ruler (4 608 paths a
 /// leaf, every leaf) is too noisy for those leaves, most of them small with errors near 1–3 %:

@@ -270,7 +270,7 @@ fn point_cache_hits_and_batches_reuse_the_layout() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `radlab reference SCENE --compare hierarchical-dmesh-cdt`: the discontinuity mesh as the
+/// `radlab reference SCENE --compare --method hierarchical --mesh discontinuity-cdt`: the discontinuity mesh as the
 /// hierarchical solver's top level, graded to the budget asked (`auto` by default, `off`: the
 /// ungraded mesh), scored like any method; the grading flags without grading are refused.
 #[test]
@@ -279,7 +279,7 @@ fn compare_solves_the_dmesh_top_level_with_its_grading() {
     let run = |flags: &[&str]| {
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
             .args(["reference", "builtin:shadow-narrow", "--samples", "16", "--exact"])
-            .args(["--compare", "hierarchical-dmesh-cdt"])
+            .args(["--compare", "--method", "hierarchical", "--mesh", "discontinuity-cdt"])
             .args(flags)
             .arg("--cache-dir")
             .arg(&cache)
@@ -303,7 +303,7 @@ fn compare_solves_the_dmesh_top_level_with_its_grading() {
 }
 
 /// `radlab reference --batches N` merges N cached batches on batch 1's points (the noise falls
-/// as 1/√N); `--compare hierarchical-contact` solves on the contact mesh (cornell: the blocks'
+/// as 1/√N); `--compare --mesh contact` solves on the contact mesh (cornell: the blocks'
 /// 8 footprint edges on the floor) with the solver's own estimate; `--point-errors` writes one
 /// CSV row per point; `radlab solve --mesh contact` refuses a solver other than hierarchical.
 #[test]
@@ -335,7 +335,8 @@ fn batches_merge_and_the_contact_mesh_compares_with_point_errors() {
         "--batches",
         "4",
         "--compare",
-        "hierarchical-contact",
+        "--mesh",
+        "contact",
         "--preset",
         "interactive",
         "--point-errors",
@@ -346,7 +347,7 @@ fn batches_merge_and_the_contact_mesh_compares_with_point_errors() {
     assert!(four.contains("batch 4/4 (seed 3)"), "{four}");
     let (n1, n4) = (noise(&one), noise(&four));
     assert!(n4 < 0.7 * n1, "4 batches: noise {n4} % against {n1} % with one");
-    assert!(four.contains("hierarchical-contact: 8 critical segments"), "{four}");
+    assert!(four.contains("mesh: 8 critical segments"), "{four}");
     assert!(
         four.contains("pointwise rel L2") && four.contains("own error estimate (no reference)"),
         "{four}"

@@ -37,48 +37,22 @@ pub struct Args {
     /// Largest element side of the reference mesh, in scene units (regions ruler; default: scene
     /// diagonal / 16).
     #[arg(long)]
-    pub element_size: Option<f64>,
-    /// Seed of the sampling.
+    pub region_size: Option<f64>,
+    /// Seed of the reference's sampling (the solver's visibility seed is --seed).
     #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    pub ref_seed: u64,
     /// Write the estimates as JSON to this file (`-` for standard output).
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Cache folder (default: $RADLAB_CACHE, else .radlab-cache/ in the current directory).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
-    /// Also solve the scene with this method (`preset`: as `--preset` solves it, on its own top
-    /// level, as `radlab solve` does; `hierarchical`, `uniform`, `progressive`,
-    /// `dmesh-cdt` / `dmesh-bsp`: the uniform solver at p = 0 on a discontinuity mesh, one element
-    /// per piece, `hierarchical-dmesh-cdt` / `hierarchical-dmesh-bsp`: the discontinuity mesh
-    /// as the top level of the hierarchical solver, or `hierarchical-contact`: the contact mesh
-    /// as its top level (`radlab solve --mesh contact`); `--preset` and the `--solve-*` flags as
-    /// for `hierarchical`) and print its error against the reference per patch, for the scene and,
-    /// with the pointwise ruler, over the penumbra band ([`radlab::penumbra`]).
+    /// Also solve the scene, as `radlab solve` does with the same solver flags (--preset,
+    /// --threshold, --mesh, --method, --order, …; below), and print its error against the
+    /// reference per patch, for the scene and, with the pointwise ruler, over the penumbra band
+    /// ([`radlab::penumbra`]).
     #[arg(long)]
-    pub compare: Option<String>,
-    /// Smallest angle of the CDT refinement of --compare dmesh-cdt and hierarchical-dmesh-cdt,
-    /// degrees (0: unrefined). Default 20, or 0 when the mesh is graded.
-    #[arg(long)]
-    pub dmesh_min_angle: Option<f64>,
-    /// Grade the discontinuity mesh of --compare dmesh-* / hierarchical-dmesh-* to N patches,
-    /// to a budget chosen from the scene (`auto`, the default of hierarchical-dmesh-*) or not at
-    /// all (`off`, the default of dmesh-*), as `radlab solve --dmesh-budget`.
-    #[arg(long, value_name = "N|auto|off")]
-    pub dmesh_budget: Option<super::solve::BudgetArg>,
-    /// The graded mesh's smooth gradient (as `radlab solve --dmesh-smooth`).
-    #[arg(long)]
-    pub dmesh_smooth: Option<f64>,
-    /// dmesh-*: re-gather partly shadowed pieces and give every piece a slope after the p = 0
-    /// solve (as `radlab solve --dmesh-gather`; default true).
-    #[arg(long)]
-    pub dmesh_gather: Option<bool>,
-    /// The graded mesh's penumbra weight (as `radlab solve --dmesh-penumbra-weight`).
-    #[arg(long)]
-    pub dmesh_penumbra_weight: Option<f64>,
-    /// Largest triangle of --compare dmesh-cdt, as a fraction of its receiver's area.
-    #[arg(long, default_value_t = f64::INFINITY)]
-    pub dmesh_max_area: f64,
+    pub compare: bool,
     /// Pointwise ruler on a single-bounce scene (`builtin:shadow-wide`, `builtin:shadow-narrow`, `builtin:thin-pole`,
     /// [`radlab::exact`]): score against the closed-form answer at the reference's points (no
     /// noise) instead of their Monte Carlo estimates; the points are still placed by the cached
@@ -86,66 +60,20 @@ pub struct Args {
     /// five meshing artifacts of the solution ([`radlab::artifacts`]).
     #[arg(long)]
     pub exact: bool,
-    /// Preset for --compare (the ladder: draft, interactive, quality, fine, reference; on the
-    /// quadtree: bf, lecture, splash2; see `radlab solve --preset`). `--compare preset` solves as
-    /// the preset does, on its own top level; `--compare hierarchical` on the quadtree.
-    #[arg(long, default_value = "interactive")]
-    pub preset: String,
-    /// Element order of --compare uniform / dmesh-cdt / dmesh-bsp: 0 constant (the classical
-    /// solver), 1 linear / bilinear with a Galerkin solve (src/solver/linear.rs).
-    #[arg(long, default_value_t = 0)]
-    pub order: u32,
-    /// With --order 1: vertex values shared by the elements of a patch (continuous basis).
-    #[arg(long)]
-    pub continuous: bool,
-    /// How the pointwise ruler reads the --compare solution: `flat` (element values), `gouraud`
-    /// (vertex averages, interpolated), `nodal` (the elements' own p = 1 functions; needs
-    /// --order 1). Default: flat at order 0, nodal at order 1.
+    /// How the pointwise ruler reads the --compare solution: `flat` (each element's value with
+    /// its slope, what the viewer draws and the bake writes), `gouraud` (vertex averages,
+    /// interpolated), `nodal` (the elements' own p = 1 functions; needs --order 1). Default: flat
+    /// at order 0, nodal at order 1.
     #[arg(long, value_parser = ["flat", "gouraud", "nodal"])]
     pub reconstruction: Option<String>,
-    /// Element size of --compare uniform/progressive (default: scene diagonal / 16).
-    #[arg(long)]
-    pub solve_element_size: Option<f64>,
-    /// Shadow rays per link of --compare hierarchical (default: the preset's).
-    #[arg(long)]
-    pub solve_rays: Option<u32>,
-    /// Visibility seed of --compare hierarchical (default: the preset's).
-    #[arg(long)]
-    pub solve_seed: Option<u64>,
-    /// Oracle of --compare hierarchical (default: the preset's).
-    #[arg(long, value_enum)]
-    pub solve_oracle: Option<super::solve::OracleArg>,
-    /// BFeps of --compare hierarchical, relative (BF: to the largest emission; error oracle: to
-    /// the mean reflected radiosity). Default: the preset's.
-    #[arg(long)]
-    pub solve_bf_eps_rel: Option<f64>,
-    /// Aeps of --compare hierarchical, a fraction of the scene's total area (as `radlab solve
-    /// --aeps-rel`). Default: the preset's.
-    #[arg(long)]
-    pub solve_aeps_rel: Option<f64>,
-    /// Link budget of --compare hierarchical (as `radlab solve --max-links`). Default: the preset's.
-    #[arg(long)]
-    pub solve_max_links: Option<usize>,
-    /// Deepest quadtree level of --compare hierarchical (as `radlab solve --max-depth`). Default:
-    /// the preset's.
-    #[arg(long)]
-    pub solve_max_depth: Option<u8>,
-    /// Relative tolerance of --compare hierarchical's link coefficients (as `radlab solve
-    /// --link-tol`). Default: the preset's.
-    #[arg(long)]
-    pub solve_link_tol: Option<f64>,
-    /// The error oracle's tail share of --compare hierarchical (as `radlab solve
-    /// --cause-tail`). Default: the preset's.
-    #[arg(long)]
-    pub solve_cause_tail: Option<f64>,
-    /// Clustering of --compare hierarchical (off, auto, on). Default: the preset's (auto).
-    #[arg(long, value_enum)]
-    pub solve_cluster: Option<radlab::solver::params::Clustering>,
+    /// The solver --compare runs: the same flags as `radlab solve`.
+    #[command(flatten, next_help_heading = "Solver (with --compare)")]
+    pub solver: super::solve::SolverArgs,
     /// Estimate B at the points listed in this JSON file instead of over a mesh: an array of
     /// `{"patch": INDEX, "point": [x, y, z]}` (each point on its patch), `--samples` paths each;
     /// `--json` then writes `{"points": [{"patch", "point", "radiosity", "std_error"}]}`.
     /// Not cached.
-    #[arg(long, conflicts_with_all = ["compare", "images", "element_size"])]
+    #[arg(long, conflicts_with_all = ["compare", "images", "region_size"])]
     pub point_file: Option<PathBuf>,
     /// With --compare and the pointwise ruler: write every point's reference and solution as CSV
     /// (`patch,x,y,z,area,ref_r,ref_g,ref_b,sigma_r,sigma_g,sigma_b,sol_r,sol_g,sol_b`), to see
@@ -258,7 +186,8 @@ fn run_point_file(args: &Args, scene: &radlab::scene::Scene, file: &std::path::P
         }
         points.push((x, s.patch));
     }
-    let params = ReferenceParams { samples: args.samples, seed: args.seed, ..ReferenceParams::standard() };
+    let params =
+        ReferenceParams { samples: args.samples, seed: args.ref_seed, ..ReferenceParams::standard() };
     let accel = Accel::build(scene);
     let t0 = std::time::Instant::now();
     let est = radlab::reference::estimate_points(scene, &accel, &points, &params)?;
@@ -287,6 +216,7 @@ fn run_point_file(args: &Args, scene: &radlab::scene::Scene, file: &std::path::P
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::solve::set_threads(args.solver.threads)?;
     if let Some(file) = &args.point_file {
         let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
         return run_point_file(&args, &scene, file);
@@ -296,9 +226,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     anyhow::ensure!(!args.exact, "--exact needs the points ruler");
     let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
-    let size = args.element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
+    let size = args.region_size.unwrap_or(scene.bounds().diagonal() / 16.0);
     let mesh = reference_mesh(&scene, size)?;
-    let params = ReferenceParams { samples: args.samples, seed: args.seed, ..ReferenceParams::standard() };
+    let params =
+        ReferenceParams { samples: args.samples, seed: args.ref_seed, ..ReferenceParams::standard() };
     let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
     let accel = Accel::build(&scene);
     let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
@@ -335,11 +266,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mean = rel.iter().sum::<f64>() / rel.len() as f64;
         writeln!(log, "mean relative standard error per element: {:.2} %", 100.0 * mean)?;
     }
-    if let Some(method) = &args.compare {
-        let (sol, _) = solve(&args, method, &scene, &accel, &mut log)?;
+    if args.compare {
+        let (sol, _) = solve(&args, &scene, &mut log)?;
         compare(&args, &sol, &scene, &accel, &mesh, &entry.estimates, &mut log)?;
     } else if args.images.is_some() {
-        anyhow::bail!("--images needs --compare METHOD");
+        anyhow::bail!("--images needs --compare");
     }
     if let Some(path) = &args.json {
         let doc = serde_json::json!({
@@ -359,115 +290,50 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Solve the scene with `--compare METHOD` and its settings; logs the size and time.
+/// Solve the scene as `radlab solve` would with the same solver flags ([`super::solve::solve_spec`]),
+/// with the solver's own error estimate (printed beside the measured error); logs the size and
+/// time. Returns the solution and, at order 1, each element's vertex coefficients.
 fn solve(
     args: &Args,
-    method: &str,
     scene: &radlab::scene::Scene,
-    accel: &Accel,
     log: &mut Box<dyn Write>,
 ) -> anyhow::Result<(radlab::solver::Solution, Option<Vec<Vec<Rgb>>>)> {
-    use radlab::solver::{hierarchical::HierarchicalSolver, progressive, uniform};
-    let h = args.solve_element_size.unwrap_or(scene.bounds().diagonal() / 16.0);
+    use std::sync::Arc;
+    let a = &args.solver;
+    anyhow::ensure!(
+        args.reconstruction.as_deref() != Some("nodal") || a.order == 1,
+        "--reconstruction nodal needs --order 1 (use flat or gouraud at order 0)"
+    );
+    let scene = Arc::new(scene.clone());
     let t0 = std::time::Instant::now();
-    let linear = linear_params(args, method)?;
-    let mut coefficients = None;
-    let sol = match method {
-        "hierarchical" => {
-            let p = hierarchical_params(args)?;
-            let mut s =
-                HierarchicalSolver::new(std::sync::Arc::new(scene.clone()), p).map_err(anyhow::Error::msg)?;
-            s.solve(&mut |_, _| {});
-            s.solution()
-        }
-        "preset" => {
-            use radlab::solver::spec::{self, Preset, SolveSpec};
-            let top = Preset::from_name(&args.preset).map_or(spec::TopLevel::Patches, Preset::top);
-            let plan = spec::Plan::Hierarchical { params: hierarchical_params(args)?, top };
-            let solve_spec = SolveSpec { plan, estimate: true };
-            let scene = std::sync::Arc::new(scene.clone());
-            let accel = std::sync::Arc::new(Accel::build(&scene));
-            let solved = spec::solve(&scene, &accel, 0.0, &solve_spec, &mut |_, _| {}, None)?;
-            if let Some((m, solve_s)) = &solved.remesh {
-                writeln!(
-                    log,
-                    "\n{method} {} ({}): {}, solve {solve_s:.3} s",
-                    args.preset,
-                    solved.spec.mesh_name(),
-                    m.describe()
-                )?;
-            }
-            solved.solution
-        }
-        "hierarchical-dmesh-cdt" | "hierarchical-dmesh-bsp" | "hierarchical-contact" => {
-            let mut p = hierarchical_params(args)?;
-            if method == "hierarchical-contact" && args.solve_aeps_rel.is_none() {
-                p = radlab::solver::discontinuity::contact_area_floor(p);
-            }
-            let mesh = remesh_params(args, method)?;
-            // With the solver's own estimates, as for --compare hierarchical.
-            let mut on_mesh = radlab::solver::discontinuity::HierarchicalOnMesh::new(scene, &mesh, p)?;
-            on_mesh.solver.solve(&mut |_, _| {});
-            let d = on_mesh.finish(true);
-            writeln!(log, "\n{method}: {}, solve {:.3} s", d.mesh.describe(), d.solve_s)?;
-            d.solution
-        }
-        "uniform" if linear.is_some() => {
-            let p = radlab::solver::linear::LinearParams { element_size: h, ..linear.unwrap_or_default() };
-            let s = radlab::solver::linear::solve(scene, accel, &p, &mut |_, _| {})
-                .map_err(anyhow::Error::msg)?;
-            coefficients = Some(s.coefficients);
-            s.solution
-        }
-        "uniform" => {
-            let p = uniform::UniformParams {
-                element_size: h,
-                ff_tolerance: uniform::COARSE_FF_TOLERANCE,
-                ..uniform::UniformParams::default()
-            };
-            uniform::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?
-        }
-        "progressive" => {
-            let p = progressive::ProgressiveParams {
-                element_size: h,
-                ff_tolerance: uniform::COARSE_FF_TOLERANCE,
-                ..progressive::ProgressiveParams::default()
-            };
-            progressive::solve(scene, accel, &p, &mut |_, _| {}).map_err(anyhow::Error::msg)?
-        }
-        "dmesh-cdt" | "dmesh-bsp" => {
-            use radlab::solver::discontinuity::{self, DiscontinuityParams};
-            let mut p = DiscontinuityParams::with_mesh(remesh_params(args, method)?);
-            p.gather = args.dmesh_gather.unwrap_or(p.gather);
-            p.solve.rays = args.solve_rays.unwrap_or(p.solve.rays);
-            p.solve.seed = args.solve_seed.unwrap_or(p.solve.seed);
-            let d = match &linear {
-                Some(lp) => {
-                    let lp = radlab::solver::linear::LinearParams {
-                        rays: p.solve.rays,
-                        seed: p.solve.seed,
-                        ..*lp
-                    };
-                    let (d, c) = discontinuity::solve_galerkin(scene, &p, &lp, &mut |_, _| {})?;
-                    coefficients = Some(c);
-                    d
-                }
-                None => discontinuity::solve(scene, &p, &mut |_, _| {})?,
-            };
-            writeln!(log, "\n{method}: {}, solve {:.3} s", d.mesh.describe(), d.solve_s)?;
-            d.solution
-        }
-        other => anyhow::bail!(
-            "--compare {other}: expected hierarchical, uniform, progressive, dmesh-cdt, dmesh-bsp, hierarchical-dmesh-cdt, hierarchical-dmesh-bsp or hierarchical-contact"
-        ),
-    };
-    let secs = t0.elapsed().as_secs_f64();
-    writeln!(log, "\n{method}: {} elements, {} links, {secs:.3} s", sol.elements.len(), sol.stats.links)?;
-    if let Some(lp) = linear {
-        let unknowns = sol.stats.extra.as_ref().and_then(|x| x["unknowns"].as_u64()).unwrap_or(0);
-        writeln!(log, "order 1 ({}), Galerkin: {unknowns} unknowns", lp.label())?;
+    let accel = Arc::new(Accel::build(&scene));
+    let bvh_s = t0.elapsed().as_secs_f64();
+    let mut spec = super::solve::solve_spec(a, &scene)?;
+    spec.estimate = true;
+    let solved = radlab::solver::spec::solve(&scene, &accel, bvh_s, &spec, &mut |_, _| {}, None)
+        .with_context(|| format!("solving {}", args.scene))?;
+    for note in &solved.notes {
+        eprintln!("radlab: {}: {note}", args.scene);
     }
-    Ok((sol, coefficients))
+    let secs = t0.elapsed().as_secs_f64();
+    let sol = solved.solution;
+    let (order, _) = solved.spec.order();
+    writeln!(
+        log,
+        "\nsolved ({}, {}, order {order}): {} elements, {} links, {secs:.3} s",
+        a.preset,
+        solved.spec.mesh_name(),
+        sol.elements.len(),
+        sol.stats.links
+    )?;
+    if let Some((m, _)) = &solved.remesh {
+        writeln!(log, "mesh: {}", m.describe())?;
+    }
+    if order == 1 {
+        let unknowns = sol.stats.extra.as_ref().and_then(|x| x["unknowns"].as_u64()).unwrap_or(0);
+        writeln!(log, "order 1, Galerkin: {unknowns} unknowns")?;
+    }
+    Ok((sol, solved.coefficients))
 }
 
 /// `--point-errors`: one CSV row per point (reference, its standard error, the solution there).
@@ -506,97 +372,6 @@ fn write_point_errors(
         out.flush()
     };
     write(&mut out).with_context(|| format!("{}: cannot write", path.display()))
-}
-
-/// The hierarchical solver's settings of --compare hierarchical and hierarchical-dmesh-*:
-/// `--preset` modified by the `--solve-*` flags.
-fn hierarchical_params(args: &Args) -> anyhow::Result<radlab::solver::params::HierarchicalParams> {
-    use radlab::solver::spec::Preset;
-    let mut p = Preset::from_name(&args.preset)
-        .with_context(|| format!("--preset {}: one of {}", args.preset, Preset::names()))?
-        .hierarchical();
-    p.rays = args.solve_rays.unwrap_or(p.rays);
-    p.seed = args.solve_seed.unwrap_or(p.seed);
-    if let Some(o) = args.solve_oracle {
-        p.oracle = o.into();
-    }
-    if let Some(e) = args.solve_bf_eps_rel {
-        p.bf_eps = e;
-        p.bf_relative = true;
-    }
-    if let Some(a) = args.solve_aeps_rel {
-        p.aeps = radlab::solver::params::AreaEps::Relative(a);
-    }
-    p.max_links = args.solve_max_links.unwrap_or(p.max_links);
-    p.max_depth = args.solve_max_depth.unwrap_or(p.max_depth);
-    p.link_tol = args.solve_link_tol.unwrap_or(p.link_tol);
-    p.cause_tail = args.solve_cause_tail.unwrap_or(p.cause_tail);
-    p.cluster = args.solve_cluster.unwrap_or(p.cluster);
-    p.validate().map_err(anyhow::Error::msg).context("invalid --solve-* flag")?;
-    Ok(p)
-}
-
-/// The discontinuity mesh of --compare dmesh-* / hierarchical-dmesh-*: its kind, the CDT flags,
-/// and grading (`--dmesh-budget`; `auto` by default on the hierarchical top level, `off` for the
-/// uniform solver).
-fn remesh_params(args: &Args, method: &str) -> anyhow::Result<radlab::mesh::remesh::RemeshParams> {
-    use super::solve::BudgetArg;
-    use radlab::mesh::remesh::RemeshParams;
-    let hierarchical = method.starts_with("hierarchical-");
-    if method == "hierarchical-contact" {
-        anyhow::ensure!(
-            args.dmesh_min_angle.is_none() && args.dmesh_budget.is_none(),
-            "--compare hierarchical-contact: the contact mesh is an ungraded BSP (drop --dmesh-min-angle / --dmesh-budget)"
-        );
-        return Ok(RemeshParams::contacts());
-    }
-    let mut p = if method.ends_with("-cdt") { RemeshParams::cdt() } else { RemeshParams::bsp() };
-    if hierarchical {
-        p.max_patches = radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES;
-    }
-    let default = if hierarchical { BudgetArg::Auto } else { BudgetArg::Off };
-    let budget = BudgetArg::grading(args.dmesh_budget, default);
-    anyhow::ensure!(
-        budget.is_some() || (args.dmesh_smooth.is_none() && args.dmesh_penumbra_weight.is_none()),
-        "--dmesh-smooth and --dmesh-penumbra-weight tune a graded mesh (--dmesh-budget N|auto)"
-    );
-    anyhow::ensure!(
-        budget.is_none() || !args.continuous,
-        "--dmesh-budget grades the mesh with T-vertices: --continuous needs --dmesh-budget off"
-    );
-    let grade = budget.map(|b| super::solve::grade_params(b, args.dmesh_smooth, args.dmesh_penumbra_weight));
-    RemeshParams::for_solve(p.kind, args.dmesh_min_angle, Some(args.dmesh_max_area), grade, p.max_patches)
-        .context("invalid --dmesh-min-angle / --dmesh-max-area / --dmesh-budget / --dmesh-smooth / --dmesh-penumbra-weight")
-}
-
-/// The Galerkin settings of `--order 1` (None at order 0), refusing the unsupported combinations.
-fn linear_params(args: &Args, method: &str) -> anyhow::Result<Option<radlab::solver::linear::LinearParams>> {
-    use radlab::basis::Order;
-    match args.order {
-        0 => {
-            anyhow::ensure!(!args.continuous, "--continuous needs --order 1");
-            anyhow::ensure!(
-                args.reconstruction.as_deref() != Some("nodal"),
-                "--reconstruction nodal needs --order 1 (use flat or gouraud at order 0)"
-            );
-            Ok(None)
-        }
-        1 => {
-            anyhow::ensure!(
-                matches!(method, "uniform" | "dmesh-cdt" | "dmesh-bsp"),
-                "--order 1 is implemented for --compare uniform, dmesh-cdt and dmesh-bsp (not {method})"
-            );
-            let p = radlab::solver::linear::LinearParams {
-                order: Order::Linear,
-                continuous: args.continuous,
-                rays: args.solve_rays.unwrap_or(16),
-                seed: args.solve_seed.unwrap_or(0),
-                ..radlab::solver::linear::LinearParams::default()
-            };
-            Ok(Some(p))
-        }
-        p => anyhow::bail!("--order {p}: supported orders are 0 and 1"),
-    }
 }
 
 /// Print the error of a solution against the element-average reference per patch and for the scene.
@@ -684,11 +459,11 @@ fn write_images(
 /// `radlab reference` with the pointwise ruler (the default).
 fn run_points(args: &Args) -> anyhow::Result<()> {
     let scene = hard_cases::load_scene(&args.scene).with_context(|| format!("loading {}", args.scene))?;
-    anyhow::ensure!(args.element_size.is_none(), "--element-size needs --ruler regions");
+    anyhow::ensure!(args.region_size.is_none(), "--region-size needs --ruler regions");
     let params = PointParams {
         points: args.points,
-        paths: ReferenceParams { samples: args.samples, seed: args.seed, ..ReferenceParams::standard() },
-        layout_seed: args.seed,
+        paths: ReferenceParams { samples: args.samples, seed: args.ref_seed, ..ReferenceParams::standard() },
+        layout_seed: args.ref_seed,
         ..PointParams::standard()
     };
     let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
@@ -722,7 +497,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     if args.batches > 1 {
         let mut batches = vec![std::mem::take(&mut entry.estimates)];
         for b in 1..args.batches {
-            let seed = args.seed.wrapping_add(u64::from(b));
+            let seed = args.ref_seed.wrapping_add(u64::from(b));
             let (more, status) =
                 cache.get_or_compute_points(&scene, &accel, &params.batch(seed), &Control::default())?;
             let (how, f) = status.describe(more.compute_s);
@@ -765,8 +540,8 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     )?;
     let cells = points.iter().zip(&entry.estimates).map(|(p, e)| (p.patch, p.area, e));
     let patches = patch_summaries(&scene, cells, "points", &mut log)?;
-    if let Some(method) = &args.compare {
-        let (sol, coefficients) = solve(args, method, &scene, &accel, &mut log)?;
+    if args.compare {
+        let (sol, coefficients) = solve(args, &scene, &mut log)?;
         let band_params = radlab::penumbra::BandParams::standard();
         // The band costs side² rays per point and facing emitter patch: skipped (and said so)
         // above BAND_RAY_BUDGET, as on a furnished room whose lamps are many small polygons.
@@ -875,7 +650,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         let cells = entry.set.cell_regions(&scene);
         write_images(args, &sol, &scene, &accel, &cells, &score.pointwise.per_element, &mut log)?;
     } else if args.images.is_some() {
-        anyhow::bail!("--images needs --compare METHOD");
+        anyhow::bail!("--images needs --compare");
     }
     if let Some(path) = &args.json {
         let doc = serde_json::json!({

@@ -92,8 +92,8 @@ impl RemeshParams {
     /// A quadtree cannot refine a contact line away — an element straddling it holds the lit
     /// and the hidden side's average, and its error falls only as √h — while the penumbrae,
     /// which its oracle does refine, are left to it. Measured (`radlab reference … --compare
-    /// hierarchical|hierarchical-contact --preset quality --solve-bf-eps-rel 0.05
-    /// --solve-aeps-rel 3e-5`, pointwise, 65 537 points × 1 024 paths): quadtree → contact mesh,
+    /// hierarchical|hierarchical-contact --preset quality --bf-eps-rel 0.05
+    /// --aeps-rel 3e-5`, pointwise, 65 537 points × 1 024 paths): quadtree → contact mesh,
     /// cornell 2.26 → 1.24 %, splash_room 4.07 → 2.95 %; with the threshold halved again the
     /// quadtree stalls and the contact mesh goes on (docs/meshing.md, docs/bench).
     #[must_use]
@@ -106,7 +106,7 @@ impl RemeshParams {
     }
 
     /// The discontinuity mesh of a solve — the one construction behind `radlab solve|artifacts
-    /// --mesh discontinuity-*`, `radlab reference --compare dmesh-*` and the viewer's Mesh menu:
+    /// --mesh discontinuity-*`, `radlab reference --compare --mesh discontinuity-*` and the viewer's Mesh menu:
     /// `kind`; the CDT refined to `min_angle_deg` (`None`: 20° ungraded, unrefined when graded,
     /// since grading sizes the elements) and `max_area` (`None`: no limit); graded by `grade`;
     /// at most `max_patches` patches, raised to a fixed budget.

@@ -7,7 +7,7 @@
 //! is what the solution shows there (the leaf's value plus its slope, [`crate::pointwise`]), in
 //! units of B, mean over the RGB channels. Squared and area-weighted against the reflected
 //! radiosity it is the global figure the pointwise ruler measures against a reference
-//! ([`global_relative_l2`], `radlab solve --estimate`, `radlab reference --compare hierarchical`
+//! ([`global_relative_l2`], `radlab solve --estimate`, `radlab reference --compare --mesh quadtree`
 //! prints both).
 //!
 //! ## How it works
@@ -59,7 +59,7 @@
 //!
 //! ## How well it does
 //! Against the cached pointwise references (`radlab reference builtin:S --cache-dir DIR
-//! --compare hierarchical --preset quality --solve-bf-eps-rel X`, 65 537 points × 1024 paths;
+//! --compare --mesh quadtree --preset quality --bf-eps-rel X`, 65 537 points × 1024 paths;
 //! Spearman over the leaves holding ≥ 8 points, against each leaf's own debiased pointwise
 //! error), measured / estimate and Spearman:
 //!

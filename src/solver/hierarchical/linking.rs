@@ -48,8 +48,8 @@ const CLUSTERED_PAIR_TOL_FACTOR: f64 = 10.0;
 /// help (a per-node sum rule made furnished-10k's cluster links 80 k → 261 k and left the
 /// error at 17.04 %); what helps is reaching patch pairs sooner, whose element links have
 /// their own rays and the oracle's refinement. Measured on furnished-10k (`radlab reference
-/// builtin:furnished-10k --compare hierarchical --preset quality --solve-cluster on
-/// --solve-bf-eps-rel X`, pointwise rel L2 against the path-traced reference, noise 5.4 %;
+/// builtin:furnished-10k --compare --mesh quadtree --preset quality --cluster on
+/// --bf-eps-rel X`, pointwise rel L2 against the path-traced reference, noise 5.4 %;
 /// share, X: error, solve time, 2 threads):
 /// 1, 0.4: 21.45 % 3.8 s; 1, 0.2: 19.37 % 5.0 s; 1, 0.1: 17.04 %; 1, 0.05: 14.85 % ~20–30 s;
 /// 0.1, 0.4: 15.46 % 7.2 s; **0.03, 0.4: 12.45 % 11.8 s**; 0.03, 0.2: 10.38 % 19.9 s;
