@@ -2,7 +2,9 @@
 //!
 //! Radiosity is view-independent: a diffuse surface leaves radiance L = B/π in every direction
 //! [Cohen & Wallace 1993, sec. 2.4], so the solution *is* a coloured mesh. Every leaf element of a
-//! [`Solution`] becomes one flat-coloured polygon (a quad as two triangles) with per-vertex
+//! [`Solution`] becomes one polygon (a quad as two triangles) with per-vertex values of its own
+//! reconstruction, B at the vertex (its average with its slope where it has one,
+//! [`crate::solver::SolvedElement::corner_values`]):
 //!
 //! ```text
 //!   COLOR_0    = clamp(B · exposure, 0, 1)   linear RGB, VEC3 float (glTF requires [0, 1])
@@ -320,8 +322,12 @@ fn document(
             let s = &mut streams[mesh_of_patch[e.patch]];
             let n = e.vertices.len();
             s.push_polygon(&e.vertices, unit_f32(patch.normal.to_array()));
-            s.colors.extend(std::iter::repeat_n(exposed.map(|c| c.clamp(0.0, 1.0) as f32), n));
-            s.radiosity.extend(std::iter::repeat_n(e.radiosity.0.map(|c| c as f32), n));
+            // The element's own reconstruction at its vertices: its value with its slope.
+            for b in e.corner_values() {
+                s.colors.push(b.0.map(|c| (c * opts.exposure).clamp(0.0, 1.0) as f32));
+                s.radiosity.push(b.0.map(|c| c as f32));
+            }
+            debug_assert_eq!(e.corner_values().len(), n);
         }
     }
 

@@ -60,13 +60,13 @@ use crate::pointwise::{self, thousands};
 use crate::reference::{Cache, Control, Estimate, PointParams, RefPoint, ReferenceParams};
 use crate::scene::Scene;
 use crate::solver::Solution;
-use crate::solver::hierarchical::HierarchicalSolver;
 use crate::solver::params::{AreaEps, Clustering, DEFAULT_CAUSE_TAIL, HierarchicalParams};
-use crate::solver::progressive::{self, ProgressiveParams};
+use crate::solver::progressive::ProgressiveParams;
+use crate::solver::spec::{Plan, SolveSpec, TopLevel};
 use crate::solver::uniform::{self, UniformParams};
 use serde::Serialize;
 use std::path::Path;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, mpsc};
 use std::time::{Duration, Instant};
 
@@ -222,54 +222,48 @@ impl Method {
         }
     }
 
-    /// Solve, cancelling a hierarchical run after `budget`: the solution and the solve's wall
-    /// time. `Ok(None)` when over budget. The hierarchical time covers `solve` only, not the
-    /// solver's own error estimate that `solution()` adds (the classical solvers have none).
+    /// What the row solves, as [`crate::solver::spec::solve`] takes it.
+    #[must_use]
+    pub fn plan(&self) -> Plan {
+        match self {
+            Method::Uniform(p) => Plan::Uniform(*p),
+            Method::Progressive(p) => Plan::Progressive(*p),
+            Method::Hierarchical(p) => Plan::Hierarchical { params: *p, top: TopLevel::Patches },
+            Method::HierarchicalContact(p) => Plan::Hierarchical {
+                params: *p,
+                top: TopLevel::Mesh(crate::mesh::remesh::RemeshParams::contacts()),
+            },
+        }
+    }
+
+    /// Solve through [`crate::solver::spec::solve`] (no error estimate), cancelling a
+    /// hierarchical run after `budget`: the solution and the solve's wall time. `Ok(None)` when
+    /// over budget.
     fn run(
         &self,
         scene: &Arc<Scene>,
         accel: &Arc<Accel>,
         budget: Duration,
     ) -> Result<Option<(Solution, f64)>, String> {
+        let spec = SolveSpec { plan: self.plan(), estimate: false };
+        let cancel = Arc::new(AtomicBool::new(false));
+        let (done_tx, done_rx) = mpsc::channel::<()>();
+        let watchdog = {
+            let cancel = Arc::clone(&cancel);
+            std::thread::spawn(move || {
+                if done_rx.recv_timeout(budget) == Err(mpsc::RecvTimeoutError::Timeout) {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+            })
+        };
         let t0 = Instant::now();
-        match self {
-            Method::Uniform(p) => {
-                uniform::solve(scene, accel, p, &mut |_, _| {}).map(|s| Some((s, t0.elapsed().as_secs_f64())))
-            }
-            Method::Progressive(p) => progressive::solve(scene, accel, p, &mut |_, _| {})
-                .map(|s| Some((s, t0.elapsed().as_secs_f64()))),
-            Method::Hierarchical(p) => {
-                p.validate()?;
-                let mut s = HierarchicalSolver::with_accel(scene.clone(), accel.clone(), *p, 0.0);
-                let cancelled = run_within(&mut s, budget);
-                let secs = t0.elapsed().as_secs_f64();
-                Ok((!cancelled).then(|| (s.solution(), secs)))
-            }
-            Method::HierarchicalContact(p) => {
-                use crate::solver::discontinuity::HierarchicalOnMesh;
-                let mesh = crate::mesh::remesh::RemeshParams::contacts();
-                let mut on_mesh = HierarchicalOnMesh::new(scene, &mesh, *p).map_err(|e| e.to_string())?;
-                let cancelled = run_within(&mut on_mesh.solver, budget);
-                let secs = t0.elapsed().as_secs_f64();
-                Ok((!cancelled).then(|| (on_mesh.finish(false).solution, secs)))
-            }
-        }
+        let solved = crate::solver::spec::solve(scene, accel, 0.0, &spec, &mut |_, _| {}, Some(&cancel));
+        let secs = t0.elapsed().as_secs_f64();
+        let _ = done_tx.send(());
+        let _ = watchdog.join();
+        let solved = solved.map_err(|e| e.to_string())?;
+        Ok((!solved.cancelled).then(|| (solved.solution, secs)))
     }
-}
-
-/// Solve, cancelling through the solver's cancel handle after `budget`; true if cancelled.
-fn run_within(s: &mut HierarchicalSolver, budget: Duration) -> bool {
-    let cancel = s.cancel_handle();
-    let (done_tx, done_rx) = mpsc::channel::<()>();
-    let watchdog = std::thread::spawn(move || {
-        if done_rx.recv_timeout(budget) == Err(mpsc::RecvTimeoutError::Timeout) {
-            cancel.store(true, Ordering::Relaxed);
-        }
-    });
-    let report = s.solve(&mut |_, _| {});
-    let _ = done_tx.send(());
-    let _ = watchdog.join();
-    report.cancelled
 }
 
 /// Three significant digits, without trailing zeros.

@@ -373,6 +373,18 @@ pub fn render_hits(
     w: usize,
     h: usize,
 ) -> Vec<PixelHit> {
+    render_points(scene, accel, elements, camera, w, h).into_iter().map(|(hit, _)| hit).collect()
+}
+
+/// [`render_hits`] with the point each pixel's ray hits (the origin where it hits nothing).
+fn render_points(
+    scene: &Scene,
+    accel: &Accel,
+    elements: &[SolvedElement],
+    camera: &Camera,
+    w: usize,
+    h: usize,
+) -> Vec<(PixelHit, DVec3)> {
     let locator = ElementLocator::new(scene, elements);
     (0..h)
         .into_par_iter()
@@ -380,12 +392,15 @@ pub fn render_hits(
             let locator = &locator;
             (0..w).map(move |x| {
                 let (o, d) = camera.ray(x as f64, y as f64, w, h);
-                let Some((patch, t)) = accel.first_hit(o, d, u32::MAX) else { return PixelHit::Background };
+                let Some((patch, t)) = accel.first_hit(o, d, u32::MAX) else {
+                    return (PixelHit::Background, o);
+                };
                 let patch = patch as usize;
+                let at = o + d * t;
                 if scene.patches[patch].normal.dot(d) >= 0.0 {
-                    return PixelHit::BackFace;
+                    return (PixelHit::BackFace, at);
                 }
-                locator.locate(patch, o + d * t).map_or(PixelHit::NoElement, PixelHit::Element)
+                (locator.locate(patch, at).map_or(PixelHit::NoElement, PixelHit::Element), at)
             })
         })
         .collect()
@@ -422,8 +437,9 @@ pub fn srgb_encode(c: f64) -> f64 {
     if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
 }
 
-/// Image of the radiosity B: linear, scaled so that the 99th percentile of the visible pixels'
-/// luminance is 1, clipped, sRGB-encoded. Also returns the exposure scale used.
+/// Image of the radiosity B (each element's value with its slope at the pixel's point): linear,
+/// scaled so that the 99th percentile of the visible pixels' luminance is 1, clipped,
+/// sRGB-encoded. Also returns the exposure scale used.
 #[must_use]
 pub fn radiosity_image_with_exposure(
     scene: &Scene,
@@ -433,16 +449,23 @@ pub fn radiosity_image_with_exposure(
     w: usize,
     h: usize,
 ) -> (Image, f64) {
-    let hits = render_hits(scene, accel, elements, camera, w, h);
+    let points = render_points(scene, accel, elements, camera, w, h);
+    let hits: Vec<PixelHit> = points.iter().map(|(hit, _)| *hit).collect();
     let scale = exposure_of_hits(&hits, elements);
-    let shade = |e: usize| -> [f32; 3] {
-        let b = elements[e].radiosity;
-        if !b.is_finite() {
-            return NO_VALUE;
-        }
-        b.0.map(|c| srgb_encode(c * scale) as f32)
-    };
-    let pixels = hits.par_iter().map(|h| flat_or(*h, &shade)).collect();
+    // Each element's own reconstruction at the pixel's point (its value with its slope).
+    let pixels = points
+        .par_iter()
+        .map(|&(hit, at)| {
+            let shade = |e: usize| -> [f32; 3] {
+                let b = elements[e].radiosity_at(at);
+                if !b.is_finite() {
+                    return NO_VALUE;
+                }
+                b.0.map(|c| srgb_encode(c * scale) as f32)
+            };
+            flat_or(hit, &shade)
+        })
+        .collect();
     (Image { width: w, height: h, pixels }, scale)
 }
 

@@ -103,6 +103,8 @@ fn glb_reads_back_with_every_element_its_colour_and_the_extras() {
     assert!(clipped > 0, "the light is brighter than the 99th percentile: clipped to 1");
     assert!(clipped < sol.elements.len() / 2, "{clipped} of {} elements clipped", sol.elements.len());
 
+    // The solve pushes slopes to its leaves: the vertex colours below vary across them.
+    assert!(sol.elements.iter().any(|e| e.slope.is_some()), "no element has a slope");
     // One node and mesh per input mesh name, each with that mesh's elements in solution order.
     let mut vertices = 0;
     let mut triangles = 0;
@@ -124,11 +126,16 @@ fn glb_reads_back_with_every_element_its_colour_and_the_extras() {
         let mut v = 0;
         for e in &elements {
             let patch = &scene.patches[e.patch];
-            let color = e.radiosity.0.map(|c| (c * exposure).clamp(0.0, 1.0) as f32);
+            // Each vertex carries the element's own reconstruction there: its value with its slope.
             for p in &e.vertices {
+                let b = e.radiosity_at(*p);
                 assert_eq!(positions[v], p.to_array().map(|c| c as f32));
-                assert_eq!(colors[v], color, "COLOR_0 of an element of {name}");
-                assert_eq!(radiosity[v], e.radiosity.0.map(|c| c as f32));
+                assert_eq!(
+                    colors[v],
+                    b.0.map(|c| (c * exposure).clamp(0.0, 1.0) as f32),
+                    "COLOR_0 of {name}"
+                );
+                assert_eq!(radiosity[v], b.0.map(|c| c as f32));
                 let n = normals[v];
                 assert!((n[0] * n[0] + n[1] * n[1] + n[2] * n[2] - 1.0).abs() < 1e-6);
                 assert!(patch.normal.dot(radlab::math::DVec3::from_array(n.map(f64::from))) > 1.0 - 1e-6);

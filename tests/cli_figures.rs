@@ -55,7 +55,6 @@ fn view_mesh_flags_that_do_not_fit_are_one_line_errors() {
     for (args, says) in [
         (&["view", "builtin:cornell", "--order", "1"][..], "--mesh"),
         (&["view", "builtin:cornell", "--mesh", "uniform", "--continuous"][..], "order 1"),
-        (&["view", "builtin:cornell", "--mesh", "uniform", "--reconstruction", "nodal"][..], "--order 1"),
         (&["view", "builtin:cornell", "--mesh", "discontinuity-bsp", "--order", "2"][..], "--order 2"),
         (&["view", "builtin:cornell", "--mesh", "voronoi"][..], "voronoi"),
     ] {

@@ -50,7 +50,10 @@ fn every_mesh_solves_and_dumps_its_elements_with_coefficients() {
         assert_eq!(doc["mesh"], mesh);
         assert_eq!(doc["method"], method);
         assert_eq!(dump["mesh"], mesh);
-        assert_eq!(dump["basis"], "p0");
+        // The hierarchical solver's leaves and the discontinuity meshes' gathered pieces carry
+        // slopes (linear per element); the uniform mesh's classical solve gives none.
+        let sloped_mesh = mesh != "uniform";
+        assert_eq!(dump["basis"], if sloped_mesh { "p0-slope" } else { "p0" });
         assert_eq!(dump["format"], "radlab-elements-1");
         let elements = dump["elements"].as_array().unwrap();
         assert!(elements.len() > 3, "{mesh}: {} elements", elements.len());
@@ -58,13 +61,31 @@ fn every_mesh_solves_and_dumps_its_elements_with_coefficients() {
         let leaves: Vec<_> = elements.iter().filter(|e| e["children"].is_null()).collect();
         let area: f64 = leaves.iter().map(|e| f(&e["area"])).sum();
         assert!((area - total_area).abs() < 1e-6, "{mesh}: leaves cover {area}, scene {total_area}");
+        let mut sloped = 0;
         for e in elements {
             let c = e["coefficients"].as_array().unwrap();
-            assert_eq!(c.len(), 1, "{mesh}: p = 0 has one coefficient per element");
-            assert_eq!(c[0], e["radiosity"], "{mesh}: the constant is the element's radiosity");
             let n = e["vertices"].as_array().unwrap().len();
             assert!((3..=4).contains(&n), "{mesh}: {n} vertices");
+            if e["slope"].is_null() {
+                assert_eq!(c.len(), 1, "{mesh}: a constant element has one coefficient");
+                assert_eq!(c[0], e["radiosity"], "{mesh}: the constant is the element's radiosity");
+                continue;
+            }
+            // A leaf with a slope: its linear function's values at its vertices, whose mean is
+            // its average (the value at the centroid of a triangle or parallelogram) unless a
+            // corner was clamped at 0.
+            sloped += 1;
+            assert_eq!(c.len(), n, "{mesh}: one coefficient per vertex");
+            for k in 0..3 {
+                let values: Vec<f64> = c.iter().map(|v| f(&v[k])).collect();
+                if values.iter().all(|&v| v > 0.0) {
+                    let mean = values.iter().sum::<f64>() / n as f64;
+                    let b = f(&e["radiosity"][k]);
+                    assert!((mean - b).abs() <= 1e-9 * b.abs().max(1e-12), "{mesh}: mean {mean} against {b}");
+                }
+            }
         }
+        assert_eq!(sloped > 0, sloped_mesh, "{mesh}: {sloped} elements with a slope");
         // The hierarchy's interior elements hold the area average of their children (push-pull).
         let interior: Vec<_> = elements.iter().filter(|e| !e["children"].is_null()).collect();
         assert_eq!(interior.is_empty(), mesh != "quadtree", "{mesh}: {} interior elements", interior.len());

@@ -60,11 +60,11 @@ pub struct Args {
     /// five meshing artifacts of the solution ([`radlab::artifacts`]).
     #[arg(long)]
     pub exact: bool,
-    /// How the pointwise ruler reads the --compare solution: `flat` (each element's value with
-    /// its slope, what the viewer draws and the bake writes), `gouraud` (vertex averages,
-    /// interpolated), `nodal` (the elements' own p = 1 functions; needs --order 1). Default: flat
-    /// at order 0, nodal at order 1.
-    #[arg(long, value_parser = ["flat", "gouraud", "nodal"])]
+    /// How the pointwise ruler reads the --compare solution: `solved` (the default: each
+    /// element's own function, its value with its slope or its p = 1 vertex values, what the
+    /// viewer draws and the bake writes; `nodal` is the same), `flat` (element averages, slopes
+    /// dropped), `gouraud` (vertex averages, interpolated).
+    #[arg(long, value_parser = ["solved", "flat", "gouraud", "nodal"])]
     pub reconstruction: Option<String>,
     /// The solver --compare runs: the same flags as `radlab solve`.
     #[command(flatten, next_help_heading = "Solver (with --compare)")]
@@ -300,10 +300,6 @@ fn solve(
 ) -> anyhow::Result<(radlab::solver::Solution, Option<Vec<Vec<Rgb>>>)> {
     use std::sync::Arc;
     let a = &args.solver;
-    anyhow::ensure!(
-        args.reconstruction.as_deref() != Some("nodal") || a.order == 1,
-        "--reconstruction nodal needs --order 1 (use flat or gouraud at order 0)"
-    );
     let scene = Arc::new(scene.clone());
     let t0 = std::time::Instant::now();
     let accel = Arc::new(Accel::build(&scene));
@@ -549,12 +545,21 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         let band_rays = points.len() as f64 * emitters as f64 * f64::from(band_params.side).powi(2);
         let band = (band_rays <= BAND_RAY_BUDGET)
             .then(|| radlab::penumbra::band(&scene, &accel, points, &entry.estimates, &band_params));
-        let kind =
-            args.reconstruction.as_deref().unwrap_or(if coefficients.is_some() { "nodal" } else { "flat" });
+        let kind = match args.reconstruction.as_deref() {
+            None | Some("nodal") => "solved",
+            Some(k) => k,
+        };
+        let mut sol = sol;
         let nodal_coefficients = match (kind, coefficients) {
             ("gouraud", _) => Some(radlab::reconstruction::gouraud(&scene, &sol.elements)),
-            ("nodal", c) => c,
-            _ => None,
+            ("solved", c) => c,
+            _ => {
+                // Flat: each element's average alone.
+                for e in &mut sol.elements {
+                    e.slope = None;
+                }
+                None
+            }
         };
         writeln!(log, "reconstruction: {kind}")?;
         let score = match &nodal_coefficients {

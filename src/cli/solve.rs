@@ -894,6 +894,7 @@ fn dump_json(spec: &str, solved: &Solved) -> serde_json::Value {
     let basis = match (order, continuous) {
         (1, true) => "p1-continuous",
         (1, false) => "p1-discontinuous",
+        _ if solved.has_slopes() => "p0-slope",
         _ => "p0",
     };
     let mut doc = json!({
@@ -909,12 +910,19 @@ fn dump_json(spec: &str, solved: &Solved) -> serde_json::Value {
         doc["elements"] = snap
             .elements
             .iter()
-            .map(|e| json!({
-                "id": e.id, "patch": e.patch, "parent": e.parent, "children": e.children, "depth": e.depth,
-                "vertices": &e.vertices[..e.n_vertices as usize], "area": e.area, "radiosity": e.radiosity,
-                "coefficients": [e.radiosity],
-                "error_estimate": e.error_estimate, "stop": e.stop,
-            }))
+            .map(|e| {
+                let vertices = &e.vertices[..e.n_vertices as usize];
+                let coefficients: Vec<_> = match e.slope {
+                    Some(s) => vertices.iter().map(|&v| s.at(e.radiosity, v)).collect(),
+                    None => vec![e.radiosity],
+                };
+                json!({
+                    "id": e.id, "patch": e.patch, "parent": e.parent, "children": e.children, "depth": e.depth,
+                    "vertices": vertices, "area": e.area, "radiosity": e.radiosity,
+                    "coefficients": coefficients, "slope": e.slope,
+                    "error_estimate": e.error_estimate, "stop": e.stop,
+                })
+            })
             .collect();
         doc["links"] = json!(snap.links);
     } else {
@@ -928,7 +936,7 @@ fn dump_json(spec: &str, solved: &Solved) -> serde_json::Value {
             .map(|(id, (e, c))| {
                 json!({
                     "id": id, "patch": e.patch, "vertices": e.vertices, "area": e.area,
-                    "radiosity": e.radiosity, "coefficients": c,
+                    "radiosity": e.radiosity, "coefficients": c, "slope": e.slope,
                 })
             })
             .collect();

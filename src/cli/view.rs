@@ -88,9 +88,10 @@ pub struct Args {
     /// With --order 1: one value per mesh vertex, shared by the elements around it.
     #[arg(long)]
     pub continuous: bool,
-    /// How the solution is drawn: flat (element values), gouraud (vertex averages) or nodal
-    /// (the element's own p = 1 function; needs --order 1).
-    #[arg(long, value_enum, default_value = "gouraud")]
+    /// How the solution is drawn: solved (each element's own function: its value with its slope,
+    /// or its p = 1 vertex values; what the rulers score), flat (element averages) or gouraud
+    /// (vertex averages).
+    #[arg(long, value_enum, default_value = "solved")]
     pub reconstruction: DisplayReconstruction,
 }
 
@@ -116,7 +117,7 @@ impl Args {
             mesh: MeshMethod::Quadtree,
             order: 0,
             continuous: false,
-            reconstruction: DisplayReconstruction::Gouraud,
+            reconstruction: DisplayReconstruction::Nodal,
         }
     }
 
@@ -130,22 +131,13 @@ impl Args {
                 self.order
             );
         };
-        let nodal = self.reconstruction == DisplayReconstruction::Nodal;
         if self.mesh == MeshMethod::Quadtree {
             if order != Order::Constant || self.continuous {
                 anyhow::bail!(
                     "--order 1 and --continuous need --mesh uniform|discontinuity-cdt|discontinuity-bsp (the quadtree's elements are constant)"
                 );
             }
-            if nodal {
-                anyhow::bail!(
-                    "--reconstruction nodal draws p = 1 elements: it needs --mesh uniform|discontinuity-cdt|discontinuity-bsp and --order 1"
-                );
-            }
             return Ok(None);
-        }
-        if nodal && order == Order::Constant {
-            anyhow::bail!("--reconstruction nodal draws p = 1 elements: it needs --order 1");
         }
         let p = MeshSolveParams { order, continuous: self.continuous, ..MeshSolveParams::new(self.mesh) };
         p.validate().map_err(|e| anyhow::anyhow!("--mesh {}: {e}", self.mesh.name()))?;

@@ -12,7 +12,7 @@
 //!
 //! Each returns a [`Solution`] of the **input** scene (a discontinuity mesh's pieces are pulled
 //! back onto the patch they were cut from) and, at p = 1, every element's vertex values, which a
-//! display draws as the element's own p = 1 function ([`DisplayReconstruction::Nodal`]).
+//! display draws as the element's own function ([`DisplayReconstruction::Nodal`]).
 
 use super::discontinuity::{self, DiscontinuityParams};
 use super::linear::{self, LinearParams};
@@ -88,10 +88,13 @@ pub enum DisplayReconstruction {
     Flat,
     /// Vertex values averaged from the elements around each vertex, interpolated (what most
     /// systems show).
-    #[default]
     Gouraud,
-    /// The element's own p = 1 function (a p = 1 solve's vertex values), discontinuous across
-    /// element edges where the basis is.
+    /// The element's own function, what the solver computed and every ruler scores: a p = 1
+    /// solve's vertex values, or its average with its slope (the hierarchical solver's leaves,
+    /// a discontinuity mesh's gathered pieces), else its constant; discontinuous across element
+    /// edges where the basis is. Spelled `solved` (`nodal` is accepted).
+    #[default]
+    #[value(name = "solved", alias = "nodal")]
     Nodal,
 }
 
@@ -102,7 +105,7 @@ impl DisplayReconstruction {
         match self {
             DisplayReconstruction::Flat => "flat",
             DisplayReconstruction::Gouraud => "gouraud",
-            DisplayReconstruction::Nodal => "nodal",
+            DisplayReconstruction::Nodal => "solved",
         }
     }
 }

@@ -71,6 +71,23 @@ pub struct SolvedElement {
     pub slope: Option<Slope>,
 }
 
+impl SolvedElement {
+    /// B at `x` on the element: its average with its slope where it has one, the one
+    /// reconstruction that the viewer draws, the bake and the image write and the rulers score.
+    #[must_use]
+    pub fn radiosity_at(&self, x: DVec3) -> Rgb {
+        self.slope.map_or(self.radiosity, |s| s.at(self.radiosity, x))
+    }
+
+    /// B at each vertex, in vertex order: with a slope, the coefficients of the element's linear
+    /// function (linear on a triangle, bilinear on a quad, which reproduces a linear function on a
+    /// parallelogram); without, its constant at every vertex.
+    #[must_use]
+    pub fn corner_values(&self) -> Vec<Rgb> {
+        self.vertices.iter().map(|&v| self.radiosity_at(v)).collect()
+    }
+}
+
 /// Power balance of a solution, per channel: at convergence `emitted = absorbed + escaped`.
 /// `absorbed` = Σ A (1−ρ) H (H the gathered irradiance); `escaped` = Σ A B (1 − Σ_j F V),
 /// the part of the leaving power that hits no surface. Both are computed from the solver's own

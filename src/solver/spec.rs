@@ -397,15 +397,31 @@ pub struct Solved {
     /// What the solve changed in the spec to run, one line each (a discontinuity mesh graded to
     /// fit the p = 1 solver's cap): the CLI prints them on stderr.
     pub notes: Vec<String>,
+    /// Whether `cancel` stopped a hierarchical solve before it converged (the solution is then
+    /// the state reached).
+    pub cancelled: bool,
 }
 
 impl Solved {
-    /// Every element's basis coefficients: its order-1 vertex values, or its one constant.
+    /// Every element's basis coefficients: its order-1 vertex values; at order 0 its values at
+    /// its vertices where it has a slope ([`crate::solver::SolvedElement::corner_values`]), else
+    /// its one constant.
     #[must_use]
     pub fn element_coefficients(&self) -> Vec<Vec<Rgb>> {
-        self.coefficients
-            .clone()
-            .unwrap_or_else(|| self.solution.elements.iter().map(|e| vec![e.radiosity]).collect())
+        self.coefficients.clone().unwrap_or_else(|| {
+            self.solution
+                .elements
+                .iter()
+                .map(|e| if e.slope.is_some() { e.corner_values() } else { vec![e.radiosity] })
+                .collect()
+        })
+    }
+
+    /// Whether some element varies linearly through a slope at order 0 (the dump's `p0-slope`
+    /// basis).
+    #[must_use]
+    pub fn has_slopes(&self) -> bool {
+        self.coefficients.is_none() && self.solution.elements.iter().any(|e| e.slope.is_some())
     }
 }
 
@@ -425,10 +441,11 @@ pub fn solve(
     let failed = SolveError::Failed;
     let (mut hierarchical, mut coefficients, mut remesh) = (None, None, None);
     let mut notes = Vec::new();
+    let mut cancelled = false;
     let solution = match &spec.plan {
         Plan::Hierarchical { params, top: TopLevel::Patches | TopLevel::Auto } => {
             let mut s = HierarchicalSolver::with_accel(Arc::clone(scene), Arc::clone(accel), *params, bvh_s);
-            forward_solve(&mut s, cancel, progress);
+            cancelled = forward_solve(&mut s, cancel, progress);
             let sol = s.solution_with(spec.estimate);
             hierarchical = Some(s);
             sol
@@ -436,7 +453,7 @@ pub fn solve(
         Plan::Hierarchical { params, top: TopLevel::Mesh(mesh) } => {
             let mut on_mesh =
                 HierarchicalOnMesh::new(scene, mesh, *params).map_err(|e| failed(e.to_string()))?;
-            forward_solve(&mut on_mesh.solver, cancel, progress);
+            cancelled = forward_solve(&mut on_mesh.solver, cancel, progress);
             let d = on_mesh.finish(spec.estimate);
             remesh = Some((d.mesh, d.solve_s));
             d.solution
@@ -469,16 +486,14 @@ pub fn solve(
             d.solution
         }
     };
-    Ok(Solved { solution, spec: *spec, hierarchical, coefficients, remesh, notes })
+    Ok(Solved { solution, spec: *spec, hierarchical, coefficients, remesh, notes, cancelled })
 }
 
 /// Run `s.solve`, stopping it when `cancel` is set: the flag is checked at each progress report
-/// and forwarded to the solver's own.
-fn forward_solve(s: &mut HierarchicalSolver, cancel: Option<&Arc<AtomicBool>>, progress: Progress) {
+/// and forwarded to the solver's own. Returns whether the solve was cancelled.
+fn forward_solve(s: &mut HierarchicalSolver, cancel: Option<&Arc<AtomicBool>>, progress: Progress) -> bool {
     match cancel {
-        None => {
-            s.solve(progress);
-        }
+        None => s.solve(progress).cancelled,
         Some(outer) => {
             let inner = s.cancel_handle();
             let outer = Arc::clone(outer);
@@ -488,7 +503,7 @@ fn forward_solve(s: &mut HierarchicalSolver, cancel: Option<&Arc<AtomicBool>>, p
                 }
                 progress(d, n);
             };
-            s.solve(&mut forwarded);
+            s.solve(&mut forwarded).cancelled
         }
     }
 }

@@ -231,6 +231,9 @@ pub struct ElementInfo {
     pub gathered: Rgb,
     pub error_estimate: f64,
     pub stop: StopReason,
+    /// A leaf's linear variation (the slope of the irradiance pushed down to it, times ρ), where
+    /// it has one: its radiosity is `slope.at(radiosity, x)` across it.
+    pub slope: Option<crate::solver::Slope>,
 }
 
 /// Read-only view of one link.
@@ -698,6 +701,7 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn snapshot_with(&self, estimates: bool) -> Snapshot {
         let est = if estimates { self.error_estimates() } else { vec![0.0; self.hier.elements.len()] };
+        let slopes = self.leaf_slopes();
         let elements = self
             .hier
             .elements
@@ -718,6 +722,7 @@ impl HierarchicalSolver {
                 gathered: e.gathered,
                 error_estimate: est[i],
                 stop: e.stop,
+                slope: slopes.get(i).copied().flatten(),
             })
             .collect();
         let oracle = self.params.oracle;
