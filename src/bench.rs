@@ -262,7 +262,7 @@ impl Method {
         let _ = done_tx.send(());
         let _ = watchdog.join();
         let solved = solved.map_err(|e| e.to_string())?;
-        Ok((!solved.cancelled).then(|| (solved.solution, secs)))
+        Ok((!solved.cancelled).then_some((solved.solution, secs)))
     }
 }
 

@@ -111,7 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let mut bar = LazyBar::new("solve", args.quiet);
     let t = Instant::now();
-    let solved = solve_scene(a, &args.scene, &scene, &accel, bvh_s, &mut |d, n| bar.update(d, n))?;
+    let (solved, _) = solve_scene(a, &args.scene, &scene, &accel, bvh_s, &mut |d, n| bar.update(d, n))?;
     bar.finish();
     let solve_s = t.elapsed().as_secs_f64();
     let mut solved = solved;

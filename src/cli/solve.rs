@@ -189,8 +189,12 @@ pub struct SolverArgs {
     /// to the scene's mean reflected radiosity; its area floor follows it, 6e-4 × ε of the
     /// scene's area, unless --aeps/--aeps-rel is given), the BF oracle's BFeps (relative to the
     /// brightest emission) or Feps (hierarchical).
-    #[arg(long)]
-    pub threshold: Option<f64>,
+    ///
+    /// A list (`0.1,0.05,0.025`) solves at each threshold in turn, each finer step refining from
+    /// where the last one stopped and gathering from its radiosity (a warm re-solve); the summary
+    /// and the JSON's `walk` give every step's time, size and rays, the rest the last step's.
+    #[arg(long, value_delimiter = ',', num_args = 1)]
+    pub threshold: Vec<f64>,
     /// Refinement oracle (hierarchical): error (the ladder's), bf or feps.
     #[arg(long, value_enum)]
     pub oracle: Option<OracleArg>,
@@ -420,7 +424,7 @@ pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalPara
         p.oracle = o.into();
     }
     let floor_follows = args.aeps.is_none() && args.aeps_rel.is_none();
-    if let Some(v) = args.threshold {
+    if let Some(&v) = args.threshold.last() {
         p = spec::with_threshold(p, v, floor_follows);
     }
     if let Some(v) = args.feps {
@@ -580,7 +584,7 @@ pub fn plan(a: &SolverArgs) -> anyhow::Result<(Route, MeshArg)> {
             "--ff-tol applies to --mesh uniform and the discontinuity meshes (the hierarchical solver's links use their own kernel)"
         );
     }
-    if !hierarchical && a.threshold.is_some() {
+    if !hierarchical && !a.threshold.is_empty() {
         bail!("--threshold sets the hierarchical solver's oracle; --mesh {} has no oracle", mesh.name());
     }
     match a.order {
@@ -735,7 +739,8 @@ pub fn solve_spec(a: &SolverArgs, scene: &Scene) -> anyhow::Result<SolveSpec> {
     Ok(SolveSpec { plan, estimate: a.estimate })
 }
 
-/// Solve `scene` as `a` says ([`solve_spec`], [`radlab::solver::spec::solve`]); `spec` names the
+/// Solve `scene` as `a` says ([`solve_spec`], [`radlab::solver::spec::solve`]; with several
+/// `--threshold` values, [`radlab::solver::spec::solve_walk`] and its steps); `spec` names the
 /// scene in errors.
 pub fn solve_scene(
     a: &SolverArgs,
@@ -744,14 +749,21 @@ pub fn solve_scene(
     accel: &Arc<Accel>,
     bvh_s: f64,
     progress: radlab::solver::Progress,
-) -> anyhow::Result<Solved> {
+) -> anyhow::Result<(Solved, Vec<spec::WalkStep>)> {
     let s = solve_spec(a, scene)?;
-    let solved = radlab::solver::spec::solve(scene, accel, bvh_s, &s, progress, None)
-        .with_context(|| format!("solving {spec}"))?;
+    let (solved, walk) = if a.threshold.len() > 1 {
+        let floor_follows = a.aeps.is_none() && a.aeps_rel.is_none();
+        spec::solve_walk(scene, accel, bvh_s, &s, &a.threshold, floor_follows, progress, None)
+            .with_context(|| format!("solving {spec}"))?
+    } else {
+        let solved = spec::solve(scene, accel, bvh_s, &s, progress, None)
+            .with_context(|| format!("solving {spec}"))?;
+        (solved, Vec::new())
+    };
     for note in &solved.notes {
         eprintln!("radlab: {spec}: {note}");
     }
-    Ok(solved)
+    Ok((solved, walk))
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -781,7 +793,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         _ => format!("{route:?}").to_lowercase(),
     };
     let mut bar = LazyBar::new(&label, args.quiet);
-    let mut solved = solve_scene(a, &args.scene, &scene, &accel, bvh_s, &mut |d, n| bar.update(d, n))?;
+    let (mut solved, walk) =
+        solve_scene(a, &args.scene, &scene, &accel, bvh_s, &mut |d, n| bar.update(d, n))?;
     bar.finish();
     let solution = &mut solved.solution;
     solution.stats.time_s = PhaseTimes {
@@ -858,6 +871,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some((m, solve_s)) = &solved.remesh {
             doc["meshing"] = json!({ "stats": m, "meshing_s": m.total_s, "solve_s": solve_s });
         }
+        if !walk.is_empty() {
+            doc["walk"] = json!(walk);
+        }
         match target {
             "-" => println!("{}", serde_json::to_string_pretty(&doc)?),
             path => std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")
@@ -868,6 +884,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print_summary(&args.scene, solution);
         if let Some((m, solve_s)) = &solved.remesh {
             println!("  mesh {}: {}, solve {solve_s:.3} s", solved.spec.mesh_name(), m.describe());
+        }
+        for w in &walk {
+            println!(
+                "  threshold {:<8} {} {:>8.3} s  {:>9} leaves {:>10} links {:>12} rays",
+                w.threshold,
+                if w.warm { "warm" } else { "cold" },
+                w.solve_s,
+                w.leaves,
+                w.links,
+                w.rays
+            );
         }
         if let Some((path, exposure, bytes, bake_s)) = baked {
             let kb = bytes as f64 / 1e3;

@@ -489,6 +489,93 @@ pub fn solve(
     Ok(Solved { solution, spec: *spec, hierarchical, coefficients, remesh, notes, cancelled })
 }
 
+/// One step of a walk down thresholds ([`solve_walk`]).
+#[derive(Copy, Clone, Debug, Serialize)]
+pub struct WalkStep {
+    /// The oracle's threshold of this step ([`with_threshold`]).
+    pub threshold: f64,
+    /// Whether the step started from the last one's hierarchy, links and radiosity
+    /// ([`HierarchicalSolver::retarget`]); the first step, and a step to a coarser threshold,
+    /// start cold.
+    pub warm: bool,
+    /// Wall time of the step's solve (s).
+    pub solve_s: f64,
+    pub elements: usize,
+    pub leaves: usize,
+    pub links: usize,
+    /// Shadow rays cast in this step alone.
+    pub rays: u64,
+}
+
+/// Solve a hierarchical `spec` at each of `thresholds` in turn ([`with_threshold`]; the area floor
+/// follows the threshold when `floor_follows`), each step refining from where the last stopped
+/// and gathering from its radiosity when its threshold is finer ([`HierarchicalSolver::retarget`]):
+/// a warm re-solve, as a threshold slider moves. Returns the last step's solve and every step's
+/// figures. Refinement at a finer threshold only adds to what a coarser one built, so the result
+/// is a solve at the last threshold that started from the earlier ones' mesh.
+pub fn solve_walk(
+    scene: &Arc<Scene>,
+    accel: &Arc<Accel>,
+    bvh_s: f64,
+    spec: &SolveSpec,
+    thresholds: &[f64],
+    floor_follows: bool,
+    progress: Progress,
+    cancel: Option<&Arc<AtomicBool>>,
+) -> Result<(Solved, Vec<WalkStep>), SolveError> {
+    let failed = SolveError::Failed;
+    spec.validate()?;
+    let spec = spec.resolved(scene);
+    let (Plan::Hierarchical { params, top }, Some(&first)) = (spec.plan, thresholds.first()) else {
+        return Err(failed("a walk down thresholds needs the hierarchical solver and a threshold".into()));
+    };
+    let at = |t: f64| with_threshold(params, t, floor_follows);
+    let mut steps = Vec::with_capacity(thresholds.len());
+    let mut cancelled = false;
+    let mut walk = |s: &mut HierarchicalSolver| -> Result<(), SolveError> {
+        for (k, &t) in thresholds.iter().enumerate() {
+            let warm = if k == 0 { false } else { s.retarget(at(t)).map_err(failed)? };
+            let rays_before = if warm { s.stats().rays } else { 0 };
+            let started = std::time::Instant::now();
+            cancelled = forward_solve(s, cancel, &mut *progress);
+            let st = s.stats();
+            steps.push(WalkStep {
+                threshold: t,
+                warm,
+                solve_s: started.elapsed().as_secs_f64(),
+                elements: st.elements,
+                leaves: st.leaves,
+                links: st.links,
+                rays: st.rays.saturating_sub(rays_before),
+            });
+            if cancelled {
+                break;
+            }
+        }
+        Ok(())
+    };
+    let (solution, hierarchical, remesh) = match &top {
+        TopLevel::Patches | TopLevel::Auto => {
+            let mut s =
+                HierarchicalSolver::with_accel(Arc::clone(scene), Arc::clone(accel), at(first), bvh_s);
+            walk(&mut s)?;
+            (s.solution_with(spec.estimate), Some(s), None)
+        }
+        TopLevel::Mesh(mesh) => {
+            let mut on_mesh =
+                HierarchicalOnMesh::new(scene, mesh, at(first)).map_err(|e| failed(e.to_string()))?;
+            walk(&mut on_mesh.solver)?;
+            let d = on_mesh.finish(spec.estimate);
+            (d.solution, None, Some((d.mesh, d.solve_s)))
+        }
+    };
+    let last = thresholds.get(steps.len().saturating_sub(1)).copied().unwrap_or(first);
+    let spec = SolveSpec { plan: Plan::Hierarchical { params: at(last), top }, ..spec };
+    let solved =
+        Solved { solution, spec, hierarchical, coefficients: None, remesh, notes: Vec::new(), cancelled };
+    Ok((solved, steps))
+}
+
 /// Run `s.solve`, stopping it when `cancel` is set: the flag is checked at each progress report
 /// and forwarded to the solver's own. Returns whether the solve was cancelled.
 fn forward_solve(s: &mut HierarchicalSolver, cancel: Option<&Arc<AtomicBool>>, progress: Progress) -> bool {

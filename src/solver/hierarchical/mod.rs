@@ -490,6 +490,43 @@ impl HierarchicalSolver {
         Ok(())
     }
 
+    /// Change the oracle's thresholds and keep what is solved: with thresholds as fine or finer
+    /// (Feps, BFeps or ε, Aeps no larger, the depth and link caps no smaller), any row check
+    /// (`row_tol`, which the ladder ties to ε) and every other setting unchanged, the hierarchy, the links and the radiosity stay, and the next
+    /// [`solve`](Self::solve) refines from where this one stopped and gathers from the last
+    /// radiosity (a warm re-solve). Anything else restarts as [`set_params`](Self::set_params)
+    /// does. Returns whether the state was kept.
+    pub fn retarget(&mut self, p: HierarchicalParams) -> Result<bool, String> {
+        p.validate()?;
+        let old = self.params;
+        let others_same = HierarchicalParams {
+            feps: old.feps,
+            bf_eps: old.bf_eps,
+            aeps: old.aeps,
+            max_depth: old.max_depth,
+            max_links: old.max_links,
+            row_tol: old.row_tol,
+            ..p
+        } == old;
+        let area = self.scene.total_area();
+        let aeps = p.aeps.resolve(area);
+        let finer = p.feps <= old.feps
+            && p.bf_eps <= old.bf_eps
+            && aeps <= old.aeps.resolve(area)
+            && p.max_depth >= old.max_depth
+            && p.max_links >= old.max_links;
+        if !(others_same && finer && self.linked) {
+            self.set_params(p)?;
+            return Ok(false);
+        }
+        self.params = p;
+        self.aeps = aeps;
+        self.bf_eps = resolve_bf_eps(&p, &self.scene);
+        self.converged = false;
+        self.cancel.store(false, Ordering::Relaxed);
+        Ok(true)
+    }
+
     /// Back to one element per patch, no links, B = E.
     pub fn reset(&mut self) {
         self.hier = Hierarchy::from_scene(&self.scene);
