@@ -9,7 +9,8 @@
 #   1. the viewer is still running after the click,
 #   2. the viewport region is not blank (enough distinct colours: a shaded room has hundreds;
 #      an empty viewport has one),
-#   3. the inspector shows the picked element (its panel region changed after the click).
+#   3. the inspector shows the picked element (its panel region changed after the click),
+#   4. a lecture figure with a split view (h-vs-p-linear) writes its window screenshot and exits.
 # Exits non-zero on any failure. Screenshots are left in $OUT_DIR (default: target/xvfb-smoke).
 set -euo pipefail
 
@@ -89,6 +90,20 @@ diff_px=${diff_px%% *}
 echo "xvfb_smoke: inspector region changed in $diff_px pixels after the click"
 if [ "${diff_px%.*}" -lt 100 ] 2>/dev/null; then
     echo "xvfb_smoke: the click did not pick an element (see $OUT_DIR/after.png)" >&2
+    exit 1
+fi
+# A lecture figure in a real window: the split view of two solves scored against the closed
+# form (its reference), written as a PNG and exited; a panic or a hang fails here.
+if ! timeout 120 "$BIN" view --figure h-vs-p-linear --window --screenshot "$OUT_DIR/h-vs-p-linear.png" \
+    >"$OUT_DIR/figure.log" 2>&1; then
+    echo "xvfb_smoke: the h-vs-p-linear figure did not write its screenshot:" >&2
+    cat "$OUT_DIR/figure.log" >&2
+    exit 1
+fi
+colours=$(convert "$OUT_DIR/h-vs-p-linear.png" -format %k info:)
+echo "xvfb_smoke: h-vs-p-linear window has $colours distinct colours"
+if [ "$colours" -lt "$MIN_VIEWPORT_COLOURS" ]; then
+    echo "xvfb_smoke: the figure's window looks blank (see $OUT_DIR/h-vs-p-linear.png)" >&2
     exit 1
 fi
 echo "xvfb_smoke: ok"

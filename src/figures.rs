@@ -111,7 +111,9 @@ pub struct Figure {
     /// Open the split view: the newest two runs of the scene side by side (the sweep's and the
     /// figure's own).
     pub split: bool,
-    /// Two to four sentences: what to look at and why.
+    /// Two to five sentences: what to look at and why. Its numbers are names in braces
+    /// (`{leaves}`, `{error_value}`, [`PLACEHOLDERS`]) that [`Figure::caption_text`] fills from the
+    /// state shown, so a caption never quotes a number the screen does not show.
     pub caption: &'static str,
 }
 
@@ -153,6 +155,152 @@ impl Figure {
     pub fn builtin_name(&self) -> &'static str {
         self.scene.strip_prefix("builtin:").unwrap_or(self.scene)
     }
+
+    /// Whether a step run after the figure's own keeps the state the caption describes: a
+    /// stepped figure (one that does not solve) goes on with Refine, Gather, Push-pull and
+    /// Iterate, a solved figure with a Solve (the same settings give the same solution);
+    /// anything else leaves it.
+    #[must_use]
+    pub fn follows(&self, kind: StepKind) -> bool {
+        let solved = self.steps.contains(&StepKind::Solve) || self.mesh.method != MeshMethod::Quadtree;
+        if solved { kind == StepKind::Solve } else { kind != StepKind::Solve }
+    }
+
+    /// The caption with "…" for its numbers (the Lecture menu's tooltip: no state yet).
+    #[must_use]
+    pub fn caption_outline(&self) -> String {
+        fill(self.caption, |_| None)
+    }
+
+    /// The caption with its numbers filled from `facts` (the state shown); a number not known
+    /// yet (a reference still scoring) reads "…".
+    #[must_use]
+    pub fn caption_text(&self, facts: &CaptionFacts) -> String {
+        fill(self.caption, |name| facts.value(name))
+    }
+}
+
+/// The numbers captions quote, read from the state a figure shows (the viewer fills them in).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CaptionFacts {
+    /// Leaves (the elements that carry radiosity) and links of the solution shown (a mesh
+    /// solve's links are its form-factor entries); the links whose visibility is partial.
+    pub leaves: usize,
+    pub links: usize,
+    pub links_partial: usize,
+    /// Unknowns of the solution: p = 1 continuous, its shared vertices; else its leaves.
+    pub unknowns: usize,
+    /// Gathers of the state since its last restart, and the last one's residual.
+    pub gathers: usize,
+    pub residual: Option<f64>,
+    /// The state's pointwise relative L2 error against the closed form or the reference, and
+    /// over the penumbra band (where the closed form gives the band).
+    pub error: Option<f64>,
+    pub band_error: Option<f64>,
+    /// The run beside it in the split view: its unknowns and errors.
+    pub other_unknowns: Option<usize>,
+    pub other_error: Option<f64>,
+    pub other_band_error: Option<f64>,
+    /// The largest leaf's diameter, and the links whose two elements' centres are five
+    /// diameters (each's) apart: the five-times rule's disk links.
+    pub largest_diameter: Option<f64>,
+    pub disk_links: Option<usize>,
+    /// The disk and the exact form factor between the scene's first two patches.
+    pub ff_disk: Option<f64>,
+    pub ff_exact: Option<f64>,
+    /// (leaves, links) of each run in the state's plot series (the scene and oracle).
+    pub series: Vec<(usize, usize)>,
+}
+
+/// The names a caption may quote in braces (see [`CaptionFacts`]).
+pub const PLACEHOLDERS: &[&str] = &[
+    "leaves",
+    "links",
+    "links_partial",
+    "links_per_leaf",
+    "leaves_squared",
+    "unknowns",
+    "bounces",
+    "residual",
+    "error_value",
+    "band_error",
+    "other_unknowns",
+    "other_error",
+    "other_band_error",
+    "largest_diameter",
+    "disk_links",
+    "ff_disk",
+    "ff_exact",
+    "series_runs",
+    "series_links_per_leaf",
+];
+
+/// A relative error as captions, run labels and the status bar write it: "12.34 %".
+#[must_use]
+pub fn percent(e: f64) -> String {
+    format!("{:.2} %", 100.0 * e)
+}
+
+impl CaptionFacts {
+    /// The text of placeholder `name` (`None`: not known yet, or not a placeholder).
+    #[must_use]
+    pub fn value(&self, name: &str) -> Option<String> {
+        let per_leaf = |links: usize, leaves: usize| format!("{:.1}", links as f64 / leaves.max(1) as f64);
+        Some(match name {
+            "leaves" => self.leaves.to_string(),
+            "links" => self.links.to_string(),
+            "links_partial" => self.links_partial.to_string(),
+            "links_per_leaf" => per_leaf(self.links, self.leaves),
+            "leaves_squared" => (self.leaves as u128 * self.leaves as u128).to_string(),
+            "unknowns" => self.unknowns.to_string(),
+            "bounces" => match self.gathers {
+                1 => "one bounce of light".to_owned(),
+                n => format!("{n} bounces of light"),
+            },
+            "residual" => format!("{:.2e}", self.residual?),
+            "error_value" => percent(self.error?),
+            "band_error" => percent(self.band_error?),
+            "other_unknowns" => self.other_unknowns?.to_string(),
+            "other_error" => percent(self.other_error?),
+            "other_band_error" => percent(self.other_band_error?),
+            "largest_diameter" => format!("{:.3}", self.largest_diameter?),
+            "disk_links" => self.disk_links?.to_string(),
+            "ff_disk" => format!("{:.3}", self.ff_disk?),
+            "ff_exact" => format!("{:.3}", self.ff_exact?),
+            "series_runs" => self.series.len().to_string(),
+            "series_links_per_leaf" => {
+                let per: Vec<f64> = self.series.iter().map(|&(n, l)| l as f64 / n.max(1) as f64).collect();
+                let lo = per.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = per.iter().copied().fold(0.0, f64::max);
+                if per.is_empty() {
+                    return None;
+                }
+                format!("{lo:.1} to {hi:.1} links per leaf")
+            }
+            _ => return None,
+        })
+    }
+}
+
+/// `template` with every `{name}` replaced by `value(name)`, "…" where that is `None`.
+fn fill(template: &str, value: impl Fn(&str) -> Option<String>) -> String {
+    let mut out = String::with_capacity(template.len());
+    let mut rest = template;
+    while let Some(open) = rest.find('{') {
+        out.push_str(&rest[..open]);
+        let Some(close) = rest[open..].find('}') else { break };
+        let name = &rest[open + 1..open + close];
+        out.push_str(&value(name).unwrap_or_else(|| "…".to_owned()));
+        rest = &rest[open + close + 1..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// The names quoted in a caption, in order.
+#[must_use]
+pub fn placeholders(template: &str) -> Vec<&str> {
+    template.split('{').skip(1).filter_map(|t| t.split_once('}').map(|(name, _)| name)).collect()
 }
 
 /// The Lecture menu's submenu of the meshing slides.
@@ -213,12 +361,12 @@ pub const FIGURES: &[Figure] = &[
         steps: &[StepKind::Refine],
         camera: CameraPreset { yaw_deg: 35.0, pitch_deg: 20.0, zoom: 1.0 },
         overlays: Overlays { quadtree: true, links: true, ..Overlays::NONE },
-        caption: "Two squares meet at a right angle; the vertical one emits. One Refine step \
+        caption: "Two squares meet at a right angle; the vertical one emits. A Refine step \
                   splits, in each pair whose form-factor estimates are not both below Feps, the \
-                  element that looks larger from the other (F_pq > F_qp: split q). The mesh is \
-                  finest along the shared edge, where the elements are closest and F varies \
-                  fastest. Press G to gather, P to push-pull, Space to \
-                  refine again.",
+                  element that looks larger from the other (F_pq > F_qp: split q): {leaves} \
+                  leaves and {links} links so far. The mesh is finest along the shared edge, where \
+                  the elements are closest and F varies fastest. Press G to gather, P to \
+                  push-pull, Space to refine again.",
         ..Figure::base(
             "perpendicular-refine",
             "Basic refinement: two perpendicular polygons",
@@ -278,10 +426,11 @@ pub const FIGURES: &[Figure] = &[
         method: "uniform mesh (Feps = 0, coarse area floor)",
         overlays: Overlays { quadtree: true, flat: true, ..Overlays::NONE },
         camera: TABLE_FROM_ABOVE,
-        caption: "A uniform mesh of about five hundred elements, flat shaded: every element is one \
+        caption: "A uniform mesh of {leaves} elements, flat shaded: every element is one \
                   colour. The shadow under the table comes out as a few blocky elements and \
                   the legs' shadows are missing, because no element boundary follows them. \
-                  Every pair of elements is linked: n² interactions.",
+                  Every pair of elements that see each other is linked: {links} links, of the \
+                  n² = {leaves_squared} pairs.",
         ..Figure::base(
             "uniform-coarse",
             "Increasing resolution: a coarse uniform mesh",
@@ -294,10 +443,11 @@ pub const FIGURES: &[Figure] = &[
         method: "uniform mesh (Feps = 0, fine area floor)",
         overlays: Overlays { quadtree: true, flat: true, ..Overlays::NONE },
         camera: TABLE_FROM_ABOVE,
-        caption: "Four times as many elements: the shadow's outline is sharper, but the error \
-                  falls only about in proportion to the element size, while the links (n²) grow \
-                  sixteen-fold. Most of the new elements sit on walls where the light was \
-                  already smooth.",
+        caption: "A quarter of the area floor: {leaves} elements and {links} links, \
+                  {links_per_leaf} per element. The shadow's outline is sharper, but the error \
+                  falls only about in proportion to the element size, while the links grow as n²: \
+                  four times the elements, sixteen times the links. Most of the new elements sit \
+                  on walls where the light was already smooth.",
         ..Figure::base(
             "uniform-fine",
             "Increasing resolution: a finer uniform mesh",
@@ -329,8 +479,9 @@ pub const FIGURES: &[Figure] = &[
         camera: TABLE_FROM_ABOVE,
         caption: "Adaptive meshing puts the elements where the light changes: the quadtree is \
                   deep along the table's shadow and under the light, and coarse on the walls. \
-                  The status bar says about 800 leaves and 7 000 links: the fine uniform mesh \
-                  needs 2 000 leaves and 2.9 million links for a blurrier shadow.",
+                  The status bar says {leaves} leaves and {links} links, {links_per_leaf} per \
+                  leaf: a uniform mesh of as many leaves links every pair that see each other, up \
+                  to {leaves_squared}, and spends its leaves where the light is smooth too.",
         ..Figure::base(
             "adaptive-meshing",
             "Adaptive meshing",
@@ -346,8 +497,8 @@ pub const FIGURES: &[Figure] = &[
         caption: "Only the partially visible links are drawn: those whose shadow rays were \
                   partly blocked. Their receivers straddle a shadow boundary, in the penumbra, \
                   where part of the light is seen; in the umbra and in full light every ray \
-                  agrees. Refinement splits these links first, which is why the mesh follows the \
-                  shadow.",
+                  agrees: here {links_partial} of the {links} links. Refinement splits these links \
+                  first, which is why the mesh follows the shadow.",
         ..Figure::base(
             "penumbra-links",
             "Penumbras and umbras",
@@ -361,9 +512,10 @@ pub const FIGURES: &[Figure] = &[
         overlays: Overlays { quadtree: true, ..Overlays::NONE },
         camera: CameraPreset { yaw_deg: 20.0, pitch_deg: -15.0, zoom: 0.5 },
         caption: "A small lamp high above and an occluder just over the floor: the penumbra is \
-                  only about 0.03 wide, a thin ring around the umbra. The quadtree is deepest \
-                  exactly there, because only the links that straddle the ring are partly visible; \
-                  this scene's answer is known in closed form (tests/exact.rs measures the solvers on it).",
+                  a thin ring around the umbra. The quadtree is deepest exactly there, because only \
+                  the links that straddle the ring are partly visible. This scene's answer is known \
+                  in closed form: the solution's pointwise error against it is {error_value}, \
+                  {band_error} in the penumbra band.",
         ..Figure::base(
             "narrow-penumbra",
             "Penumbras and umbras: a narrow penumbra",
@@ -392,8 +544,8 @@ pub const FIGURES: &[Figure] = &[
         overlays: Overlays { quadtree: true, critical: true, flat: true, ..Overlays::NONE },
         camera: TABLE_FROM_ABOVE,
         caption: "Campbell and Fussell split each receiver by the lines of its critical segments, \
-                  recursively, into convex pieces: the floor becomes about a thousand pieces whose \
-                  edges lie on every shadow boundary, solved with one value a piece (p = 0, drawn \
+                  recursively, into convex pieces: the scene becomes {leaves} pieces whose edges \
+                  lie on every shadow boundary, solved with one value a piece (p = 0, drawn \
                   flat). A line runs on past the shadow it bounds, so pieces are long and thin \
                   and the floor is cut where nothing changes.",
         ..meshing(
@@ -424,9 +576,10 @@ pub const FIGURES: &[Figure] = &[
         camera: NARROW_CLOSE,
         caption: "The narrow penumbra on Heckbert's mesh with constant elements, drawn flat: the \
                   mesh's edges bound each penumbra strip, but one value a triangle cannot follow \
-                  the ramp from umbra to light across it, and the band's pointwise error is 44 % \
-                  (docs/meshing.md). Subdividing (h) helps only once elements are narrower than \
-                  the penumbra.",
+                  the ramp from umbra to light across it: with {unknowns} unknowns the pointwise \
+                  error against the closed form is {band_error} in the penumbra band \
+                  ({error_value} over the scene). Subdividing (h) helps only once elements are \
+                  narrower than the penumbra.",
         ..meshing(
             "h-vs-p-constant",
             "h vs p: constant elements on a discontinuity mesh",
@@ -440,10 +593,12 @@ pub const FIGURES: &[Figure] = &[
         mesh_sweep: &[CDT],
         split: true,
         caption: "The same mesh solved twice, side by side, each drawn as its elements' own \
-                  functions: left constant elements, right linear ones, continuous across edges. Inside each \
-                  strip the radiosity is a smooth ramp, which a linear element follows: the band's \
-                  error falls from 44 % to 4 % with fewer unknowns (231 against 428). Raising p \
-                  pays near a shadow once the mesh's edges follow its discontinuities.",
+                  functions: left constant elements, right linear ones, continuous across edges. \
+                  Inside each strip the radiosity is a smooth ramp, which a linear element follows: \
+                  against the closed form, the penumbra band's pointwise error is \
+                  {other_band_error} with {other_unknowns} constant unknowns and {band_error} with \
+                  {unknowns} linear ones. Raising p pays near a shadow once the mesh's edges follow its \
+                  discontinuities.",
         ..meshing(
             "h-vs-p-linear",
             "h vs p: constant beside linear elements on the same mesh",
@@ -494,12 +649,13 @@ pub const FIGURES: &[Figure] = &[
         camera: CameraPreset { yaw_deg: 30.0, pitch_deg: 0.0, zoom: 1.0 },
         caption: "Two opposed squares one unit apart. The disk formula A cos θ cos θ' / (πr² + A) \
                   is good only for elements small against their distance: for the two whole \
-                  squares it gives 0.24 against the exact 0.20 (radlab form-factor \
+                  squares it gives {ff_disk} against the exact {ff_exact} (radlab form-factor \
                   builtin:parallel --from 0 --to 1 --method disk). With the five-times rule on, \
-                  a link's form factor is the disk formula only for pairs at least five diameters \
-                  apart, else the exact kernel: here every element has side 1/8, and five \
-                  diameters (0.88) are less than the distance, so every link takes the disk. The \
-                  Lecture menu's five-times explorer shows how the error falls with distance.",
+                  a link's form factor is the disk formula only for pairs whose centres are at \
+                  least five diameters apart, else the exact kernel: here the largest element's \
+                  diameter is {largest_diameter}, and {disk_links} of the {links} links take the \
+                  disk. The Lecture menu's five-times explorer shows how the error falls with \
+                  distance.",
         ..Figure::base(
             "five-times",
             "The disk form factor and the five-times rule",
@@ -531,10 +687,13 @@ pub const FIGURES: &[Figure] = &[
         sweep_bf_eps: &[0.05, 0.02, 0.01],
         plots: true,
         window_shot: true,
-        caption: "The room solved at four thresholds, coarse to fine; each solve is a point in \
-                  the plots panel's links-against-elements plot (log-log). The points follow \
-                  the n line, a constant number of links per element, far below the n² line: \
-                  hierarchical radiosity needs O(n) links, where a uniform mesh links every pair. Move BFeps to add points.",
+        caption: "The room solved at {series_runs} thresholds, coarse to fine; each solve is a \
+                  point in the plots panel's links-against-elements plot (log-log), between the \
+                  dashed n and n² guides. The finest has {links} links for {leaves} leaves \
+                  ({series_links_per_leaf} across the thresholds), where a uniform mesh of as many \
+                  leaves links every pair that see each other, up to {leaves_squared}. \
+                  Hierarchical radiosity bounds the links per element as the mesh is refined: O(n) \
+                  links, against the uniform mesh's O(n²). Move BFeps to add points.",
         ..Figure::base(
             "linear-links",
             "O(n) interactions",
@@ -546,10 +705,11 @@ pub const FIGURES: &[Figure] = &[
     Figure {
         method: "hierarchical, BF oracle, Refine then one Gather",
         steps: &[StepKind::Refine, StepKind::Gather],
-        caption: "One Refine step and one Gather: every element has collected the light that \
-                  reaches it straight from the lamp, and nothing more. The ceiling is dark and the \
-                  shadows are black, because no light has bounced yet. Press G again to gather the \
-                  next bounce, or S to solve to convergence.",
+        caption: "Refine, then Gather: {bounces} so far, residual {residual}. Each Gather moves \
+                  the light one bounce further, so after the first every element holds only the \
+                  light that reaches it straight from the lamp: the ceiling is dark and the shadows \
+                  are black. Press G again to gather the next bounce (the residual is how much it \
+                  changed the radiosity), or S to solve to convergence.",
         ..Figure::base(
             "one-gather",
             "Gather: the first bounce",
@@ -663,6 +823,61 @@ mod tests {
             assert!(!f.slide.is_empty());
         }
         assert!(FIGURES.len() >= 10);
+    }
+
+    #[test]
+    fn captions_quote_only_known_numbers_and_fill_them() {
+        let facts = CaptionFacts {
+            leaves: 812,
+            links: 7230,
+            links_partial: 310,
+            unknowns: 231,
+            gathers: 2,
+            residual: Some(0.31),
+            error: Some(0.0412),
+            band_error: Some(0.04),
+            other_unknowns: Some(428),
+            other_error: Some(0.1),
+            other_band_error: Some(0.44),
+            largest_diameter: Some(0.177),
+            disk_links: Some(512),
+            ff_disk: Some(0.24),
+            ff_exact: Some(0.2),
+            series: vec![(100, 500), (400, 2400)],
+        };
+        for f in FIGURES {
+            for name in placeholders(f.caption) {
+                assert!(PLACEHOLDERS.contains(&name), "{}: unknown {{{name}}}", f.name);
+                assert!(facts.value(name).is_some(), "{}: {{{name}}} has no value", f.name);
+            }
+            let text = f.caption_text(&facts);
+            assert!(!text.contains('{') && !text.contains('…'), "{}: {text}", f.name);
+        }
+        let f = find("adaptive-meshing").unwrap();
+        let text = f.caption_text(&facts);
+        assert!(text.contains("812 leaves and 7230 links, 8.9 per leaf"), "{text}");
+        assert!(text.contains("up to 659344"), "{text}");
+        let text = find("h-vs-p-linear").unwrap().caption_text(&facts);
+        assert!(text.contains("44.00 % with 428 constant unknowns and 4.00 % with 231 linear"), "{text}");
+        assert!(
+            find("one-gather")
+                .unwrap()
+                .caption_text(&facts)
+                .contains("2 bounces of light so far, residual 3.10e-1")
+        );
+        // Not known yet: "…", never a stale number.
+        let text = find("h-vs-p-constant").unwrap().caption_text(&CaptionFacts::default());
+        assert!(text.contains("closed form is … in the penumbra band (… over"), "{text}");
+    }
+
+    #[test]
+    fn stepped_figures_follow_steps_and_solved_ones_a_solve() {
+        let one_gather = find("one-gather").unwrap();
+        assert!(one_gather.follows(StepKind::Gather) && one_gather.follows(StepKind::PushPull));
+        assert!(!one_gather.follows(StepKind::Solve), "a solve is no longer the first bounces");
+        let solved = find("adaptive-meshing").unwrap();
+        assert!(solved.follows(StepKind::Solve) && !solved.follows(StepKind::Refine));
+        assert!(find("h-vs-p-linear").unwrap().follows(StepKind::Solve));
     }
 
     #[test]

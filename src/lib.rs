@@ -22,7 +22,8 @@
 //! - [`visibility`]: visible fraction between two elements with seeded jittered rays.
 //! - [`hierarchy`]: element arena (`ElementId`), quad/triangle 1→4 split.
 //! - [`link`]: compact link store.
-//! - [`solver`]: parameters, uniform / progressive / hierarchical solvers, statistics.
+//! - [`solver`]: parameters, uniform / progressive / hierarchical solvers, statistics, where the
+//!   light goes (absorbed, on back faces, out of the scene).
 //! - [`reference`](mod@reference): an independent Monte Carlo estimator that shares no kernel with `solver`.
 //! - [`metrics`]: per-element error, L1/L2/L∞, energy balance.
 //! - [`mesh`]: meshing given shadows — critical segments (D0, EV/VE → D1/D2) on each receiver,

@@ -808,8 +808,9 @@ pub enum Decimation {
 /// Which links to draw.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct LinkFilter {
-    /// Only links whose receiver or source is this element (or one of its ancestors: an element
-    /// also gathers through the links of the elements above it).
+    /// Only the links this element gathers through: those whose receiver is the element or one
+    /// of its ancestors (an element also gathers through the links of the elements above it).
+    /// The links it shoots through (it as source) are the reverse links of other elements.
     pub element: Option<u32>,
     pub min_ff: f32,
     pub full: bool,
@@ -881,7 +882,7 @@ pub fn link_lines(
                     VisClass::Partial => filter.partial,
                     VisClass::None => filter.none,
                 }
-                && chain.as_ref().is_none_or(|c| c.contains(&l.receiver) || c.contains(&l.source))
+                && chain.as_ref().is_none_or(|c| c.contains(&l.receiver))
         })
         .collect();
     let matched = kept.len();
@@ -1357,8 +1358,9 @@ mod tests {
         ];
         els[2].parent = Some(0);
         let f = LinkFilter { element: Some(2), none: true, ..LinkFilter::default() };
-        // Element 2's own link (receiver 2) plus its parent 0's two links.
-        assert_eq!(link_lines(&els, &links(), &f, 1.0).matched, 3);
+        // Element 2 gathers through its own link (receiver 2) and its parent 0's (receiver 0),
+        // not through the link 0 shoots through (source 0, receiver 1).
+        assert_eq!(link_lines(&els, &links(), &f, 1.0).matched, 2);
     }
 
     #[test]

@@ -767,17 +767,18 @@ fn every_lecture_figure_opens_from_the_lecture_menu() {
         );
         assert_eq!(app.plots_shown(), f.plots, "{}", f.name);
         assert_eq!(app.lecture.figure().map(|x| x.name), Some(f.name));
-        assert!(h.query_by_label(f.caption).is_some(), "{}: the caption is shown", f.name);
+        let caption = h.state().caption().expect("a caption");
+        assert!(h.query_by_label(&caption).is_some(), "{}: the caption is shown", f.name);
         assert!(h.state().errors().is_empty(), "{}: {:?}", f.name, h.state().errors());
     }
     // The × hides the caption; C shows it again.
-    let last = radlab::figures::FIGURES.last().unwrap();
+    let last = h.state().caption().expect("the last figure's caption");
     h.get_by_label("×").click();
     h.run_steps(2);
-    assert!(h.query_by_label(last.caption).is_none(), "the caption is hidden");
+    assert!(h.query_by_label(&last).is_none(), "the caption is hidden");
     h.key_press(egui::Key::C);
     h.run_steps(2);
-    assert!(h.query_by_label(last.caption).is_some(), "C shows the caption again");
+    assert!(h.query_by_label(&last).is_some(), "C shows the caption again");
     // The five-times explorer, from the same menu.
     h.get_by_label("Lecture").click();
     h.run_steps(2);
@@ -791,7 +792,7 @@ fn every_lecture_figure_opens_from_the_lecture_menu() {
     // Loading another scene by hand drops the figure's caption.
     h.state_mut().set_scene(Arc::new(cornell()));
     h.run_steps(2);
-    assert!(h.query_by_label(last.caption).is_none() && h.state().lecture.figure().is_none());
+    assert!(h.query_by_label(&last).is_none() && h.state().lecture.figure().is_none());
     settle(&mut h);
 }
 
@@ -815,6 +816,22 @@ fn lecture_figures_run_their_steps_pick_and_sweep() {
     let sel = h.state().selected.expect("the figure picks an element once solved");
     assert_eq!(h.state().view().elements[sel as usize].patch, 0, "a floor element (cornell's patch 0)");
     assert!(h.state().display.selected_links_only);
+    // The viewport draws the links the inspector lists, the ones the picked element gathers
+    // through (its own and its ancestors'), less the blocked ones the links filter hides; the
+    // legend counts links, not link ends.
+    settle(&mut h); // the build for the pick made in the last frame
+    let v = Arc::clone(h.state().view());
+    let chain = radlab::overlay::ancestors(&v.elements, sel);
+    let gathered: Vec<_> = v.links.iter().filter(|l| chain.contains(&l.receiver)).collect();
+    let drawn = gathered.iter().filter(|l| l.class() != radlab::overlay::VisClass::None).count();
+    assert!(drawn > 0 && drawn < h.state().display.link_filter.max_lines);
+    assert_eq!(h.state().link_stats(), (drawn, drawn), "of {} gathered", gathered.len());
+    let count = h.get_by_label_contains(&format!("{} links gathered through", gathered.len())).rect();
+    // Nothing in the inspector runs past the window's right edge (text wraps at the column).
+    let right = h.ctx.content_rect().right();
+    assert!(count.right() <= right, "{count:?} inside {right}");
+    let error = h.get_by_label_contains("(solver's error").rect();
+    assert!(error.right() <= right, "the error row wraps: {error:?}");
 
     // The blocking matrix: one block per link; a click on a block picks its receiver.
     h.state_mut().open_figure(find("block-matrix").unwrap());
@@ -822,11 +839,10 @@ fn lecture_figures_run_their_steps_pick_and_sweep() {
     assert!(h.state().lecture.matrix.open);
     let links = h.state().view().links.len();
     assert!(h.query_by_label_contains(&format!("{links} links (blocks) cover")).is_some());
-    // The matrix is the square just above its legend line; its upper-right quarter holds the
-    // blocks of the vertical square's leaves receiving from the floor square's.
-    let legend = h.get_by_label_contains("rows: receiver leaves").rect();
-    let at = egui::pos2(legend.left() + 0.75 * 360.0, legend.top() - 0.75 * 360.0);
-    click_at(&mut h, at);
+    // The matrix's upper-right quarter holds the blocks of the vertical square's leaves
+    // receiving from the floor square's.
+    let m = h.state().lecture.matrix.matrix_rect().expect("the matrix is drawn");
+    click_at(&mut h, m.lerp_inside(egui::vec2(0.75, 0.25)));
     h.run_steps(2);
     assert!(h.state().selected.is_some(), "a click on a block picks its receiver");
     assert!(h.state().display.selected_links_only);
@@ -856,13 +872,20 @@ fn matrix_block_and_viewport_element_highlight_each_other() {
     let v = Arc::clone(h.state().view());
     // The upper-right quarter of the matrix: the vertical square's leaves receiving from the
     // floor square's.
-    let legend = h.get_by_label_contains("rows: receiver leaves").rect();
-    h.hover_at(egui::pos2(legend.left() + 0.75 * 360.0, legend.top() - 0.75 * 360.0));
+    let m = h.state().lecture.matrix.matrix_rect().expect("the matrix is drawn");
+    h.hover_at(m.lerp_inside(egui::vec2(0.75, 0.25)));
     h.run_steps(2);
     let hl = h.state().highlight();
     let Some(Highlight::Link { receiver, source }) = hl else {
         panic!("a hovered block highlights its link: {hl:?}")
     };
+    // The matrix sits beside the viewport, so the outlines it asks for are never under it; the
+    // hovered link is named in a box under the matrix, clear of the colour scale and legend.
+    let vp = h.state().viewport_rect();
+    assert!(!m.intersects(vp), "the matrix {m:?} is off the viewport {vp:?}");
+    let info = h.get_by_label_contains(&format!("link: receiver {receiver} gathers")).rect();
+    let legend = h.get_by_label_contains("rows: receiver leaves").rect();
+    assert!(info.top() >= m.bottom() && info.bottom() <= legend.top(), "{info:?} {legend:?}");
     assert!(v.links.iter().any(|l| l.receiver == receiver && l.source == source), "a link of the solution");
     let (r, s) = (&v.elements[receiver as usize], &v.elements[source as usize]);
     assert_ne!(r.patch, s.patch, "across the two squares");
@@ -871,7 +894,7 @@ fn matrix_block_and_viewport_element_highlight_each_other() {
     assert_eq!(lines.segments(), usize::from(r.n_vertices + s.n_vertices) + 1, "two outlines and the link");
     assert_eq!((lines.points[n - 2], lines.points[n - 1]), (r.centroid(), s.centroid()));
 
-    // The reverse: the pointer over an element in the viewport (left of the matrix window).
+    // The reverse: the pointer over an element in the viewport.
     let vp = h.state().viewport_rect();
     let mut hovered = None;
     'scan: for fy in [0.5, 0.6, 0.7, 0.8, 0.4, 0.3] {
@@ -1100,7 +1123,70 @@ fn run_history_split_view_and_overlaid_plots() {
     for name in ["test-box · BF oracle", "test-box · Feps oracle (estimate)", "n", "n²"] {
         assert!(h.query_all_by_label(name).next().is_some(), "legend entry {name}");
     }
+    // Each run plot's legend sits below it, on no plot and no title, its names whole inside
+    // the inspector column.
+    let layout = h.state().plots_layout().to_vec();
+    let titles: Vec<egui::Rect> = [
+        "Links against elements, runs in this window (log₁₀)",
+        "Error against solver time, runs in this window (log₁₀)",
+    ]
+    .iter()
+    .map(|t| h.get_by_label(t).rect())
+    .collect();
+    let legends: Vec<egui::Rect> = layout.iter().filter_map(|p| p.legend).collect();
+    assert_eq!(legends.len(), 2, "{layout:?}");
+    for p in &layout {
+        for l in &legends {
+            assert!(!l.intersects(p.plot), "a legend {l:?} on plot {}", p.id);
+            for t in &titles {
+                assert!(!l.intersects(*t), "a legend {l:?} on a title {t:?}");
+            }
+        }
+        if let Some(l) = p.legend {
+            assert!(l.top() >= p.plot.bottom(), "{}'s legend is below it", p.id);
+        }
+    }
+    let right = h.ctx.content_rect().right();
+    for name in ["test-box · BF oracle", "test-box · Feps oracle (estimate)"] {
+        for node in h.query_all_by_label(name) {
+            assert!(node.rect().right() <= right, "{name} is whole: {:?}", node.rect());
+        }
+    }
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+/// The split view fills the viewport: the panes side by side from its left edge to its right,
+/// each picture from under its label down to the viewport's foot at the pane's own aspect (not
+/// the single viewport's), the labels in body text.
+#[test]
+fn split_panes_fill_the_viewport_at_their_own_aspect() {
+    let mut h = fine_then_coarse(opts());
+    h.key_press(egui::Key::V);
+    settle(&mut h);
+    let vp = h.state().viewport_rect();
+    let panes = h.state().split.shown().to_vec();
+    assert_eq!(panes.len(), 2);
+    assert!((panes[0].1.left() - vp.left()).abs() <= 1.0, "{panes:?} from {vp:?}");
+    assert!((panes[1].1.right() - vp.right()).abs() <= 1.0, "{panes:?} to {vp:?}");
+    for (n, r) in &panes {
+        assert!((r.bottom() - vp.bottom()).abs() <= 1.0, "pane #{n} {r:?} reaches the foot of {vp:?}");
+        assert!(r.height() > 0.75 * vp.height(), "pane #{n}'s label is a band, not half: {r:?}");
+        assert!(r.height() > 1.5 * r.width(), "pane #{n} is a tall picture of its own: {r:?}");
+    }
+    // The label's lines are body text, as tall as its title's.
+    let title = h.get_by_label("#1 test-box · bf").rect();
+    let numbers = h.query_all_by_label_contains(" links · ").next().expect("a pane's numbers").rect();
+    assert!(numbers.height() >= title.height() - 1.0, "{numbers:?} against the title {title:?}");
+    // The picture is drawn to the foot of each pane (the camera is widened, not cropped: the
+    // whole box shows, with room below it).
+    let img = h.render().expect("render");
+    let (w, hh) = (img.width(), img.height());
+    let img = RgbaImage { width: w, height: hh, pixels: img.into_raw() };
+    for (n, r) in &panes {
+        let r = r.shrink(4.0);
+        let mid = img.crop(r.left() as u32, r.center().y as u32 - 20, r.width() as u32, 40);
+        assert!(mid.distinct_colors() > 20, "pane #{n}'s middle shows the box");
+    }
 }
 
 /// The box solved twice (auto-run): on load, then on a coarse tree (max depth 1).
@@ -1316,10 +1402,14 @@ fn mesh_kind_order_and_reconstruction_are_selectable() {
     h.run_steps(2);
     assert!(h.state().selected.is_some(), "a floor piece is picked");
     assert!(h.query_by_label_contains("no links — this element is coupled").is_some());
-    assert!(h.query_by_label("none (a mesh solve has no estimate)").is_some());
+    // No estimate of its own; shadow-narrow's closed form gives the element's true error.
+    assert!(h.query_by_label_contains("(true error |B − B_ref|)").is_some());
     h.state_mut().selected = None;
-    assert!(disabled(&h, "error heatmap"), "no estimate and no reference");
-    assert!(disabled(&h, "true p = 1"), "no p = 1 values to draw");
+    // No estimate of its own, but shadow-narrow's closed form gives its true error.
+    assert!(!disabled(&h, "error heatmap"), "the closed form scores the mesh solve");
+    assert_eq!(h.state().error_label(), "true error |B − B_ref|");
+    // p = 0 pieces without slopes: "solved" draws each one's constant, as flat does.
+    assert!(v.slopes.is_empty() && v.own_coefficients().is_none(), "constant pieces");
     // Order 1, continuous, drawn as the true p = 1 function.
     h.state_mut().set_mesh(MeshSolveParams::new(MeshMethod::DiscontinuityCdt).linear(true));
     settle(&mut h);
@@ -1332,9 +1422,9 @@ fn mesh_kind_order_and_reconstruction_are_selectable() {
     settle(&mut h);
     let flat = lower_viewport(&mut h);
     assert_ne!(shaded.pixels, flat.pixels, "flat and p = 1 draw differently");
-    h.get_by_label("true p = 1").click();
+    h.get_by_label("solved").click();
     settle(&mut h);
-    assert!(!disabled(&h, "true p = 1"));
+    assert!(!disabled(&h, "solved"));
     check(&mut h, "gui_mesh_cdt_p1");
     // Both mesh solves are runs: side by side in the split view, h vs p, each labelled.
     let presets: Vec<String> = h.state().history.runs().iter().map(|r| r.preset.clone()).collect();
@@ -1488,7 +1578,8 @@ fn meshing_figures_open_solved_on_their_mesh() {
         if f.overlays.artifact.is_some() {
             assert!(matches!(h.state().artifacts(), Some(Ok(_))), "{}: {:?}", f.name, h.state().artifacts());
         }
-        assert!(h.query_by_label(f.caption).is_some(), "{}: the caption is shown", f.name);
+        let caption = h.state().caption().expect("a caption");
+        assert!(h.query_by_label(&caption).is_some(), "{}: the caption is shown", f.name);
         assert!(h.state().errors().is_empty(), "{}: {:?}", f.name, h.state().errors());
         if f.name == "h-vs-p-linear" {
             check(&mut h, "gui_figure_h_vs_p_linear");
@@ -2022,4 +2113,342 @@ fn the_default_path_steps_on_the_contact_mesh() {
     settle(&mut h);
     assert_eq!(roots(h.state().view()), patches, "the quadtree's roots are the input patches");
     assert!(h.query_by_label("Mesh: quadtree").is_some());
+}
+
+/// One frame, and what it shows is a finished solution: lit leaves (a solve's, or a gather's
+/// pushed for display), never a restart's unlit patches nor a cancelled solve's.
+fn frame_shows_a_solution(h: &mut Harness<'static, RadlabApp>, what: &str) {
+    h.run_steps(1);
+    let v = h.state().view();
+    let lit = v.elements.iter().any(|e| e.leaf && e.emission.is_zero() && e.radiosity.mean() > 0.0);
+    assert!(lit && (v.mesh.is_some() || v.stats.links > 0), "{what}: a frame shows no finished solution");
+    assert!(h.state().last_report().is_none_or(|r| !r.cancelled), "{what}: a cancelled solve is reported");
+}
+
+/// No viewer thread has panicked: nothing in the error list, nothing in the status bar.
+fn no_panics(h: &Harness<'static, RadlabApp>, what: &str) {
+    assert!(h.state().errors().is_empty(), "{what}: {:?}", h.state().errors());
+    assert!(h.query_all_by_label_contains("panicked").next().is_none(), "{what}: a thread panicked");
+}
+
+/// Every number a figure's caption quotes is the state's, and where the window shows that
+/// number elsewhere (status bar, Reference panel, split panes, the caption's error line) it
+/// reads the same there.
+fn caption_matches_the_state(h: &Harness<'static, RadlabApp>, f: &radlab::figures::Figure) {
+    use radlab::figures::{percent, placeholders};
+    let app = h.state();
+    let caption = app.caption().unwrap_or_else(|| panic!("{}: a caption", f.name));
+    assert!(h.query_by_label(&caption).is_some(), "{}: the caption shown is the state's", f.name);
+    assert!(
+        !caption.contains('…'),
+        "{}: every number known once settled: {caption} (reference {:?}, errors {:?})",
+        f.name,
+        app.ref_state,
+        app.errors()
+    );
+    let v = Arc::clone(app.view());
+    let shown = |text: &str| h.query_all_by_label_contains(text).next().is_some();
+    // The split view's other pane (h vs p): the runs shown, less the current state's.
+    let other = || {
+        let panes: Vec<usize> = app.split.shown().iter().map(|s| s.0).collect();
+        let runs = app.history.runs();
+        let other = runs
+            .iter()
+            .filter(|r| panes.contains(&r.number))
+            .find(|r| !Arc::ptr_eq(r.view.as_ref().expect("a pane's run keeps its solution"), &v));
+        other.unwrap_or_else(|| panic!("{}: a second pane: {panes:?}", f.name)).clone()
+    };
+    for name in placeholders(f.caption) {
+        // (the caption's text, a label elsewhere that shows the same number)
+        let (text, elsewhere): (String, Option<String>) = match name {
+            "leaves" => (v.stats.leaves.to_string(), Some(format!("({} leaves)", v.stats.leaves))),
+            "links" if v.mesh.is_some() => {
+                (v.stats.links.to_string(), Some(format!(" {} form-factor entries", v.stats.links)))
+            }
+            "links" => (v.stats.links.to_string(), Some(format!("{} links (full", v.stats.links))),
+            "links_partial" => {
+                (v.stats.links_partial.to_string(), Some(format!("partial {}", v.stats.links_partial)))
+            }
+            "links_per_leaf" => (format!("{:.1}", v.stats.links as f64 / v.stats.leaves as f64), None),
+            "leaves_squared" => ((v.stats.leaves * v.stats.leaves).to_string(), None),
+            "unknowns" => (v.unknowns().to_string(), None),
+            "bounces" if v.residuals.len() == 1 => ("one bounce of light".into(), Some("bounce 1,".into())),
+            "bounces" => {
+                let n = v.residuals.len();
+                (format!("{n} bounces of light"), Some(format!("bounce {n},")))
+            }
+            "residual" => {
+                let r = format!("{:.2e}", v.residuals.last().expect("gathered"));
+                (r.clone(), Some(format!("residual {r}")))
+            }
+            "error_value" => {
+                let e = percent(app.state_error().expect("scored against the closed form"));
+                (e.clone(), Some(format!("pointwise rel L2 {e}")))
+            }
+            "band_error" => {
+                let e = percent(app.state_band_error().expect("the closed form's band"));
+                (e.clone(), Some(format!("penumbra band {e}")))
+            }
+            "other_unknowns" => {
+                let n = other().unknowns;
+                (n.to_string(), Some(format!("{n} elements")))
+            }
+            "other_error" => {
+                let e = percent(other().reference.expect("the other pane is scored"));
+                (e.clone(), Some(format!("error {e}")))
+            }
+            "other_band_error" => {
+                let e = percent(other().band.expect("the other pane's band"));
+                (e.clone(), Some(format!("penumbra band {e}")))
+            }
+            "largest_diameter" => {
+                let d = v
+                    .leaves
+                    .iter()
+                    .map(|&l| {
+                        let p = v.elements[l as usize].verts();
+                        p.iter().flat_map(|a| p.iter().map(|b| a.distance(*b))).fold(0.0, f64::max)
+                    })
+                    .fold(0.0, f64::max);
+                (format!("{d:.3}"), None)
+            }
+            "disk_links" => {
+                // Some, at most every link: the count itself is the rule's (unit-tested there).
+                let n: usize = caption
+                    .split(" of the ")
+                    .next()
+                    .and_then(|s| s.rsplit(' ').next())
+                    .and_then(|s| s.parse().ok())
+                    .expect("a count of disk links");
+                assert!(n > 0 && n <= v.stats.links, "{}: {n} disk links of {}", f.name, v.stats.links);
+                (format!("{n} of the {} links", v.stats.links), None)
+            }
+            "ff_disk" | "ff_exact" => {
+                let s = app.scene().expect("a scene");
+                let (a, b) = (&s.patches[0], &s.patches[1]);
+                let ff = if name == "ff_disk" {
+                    radlab::form_factor::disk(a.centroid, a.normal, b.centroid, b.normal, b.area)
+                } else {
+                    radlab::form_factor::polygon_to_polygon(&a.vertices, &b.vertices, 1e-6)
+                };
+                (format!("{ff:.3}"), None)
+            }
+            "series_runs" | "series_links_per_leaf" => {
+                let series = app.history.links_series();
+                let points = series.iter().map(|s| s.points.len()).max().unwrap_or(0);
+                let text = if name == "series_runs" {
+                    format!("at {points} thresholds")
+                } else {
+                    // The runs of the state's series: its scene and oracle.
+                    let per: Vec<f64> = app
+                        .history
+                        .runs()
+                        .iter()
+                        .filter(|r| {
+                            r.scene == app.scene().unwrap().name && r.params.oracle == v.params.oracle
+                        })
+                        .map(|r| r.links as f64 / r.elements as f64)
+                        .collect();
+                    assert_eq!(per.len(), points, "{}: one run per point", f.name);
+                    let lo = per.iter().copied().fold(f64::INFINITY, f64::min);
+                    let hi = per.iter().copied().fold(0.0, f64::max);
+                    format!("{lo:.1} to {hi:.1} links per leaf")
+                };
+                (text, Some("Links against elements".into()))
+            }
+            other => panic!("{}: no check for {{{other}}}", f.name),
+        };
+        assert!(caption.contains(&text), "{}: {{{name}}} should read {text:?}: {caption}", f.name);
+        if let Some(e) = elsewhere {
+            assert!(shown(&e), "{}: {{{name}}}: the window shows {e:?} too", f.name);
+        }
+    }
+}
+
+/// The lecture, scripted: every figure opens, and once its state is there its caption's numbers
+/// are that state's (a figure still solving quotes none); stepping one-gather moves one bounce a
+/// Gather, the caption, status bar and residual plot saying so, until a Solve leaves the
+/// figure; the h-vs-p split view and a reference's split view show their errors; one slider
+/// drag is one run of the history and no frame of it shows anything but a finished solution;
+/// a new scene gets its preset's values back. No thread panics throughout.
+#[test]
+fn a_lecture_walk_through() {
+    use radlab::figures::{FIGURES, find, placeholders};
+    let (dir, reference) = quick_reference("lecture");
+    let mut h = harness(ViewerOptions { reference, ..opts() });
+    h.run_steps(2);
+    // Solved in seconds here; the three largest are opened and left while they solve.
+    let slow = ["reference-table", "uniform-fine", "hsa91-room"];
+    for f in FIGURES {
+        h.state_mut().open_figure(f);
+        h.run_steps(2);
+        let caption = h.state().caption().expect("a caption");
+        assert!(h.query_by_label(&caption).is_some(), "{}: the caption is shown", f.name);
+        if slow.contains(&f.name) || placeholders(f.caption).is_empty() {
+            if !placeholders(f.caption).is_empty() && h.state().busy() {
+                assert!(caption.contains('…'), "{}: no number before its state is there: {caption}", f.name);
+            }
+            continue;
+        }
+        settle(&mut h);
+        settle(&mut h);
+        if f.steps.contains(&StepKind::Solve) || f.mesh.method != radlab::solver::meshed::MeshMethod::Quadtree
+        {
+            frame_shows_a_solution(&mut h, f.name);
+        }
+        caption_matches_the_state(&h, f);
+        no_panics(&h, f.name);
+    }
+
+    // One Gather a bounce: the caption, the status bar and the residual plot follow each step.
+    let f = find("one-gather").unwrap();
+    h.state_mut().open_figure(f);
+    settle(&mut h);
+    h.get_by_label("Plots").click();
+    settle(&mut h);
+    let first = h.state().view().residuals.clone();
+    assert_eq!(first.len(), 1, "one gather, one residual: {first:?}");
+    assert!((first[0] - 1.0).abs() < 1e-9, "the first bounce is all new light: {first:?}");
+    for (step, key) in [(2, egui::Key::G), (3, egui::Key::G)] {
+        h.key_press(key);
+        settle(&mut h);
+        frame_shows_a_solution(&mut h, "a gather");
+        let r = h.state().view().residuals.clone();
+        assert_eq!(r.len(), step, "every gather keeps its point: {r:?}");
+        assert!(r[step - 1] < r[step - 2], "each bounce adds less light: {r:?}");
+        assert!(h.state().lecture.caption_open(), "a Gather keeps one-gather's state");
+        caption_matches_the_state(&h, f);
+    }
+    let before = h.state().view().residuals.clone();
+    h.key_press(egui::Key::P);
+    settle(&mut h);
+    assert_eq!(h.state().view().residuals, before, "the push-pull records the gather's residual, no other");
+    assert!(h.query_by_label_contains("last: Push-pull").is_some() && h.state().lecture.caption_open());
+    h.key_press(egui::Key::P);
+    settle(&mut h);
+    assert!(h.query_by_label_contains("nothing gathered since the last push-pull").is_some());
+    assert_eq!(h.state().view().residuals, before);
+    h.key_press(egui::Key::S);
+    settle(&mut h);
+    frame_shows_a_solution(&mut h, "the solve");
+    assert!(h.state().view().residuals.len() > before.len(), "the solve's gathers follow the steps'");
+    assert!(!h.state().lecture.caption_open(), "a solve leaves the first bounces: the caption closes");
+    h.key_press(egui::Key::C);
+    h.run_steps(2);
+    assert!(
+        h.query_by_label_contains("no longer the figure's").is_some(),
+        "C shows it, marked as the figure's"
+    );
+    let caption = h.state().caption().unwrap();
+    assert!(caption.contains("3 bounces of light") && h.query_by_label(&caption).is_some(), "{caption}");
+    h.get_by_label("Plots").click();
+    no_panics(&h, "stepping");
+
+    // The split view with a reference: a Monte Carlo one on the test box, beside the solve.
+    h.state_mut().auto_run = true;
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    h.get_by_label("Solve").click();
+    settle(&mut h);
+    h.get_by_label("Compute reference").click();
+    settle(&mut h);
+    settle(&mut h);
+    h.key_press(egui::Key::V);
+    settle(&mut h);
+    assert_eq!(h.state().split.shown().len(), 2, "the reference beside the solve");
+    assert!(h.query_by_label_contains("(Monte Carlo noise)").is_some());
+    assert!(h.query_by_label_contains("(vs reference)").is_some(), "the solve's error against it");
+    h.key_press(egui::Key::V);
+    h.run_steps(2);
+    no_panics(&h, "the reference's split view");
+
+    // One drag of BFeps: solves run while the slider moves (auto-run); one run in the history,
+    // and every frame shows a finished solution.
+    let runs = h.state().solve_runs();
+    let slider = h.get_by_label("BFeps").rect();
+    let y = slider.center().y;
+    let at = |t: f32| egui::pos2(slider.left() + t * slider.width(), y);
+    h.hover_at(at(0.55));
+    h.event(egui::Event::PointerButton {
+        pos: at(0.55),
+        button: egui::PointerButton::Primary,
+        pressed: true,
+        modifiers: egui::Modifiers::NONE,
+    });
+    // The values whose solves were shown while the slider moved: after each move, frames until
+    // the value's solve is shown (or a few seconds on a busy machine), the button still held.
+    let mut solved = std::collections::BTreeSet::new();
+    for i in 1..=6 {
+        h.hover_at(at(0.55 + 0.04 * i as f32));
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+        loop {
+            frame_shows_a_solution(&mut h, "a drag");
+            solved.insert(h.state().view().params.bf_eps.to_bits());
+            let done = !h.state().busy() && h.state().view().params == h.state().params();
+            if done || std::time::Instant::now() > deadline {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+    }
+    assert!(solved.len() >= 3, "solves ran during the drag: {} values shown", solved.len());
+    h.event(egui::Event::PointerButton {
+        pos: at(0.79),
+        button: egui::PointerButton::Primary,
+        pressed: false,
+        modifiers: egui::Modifiers::NONE,
+    });
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while h.state().busy() || h.state().view().params != h.state().params() {
+        assert!(std::time::Instant::now() < deadline, "the drag's last solve did not arrive");
+        frame_shows_a_solution(&mut h, "after the drag");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    settle(&mut h);
+    let bf_eps = h.state().params().bf_eps;
+    assert!(bf_eps > 2.5e-3, "the drag moved BFeps up: {bf_eps}");
+    assert_eq!(
+        h.state().solve_runs(),
+        runs + 1,
+        "one drag, one run ({} solves shown during it)",
+        solved.len()
+    );
+    let last = h.state().history.runs().last().unwrap().clone();
+    assert_eq!(last.params.bf_eps, bf_eps, "the run is the drag's last value's solve");
+    assert!(h.query_by_value("bf (edited)").is_some(), "the preset box says the settings are edited");
+    // The next solve is a run of its own.
+    h.get_by_label("Solve").click();
+    settle(&mut h);
+    assert_eq!(h.state().solve_runs(), runs + 2, "a solve after the drag is a new run");
+
+    // A new scene gets its preset's values back: the box names what the solver uses.
+    h.state_mut().load_spec("builtin:perpendicular");
+    settle(&mut h);
+    assert_eq!(h.state().params(), radlab::solver::spec::Preset::Bf.hierarchical(), "the preset's values");
+    assert!(h.query_by_value("bf (edited)").is_none() && h.query_by_value("bf").is_some());
+    no_panics(&h, "the walk");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The side panel fits a lecture screen (1600 × 1000) unscrolled with a figure's caption open
+/// and the links of a picked element shown: its last control sits above the caption.
+#[test]
+fn the_side_panel_fits_a_lecture_screen() {
+    use radlab::figures::find;
+    let mut h = Harness::builder()
+        .with_size(egui::Vec2::new(1600.0, 1000.0))
+        .wgpu()
+        .build_eframe(move |cc| RadlabApp::new(cc, opts()));
+    h.run_steps(2);
+    let f = find("block-matrix").unwrap();
+    h.state_mut().open_figure(f);
+    settle(&mut h);
+    h.state_mut().pick_relative(0.5, 0.8);
+    h.state_mut().display.links = true;
+    h.state_mut().display.selected_links_only = true;
+    settle(&mut h);
+    assert!(h.state().selected.is_some());
+    let last = h.get_by_label("clusters").rect();
+    let caption = h.get_by_label(f.slide).rect();
+    assert!(last.bottom() <= caption.top(), "the side panel ends at {last:?}, above the caption {caption:?}");
 }

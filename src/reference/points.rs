@@ -272,6 +272,23 @@ impl Tracer<'_> {
     }
 }
 
+/// At least `points` points on level-0 grids alone (cells spread over the patches in proportion
+/// to area, near-square), without estimates: the layout where B is known in closed form and
+/// nothing needs placing by its noise ([`crate::exact`]).
+#[must_use]
+pub fn uniform_points(scene: &Scene, points: u32) -> PointSet {
+    let grids = level0_grids(scene, f64::from(points));
+    let mut set = PointSet { points: Vec::new(), grids };
+    for (p, &(nu, nv)) in set.grids.iter().enumerate() {
+        for j in 0..nv {
+            for i in 0..nu {
+                set.points.push(make_point(scene, &set.grids, Cell { patch: p as u32, level: 0, i, j }));
+            }
+        }
+    }
+    set
+}
+
 /// Place at least `params.points` points (module docs) and estimate B at each with
 /// `params.paths` (seed `params.layout_seed`): the points in (patch, level, i, j) order and
 /// their estimates.

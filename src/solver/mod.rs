@@ -12,6 +12,8 @@
 //!   reported on the input scene's patches.
 //! - [`linear`]: Galerkin radiosity with p = 0 or p = 1 elements (linear / bilinear),
 //!   discontinuous or continuous, mass matrix on the left [Zatz 1993; Troutman & Max 1993].
+//! - [`escape`]: where the power no front face gathers goes (back faces, out of the scene, the
+//!   rows' shortfall), and whether the scene is closed.
 //! - [`meshed`]: one entry for the uniform and discontinuity meshes at p = 0 or 1 (the viewer's
 //!   mesh choice), with the display reconstructions' names.
 //!
@@ -20,6 +22,7 @@
 //! the error metrics and the viewer read only this type.
 
 pub mod discontinuity;
+pub mod escape;
 pub mod hierarchical;
 pub mod linear;
 pub mod meshed;
@@ -90,8 +93,10 @@ impl SolvedElement {
 
 /// Power balance of a solution, per channel: at convergence `emitted = absorbed + escaped`.
 /// `absorbed` = Σ A (1−ρ) H (H the gathered irradiance); `escaped` = Σ A B (1 − Σ_j F V),
-/// the part of the leaving power that hits no surface. Both are computed from the solver's own
-/// quantities, so the balance is a real check, not an identity.
+/// the part of the leaving power that no front face gathers: what back faces absorb, what
+/// leaves the scene and what the rows of F·V fall short of the hemisphere, which
+/// [`escape::split`] tells apart. Both are computed from the solver's own quantities, so the
+/// balance is a real check, not an identity.
 #[derive(Copy, Clone, Debug, Default, Serialize)]
 pub struct EnergyBalance {
     pub emitted: Rgb,

@@ -94,6 +94,18 @@ pub struct RadlabApp {
     last_report: Option<StepReport>,
     /// Every solve of this window (the plots overlay them; the split view shows them).
     pub history: RunHistory,
+    /// A slider drag has changed the settings and its solves are not all in: each replaces the
+    /// drag's run (`drag_run`), so one drag is one run of the history.
+    drag_open: bool,
+    drag_run: Option<usize>,
+    /// A widget is being dragged (as of the last frame).
+    dragging: bool,
+    /// The pointwise relative L2 error of state `.0` against the closed form or the reference,
+    /// and over the penumbra band (the closed form's).
+    state_error: Option<(u64, f64, Option<f64>)>,
+    /// What the caption's numbers were last read from: (state, its error, runs, where the
+    /// reference stands).
+    facts_key: Option<(u64, Option<u64>, usize, usize, u8)>,
     /// Two or three runs side by side in place of the viewport.
     pub split: SplitView,
     /// The last solve round by round, and the depth cut, in place of the viewport.
@@ -112,6 +124,8 @@ pub struct RadlabApp {
     solver_time_s: f64,
     /// (solver time, error against the reference) after steps, for the error-vs-time plot.
     error_samples: Vec<[f64; 2]>,
+    /// The first state whose score is a sample of `error_samples` (the last restart's).
+    samples_from: u64,
     geometry: ShownGeometry,
     /// The reference thread (what it was sent, the scene's reference solution), and where the
     /// current scene's reference stands.
@@ -210,6 +224,11 @@ impl RadlabApp {
             view: Arc::new(ViewData::default()),
             last_report: None,
             history: RunHistory::default(),
+            drag_open: false,
+            drag_run: None,
+            dragging: false,
+            state_error: None,
+            facts_key: None,
             split: SplitView::default(),
             replay: Replay::default(),
             replay_frames: None,
@@ -220,6 +239,7 @@ impl RadlabApp {
             true_error: None,
             solver_time_s: 0.0,
             error_samples: Vec::new(),
+            samples_from: 0,
             // Without the display thread the geometry is built on the UI thread (slower, correct).
             geometry: ShownGeometry::new(display_builder.ok()),
             inspector: Inspector::default(),
@@ -240,7 +260,7 @@ impl RadlabApp {
             shot_rx: None,
             files: FileDialogs::new(opts.desktop_file_dialog),
             status_bar: StatusBar::default(),
-            plots: Plots { open: opts.show_plots },
+            plots: Plots::new(opts.show_plots),
             lecture: Lecture::default(),
             show_help: false,
             pending_pick: opts.pick,
@@ -318,7 +338,14 @@ impl RadlabApp {
         self.lecture.matrix.open = f.matrix;
         f.scene.clone_into(&mut self.top_bar.spec_edit);
         let solve = std::mem::replace(&mut self.opts.solve_on_start, false);
-        self.load_spec(f.scene);
+        // The figure's settings, not its preset's.
+        match Scene::load(f.scene) {
+            Ok(s) => self.show_scene(Arc::new(s)),
+            Err(e) => {
+                self.errors.push(format!("cannot open {}: {e}", f.scene));
+                self.script_failed(format!("cannot open {}: {e}", f.scene));
+            }
+        }
         self.opts.solve_on_start = solve;
         if self.scene.as_ref().is_none_or(|s| s.source != f.scene) {
             return; // the error is shown
@@ -388,8 +415,18 @@ impl RadlabApp {
         }
     }
 
-    /// Show a scene (replaces the current one; the camera is framed on it).
+    /// Show a scene (replaces the current one; the camera is framed on it) with the settings of
+    /// the preset the Solver panel names: slider values do not carry over from the last scene
+    /// while the box names a preset whose values they are not.
     pub fn set_scene(&mut self, scene: Arc<Scene>) {
+        if let Some(preset) = Preset::from_name(&self.solver_panel.preset) {
+            self.params = preset.hierarchical();
+        }
+        self.show_scene(scene);
+    }
+
+    /// Show a scene with the settings as they are (a figure's).
+    fn show_scene(&mut self, scene: Arc<Scene>) {
         // A figure's caption and pick belong to its scene (`open_figure` sets them again).
         self.lecture.clear();
         if self.script == Script::None {
@@ -418,7 +455,9 @@ impl RadlabApp {
         self.picked_cluster = None;
         self.true_error = None;
         self.error_samples.clear();
+        self.samples_from = self.view_seq + 1;
         self.last_report = None;
+        self.state_error = None;
         self.reference.view = None;
         self.artifacts.clear();
         if self.reference.load(&scene, false) {
@@ -480,6 +519,12 @@ impl RadlabApp {
         self.plots.open
     }
 
+    /// Where the last frame drew the plots and their legends.
+    #[must_use]
+    pub fn plots_layout(&self) -> &[super::plots::PlotLayout] {
+        self.plots.layout()
+    }
+
     /// The current solver state.
     #[must_use]
     pub fn view(&self) -> &Arc<ViewData> {
@@ -521,6 +566,7 @@ impl RadlabApp {
     /// Run a solver step (as the buttons do). On a mesh other than the quadtree, Solve is the
     /// mesh solve and the hierarchical steps are refused (a status line says so).
     pub fn step(&mut self, kind: StepKind) {
+        self.lecture.on_step(kind);
         if self.mesh.method != MeshMethod::Quadtree {
             if kind == StepKind::Solve {
                 self.send(Command::SolveMesh(self.mesh, self.dmesh), MESH_SOLVE_LABEL);
@@ -577,6 +623,7 @@ impl RadlabApp {
             return;
         }
         self.params = p;
+        self.lecture.leave();
         // What runs or waits for the old settings is obsolete: the running step stops and the
         // queued ones are dropped (a cancel alone is lost when it lands between two commands).
         if self.busy()
@@ -620,6 +667,7 @@ impl RadlabApp {
             return;
         }
         self.mesh = m;
+        self.lecture.leave();
         if self.auto_run && self.scene.is_some() {
             self.resolve_pending = true;
         }
@@ -636,6 +684,9 @@ impl RadlabApp {
     pub fn set_dmesh(&mut self, d: DmeshOptions) {
         let old = std::mem::replace(&mut self.dmesh, d);
         let changes_solve = d != old && (d.apply_to(&self.mesh) || old.apply_to(&self.mesh));
+        if changes_solve {
+            self.lecture.leave();
+        }
         self.resolve_pending |= changes_solve && self.auto_run && self.scene.is_some();
     }
 
@@ -733,6 +784,9 @@ impl RadlabApp {
             | Reply::Replay { .. }
                 if self.loading => {}
             Reply::Replay { frames } => self.replay_frames = Some(frames),
+            // The load of a scene opened before the one shown now (its Load ran before the
+            // cancel that dropped what was queued): not shown, the newer load's answer follows.
+            Reply::Loaded { scene, .. } if self.scene.as_ref().is_some_and(|s| !Arc::ptr_eq(s, &scene)) => {}
             Reply::Loaded { view, .. } => {
                 self.loading = false;
                 // A reload on another top level (a preset change) keeps the last picture until
@@ -745,6 +799,8 @@ impl RadlabApp {
                 self.progress = None;
                 self.solver_time_s = 0.0;
                 self.error_samples.clear();
+                // The loaded state is the first sample (unless held back: the next shown).
+                self.samples_from = self.view_seq + u64::from(self.hold_view);
             }
             Reply::Done { report, view } => {
                 // A restart, or a solve cancelled by the next restart (a slider dragged on):
@@ -772,6 +828,7 @@ impl RadlabApp {
                     }
                     self.solver_time_s = 0.0;
                     self.error_samples.clear();
+                    self.samples_from = self.view_seq + u64::from(superseded);
                     // (A pick in a split pane's run stays: that solution is kept.)
                     if self.selected_run.is_none() {
                         self.selected = None;
@@ -789,8 +846,20 @@ impl RadlabApp {
                         self.replay.clear();
                     }
                     if rep.kind == StepKind::Solve && !rep.cancelled {
-                        let name = self.scene.as_ref().map_or("", |s| s.name.as_str());
-                        self.history.record(name, self.solver_time_s, self.view_seq, Arc::clone(&self.view));
+                        let name = self.scene.as_ref().map_or("", |s| s.name.as_str()).to_owned();
+                        let over = self.drag_run.filter(|_| self.drag_open);
+                        let view = Arc::clone(&self.view);
+                        let n =
+                            self.history.record_over(over, &name, self.solver_time_s, self.view_seq, view);
+                        // A run that is never the state shown (a figure's queued solves) is
+                        // scored all the same.
+                        if matches!(self.ref_state, RefState::Ready { .. }) {
+                            self.score_runs();
+                        }
+                        if self.drag_open {
+                            self.drag_run = Some(n);
+                            self.end_drag_when_done();
+                        }
                     }
                 }
                 if self.picked_here().is_some_and(|s| s as usize >= self.view.elements.len()) {
@@ -936,14 +1005,16 @@ impl RadlabApp {
                 self.score_runs();
             }
             RefReply::Evaluated(e) if self.reference.scored_run(e.view_seq) => {
-                self.history.set_reference_error(e.view_seq, e.rel_l2);
+                self.history.set_reference_error(e.view_seq, e.rel_l2, e.band_l2);
             }
             RefReply::Evaluated(e) => {
-                self.history.set_reference_error(e.view_seq, e.rel_l2);
+                self.history.set_reference_error(e.view_seq, e.rel_l2, e.band_l2);
                 if e.view_seq == self.view_seq {
                     self.true_error = Some(Arc::new(e.per_element));
+                    self.state_error = e.rel_l2.is_finite().then_some((e.view_seq, e.rel_l2, e.band_l2));
                 }
-                if e.rel_l2.is_finite() {
+                // (Not a state from before the last restart, answered late.)
+                if e.rel_l2.is_finite() && e.view_seq >= self.samples_from {
                     self.error_samples.push([e.solver_time_s, e.rel_l2]);
                 }
             }
@@ -969,6 +1040,107 @@ impl RadlabApp {
     fn score_runs(&mut self) {
         let runs = self.history.unscored(self.scene_name());
         self.reference.score_runs(runs, self.view_seq);
+    }
+
+    /// A drag is over once released and its last value's solve is in: the next solve is a run
+    /// of its own.
+    fn end_drag_when_done(&mut self) {
+        if self.drag_open && !self.dragging && !self.resolve_pending && !self.busy() {
+            self.drag_open = false;
+            self.drag_run = None;
+        }
+    }
+
+    /// The pointwise relative L2 error of the state shown against the closed form or the
+    /// reference, once scored.
+    #[must_use]
+    pub fn state_error(&self) -> Option<f64> {
+        self.state_error.filter(|e| e.0 == self.view_seq).map(|e| e.1)
+    }
+
+    /// The same over the penumbra band, where the closed form gives the band.
+    #[must_use]
+    pub fn state_band_error(&self) -> Option<f64> {
+        self.state_error.filter(|e| e.0 == self.view_seq).and_then(|e| e.2)
+    }
+
+    /// The state's error in one line: against the closed form or the reference when scored,
+    /// else the solver's estimate, else why there is none.
+    #[must_use]
+    pub fn error_line(&self) -> String {
+        let against = match &self.ref_state {
+            RefState::Ready { how, .. } if how == super::reference::CLOSED_FORM => "the closed form",
+            _ => "the reference",
+        };
+        match (self.state_error(), &self.ref_state) {
+            (Some(e), _) => {
+                let band = self.state_band_error();
+                let band =
+                    band.map_or(String::new(), |b| format!(", penumbra band {}", crate::figures::percent(b)));
+                format!("error {} against {against} (pointwise rel L2{band})", crate::figures::percent(e))
+            }
+            (None, RefState::Ready { .. } | RefState::Looking) => {
+                "error: scoring against the reference…".into()
+            }
+            (None, _) if self.mesh_view() => {
+                "error unknown: a mesh solve has no estimate of its own (Compute reference)".into()
+            }
+            // The estimate is of a converged solve's discretisation error, not of the bounces
+            // still missing from a stepped one.
+            (None, _) if self.last_report.is_none_or(|r| r.kind != StepKind::Solve || r.cancelled) => {
+                "error unknown: not solved to convergence (Compute reference for the true error)".into()
+            }
+            (None, _) => match super::history::estimate_of(&self.view) {
+                Some(e) => format!(
+                    "error ≈ {} (solver's estimate; Compute reference for the true one)",
+                    crate::figures::percent(e)
+                ),
+                None => "error unknown".into(),
+            },
+        }
+    }
+
+    /// Read the caption's numbers from the state shown, while it is the figure's and settled
+    /// (the figure's steps done), when the state, its error or the runs changed.
+    fn update_caption_facts(&mut self) {
+        let (Some(figure), Some(scene)) = (self.lecture.figure(), self.scene.clone()) else { return };
+        if !self.lecture.following() || self.busy() || self.loading || self.hold_view {
+            return;
+        }
+        let error = self.state_error();
+        let band = self.state_band_error();
+        let reference = match self.ref_state {
+            RefState::None => 0,
+            RefState::Looking => 1,
+            RefState::Missing => 2,
+            RefState::Computing { .. } => 3,
+            RefState::Ready { .. } => 4,
+            RefState::Failed(_) => 5,
+        };
+        let scored = self.history.runs().iter().filter(|r| r.reference.is_some()).count();
+        let key = (self.view_seq, error.map(f64::to_bits), self.history.len(), scored, reference);
+        if self.facts_key == Some(key) && self.lecture.has_facts() {
+            return;
+        }
+        self.facts_key = Some(key);
+        let input = super::lecture::FactsInput {
+            figure,
+            scene: &scene,
+            view: &self.view,
+            view_seq: self.view_seq,
+            history: &self.history,
+            error,
+            band,
+        };
+        let facts = super::lecture::caption_facts(&input);
+        let line = self.error_line();
+        self.lecture.set_facts(facts, line);
+    }
+
+    /// The lecture figure's caption as shown now (its numbers filled from the state).
+    #[must_use]
+    pub fn caption(&self) -> Option<String> {
+        self.lecture.caption()
     }
 
     fn set_view(&mut self, view: Arc<ViewData>) {
@@ -1144,8 +1316,20 @@ impl RadlabApp {
         };
         match self.solver_panel.ui(ui, input) {
             Some(SolverAction::Step(kind)) => self.step(kind),
-            Some(SolverAction::Reset) => self.send(Command::Reset, "resetting"),
-            Some(SolverAction::SetParams(p)) => self.set_params(p),
+            Some(SolverAction::Reset) => {
+                self.lecture.leave();
+                self.send(Command::Reset, "resetting");
+            }
+            Some(SolverAction::SetParams(p)) => {
+                // A drag's values make one run (`drag_open`).
+                if ui.ctx().dragged_id().is_some() && p != self.params {
+                    if !self.drag_open {
+                        self.drag_run = None;
+                    }
+                    self.drag_open = true;
+                }
+                self.set_params(p);
+            }
             None => {}
         }
         let input = ProgressInput {
@@ -1167,7 +1351,7 @@ impl RadlabApp {
         let input = ReferenceInput {
             state: &self.ref_state,
             progress: self.reference_progress(),
-            error: self.error_samples.last().map(|s| s[1]),
+            error: self.state_error(),
         };
         match ReferencePanel.ui(ui, input) {
             Some(ReferenceAction::Compute) => self.compute_reference(),
@@ -1234,6 +1418,24 @@ impl RadlabApp {
         viewport::paint(ui, rect, &picture);
         ui.horizontal(|_| {});
         let _ = response;
+    }
+
+    /// The blocking matrix at the top of the inspector column, beside the viewport (drawn
+    /// before the viewport, so that a hovered block's link shows in the same frame). The matrix
+    /// ↔ viewport link: the element hovered in the viewport (else the picked one) is
+    /// highlighted in the matrix; a hovered block's link is highlighted in the viewport.
+    fn matrix_panel(&mut self, ui: &mut egui::Ui) {
+        self.matrix_hover = None;
+        let element = self.viewport_hover.or(self.picked_here());
+        match self.lecture.matrix_panel(ui, &self.view, element) {
+            Some(MatrixAction::Pick(id)) => {
+                self.selected = Some(id);
+                self.selected_run = None;
+                self.display.selected_links_only = true;
+            }
+            Some(MatrixAction::Hover(h)) => self.matrix_hover = Some(h),
+            None => {}
+        }
     }
 
     /// The camera's keys ([`OrbitCamera::keys`]; F frames the scene, R goes back to its camera).
@@ -1558,18 +1760,7 @@ impl eframe::App for RadlabApp {
         if self.history.open && self.history.window(&ctx) == Some(HistoryAction::ShowSplit) {
             self.split.on = true;
         }
-        // The matrix ↔ viewport link: the element hovered in the viewport (else the picked one)
-        // is highlighted in the matrix; a hovered block's link is highlighted in the viewport.
-        self.matrix_hover = None;
-        match self.lecture.windows(&ctx, &self.view, self.viewport_hover.or(self.picked_here())) {
-            Some(MatrixAction::Pick(id)) => {
-                self.selected = Some(id);
-                self.selected_run = None;
-                self.display.selected_links_only = true;
-            }
-            Some(MatrixAction::Hover(h)) => self.matrix_hover = Some(h),
-            None => {}
-        }
+        self.lecture.windows(&ctx);
         if let Some(answer) = self.files.show(&ctx) {
             self.file_answer(answer);
         }
@@ -1593,6 +1784,9 @@ impl eframe::App for RadlabApp {
             let input = StatusInput { view: &self.view, last_report: self.last_report.as_ref() };
             self.status_bar.ui(ui, input);
         });
+        self.dragging = ctx.dragged_id().is_some();
+        self.end_drag_when_done();
+        self.update_caption_facts();
         self.lecture.caption_panel(ui, frame);
         // Fixed widths: the panels do not widen with their longest line (a long error, a link
         // table, a folded-out option); text wraps or is cut instead.
@@ -1602,10 +1796,12 @@ impl eframe::App for RadlabApp {
         egui::Panel::right("inspector").frame(frame).resizable(false).exact_size(INSPECTOR_W).show(
             ui,
             |ui| {
-                // Both ways: a wide link table scrolls instead of widening the panel.
-                egui::ScrollArea::both().auto_shrink([false, false]).id_salt("inspector_scroll").show(
+                // Vertically: text wraps at the column's edge (the link table scrolls sideways
+                // in a box of its own rather than widening the panel).
+                egui::ScrollArea::vertical().auto_shrink([false, false]).id_salt("inspector_scroll").show(
                     ui,
                     |ui| {
+                        self.matrix_panel(ui);
                         // The true error is the current solution's.
                         let true_error = self.true_error().filter(|_| self.selected_run.is_none()).cloned();
                         let picked = self.picked().map(|(id, v)| (id, Arc::clone(v)));

@@ -144,15 +144,17 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
         Some(e) => overlay::heatmap_colors(e),
         None => overlay::heatmap_colors(&v.elements.iter().map(|e| e.error_estimate).collect::<Vec<_>>()),
     };
+    let own = match s.coloring {
+        Coloring::Nodal => v.own_coefficients(),
+        _ => None,
+    };
     let colors = match s.coloring {
         Coloring::Error => MeshColors::Display(&heat),
         Coloring::Smooth => MeshColors::Smooth,
         Coloring::Flat => MeshColors::Flat,
-        // Without vertex values each element's own function is its constant.
-        Coloring::Nodal => match v.mesh.as_ref().and_then(|m| m.coefficients.as_deref()) {
-            Some(c) => MeshColors::Nodal(c),
-            None => MeshColors::Flat,
-        },
+        // Each element's own function: its p = 1 vertex values or its value with its slope;
+        // without either, its constant.
+        Coloring::Nodal => own.as_deref().map_or(MeshColors::Flat, MeshColors::Nodal),
     };
     // Cut at a depth: the elements that tile the scene there, the links between them and above.
     let (cut_leaves, cut_links);

@@ -18,7 +18,8 @@ pub enum Shading {
     Flat,
     /// Gouraud from vertex averages.
     Smooth,
-    /// The element's own p = 1 function (a p = 1 mesh solve's vertex values).
+    /// The element's own function, what the solver computed and the rulers score: a p = 1
+    /// solve's vertex values, or a leaf's value with its slope; else its constant.
     Nodal,
 }
 
@@ -65,7 +66,7 @@ pub struct Display {
 impl Default for Display {
     fn default() -> Self {
         Display {
-            shading: Shading::Smooth,
+            shading: Shading::Nodal,
             exposure_ev: 0.0,
             auto_exposure: true,
             srgb: true,
@@ -118,43 +119,41 @@ impl View for DisplayPanel {
         let DisplayInput { display: d, view, error_applies } = input;
         ui.heading("Display");
         let mesh_view = view.mesh.is_some();
-        let has_p1 = view.mesh.as_ref().is_some_and(|m| m.coefficients.is_some());
         ui.horizontal(|ui| {
+            ui.selectable_value(&mut d.shading, Shading::Nodal, "solved").on_hover_text(
+                "Each element's own function, what the solver computed and the rulers score: its \
+                 value with its slope (the hierarchical solver's leaves), its p = 1 vertex values \
+                 (a Galerkin solve), else its constant",
+            );
             ui.selectable_value(&mut d.shading, Shading::Flat, "flat")
                 .on_hover_text("Each element one colour (its average): the mesh's resolution shows");
             ui.selectable_value(&mut d.shading, Shading::Smooth, "Gouraud").on_hover_text(
                 "Gouraud from vertex averages, what most systems show; T-vertices take their big \
                  neighbour's edge value",
             );
-            ui.add_enabled_ui(has_p1, |ui| {
-                ui.selectable_value(&mut d.shading, Shading::Nodal, "true p = 1")
-                    .on_hover_text(
-                        "Each element's own p = 1 function: the vertex values the Galerkin solve computed",
-                    )
-                    .on_disabled_hover_text(
-                        "The true p = 1 reconstruction needs a p = 1 solve (a uniform or \
-                         discontinuity mesh at order 1)",
-                    );
-            });
         });
-        if d.shading == Shading::Nodal && !has_p1 {
-            ui.weak("no p = 1 values in this solution: each element's constant");
-        }
-        let ev = ui
-            .add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("exposure (EV)"))
-            .on_hover_text("Radiosity × 2^EV before tone mapping; moving it turns auto exposure off");
-        if ev.changed() {
-            d.auto_exposure = false;
-        }
-        ui.checkbox(&mut d.auto_exposure, "auto exposure")
-            .on_hover_text("Map the 95th percentile of the lit surfaces' radiosity to 80 % white");
+        // One row each for exposure and tone map: the side panel fits a lecture screen unscrolled.
+        ui.horizontal(|ui| {
+            let ev = ui
+                .add(egui::Slider::new(&mut d.exposure_ev, -12.0..=12.0).step_by(0.1).text("EV"))
+                .on_hover_text(
+                    "Exposure: radiosity × 2^EV before tone mapping; moving it turns auto exposure off",
+                );
+            if ev.changed() {
+                d.auto_exposure = false;
+            }
+            ui.checkbox(&mut d.auto_exposure, "auto").on_hover_text(
+                "Auto exposure: map the 95th percentile of the lit surfaces' radiosity to 80 % white",
+            );
+        });
         ui.horizontal(|ui| {
             ui.label("tone map");
             ui.selectable_value(&mut d.srgb, true, "sRGB").on_hover_text("Display values sRGB-encoded");
             ui.selectable_value(&mut d.srgb, false, "linear")
                 .on_hover_text("Radiosity shown as is, clamped at 1 (dark mid-tones)");
+            ui.label(egui::RichText::new("back faces: magenta").small().weak())
+                .on_hover_text("Back faces are drawn in striped magenta");
         });
-        ui.label(egui::RichText::new("back faces: striped magenta").small().weak());
         ui.separator();
         ui.heading("Overlays");
         if mesh_view {
@@ -186,35 +185,63 @@ impl View for DisplayPanel {
                     view.stats.cluster_links
                 ))
                 .on_disabled_hover_text("This solve does not cluster: it has no cluster links");
-                let mut min_ff = f64::from(d.link_filter.min_ff).max(1e-9);
-                log_slider(ui, "min F", &mut min_ff, 1e-9, 1.0, "Hide links with a smaller form factor");
-                d.link_filter.min_ff = if min_ff <= 1e-9 { 0.0 } else { min_ff as f32 };
-                ui.horizontal(|ui| {
-                    ui.label("visibility");
-                    ui.checkbox(&mut d.link_filter.full, "full")
-                        .on_hover_text("Links whose shadow rays all passed");
-                    ui.checkbox(&mut d.link_filter.partial, "partial")
-                        .on_hover_text("Links whose shadow rays were partly blocked: the penumbra's");
-                    ui.checkbox(&mut d.link_filter.none, "none")
-                        .on_hover_text("Links whose shadow rays were all blocked (they carry no light)");
-                });
-                ui.add(
-                    egui::Slider::new(&mut d.link_filter.max_lines, 100..=200_000)
-                        .logarithmic(true)
-                        .text("max lines"),
-                )
-                .on_hover_text("Decimation: beyond this many, a sample is drawn");
-                ui.horizontal(|ui| {
-                    ui.label("sample");
-                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::Strided, "every k-th")
-                        .on_hover_text("An even sample of the links");
-                    ui.selectable_value(&mut d.link_filter.decimation, Decimation::LargestF, "largest F")
-                        .on_hover_text("The links with the largest form factors");
-                });
-                ui.add(egui::Slider::new(&mut d.link_alpha, 0.05..=1.0).text("opacity"))
-                    .on_hover_text("Opacity of the link lines");
-                ui.checkbox(&mut d.links_xray, "x-ray (no depth test)")
-                    .on_hover_text("Draw links through surfaces instead of hiding those behind them");
+                // Folded by default: the filter's eight controls would push the panel past the
+                // screen; its header says what it holds.
+                egui::CollapsingHeader::new("filter, sample, opacity")
+                    .id_salt("link filter")
+                    .default_open(false)
+                    .show(ui, |ui| {
+                        let mut min_ff = f64::from(d.link_filter.min_ff).max(1e-9);
+                        log_slider(
+                            ui,
+                            "min F",
+                            &mut min_ff,
+                            1e-9,
+                            1.0,
+                            "Hide links with a smaller form factor",
+                        );
+                        d.link_filter.min_ff = if min_ff <= 1e-9 { 0.0 } else { min_ff as f32 };
+                        ui.horizontal(|ui| {
+                            ui.label("visibility");
+                            ui.checkbox(&mut d.link_filter.full, "full")
+                                .on_hover_text("Links whose shadow rays all passed");
+                            ui.checkbox(&mut d.link_filter.partial, "partial")
+                                .on_hover_text("Links whose shadow rays were partly blocked: the penumbra's");
+                            ui.checkbox(&mut d.link_filter.none, "none").on_hover_text(
+                                "Links whose shadow rays were all blocked (they carry no light)",
+                            );
+                        });
+                        ui.add(
+                            egui::Slider::new(&mut d.link_filter.max_lines, 100..=200_000)
+                                .logarithmic(true)
+                                .text("max lines"),
+                        )
+                        .on_hover_text("Decimation: beyond this many, a sample is drawn");
+                        ui.horizontal(|ui| {
+                            ui.label("sample");
+                            ui.selectable_value(
+                                &mut d.link_filter.decimation,
+                                Decimation::Strided,
+                                "every k-th",
+                            )
+                            .on_hover_text("An even sample of the links");
+                            ui.selectable_value(
+                                &mut d.link_filter.decimation,
+                                Decimation::LargestF,
+                                "largest F",
+                            )
+                            .on_hover_text("The links with the largest form factors");
+                        });
+                        ui.add(egui::Slider::new(&mut d.link_alpha, 0.05..=1.0).text("opacity"))
+                            .on_hover_text("Opacity of the link lines");
+                        ui.checkbox(&mut d.links_xray, "x-ray (no depth test)")
+                            .on_hover_text("Draw links through surfaces instead of hiding those behind them");
+                    })
+                    .header_response
+                    .on_hover_text(
+                        "Which links are drawn (minimum F, visibility classes), how many (max lines \
+                         and the sample beyond them) and how (opacity, x-ray)",
+                    );
             });
         }
         ui.add_enabled(error_applies, egui::Checkbox::new(&mut d.error, "error heatmap"))

@@ -117,6 +117,8 @@ pub struct Run {
     pub mesh: Option<MeshSolveParams>,
     /// Leaves of the solution (the elements that carry radiosity).
     pub elements: usize,
+    /// Its unknowns ([`ViewData::unknowns`]: fewer than the elements on a p = 1 continuous mesh).
+    pub unknowns: usize,
     pub links: usize,
     /// Solver time since the solver's last restart (every step that led to this solution), s.
     pub time_s: f64,
@@ -124,6 +126,8 @@ pub struct Run {
     pub estimate: Option<f64>,
     /// The relative L2 error against the reference, once the reference thread has scored it.
     pub reference: Option<f64>,
+    /// The same over the penumbra band, where the reference is a closed form.
+    pub band: Option<f64>,
     /// The viewer's number of the solver state (matches the reference thread's answer).
     pub view_seq: u64,
     /// The solution, while kept (see the module docs).
@@ -169,8 +173,15 @@ impl Run {
         if let RunKind::Reference { .. } = self.kind {
             return format!("{} points · {}", self.elements, self.error().label());
         }
+        let unknowns = if self.unknowns == self.elements {
+            String::new()
+        } else {
+            format!(" · {} unknowns", self.unknowns)
+        };
+        let band =
+            self.band.map_or(String::new(), |b| format!(" · penumbra band {}", crate::figures::percent(b)));
         format!(
-            "{} elements · {} links · {:.2} s · {}",
+            "{} elements{unknowns} · {} links · {:.2} s · {}{band}",
             self.elements,
             self.links,
             self.time_s,
@@ -287,6 +298,27 @@ pub struct RunHistory {
 }
 
 impl RunHistory {
+    /// Keep a finished solve in place of run `over` when that is the newest run (the solves of
+    /// one slider drag make one run, each replacing the one before), else as a new run.
+    /// Returns its number.
+    pub fn record_over(
+        &mut self,
+        over: Option<usize>,
+        scene: &str,
+        time_s: f64,
+        view_seq: u64,
+        view: Arc<ViewData>,
+    ) -> usize {
+        if let Some(n) = over
+            && self.runs.last().is_some_and(|r| r.number == n && r.kind == RunKind::Solve)
+        {
+            // Numbered after the one before it: the same number again.
+            self.runs.pop();
+        }
+        self.record(scene, time_s, view_seq, view);
+        self.runs.last().map_or(0, |r| r.number)
+    }
+
     /// Keep a finished solve (numbered after the last one; its settings are the view's);
     /// older solutions are dropped past [`KEEP_SOLUTIONS`].
     pub fn record(&mut self, scene: &str, time_s: f64, view_seq: u64, view: Arc<ViewData>) {
@@ -300,11 +332,13 @@ impl RunHistory {
             params,
             mesh,
             elements: view.stats.leaves,
+            unknowns: view.unknowns(),
             links: view.stats.links,
             time_s,
             // A mesh solve has no estimate of its own.
             estimate: if mesh.is_some() { None } else { estimate_of(&view) },
             reference: None,
+            band: None,
             view_seq,
             view: Some(view),
         });
@@ -343,10 +377,12 @@ impl RunHistory {
             params: view.params,
             mesh: None,
             elements: points,
+            unknowns: points,
             links: 0,
             time_s: 0.0,
             estimate: None,
             reference: None,
+            band: None,
             view_seq: 0,
             view: Some(view),
         });
@@ -362,12 +398,14 @@ impl RunHistory {
         }
     }
 
-    /// The reference thread scored solver state `view_seq`: its run (if one) gets the error.
-    pub fn set_reference_error(&mut self, view_seq: u64, rel_l2: f64) {
+    /// The reference thread scored solver state `view_seq`: its run (if one) gets the error (and
+    /// the penumbra band's, `band`).
+    pub fn set_reference_error(&mut self, view_seq: u64, rel_l2: f64, band: Option<f64>) {
         if let Some(r) = self.runs.iter_mut().rev().find(|r| r.view_seq == view_seq)
             && rel_l2.is_finite()
         {
             r.reference = Some(rel_l2);
+            r.band = band.filter(|b| b.is_finite());
         }
     }
 
@@ -661,6 +699,28 @@ mod tests {
         assert_eq!(h.picked(), &[5, 3, 4], "at most three, the oldest pick goes");
     }
 
+    /// The solves of one drag make one run: each replaces the drag's run while it is the newest;
+    /// a run of its own otherwise.
+    #[test]
+    fn a_drag_records_over_its_own_run() {
+        let mut h = RunHistory::default();
+        let bf = HierarchicalParams::interactive();
+        let first = h.record_over(None, "box", 0.1, 1, view(bf, 10, 2.0, 0.1));
+        let drag = h.record_over(None, "box", 0.1, 2, view(bf, 20, 2.0, 0.1));
+        assert_eq!((first, drag), (1, 2));
+        let again = h.record_over(Some(drag), "box", 0.1, 3, view(bf, 30, 2.0, 0.1));
+        assert_eq!(again, drag, "the drag's next solve replaces its run");
+        assert_eq!(h.len(), 2);
+        assert_eq!((h.runs()[1].links, h.runs()[1].view_seq), (30, 3), "the newest solve's numbers");
+        // Only while it is the newest run: the run before it stays.
+        h.set_reference_error(2, 0.1, Some(0.4));
+        assert_eq!(h.record_over(Some(first), "box", 0.1, 4, view(bf, 40, 2.0, 0.1)), 3);
+        assert_eq!(h.len(), 3);
+        assert_eq!(h.runs()[1].band, None, "the replaced solve's score is not the new one's");
+        h.set_reference_error(4, 0.1, Some(0.4));
+        assert!(h.runs()[2].numbers().contains("penumbra band 40.00 %"), "{}", h.runs()[2].numbers());
+    }
+
     #[test]
     fn errors_prefer_the_reference_and_series_overlay_runs() {
         let mut h = RunHistory::default();
@@ -675,7 +735,7 @@ mod tests {
         assert_eq!(h.runs()[1].preset, "custom");
         assert!(matches!(h.runs()[0].error(), RunError::Estimate(_)));
         assert_eq!(h.unscored("box").len(), 3);
-        h.set_reference_error(7, 0.04);
+        h.set_reference_error(7, 0.04, None);
         assert_eq!(h.unscored("box").iter().map(|u| u.0).collect::<Vec<_>>(), vec![8, 9]);
         assert_eq!(h.runs()[0].error(), RunError::Reference(0.04));
         assert!(h.runs()[0].error().label().contains("vs reference"));

@@ -170,23 +170,36 @@ impl View for Inspector {
                 rows
             }
         };
-        ui.label(format!("{} links gathered through (own + ancestors'), by B·F·V:", rows.len()));
-        egui::ScrollArea::vertical().max_height(220.0).id_salt("links").show(ui, |ui| {
-            egui::Grid::new("links").num_columns(5).striped(true).show(ui, |ui| {
-                for h in ["at", "source", "F", "V", "B·F·V"] {
-                    ui.strong(h);
-                }
-                ui.end_row();
-                for (r, s, f, vis, c) in rows.iter().take(200) {
-                    ui.monospace(if *r == id { "self".to_owned() } else { format!("↑{r}") });
-                    ui.monospace(s.to_string());
-                    ui.monospace(format!("{f:.3e}"));
-                    ui.monospace(format!("{vis:.2}"));
-                    ui.monospace(format!("{c:.3e}"));
+        // The same links the viewport draws for this element ("picked element only"), less the
+        // links filter's (by default the blocked ones, V = 0, which carry no light).
+        let blocked = rows.iter().filter(|r| r.3 <= overlay::VIS_CLASS_EPS).count();
+        let blocked =
+            if blocked > 0 { format!(", {blocked} of them blocked (V = 0)") } else { String::new() };
+        ui.label(format!("{} links gathered through (own + ancestors'){blocked}, by B·F·V:", rows.len()))
+            .on_hover_text(
+                "The links this element gathers through: its own and its ancestors'. The viewport \
+                 draws the same links with \"show these links\" (the links filter's visibility \
+                 classes apply: blocked links are hidden unless \"none\" is ticked)",
+            );
+        egui::ScrollArea::both().max_height(220.0).auto_shrink([false, true]).id_salt("links").show(
+            ui,
+            |ui| {
+                egui::Grid::new("links").num_columns(5).striped(true).show(ui, |ui| {
+                    for h in ["at", "source", "F", "V", "B·F·V"] {
+                        ui.strong(h);
+                    }
                     ui.end_row();
-                }
-            });
-        });
+                    for (r, s, f, vis, c) in rows.iter().take(200) {
+                        ui.monospace(if *r == id { "self".to_owned() } else { format!("↑{r}") });
+                        ui.monospace(s.to_string());
+                        ui.monospace(format!("{f:.3e}"));
+                        ui.monospace(format!("{vis:.2}"));
+                        ui.monospace(format!("{c:.3e}"));
+                        ui.end_row();
+                    }
+                });
+            },
+        );
         if cluster.is_none() {
             ui.checkbox(selected_links_only, "show these links in the viewport")
                 .on_hover_text("Draw only these links, from the element and its ancestors");

@@ -99,8 +99,15 @@ impl Legends<'_> {
         let show_links =
             !mesh_view && (self.display.links || (self.display.selected_links_only && self.picked));
         if show_links {
+            // With "picked element only", the links counted are the ones the picked element
+            // gathers through: the inspector's table lists the same links.
+            let whose = if self.display.selected_links_only && self.picked_cluster.is_none() {
+                " the picked element gathers through"
+            } else {
+                ""
+            };
             let title = format!(
-                "links: F (log), {} of {} shown{}",
+                "links{whose}: F (log), {} of {} shown{}",
                 self.link_stats.0,
                 self.link_stats.1,
                 match (self.link_stats.0 < self.link_stats.1, self.display.link_filter.decimation) {
@@ -109,7 +116,9 @@ impl Legends<'_> {
                     (true, Decimation::LargestF) => " (largest F)",
                 }
             );
-            y = colour_bar(painter, Pos2::new(x, y), &title, self.link_scale, Palette::Viridis, "") + 6.0;
+            let bar =
+                ColourBar { title: &title, scale: self.link_scale, palette: Palette::Viridis, unit: "" };
+            y = bar.draw(painter, Pos2::new(x, y), None) + 6.0;
             painter.text(
                 Pos2::new(x + 4.0, y),
                 egui::Align2::LEFT_TOP,
@@ -139,14 +148,19 @@ impl Legends<'_> {
             y = self.artifact_legend(painter, Pos2::new(x, y), which) + 6.0;
         }
         if let Some(what) = self.error {
-            colour_bar(
-                painter,
-                Pos2::new(x, y),
-                &format!("error: {what} (log scale, ends at the 10th / 99th percentile)"),
-                self.error_scale,
-                Palette::Heat,
-                " (units of B)",
-            );
+            let title = format!("error: {what} (log scale, ends at the 10th / 99th percentile)");
+            let bar = ColourBar {
+                title: &title,
+                scale: self.error_scale,
+                palette: Palette::Heat,
+                unit: " (units of B)",
+            };
+            // The scale's foot is black: the lowest tenth, and the elements with no error.
+            let floor = match self.error_scale {
+                Some(s) => format!("black: at or below {:.1e}, or zero", s.lo),
+                None => "black: zero (no error to show)".to_owned(),
+            };
+            bar.draw(painter, Pos2::new(x, y), Some(&floor));
         }
         if self.view.elements.is_empty() {
             let msg = if self.busy {
@@ -236,8 +250,8 @@ pub fn highlight(
                 .line_segment([a, b], egui::Stroke::new(2.0, Color32::from_rgba_unmultiplied(r, g, bl, al)));
         }
     }
-    // The label sits in the viewport's lower-left corner: the matrix window often covers
-    // the middle of the link.
+    // The label sits in the viewport's lower-left corner, off the link's middle and the
+    // outlines.
     let text = match h {
         Highlight::Link { receiver, source } => {
             let l = view.links.iter().find(|l| l.receiver == receiver && l.source == source);
@@ -340,43 +354,68 @@ fn critical_legend(painter: &egui::Painter, at: Pos2, c: crate::mesh::discontinu
     box_r.bottom()
 }
 
-/// Draw a horizontal colour bar with its end values; returns the bottom y.
-fn colour_bar(
-    painter: &egui::Painter,
-    at: Pos2,
-    title: &str,
+/// A horizontal colour bar with its title and end values.
+struct ColourBar<'a> {
+    title: &'a str,
     scale: Option<LogScale>,
     palette: Palette,
-    unit: &str,
-) -> f32 {
-    let w = 200.0;
-    let font = egui::FontId::proportional(11.0);
-    let galley = painter.layout_no_wrap(title.to_owned(), font.clone(), Color32::WHITE);
-    let box_r = Rect::from_min_size(at, Vec2::new(galley.size().x.max(w) + 8.0, 50.0));
-    painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
-    painter.galley(at + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
-    let bar_y = at.y + 18.0;
-    let n = 64;
-    for i in 0..n {
-        let t = i as f64 / f64::from(n - 1);
-        let r = Rect::from_min_size(
-            Pos2::new(at.x + 4.0 + w * i as f32 / n as f32, bar_y),
-            Vec2::new(w / n as f32 + 0.5, 12.0),
+    /// Unit written after the top value.
+    unit: &'a str,
+}
+
+impl ColourBar<'_> {
+    /// Draw the bar at `at`, with a swatch of the palette's foot and `floor` saying what it
+    /// stands for when given; returns the bottom y.
+    fn draw(&self, painter: &egui::Painter, at: Pos2, floor: Option<&str>) -> f32 {
+        let w = 200.0;
+        let font = egui::FontId::proportional(11.0);
+        let galley = painter.layout_no_wrap(self.title.to_owned(), font.clone(), Color32::WHITE);
+        let floor_h = if floor.is_some() { 16.0 } else { 0.0 };
+        let box_r = Rect::from_min_size(at, Vec2::new(galley.size().x.max(w) + 8.0, 50.0 + floor_h));
+        painter.rect_filled(box_r, 4.0, Color32::from_black_alpha(170));
+        painter.galley(at + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
+        let bar_y = at.y + 18.0;
+        let n = 64;
+        for i in 0..n {
+            let t = i as f64 / f64::from(n - 1);
+            let r = Rect::from_min_size(
+                Pos2::new(at.x + 4.0 + w * i as f32 / n as f32, bar_y),
+                Vec2::new(w / n as f32 + 0.5, 12.0),
+            );
+            painter.rect_filled(r, 0.0, rgb32(self.palette.at(t)));
+        }
+        let (lo, hi) = self.scale.map_or(("–".to_owned(), "–".to_owned()), |s| {
+            (format!("{:.1e}", s.lo), format!("{:.1e}{}", s.hi, self.unit))
+        });
+        painter.text(
+            Pos2::new(at.x + 4.0, bar_y + 14.0),
+            egui::Align2::LEFT_TOP,
+            lo,
+            font.clone(),
+            Color32::WHITE,
         );
-        painter.rect_filled(r, 0.0, rgb32(palette.at(t)));
+        painter.text(
+            Pos2::new(at.x + 4.0 + w, bar_y + 14.0),
+            egui::Align2::RIGHT_TOP,
+            hi,
+            font.clone(),
+            Color32::WHITE,
+        );
+        if let Some(text) = floor {
+            let y = bar_y + 31.0;
+            let swatch = Rect::from_min_size(Pos2::new(at.x + 4.0, y + 1.0), Vec2::new(12.0, 10.0));
+            painter.rect_filled(swatch, 0.0, rgb32(self.palette.at(0.0)));
+            painter.rect_stroke(swatch, 0.0, (1.0, Color32::GRAY), egui::StrokeKind::Outside);
+            painter.text(
+                Pos2::new(swatch.right() + 6.0, y),
+                egui::Align2::LEFT_TOP,
+                text,
+                font,
+                Color32::WHITE,
+            );
+        }
+        box_r.bottom()
     }
-    let (lo, hi) = scale.map_or(("–".to_owned(), "–".to_owned()), |s| {
-        (format!("{:.1e}", s.lo), format!("{:.1e}{unit}", s.hi))
-    });
-    painter.text(
-        Pos2::new(at.x + 4.0, bar_y + 14.0),
-        egui::Align2::LEFT_TOP,
-        lo,
-        font.clone(),
-        Color32::WHITE,
-    );
-    painter.text(Pos2::new(at.x + 4.0 + w, bar_y + 14.0), egui::Align2::RIGHT_TOP, hi, font, Color32::WHITE);
-    box_r.bottom()
 }
 
 #[cfg(test)]

@@ -7,16 +7,24 @@
 //! (or else picked) in the viewport comes back as [`MatrixInput::element`]: its row (as
 //! receiver, orange) and column (as source, cyan) are tinted and the blocks it gathers or shoots
 //! through (its own links and its ancestors') outlined.
+//!
+//! It is docked at the top of the inspector column, beside the viewport, never over it: the
+//! outlines it asks the viewport to draw stay in sight. What the pointer is over (a block's
+//! link, else the highlighted element) is written in a box of fixed height under the matrix, not
+//! in a tooltip, so nothing covers the colour scale and the legend below it.
 
 use super::view::View;
+use super::widgets::rgb32;
 use super::worker::ViewData;
 use crate::block_matrix::BlockMatrix;
 use crate::overlay::{Highlight, LogScale, Palette, ancestors};
 use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
 use std::sync::Arc;
 
-/// Side of the matrix drawing, points.
-const SIDE: f32 = 360.0;
+/// Largest side of the matrix drawing, points (it takes the column's width up to this).
+const MAX_SIDE: f32 = 360.0;
+/// Lines of text the hover box keeps room for (the layout below it does not jump).
+const INFO_LINES: f32 = 4.0;
 /// Most blocks drawn (the largest first, so the coarse structure always shows).
 const MAX_BLOCKS: usize = 40_000;
 /// Most blocks of a highlighted element outlined.
@@ -62,23 +70,34 @@ pub struct MatrixWindow {
     /// (address of the `ViewData` it was built from, the matrix, its colour scale).
     cache: Option<(usize, Arc<BlockMatrix>, Option<LogScale>)>,
     highlighted: Option<RowHighlight>,
+    /// Where the matrix itself was drawn in the last frame (screen points).
+    drawn: Option<Rect>,
 }
 
 impl MatrixWindow {
-    /// The window (when open).
-    pub fn window(&mut self, ctx: &egui::Context, input: MatrixInput<'_>) -> Option<MatrixAction> {
-        let mut open = self.open;
-        let mut action = None;
-        egui::Window::new("Blocking form-factor matrix")
-            .open(&mut open)
-            .resizable(false)
-            .default_pos([560.0, 60.0])
-            .show(ctx, |ui| action = self.ui(ui, input));
-        self.open = open;
-        if !open {
+    /// The matrix section at the top of the inspector column (when open): its title and close
+    /// button, then the matrix.
+    pub fn panel(&mut self, ui: &mut egui::Ui, input: MatrixInput<'_>) -> Option<MatrixAction> {
+        ui.horizontal(|ui| {
+            ui.heading("Blocking form-factor matrix");
+            ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+                if ui.button("×").on_hover_text("Close the matrix (Lecture menu opens it)").clicked() {
+                    self.open = false;
+                }
+            });
+        });
+        if !self.open {
             self.highlighted = None;
+            self.drawn = None;
+            return None;
         }
-        action
+        self.ui(ui, input)
+    }
+
+    /// Where the matrix was drawn in the last frame (`None`: not drawn).
+    #[must_use]
+    pub fn matrix_rect(&self) -> Option<Rect> {
+        self.drawn.filter(|_| self.open)
     }
 
     /// The element whose row and column were highlighted in the last frame drawn.
@@ -102,6 +121,7 @@ impl View for MatrixWindow {
                 view.leaves.len()
             ));
             self.highlighted = None;
+            self.drawn = None;
             return None;
         }
         let key = Arc::as_ptr(view) as usize;
@@ -119,10 +139,19 @@ impl View for MatrixWindow {
             .element
             .filter(|&id| (id as usize) < view.elements.len() && (id as usize) < m.runs.len())
             .map(|id| (id, ancestors(&view.elements, id)));
-        let (action, highlighted) = draw(ui, &m, scale, chain.as_ref());
-        self.highlighted = highlighted;
-        action
+        let drawn = draw(ui, &m, scale, chain.as_ref());
+        self.highlighted = drawn.highlighted;
+        self.drawn = Some(drawn.rect);
+        drawn.action
     }
+}
+
+/// What one frame's drawing of the matrix gave.
+struct Drawn {
+    action: Option<MatrixAction>,
+    highlighted: Option<RowHighlight>,
+    /// Where the matrix itself is.
+    rect: Rect,
 }
 
 fn draw(
@@ -130,7 +159,7 @@ fn draw(
     m: &BlockMatrix,
     scale: Option<LogScale>,
     element: Option<&(u32, Vec<u32>)>,
-) -> (Option<MatrixAction>, Option<RowHighlight>) {
+) -> Drawn {
     let n = m.n.max(1) as f32;
     ui.label(format!(
         "{} leaves: n² = {} entries; {} links (blocks) cover {:.0} % of them",
@@ -139,10 +168,11 @@ fn draw(
         m.blocks.len(),
         100.0 * m.covered()
     ));
-    let (rect, response) = ui.allocate_exact_size(Vec2::splat(SIDE), Sense::click());
+    let side = ui.available_width().clamp(64.0, MAX_SIDE);
+    let (rect, response) = ui.allocate_exact_size(Vec2::splat(side), Sense::click());
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 0.0, Color32::from_gray(16));
-    let cell = SIDE / n;
+    let cell = side / n;
     let to_rect = |rows: (u32, u32), cols: (u32, u32)| {
         Rect::from_min_max(
             Pos2::new(rect.left() + cols.0 as f32 * cell, rect.top() + rows.0 as f32 * cell),
@@ -151,9 +181,7 @@ fn draw(
     };
     for b in m.blocks.iter().take(MAX_BLOCKS) {
         let t = scale.map_or(0.5, |s| s.t(f64::from(b.ff)));
-        let [r, g, bl] = Palette::Viridis.at(t);
-        let c = Color32::from_rgb((r * 255.0) as u8, (g * 255.0) as u8, (bl * 255.0) as u8);
-        painter.rect_filled(to_rect(b.rows, b.cols), 0.0, c);
+        painter.rect_filled(to_rect(b.rows, b.cols), 0.0, rgb32(Palette::Viridis.at(t)));
     }
     let highlighted = element.map(|(id, chain)| {
         let run = m.runs[*id as usize];
@@ -173,46 +201,85 @@ fn draw(
         }
         RowHighlight { element: *id, run, blocks }
     });
+    // The block under the pointer: outlined, and named in the box below.
+    let hovered = response.hover_pos().and_then(|pos| {
+        let row = ((pos.y - rect.top()) / cell).floor().clamp(0.0, n - 1.0) as u32;
+        let col = ((pos.x - rect.left()) / cell).floor().clamp(0.0, n - 1.0) as u32;
+        m.at(row, col)
+    });
+    if let Some(b) = hovered {
+        painter.rect_stroke(
+            to_rect(b.rows, b.cols),
+            0.0,
+            egui::Stroke::new(1.5, Color32::WHITE),
+            egui::StrokeKind::Outside,
+        );
+    }
+    let info = match (hovered, highlighted) {
+        (Some(b), _) => format!(
+            "link: receiver {} gathers from source {}, F = {:.3e}, V = {:.2}; {} × {} leaf \
+             entries share this one number. Click: pick the receiver.",
+            b.receiver,
+            b.source,
+            b.ff,
+            b.vis,
+            b.rows.1 - b.rows.0,
+            b.cols.1 - b.cols.0
+        ),
+        (None, Some(h)) => format!(
+            "element {}: its row (receiving) and column (shooting) tinted, its {} blocks outlined",
+            h.element, h.blocks
+        ),
+        (None, None) => "Hover a block: the viewport outlines its receiver (orange) and source (cyan) \
+                         and draws the link. Hover an element in the viewport: its row and column \
+                         are tinted here."
+            .to_owned(),
+    };
+    info_box(ui, &info);
     if m.blocks.len() > MAX_BLOCKS {
         ui.weak(format!("the {MAX_BLOCKS} largest of {} blocks drawn", m.blocks.len()));
     }
-    ui.weak("rows: receiver leaves, columns: source leaves, in quadtree order; colour: log F");
-    if let Some(h) = highlighted {
-        ui.weak(format!(
-            "element {}: its row (receiving) and column (shooting) tinted, its {} blocks outlined",
-            h.element, h.blocks
-        ))
-        .on_hover_text(
-            "The element hovered in the viewport (else the picked one): its leaves' row and \
-             column, and the blocks of its own links and its ancestors'",
-        );
-    }
-    let Some(pos) = response.hover_pos() else { return (None, highlighted) };
-    let row = ((pos.y - rect.top()) / cell).floor().clamp(0.0, n - 1.0) as u32;
-    let col = ((pos.x - rect.left()) / cell).floor().clamp(0.0, n - 1.0) as u32;
-    let Some(b) = m.at(row, col) else { return (None, highlighted) };
-    painter.rect_stroke(
-        to_rect(b.rows, b.cols),
-        0.0,
-        egui::Stroke::new(1.5, Color32::WHITE),
-        egui::StrokeKind::Outside,
+    colour_scale(ui, scale, side);
+    ui.weak("rows: receiver leaves, columns: source leaves, in quadtree order; colour: log F; dark: no link");
+    let action = hovered.map(|b| {
+        if response.clicked() {
+            MatrixAction::Pick(b.receiver)
+        } else {
+            MatrixAction::Hover(Highlight::Link { receiver: b.receiver, source: b.source })
+        }
+    });
+    Drawn { action, highlighted, rect }
+}
+
+/// `text` in a box of [`INFO_LINES`] lines' height, whatever its length (wrapped to the
+/// column; a longer text is cut at the box).
+fn info_box(ui: &mut egui::Ui, text: &str) {
+    let line = ui.text_style_height(&egui::TextStyle::Body);
+    let size = Vec2::new(ui.available_width(), INFO_LINES * line + 8.0);
+    let (r, _) = ui.allocate_exact_size(size, Sense::hover());
+    ui.painter().rect_filled(r, 3.0, Color32::from_black_alpha(90));
+    let mut child = ui.new_child(
+        egui::UiBuilder::new().max_rect(r.shrink(4.0)).layout(egui::Layout::top_down(egui::Align::Min)),
     );
-    let clicked = response.clicked();
-    response.on_hover_text(format!(
-        "link: receiver {} gathers from source {}, F = {:.3e}, V = {:.2}; {} × {} leaf entries share this one \
-         number. The viewport outlines the receiver (orange) and the source (cyan) and draws the \
-         link. Click: pick the receiver.",
-        b.receiver,
-        b.source,
-        b.ff,
-        b.vis,
-        b.rows.1 - b.rows.0,
-        b.cols.1 - b.cols.0
-    ));
-    let action = if clicked {
-        MatrixAction::Pick(b.receiver)
-    } else {
-        MatrixAction::Hover(Highlight::Link { receiver: b.receiver, source: b.source })
-    };
-    (Some(action), highlighted)
+    child.set_clip_rect(r);
+    child.add(egui::Label::new(text).wrap());
+}
+
+/// The colour scale of the blocks: log F from the smallest to the largest link's.
+fn colour_scale(ui: &mut egui::Ui, scale: Option<LogScale>, width: f32) {
+    let (bar, _) = ui.allocate_exact_size(Vec2::new(width, 10.0), Sense::hover());
+    let steps = 48;
+    for i in 0..steps {
+        let t = f64::from(i) / f64::from(steps - 1);
+        let x = |k: i32| bar.left() + bar.width() * k as f32 / steps as f32;
+        let r = Rect::from_x_y_ranges(x(i)..=x(i + 1) + 0.5, bar.y_range());
+        ui.painter().rect_filled(r, 0.0, rgb32(Palette::Viridis.at(t)));
+    }
+    let (lo, hi) = scale.map_or(("–".to_owned(), "–".to_owned()), |s| {
+        (format!("F {:.1e}", s.lo), format!("{:.1e}", s.hi))
+    });
+    ui.horizontal(|ui| {
+        ui.weak(lo);
+        ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| ui.weak(hi));
+    });
 }

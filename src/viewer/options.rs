@@ -50,7 +50,7 @@ pub struct ViewerOptions {
     pub depth_cut: Option<u8>,
     /// The mesh solved on (`None`: the quadtree, the hierarchical solver).
     pub mesh: Option<MeshSolveParams>,
-    /// How the solution is drawn (`None`: Gouraud).
+    /// How the solution is drawn (`None`: each element's own function, its value with its slope).
     pub reconstruction: Option<DisplayReconstruction>,
 }
 

@@ -1,16 +1,65 @@
 //! The convergence plots under the inspector: the residual per gather of the solution shown,
 //! the runs of the history overlaid (links against elements with the n and n² guides, error
 //! against solver time), and the error against the reference since the last restart.
+//!
+//! The inspector column is narrow, so a legend never sits on a plot: each plot that has one
+//! draws it below, one entry per line (a swatch in the series' colour and its whole name,
+//! wrapped rather than cut).
 
 use super::history::{RunHistory, Series};
 use super::view::View;
 use super::worker::ViewData;
-use eframe::egui;
+use eframe::egui::{self, Color32, Rect, Vec2};
+use egui_plot::{Line, LineStyle, Plot, PlotPoints, PlotUi, Points};
+
+/// Height of each plot, points.
+const PLOT_H: f32 = 150.0;
+
+/// Colours of the run series, in order (repeated past the last): distinct on the dark theme,
+/// none of them the guides' grey.
+const SERIES_COLORS: [Color32; 6] = [
+    Color32::from_rgb(100, 160, 255),
+    Color32::from_rgb(255, 140, 60),
+    Color32::from_rgb(90, 200, 120),
+    Color32::from_rgb(230, 90, 160),
+    Color32::from_rgb(230, 210, 80),
+    Color32::from_rgb(160, 120, 240),
+];
+/// The n and n² guides: dashed, grey and muted red.
+const GUIDE_N: Color32 = Color32::from_gray(170);
+const GUIDE_N2: Color32 = Color32::from_rgb(190, 110, 110);
+/// The single-series plots (residual, error since the restart).
+const SINGLE: Color32 = Color32::from_rgb(255, 120, 100);
 
 /// The plots (shown under the inspector while open).
 #[derive(Clone, Debug, Default)]
 pub struct Plots {
     pub open: bool,
+    /// Where the last frame drew each plot, and its legend below it when it has one.
+    layout: Vec<PlotLayout>,
+}
+
+/// Where a plot and its legend were drawn (screen points).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlotLayout {
+    /// The plot's id ("residual", "links_vs_elements", …).
+    pub id: &'static str,
+    pub plot: Rect,
+    pub legend: Option<Rect>,
+}
+
+impl Plots {
+    /// The plots, open or not.
+    #[must_use]
+    pub fn new(open: bool) -> Plots {
+        Plots { open, layout: Vec::new() }
+    }
+
+    /// Where the last frame drew the plots and their legends.
+    #[must_use]
+    pub fn layout(&self) -> &[PlotLayout] {
+        &self.layout
+    }
 }
 
 /// What the plots are lent for one frame.
@@ -22,14 +71,18 @@ pub struct PlotsInput<'a> {
     pub error_samples: &'a [[f64; 2]],
 }
 
+/// One legend entry: the colour, whether the series is a dashed guide, and the name.
+type Entry = (Color32, bool, String);
+
 impl View for Plots {
     type Input<'a> = PlotsInput<'a>;
     type Action = ();
 
     fn ui(&mut self, ui: &mut egui::Ui, input: PlotsInput<'_>) -> Option<()> {
-        use egui_plot::{Legend, Line, Plot, PlotPoints, Points};
         let PlotsInput { view, history, error_samples } = input;
-        ui.label("Residual per gather (log₁₀)");
+        self.layout.clear();
+        ui.label("Residual per gather (log₁₀)").on_hover_text(super::status_bar::RESIDUAL_TIP);
+        // One point per gather (every step's, a solve's too), joined by a line.
         let res: Vec<[f64; 2]> = view
             .residuals
             .iter()
@@ -37,19 +90,18 @@ impl View for Plots {
             .filter(|(_, r)| **r > 0.0)
             .map(|(i, r)| [i as f64 + 1.0, r.log10()])
             .collect();
-        Plot::new("residual").height(150.0).x_axis_label("gather").y_axis_label("log₁₀ residual").show(
-            ui,
-            |p| {
-                p.line(Line::new("residual", PlotPoints::from(res)));
-            },
-        );
-        // The runs of the history, one series per scene and oracle (line and points each).
-        let overlay = |p: &mut egui_plot::PlotUi<'_>, series: Vec<Series>| {
-            for s in series {
-                p.line(Line::new(s.name.clone(), PlotPoints::from(s.points.clone())));
-                p.points(Points::new(s.name, PlotPoints::from(s.points)).radius(3.5));
-            }
-        };
+        let plot = Plot::new("residual")
+            .height(PLOT_H)
+            .x_axis_label("gather")
+            .y_axis_label("log₁₀ residual")
+            .show(ui, |p| {
+                p.line(Line::new("residual", PlotPoints::from(res.clone())).color(SINGLE));
+                p.points(Points::new("gathers", PlotPoints::from(res)).radius(3.0).color(SINGLE));
+            })
+            .response
+            .rect;
+        self.layout.push(PlotLayout { id: "residual", plot, legend: None });
+
         ui.label("Links against elements, runs in this window (log₁₀)");
         let links = history.links_series();
         let (lo, hi) = links
@@ -57,27 +109,43 @@ impl View for Plots {
             .flat_map(|s| &s.points)
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p[0]), b.max(p[0])));
         let (lo, hi) = if lo.is_finite() { (lo - 0.5, hi + 0.5) } else { (1.0, 5.0) };
-        Plot::new("links_vs_elements")
-            .height(150.0)
-            .legend(Legend::default())
+        let mut entries = series_entries(&links);
+        entries.push((GUIDE_N, true, "n".to_owned()));
+        entries.push((GUIDE_N2, true, "n²".to_owned()));
+        let plot = Plot::new("links_vs_elements")
+            .height(PLOT_H)
             .x_axis_label("log₁₀ elements")
             .y_axis_label("log₁₀ links")
             .show(ui, |p| {
                 overlay(p, links);
-                p.line(Line::new("n", PlotPoints::from(vec![[lo, lo], [hi, hi]])));
-                p.line(Line::new("n²", PlotPoints::from(vec![[lo, 2.0 * lo], [hi, 2.0 * hi]])));
-            });
+                let guide = |name: &str, color, pts: Vec<[f64; 2]>| {
+                    Line::new(name, PlotPoints::from(pts)).color(color).style(LineStyle::dashed_loose())
+                };
+                p.line(guide("n", GUIDE_N, vec![[lo, lo], [hi, hi]]));
+                p.line(guide("n²", GUIDE_N2, vec![[lo, 2.0 * lo], [hi, 2.0 * hi]]));
+            })
+            .response
+            .rect;
+        let legend = draw_legend(ui, "links_vs_elements", &entries);
+        self.layout.push(PlotLayout { id: "links_vs_elements", plot, legend: Some(legend) });
+
         ui.label("Error against solver time, runs in this window (log₁₀)").on_hover_text(
             "Pointwise relative L2 error against the reference (its noise taken out) when the scene \
              has one, else the solver's own estimate (series marked \"estimate\"); one point per \
              solve",
         );
-        Plot::new("runs_error_vs_time")
-            .height(150.0)
-            .legend(Legend::default())
+        let series = history.error_series();
+        let entries = series_entries(&series);
+        let plot = Plot::new("runs_error_vs_time")
+            .height(PLOT_H)
             .x_axis_label("solver time (s)")
             .y_axis_label("log₁₀ pointwise error")
-            .show(ui, |p| overlay(p, history.error_series()));
+            .show(ui, |p| overlay(p, series))
+            .response
+            .rect;
+        let legend = draw_legend(ui, "runs_error_vs_time", &entries);
+        self.layout.push(PlotLayout { id: "runs_error_vs_time", plot, legend: Some(legend) });
+
         if error_samples.is_empty() {
             ui.weak("Error against time appears when a reference solution is loaded.");
         } else {
@@ -86,15 +154,69 @@ impl View for Plots {
             );
             let pts: Vec<[f64; 2]> =
                 error_samples.iter().filter(|p| p[1] > 0.0).map(|p| [p[0], p[1].log10()]).collect();
-            Plot::new("error_vs_time")
-                .height(150.0)
+            let plot = Plot::new("error_vs_time")
+                .height(PLOT_H)
                 .x_axis_label("solver time (s)")
                 .y_axis_label("log₁₀ pointwise error")
                 .show(ui, |p| {
-                    p.line(Line::new("error", PlotPoints::from(pts.clone())));
-                    p.points(Points::new("steps", PlotPoints::from(pts)).radius(3.0));
-                });
+                    p.line(Line::new("error", PlotPoints::from(pts.clone())).color(SINGLE).allow_band(false));
+                    p.points(Points::new("steps", PlotPoints::from(pts)).color(SINGLE).radius(3.0));
+                })
+                .response
+                .rect;
+            self.layout.push(PlotLayout { id: "error_vs_time", plot, legend: None });
         }
         None
     }
+}
+
+/// The colour of the `i`-th run series.
+fn series_color(i: usize) -> Color32 {
+    SERIES_COLORS[i % SERIES_COLORS.len()]
+}
+
+/// The legend entries of the run series, in their colours.
+fn series_entries(series: &[Series]) -> Vec<Entry> {
+    series.iter().enumerate().map(|(i, s)| (series_color(i), false, s.name.clone())).collect()
+}
+
+/// The runs of the history, one series per scene and oracle: a line and its points, one colour.
+fn overlay(p: &mut PlotUi<'_>, series: Vec<Series>) {
+    for (i, s) in series.into_iter().enumerate() {
+        let c = series_color(i);
+        // No band: two solves a pixel apart in time would turn the whole line into a filled
+        // min/max band (egui_plot's drawing of dense series).
+        p.line(Line::new(s.name.clone(), PlotPoints::from(s.points.clone())).color(c).allow_band(false));
+        p.points(Points::new(s.name, PlotPoints::from(s.points)).color(c).radius(3.5));
+    }
+}
+
+/// A plot's legend below it: one entry per line, a swatch (dashed for a guide) and the series'
+/// whole name, wrapped to the column. Returns where it was drawn.
+fn draw_legend(ui: &mut egui::Ui, id: &str, entries: &[Entry]) -> Rect {
+    ui.push_id(id, |ui| {
+        ui.vertical(|ui| {
+            ui.spacing_mut().item_spacing.y = 1.0;
+            for (color, dashed, name) in entries {
+                ui.horizontal(|ui| {
+                    let (r, _) = ui.allocate_exact_size(Vec2::new(18.0, 12.0), egui::Sense::hover());
+                    let y = r.center().y;
+                    let stroke = egui::Stroke::new(2.0, *color);
+                    if *dashed {
+                        for k in 0..3 {
+                            let x = r.left() + 7.0 * k as f32;
+                            ui.painter().hline(x..=(x + 4.0).min(r.right()), y, stroke);
+                        }
+                    } else {
+                        ui.painter().hline(r.x_range(), y, stroke);
+                        ui.painter().circle_filled(r.center(), 3.5, *color);
+                    }
+                    ui.add(egui::Label::new(name.as_str()).wrap());
+                });
+            }
+        })
+        .response
+        .rect
+    })
+    .inner
 }

@@ -14,6 +14,11 @@
 //! disk cache, so a reference computed on the command line is found here and the other way
 //! round. It is drawn as the points' cells.
 //!
+//! A single-bounce scene ([`crate::exact::SingleBounce`], e.g. builtin:shadow-narrow) needs none:
+//! its reference is the closed form, at as many points on uniform grids
+//! ([`crate::reference::points::uniform_points`]) with no noise, and B̂ of the heatmap is the
+//! closed form itself. It is ready as soon as the scene loads; it is not drawn nor kept as a run.
+//!
 //! A computation reports its progress and can be cancelled through a shared
 //! [`Control`]; a cancelled computation leaves no cache entry and the scene without reference.
 //! A command that panics is answered [`RefReply::Panicked`] ([`super::panics`]), and the thread
@@ -28,6 +33,8 @@
 use super::panics;
 use super::worker::ViewData;
 use crate::accel::Accel;
+use crate::exact::SingleBounce;
+use crate::math::Rgb;
 use crate::overlay::ElementView;
 use crate::reference::{Cache, CacheStatus, Control, Estimate, PointParams, RefPoint, ReferenceError};
 use crate::scene::Scene;
@@ -105,6 +112,8 @@ pub struct Evaluation {
     /// Pointwise relative L2 error of the solution against the reference, debiased by its noise
     /// (see [`crate::pointwise`]).
     pub rel_l2: f64,
+    /// The same over the penumbra band (the closed form's only: there the band is exact).
+    pub band_l2: Option<f64>,
 }
 
 /// The reference of one scene.
@@ -114,21 +123,87 @@ struct Loaded {
     /// Each point's cell (to draw the reference).
     cells: Vec<crate::reference::RefElement>,
     estimates: Vec<Estimate>,
-    /// The reference interpolated linearly between its points (the heatmap's B̂), triangulated
-    /// once per reference, not per solver state.
-    interp: crate::pointwise::PointInterpolant,
+    /// B̂ anywhere (the heatmap's).
+    truth: Truth,
+    /// The points in the penumbra band (the closed form's only, [`exact_band`]).
+    band: Option<Vec<bool>>,
 }
 
-/// Score a solver state against a reference.
+/// Where the heatmap's B̂ comes from.
+enum Truth {
+    /// The Monte Carlo reference interpolated linearly between its points, triangulated once per
+    /// reference, not per solver state.
+    Points(crate::pointwise::PointInterpolant),
+    /// The closed form of a single-bounce scene.
+    Exact(SingleBounce),
+}
+
+impl Truth {
+    fn radiosity_at(&self, patch: usize, x: crate::math::DVec3) -> crate::math::Rgb {
+        use crate::pointwise::Reconstruction as _;
+        match self {
+            Truth::Points(interp) => interp.radiosity_at(patch, x),
+            Truth::Exact(sb) => sb.patch_radiosity_at(patch, x),
+        }
+    }
+}
+
+/// What the reference panel and the runs call the closed form ([`RefReply::Ready`]'s `how`).
+pub const CLOSED_FORM: &str = "the closed form (single bounce)";
+
+/// The points of a single-bounce scene's receiver in its penumbra band: lit(x), the visible part
+/// of the emitter's form factor, strictly between the band's bounds
+/// ([`crate::penumbra::BandParams::standard`]), exactly (every bit of light there is direct).
+fn exact_band(scene: &Scene, sb: &SingleBounce, points: &[RefPoint]) -> Vec<bool> {
+    let band = crate::penumbra::BandParams::standard();
+    let (emitter, receiver) = (&scene.patches[sb.emitter], &scene.patches[sb.receiver]);
+    points
+        .iter()
+        .map(|p| {
+            if p.patch != sb.receiver {
+                return false;
+            }
+            let total = crate::form_factor::point_to_polygon_oriented(
+                p.position,
+                receiver.normal,
+                &emitter.vertices,
+                emitter.normal,
+            );
+            let lit = if total > 0.0 { sb.visible_form_factor(p.position) / total } else { 0.0 };
+            lit > band.lo && lit < band.hi
+        })
+        .collect()
+}
+
+/// Score a solver state against a reference: through each solution's own functions (a p = 1
+/// mesh solve's vertex values, else one value an element).
 fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> Result<Evaluation, String> {
     let leaves = view.solved_leaves();
-    let pc = crate::pointwise::PiecewiseConstant::new(&r.scene, &leaves).map_err(|e| e.to_string())?;
-    let values = crate::pointwise::evaluate(&pc, &r.points);
-    let report = crate::pointwise::compare_points(&r.scene, &r.points, &values, &r.estimates, 0.0)
-        .map_err(|e| e.to_string())?;
-    // Per leaf: the mean |B − B̂| at 3 × 3 points of the leaf, B̂ the reference interpolated
-    // linearly between its points (a leaf finer than the points' spacing holds none of them).
-    use crate::pointwise::Reconstruction as _;
+    let fail = |e: crate::metrics::MetricsError| e.to_string();
+    let values = match view.mesh.as_ref().and_then(|m| m.coefficients.as_ref().map(|c| (m, c))) {
+        Some((m, c)) => {
+            let nodal = crate::reconstruction::Nodal::new(&r.scene, &m.solution.elements, c.to_vec())
+                .map_err(fail)?;
+            crate::pointwise::evaluate(&nodal, &r.points)
+        }
+        None => {
+            let pc = crate::pointwise::PiecewiseConstant::new(&r.scene, &leaves).map_err(fail)?;
+            crate::pointwise::evaluate(&pc, &r.points)
+        }
+    };
+    let report =
+        crate::pointwise::compare_points(&r.scene, &r.points, &values, &r.estimates, 0.0).map_err(fail)?;
+    let band_l2 = match &r.band {
+        Some(band) => {
+            crate::pointwise::compare_points_in(&r.scene, &r.points, &values, &r.estimates, band, 0.0)
+                .map_err(fail)?
+                .map(|b| b.report.scene.l2_debiased)
+        }
+        None => None,
+    };
+    // Per leaf: the mean |B − B̂| at 3 × 3 points of the leaf, B̂ the closed form or the
+    // reference interpolated linearly between its points (a leaf finer than the points' spacing
+    // holds none of them).
     let mut per_element = vec![0.0; view.elements.len()];
     const AT: [f64; 3] = [1.0 / 6.0, 0.5, 5.0 / 6.0];
     for (&l, leaf) in view.leaves.iter().zip(&leaves) {
@@ -136,12 +211,12 @@ fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> R
         for u in AT {
             for v in AT {
                 let x = crate::visibility::point_on_polygon(&leaf.vertices, u, v);
-                sum += (leaf.radiosity - r.interp.radiosity_at(leaf.patch, x)).map(f64::abs).mean();
+                sum += (leaf.radiosity_at(x) - r.truth.radiosity_at(leaf.patch, x)).map(f64::abs).mean();
             }
         }
         per_element[l as usize] = sum / 9.0;
     }
-    Ok(Evaluation { view_seq, solver_time_s, per_element, rel_l2: report.scene.l2_debiased })
+    Ok(Evaluation { view_seq, solver_time_s, per_element, rel_l2: report.scene.l2_debiased, band_l2 })
 }
 
 /// Name of the reference thread in its panic messages.
@@ -174,7 +249,8 @@ impl RefThread {
                                     let _ = reply_tx.send(r);
                                     notify();
                                 });
-                                if let Some(l) = &l {
+                                // The closed form is no discrete solution: not drawn, not a run.
+                                if let Some(l) = l.as_ref().filter(|l| matches!(l.truth, Truth::Points(_))) {
                                     let source = l.scene.source.clone();
                                     let _ =
                                         reply_tx.send(RefReply::Solution { source, view: solution_view(l) });
@@ -329,13 +405,29 @@ fn load(
     }
     let source = scene.source.clone();
     let params = settings.params.batch(settings.params.layout_seed);
+    // A single-bounce scene's answer is known: the closed form at as many points, no noise, no
+    // cache, nothing to compute by hand.
+    if let Ok(sb) = SingleBounce::new(&scene) {
+        let set = crate::reference::points::uniform_points(&scene, params.points);
+        let estimates = set
+            .points
+            .iter()
+            .map(|p| Estimate { radiosity: sb.patch_radiosity_at(p.patch, p.position), std_error: Rgb::ZERO })
+            .collect();
+        let cells = set.cell_regions(&scene);
+        let points = set.points.len();
+        let band = Some(exact_band(&scene, &sb, &set.points));
+        let loaded = Loaded { scene, points: set.points, cells, estimates, truth: Truth::Exact(sb), band };
+        return (RefReply::Ready { source, points, samples: 0, how: CLOSED_FORM.into() }, Some(loaded));
+    }
     let samples = params.paths.samples;
     let loaded = |scene: Arc<Scene>, c: crate::reference::CachedPoints| -> Result<Loaded, String> {
         let cells = c.set.cell_regions(&scene);
         let values: Vec<crate::math::Rgb> = c.estimates.iter().map(|e| e.radiosity).collect();
         let interp = crate::pointwise::PointInterpolant::new(&scene, &c.set.points, &values)
             .map_err(|e| e.to_string())?;
-        Ok(Loaded { scene, points: c.set.points, cells, estimates: c.estimates, interp })
+        let truth = Truth::Points(interp);
+        Ok(Loaded { scene, points: c.set.points, cells, estimates: c.estimates, truth, band: None })
     };
     // Ready with the loaded reference, or why it cannot be used.
     let ready = |source: String, how: String, scene: Arc<Scene>, c: crate::reference::CachedPoints| {
@@ -578,5 +670,47 @@ mod tests {
             other => panic!("{other:?}"),
         }
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A single-bounce scene's reference is its closed form, ready without a cache or a
+    /// computation; each solution is scored through its own functions (p = 1: its vertex
+    /// values), over the scene and over the penumbra band.
+    #[test]
+    fn a_single_bounce_scene_is_scored_against_its_closed_form() {
+        use crate::solver::meshed::{MeshMethod, MeshSolveParams};
+        let dir = std::env::temp_dir().join(format!("radlab-viewer-exact-{}", std::process::id()));
+        let settings = RefSettings {
+            params: PointParams { points: 4096, ..PointParams::quick() },
+            cache: Cache::at(&dir),
+        };
+        let scene = Arc::new(Scene::load("builtin:shadow-narrow").unwrap());
+        let mut t = RefThread::spawn(settings, || {}).unwrap();
+        let mut replies = Vec::new();
+        t.load(Arc::clone(&scene), false);
+        t.wait_idle(|r| replies.push(r));
+        match &replies[..] {
+            [RefReply::Ready { points, samples: 0, how, .. }] => {
+                assert!(*points >= 4096 && how == CLOSED_FORM, "{points} {how}");
+            }
+            other => panic!("the closed form, nothing to draw: {other:?}"),
+        }
+        assert!(!dir.exists(), "nothing cached");
+        let mut band = Vec::new();
+        let cdt = MeshSolveParams::new(MeshMethod::DiscontinuityCdt);
+        for (seq, params) in [(1, cdt), (2, cdt.linear(true))] {
+            let m = crate::solver::meshed::solve(&scene, &params, &mut |_, _| {}).unwrap();
+            let view = Arc::new(ViewData::of_mesh_solution(&scene, params, m, 0.0));
+            t.send(RefCommand::Evaluate { view, view_seq: seq, solver_time_s: 0.0 });
+            let mut eval = None;
+            t.wait_idle(|r| match r {
+                RefReply::Evaluated(e) => eval = Some(e),
+                other => panic!("{other:?}"),
+            });
+            let e = eval.expect("scored");
+            assert!(e.rel_l2 > 0.0 && e.rel_l2 < 0.2, "{}: {}", params.label(), e.rel_l2);
+            band.push(e.band_l2.expect("the closed form has a penumbra band"));
+        }
+        // The lecture's h vs p: linear elements follow the penumbra's ramp.
+        assert!(band[1] < 0.25 * band[0], "penumbra band p0 {} against p1 {}", band[0], band[1]);
     }
 }

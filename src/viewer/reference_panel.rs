@@ -117,8 +117,13 @@ fn contents(ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAct
             ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
         }
         RefState::Ready { points, samples, how } => {
-            ui.label(format!("{} points × {samples} paths", crate::pointwise::thousands(points)))
-                .on_hover_text(how);
+            let what = if samples == 0 {
+                // The closed form of a single-bounce scene (no paths, no noise).
+                format!("closed form at {} points", crate::pointwise::thousands(points))
+            } else {
+                format!("{} points × {samples} paths", crate::pointwise::thousands(points))
+            };
+            ui.label(what).on_hover_text(how);
             if let Some(e) = error {
                 ui.label(format!("pointwise rel L2 {:.2} %", e * 100.0)).on_hover_text(
                     "of the current state at the reference's points, its noise taken out; the plots \

@@ -19,8 +19,10 @@
 //! display settings (shading or error heatmap, quadtree, links; not the picked element, whose id
 //! means nothing in another solution) and draws into its own renderer slot (1, 2, 3). The error
 //! heatmap of a pane shows the solver's estimate (the true error is computed for the current
-//! solution only). A pane's picture has the viewport's aspect, so every pane frames the scene as
-//! the viewport does; its label sits above it.
+//! solution only). A pane's label sits at the top of its column and its picture fills the rest,
+//! at the picture's own aspect; the field of view widens in a pane narrower than the viewport
+//! ([`pane_camera`]), so that every pane shows at least what the viewport would (a tall pane
+//! adds room above and below, never crops the sides).
 
 use super::builder::Settings;
 use super::camera::OrbitCamera;
@@ -124,6 +126,9 @@ impl View for SplitView {
         let w = (full.width() - GAP * (n - 1) as f32) / n as f32;
         let mut action = None;
         self.shown.clear();
+        // The labels on top of their columns first: every picture starts under the tallest,
+        // so that the panes' pictures are one size and line up.
+        let mut columns = Vec::with_capacity(runs.len());
         for (i, run) in runs.iter().enumerate() {
             let column = Rect::from_min_size(
                 full.min + Vec2::new(i as f32 * (w + GAP), 0.0),
@@ -131,15 +136,19 @@ impl View for SplitView {
             );
             let response = ui.allocate_rect(column, Sense::click_and_drag());
             ui.painter().rect_filled(column, 0.0, PANE_BACKGROUND);
-            // The label on top, then the viewport's picture scaled to the column (the viewport's
-            // aspect: one camera, one framing in every pane).
             let (band, history_asked) = label(ui, column, run);
             if history_asked {
                 action = Some(SplitAction::OpenHistory);
             }
-            let pic_h = (w * full.height() / full.width().max(1.0)).min(full.height() - band);
-            let rect = Rect::from_min_size(column.min + Vec2::new(0.0, band), Vec2::new(w, pic_h.max(1.0)));
+            columns.push((column, response, band));
+        }
+        let band = columns.iter().map(|c| c.2).fold(0.0, f32::max).min(full.height() - 1.0);
+        // Each picture from under the labels to the column's foot, at its own aspect; one camera,
+        // widened to show at least the viewport's framing.
+        for (i, (run, (column, response, _))) in runs.iter().zip(columns).enumerate() {
+            let rect = Rect::from_min_max(column.min + Vec2::new(0.0, band), column.max);
             camera.interact(ui, &response, rect);
+            let seen = pane_camera(camera, aspect(rect), aspect(full));
             while self.slots.len() <= i {
                 self.slots.push(Pane::new(FIRST_SLOT + self.slots.len()));
             }
@@ -149,12 +158,12 @@ impl View for SplitView {
                 if response.clicked()
                     && let Some(pos) = response.interact_pointer_pos().filter(|p| rect.contains(*p))
                 {
-                    let element = pick(view, camera, pos, rect);
+                    let element = pick(view, &seen, pos, rect);
                     action = Some(SplitAction::Pick { run: run.number, element });
                 }
             }
             let outlined = picked.filter(|p| p.0 == run.number).map(|p| p.1);
-            self.slots[i].paint(ui, rect, camera, style, outlined);
+            self.slots[i].paint(ui, rect, &seen, style, outlined);
             self.shown.push((run.number, rect));
         }
         for i in 1..n {
@@ -163,6 +172,29 @@ impl View for SplitView {
         }
         action
     }
+}
+
+/// Width over height of `r` (1 for an empty rectangle).
+fn aspect(r: Rect) -> f64 {
+    if r.width() > 0.0 && r.height() > 0.0 { f64::from(r.width() / r.height()) } else { 1.0 }
+}
+
+/// The camera a pane of aspect `pane` draws and picks through: `camera` itself, its vertical
+/// field of view widened when the pane is narrower than the `framing` aspect (the viewport's) so
+/// that the pane shows the viewport's whole width — the same horizontal field, more above and
+/// below:
+///
+/// ```text
+/// tan(fov′ / 2) = tan(fov / 2) · framing / pane      (pane < framing)
+/// ```
+#[must_use]
+pub fn pane_camera(camera: &OrbitCamera, pane: f64, framing: f64) -> OrbitCamera {
+    let mut c = *camera;
+    if pane > 0.0 && framing > pane {
+        let half = (0.5 * camera.fov_y_deg).to_radians().tan() * framing / pane;
+        c.fov_y_deg = 2.0 * half.atan().to_degrees();
+    }
+    c
 }
 
 /// The pane's label at the top of its column: run, settings, numbers. Returns the height it
@@ -191,12 +223,30 @@ fn label(ui: &mut egui::Ui, rect: Rect, run: &Run) -> (f32, bool) {
                 },
             );
             for line in [run.thresholds(), run.numbers()] {
-                ui.add(
-                    egui::Label::new(white(line).small())
-                        .selectable(false)
-                        .wrap_mode(egui::TextWrapMode::Wrap),
-                );
+                ui.add(egui::Label::new(white(line)).selectable(false).wrap_mode(egui::TextWrapMode::Wrap));
             }
         });
     (frame.response.rect.bottom() - rect.top() + 4.0, clicked)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Bounds;
+
+    /// A pane narrower than the viewport sees the viewport's whole width (the same horizontal
+    /// field of view) and more above and below; a wider one keeps the vertical field.
+    #[test]
+    fn a_narrow_pane_widens_the_field_to_the_viewports_width() {
+        let b = Bounds { min: crate::math::DVec3::splat(-1.0), max: crate::math::DVec3::splat(1.0) };
+        let cam = OrbitCamera::frame_all(&b);
+        let half_tan = |c: &OrbitCamera| (0.5 * c.fov_y_deg).to_radians().tan();
+        let (framing, pane) = (1.2, 0.5);
+        let seen = pane_camera(&cam, pane, framing);
+        let horizontal = |c: &OrbitCamera, aspect: f64| half_tan(c) * aspect;
+        assert!((horizontal(&seen, pane) - horizontal(&cam, framing)).abs() < 1e-12);
+        assert!(seen.fov_y_deg > cam.fov_y_deg);
+        assert_eq!(seen.target, cam.target, "only the field of view changes");
+        assert_eq!(pane_camera(&cam, 2.0, framing), cam, "a wider pane keeps the camera");
+    }
 }

@@ -4,7 +4,7 @@
 
 use super::view::View;
 use super::worker::ViewData;
-use crate::solver::hierarchical::StepReport;
+use crate::solver::hierarchical::{StepKind, StepReport};
 use eframe::egui;
 
 /// The status bar and its line of news.
@@ -59,14 +59,7 @@ impl View for StatusBar {
             ));
             ui.separator();
             if let Some(r) = last_report {
-                ui.label(format!(
-                    "last: {:?} {:.3}s, residual {:.2e}{}{}",
-                    r.kind,
-                    r.time_s,
-                    r.residual,
-                    if r.converged { ", converged" } else { "" },
-                    if r.cancelled { ", cancelled" } else { "" }
-                ));
+                ui.label(format!("last: {}", describe(r, view.residuals.len()))).on_hover_text(RESIDUAL_TIP);
             }
             if view.pushed_for_display {
                 ui.separator();
@@ -82,4 +75,43 @@ impl View for StatusBar {
         });
         None
     }
+}
+
+/// What the residual in the status bar and the residual plot measure.
+pub const RESIDUAL_TIP: &str = "Residual: the largest change of a leaf's radiosity in the last \
+     gather, relative to the largest reflected radiosity. A gather computes B' = E + ρFB from the \
+     B it reads, so this is the residual r = E + ρFB − B of that B: 1 after the first gather (all \
+     the light is new), then falling about as the reflectance, bounce by bounce.";
+
+/// What a step did, in one line: "Gather 0.003 s: bounce 2, residual 3.1e-1", "Refine 0.010 s:
+/// 24 elements split, 310 links made", … (`gathers`: the gathers of the state shown so far).
+#[must_use]
+pub fn describe(r: &StepReport, gathers: usize) -> String {
+    let what = match r.kind {
+        StepKind::Refine => format!("{} elements split, {} links made", r.refined, r.new_links),
+        StepKind::Gather => format!("bounce {gathers}, residual {:.2e}", r.residual),
+        StepKind::PushPull if r.time_s == 0.0 && gathers > 0 => {
+            "nothing gathered since the last push-pull".to_owned()
+        }
+        StepKind::PushPull => "irradiance pushed down, radiosity pulled up".to_owned(),
+        StepKind::Iterate | StepKind::Solve => format!(
+            "{} elements split, {} links made, {gathers} gathers, residual {:.2e}",
+            r.refined, r.new_links, r.residual
+        ),
+    };
+    let name = match r.kind {
+        StepKind::Refine => "Refine",
+        StepKind::Gather => "Gather",
+        StepKind::PushPull => "Push-pull",
+        StepKind::Iterate => "Iterate",
+        StepKind::Solve => "Solve",
+    };
+    let end = if r.cancelled {
+        ", cancelled"
+    } else if r.converged && r.kind != StepKind::Refine && gathers > 0 {
+        ", converged"
+    } else {
+        ""
+    };
+    format!("{name} {:.3} s: {what}{end}", r.time_s)
 }

@@ -14,10 +14,11 @@ pub fn rgb_text(c: crate::math::Rgb) -> String {
     format!("{:.4} {:.4} {:.4}", c.r(), c.g(), c.b())
 }
 
-/// One row of a two-column inspector grid: a name, and its value in monospace.
+/// One row of a two-column inspector grid: a name, and its value in monospace, wrapped at the
+/// column's edge (never cut, never widening the panel).
 pub fn grid_row(ui: &mut egui::Ui, name: &str, value: String) {
     ui.label(name);
-    ui.monospace(value);
+    ui.add(egui::Label::new(egui::RichText::new(value).monospace()).wrap());
     ui.end_row();
 }
 

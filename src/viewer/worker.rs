@@ -49,6 +49,9 @@ pub struct ViewData {
     /// [`CLUSTER_LINKS_KEPT`] of the solver's `stats.cluster_links` (the links overlay draws
     /// them dashed); [`REPLAY_CLUSTER_LINKS`] in a refinement replay's frames.
     pub cluster_links: Vec<ClusterLinkView>,
+    /// Each element's slope, by id, where it has one (empty: no element has one): the leaves'
+    /// linear reconstruction, B(x) = B + d · (x − centroid), that the viewer draws by default.
+    pub slopes: Vec<Option<crate::solver::Slope>>,
 }
 
 /// Most cluster links a [`ViewData`] carries: a 100 k-triangle room has 4 M (64 bytes each),
@@ -113,7 +116,7 @@ pub struct MeshInfo {
     /// The D-mesh options it was solved with.
     pub dmesh: DmeshOptions,
     /// At p = 1: each element's vertex values (indexed like the elements), drawn by the
-    /// display's true p = 1 reconstruction.
+    /// display's "solved" reconstruction (each element's own function).
     pub coefficients: Option<Arc<Vec<Vec<Rgb>>>>,
     /// Wall time of meshing (discontinuity meshes) and of the whole solve, seconds.
     pub meshing_s: f64,
@@ -138,6 +141,11 @@ impl ViewData {
         let elements: Vec<ElementView> = s.elements.iter().map(ElementView::from_info).collect();
         let leaves = elements.iter().filter(|e| e.leaf).map(|e| e.id).collect();
         let links = s.links.iter().map(LinkView::from_info).collect();
+        let slopes = if s.elements.iter().any(|e| e.slope.is_some()) {
+            s.elements.iter().map(|e| e.slope).collect()
+        } else {
+            Vec::new()
+        };
         ViewData {
             elements,
             leaves,
@@ -150,6 +158,7 @@ impl ViewData {
             clusters: s.clusters,
             patch_cluster: s.patch_cluster,
             cluster_links: Vec::new(),
+            slopes,
         }
     }
 
@@ -195,6 +204,9 @@ impl ViewData {
         let pieces = view.elements.iter().filter(|e| e.depth == 1).count();
         view.stats.depth_histogram = vec![view.elements.len() - pieces, pieces];
         view.stats.links = m.solution.stats.links;
+        if m.solution.elements.iter().any(|e| e.slope.is_some()) {
+            view.slopes = m.solution.elements.iter().map(|e| e.slope).collect();
+        }
         view.mesh = Some(MeshInfo {
             params,
             dmesh: DmeshOptions::default(),
@@ -204,6 +216,17 @@ impl ViewData {
             solution: Arc::new(m.solution),
         });
         view
+    }
+
+    /// The unknowns of the solution: a p = 1 continuous mesh solve's shared vertices, else one
+    /// value per leaf (p = 1 discontinuous: per element vertex).
+    #[must_use]
+    pub fn unknowns(&self) -> usize {
+        let stated = self.mesh.as_ref().and_then(|m| {
+            let extra = m.solution.stats.extra.as_ref()?;
+            extra.get("unknowns")?.as_u64()
+        });
+        stated.map_or(self.stats.leaves, |n| n as usize)
     }
 
     /// The leaves as solved elements (the metrics' and the artifacts' input).
@@ -219,10 +242,38 @@ impl ViewData {
                     area: e.area,
                     radiosity: e.radiosity,
                     error_estimate: None,
-                    slope: None,
+                    slope: self.slope(l),
                 }
             })
             .collect()
+    }
+
+    /// Element `id`'s slope, if it has one.
+    #[must_use]
+    pub fn slope(&self, id: u32) -> Option<crate::solver::Slope> {
+        self.slopes.get(id as usize).copied().flatten()
+    }
+
+    /// Every element's own reconstruction as vertex values (indexed like `elements`, in vertex
+    /// order): a p = 1 solve's coefficients, or each element's value with its slope at its
+    /// corners (one value: constant). `None` when every element is constant.
+    #[must_use]
+    pub fn own_coefficients(&self) -> Option<std::borrow::Cow<'_, [Vec<Rgb>]>> {
+        if let Some(c) = self.mesh.as_ref().and_then(|m| m.coefficients.as_deref()) {
+            return Some(std::borrow::Cow::Borrowed(c.as_slice()));
+        }
+        if self.slopes.is_empty() {
+            return None;
+        }
+        let values = self
+            .elements
+            .iter()
+            .map(|e| match self.slope(e.id) {
+                Some(s) => e.verts().iter().map(|&v| s.at(e.radiosity, v)).collect(),
+                None => vec![e.radiosity],
+            })
+            .collect::<Vec<_>>();
+        Some(std::borrow::Cow::Owned(values))
     }
 
     /// A state whose elements are all leaves of depth 0 (`elements[i].id == i`): a mesh solve,
@@ -309,14 +360,32 @@ impl ViewData {
 
     /// Convert a snapshot taken between a gather and its push-pull, showing the radiosity the
     /// push-pull will give (`pushed`: [`HierarchicalSolver::push_pull_preview`], by element id),
-    /// so a Gather step shows its result at once.
+    /// so a Gather step shows its result at once. Its residuals end with that gather's
+    /// ([`gather_residual`]), the value the push-pull will record.
     #[must_use]
     pub fn from_gathered_snapshot(mut s: Snapshot, pushed: &[Rgb]) -> ViewData {
+        let residual = gather_residual(&s.elements, pushed);
         for (e, &b) in s.elements.iter_mut().zip(pushed) {
             e.radiosity = b;
         }
+        s.residuals.push(residual);
         ViewData { pushed_for_display: true, ..ViewData::from_snapshot(s) }
     }
+}
+
+/// The residual of a Jacobi gather, as the solver's push-pull measures it: the largest change of
+/// a leaf's radiosity, `max |B_new − B_old|` over leaves and channels, relative to the largest
+/// reflected radiosity `max (B_new − E)`. A gather computes B_new = E + ρ F B_old, so the change
+/// is the residual r = E + ρ F B − B of the radiosity it read [Cohen & Wallace 1993, §5.3]: 1
+/// after the first gather (all light is new), then falling about as the reflectance per bounce.
+#[must_use]
+pub fn gather_residual(before: &[crate::solver::hierarchical::ElementInfo], pushed: &[Rgb]) -> f64 {
+    let (mut change, mut reflected) = (0.0f64, 0.0f64);
+    for (e, &b) in before.iter().zip(pushed).filter(|(e, _)| e.children.is_none()) {
+        change = change.max(b.abs_diff_max(e.radiosity));
+        reflected = reflected.max((b - e.emission).max_channel());
+    }
+    if reflected > 0.0 { change / reflected } else { change }
 }
 
 /// What the UI asks of the solver thread.
@@ -349,10 +418,12 @@ pub enum Command {
 
 /// What the solver thread answers.
 pub enum Reply {
-    /// A scene was loaded: its cancel flag and the initial state.
+    /// A scene was loaded: its cancel flag and the initial state, and the scene the Load named
+    /// (the UI drops the answer to a Load it has since replaced).
     Loaded {
         cancel: Arc<AtomicBool>,
         view: Arc<ViewData>,
+        scene: Arc<Scene>,
     },
     /// A command finished (`report` is `None` for `SetParams` / `Reset`).
     Done {
@@ -532,6 +603,8 @@ fn run(
     let mut origin: Origin = None;
     // The solver has gathered since its last push-pull: show the pushed-pulled values.
     let mut unpushed = false;
+    // The residual of the last gather (what a step that gathers nothing reports).
+    let mut last_residual = 0.0;
     let send = |r: Reply| {
         let ok = tx.send(r).is_ok();
         notify();
@@ -550,6 +623,7 @@ fn run(
         }
         if matches!(cmd, Command::Load { .. } | Command::SetParams(_) | Command::Reset) {
             unpushed = false;
+            last_residual = 0.0;
         }
         let view_of = |s: &HierarchicalSolver, unpushed: bool| {
             ViewData::of_solver_on(
@@ -566,8 +640,8 @@ fn run(
                     let on = o.as_deref().map(Vec::as_slice);
                     let view = ViewData::of_solver_on(&s, false, true, CLUSTER_LINKS_KEPT, on);
                     origin = o;
-                    input = Some(scene);
-                    let r = Reply::Loaded { cancel: s.cancel_handle(), view };
+                    input = Some(Arc::clone(&scene));
+                    let r = Reply::Loaded { cancel: s.cancel_handle(), view, scene };
                     solver = Some(s);
                     r
                 }
@@ -603,18 +677,29 @@ fn run(
             Command::Step(kind) => match solver.as_mut() {
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => {
+                    // Each Gather moves one bounce: a gather not yet pushed and pulled is pushed
+                    // and pulled before any other step, as the lecture's loop does between
+                    // gathers (else the next gather, or the oracle, reads the radiosities the
+                    // last gather read; the view has shown the pushed values already).
+                    if unpushed && kind != StepKind::PushPull {
+                        s.push_pull_step();
+                        unpushed = false;
+                    }
                     let report = match kind {
                         StepKind::Refine => s.refine_step(),
-                        // Each Gather moves one bounce: a gather not yet pushed and pulled is
-                        // pushed and pulled first, as the lecture's loop does between gathers
-                        // (else the second gather reads the radiosities the first one read).
-                        StepKind::Gather => {
-                            if unpushed {
-                                s.push_pull_step();
-                            }
-                            s.gather_step()
-                        }
-                        StepKind::PushPull => s.push_pull_step(),
+                        StepKind::Gather => s.gather_step(),
+                        StepKind::PushPull if unpushed => s.push_pull_step(),
+                        // Nothing gathered since the last push-pull: it would change nothing and
+                        // record a residual of no gather. Answered as done, the state as it is.
+                        StepKind::PushPull => StepReport {
+                            kind,
+                            time_s: 0.0,
+                            refined: 0,
+                            new_links: 0,
+                            residual: last_residual,
+                            converged: s.is_converged(),
+                            cancelled: false,
+                        },
                         StepKind::Iterate => s.iterate(),
                         StepKind::Solve => {
                             let ptx = tx.clone();
@@ -657,15 +742,19 @@ fn run(
                             report
                         }
                     };
-                    unpushed = match kind {
-                        // Gauss-Seidel gathers push and pull patch by patch themselves.
-                        StepKind::Gather => !s.params().gauss_seidel,
-                        StepKind::Refine => unpushed,
-                        StepKind::PushPull => false,
-                        // Both end with a push-pull unless cancelled before gathering.
-                        StepKind::Iterate | StepKind::Solve => unpushed && report.cancelled,
-                    };
-                    Reply::Done { report: Some(report), view: view_of(s, unpushed) }
+                    // Gauss-Seidel gathers push and pull patch by patch themselves; Iterate and
+                    // Solve end with a push-pull (or stop before their gather).
+                    unpushed = kind == StepKind::Gather && !s.params().gauss_seidel;
+                    let view = view_of(s, unpushed);
+                    let mut report = report;
+                    if unpushed {
+                        // The solver records a gather's residual at its push-pull; the view has
+                        // it already (`from_gathered_snapshot`): the report says this gather's.
+                        report.residual = view.residuals.last().copied().unwrap_or(0.0);
+                        report.converged = report.residual < s.params().tolerance;
+                    }
+                    last_residual = report.residual;
+                    Reply::Done { report: Some(report), view }
                 }
             },
         };
@@ -881,6 +970,48 @@ mod tests {
         assert!(first > 0.0, "the first gather lights the room");
         assert!(second > first * 1.01, "the second gather adds the second bounce: {first} then {second}");
         assert!(third > second, "and the third the third: {second} then {third}");
+    }
+
+    /// The residual a step reports and the view's residual list say what each step did: one
+    /// entry per gather, the first 1 (all light new), then falling; a push-pull records the
+    /// gather's residual (the one already shown), and one with nothing gathered changes nothing.
+    #[test]
+    fn each_gather_reports_its_own_residual() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        load(&mut w, "builtin:cornell", HierarchicalParams::interactive());
+        let mut step = |kind| {
+            w.send(Command::Step(kind));
+            let mut done = None;
+            w.wait_idle(|r| {
+                if let Reply::Done { report, view } = r {
+                    done = Some((report.expect("a step's report"), view));
+                }
+            });
+            done.expect("a step answers")
+        };
+        let (refined, v) = step(StepKind::Refine);
+        assert!(v.residuals.is_empty() && refined.residual == 0.0, "nothing gathered yet");
+        let (first, v1) = step(StepKind::Gather);
+        assert_eq!(v1.residuals.len(), 1);
+        assert!((first.residual - 1.0).abs() < 1e-9, "the first bounce is all new light: {}", first.residual);
+        let (second, v2) = step(StepKind::Gather);
+        assert_eq!(v2.residuals.len(), 2, "{:?}", v2.residuals);
+        assert_eq!(v2.residuals[0], v1.residuals[0], "the push-pull recorded the residual shown");
+        assert_eq!(second.residual, v2.residuals[1]);
+        assert!(
+            second.residual < 0.9 && second.residual > 0.0,
+            "the second bounce adds less: {}",
+            second.residual
+        );
+        let (pushed, v3) = step(StepKind::PushPull);
+        assert_eq!(v3.residuals, v2.residuals, "the push-pull records what the gather showed");
+        assert!((pushed.residual - second.residual).abs() < 1e-12 * second.residual.max(1.0));
+        let (again, v4) = step(StepKind::PushPull);
+        assert_eq!(v4.residuals, v2.residuals, "nothing gathered: no residual recorded");
+        assert_eq!(again.residual, pushed.residual);
+        assert!(!again.converged, "a push-pull without a gather does not converge the solve");
+        let (_, v5) = step(StepKind::Refine);
+        assert_eq!(v5.residuals, v2.residuals, "a refinement keeps the gathers' residuals");
     }
 
     #[test]

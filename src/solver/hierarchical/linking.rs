@@ -243,10 +243,14 @@ impl HierarchicalSolver {
         self.cluster_links = cluster_links;
         self.stats.rays += rays;
         self.stats.pairs_skipped += skipped;
-        // Each patch's Σ F·V through the cluster links: the transfer with B = 1.
+        // Each patch's Σ F·V through the cluster links (the transfer with B = 1), bounded by
+        // what its hemisphere sees of the patches they cover.
         self.cluster_xfer = ClusterTransfer::new(tree, &self.cluster_links);
-        let ones = self.cluster_xfer.irradiance(tree, &self.hier, &|_| Rgb::ONE);
-        self.cluster_fv = ones.iter().map(|h| h.0[0]).collect();
+        let bound =
+            self.cluster_xfer.bound_rows(tree, &self.hier, &self.scene, &self.accel, self.params.seed);
+        self.stats.rays += bound.rays;
+        self.stats.cluster_rows_cut = bound.cut;
+        self.cluster_fv = bound.rows;
         created
     }
 

@@ -16,7 +16,8 @@
 //! - [`gather`]: `Gather`, each receiver's sum over its links;
 //! - [`push_pull`]: push-pull, the reflection at the leaves and the power balance;
 //! - [`estimate`]: the solver's own estimate of its pointwise error;
-//! - [`cluster`]: the cluster hierarchy above the input patches and its transfer.
+//! - [`cluster`]: the cluster hierarchy above the input patches and its transfer;
+//! - `audit`: every leaf's row of F·V against what rays find in its hemisphere ([`LeafAudit`]).
 //!
 //! ## How it works
 //! ```text
@@ -105,6 +106,7 @@
 //! Restarting with new parameters (`set_params`) reuses the BVH and, when `rays` and `seed` are
 //! unchanged, the visibility of the initial patch pairs; elements and links are rebuilt.
 
+mod audit;
 pub mod cluster;
 pub mod estimate;
 mod gather;
@@ -114,6 +116,7 @@ mod push_pull;
 mod refine;
 mod transfer;
 
+pub use audit::LeafAudit;
 use gather::*;
 use linking::InitialLinks;
 use push_pull::*;
@@ -212,6 +215,9 @@ pub struct HierarchicalStats {
     /// Links with a cluster at one end at least (each moves light both ways; `links` counts
     /// element links, one per direction).
     pub cluster_links: usize,
+    /// Input patches whose row through the cluster links their hemisphere bound cut
+    /// (`cluster::ClusterTransfer::bound_rows`), at the last linking.
+    pub cluster_rows_cut: usize,
 }
 
 /// Read-only view of one element.
@@ -244,6 +250,20 @@ pub struct LinkInfo {
     pub ff: f32,
     pub vis: f32,
     pub err: f32,
+}
+
+/// One leaf's row of F·V ([`HierarchicalSolver::leaf_rows`]): what it gathers per unit
+/// radiosity of everything it sees, which a point's hemisphere bounds by 1 (by the part of it
+/// that front faces fill, in fact: `solver::escape`).
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct LeafRow {
+    /// The leaf's element id.
+    pub id: u32,
+    /// Σ F·V over its own and its ancestors' element links (with the slopes' shift to its
+    /// centroid) and its patch's cluster links.
+    pub row: f64,
+    /// The part of `row` through cluster links.
+    pub cluster: f64,
 }
 
 /// A cluster link as the viewer draws it ([`HierarchicalSolver::cluster_link_views`]).

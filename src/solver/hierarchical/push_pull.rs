@@ -249,6 +249,23 @@ impl HierarchicalSolver {
         }
     }
 
+    /// Every leaf's row of F·V as the power balance reads it, in id order ([`LeafRow`]).
+    #[must_use]
+    pub fn leaf_rows(&self) -> Vec<LeafRow> {
+        let mut rows = Vec::new();
+        let cluster = &self.cluster_fv;
+        let mut each = |i: usize, e: &Element, _: Rgb, row: f64| {
+            let cluster = cluster.get(e.patch as usize).copied().unwrap_or(0.0);
+            rows.push(LeafRow { id: i as u32, row, cluster });
+        };
+        if self.params.push_slopes {
+            for_each_leaf_row(&self.hier.elements, &mut Vec::<Chain>::new(), &mut each);
+        } else {
+            for_each_leaf_row(&self.hier.elements, &mut Vec::<FlatChain>::new(), &mut each);
+        }
+        rows
+    }
+
     /// The radiosity of every element (indexed by id) that `push_pull_step` would give now, the
     /// solver's state untouched: what a viewer shows right after a gather. The same chain sums
     /// (with the links' slopes) and area averages as `push_pull_flat`.
