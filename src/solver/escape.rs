@@ -265,7 +265,9 @@ mod tests {
     fn box_faces(skip: &[usize]) -> Vec<Patch> {
         let c = DVec3::splat(0.5);
         let mut out = Vec::new();
-        for (k, n) in [DVec3::X, DVec3::NEG_X, DVec3::Y, DVec3::NEG_Y, DVec3::Z, DVec3::NEG_Z].into_iter().enumerate() {
+        for (k, n) in
+            [DVec3::X, DVec3::NEG_X, DVec3::Y, DVec3::NEG_Y, DVec3::Z, DVec3::NEG_Z].into_iter().enumerate()
+        {
             if skip.contains(&k) {
                 continue;
             }
@@ -316,8 +318,11 @@ mod tests {
         assert!(s.noise.mean() < 2e-3, "{s:?}");
 
         let mut patches = box_faces(&[]);
-        let lamp = [(0.4, 0.4), (0.6, 0.4), (0.6, 0.6), (0.4, 0.6)].map(|(x, z)| DVec3::new(x, 0.95, z)).to_vec();
-        patches.push(Patch::new(lamp, Rgb::splat(0.5), Rgb::splat(10.0), "lamp", 0, "lamp", "m").expect("a lamp"));
+        let lamp =
+            [(0.4, 0.4), (0.6, 0.4), (0.6, 0.6), (0.4, 0.6)].map(|(x, z)| DVec3::new(x, 0.95, z)).to_vec();
+        patches.push(
+            Patch::new(lamp, Rgb::splat(0.5), Rgb::splat(10.0), "lamp", 0, "lamp", "m").expect("a lamp"),
+        );
         let lamp_scene = Scene::new("t", "lamp", patches);
         assert!(lamp_scene.patches[6].normal.y < -0.99, "the lamp faces down");
         let accel = Accel::build(&lamp_scene);
