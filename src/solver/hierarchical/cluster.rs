@@ -952,7 +952,6 @@ impl ClusterTransfer {
         }
         let pos = tree.positions();
         let leaf = &self.leaf;
-        // Per patch: its factor, and the rays cast.
         // Per patch: its bound (infinite where not traced), and the rays cast.
         let bounds: Vec<(f64, u32)> = rows
             .par_iter()
