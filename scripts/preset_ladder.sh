@@ -8,7 +8,7 @@ B=${1:-target/release/radlab}
 CACHE=${2:-.radlab-cache}
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
-printf "scene\tpreset\telements\tlinks\tescaped_of_emitted\ttimes_s\tpointwise\n"
+printf "scene\tpreset\telements\tlinks\tnot_gathered_of_emitted\ttimes_s\tpointwise\n"
 for s in cornell table-room splash_room; do
   for p in draft interactive quality fine reference bf lecture splash2; do
     times=""
@@ -17,7 +17,7 @@ for s in cornell table-room splash_room; do
       "$B" solve "builtin:$s" --preset "$p" --threads 2 -q --json "$TMP/s.json"
       times="$times $(python3 -c "import json,sys;print(round(json.load(open(sys.argv[1]))['stats']['time_s']['total'],3))" "$TMP/s.json")"
     done
-    meta=$(python3 -c "import json,sys;d=json.load(open(sys.argv[1]));e=d['energy'];print(d['stats']['elements'],d['stats']['links'],round(e['escaped'][0]/e['emitted'][0],6),sep='\t')" "$TMP/s.json")
+    meta=$(python3 -c "import json,sys;d=json.load(open(sys.argv[1]));e=d['energy'];print(d['stats']['elements'],d['stats']['links'],round(e['not_gathered'][0]/e['emitted'][0],6),sep='\t')" "$TMP/s.json")
     err=$("$B" reference "builtin:$s" --cache-dir "$CACHE" --batches 2 --compare --preset "$p" 2>&1 | grep "^scene: rel L1" | head -1)
     printf "%s\t%s\t%s\t%s\t%s\n" "$s" "$p" "$meta" "$times" "$err"
   done
