@@ -376,7 +376,7 @@ impl ViewData {
 /// The residual of a Jacobi gather, as the solver's push-pull measures it: the largest change of
 /// a leaf's radiosity, `max |B_new − B_old|` over leaves and channels, relative to the largest
 /// reflected radiosity `max (B_new − E)`. A gather computes B_new = E + ρ F B_old, so the change
-/// is the residual r = E + ρ F B − B of the radiosity it read [Cohen & Wallace 1993, §5.3]: 1
+/// is the residual r = E + ρ F B − B of the radiosity it read [Cohen & Wallace 1993, sec. 5.3]: 1
 /// after the first gather (all light is new), then falling about as the reflectance per bounce.
 #[must_use]
 pub fn gather_residual(before: &[crate::solver::hierarchical::ElementInfo], pushed: &[Rgb]) -> f64 {
