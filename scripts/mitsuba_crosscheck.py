@@ -172,7 +172,7 @@ def main():
     with open(args.out, "w") as f:
         f.write("# Reference cross-check against Mitsuba 3\n\n")
         f.write("radlab's independent Monte Carlo reference (`radlab reference --point-file`, "
-                "`radlab::reference::estimate_points`) against Mitsuba 3 "
+                "`radlab::eval::reference::estimate_points`) against Mitsuba 3 "
                 f"({mi.__version__}, variant `scalar_rgb`, `path` integrator, unbounded depth) at "
                 f"{len(rows)} points of `{args.scene}`: two fixed points on every patch but the light. "
                 "Mitsuba measures the irradiance H with an `irradiancemeter` on a disk of radius "

@@ -1,15 +1,15 @@
-//! The five meshing artifacts ([`radlab::artifacts`]) on cases built to have each and cases built
+//! The five meshing artifacts ([`radlab::eval::artifacts`]) on cases built to have each and cases built
 //! not to: shadow-narrow against its closed form, solved coarse (one element a patch, or 4 × 4 on
 //! the floor) and on a discontinuity mesh; the furnace (B = 2 everywhere, nothing to see); and a
 //! solution scored against its own reconstruction (every artifact of the comparison vanishes).
 //!
 //! Run with `--nocapture` to see the figures.
 
-use radlab::accel::Accel;
-use radlab::artifacts::{ArtifactParams, ArtifactReport, Gouraud, measure};
-use radlab::exact::SingleBounce;
+use radlab::eval::artifacts::{ArtifactParams, ArtifactReport, Gouraud, measure};
+use radlab::eval::pointwise::PiecewiseConstant;
+use radlab::geometry::accel::Accel;
+use radlab::geometry::exact::SingleBounce;
 use radlab::math::{DVec3, Rgb};
-use radlab::pointwise::PiecewiseConstant;
 use radlab::scene::Scene;
 use radlab::solver::Solution;
 use radlab::solver::discontinuity::{self, DiscontinuityParams};
@@ -145,7 +145,7 @@ fn cli_prints_the_artifacts_table() {
 /// boundaries and shows the streak.
 #[test]
 fn thin_pole_shadow_missed_by_the_quadtree_shown_by_the_cdt() {
-    use radlab::artifacts::measure_views;
+    use radlab::eval::artifacts::measure_views;
     use radlab::solver::hierarchical::HierarchicalSolver;
     use radlab::solver::params::HierarchicalParams;
     let scene = Scene::load("builtin:thin-pole").unwrap();
@@ -197,7 +197,7 @@ fn thin_pole_shadow_missed_by_the_quadtree_shown_by_the_cdt() {
 
 #[test]
 fn samples_add_up_to_the_report() {
-    use radlab::artifacts::{EdgeMark, measure_samples};
+    use radlab::eval::artifacts::{EdgeMark, measure_samples};
     let scene = Scene::load("builtin:shadow-narrow").unwrap();
     let accel = Accel::build(&scene);
     let p = UniformParams { element_size: 0.5, ..Default::default() };

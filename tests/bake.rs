@@ -1,12 +1,12 @@
-//! The baked glTF (`radlab::bake`, `radlab solve --bake`): read back with the `gltf` crate and
+//! The baked glTF (`radlab::present::bake`, `radlab solve --bake`): read back with the `gltf` crate and
 //! checked value by value against the solution; the CLI's refusals; and the Khronos glTF
 //! validator on the bake of every built-in scene (0 errors, 0 warnings), wherever Node and the
 //! validator are installed (see `validator_dir`).
 
-use radlab::accel::Accel;
-use radlab::bake::{self, BakeForm, BakeFormat, BakeOptions, LightmapParams};
-use radlab::image::{Camera, auto_exposure};
-use radlab::pointwise::{PiecewiseConstant, Reconstruction};
+use radlab::eval::pointwise::{PiecewiseConstant, Reconstruction};
+use radlab::geometry::accel::Accel;
+use radlab::present::bake::{self, BakeForm, BakeFormat, BakeOptions, LightmapParams};
+use radlab::present::image::{Camera, auto_exposure};
 use radlab::scene::{Scene, builtin};
 use radlab::solver::Solution;
 use radlab::solver::hierarchical::HierarchicalSolver;
@@ -451,7 +451,7 @@ fn decode_png(bytes: &[u8]) -> (u32, u32, Vec<u8>) {
 
 /// 8-bit sRGB of a linear value: what a lightmap texel holds for B · exposure.
 fn srgb8(linear: f64) -> u8 {
-    (radlab::image::srgb_encode(linear.clamp(0.0, 1.0)) * 255.0).round() as u8
+    (radlab::present::image::srgb_encode(linear.clamp(0.0, 1.0)) * 255.0).round() as u8
 }
 
 /// One input patch as the lightmap form wrote it: its vertices' TEXCOORD_1.

@@ -335,12 +335,12 @@ fn oversized_texture_is_refused_before_decoding() {
 /// occluder and lit in the open.
 #[test]
 fn blender_shadow_scene_gets_its_critical_segments_meshed_and_solved() {
-    use radlab::artifacts::{ArtifactParams, measure};
+    use radlab::eval::artifacts::{ArtifactParams, measure};
+    use radlab::eval::pointwise::{PiecewiseConstant, Reconstruction};
     use radlab::mesh::DEFAULT_SNAP;
     use radlab::mesh::discontinuity::scene_segments;
     use radlab::mesh::grade::GradeParams;
     use radlab::mesh::remesh::{MeshKind, RemeshParams};
-    use radlab::pointwise::{PiecewiseConstant, Reconstruction};
     use radlab::solver::discontinuity::{self, DiscontinuityParams, solve_hierarchical};
     use radlab::solver::params::HierarchicalParams;
     for (label, scene) in both("shadow") {

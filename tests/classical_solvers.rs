@@ -2,7 +2,7 @@
 //! known answers: the white furnace, the closed cube with one light against the exact 6×6
 //! system built from closed-form form factors, energy balance, agreement of the two solvers.
 
-use radlab::accel::Accel;
+use radlab::geometry::accel::Accel;
 use radlab::math::{DVec3, Rgb, polygon_area, polygon_normal};
 use radlab::scene::{Patch, Scene};
 use radlab::solver::Solution;

@@ -41,7 +41,7 @@ fn exact_and_path_traced_rulers_agree_and_pictures_are_written() {
     // percent and some jumps at edges (measured: A 12.4 %, D 7.5 %; without the slopes 59 % and
     // 61 %), enough for the two rulers to be compared below.
     assert!(f(&fr["A"]) > 0.05 && f(&fr["D"]) > 0.02, "p = 0 on the D-mesh is blocky and jumps: {fr}");
-    for name in radlab::artifact_pictures::FILES {
+    for name in radlab::present::artifact_pictures::FILES {
         let bytes = std::fs::read(out.join(name)).unwrap();
         assert_eq!(&bytes[1..4], b"PNG", "{name}");
         assert!(bytes.len() > 1000, "{name}: {} bytes", bytes.len());

@@ -12,9 +12,9 @@ fn figures_json_lists_every_figure_with_its_scene_settings_and_caption() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let figs = v.as_array().expect("an array");
-    assert_eq!(figs.len(), radlab::figures::FIGURES.len());
+    assert_eq!(figs.len(), radlab::present::figures::FIGURES.len());
     assert!(figs.len() >= 10);
-    for (f, want) in figs.iter().zip(radlab::figures::FIGURES) {
+    for (f, want) in figs.iter().zip(radlab::present::figures::FIGURES) {
         assert_eq!(f["name"], want.name);
         assert_eq!(f["slide"], want.slide);
         assert_eq!(f["scene"], want.scene);
@@ -26,7 +26,7 @@ fn figures_json_lists_every_figure_with_its_scene_settings_and_caption() {
     let out = radlab(&["figures"]);
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
-    for f in radlab::figures::FIGURES {
+    for f in radlab::present::figures::FIGURES {
         assert!(text.lines().any(|l| l.starts_with(f.name) && l.contains(f.slide)), "{}:\n{text}", f.name);
     }
 }

@@ -5,11 +5,11 @@
 //!
 //! Run with `--nocapture` to see the figures.
 
-use radlab::accel::Accel;
+use radlab::eval::pointwise::{PiecewiseConstant, Reconstruction};
+use radlab::eval::reference::{Control, PointParams, ReferenceParams, reference_points};
+use radlab::geometry::accel::Accel;
 use radlab::math::DVec3;
 use radlab::mesh::remesh::RemeshParams;
-use radlab::pointwise::{PiecewiseConstant, Reconstruction};
-use radlab::reference::{Control, PointParams, ReferenceParams, reference_points};
 use radlab::scene::Scene;
 use radlab::solver::Solution;
 use radlab::solver::discontinuity;
@@ -24,7 +24,7 @@ use std::sync::Arc;
 fn quality(eps: f64) -> HierarchicalParams {
     HierarchicalParams {
         bf_eps: eps,
-        aeps: AreaEps::Relative(radlab::bench::CONTACT_AEPS_PER_EPS * eps),
+        aeps: AreaEps::Relative(radlab::studies::bench::CONTACT_AEPS_PER_EPS * eps),
         ..HierarchicalParams::quality()
     }
 }
@@ -111,7 +111,9 @@ fn the_error_oracle_on_the_contact_mesh_converges_as_its_threshold_halves() {
             PointParams { points: 8192, paths: ReferenceParams { samples: 256, ..quick.paths }, ..quick };
         let (set, reference) = reference_points(&scene, &accel, &ruler, &Control::default()).unwrap();
         let err = |sol: &Solution| {
-            radlab::pointwise::compare_solution_points(&scene, sol, &set.points, &reference).unwrap().scene
+            radlab::eval::pointwise::compare_solution_points(&scene, sol, &set.points, &reference)
+                .unwrap()
+                .scene
         };
         let mut last = f64::INFINITY;
         for eps in [0.2, 0.1, 0.05] {

@@ -2,7 +2,7 @@
 //! the constrained Delaunay and BSP meshes' invariants, D0 at a contact, and a solve on the mesh.
 
 use glam::DVec2;
-use radlab::accel::Accel;
+use radlab::geometry::accel::Accel;
 use radlab::math::{DVec3, Rgb, polygon_area, polygon_normal};
 use radlab::mesh::ReceiverPlane;
 use radlab::mesh::bsp::partition;
@@ -455,7 +455,7 @@ fn pieces_as_elements(scene: &Scene, mesh: &RemeshParams) -> Vec<radlab::solver:
 /// An element's own Gouraud function at `x` (its vertex values, weighted by its p = 1 basis),
 /// wherever `x` is: both sides of an edge are read exactly on it, with no offset.
 fn own_value(e: &radlab::solver::SolvedElement, coefficients: &[Rgb], x: DVec3) -> Rgb {
-    use radlab::basis::{Order, local_coordinates, values};
+    use radlab::geometry::basis::{Order, local_coordinates, values};
     let phi = values(Order::Linear, e.vertices.len(), local_coordinates(&e.vertices, x));
     coefficients.iter().zip(phi).map(|(c, p)| *c * p).sum()
 }
@@ -467,8 +467,8 @@ fn own_value(e: &radlab::solver::SolvedElement, coefficients: &[Rgb], x: DVec3) 
 /// anchoring the values differ there.
 #[test]
 fn bsp_gouraud_reconstruction_has_no_gap_and_no_jump_across_any_edge() {
-    use radlab::pointwise::PiecewiseConstant;
-    use radlab::reconstruction::{gouraud, gouraud_unanchored};
+    use radlab::eval::pointwise::PiecewiseConstant;
+    use radlab::eval::reconstruction::{gouraud, gouraud_unanchored};
     for name in ["builtin:table-room", "builtin:cornell"] {
         let scene = Scene::load(name).unwrap();
         let elements = pieces_as_elements(&scene, &RemeshParams::bsp());
@@ -526,7 +526,7 @@ fn bsp_gouraud_reconstruction_has_no_gap_and_no_jump_across_any_edge() {
 /// same value (no jump), so both sides of every shared edge draw the same points and values.
 #[test]
 fn bsp_gouraud_display_is_conforming_and_continuous() {
-    use radlab::overlay::{ElementView, VertexField};
+    use radlab::present::overlay::{ElementView, VertexField};
     for name in ["builtin:table-room", "builtin:cornell"] {
         let scene = Scene::load(name).unwrap();
         let elements = pieces_as_elements(&scene, &RemeshParams::bsp());

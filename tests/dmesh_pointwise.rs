@@ -1,17 +1,17 @@
 //! A solve on a discontinuity mesh scored with the pointwise ruler of the **input** scene: the
 //! reference points lie on the input patches, the D-mesh solution is pulled back
 //! to them ([`radlab::solver::discontinuity::pull_back`]), and on the exact single-bounce scenes
-//! its pointwise error — over the scene and over the penumbra band ([`radlab::penumbra`]) — is
+//! its pointwise error — over the scene and over the penumbra band ([`radlab::eval::penumbra`]) — is
 //! compared with a uniform solve of at least as many elements.
 //!
 //! Run with `--nocapture` to see the figures.
 
-use radlab::accel::Accel;
-use radlab::exact::SingleBounce;
+use radlab::eval::penumbra::{BandParams, band};
+use radlab::eval::pointwise::{PointwiseScore, score_solution_in_band};
+use radlab::eval::reference::{Control, Estimate, PointParams, PointSet, reference_points};
+use radlab::geometry::accel::Accel;
+use radlab::geometry::exact::SingleBounce;
 use radlab::math::Rgb;
-use radlab::penumbra::{BandParams, band};
-use radlab::pointwise::{PointwiseScore, score_solution_in_band};
-use radlab::reference::{Control, Estimate, PointParams, PointSet, reference_points};
 use radlab::scene::Scene;
 use radlab::solver::Solution;
 use radlab::solver::discontinuity::{self, DiscontinuityParams};
@@ -156,7 +156,7 @@ struct TableRoom {
 }
 
 fn table_room() -> &'static TableRoom {
-    use radlab::reference::ReferenceParams;
+    use radlab::eval::reference::ReferenceParams;
     static ONCE: std::sync::OnceLock<TableRoom> = std::sync::OnceLock::new();
     ONCE.get_or_init(|| {
         let scene = Scene::load("builtin:table-room").unwrap();
@@ -185,7 +185,7 @@ fn auto_budget_top_level_beats_the_ungraded_one_on_table_room() {
     use radlab::solver::params::HierarchicalParams;
     let TableRoom { scene, set, reference, .. } = table_room();
     let err = |sol: &Solution| {
-        radlab::pointwise::compare_solution_points(scene, sol, &set.points, reference).unwrap().scene
+        radlab::eval::pointwise::compare_solution_points(scene, sol, &set.points, reference).unwrap().scene
     };
     let solve = |mesh: &RemeshParams| {
         discontinuity::solve_hierarchical(scene, mesh, HierarchicalParams::quality(), &mut |_, _| {}).unwrap()

@@ -1,4 +1,4 @@
-//! The exact single-bounce ruler ([`radlab::exact`]) against closed forms and brute-force Monte
+//! The exact single-bounce ruler ([`radlab::geometry::exact`]) against closed forms and brute-force Monte
 //! Carlo, and the solvers scored against it on `builtin:shadow-wide` and `builtin:shadow-narrow`:
 //! element averages (a solution element against the exact average over that element) and
 //! pointwise values (the piecewise-constant solution at grid points of the receiver), over the
@@ -6,9 +6,9 @@
 //!
 //! Run with `--nocapture` to see the figures.
 
-use radlab::accel::Accel;
-use radlab::exact::SingleBounce;
-use radlab::form_factor::point_to_polygon;
+use radlab::geometry::accel::Accel;
+use radlab::geometry::exact::SingleBounce;
+use radlab::geometry::form_factor::point_to_polygon;
 use radlab::math::{DVec3, Pcg32, Rgb};
 use radlab::scene::{Patch, Scene};
 use radlab::solver::Solution;
@@ -92,7 +92,7 @@ fn no_occluder_matches_closed_forms() {
     // A triangle of the receiver: against the adaptive polygon-to-polygon quadrature.
     let tri = vec![v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.)];
     let t = sb.element_average(&tri, AVG_TOL);
-    let q = radlab::form_factor::polygon_to_polygon(&tri, &scene.patches[1].vertices, 1e-12);
+    let q = radlab::geometry::form_factor::polygon_to_polygon(&tri, &scene.patches[1].vertices, 1e-12);
     assert!((t.form_factor - q).abs() < 1e-9, "{} vs {q}", t.form_factor);
 }
 
@@ -215,7 +215,7 @@ fn exact_matches_monte_carlo_in_the_penumbra() {
 
 /// The piecewise-constant solution at a point of the receiver: the leaf element that contains it.
 ///
-/// A local helper; [`radlab::pointwise`] holds the general pointwise metric that could replace it.
+/// A local helper; [`radlab::eval::pointwise`] holds the general pointwise metric that could replace it.
 fn solution_at(sol: &Solution, patch: usize, x: DVec3, normal: DVec3) -> Rgb {
     let inside = |vs: &[DVec3]| {
         let k = vs.len();
@@ -467,8 +467,8 @@ fn the_error_oracle_converges_as_its_threshold_halves() {
 /// more than the estimate's own rays find), so it is held to NARROW_LOW, not 1/FACTOR.
 #[test]
 fn the_error_estimate_tracks_the_exact_error() {
-    use radlab::pointwise::{PiecewiseConstant, check_estimate, compare_points, evaluate};
-    use radlab::reference::{Cell, Estimate, RefPoint};
+    use radlab::eval::pointwise::{PiecewiseConstant, check_estimate, compare_points, evaluate};
+    use radlab::eval::reference::{Cell, Estimate, RefPoint};
     use radlab::solver::params::Oracle;
     /// The bound on estimate / measured, either way.
     const FACTOR: f64 = 2.0;

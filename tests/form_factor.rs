@@ -2,7 +2,7 @@
 //! Transfer Configuration Factors", B-3, C-11, C-14], reciprocity, enclosure sums, and Monte
 //! Carlo consistency.
 
-use radlab::form_factor::{
+use radlab::geometry::form_factor::{
     disk, point_to_polygon, point_to_polygon_mc, polygon_to_polygon, polygon_to_polygon_adaptive,
     polygon_to_polygon_fixed, polygon_to_polygon_mc,
 };

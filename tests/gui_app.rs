@@ -11,8 +11,8 @@
 use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
+use radlab::eval::reference::{Cache, PointParams, ReferenceParams};
 use radlab::math::{DVec3, Rgb};
-use radlab::reference::{Cache, PointParams, ReferenceParams};
 use radlab::render::RgbaImage;
 use radlab::render::snapshot::{self, Thresholds};
 use radlab::scene::{Patch, Scene};
@@ -372,10 +372,10 @@ fn reference_feeds_the_true_error_and_the_error_plot() {
         reference.cache.read_points(&cornell(), &reference.params).expect("cached by the viewer");
     let scene = cornell();
     let leaves = h.state().view().solved_leaves();
-    let pc = radlab::pointwise::PiecewiseConstant::new(&scene, &leaves).unwrap();
-    let values = radlab::pointwise::evaluate(&pc, &cached.set.points);
+    let pc = radlab::eval::pointwise::PiecewiseConstant::new(&scene, &leaves).unwrap();
+    let values = radlab::eval::pointwise::evaluate(&pc, &cached.set.points);
     let report =
-        radlab::pointwise::compare_points(&scene, &cached.set.points, &values, &cached.estimates, 0.0)
+        radlab::eval::pointwise::compare_points(&scene, &cached.set.points, &values, &cached.estimates, 0.0)
             .unwrap();
     assert!((report.scene.l2_debiased - s[1][1]).abs() < 1e-12, "{} vs {s:?}", report.scene.l2_debiased);
     assert!(h.query_by_label_contains("pointwise rel L2").is_some(), "the panel names the ruler");
@@ -738,7 +738,7 @@ fn every_lecture_figure_opens_from_the_lecture_menu() {
     check(&mut h, "gui_lecture_menu");
     h.key_press(egui::Key::Escape);
     h.run_steps(2);
-    for f in radlab::figures::FIGURES {
+    for f in radlab::present::figures::FIGURES {
         h.get_by_label("Lecture").click();
         h.run_steps(2);
         if let Some(sub) = f.submenu {
@@ -800,7 +800,7 @@ fn every_lecture_figure_opens_from_the_lecture_menu() {
 /// O(n) figure solves once per threshold (points in the plot).
 #[test]
 fn lecture_figures_run_their_steps_pick_and_sweep() {
-    use radlab::figures::find;
+    use radlab::present::figures::find;
     let mut h = harness(opts());
     h.run_steps(2);
     h.state_mut().open_figure(find("perpendicular-refine").unwrap());
@@ -821,9 +821,9 @@ fn lecture_figures_run_their_steps_pick_and_sweep() {
     // legend counts links, not link ends.
     settle(&mut h); // the build for the pick made in the last frame
     let v = Arc::clone(h.state().view());
-    let chain = radlab::overlay::ancestors(&v.elements, sel);
+    let chain = radlab::present::overlay::ancestors(&v.elements, sel);
     let gathered: Vec<_> = v.links.iter().filter(|l| chain.contains(&l.receiver)).collect();
-    let drawn = gathered.iter().filter(|l| l.class() != radlab::overlay::VisClass::None).count();
+    let drawn = gathered.iter().filter(|l| l.class() != radlab::present::overlay::VisClass::None).count();
     assert!(drawn > 0 && drawn < h.state().display.link_filter.max_lines);
     assert_eq!(h.state().link_stats(), (drawn, drawn), "of {} gathered", gathered.len());
     let count = h.get_by_label_contains(&format!("{} links gathered through", gathered.len())).rect();
@@ -862,8 +862,8 @@ fn lecture_figures_run_their_steps_pick_and_sweep() {
 /// row, column and blocks in the matrix.
 #[test]
 fn matrix_block_and_viewport_element_highlight_each_other() {
-    use radlab::figures::find;
-    use radlab::overlay::{Highlight, highlight_lines};
+    use radlab::present::figures::find;
+    use radlab::present::overlay::{Highlight, highlight_lines};
     let mut h = harness(opts());
     h.run_steps(2);
     h.state_mut().open_figure(find("block-matrix").unwrap());
@@ -974,7 +974,7 @@ fn keyboard_shortcuts_act_and_help_lists_them() {
 /// cluster boxes), the Help lists them (checked above) and their tooltips name them.
 #[test]
 fn overlay_keys_toggle_critical_edges_artifacts_and_clusters() {
-    use radlab::mesh_overlay::Artifact;
+    use radlab::present::mesh_overlay::Artifact;
     let mut h = harness(opts());
     h.state_mut().set_scene(Arc::new(cornell()));
     settle(&mut h);
@@ -1458,7 +1458,7 @@ fn pixels_near(img: &RgbaImage, rgb: [u8; 3]) -> usize {
 /// and over a discontinuity mesh alike, with its legend's counts.
 #[test]
 fn critical_edges_overlay_draws_d0_d1_d2() {
-    use radlab::mesh_overlay::CRITICAL_COLORS;
+    use radlab::present::mesh_overlay::CRITICAL_COLORS;
     use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
     let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });
     h.state_mut().load_spec("builtin:table-room");
@@ -1488,7 +1488,7 @@ fn critical_edges_overlay_draws_d0_d1_d2() {
 /// samples lie, and says why when there is no reference.
 #[test]
 fn artifact_overlays_mark_their_samples() {
-    use radlab::mesh_overlay::Artifact;
+    use radlab::present::mesh_overlay::Artifact;
     use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
     let mut h = harness(ViewerOptions {
         solve_on_start: true,
@@ -1547,7 +1547,7 @@ fn artifact_overlays_mark_their_samples() {
 /// its caption shown.
 #[test]
 fn meshing_figures_open_solved_on_their_mesh() {
-    use radlab::figures::{FIGURES, MESHING};
+    use radlab::present::figures::{FIGURES, MESHING};
     use radlab::solver::meshed::MeshMethod;
     let mut h = harness(opts());
     h.run_steps(2);
@@ -1564,7 +1564,7 @@ fn meshing_figures_open_solved_on_their_mesh() {
                 assert_eq!(m.params, f.mesh, "{}", f.name);
                 assert_eq!(
                     m.coefficients.is_some(),
-                    f.mesh.order == radlab::basis::Order::Linear,
+                    f.mesh.order == radlab::geometry::basis::Order::Linear,
                     "{}",
                     f.name
                 );
@@ -1663,7 +1663,7 @@ fn clusters_overlay_draws_the_cluster_boxes() {
 /// colour scale, and its legend says how many of how many; the checkbox turns them off.
 #[test]
 fn links_overlay_draws_the_cluster_links() {
-    use radlab::overlay::CLUSTER_LINK_DASHES;
+    use radlab::present::overlay::CLUSTER_LINK_DASHES;
     let mut h = clustered("builtin:furnished-2k");
     let v = Arc::clone(h.state().view());
     let total = v.stats.cluster_links;
@@ -1676,7 +1676,7 @@ fn links_overlay_draws_the_cluster_links() {
     let with = lower_viewport(&mut h);
     let max_lines = h.state().display.link_filter.max_lines;
     // The default filter leaves out the links that carry no light (V = 0).
-    let visible = v.cluster_links.iter().filter(|l| l.vis > radlab::overlay::VIS_CLASS_EPS).count();
+    let visible = v.cluster_links.iter().filter(|l| l.vis > radlab::present::overlay::VIS_CLASS_EPS).count();
     let drawn = visible.min(max_lines);
     assert!(drawn > 0);
     let legend = h.state().cluster_link_legend().expect("a legend line");
@@ -1718,10 +1718,11 @@ fn links_overlay_draws_the_cluster_links() {
     h.state_mut().display.selected_links_only = true;
     settle(&mut h);
     let v = Arc::clone(h.state().view());
-    let chain = radlab::overlay::cluster_chain(&v.clusters, &v.patch_cluster, v.elements[id as usize].patch);
+    let chain =
+        radlab::present::overlay::cluster_chain(&v.clusters, &v.patch_cluster, v.elements[id as usize].patch);
     assert!(chain.len() >= 3, "the patch and the clusters above it: {chain:?}");
     let on_chain = |l: &&radlab::solver::hierarchical::ClusterLinkView| {
-        l.ends.iter().any(|e| chain.contains(e)) && l.vis > radlab::overlay::VIS_CLASS_EPS
+        l.ends.iter().any(|e| chain.contains(e)) && l.vis > radlab::present::overlay::VIS_CLASS_EPS
     };
     let mine = v.cluster_links.iter().filter(on_chain).count();
     assert!(mine > 0, "the picked element gathers through cluster links");
@@ -1746,7 +1747,7 @@ fn links_overlay_draws_the_cluster_links() {
 /// budget's elements and their vertex values; continuous p = 1 greys grading out and drops it.
 #[test]
 fn the_mesh_menu_grades_the_dmesh_and_makes_it_the_hierarchys_top_level() {
-    use radlab::basis::Order;
+    use radlab::geometry::basis::Order;
     use radlab::mesh::grade::Budget;
     use radlab::solver::meshed::{MeshMethod, MeshSolveParams};
     use radlab::viewer::worker::DmeshOptions;
@@ -1952,7 +1953,9 @@ fn a_click_picks_a_cluster_and_the_inspector_walks_the_tree() {
     let visible_links = |c: u32| {
         v.cluster_links
             .iter()
-            .filter(|l| l.ends.contains(&ClusterEnd::Cluster(c)) && l.vis > radlab::overlay::VIS_CLASS_EPS)
+            .filter(|l| {
+                l.ends.contains(&ClusterEnd::Cluster(c)) && l.vis > radlab::present::overlay::VIS_CLASS_EPS
+            })
             .count()
     };
     let below = chain.iter().position(|&c| c == want).expect("the picked cluster is on the chain");
@@ -2134,8 +2137,8 @@ fn no_panics(h: &Harness<'static, RadlabApp>, what: &str) {
 /// Every number a figure's caption quotes is the state's, and where the window shows that
 /// number elsewhere (status bar, Reference panel, split panes, the caption's error line) it
 /// reads the same there.
-fn caption_matches_the_state(h: &Harness<'static, RadlabApp>, f: &radlab::figures::Figure) {
-    use radlab::figures::{percent, placeholders};
+fn caption_matches_the_state(h: &Harness<'static, RadlabApp>, f: &radlab::present::figures::Figure) {
+    use radlab::present::figures::{percent, placeholders};
     let app = h.state();
     let caption = app.caption().unwrap_or_else(|| panic!("{}: a caption", f.name));
     assert!(h.query_by_label(&caption).is_some(), "{}: the caption shown is the state's", f.name);
@@ -2227,9 +2230,9 @@ fn caption_matches_the_state(h: &Harness<'static, RadlabApp>, f: &radlab::figure
                 let s = app.scene().expect("a scene");
                 let (a, b) = (&s.patches[0], &s.patches[1]);
                 let ff = if name == "ff_disk" {
-                    radlab::form_factor::disk(a.centroid, a.normal, b.centroid, b.normal, b.area)
+                    radlab::geometry::form_factor::disk(a.centroid, a.normal, b.centroid, b.normal, b.area)
                 } else {
-                    radlab::form_factor::polygon_to_polygon(&a.vertices, &b.vertices, 1e-6)
+                    radlab::geometry::form_factor::polygon_to_polygon(&a.vertices, &b.vertices, 1e-6)
                 };
                 (format!("{ff:.3}"), None)
             }
@@ -2273,7 +2276,7 @@ fn caption_matches_the_state(h: &Harness<'static, RadlabApp>, f: &radlab::figure
 /// a new scene gets its preset's values back. No thread panics throughout.
 #[test]
 fn a_lecture_walk_through() {
-    use radlab::figures::{FIGURES, find, placeholders};
+    use radlab::present::figures::{FIGURES, find, placeholders};
     let (dir, reference) = quick_reference("lecture");
     let mut h = harness(ViewerOptions { reference, ..opts() });
     h.run_steps(2);
@@ -2434,7 +2437,7 @@ fn a_lecture_walk_through() {
 /// and the links of a picked element shown: its last control sits above the caption.
 #[test]
 fn the_side_panel_fits_a_lecture_screen() {
-    use radlab::figures::find;
+    use radlab::present::figures::find;
     let mut h = Harness::builder()
         .with_size(egui::Vec2::new(1600.0, 1000.0))
         .wgpu()

@@ -5,10 +5,9 @@
 //! the independent reference; refinement within an element/link budget. Translation and uniform
 //! scaling are tested as invariances. A failure names the case, the solver and the figure.
 
-use radlab::accel::Accel;
-use radlab::hard_cases::{self, HardCase};
+use radlab::eval::reference::{Estimate, RefElement, ReferenceParams, estimate_elements};
+use radlab::geometry::accel::Accel;
 use radlab::math::{DVec3, Rgb};
-use radlab::reference::{Estimate, RefElement, ReferenceParams, estimate_elements};
 use radlab::scene::Scene;
 use radlab::solver::Solution;
 use radlab::solver::hierarchical::HierarchicalSolver;
@@ -16,6 +15,7 @@ use radlab::solver::params::AreaEps;
 use radlab::solver::params::HierarchicalParams;
 use radlab::solver::progressive::{self, ProgressiveParams};
 use radlab::solver::uniform::{self, UniformParams};
+use radlab::studies::hard_cases::{self, HardCase};
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, mpsc};
 use std::time::Duration;

@@ -85,7 +85,7 @@ const DIRECT_FLOOR_TOL: f64 = 0.02;
 
 #[test]
 fn direct_light_is_not_biased_by_inherited_links() {
-    use radlab::accel::Accel;
+    use radlab::geometry::accel::Accel;
     use radlab::math::{Pcg32, Rgb};
     let full = radlab::scene::Scene::load("builtin:cornell").unwrap();
     let pick = |name: &str| full.patches.iter().find(|p| p.name.starts_with(name)).unwrap().clone();
@@ -108,7 +108,11 @@ fn direct_light_is_not_biased_by_inherited_links() {
         let n = 2048;
         let mut acc = 0.0;
         for _ in 0..n {
-            let y = radlab::visibility::point_on_polygon(&light.vertices, rng.next_f64(), rng.next_f64());
+            let y = radlab::geometry::visibility::point_on_polygon(
+                &light.vertices,
+                rng.next_f64(),
+                rng.next_f64(),
+            );
             let d = y - e.centroid;
             let r2 = d.length_squared();
             let (c1, c2) = (e.normal.dot(d) / r2.sqrt(), -light.normal.dot(d) / r2.sqrt());
@@ -551,7 +555,7 @@ fn hierarchical_approaches_the_fine_uniform_solution_as_bf_eps_shrinks() {
         [("cornell", 60.0, 1e-2, 2e-3, 0.045, 0.02), ("cube-one-light", 0.1, 1e-2, 1e-3, 0.002, 0.002)]
     {
         let scene = radlab::scene::Scene::load(&format!("builtin:{name}")).unwrap();
-        let accel = radlab::accel::Accel::build(&scene);
+        let accel = radlab::geometry::accel::Accel::build(&scene);
         let up = UniformParams {
             element_size: size,
             rays: 16,

@@ -1,21 +1,21 @@
 //! Error metrics: exact values on constructed solutions, resampling, and how well the
 //! hierarchical solver's own error estimate ranks its true error (Spearman) on rooms.
 
-use radlab::accel::Accel;
-use radlab::hard_cases;
-use radlab::math::DVec3;
-use radlab::math::{Rgb, polygon_area, polygon_centroid};
-use radlab::metrics::{self, compare_resampled, compare_solution, resample};
-use radlab::pointwise::{self, PiecewiseConstant, Reconstruction};
-use radlab::reference::{
+use radlab::eval::metrics::{self, compare_resampled, compare_solution, resample};
+use radlab::eval::pointwise::{self, PiecewiseConstant, Reconstruction};
+use radlab::eval::reference::{
     Cell, Control, Estimate, PointParams, PointSet, RefElement, RefPoint, ReferenceParams, estimate_at,
     estimate_elements, reference_mesh, reference_points,
 };
+use radlab::geometry::accel::Accel;
+use radlab::math::DVec3;
+use radlab::math::{Rgb, polygon_area, polygon_centroid};
 use radlab::scene::Scene;
 use radlab::solver::hierarchical::HierarchicalSolver;
 use radlab::solver::params::{AreaEps, HierarchicalParams};
 use radlab::solver::uniform::{self, UniformParams};
 use radlab::solver::{EnergyBalance, Solution, SolveStats, SolvedElement};
+use radlab::studies::hard_cases;
 use std::sync::Arc;
 
 /// Sums of a few hundred terms: rounding stays far below this.
@@ -303,7 +303,7 @@ fn the_error_estimate_ranks_the_contact_meshs_error() {
         let scene = Arc::new(Scene::load(name).unwrap());
         let p = HierarchicalParams {
             bf_eps: X,
-            aeps: AreaEps::Relative(radlab::bench::CONTACT_AEPS_PER_EPS * X),
+            aeps: AreaEps::Relative(radlab::studies::bench::CONTACT_AEPS_PER_EPS * X),
             ..HierarchicalParams::quality()
         };
         let mut on_mesh = HierarchicalOnMesh::new(&scene, &RemeshParams::contacts(), p).unwrap();
@@ -358,12 +358,12 @@ fn resampled_comparison_of_a_real_solve_is_consistent() {
 
 #[test]
 fn quick_bench_runs_every_method_and_writes_table_json_and_plot() {
-    use radlab::bench::{self, BenchConfig, Mode};
+    use radlab::studies::bench::{self, BenchConfig, Mode};
     let dir = std::env::temp_dir().join(format!("radlab-bench-test-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let mut config = BenchConfig::new(Mode::Quick);
     config.scenes = vec!["hard:shared_edge_perpendicular".into(), "hard:open_scene".into()];
-    config.cache = radlab::reference::Cache::at(dir.join("cache"));
+    config.cache = radlab::eval::reference::Cache::at(dir.join("cache"));
     // An unreachable reference target: batches are added up to the cap.
     config.reference_target = Some(1e-9);
     config.reference_max_batches = 2;
@@ -396,7 +396,7 @@ fn quick_bench_runs_every_method_and_writes_table_json_and_plot() {
     assert_eq!(report.scenes.len(), 2);
     let md = bench::markdown(&report);
     // The table says which ruler and how many points.
-    let points = radlab::pointwise::thousands(report.scenes[0].reference_points);
+    let points = radlab::eval::pointwise::thousands(report.scenes[0].reference_points);
     assert!(md.contains("**Pointwise**") && md.contains(&format!("{points} points")), "{md}");
     assert!(
         md.contains("| shared_edge_perpendicular") || md.contains("| hard:shared_edge_perpendicular"),

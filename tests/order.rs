@@ -1,24 +1,24 @@
 //! Element order: the Galerkin solver with p = 0 and p = 1 elements
 //! ([`radlab::solver::linear`]) — the lecture's h-vs-p claim measured on exact single-bounce
-//! scenes ([`radlab::order_study`]), a closed box at p = 1, p = 1 on the discontinuity mesh, and
+//! scenes ([`radlab::studies::order_study`]), a closed box at p = 1, p = 1 on the discontinuity mesh, and
 //! the CLI's `--order`.
 //!
 //! Run with `--nocapture` to see the tables.
 
 mod common;
 
-use radlab::accel::Accel;
-use radlab::basis::Order;
-use radlab::exact::SingleBounce;
+use radlab::eval::penumbra::{BandParams, band};
+use radlab::eval::pointwise::{score_reconstruction_in_band, score_solution_in_band};
+use radlab::eval::reconstruction::Nodal;
+use radlab::eval::reference::{Control, Estimate, PointParams, reference_points};
+use radlab::geometry::accel::Accel;
+use radlab::geometry::basis::Order;
+use radlab::geometry::exact::SingleBounce;
 use radlab::math::Rgb;
-use radlab::order_study::{self, StudyParams, StudyRow, StudyScene, fits};
-use radlab::penumbra::{BandParams, band};
-use radlab::pointwise::{score_reconstruction_in_band, score_solution_in_band};
-use radlab::reconstruction::Nodal;
-use radlab::reference::{Control, Estimate, PointParams, reference_points};
 use radlab::scene::Scene;
 use radlab::solver::discontinuity::{self, DiscontinuityParams};
 use radlab::solver::linear::{self, LinearParams};
+use radlab::studies::order_study::{self, StudyParams, StudyRow, StudyScene, fits};
 use std::process::Command;
 
 /// Four sizes (h = side/2 … side/16) on a prime lattice (never aligned with the elements).

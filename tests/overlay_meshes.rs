@@ -11,10 +11,10 @@
 //!
 //! The random cases are plain seeded loops ([`Pcg32`]): the same cases on every run.
 
+use radlab::eval::reference::{Cell, PointSet, RefPoint};
 use radlab::math::{DVec3, Pcg32, Rgb};
 use radlab::mesh::remesh::RemeshParams;
-use radlab::overlay::{ElementView, MERGE_REL, SEAM_REL, VertexField, vertex_radiosity};
-use radlab::reference::{Cell, PointSet, RefPoint};
+use radlab::present::overlay::{ElementView, MERGE_REL, SEAM_REL, VertexField, vertex_radiosity};
 use radlab::scene::Scene;
 use radlab::solver::discontinuity::HierarchicalOnMesh;
 use radlab::solver::hierarchical::HierarchicalSolver;

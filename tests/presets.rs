@@ -4,7 +4,7 @@
 
 mod common;
 
-use radlab::accel::Accel;
+use radlab::geometry::accel::Accel;
 use radlab::scene::Scene;
 use radlab::solver::spec::{self, Preset, SolveSpec};
 use std::sync::Arc;

@@ -1,13 +1,13 @@
 //! The independent reference against closed forms, within stated multiples of its own standard
 //! error; determinism across thread counts; the on-disk cache (hit, corrupt entry recomputed).
 
-use radlab::accel::Accel;
-use radlab::hard_cases::{self, HardCase};
-use radlab::math::DVec3;
-use radlab::reference::{
+use radlab::eval::reference::{
     Cache, CacheStatus, Control, Estimate, PointParams, RefElement, ReferenceParams, estimate_at,
     estimate_elements, estimate_points, reference_mesh, reference_points,
 };
+use radlab::geometry::accel::Accel;
+use radlab::math::DVec3;
+use radlab::studies::hard_cases::{self, HardCase};
 
 /// A correct estimator lands within 4 standard errors of the truth (p ≈ 6e-5 per channel, and the
 /// seeds are fixed, so the test is deterministic).
@@ -192,18 +192,18 @@ fn cache_hits_and_recomputes_a_corrupt_entry() {
     assert!(matches!(&s4, CacheStatus::Recomputed { .. }), "{s4:?}");
     // A garbage file with a valid checksum but no JSON: a parse error.
     let body = "not json";
-    let sum = radlab::reference::Hasher64::default().bytes(body.as_bytes()).finish();
+    let sum = radlab::eval::reference::Hasher64::default().bytes(body.as_bytes()).finish();
     std::fs::write(&file, format!("radlab-reference {sum:016x}\n{body}")).unwrap();
     let (_, s5) = cache.get_or_compute(&case.scene, &acc, &els, &p).unwrap();
     assert!(matches!(&s5, CacheStatus::Recomputed { why, .. } if why.contains("parse")), "{s5:?}");
 
     // Different settings or scene: a different key.
-    let other = radlab::reference::cache_key(&case.scene, &els, &params(17));
-    assert_ne!(other, radlab::reference::cache_key(&case.scene, &els, &p));
+    let other = radlab::eval::reference::cache_key(&case.scene, &els, &params(17));
+    assert_ne!(other, radlab::eval::reference::cache_key(&case.scene, &els, &p));
     let moved = hard_cases::transformed(&case.scene, DVec3::X, 1.0);
     assert_ne!(
-        radlab::reference::cache_key(&moved, &els, &p),
-        radlab::reference::cache_key(&case.scene, &els, &p)
+        radlab::eval::reference::cache_key(&moved, &els, &p),
+        radlab::eval::reference::cache_key(&case.scene, &els, &p)
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

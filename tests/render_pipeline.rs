@@ -7,7 +7,7 @@
 use eframe::egui_wgpu;
 use eframe::wgpu;
 use radlab::math::{DVec3, Rgb};
-use radlab::overlay::{self, ElementView, LinkFilter, LinkView};
+use radlab::present::overlay::{self, ElementView, LinkFilter, LinkView};
 use radlab::render::geometry::{self, MeshColors};
 use radlab::render::snapshot::{self, Thresholds};
 use radlab::render::{

@@ -6,7 +6,7 @@
 //! of the ladder up to `quality` create none either and read closed. Links per element are
 //! printed (`cargo test --test scene_families -- --nocapture`), not asserted.
 
-use radlab::accel::Accel;
+use radlab::geometry::accel::Accel;
 use radlab::math::{DVec3, Pcg32};
 use radlab::scene::Scene;
 use radlab::scene::families::{self, Family, FamilyParams};

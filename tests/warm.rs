@@ -3,7 +3,7 @@
 
 mod common;
 
-use radlab::accel::Accel;
+use radlab::geometry::accel::Accel;
 use radlab::solver::hierarchical::HierarchicalSolver;
 use radlab::solver::spec::{self, Preset};
 use std::sync::Arc;

@@ -1,20 +1,20 @@
 //! `radlab artifacts SCENE [solve flags]`: solve as `radlab solve` would, measure the five
-//! meshing artifacts ([`radlab::artifacts`]) against the scene's best ruler, print the table,
-//! write one picture per artifact ([`radlab::artifact_pictures`]) and optionally JSON.
+//! meshing artifacts ([`radlab::eval::artifacts`]) against the scene's best ruler, print the table,
+//! write one picture per artifact ([`radlab::present::artifact_pictures`]) and optionally JSON.
 //!
-//! The ruler (the reference B at any point): on a single-bounce scene ([`radlab::exact`]) the
-//! closed form; otherwise the cached path-traced pointwise reference ([`radlab::reference`],
+//! The ruler (the reference B at any point): on a single-bounce scene ([`radlab::geometry::exact`]) the
+//! closed form; otherwise the cached path-traced pointwise reference ([`radlab::eval::reference`],
 //! `radlab reference SCENE`, computed and cached on first use) read through its piecewise-linear
-//! interpolant ([`radlab::pointwise::PointInterpolant`]). With the cached reference the pointwise
+//! interpolant ([`radlab::eval::pointwise::PointInterpolant`]). With the cached reference the pointwise
 //! error at its own points (debiased by its noise) is printed too.
 
 use super::solve::{LazyBar, SolverArgs, load_scene, set_threads, solve_scene};
 use anyhow::Context as _;
-use radlab::accel::Accel;
-use radlab::artifacts::{ArtifactParams, ArtifactReport, Gouraud, measure_views};
+use radlab::eval::artifacts::{ArtifactParams, ArtifactReport, Gouraud, measure_views};
+use radlab::eval::pointwise::{PiecewiseConstant, PointInterpolant, Reconstruction, thousands};
+use radlab::eval::reference::{Cache, Control, PointParams, ReferenceParams};
+use radlab::geometry::accel::Accel;
 use radlab::math::{DVec3, Rgb};
-use radlab::pointwise::{PiecewiseConstant, PointInterpolant, Reconstruction, thousands};
-use radlab::reference::{Cache, Control, PointParams, ReferenceParams};
 use serde_json::json;
 use std::io::Write;
 use std::path::PathBuf;
@@ -58,7 +58,7 @@ pub struct Args {
 
 /// The reference of the measurement and how to name it.
 enum Ruler {
-    Exact(radlab::exact::SingleBounce),
+    Exact(radlab::geometry::exact::SingleBounce),
     Points { interpolant: PointInterpolant, label: String },
 }
 
@@ -89,7 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bvh_s = t.elapsed().as_secs_f64();
 
     // The ruler first: a missing cache fails before the solve.
-    let exact = if args.path_traced { None } else { radlab::exact::SingleBounce::new(&scene).ok() };
+    let exact = if args.path_traced { None } else { radlab::geometry::exact::SingleBounce::new(&scene).ok() };
     let cached = match exact {
         Some(_) => None,
         None => {
@@ -102,7 +102,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let (entry, status) = cache
                 .get_or_compute_points(&scene, &accel, &params, &Control::default())
                 .with_context(|| format!("reference of {}", args.scene))?;
-            if let radlab::reference::CacheStatus::Computed(f) = &status {
+            if let radlab::eval::reference::CacheStatus::Computed(f) = &status {
                 writeln!(log, "reference: computed in {:.1} s, cached in {}", entry.compute_s, f.display())?;
             }
             Some(entry)
@@ -141,7 +141,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let params = ArtifactParams { side: args.side, ..ArtifactParams::standard() };
     let nodal = match &solved.coefficients {
-        Some(c) => Some(radlab::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?),
+        Some(c) => Some(radlab::eval::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?),
         None => None,
     };
     let flat = PiecewiseConstant::new(&scene, &sol.elements)?;
@@ -154,14 +154,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The pointwise error where the reference was estimated (debiased by its noise).
     let pointwise = match &cached {
         Some(entry) => {
-            let band = radlab::penumbra::band(
+            let band = radlab::eval::penumbra::band(
                 &scene,
                 &accel,
                 &entry.set.points,
                 &entry.estimates,
-                &radlab::penumbra::BandParams::standard(),
+                &radlab::eval::penumbra::BandParams::standard(),
             );
-            let s = radlab::pointwise::score_reconstruction_in_band(
+            let s = radlab::eval::pointwise::score_reconstruction_in_band(
                 &scene,
                 sol,
                 values,
@@ -189,7 +189,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let measure_s = t.elapsed().as_secs_f64();
-    let pictures = radlab::artifact_pictures::write_pictures(&scene, &maps, &args.out)
+    let pictures = radlab::present::artifact_pictures::write_pictures(&scene, &maps, &args.out)
         .with_context(|| format!("writing the pictures into {}", args.out.display()))?;
 
     let unknowns =

@@ -1,8 +1,8 @@
-//! `radlab bench`: speed against error over methods and settings (see [`radlab::bench`]).
+//! `radlab bench`: speed against error over methods and settings (see [`radlab::studies::bench`]).
 
 use anyhow::Context;
-use radlab::bench::{self, BenchConfig, Mode};
-use radlab::reference::Cache;
+use radlab::eval::reference::Cache;
+use radlab::studies::bench::{self, BenchConfig, Mode};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

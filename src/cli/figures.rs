@@ -1,9 +1,9 @@
 //! `radlab figures [--json] [--screenshots DIR [NAME…]]`: the lecture's figures
-//! ([`radlab::figures`]): list them, or write one PNG each by running `radlab view --figure NAME
+//! ([`radlab::present::figures`]): list them, or write one PNG each by running `radlab view --figure NAME
 //! --screenshot DIR/NAME.png` (needs a display, e.g. Xvfb, and the viewer).
 
 use anyhow::{Context as _, bail};
-use radlab::figures::{FIGURES, Figure, find};
+use radlab::present::figures::{FIGURES, Figure, find};
 use std::path::PathBuf;
 use std::process::Command;
 

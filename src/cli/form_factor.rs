@@ -1,5 +1,5 @@
 //! `radlab form-factor`: the form factor between two patches or groups of patches, or from a
-//! differential element, by any of the kernels in [`radlab::form_factor`].
+//! differential element, by any of the kernels in [`radlab::geometry::form_factor`].
 //!
 //! A group (`mesh:NAME`) is area-weighted: `F_GH = Σ_{i∈G} A_i Σ_{j∈H} F_ij / Σ_{i∈G} A_i`.
 //! With `--visibility`, each pair's F is multiplied by its visible fraction (shadow rays through
@@ -7,11 +7,11 @@
 
 use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
-use radlab::accel::Accel;
-use radlab::form_factor;
+use radlab::geometry::accel::Accel;
+use radlab::geometry::form_factor;
+use radlab::geometry::visibility::{point_on_polygon, stratified, visible_fraction};
 use radlab::math::{DVec3, Pcg32};
 use radlab::scene::Scene;
-use radlab::visibility::{point_on_polygon, stratified, visible_fraction};
 use rayon::prelude::*;
 
 /// Which kernel computes F.

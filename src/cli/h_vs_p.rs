@@ -1,10 +1,10 @@
-//! `radlab h-vs-p`: the h- against p-refinement study ([`radlab::order_study`]) — Galerkin
+//! `radlab h-vs-p`: the h- against p-refinement study ([`radlab::studies::order_study`]) — Galerkin
 //! p = 0 and p = 1 on a sequence of uniform meshes of the parallel squares and of
 //! `builtin:shadow-narrow`, scored against the exact single-bounce answer: the table (Markdown),
 //! the fitted log-log slopes and a log-log plot (PNG).
 
 use anyhow::Context as _;
-use radlab::order_study::{self, StudyParams, StudyScene};
+use radlab::studies::order_study::{self, StudyParams, StudyScene};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

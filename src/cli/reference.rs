@@ -1,17 +1,17 @@
 //! `radlab reference SCENE`: the independent Monte Carlo reference, cached on disk (see
-//! [`radlab::reference`]): at adaptive points by default (the pointwise ruler,
-//! [`radlab::reference::points`], [`radlab::pointwise`]), or averaged over a uniform reference
+//! [`radlab::eval::reference`]): at adaptive points by default (the pointwise ruler,
+//! [`radlab::eval::reference::points`], [`radlab::eval::pointwise`]), or averaged over a uniform reference
 //! mesh (`--ruler regions`).
 
 use anyhow::Context;
-use radlab::accel::Accel;
-use radlab::hard_cases;
-use radlab::math::{Rgb, polygon_area};
-use radlab::metrics::ErrorReport;
-use radlab::pointwise::thousands;
-use radlab::reference::{
+use radlab::eval::metrics::ErrorReport;
+use radlab::eval::pointwise::thousands;
+use radlab::eval::reference::{
     Cache, CacheStatus, Control, Estimate, PointParams, ReferenceParams, reference_mesh,
 };
+use radlab::geometry::accel::Accel;
+use radlab::math::{Rgb, polygon_area};
+use radlab::studies::hard_cases;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -50,14 +50,14 @@ pub struct Args {
     /// Also solve the scene, as `radlab solve` does with the same solver flags (--preset,
     /// --threshold, --mesh, --method, --order, …; below), and print its error against the
     /// reference per patch, for the scene and, with the pointwise ruler, over the penumbra band
-    /// ([`radlab::penumbra`]).
+    /// ([`radlab::eval::penumbra`]).
     #[arg(long)]
     pub compare: bool,
     /// Pointwise ruler on a single-bounce scene (`builtin:shadow-wide`, `builtin:shadow-narrow`, `builtin:thin-pole`,
-    /// [`radlab::exact`]): score against the closed-form answer at the reference's points (no
+    /// [`radlab::geometry::exact`]): score against the closed-form answer at the reference's points (no
     /// noise) instead of their Monte Carlo estimates; the points are still placed by the cached
     /// reference (use a small --samples to place them quickly). With --compare, also prints the
-    /// five meshing artifacts of the solution ([`radlab::artifacts`]).
+    /// five meshing artifacts of the solution ([`radlab::eval::artifacts`]).
     #[arg(long)]
     pub exact: bool,
     /// How the pointwise ruler reads the --compare solution: `solved` (the default: each
@@ -157,7 +157,7 @@ struct PointSpec {
 /// Largest distance of a `--point-file` point from its patch's plane, relative to the patch's size.
 const POINT_OFF_PLANE_REL: f64 = 1e-6;
 
-/// `--point-file`: B at listed points with standard errors (see [`radlab::reference::estimate_points`]).
+/// `--point-file`: B at listed points with standard errors (see [`radlab::eval::reference::estimate_points`]).
 fn run_point_file(args: &Args, scene: &radlab::scene::Scene, file: &std::path::Path) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
     let specs: Vec<PointSpec> = serde_json::from_str(&text).with_context(|| {
@@ -190,7 +190,7 @@ fn run_point_file(args: &Args, scene: &radlab::scene::Scene, file: &std::path::P
         ReferenceParams { samples: args.samples, seed: args.ref_seed, ..ReferenceParams::standard() };
     let accel = Accel::build(scene);
     let t0 = std::time::Instant::now();
-    let est = radlab::reference::estimate_points(scene, &accel, &points, &params)?;
+    let est = radlab::eval::reference::estimate_points(scene, &accel, &points, &params)?;
     eprintln!(
         "reference for {}: {} points, {} paths each, {:.2} s",
         scene.source,
@@ -360,8 +360,8 @@ fn solve(
 /// `--point-errors`: one CSV row per point (reference, its standard error, the solution there).
 fn write_point_errors(
     path: &std::path::Path,
-    points: &[radlab::reference::points::RefPoint],
-    reference: &[radlab::reference::Estimate],
+    points: &[radlab::eval::reference::points::RefPoint],
+    reference: &[radlab::eval::reference::Estimate],
     values: &[radlab::math::Rgb],
 ) -> anyhow::Result<()> {
     use std::io::Write as _;
@@ -401,11 +401,11 @@ fn compare(
     sol: &radlab::solver::Solution,
     scene: &radlab::scene::Scene,
     accel: &Accel,
-    mesh: &[radlab::reference::RefElement],
-    estimates: &[radlab::reference::Estimate],
+    mesh: &[radlab::eval::reference::RefElement],
+    estimates: &[radlab::eval::reference::Estimate],
     log: &mut Box<dyn Write>,
 ) -> anyhow::Result<()> {
-    let rep = radlab::metrics::compare_resampled(scene, sol, mesh, estimates)?;
+    let rep = radlab::eval::metrics::compare_resampled(scene, sol, mesh, estimates)?;
     writeln!(log, "element-average error (the solution averaged over {} reference regions):", mesh.len())?;
     print_report(&rep, true, log)?;
     write_images(args, sol, scene, accel, mesh, &rep.per_element, log)
@@ -457,19 +457,19 @@ fn write_images(
     sol: &radlab::solver::Solution,
     scene: &radlab::scene::Scene,
     accel: &Accel,
-    regions: &[radlab::reference::RefElement],
+    regions: &[radlab::eval::reference::RefElement],
     errors: &[f64],
     log: &mut Box<dyn Write>,
 ) -> anyhow::Result<()> {
     if let Some(prefix) = &args.images {
-        let camera = radlab::image::Camera::for_scene(scene);
+        let camera = radlab::present::image::Camera::for_scene(scene);
         let (w, h) = (640, 480);
         let sol_path = PathBuf::from(format!("{}_solution.png", prefix.display()));
         let err_path = PathBuf::from(format!("{}_error.png", prefix.display()));
-        radlab::image::radiosity_image(scene, accel, &sol.elements, &camera, w, h)
+        radlab::present::image::radiosity_image(scene, accel, &sol.elements, &camera, w, h)
             .write_png(&sol_path)
             .with_context(|| format!("writing {}", sol_path.display()))?;
-        radlab::metrics::error_image(scene, accel, regions, errors, &camera, w, h)
+        radlab::present::image::error_image(scene, accel, regions, errors, &camera, w, h)
             .write_png(&err_path)
             .with_context(|| format!("writing {}", err_path.display()))?;
         writeln!(log, "wrote {} and {}", sol_path.display(), err_path.display())?;
@@ -531,12 +531,12 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
             );
             batches.push(more.estimates);
         }
-        entry.estimates =
-            radlab::reference::merge_batches(&batches).context("reference batches of different lengths")?;
+        entry.estimates = radlab::eval::reference::merge_batches(&batches)
+            .context("reference batches of different lengths")?;
     }
     let points = &entry.set.points;
     if args.exact {
-        let sb = radlab::exact::SingleBounce::new(&scene).context("--exact")?;
+        let sb = radlab::geometry::exact::SingleBounce::new(&scene).context("--exact")?;
         entry.estimates = points
             .iter()
             .map(|p| Estimate { radiosity: sb.patch_radiosity_at(p.patch, p.position), std_error: Rgb::ZERO })
@@ -548,7 +548,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     }
     let regions = entry.set.weights();
     let values: Vec<Rgb> = entry.estimates.iter().map(|e| e.radiosity).collect();
-    let quality = radlab::metrics::compare_regions(&scene, &regions, &values, &entry.estimates, 0.0)?;
+    let quality = radlab::eval::metrics::compare_regions(&scene, &regions, &values, &entry.estimates, 0.0)?;
     let max_level = points.iter().map(|p| p.cell.level).max().unwrap_or(0);
     let refined = points.iter().filter(|p| p.cell.level > 0).count();
     writeln!(
@@ -563,20 +563,20 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     let patches = patch_summaries(&scene, cells, "points", &mut log)?;
     if args.compare {
         let (sol, coefficients) = solve(args, &scene, &mut log)?;
-        let band_params = radlab::penumbra::BandParams::standard();
+        let band_params = radlab::eval::penumbra::BandParams::standard();
         // The band costs side² rays per point and facing emitter patch: skipped (and said so)
         // above BAND_RAY_BUDGET, as on a furnished room whose lamps are many small polygons.
         let emitters = scene.patches.iter().filter(|p| p.emission.mean() > 0.0).count();
         let band_rays = points.len() as f64 * emitters as f64 * f64::from(band_params.side).powi(2);
         let band = (band_rays <= BAND_RAY_BUDGET)
-            .then(|| radlab::penumbra::band(&scene, &accel, points, &entry.estimates, &band_params));
+            .then(|| radlab::eval::penumbra::band(&scene, &accel, points, &entry.estimates, &band_params));
         let kind = match args.reconstruction.as_deref() {
             None | Some("nodal") => "solved",
             Some(k) => k,
         };
         let mut sol = sol;
         let nodal_coefficients = match (kind, coefficients) {
-            ("gouraud", _) => Some(radlab::reconstruction::gouraud(&scene, &sol.elements)),
+            ("gouraud", _) => Some(radlab::eval::reconstruction::gouraud(&scene, &sol.elements)),
             ("solved", c) => c,
             _ => {
                 // Flat: each element's average alone.
@@ -589,8 +589,8 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         writeln!(log, "reconstruction: {kind}")?;
         let score = match &nodal_coefficients {
             Some(c) => {
-                let r = radlab::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?;
-                radlab::pointwise::score_reconstruction_in_band(
+                let r = radlab::eval::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?;
+                radlab::eval::pointwise::score_reconstruction_in_band(
                     &scene,
                     &sol,
                     &r,
@@ -599,7 +599,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
                     band.as_deref(),
                 )?
             }
-            None => radlab::pointwise::score_solution_in_band(
+            None => radlab::eval::pointwise::score_solution_in_band(
                 &scene,
                 &sol,
                 points,
@@ -607,16 +607,16 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
                 band.as_deref(),
             )?,
         };
-        writeln!(log, "{}:", radlab::pointwise::label(&score.pointwise, points.len()))?;
+        writeln!(log, "{}:", radlab::eval::pointwise::label(&score.pointwise, points.len()))?;
         print_report(&score.pointwise, true, &mut log)?;
         if let Some(path) = &args.point_errors {
             let values = match &nodal_coefficients {
-                Some(c) => radlab::pointwise::evaluate(
-                    &radlab::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?,
+                Some(c) => radlab::eval::pointwise::evaluate(
+                    &radlab::eval::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?,
                     points,
                 ),
-                None => radlab::pointwise::evaluate(
-                    &radlab::pointwise::PiecewiseConstant::new(&scene, &sol.elements)?,
+                None => radlab::eval::pointwise::evaluate(
+                    &radlab::eval::pointwise::PiecewiseConstant::new(&scene, &sol.elements)?,
                     points,
                 ),
             };
@@ -650,7 +650,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
             score.element_average.per_element.len()
         )?;
         print_report(&score.element_average, false, &mut log)?;
-        if let Some(c) = radlab::pointwise::check_estimate(&scene, &sol, points, &entry.estimates)? {
+        if let Some(c) = radlab::eval::pointwise::check_estimate(&scene, &sol, points, &entry.estimates)? {
             writeln!(
                 log,
                 "the solver's own error estimate (no reference): pointwise rel L2 {:.2} %, measured/estimate {:.2}; per element: Spearman {:.3} against each element's own pointwise error, over the {} elements holding ≥ {} points",
@@ -658,7 +658,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
                 score.pointwise.scene.l2_debiased / c.global_estimate,
                 c.spearman,
                 c.elements,
-                radlab::pointwise::ESTIMATE_CHECK_MIN_POINTS
+                radlab::eval::pointwise::ESTIMATE_CHECK_MIN_POINTS
             )?;
             let cluster_links = sol
                 .stats
@@ -703,15 +703,15 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
 /// side²): about two minutes on 2 cores; above it the band is skipped and the output says so.
 const BAND_RAY_BUDGET: f64 = 2e9;
 
-/// With `--compare METHOD --exact`: the five meshing artifacts ([`radlab::artifacts`]) of the
+/// With `--compare METHOD --exact`: the five meshing artifacts ([`radlab::eval::artifacts`]) of the
 /// solution against the closed form, one row each.
 fn print_artifacts(
     scene: &radlab::scene::Scene,
     sol: &radlab::solver::Solution,
     log: &mut dyn std::io::Write,
 ) -> anyhow::Result<()> {
-    use radlab::artifacts::{ArtifactParams, measure};
-    let sb = radlab::exact::SingleBounce::new(scene).context("--exact")?;
+    use radlab::eval::artifacts::{ArtifactParams, measure};
+    let sb = radlab::geometry::exact::SingleBounce::new(scene).context("--exact")?;
     let exact = |p: usize, x: radlab::math::DVec3| sb.patch_radiosity_at(p, x);
     let r = measure(scene, sol, &exact, &ArtifactParams::standard())?;
     writeln!(log, "against the closed form:")?;

@@ -1,13 +1,13 @@
 //! `radlab solve SCENE`: solve a scene, print statistics and the energy balance, optionally write
 //! JSON (`--json`), an image (`--png`), the whole hierarchy (`--dump-hierarchy`) and a baked glTF
-//! with the radiosity as vertex colours (`--bake`, [`radlab::bake`]).
+//! with the radiosity as vertex colours (`--bake`, [`radlab::present::bake`]).
 
 use anyhow::{Context as _, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use radlab::accel::Accel;
-use radlab::bake::{BakeForm, LightmapParams};
-use radlab::basis::Order;
+use radlab::geometry::accel::Accel;
+use radlab::geometry::basis::Order;
 use radlab::mesh::remesh::{MeshKind, RemeshParams};
+use radlab::present::bake::{BakeForm, LightmapParams};
 use radlab::scene::Scene;
 use radlab::solver::discontinuity::{self, DiscontinuityParams};
 use radlab::solver::linear::LinearParams;
@@ -629,7 +629,7 @@ pub fn grade_params(
 /// [`BudgetArg::for_plan`]).
 fn remesh_params(a: &SolverArgs, plan: Route, mesh: MeshArg, kind: MeshKind) -> anyhow::Result<RemeshParams> {
     let max_patches = if matches!(plan, Route::DiscontinuityHierarchical(_)) {
-        radlab::solver::discontinuity::HIERARCHICAL_MAX_PIECES
+        radlab::mesh::remesh::HIERARCHICAL_MAX_PIECES
     } else {
         RemeshParams::cdt().max_patches
     };
@@ -810,10 +810,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("writing {}", path.display()))?;
     }
     let solution = &solved.solution;
-    let cam = radlab::image::Camera::for_scene(&scene);
+    let cam = radlab::present::image::Camera::for_scene(&scene);
     let mut png_exposure = None;
     if let Some(path) = &args.png {
-        let (img, exposure) = radlab::image::radiosity_image_with_exposure(
+        let (img, exposure) = radlab::present::image::radiosity_image_with_exposure(
             &scene,
             &accel,
             &solution.elements,
@@ -830,7 +830,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Some(x) => (x, "--bake-exposure".to_string()),
             None => (
                 png_exposure.unwrap_or_else(|| {
-                    radlab::image::auto_exposure(
+                    radlab::present::image::auto_exposure(
                         &scene,
                         &accel,
                         &solution.elements,
@@ -845,7 +845,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 ),
             ),
         };
-        let opts = radlab::bake::BakeOptions {
+        let opts = radlab::present::bake::BakeOptions {
             exposure,
             exposure_rule,
             scene_label: args.scene.clone(),
@@ -855,7 +855,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let form = args
             .bake_lightmap
             .map_or(BakeForm::Elements, |size| BakeForm::Lightmap(LightmapParams::new(size)));
-        let bytes = radlab::bake::bake_as(&scene, solution, &opts, form, format)
+        let bytes = radlab::present::bake::bake_as(&scene, solution, &opts, form, format)
             .with_context(|| format!("baking {}", path.display()))?;
         let bake_s = t.elapsed().as_secs_f64();
         std::fs::write(path, &bytes).with_context(|| format!("writing {}", path.display()))?;
@@ -984,8 +984,8 @@ fn check_bake_path(
     scene_spec: &str,
     exposure: Option<f64>,
     lightmap: Option<u32>,
-) -> anyhow::Result<radlab::bake::BakeFormat> {
-    let format = radlab::bake::BakeFormat::from_path(out)?;
+) -> anyhow::Result<radlab::present::bake::BakeFormat> {
+    let format = radlab::present::bake::BakeFormat::from_path(out)?;
     if let Some(size) = lightmap
         && LightmapParams::new(size).check().is_err()
     {

@@ -12,7 +12,7 @@
 //! area 2000, BF epsilon 0.015, energy tolerance 0.005).
 
 use anyhow::{Context, bail};
-use radlab::accel::Accel;
+use radlab::geometry::accel::Accel;
 use radlab::solver::hierarchical::{HierarchicalSolver, HierarchicalStats};
 use radlab::solver::params::HierarchicalParams;
 use serde::Serialize;

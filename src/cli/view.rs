@@ -123,7 +123,7 @@ impl Args {
 
     /// The mesh settings the flags ask for (`None`: the quadtree), or why they cannot be used.
     pub fn mesh_params(&self) -> anyhow::Result<Option<radlab::solver::meshed::MeshSolveParams>> {
-        use radlab::basis::Order;
+        use radlab::geometry::basis::Order;
         use radlab::solver::meshed::MeshSolveParams;
         let Some(order) = Order::from_degree(self.order) else {
             anyhow::bail!(
@@ -155,7 +155,7 @@ impl Overlay {
             Overlay::Links => d.links = true,
             Overlay::Error => d.error = true,
             Overlay::Critical => d.critical = true,
-            Overlay::Artifacts => d.artifact = Some(radlab::mesh_overlay::Artifact::All),
+            Overlay::Artifacts => d.artifact = Some(radlab::present::mesh_overlay::Artifact::All),
             Overlay::Clusters => d.clusters = true,
         }
     }
@@ -183,7 +183,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.bench_frames == Some(0) {
         anyhow::bail!("--bench-frames must be at least 1");
     }
-    let figure = args.figure.as_deref().map(radlab::figures::find).transpose()?;
+    let figure = args.figure.as_deref().map(radlab::present::figures::find).transpose()?;
     let mesh = args.mesh_params()?;
     let mut display = radlab::viewer::Display::default();
     for o in &args.overlay {
@@ -214,7 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 #[cfg(not(feature = "gui"))]
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(name) = &args.figure {
-        radlab::figures::find(name)?;
+        radlab::present::figures::find(name)?;
     }
     args.mesh_params()?;
     anyhow::bail!("this radlab was built without the viewer (feature `gui`); use `radlab solve SCENE`")

@@ -6,7 +6,7 @@
 //! A constant element K of area A_K that approximates B by its mean has the squared L2 error
 //! A_K · Var_K(B). The mesher estimates it from the **direct** light each piece reflects, which
 //! it can evaluate before any solve (the penumbra module's fixed shadow-ray grid,
-//! [`crate::penumbra::lit_fraction`]):
+//! [`crate::geometry::lit::lit_fraction`]):
 //!
 //! ```text
 //! D(x)   = ρ̄ Σ_e Ē_e F_e(x) v_e(x)                 direct radiosity at x (v_e: visible fraction)
@@ -52,9 +52,9 @@
 //! on a neighbour's edge: a T-vertex): fine for constant elements, not for a continuous p = 1
 //! basis. Deterministic: the queue orders by (error, creation index).
 
-use crate::accel::Accel;
+use crate::geometry::accel::Accel;
+use crate::geometry::lit::{FULLY_LIT_ABOVE, MIN_DIRECT_SHARE, UMBRA_BELOW, lit_fraction};
 use crate::math::{DVec3, polygon_area, polygon_normal};
-use crate::penumbra::lit_fraction;
 use crate::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -104,7 +104,7 @@ pub struct GradeParams {
     /// diagonal (module docs); 0: split only where the direct light varies.
     pub smooth: f64,
     /// Weight of Var(D) on a piece with a sample in a penumbra (lit fraction strictly between
-    /// 2 % and 98 %, the band of [`crate::penumbra::BandParams::standard`]): the shadows get more
+    /// 2 % and 98 %, [`crate::geometry::lit::UMBRA_BELOW`], [`crate::geometry::lit::FULLY_LIT_ABOVE`]): the shadows get more
     /// of the budget than their share of the L2 error (1: plain L2 allocation).
     pub penumbra_weight: f64,
 }
@@ -198,7 +198,6 @@ pub fn shadow_segments(
 ) -> Vec<[DVec3; 2]> {
     use super::discontinuity::Discontinuity;
     let p = &scene.patches[receiver];
-    let band = crate::penumbra::BandParams::standard();
     let size = p.area.sqrt();
     let lit = |x: DVec3| lit_fraction(scene, accel, receiver, x, side).map_or(0.0, |(l, _)| l);
     let emitters = scene.patches.iter().filter(|q| q.emission.mean() > 0.0).count();
@@ -217,15 +216,16 @@ pub fn shadow_segments(
                     let x = s.a.lerp(s.b, *t);
                     let (l0, s0) = emitter_lit(scene, accel, receiver, e, x - across, side);
                     let (l1, s1) = emitter_lit(scene, accel, receiver, e, x + across, side);
-                    let partial = |l: f64| l > band.lo && l < band.hi;
-                    s0.max(s1) >= band.min_direct && (partial(l0) || partial(l1) || (l0 - l1).abs() > band.lo)
+                    let partial = |l: f64| l > UMBRA_BELOW && l < FULLY_LIT_ABOVE;
+                    s0.max(s1) >= MIN_DIRECT_SHARE
+                        && (partial(l0) || partial(l1) || (l0 - l1).abs() > UMBRA_BELOW)
                 });
             }
             [0.1, 0.3, 0.5, 0.7, 0.9].iter().any(|t| {
                 let x = s.a.lerp(s.b, *t);
                 let (l0, l1) = (lit(x - across), lit(x + across));
-                let partial = |l: f64| l > band.lo && l < band.hi;
-                partial(l0) || partial(l1) || (l0 - l1).abs() > band.lo
+                let partial = |l: f64| l > UMBRA_BELOW && l < FULLY_LIT_ABOVE;
+                partial(l0) || partial(l1) || (l0 - l1).abs() > UMBRA_BELOW
             })
         })
         .map(|s| [s.a, s.b])
@@ -240,7 +240,7 @@ fn emitter_lit(scene: &Scene, accel: &Accel, receiver: usize, e: usize, x: DVec3
     let direct = |q: &crate::scene::Patch| {
         let power = q.emission.mean();
         if power > 0.0 {
-            power * crate::form_factor::point_to_polygon(x, p.normal, &q.vertices).max(0.0)
+            power * crate::geometry::form_factor::point_to_polygon(x, p.normal, &q.vertices).max(0.0)
         } else {
             0.0
         }
@@ -253,11 +253,11 @@ fn emitter_lit(scene: &Scene, accel: &Accel, receiver: usize, e: usize, x: DVec3
         return (0.0, 0.0);
     }
     let n = f64::from(side);
-    let mut last = crate::accel::NO_HIT;
+    let mut last = crate::geometry::accel::NO_HIT;
     let grid = (0..side * side).map(|k| ((f64::from(k % side) + 0.5) / n, (f64::from(k / side) + 0.5) / n));
     let seen = grid
         .filter(|&(u, v)| {
-            let y = crate::visibility::point_on_polygon(&emitter.vertices, u, v);
+            let y = crate::geometry::visibility::point_on_polygon(&emitter.vertices, u, v);
             !accel.occluded_cached(x, y, [receiver as u32, e as u32], &mut last)
         })
         .count();
@@ -300,13 +300,12 @@ fn score(scene: &Scene, accel: &Accel, piece: Piece, side: u32) -> Scored {
     if p.reflectance.mean() <= 0.0 {
         return Scored { piece, area, mean: 0.0, variance: 0.0, gradient: DVec3::ZERO, penumbra: false };
     }
-    let band = crate::penumbra::BandParams::standard();
     let mut penumbra = false;
     let values: Vec<f64> = points
         .iter()
         .map(|x| {
             lit_fraction(scene, accel, piece.patch, *x, side).map_or(0.0, |(lit, direct)| {
-                penumbra |= lit > band.lo && lit < band.hi;
+                penumbra |= lit > UMBRA_BELOW && lit < FULLY_LIT_ABOVE;
                 lit * direct
             })
         })

@@ -50,6 +50,12 @@ pub enum Events {
 }
 
 /// Settings of [`discontinuity_scene`].
+/// The most pieces [`crate::solver::discontinuity::solve_hierarchical`]'s callers let a discontinuity mesh have (the CLI's cap
+/// for the hierarchical top level): the hierarchical solver clusters a scene of more than 3 000
+/// patches and links it in about linear memory (furnished-100k: 34 s, 1.3 GB, docs/scale.md),
+/// where the uniform solver's n² couplings keep [`RemeshParams::cdt`]'s 10 000.
+pub const HIERARCHICAL_MAX_PIECES: usize = 100_000;
+
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct RemeshParams {
     pub kind: MeshKind,
@@ -98,11 +104,7 @@ impl RemeshParams {
     /// quadtree stalls and the contact mesh goes on (docs/meshing.md, docs/bench).
     #[must_use]
     pub const fn contacts() -> RemeshParams {
-        RemeshParams {
-            events: Events::Contacts,
-            max_patches: crate::solver::discontinuity::HIERARCHICAL_MAX_PIECES,
-            ..RemeshParams::bsp()
-        }
+        RemeshParams { events: Events::Contacts, max_patches: HIERARCHICAL_MAX_PIECES, ..RemeshParams::bsp() }
     }
 
     /// The discontinuity mesh of a solve — the one construction behind `radlab solve|artifacts
@@ -196,7 +198,7 @@ fn mesh_receiver(
     scene: &Scene,
     i: usize,
     params: &RemeshParams,
-    accel: Option<&crate::accel::Accel>,
+    accel: Option<&crate::geometry::accel::Accel>,
     gap: f64,
 ) -> Result<ReceiverResult, MeshError> {
     let t0 = Instant::now();
@@ -242,7 +244,7 @@ pub fn discontinuity_scene(scene: &Scene, params: &RemeshParams) -> Result<Remes
         g.validate()?;
     }
     let t0 = Instant::now();
-    let accel = params.grade.is_some().then(|| crate::accel::Accel::build(scene));
+    let accel = params.grade.is_some().then(|| crate::geometry::accel::Accel::build(scene));
     let gap = match params.events {
         Events::All => 0.0,
         Events::Contacts => super::discontinuity::NEAR_CONTACT_GAP * scene.bounds().diagonal(),

@@ -1,4 +1,4 @@
-//! Turns the viewer's element lists (see [`crate::overlay`]) into GPU vertex arrays in the
+//! Turns the viewer's element lists (see [`crate::present::overlay`]) into GPU vertex arrays in the
 //! scene's local frame (world minus `origin`, then `f32`), so scenes far from the origin keep
 //! their precision on the GPU.
 //!
@@ -21,7 +21,7 @@
 
 use super::gpu_data::{LineVertex, MeshVertex};
 use crate::math::{DVec3, Rgb};
-use crate::overlay::{BoundaryPoint, ElementView, LineList, VertexField, depth_color};
+use crate::present::overlay::{BoundaryPoint, ElementView, LineList, VertexField, depth_color};
 
 /// How the mesh is coloured.
 #[derive(Copy, Clone, Debug)]
@@ -33,7 +33,7 @@ pub enum MeshColors<'a> {
     /// A display colour per element id (error heatmap); the shader's mode must be 1.
     Display(&'a [[f32; 3]]),
     /// Each element's own p = 1 function: its vertex values (indexed like `elements`, in vertex
-    /// order; one value: constant) interpolated with its basis ([`crate::basis`]) at every
+    /// order; one value: constant) interpolated with its basis ([`crate::geometry::basis`]) at every
     /// boundary point, so T-vertices take the element's own value there.
     Nodal(&'a [Vec<Rgb>]),
 }
@@ -132,7 +132,7 @@ pub fn mesh(elements: &[ElementView], leaves: &[u32], colors: MeshColors<'_>, or
 /// An element's p = 1 function at a point of its parameter square (`uv` as
 /// [`BoundaryPoint::uv`]): the vertex values weighted by the basis; one value is a constant.
 fn nodal_value(coefficients: &[Rgb], quad: bool, uv: [f64; 2]) -> Rgb {
-    use crate::basis::{Local, Order, values};
+    use crate::geometry::basis::{Local, Order, values};
     let n = if quad { 4 } else { 3 };
     if coefficients.len() != n {
         return coefficients.first().copied().unwrap_or(Rgb::ZERO);

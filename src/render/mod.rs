@@ -66,7 +66,7 @@ pub struct Geometry {
     /// Draw links over everything (x-ray) instead of depth-testing them.
     pub links_xray: bool,
     /// Overlay lines on the surfaces (critical edges, artifact samples), always depth-tested
-    /// ([`crate::mesh_overlay`] lifts them off their surface).
+    /// ([`crate::present::mesh_overlay`] lifts them off their surface).
     pub overlay: Vec<LineVertex>,
 }
 

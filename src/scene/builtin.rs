@@ -26,7 +26,7 @@
 //!   0.5 × 0.5 ceiling light set into the ceiling: sharp shadows under the table, the classic
 //!   meshing example. Walls ρ = 0.6, floor 0.4, table 0.5, light E = 50 (B of the walls O(1)).
 //! - `shadow-wide`, `shadow-narrow`: single-bounce scenes with an exact answer
-//!   ([`crate::exact`]): one emitter with ρ = 0 facing down, black occluders (ρ = 0, E = 0),
+//!   ([`crate::geometry::exact`]): one emitter with ρ = 0 facing down, black occluders (ρ = 0, E = 0),
 //!   one 2 × 2 receiver on the floor (ρ = 0.5), nothing else, so the receiver's radiosity is
 //!   ρ E F(x → visible part of the lamp) in closed form. `shadow-wide`: a 1 × 1 lamp (E = 10) at
 //!   height 2 and two overlapping occluders at heights 1 and 0.6: penumbrae about a unit wide,
@@ -48,7 +48,7 @@
 //! checks that every asset equals what the writer produces now.
 
 use super::gltf::{LoadOptions, load_slice};
-use super::{Patch, Scene, SceneError, Viewpoint};
+use super::{Mat, Patch, Scene, SceneError, Viewpoint};
 use crate::math::{DVec3, Rgb, polygon_centroid, polygon_normal};
 use std::path::Path;
 
@@ -129,14 +129,6 @@ pub fn build(name: &str) -> Option<Scene> {
 /// Accumulates patches with loader-compatible names.
 struct Builder {
     patches: Vec<Patch>,
-}
-
-/// A material: name, ρ, E.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Mat {
-    pub(super) name: &'static str,
-    pub(super) rho: Rgb,
-    pub(super) emission: Rgb,
 }
 
 const fn grey(name: &'static str, rho: f64) -> Mat {

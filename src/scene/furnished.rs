@@ -29,7 +29,7 @@
 //! fabrics, book covers, metal); the emitters are the ceiling panels (facing down) and the lamp
 //! shades (glowing outward, lined with a non-emitting inner layer 2 mm in).
 
-use super::builtin::Mat;
+use super::Mat;
 use super::{Patch, Scene, SceneError, Viewpoint};
 use crate::math::{DVec3, Pcg32, Rgb};
 use std::f64::consts::PI;

@@ -321,3 +321,11 @@ pub fn is_convex(verts: &[DVec3], normal: DVec3) -> bool {
         (b - a).cross(c - b).dot(normal) >= -1e-12 * scale
     })
 }
+
+/// A material of a scene built in code (the built-in and generated scenes): name, ρ, E.
+#[derive(Clone, Copy, Debug)]
+struct Mat {
+    name: &'static str,
+    rho: Rgb,
+    emission: Rgb,
+}

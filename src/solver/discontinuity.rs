@@ -15,7 +15,7 @@
 //! hands every solved element back to the input patch it was cut from (the
 //! remeshed scene's `origin`), so the solution is a [`Solution`] **of the input scene**: its
 //! elements are the pieces, its patch indices the input's. Anything that scores a solution of the
-//! input scene — the pointwise ruler ([`crate::pointwise`]) at points placed on the input
+//! input scene — the pointwise ruler ([`crate::eval::pointwise`]) at points placed on the input
 //! patches, images, the element-average comparison — then reads it like any other method's:
 //!
 //! ```text
@@ -43,13 +43,13 @@ use super::uniform::{
     pair_visibility,
 };
 use super::{Progress, Slope, Solution};
-use crate::accel::Accel;
-use crate::form_factor::point_to_polygon;
+use crate::geometry::accel::Accel;
+use crate::geometry::form_factor::point_to_polygon;
+use crate::geometry::visibility::point_on_polygon;
 use crate::math::{DVec3, Rgb, orthonormal_basis, polygon_area, polygon_centroid};
 use crate::mesh::MeshError;
 use crate::mesh::remesh::{MeshKind, RemeshParams, RemeshStats, conform, discontinuity_scene};
 use crate::scene::Scene;
-use crate::visibility::point_on_polygon;
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -73,12 +73,6 @@ pub const fn contact_area_floor(p: HierarchicalParams) -> HierarchicalParams {
         p
     }
 }
-
-/// The most pieces [`solve_hierarchical`]'s callers let a discontinuity mesh have (the CLI's cap
-/// for the hierarchical top level): the hierarchical solver clusters a scene of more than 3 000
-/// patches and links it in about linear memory (furnished-100k: 34 s, 1.3 GB, docs/scale.md),
-/// where the uniform solver's n² couplings keep [`RemeshParams::cdt`]'s 10 000.
-pub const HIERARCHICAL_MAX_PIECES: usize = 100_000;
 
 /// Settings of [`solve`]: the mesh, and the uniform solve on it (`element_size` is forced to ∞,
 /// one element per piece).
@@ -178,7 +172,7 @@ pub fn solve(
 /// [`solve`] with the Galerkin solver of [`super::linear`] on the pieces (order and continuity
 /// from `linear`; its element size is not used: one element per piece). Continuous coefficients
 /// are shared between the pieces of one input patch (the CDT is conforming). Returns the solution
-/// on the input scene and each element's coefficients ([`crate::reconstruction::Nodal`]). A
+/// on the input scene and each element's coefficients ([`crate::eval::reconstruction::Nodal`]). A
 /// continuous basis on the (ungraded) BSP mesh runs on its pieces made conforming first
 /// ([`crate::mesh::remesh::conform`]: the T-vertices inserted, pieces that gained corners fanned
 /// into triangles). An ungraded mesh whose pieces need more unknowns than `linear.max_unknowns`
@@ -436,7 +430,7 @@ fn point_visible(
     let side = GATHER_EMITTER_SIDE;
     let s = f64::from(side);
     let v = &emitter.vertices;
-    let mut last = crate::accel::NO_HIT;
+    let mut last = crate::geometry::accel::NO_HIT;
     let (mut seen, mut all) = (0.0, 0.0);
     for t in 1..v.len() - 1 {
         let tri = [v[0], v[t], v[t + 1]];
@@ -590,7 +584,7 @@ mod tests {
         let g = on.gather.unwrap();
         assert!(off.gather.is_none() && off.solution.elements.iter().all(|e| e.slope.is_none()));
         assert!(g.partial_pairs > 0 && g.slopes > 0, "{g:?}");
-        let receiver = crate::exact::SingleBounce::new(&scene).unwrap().receiver;
+        let receiver = crate::geometry::exact::SingleBounce::new(&scene).unwrap().receiver;
         let (a, b) = (off.solution.patch_radiosity[receiver].g(), on.solution.patch_radiosity[receiver].g());
         assert!((a - b).abs() < 0.05 * a, "receiver average {a} → {b}");
         assert!(on.solution.is_physical());

@@ -23,11 +23,11 @@
 //! rays through its open side go. [Cohen & Wallace 1993, ch. 2 (the energy balance of the
 //! radiosity equation); the estimator is the path tracer's first bounce, Kajiya 1986.]
 
-use crate::accel::Accel;
+use crate::geometry::accel::Accel;
+use crate::geometry::visibility::point_on_polygon;
 use crate::math::{DVec3, Pcg32, Rgb, newell_normal, orthonormal_basis, splitmix64};
 use crate::scene::Scene;
 use crate::solver::{EnergyBalance, SolvedElement};
-use crate::visibility::point_on_polygon;
 use rayon::prelude::*;
 use serde::Serialize;
 

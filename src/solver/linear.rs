@@ -1,4 +1,4 @@
-//! Galerkin radiosity with elements of order p = 0 or p = 1 ([`crate::basis`]), discontinuous
+//! Galerkin radiosity with elements of order p = 0 or p = 1 ([`crate::geometry::basis`]), discontinuous
 //! (each element its own coefficients) or continuous (one coefficient per mesh vertex of a
 //! patch, shared by the elements around it) [Heckbert & Winget 1991; Zatz 1993, "Galerkin
 //! radiosity: a higher order solution method for global illumination"; Troutman & Max 1993,
@@ -32,7 +32,7 @@
 //!                                                                       φ at the piece's centre
 //!   ```
 //! - **Visibility**: the pair is first classified by the classical jittered-ray fraction
-//!   ([`crate::visibility::visible_fraction`], `rays` rays, keyed by the pair as in
+//!   ([`crate::geometry::visibility::visible_fraction`], `rays` rays, keyed by the pair as in
 //!   [`super::uniform::pair_coupling`]): 0 → no coupling, 1 → V ≡ 1, otherwise V(x, y) is one
 //!   shadow ray per quadrature point pair, **inside** the integral — so a p = 1 element sees the
 //!   shadow vary across it. (A pair whose rays all pass or all miss is treated as unoccluded or
@@ -49,12 +49,12 @@
 
 use super::uniform::{Element, SharedProgress, mesh_scene};
 use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
-use crate::accel::Accel;
-use crate::basis::{self, Domain, Local, MAX_FUNCTIONS, Order, QuadPoint, Values};
-use crate::form_factor::point_to_polygon_oriented;
+use crate::geometry::accel::Accel;
+use crate::geometry::basis::{self, Domain, Local, MAX_FUNCTIONS, Order, QuadPoint, Values};
+use crate::geometry::form_factor::point_to_polygon_oriented;
+use crate::geometry::visibility::visible_fraction;
 use crate::math::{DVec3, Rgb, newell_normal, polygon_centroid};
 use crate::scene::Scene;
-use crate::visibility::visible_fraction;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::f64::consts::PI;
@@ -143,7 +143,7 @@ impl LinearParams {
 
 /// A solved Galerkin system: the [`Solution`] (each element's radiosity is its function's
 /// average) and every element's coefficients — its vertex values at p = 1 (in vertex order),
-/// its one value at p = 0. [`crate::reconstruction::Nodal`] evaluates them.
+/// its one value at p = 0. [`crate::eval::reconstruction::Nodal`] evaluates them.
 #[derive(Clone, Debug)]
 pub struct LinearSolution {
     pub solution: Solution,

@@ -24,7 +24,9 @@
 pub mod discontinuity;
 pub mod escape;
 pub mod hierarchical;
+pub mod hierarchy;
 pub mod linear;
+pub mod link;
 pub mod meshed;
 /// The hierarchical solver's own error estimate (kept at its old path).
 pub use hierarchical::estimate;

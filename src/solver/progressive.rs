@@ -27,7 +27,7 @@
 
 use super::uniform::{CouplingSettings, Element, SharedProgress, mesh_scene, pair_coupling, validate_common};
 use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
-use crate::accel::Accel;
+use crate::geometry::accel::Accel;
 use crate::math::Rgb;
 use crate::scene::Scene;
 use rayon::prelude::*;

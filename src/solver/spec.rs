@@ -33,7 +33,7 @@ use super::params::{AreaEps, HierarchicalParams, Oracle};
 use super::progressive::{self, ProgressiveParams};
 use super::uniform::{self, UniformParams};
 use super::{Progress, Solution};
-use crate::accel::Accel;
+use crate::geometry::accel::Accel;
 use crate::math::Rgb;
 use crate::mesh::remesh::{Events, MeshKind, RemeshParams, RemeshStats};
 use crate::scene::Scene;
@@ -319,7 +319,7 @@ impl SolveSpec {
     pub fn order(&self) -> (u32, bool) {
         match &self.plan {
             Plan::Linear(l) | Plan::Discontinuity { linear: Some(l), .. } => {
-                (u32::from(l.order == crate::basis::Order::Linear), l.continuous)
+                (u32::from(l.order == crate::geometry::basis::Order::Linear), l.continuous)
             }
             _ => (0, false),
         }
@@ -698,7 +698,7 @@ mod tests {
                 SolveSpec {
                     plan: Plan::Linear(LinearParams {
                         element_size: size,
-                        order: crate::basis::Order::Linear,
+                        order: crate::geometry::basis::Order::Linear,
                         ..LinearParams::default()
                     }),
                     estimate: false,
@@ -734,7 +734,7 @@ mod tests {
         // A cap that holds a third of the pieces' four unknowns each.
         let fits = pieces / 3;
         let linear = LinearParams {
-            order: crate::basis::Order::Linear,
+            order: crate::geometry::basis::Order::Linear,
             max_unknowns: 4 * fits,
             element_size: f64::INFINITY,
             ..LinearParams::default()

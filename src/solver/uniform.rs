@@ -11,10 +11,10 @@
 //!   midpoint-split triangles; no element side is longer than `element_size`.
 //! - **Form factors** ([`pair_coupling`]): for each unordered pair {i, j} the form factor is
 //!   integrated once, over the smaller element, by adaptive quadrature of the exact
-//!   point-to-polygon kernel ([`crate::form_factor::polygon_to_polygon_adaptive`]); the other
+//!   point-to-polygon kernel ([`crate::geometry::form_factor::polygon_to_polygon_adaptive`]); the other
 //!   direction follows from reciprocity `A_i F_ij = A_j F_ji`, so the matrix is exactly
 //!   reciprocal and the energy balance below is a real check. The visible fraction V_ij = V_ji
-//!   comes from [`crate::visibility::visible_fraction`] keyed by the pair. Pairs on one patch
+//!   comes from [`crate::geometry::visibility::visible_fraction`] keyed by the pair. Pairs on one patch
 //!   (coplanar) and pairs facing away are skipped. Rows are computed in parallel (rayon); every
 //!   pair's value depends only on the pair, so the result is identical for any thread count.
 //! - **Solve**: Gauss–Seidel sweeps until the largest change of any element's radiosity is below
@@ -33,11 +33,11 @@
 //! (`max_elements`), and the solver refuses larger meshes with a message.
 
 use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
-use crate::accel::Accel;
-use crate::form_factor::polygon_to_polygon_adaptive;
+use crate::geometry::accel::Accel;
+use crate::geometry::form_factor::polygon_to_polygon_adaptive;
+use crate::geometry::visibility::visible_fraction;
 use crate::math::{DVec3, Rgb, polygon_area};
 use crate::scene::{Patch, Scene};
-use crate::visibility::visible_fraction;
 use rayon::prelude::*;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};

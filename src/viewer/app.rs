@@ -38,10 +38,10 @@ use super::top_bar::{TopBar, TopBarAction, TopBarInput};
 use super::view::View;
 use super::viewport::{self, Picture, Shade};
 use super::worker::{Command, DmeshOptions, Reply, ViewData, Worker};
-use crate::figures::Figure;
 use crate::math::DVec3;
-use crate::mesh_overlay::Artifact;
-use crate::overlay::{Highlight, LinkFilter};
+use crate::present::figures::Figure;
+use crate::present::mesh_overlay::Artifact;
+use crate::present::overlay::{Highlight, LinkFilter};
 use crate::render::SceneRenderer;
 use crate::scene::Scene;
 use crate::solver::hierarchical::{StepKind, StepReport};
@@ -443,7 +443,7 @@ impl RadlabApp {
         self.origin = b.center();
         // The scene's own camera, else the CPU renderer's default (inside closed rooms, the
         // most front-facing direction outside open scenes).
-        let c = crate::image::Camera::for_scene(&scene);
+        let c = crate::present::image::Camera::for_scene(&scene);
         let v = crate::scene::Viewpoint { eye: c.eye, target: c.target, up: c.up, fov_y_deg: c.fov_y_deg };
         self.home = OrbitCamera::from_viewpoint(&v, &b);
         self.camera = self.home;
@@ -691,7 +691,7 @@ impl RadlabApp {
     }
 
     /// The artifact overlay to draw and its samples, when they were measured on the state shown.
-    fn artifact_samples(&self) -> Option<(Artifact, Arc<crate::artifacts::ArtifactSamples>)> {
+    fn artifact_samples(&self) -> Option<(Artifact, Arc<crate::eval::artifacts::ArtifactSamples>)> {
         self.artifacts.samples(self.display.artifact, self.view_seq)
     }
 
@@ -1075,9 +1075,13 @@ impl RadlabApp {
         match (self.state_error(), &self.ref_state) {
             (Some(e), _) => {
                 let band = self.state_band_error();
-                let band =
-                    band.map_or(String::new(), |b| format!(", penumbra band {}", crate::figures::percent(b)));
-                format!("error {} against {against} (pointwise rel L2{band})", crate::figures::percent(e))
+                let band = band.map_or(String::new(), |b| {
+                    format!(", penumbra band {}", crate::present::figures::percent(b))
+                });
+                format!(
+                    "error {} against {against} (pointwise rel L2{band})",
+                    crate::present::figures::percent(e)
+                )
             }
             (None, RefState::Ready { .. } | RefState::Looking) => {
                 "error: scoring against the reference…".into()
@@ -1093,7 +1097,7 @@ impl RadlabApp {
             (None, _) => match super::history::estimate_of(&self.view) {
                 Some(e) => format!(
                     "error ≈ {} (solver's estimate; Compute reference for the true one)",
-                    crate::figures::percent(e)
+                    crate::present::figures::percent(e)
                 ),
                 None => "error unknown".into(),
             },
@@ -1611,7 +1615,7 @@ impl RadlabApp {
             return;
         }
         let ev = self.display.exposure_ev;
-        let options = crate::bake::BakeOptions {
+        let options = crate::present::bake::BakeOptions {
             exposure: 2f64.powf(f64::from(ev)),
             exposure_rule: format!(
                 "the viewer's exposure 2^EV, EV = {ev:.1}{}",
@@ -1624,8 +1628,8 @@ impl RadlabApp {
             scene_label: self.scene_spec.clone(),
             params: serde_json::to_value(self.params).ok(),
         };
-        let form = lightmap.map_or(crate::bake::BakeForm::Elements, |size| {
-            crate::bake::BakeForm::Lightmap(crate::bake::LightmapParams::new(size))
+        let form = lightmap.map_or(crate::present::bake::BakeForm::Elements, |size| {
+            crate::present::bake::BakeForm::Lightmap(crate::present::bake::LightmapParams::new(size))
         });
         self.send(Command::Bake { path, options, form }, "baking");
     }

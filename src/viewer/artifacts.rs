@@ -1,9 +1,9 @@
-//! The artifact overlays' measurements ([`crate::artifacts::measure_samples`]) on their own
+//! The artifact overlays' measurements ([`crate::eval::artifacts::measure_samples`]) on their own
 //! thread, `radlab-artifacts`: they shoot shadow rays at thousands of points (the penumbra band)
 //! and take seconds on large scenes, so the UI only asks and picks the answer up.
 //!
 //! The reference is the best the viewer has: the closed form on a single-bounce scene
-//! ([`crate::exact::SingleBounce`], e.g. builtin:shadow-narrow), else the scene's cached Monte
+//! ([`crate::geometry::exact::SingleBounce`], e.g. builtin:shadow-narrow), else the scene's cached Monte
 //! Carlo reference (its points' cells, piecewise constant), else none
 //! (the answer says to compute one).
 //!
@@ -18,11 +18,11 @@
 
 use super::panics;
 use super::worker::ViewData;
-use crate::artifacts::{ArtifactParams, ArtifactReport, ArtifactSamples, measure_samples};
-use crate::exact::SingleBounce;
+use crate::eval::artifacts::{ArtifactParams, ArtifactReport, ArtifactSamples, measure_samples};
+use crate::eval::pointwise::PiecewiseConstant;
+use crate::geometry::exact::SingleBounce;
 use crate::math::DVec3;
-use crate::mesh_overlay::Artifact;
-use crate::pointwise::PiecewiseConstant;
+use crate::present::mesh_overlay::Artifact;
 use crate::scene::Scene;
 use crate::solver::{Solution, SolveStats};
 use std::sync::Arc;

@@ -15,11 +15,11 @@
 
 use super::panics;
 use super::worker::ViewData;
-use crate::artifacts::ArtifactSamples;
+use crate::eval::artifacts::ArtifactSamples;
 use crate::math::DVec3;
 use crate::mesh::discontinuity::SegmentCounts;
-use crate::mesh_overlay::{Artifact, CriticalEdges, artifact_lines, critical_edges, critical_lines};
-use crate::overlay::{self, LinkFilter, LogScale};
+use crate::present::mesh_overlay::{Artifact, CriticalEdges, artifact_lines, critical_edges, critical_lines};
+use crate::present::overlay::{self, LinkFilter, LogScale};
 use crate::render::Geometry;
 use crate::render::geometry::{self, MeshColors};
 use crate::scene::Scene;
@@ -252,7 +252,7 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
 /// The elements that tile the scene when the quadtrees are cut at depth `d`: those at depth `d`
 /// and the leaves above it (ascending ids).
 #[must_use]
-pub fn cut_at_depth(elements: &[crate::overlay::ElementView], d: u8) -> Vec<u32> {
+pub fn cut_at_depth(elements: &[crate::present::overlay::ElementView], d: u8) -> Vec<u32> {
     elements.iter().filter(|e| e.depth == d || (e.leaf && e.depth < d)).map(|e| e.id).collect()
 }
 
@@ -425,7 +425,7 @@ impl Builder {
 mod tests {
     use super::*;
     use crate::math::Rgb;
-    use crate::overlay::{ElementView, LinkView};
+    use crate::present::overlay::{ElementView, LinkView};
 
     fn view() -> Arc<ViewData> {
         let sq = |id: u32, x: f64| ElementView {

@@ -4,8 +4,8 @@
 use super::view::View;
 use super::widgets::log_slider;
 use super::worker::{CLUSTER_LINKS_KEPT, ViewData};
-use crate::mesh_overlay::Artifact;
-use crate::overlay::{Decimation, LinkFilter};
+use crate::present::mesh_overlay::Artifact;
+use crate::present::overlay::{Decimation, LinkFilter};
 use crate::solver::meshed::DisplayReconstruction;
 use eframe::egui;
 

@@ -27,7 +27,7 @@ pub enum Purpose {
     /// A scene to open (.gltf/.glb).
     Open,
     /// Where to write the baked solution (.glb/.gltf); the suggested file name, and the size of
-    /// the lightmap to bake (`None`: vertex colours per element, [`crate::bake::BakeForm`]).
+    /// the lightmap to bake (`None`: vertex colours per element, [`crate::present::bake::BakeForm`]).
     ExportBake { suggested: String, lightmap: Option<u32> },
 }
 

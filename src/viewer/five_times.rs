@@ -5,7 +5,7 @@
 //! `A cosθ cosθ' / (πr²)`, with the lecture's rule of thumb: once the distance is at least five
 //! times the source's diameter, the approximations are within about a percent.
 
-use crate::form_factor;
+use crate::geometry::form_factor;
 use crate::math::DVec3;
 use eframe::egui;
 use std::f64::consts::PI;

@@ -9,8 +9,8 @@
 
 use super::builder::{self, BuildFailed, Builder, Built, Request, Settings};
 use crate::mesh::discontinuity::SegmentCounts;
-use crate::mesh_overlay::Artifact;
-use crate::overlay::LogScale;
+use crate::present::mesh_overlay::Artifact;
+use crate::present::overlay::LogScale;
 use crate::render::Geometry;
 use std::sync::Arc;
 

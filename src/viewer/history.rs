@@ -178,8 +178,9 @@ impl Run {
         } else {
             format!(" · {} unknowns", self.unknowns)
         };
-        let band =
-            self.band.map_or(String::new(), |b| format!(" · penumbra band {}", crate::figures::percent(b)));
+        let band = self
+            .band
+            .map_or(String::new(), |b| format!(" · penumbra band {}", crate::present::figures::percent(b)));
         format!(
             "{} elements{unknowns} · {} links · {:.2} s · {}{band}",
             self.elements,
@@ -243,16 +244,16 @@ pub fn mesh_settings(m: &MeshSolveParams) -> String {
         other => other.name().to_owned(),
     };
     let order = match (m.order, m.continuous) {
-        (crate::basis::Order::Constant, _) => "p = 0",
-        (crate::basis::Order::Linear, false) => "p = 1 discontinuous",
-        (crate::basis::Order::Linear, true) => "p = 1 continuous",
+        (crate::geometry::basis::Order::Constant, _) => "p = 0",
+        (crate::geometry::basis::Order::Linear, false) => "p = 1 discontinuous",
+        (crate::geometry::basis::Order::Linear, true) => "p = 1 continuous",
     };
     format!("{mesh} · {order} · {} rays", m.rays)
 }
 
 /// The name of the preset `p` is, "uniform mesh" for the form-factor oracle at Feps = 0 (no pair
 /// is ever accurate enough: every element is split to the area floor and every pair of leaves
-/// linked, as the lecture figures' uniform meshes, [`crate::figures::uniform`]), or "custom".
+/// linked, as the lecture figures' uniform meshes, [`crate::present::figures::uniform`]), or "custom".
 #[must_use]
 pub fn preset_name(p: &HierarchicalParams) -> String {
     if p.oracle == Oracle::Feps && p.feps == 0.0 {
@@ -628,7 +629,7 @@ impl View for RunHistory {
 mod tests {
     use super::*;
     use crate::math::{DVec3, Rgb};
-    use crate::overlay::ElementView;
+    use crate::present::overlay::ElementView;
 
     /// A one-leaf solver state with `links` links, lit to `b` with estimate `est`.
     fn view(params: HierarchicalParams, links: usize, b: f64, est: f64) -> Arc<ViewData> {
@@ -751,7 +752,7 @@ mod tests {
         assert_eq!(names, ["box · BF oracle", "box · Feps oracle (estimate)", "box · BF oracle (estimate)"]);
         assert_eq!(err[0].points, vec![[0.5, 0.04f64.log10()]]);
         assert_eq!(h.runs()[1].title(), "#2 box · custom");
-        assert_eq!(preset_name(&crate::figures::uniform(1e-3)), "uniform mesh");
+        assert_eq!(preset_name(&crate::present::figures::uniform(1e-3)), "uniform mesh");
         // The reference: one run per scene and settings, its noise as its error, not plotted.
         for _ in 0..2 {
             h.record_reference("box", 64, view(HierarchicalParams::default(), 0, 2.0, 0.02));

@@ -7,7 +7,7 @@ use super::clusters::{ClusterInput, ClusterSection, PickCluster};
 use super::view::View;
 use super::widgets::{grid_row, rgb_text};
 use super::worker::ViewData;
-use crate::overlay;
+use crate::present::overlay;
 use crate::scene::Scene;
 use eframe::egui::{self, Color32};
 use std::sync::Arc;

@@ -1,5 +1,5 @@
-//! The Lecture menu and the caption panel: every figure of [`crate::figures`] one click away,
-//! listed by slide title (the meshing slides in their submenu, [`crate::figures::MESHING`]); the
+//! The Lecture menu and the caption panel: every figure of [`crate::present::figures`] one click away,
+//! listed by slide title (the meshing slides in their submenu, [`crate::present::figures::MESHING`]); the
 //! figure shown keeps its caption in a panel under the viewport until it is hidden (the × button
 //! or C) or another scene is opened. The menu also opens the blocking form-factor matrix
 //! ([`super::matrix`]) and the five-times explorer ([`super::five_times`]).
@@ -14,7 +14,7 @@ use super::five_times::FiveTimes;
 use super::history::RunHistory;
 use super::matrix::{MatrixAction, MatrixInput, MatrixWindow};
 use super::worker::ViewData;
-use crate::figures::{CaptionFacts, FIGURES, Figure};
+use crate::present::figures::{CaptionFacts, FIGURES, Figure};
 use crate::scene::Scene;
 use crate::solver::hierarchical::StepKind;
 use eframe::egui;
@@ -250,7 +250,7 @@ pub struct FactsInput<'a> {
 #[must_use]
 pub fn caption_facts(input: &FactsInput<'_>) -> CaptionFacts {
     let FactsInput { figure, scene, view, view_seq, history, error, band } = *input;
-    let uses = |name: &str| crate::figures::placeholders(figure.caption).contains(&name);
+    let uses = |name: &str| crate::present::figures::placeholders(figure.caption).contains(&name);
     let s = &view.stats;
     let mut facts = CaptionFacts {
         leaves: s.leaves,
@@ -312,8 +312,10 @@ pub fn caption_facts(input: &FactsInput<'_>) -> CaptionFacts {
     if (uses("ff_disk") || uses("ff_exact")) && scene.patches.len() >= 2 {
         // From patch 0 to patch 1, as `radlab form-factor --from 0 --to 1` computes them.
         let (a, b) = (&scene.patches[0], &scene.patches[1]);
-        facts.ff_disk = Some(crate::form_factor::disk(a.centroid, a.normal, b.centroid, b.normal, b.area));
-        facts.ff_exact = Some(crate::form_factor::polygon_to_polygon(&a.vertices, &b.vertices, 1e-6));
+        facts.ff_disk =
+            Some(crate::geometry::form_factor::disk(a.centroid, a.normal, b.centroid, b.normal, b.area));
+        facts.ff_exact =
+            Some(crate::geometry::form_factor::polygon_to_polygon(&a.vertices, &b.vertices, 1e-6));
     }
     facts
 }

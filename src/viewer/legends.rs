@@ -9,8 +9,8 @@ use super::widgets::rgb32;
 use super::worker::ViewData;
 use crate::math::DVec3;
 use crate::mesh::discontinuity::SegmentCounts;
-use crate::mesh_overlay::Artifact;
-use crate::overlay::{self, Decimation, Highlight, LogScale, Palette};
+use crate::present::mesh_overlay::Artifact;
+use crate::present::overlay::{self, Decimation, Highlight, LogScale, Palette};
 use eframe::egui::{self, Color32, Pos2, Rect, Vec2};
 use glam::DMat4;
 
@@ -329,7 +329,7 @@ fn bottom_note(painter: &egui::Painter, rect: Rect, msg: &str) {
 
 /// The critical edges' legend: a swatch and a count per kind; returns the bottom y.
 fn critical_legend(painter: &egui::Painter, at: Pos2, c: crate::mesh::discontinuity::SegmentCounts) -> f32 {
-    use crate::mesh_overlay::CRITICAL_COLORS;
+    use crate::present::mesh_overlay::CRITICAL_COLORS;
     let font = egui::FontId::proportional(12.0);
     let rows = [
         (CRITICAL_COLORS[0], format!("D0 value jumps (contact): {}", c.d0)),

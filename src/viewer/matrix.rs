@@ -1,9 +1,9 @@
-//! The blocking form-factor matrix window ([`crate::block_matrix`]): every link of the current
+//! The blocking form-factor matrix window ([`crate::present::block_matrix`]): every link of the current
 //! solution drawn as the block of leaf-to-leaf entries it stands for, coloured by log F.
 //!
 //! It is linked to the 3-D viewport both ways. Hovering a block names its link and asks the app
 //! to highlight that link and its two elements in the viewport
-//! ([`crate::overlay::Highlight::Link`]); clicking it picks the receiver. The element hovered
+//! ([`crate::present::overlay::Highlight::Link`]); clicking it picks the receiver. The element hovered
 //! (or else picked) in the viewport comes back as [`MatrixInput::element`]: its row (as
 //! receiver, orange) and column (as source, cyan) are tinted and the blocks it gathers or shoots
 //! through (its own links and its ancestors') outlined.
@@ -16,8 +16,8 @@
 use super::view::View;
 use super::widgets::rgb32;
 use super::worker::ViewData;
-use crate::block_matrix::BlockMatrix;
-use crate::overlay::{Highlight, LogScale, Palette, ancestors};
+use crate::present::block_matrix::BlockMatrix;
+use crate::present::overlay::{Highlight, LogScale, Palette, ancestors};
 use eframe::egui::{self, Color32, Pos2, Rect, Sense, Vec2};
 use std::sync::Arc;
 

@@ -54,10 +54,10 @@ fn controls(
     ui.add_enabled_ui(on_mesh, |ui| {
         ui.horizontal(|ui| {
             ui.label("order");
-            ui.selectable_value(&mut m.order, crate::basis::Order::Constant, "p = 0")
+            ui.selectable_value(&mut m.order, crate::geometry::basis::Order::Constant, "p = 0")
                 .on_hover_text("Constant elements: one value each")
                 .on_disabled_hover_text("The quadtree's elements are constant (p = 0)");
-            ui.selectable_value(&mut m.order, crate::basis::Order::Linear, "p = 1")
+            ui.selectable_value(&mut m.order, crate::geometry::basis::Order::Linear, "p = 1")
                 .on_hover_text(
                     "Linear (triangles) / bilinear (quads) elements, a Galerkin solve of their \
                      vertex values: follows a smooth ramp inside an element, but 20-60 times \
@@ -65,7 +65,7 @@ fn controls(
                 )
                 .on_disabled_hover_text("p = 1 exists on the uniform and discontinuity meshes");
         });
-        ui.add_enabled_ui(m.order == crate::basis::Order::Linear, |ui| {
+        ui.add_enabled_ui(m.order == crate::geometry::basis::Order::Linear, |ui| {
             ui.horizontal(|ui| {
                 ui.selectable_value(&mut m.continuous, false, "discontinuous")
                     .on_hover_text("Each element its own vertex values: jumps can remain at element edges");
@@ -108,7 +108,7 @@ fn controls(
         if !discontinuity || m.continuous {
             m.grade = None;
         }
-        ui.add_enabled_ui(discontinuity && m.order == crate::basis::Order::Constant, |ui| {
+        ui.add_enabled_ui(discontinuity && m.order == crate::geometry::basis::Order::Constant, |ui| {
             top_level_control(ui, &mut d);
         })
         .response

@@ -21,7 +21,7 @@
 //! - [`file_dialog`]: the desktop's file dialog, or an in-app one where none answers.
 //! - [`five_times`]: the five-times explorer (exact, disk and point-source form factors).
 //! - [`help`]: keyboard shortcuts, the Help menu and window.
-//! - [`lecture`]: the Lecture menu (the figures of [`crate::figures`]) and the caption panel.
+//! - [`lecture`]: the Lecture menu (the figures of [`crate::present::figures`]) and the caption panel.
 //! - [`options`]: how the viewer starts (`ViewerOptions`).
 //! - [`panics`]: a panic on any of these threads becomes a message and, in a scripted run, an
 //!   error exit.
@@ -29,7 +29,7 @@
 //! - [`widgets`]: small widgets the panels share (the log slider).
 //! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
 //!
-//! Rendering is in [`crate::render`]; display lists in [`crate::overlay`].
+//! Rendering is in [`crate::render`]; display lists in [`crate::present::overlay`].
 
 pub mod app;
 pub mod artifacts;

@@ -3,7 +3,7 @@
 
 use super::display::Display;
 use super::reference::RefSettings;
-use crate::figures::Figure;
+use crate::present::figures::Figure;
 use crate::solver::meshed::{DisplayReconstruction, MeshSolveParams};
 use std::path::PathBuf;
 

@@ -12,7 +12,7 @@ use super::builder::{self, BuildFailed, Builder, Settings};
 use super::camera::OrbitCamera;
 use super::worker::ViewData;
 use crate::math::DVec3;
-use crate::overlay;
+use crate::present::overlay;
 use crate::render::{FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, Uniforms, ViewportCallback};
 use eframe::egui::{self, Color32, Pos2, Rect};
 use eframe::egui_wgpu;

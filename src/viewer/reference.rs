@@ -1,12 +1,12 @@
 //! The reference solution in the viewer: looks up (or, on request, computes) the independent
-//! Monte Carlo reference of [`crate::reference`] for the loaded scene on its own thread,
+//! Monte Carlo reference of [`crate::eval::reference`] for the loaded scene on its own thread,
 //! `radlab-reference`, and then scores every new solver state against it, off the UI thread:
 //!
 //! - the **true error per element** shown by the error heatmap: the mean |B_i − B̂| at 3 × 3
 //!   points of leaf i, B̂ the reference interpolated linearly between its points
-//!   ([`crate::pointwise::PointInterpolant`]; units of B);
+//!   ([`crate::eval::pointwise::PointInterpolant`]; units of B);
 //! - the **pointwise relative L2 error** of the whole solution (the pointwise ruler,
-//!   [`crate::pointwise`]: the leaves evaluated at the reference's points, debiased), a point of
+//!   [`crate::eval::pointwise`]: the leaves evaluated at the reference's points, debiased), a point of
 //!   the error-against-time plot.
 //!
 //! The reference is `radlab reference`'s pointwise one (its default: at least 65 536 points,
@@ -14,9 +14,9 @@
 //! disk cache, so a reference computed on the command line is found here and the other way
 //! round. It is drawn as the points' cells.
 //!
-//! A single-bounce scene ([`crate::exact::SingleBounce`], e.g. builtin:shadow-narrow) needs none:
+//! A single-bounce scene ([`crate::geometry::exact::SingleBounce`], e.g. builtin:shadow-narrow) needs none:
 //! its reference is the closed form, at as many points on uniform grids
-//! ([`crate::reference::points::uniform_points`]) with no noise, and B̂ of the heatmap is the
+//! ([`crate::eval::reference::points::uniform_points`]) with no noise, and B̂ of the heatmap is the
 //! closed form itself. It is ready as soon as the scene loads; it is not drawn nor kept as a run.
 //!
 //! A computation reports its progress and can be cancelled through a shared
@@ -32,11 +32,11 @@
 
 use super::panics;
 use super::worker::ViewData;
-use crate::accel::Accel;
-use crate::exact::SingleBounce;
+use crate::eval::reference::{Cache, CacheStatus, Control, Estimate, PointParams, RefPoint, ReferenceError};
+use crate::geometry::accel::Accel;
+use crate::geometry::exact::SingleBounce;
 use crate::math::Rgb;
-use crate::overlay::ElementView;
-use crate::reference::{Cache, CacheStatus, Control, Estimate, PointParams, RefPoint, ReferenceError};
+use crate::present::overlay::ElementView;
 use crate::scene::Scene;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
@@ -110,7 +110,7 @@ pub struct Evaluation {
     /// interpolated linearly between its points (units of B; 0 for interior elements).
     pub per_element: Vec<f64>,
     /// Pointwise relative L2 error of the solution against the reference, debiased by its noise
-    /// (see [`crate::pointwise`]).
+    /// (see [`crate::eval::pointwise`]).
     pub rel_l2: f64,
     /// The same over the penumbra band (the closed form's only: there the band is exact).
     pub band_l2: Option<f64>,
@@ -121,7 +121,7 @@ struct Loaded {
     scene: Arc<Scene>,
     points: Vec<RefPoint>,
     /// Each point's cell (to draw the reference).
-    cells: Vec<crate::reference::RefElement>,
+    cells: Vec<crate::eval::reference::RefElement>,
     estimates: Vec<Estimate>,
     /// B̂ anywhere (the heatmap's).
     truth: Truth,
@@ -133,14 +133,14 @@ struct Loaded {
 enum Truth {
     /// The Monte Carlo reference interpolated linearly between its points, triangulated once per
     /// reference, not per solver state.
-    Points(crate::pointwise::PointInterpolant),
+    Points(crate::eval::pointwise::PointInterpolant),
     /// The closed form of a single-bounce scene.
     Exact(SingleBounce),
 }
 
 impl Truth {
     fn radiosity_at(&self, patch: usize, x: crate::math::DVec3) -> crate::math::Rgb {
-        use crate::pointwise::Reconstruction as _;
+        use crate::eval::pointwise::Reconstruction as _;
         match self {
             Truth::Points(interp) => interp.radiosity_at(patch, x),
             Truth::Exact(sb) => sb.patch_radiosity_at(patch, x),
@@ -153,9 +153,9 @@ pub const CLOSED_FORM: &str = "the closed form (single bounce)";
 
 /// The points of a single-bounce scene's receiver in its penumbra band: lit(x), the visible part
 /// of the emitter's form factor, strictly between the band's bounds
-/// ([`crate::penumbra::BandParams::standard`]), exactly (every bit of light there is direct).
+/// ([`crate::eval::penumbra::BandParams::standard`]), exactly (every bit of light there is direct).
 fn exact_band(scene: &Scene, sb: &SingleBounce, points: &[RefPoint]) -> Vec<bool> {
-    let band = crate::penumbra::BandParams::standard();
+    let band = crate::eval::penumbra::BandParams::standard();
     let (emitter, receiver) = (&scene.patches[sb.emitter], &scene.patches[sb.receiver]);
     points
         .iter()
@@ -163,7 +163,7 @@ fn exact_band(scene: &Scene, sb: &SingleBounce, points: &[RefPoint]) -> Vec<bool
             if p.patch != sb.receiver {
                 return false;
             }
-            let total = crate::form_factor::point_to_polygon_oriented(
+            let total = crate::geometry::form_factor::point_to_polygon_oriented(
                 p.position,
                 receiver.normal,
                 &emitter.vertices,
@@ -179,23 +179,23 @@ fn exact_band(scene: &Scene, sb: &SingleBounce, points: &[RefPoint]) -> Vec<bool
 /// mesh solve's vertex values, else one value an element).
 fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> Result<Evaluation, String> {
     let leaves = view.solved_leaves();
-    let fail = |e: crate::metrics::MetricsError| e.to_string();
+    let fail = |e: crate::eval::metrics::MetricsError| e.to_string();
     let values = match view.mesh.as_ref().and_then(|m| m.coefficients.as_ref().map(|c| (m, c))) {
         Some((m, c)) => {
-            let nodal = crate::reconstruction::Nodal::new(&r.scene, &m.solution.elements, c.to_vec())
+            let nodal = crate::eval::reconstruction::Nodal::new(&r.scene, &m.solution.elements, c.to_vec())
                 .map_err(fail)?;
-            crate::pointwise::evaluate(&nodal, &r.points)
+            crate::eval::pointwise::evaluate(&nodal, &r.points)
         }
         None => {
-            let pc = crate::pointwise::PiecewiseConstant::new(&r.scene, &leaves).map_err(fail)?;
-            crate::pointwise::evaluate(&pc, &r.points)
+            let pc = crate::eval::pointwise::PiecewiseConstant::new(&r.scene, &leaves).map_err(fail)?;
+            crate::eval::pointwise::evaluate(&pc, &r.points)
         }
     };
-    let report =
-        crate::pointwise::compare_points(&r.scene, &r.points, &values, &r.estimates, 0.0).map_err(fail)?;
+    let report = crate::eval::pointwise::compare_points(&r.scene, &r.points, &values, &r.estimates, 0.0)
+        .map_err(fail)?;
     let band_l2 = match &r.band {
         Some(band) => {
-            crate::pointwise::compare_points_in(&r.scene, &r.points, &values, &r.estimates, band, 0.0)
+            crate::eval::pointwise::compare_points_in(&r.scene, &r.points, &values, &r.estimates, band, 0.0)
                 .map_err(fail)?
                 .map(|b| b.report.scene.l2_debiased)
         }
@@ -210,7 +210,7 @@ fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> R
         let mut sum = 0.0;
         for u in AT {
             for v in AT {
-                let x = crate::visibility::point_on_polygon(&leaf.vertices, u, v);
+                let x = crate::geometry::visibility::point_on_polygon(&leaf.vertices, u, v);
                 sum += (leaf.radiosity_at(x) - r.truth.radiosity_at(leaf.patch, x)).map(f64::abs).mean();
             }
         }
@@ -408,7 +408,7 @@ fn load(
     // A single-bounce scene's answer is known: the closed form at as many points, no noise, no
     // cache, nothing to compute by hand.
     if let Ok(sb) = SingleBounce::new(&scene) {
-        let set = crate::reference::points::uniform_points(&scene, params.points);
+        let set = crate::eval::reference::points::uniform_points(&scene, params.points);
         let estimates = set
             .points
             .iter()
@@ -421,16 +421,16 @@ fn load(
         return (RefReply::Ready { source, points, samples: 0, how: CLOSED_FORM.into() }, Some(loaded));
     }
     let samples = params.paths.samples;
-    let loaded = |scene: Arc<Scene>, c: crate::reference::CachedPoints| -> Result<Loaded, String> {
+    let loaded = |scene: Arc<Scene>, c: crate::eval::reference::CachedPoints| -> Result<Loaded, String> {
         let cells = c.set.cell_regions(&scene);
         let values: Vec<crate::math::Rgb> = c.estimates.iter().map(|e| e.radiosity).collect();
-        let interp = crate::pointwise::PointInterpolant::new(&scene, &c.set.points, &values)
+        let interp = crate::eval::pointwise::PointInterpolant::new(&scene, &c.set.points, &values)
             .map_err(|e| e.to_string())?;
         let truth = Truth::Points(interp);
         Ok(Loaded { scene, points: c.set.points, cells, estimates: c.estimates, truth, band: None })
     };
     // Ready with the loaded reference, or why it cannot be used.
-    let ready = |source: String, how: String, scene: Arc<Scene>, c: crate::reference::CachedPoints| {
+    let ready = |source: String, how: String, scene: Arc<Scene>, c: crate::eval::reference::CachedPoints| {
         let points = c.set.points.len();
         match loaded(scene, c) {
             Ok(l) => (RefReply::Ready { source, points, samples, how }, Some(l)),
@@ -576,9 +576,9 @@ mod tests {
         let settings = RefSettings {
             params: PointParams {
                 points: 256,
-                paths: crate::reference::ReferenceParams {
+                paths: crate::eval::reference::ReferenceParams {
                     samples: 8,
-                    ..crate::reference::ReferenceParams::quick()
+                    ..crate::eval::reference::ReferenceParams::quick()
                 },
                 ..PointParams::quick()
             },

@@ -101,7 +101,7 @@ fn contents(ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAct
         RefState::Computing { points, samples, since } => {
             let (done, total) = progress;
             let total = if total == 0 { points } else { total };
-            ui.label(format!("≥ {} points × {samples} paths", crate::pointwise::thousands(points)));
+            ui.label(format!("≥ {} points × {samples} paths", crate::eval::pointwise::thousands(points)));
             ui.add(
                 egui::ProgressBar::new(done as f32 / total.max(1) as f32)
                     .desired_width(PANEL_CONTENT_W)
@@ -119,9 +119,9 @@ fn contents(ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAct
         RefState::Ready { points, samples, how } => {
             let what = if samples == 0 {
                 // The closed form of a single-bounce scene (no paths, no noise).
-                format!("closed form at {} points", crate::pointwise::thousands(points))
+                format!("closed form at {} points", crate::eval::pointwise::thousands(points))
             } else {
-                format!("{} points × {samples} paths", crate::pointwise::thousands(points))
+                format!("{} points × {samples} paths", crate::eval::pointwise::thousands(points))
             };
             ui.label(what).on_hover_text(how);
             if let Some(e) = error {

@@ -7,7 +7,7 @@ use super::geometry::ShownGeometry;
 use super::legends::{self, Legends};
 use super::worker::ViewData;
 use crate::math::DVec3;
-use crate::overlay::Highlight;
+use crate::present::overlay::Highlight;
 use crate::render::{
     FrameParams, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, Uniforms, ViewportCallback,
 };

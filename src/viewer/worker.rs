@@ -9,7 +9,7 @@
 //! ```
 
 use crate::math::Rgb;
-use crate::overlay::{ElementView, LinkView};
+use crate::present::overlay::{ElementView, LinkView};
 use crate::scene::Scene;
 use crate::solver::Solution;
 use crate::solver::hierarchical::{
@@ -79,7 +79,7 @@ impl DmeshOptions {
     pub fn apply_to(self, m: &MeshSolveParams) -> bool {
         self.hierarchical
             && matches!(m.method, MeshMethod::DiscontinuityCdt | MeshMethod::DiscontinuityBsp)
-            && m.order == crate::basis::Order::Constant
+            && m.order == crate::geometry::basis::Order::Constant
     }
 
     /// What the label of a solve on `m` adds: " top of hierarchy".
@@ -407,12 +407,12 @@ pub enum Command {
     /// answers `Done` with a [`StepKind::Solve`] report and the mesh's state. The hierarchical
     /// solver is left as it was.
     SolveMesh(MeshSolveParams, DmeshOptions),
-    /// Write the current solution as a baked glTF ([`crate::bake`]) to `path` (.glb/.gltf), in
+    /// Write the current solution as a baked glTF ([`crate::present::bake`]) to `path` (.glb/.gltf), in
     /// `form` (per-element vertex colours, or the original meshes with a lightmap).
     Bake {
         path: std::path::PathBuf,
-        options: crate::bake::BakeOptions,
-        form: crate::bake::BakeForm,
+        options: crate::present::bake::BakeOptions,
+        form: crate::present::bake::BakeForm,
     },
 }
 
@@ -860,11 +860,11 @@ fn bake_to(
     (scene, origin): (&Arc<Scene>, Option<&[usize]>),
     unpushed: bool,
     path: &std::path::Path,
-    options: &crate::bake::BakeOptions,
-    form: crate::bake::BakeForm,
+    options: &crate::present::bake::BakeOptions,
+    form: crate::present::bake::BakeForm,
 ) -> Result<String, String> {
     let fail = |e: &dyn std::fmt::Display| format!("export {}: {e}", path.display());
-    let format = crate::bake::BakeFormat::from_path(path).map_err(|e| fail(&e))?;
+    let format = crate::present::bake::BakeFormat::from_path(path).map_err(|e| fail(&e))?;
     let mut solution = s.solution_with(false);
     if unpushed {
         let v = ViewData::from_gathered_snapshot(s.snapshot(), &s.push_pull_preview());
@@ -875,14 +875,15 @@ fn bake_to(
     if let Some(origin) = origin {
         solution = crate::solver::discontinuity::pull_back(solution, origin, scene.patches.len());
     }
-    let bytes = crate::bake::bake_as(scene, &solution, options, form, format).map_err(|e| fail(&e))?;
+    let bytes =
+        crate::present::bake::bake_as(scene, &solution, options, form, format).map_err(|e| fail(&e))?;
     std::fs::write(path, bytes).map_err(|e| fail(&e))?;
     Ok(match form {
-        crate::bake::BakeForm::Elements => {
+        crate::present::bake::BakeForm::Elements => {
             format!("baked {} elements to {}", solution.elements.len(), path.display())
         }
         // The CLI's words (radlab solve --bake-lightmap).
-        crate::bake::BakeForm::Lightmap(m) => format!(
+        crate::present::bake::BakeForm::Lightmap(m) => format!(
             "baked {} patches with a {}×{} lightmap to {}",
             scene.patches.len(),
             m.size,

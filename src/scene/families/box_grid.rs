@@ -17,8 +17,8 @@
 
 use super::kit::{ALL, Kit, Layout, NY, Xf, light, mat};
 use crate::math::DVec3;
+use crate::scene::Mat;
 use crate::scene::Viewpoint;
-use crate::scene::builtin::Mat;
 
 const PITCH: f64 = 0.25;
 const MARGIN: f64 = 1.0;

@@ -14,8 +14,8 @@
 
 use super::kit::{ALL, FABRICS, Kit, Layout, METAL, NY, NZ, PY, PZ, SIDES, WOODS, Xf, light, mat};
 use crate::math::DVec3;
+use crate::scene::Mat;
 use crate::scene::Viewpoint;
-use crate::scene::builtin::Mat;
 
 const PITCH_X: f64 = 0.6;
 const PITCH_Z: f64 = 0.95;

@@ -18,8 +18,8 @@
 
 use super::kit::{ALL, Kit, Layout, METAL, NX, NY, NZ, PX, PY, PZ, SIDES, WALL, WOODS, Xf, light};
 use crate::math::DVec3;
+use crate::scene::Mat;
 use crate::scene::Viewpoint;
-use crate::scene::builtin::Mat;
 
 const ROOM_W: f64 = 3.6;
 const ROOM_D: f64 = 4.0;

@@ -17,7 +17,7 @@
 //! at each change of material, as the writer groups them).
 
 use crate::math::{DVec3, Pcg32, Rgb};
-use crate::scene::builtin::Mat;
+use crate::scene::Mat;
 use crate::scene::gltf::mergeable;
 use crate::scene::{Patch, Viewpoint};
 

@@ -17,8 +17,8 @@
 
 use super::kit::{ALL, Kit, Layout, NX, NY, NZ, PX, PY, PZ, WOODS, Xf, light, mat};
 use crate::math::DVec3;
+use crate::scene::Mat;
 use crate::scene::Viewpoint;
-use crate::scene::builtin::Mat;
 use std::f64::consts::PI;
 
 const WIDTH: f64 = 0.9;

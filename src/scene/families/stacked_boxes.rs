@@ -14,8 +14,8 @@
 
 use super::kit::{ALL, CARDBOARD, Kit, Layout, NY, Xf, light};
 use crate::math::DVec3;
+use crate::scene::Mat;
 use crate::scene::Viewpoint;
-use crate::scene::builtin::Mat;
 use std::f64::consts::FRAC_PI_2;
 
 const PITCH: f64 = 1.8;

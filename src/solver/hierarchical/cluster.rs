@@ -49,10 +49,10 @@
 //! The energy rows (Σ F·V of each patch, for the power balance) are the same transfer with
 //! B = 1.
 
-use crate::accel::{Accel, NO_HIT};
-use crate::hierarchy::Hierarchy;
+use crate::geometry::accel::{Accel, NO_HIT};
+use crate::geometry::visibility::point_on_polygon;
 use crate::math::{DVec3, Pcg32, Rgb, splitmix64};
-use crate::visibility::point_on_polygon;
+use crate::solver::hierarchy::Hierarchy;
 use rayon::prelude::*;
 
 /// No child (a node that stands for one patch).
@@ -1031,7 +1031,7 @@ struct PatchSlope<'a> {
 }
 
 impl<'a> PatchSlope<'a> {
-    fn new(e: &'a crate::hierarchy::Element) -> Option<PatchSlope<'a>> {
+    fn new(e: &'a crate::solver::hierarchy::Element) -> Option<PatchSlope<'a>> {
         let pts = super::oracle::child_points(e);
         let c = (pts[0] + pts[1] + pts[2] + pts[3]) * 0.25;
         let (t1, t2) = crate::math::orthonormal_basis(e.normal);
@@ -1084,7 +1084,7 @@ impl<'a> PatchSlope<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::form_factor;
+    use crate::geometry::form_factor;
     use crate::scene::{Patch, Scene};
 
     /// The six outward faces of a cube of side `s` at `c`, turned by `yaw` radians about y.

@@ -4,7 +4,7 @@
 //!
 //! ## What it estimates
 //! The **pointwise** error of each leaf: the RMS over the leaf of B(x) − B_true(x), where B(x)
-//! is what the solution shows there (the leaf's value plus its slope, [`crate::pointwise`]), in
+//! is what the solution shows there (the leaf's value plus its slope, [`crate::eval::pointwise`]), in
 //! units of B, mean over the RGB channels. Squared and area-weighted against the reflected
 //! radiosity it is the global figure the pointwise ruler measures against a reference
 //! ([`global_relative_l2`], `radlab solve --estimate`, `radlab reference --compare --mesh quadtree`
@@ -85,10 +85,10 @@
 //! `radlab bench` times the solve without it.
 
 use super::HierarchicalSolver;
-use crate::form_factor;
-use crate::hierarchy::Hierarchy;
-use crate::link::LinkStore;
+use crate::geometry::form_factor;
 use crate::math::{DVec3, Rgb};
+use crate::solver::hierarchy::Hierarchy;
+use crate::solver::link::LinkStore;
 use rayon::prelude::*;
 
 /// Jacobi sweeps of the error transport δ = r + ρKδ: the first this-many bounces of the residual
@@ -175,13 +175,13 @@ fn local_errors(solver: &HierarchicalSolver) -> (Vec<Rgb>, Vec<Rgb>) {
 
 /// `x − centroid` of element `e` in its tangent basis `(t1, t2)` (`orthonormal_basis(e.normal)`,
 /// the frame of its links' slopes).
-fn tangent_offset(e: &crate::hierarchy::Element, (t1, t2): (DVec3, DVec3), x: DVec3) -> (f64, f64) {
+fn tangent_offset(e: &crate::solver::hierarchy::Element, (t1, t2): (DVec3, DVec3), x: DVec3) -> (f64, f64) {
     let d = x - e.centroid;
     (d.dot(t1), d.dot(t2))
 }
 
 /// A link's slope (`Link::slope`, V included) at an offset from its receiver's centroid.
-fn slope_at(l: &crate::link::Link, (du, dv): (f64, f64)) -> f64 {
+fn slope_at(l: &crate::solver::link::Link, (du, dv): (f64, f64)) -> f64 {
     f64::from(l.slope[0]) * du + f64::from(l.slope[1]) * dv
 }
 
@@ -204,7 +204,7 @@ pub fn sample_points(v: &[DVec3]) -> [DVec3; WITHIN_POINTS] {
     if v.len() == 4 {
         const T: [f64; 3] = [1.0 / 6.0, 0.5, 5.0 / 6.0];
         for (k, p) in pts.iter_mut().enumerate() {
-            *p = crate::visibility::point_on_polygon(v, T[k % 3], T[k / 3]);
+            *p = crate::geometry::visibility::point_on_polygon(v, T[k % 3], T[k / 3]);
         }
     } else {
         // Barycentric (a, b) of the 6 upward and 3 downward sub-triangles' centroids.
@@ -257,7 +257,7 @@ fn local_terms(solver: &HierarchicalSolver, x: u32, cutoff: f64) -> (Rgb, Rgb) {
             let visibility = |p: DVec3, k: usize, rays: u32| {
                 // Seeded by the leaf, the source and the point: the same rays at any thread count.
                 let key = (u64::from(x) << 32 | u64::from(l.source)) ^ ((k as u64) << 59);
-                crate::visibility::visible_fraction_oriented(
+                crate::geometry::visibility::visible_fraction_oriented(
                     solver.accel(),
                     (&[p; 3], leaf.patch, leaf.normal),
                     (src.vertices(), src.patch, src.normal),
@@ -364,7 +364,7 @@ mod tests {
     #[test]
     fn the_exactly_solved_white_furnace_has_a_negligible_estimate() {
         // With the error oracle the furnace is exact (tests/hierarchical.rs).
-        let scene = Arc::new(crate::hard_cases::furnace(0.5).scene);
+        let scene = Arc::new(crate::studies::hard_cases::furnace(0.5).scene);
         let p = HierarchicalParams {
             oracle: crate::solver::params::Oracle::Error,
             tolerance: 1e-10,
@@ -394,7 +394,7 @@ mod tests {
     #[test]
     fn without_normalisation_the_furnace_error_is_estimated_in_size_and_rank() {
         // B = 2 exactly everywhere, so every leaf's true error is known.
-        let scene = Arc::new(crate::hard_cases::furnace(0.5).scene);
+        let scene = Arc::new(crate::studies::hard_cases::furnace(0.5).scene);
         let p = HierarchicalParams { aeps: AreaEps::Relative(1e-3), ..HierarchicalParams::lecture() };
         let mut s = HierarchicalSolver::new(scene, p).unwrap();
         s.solve(&mut |_, _| {});
@@ -404,7 +404,7 @@ mod tests {
         let truth: Vec<f64> =
             leaves.iter().map(|&x| (h.get(x).radiosity - Rgb::splat(2.0)).map(f64::abs).mean()).collect();
         let mine: Vec<f64> = leaves.iter().map(|&x| est[x as usize]).collect();
-        let rho = crate::metrics::spearman(&mine, &truth);
+        let rho = crate::eval::metrics::spearman(&mine, &truth);
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
         let ratio = mean(&mine) / mean(&truth);
         eprintln!(
@@ -440,7 +440,7 @@ mod tests {
         const FAR: f64 = 0.8;
         // boxes_on_floor: floor leaves next to the boxes (in their penumbrae, under partially
         // visible links) must out-rank, on average, floor leaves of the same size far from them.
-        let case = crate::hard_cases::boxes_on_floor();
+        let case = crate::studies::hard_cases::boxes_on_floor();
         let scene = Arc::new(case.scene);
         let p = HierarchicalParams { aeps: AreaEps::Relative(1e-3), ..HierarchicalParams::interactive() };
         let mut s = HierarchicalSolver::new(scene.clone(), p).unwrap();

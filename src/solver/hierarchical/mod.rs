@@ -123,14 +123,14 @@ use push_pull::*;
 use refine::*;
 
 use super::params::{HierarchicalParams, Oracle};
-use crate::accel::{Accel, NO_HIT};
-use crate::form_factor;
-use crate::hierarchy::{Element, Hierarchy, NONE, StopReason};
-use crate::link::{Link, LinkStore, VisClass};
+use crate::geometry::accel::{Accel, NO_HIT};
+use crate::geometry::form_factor;
+use crate::geometry::visibility::{self, Stop};
 use crate::math::{DVec3, Rgb, newell_normal, splitmix64};
 use crate::scene::Scene;
+use crate::solver::hierarchy::{Element, Hierarchy, NONE, StopReason};
+use crate::solver::link::{Link, LinkStore, VisClass};
 use crate::solver::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
-use crate::visibility::{self, Stop};
 use cluster::{ClusterLink, ClusterTransfer, ClusterTree, Pairing};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -138,7 +138,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-pub use crate::hierarchy::StopReason as ElementStopReason;
+pub use crate::solver::hierarchy::StopReason as ElementStopReason;
 
 /// Rays used to confirm that an input patch pair is fully occluded before it is left unlinked,
 /// and (conservative oracles) that an all-visible estimate is not partial.

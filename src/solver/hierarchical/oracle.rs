@@ -68,10 +68,10 @@
 //! shadow rays now being the largest part.
 
 use super::HierarchicalSolver;
-use crate::form_factor;
-use crate::hierarchy::{Element, StopReason};
-use crate::link::Link;
+use crate::geometry::form_factor;
 use crate::math::{DVec3, Rgb};
+use crate::solver::hierarchy::{Element, StopReason};
+use crate::solver::link::Link;
 use rayon::prelude::*;
 
 /// Per-element inputs of the error oracle, computed once per refinement and updated pass by pass.
@@ -331,13 +331,13 @@ impl HierarchicalSolver {
         for r in 0..n {
             let e = hier.get(r as u32);
             if !redo[r] {
-                if e.parent == crate::hierarchy::NONE || !redo[e.parent as usize] {
+                if e.parent == crate::solver::hierarchy::NONE || !redo[e.parent as usize] {
                     continue;
                 }
                 redo[r] = true;
             }
             let own = field.own_h[r];
-            field.h[r] = if e.parent == crate::hierarchy::NONE {
+            field.h[r] = if e.parent == crate::solver::hierarchy::NONE {
                 own
             } else {
                 let p = hier.get(e.parent);

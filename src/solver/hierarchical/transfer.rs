@@ -63,9 +63,9 @@
 //! kernel's derivative is log-singular (shared edges, contact). Reciprocity is exact by
 //! construction whatever the rule: one G serves both links.
 
-use crate::form_factor;
-use crate::hierarchy::Element;
+use crate::geometry::form_factor;
 use crate::math::DVec3;
+use crate::solver::hierarchy::Element;
 use std::sync::OnceLock;
 
 /// Relative tolerance of the adaptive rule for pairs of input patches: tight, as the root links
@@ -332,9 +332,9 @@ fn gauss(x: &Element, y: &Element, n: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::hierarchy::Hierarchy;
     use crate::math::Rgb;
     use crate::scene::{Patch, Scene};
+    use crate::solver::hierarchy::Hierarchy;
 
     fn patch(verts: Vec<DVec3>) -> Patch {
         Patch::new(verts, Rgb::splat(0.5), Rgb::ZERO, "p", 0, "p", "m").expect("valid patch")

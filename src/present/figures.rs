@@ -16,7 +16,7 @@
 //! each other gets a link — the classical method's full n × n matrix, on a mesh whose elements
 //! all have about the same area (within a factor of four: a quadtree halves sides).
 
-use crate::mesh_overlay::Artifact;
+use crate::present::mesh_overlay::Artifact;
 use crate::solver::hierarchical::StepKind;
 use crate::solver::meshed::{DisplayReconstruction, MeshMethod, MeshSolveParams};
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
@@ -795,7 +795,12 @@ mod tests {
                 assert_eq!(f.submenu, Some(MESHING), "{}: a mesh figure is a meshing slide", f.name);
             }
             if f.reconstruction == DisplayReconstruction::Nodal {
-                assert_eq!(f.mesh.order, crate::basis::Order::Linear, "{}: true p = 1 needs p = 1", f.name);
+                assert_eq!(
+                    f.mesh.order,
+                    crate::geometry::basis::Order::Linear,
+                    "{}: true p = 1 needs p = 1",
+                    f.name
+                );
             }
         }
         // The meshing slides of the lecture.

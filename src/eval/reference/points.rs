@@ -37,12 +37,12 @@
 //! Every cell has its own random stream `Pcg32::keyed(seed, hash(patch, level, i, j))`, cells
 //! are estimated in parallel (rayon) and ties are broken by the cell, so the layout and every
 //! estimate are identical for any thread count. A later batch with another seed re-estimates
-//! the same points ([`estimate_at`]); [`crate::reference::merge_batches`] merges them. The cells
+//! the same points ([`estimate_at`]); [`crate::eval::reference::merge_batches`] merges them. The cells
 //! left unsplit were chosen on their first estimates (a small selection effect on batch 0's
 //! noise); later batches are independent of the layout.
 
 use super::{Control, Emitters, Estimate, Hasher64, RefElement, ReferenceError, ReferenceParams, Tracer};
-use crate::accel::Accel;
+use crate::geometry::accel::Accel;
 use crate::math::{DVec3, Pcg32, Rgb, polygon_area};
 use crate::scene::Scene;
 use rayon::prelude::*;
@@ -171,7 +171,7 @@ impl PointSet {
     pub fn cell_regions(&self, scene: &Scene) -> Vec<RefElement> {
         (0..self.points.len()).map(|k| self.cell_region(scene, k)).collect()
     }
-    /// (patch, area) of every point: the regions [`crate::metrics::compare_regions`] weighs.
+    /// (patch, area) of every point: the regions [`crate::eval::metrics::compare_regions`] weighs.
     #[must_use]
     pub fn weights(&self) -> Vec<(usize, f64)> {
         self.points.iter().map(|p| (p.patch, p.area)).collect()
@@ -274,7 +274,7 @@ impl Tracer<'_> {
 
 /// At least `points` points on level-0 grids alone (cells spread over the patches in proportion
 /// to area, near-square), without estimates: the layout where B is known in closed form and
-/// nothing needs placing by its noise ([`crate::exact`]).
+/// nothing needs placing by its noise ([`crate::geometry::exact`]).
 #[must_use]
 pub fn uniform_points(scene: &Scene, points: u32) -> PointSet {
     let grids = level0_grids(scene, f64::from(points));

@@ -3,7 +3,7 @@
 //! summarise when each method first reaches 1 % and 5 % relative L2 error.
 //!
 //! ```text
-//! for scene:   pointwise reference R at N adaptive points (crate::reference::points, cached on disk)
+//! for scene:   pointwise reference R at N adaptive points (crate::eval::reference::points, cached on disk)
 //!   for method ∈ {uniform(h), progressive(shots), hierarchical(Feps/Aeps, BFeps, rays; quadtree
 //!                 or contact mesh)}:
 //!     t   = median wall time of `repeats` solves (BVH built once, outside the timing)
@@ -18,7 +18,7 @@
 //!
 //! ## The reference must resolve the targets
 //! The reference is computed in independent **batches** (seeds s, s + 1, …, each cached on disk)
-//! merged by [`crate::reference::merge_batches`]; batches are added until both
+//! merged by [`crate::eval::reference::merge_batches`]; batches are added until both
 //!
 //! ```text
 //! noise      = √(Σ a σ²) / √(Σ a (B̂ − E)²)             ≤ REFERENCE_TARGET = 0.5 %   (a: point weights)
@@ -34,7 +34,7 @@
 //! `--quick` uses one small batch at 4096 points (a smoke run, under a minute); its table says so.
 //!
 //! ## What the error measures
-//! The **pointwise** error ([`crate::pointwise`]): the solution's own reconstruction (piecewise
+//! The **pointwise** error ([`crate::eval::pointwise`]): the solution's own reconstruction (piecewise
 //! constant) evaluated at the reference's points, each weighted by the area of its cell — the
 //! error a user sees, shadow edges included. The points are denser where the reference varies
 //! fast (65 536 at least in the standard run). It replaced the error of the solution's averages
@@ -42,28 +42,28 @@
 //! uniform solution of table-room read 0.47 %, and a solution whose mesh was the reference grid
 //! was flattered (cornell h = d/16 read 1.50 % against a d/16 reference, 4.94 % against a d/24
 //! one). The element-average error — the solution's element values against the reference
-//! averaged over the points in each element ([`crate::pointwise::compare_element_averages`]) — is
+//! averaged over the points in each element ([`crate::eval::pointwise::compare_element_averages`]) — is
 //! reported beside it (`avg_rel_l2_debiased`): what the solver computed, without its mesh's
 //! representation error.
 //!
 //! The reported error is the **debiased** L2 (the reference's own noise Σaσ² taken out of the
-//! squared error, see [`crate::metrics`]); the raw L2 and the noise are in the table too. A
+//! squared error, see [`crate::eval::metrics`]); the raw L2 and the noise are in the table too. A
 //! figure below ~3× `reference_noise` measures the reference, not the solver.
 //!
 //! Every run has a wall-clock budget: a hierarchical run is cancelled through its cancel handle
 //! when it exceeds it and is reported as `over budget`; the classical solvers are bounded by
 //! their element caps and shot counts.
 
-use crate::accel::Accel;
-use crate::hard_cases;
-use crate::pointwise::{self, thousands};
-use crate::reference::{Cache, Control, Estimate, PointParams, RefPoint, ReferenceParams};
+use crate::eval::pointwise::{self, thousands};
+use crate::eval::reference::{Cache, Control, Estimate, PointParams, RefPoint, ReferenceParams};
+use crate::geometry::accel::Accel;
 use crate::scene::Scene;
 use crate::solver::Solution;
 use crate::solver::params::{AreaEps, Clustering, DEFAULT_CAUSE_TAIL, HierarchicalParams};
 use crate::solver::progressive::ProgressiveParams;
 use crate::solver::spec::{Plan, SolveSpec, TopLevel};
 use crate::solver::uniform::{self, UniformParams};
+use crate::studies::hard_cases;
 use serde::Serialize;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -97,13 +97,13 @@ pub enum BenchError {
     Reference {
         spec: String,
         #[source]
-        source: crate::reference::ReferenceError,
+        source: crate::eval::reference::ReferenceError,
     },
     #[error("bench: scene {spec}: metrics: {source}")]
     Metrics {
         spec: String,
         #[source]
-        source: crate::metrics::MetricsError,
+        source: crate::eval::metrics::MetricsError,
     },
     #[error("bench: {0}")]
     Output(String),
@@ -861,8 +861,8 @@ fn reference_batches(
         let file = file.display().to_string();
         batches.push(entry.estimates);
         let points = entry.set.points;
-        let merged =
-            crate::reference::merge_batches(&batches).expect("batches of one point set have equal length");
+        let merged = crate::eval::reference::merge_batches(&batches)
+            .expect("batches of one point set have equal length");
         let (noise, res) = reference_quality(scene, &points, &merged)
             .map_err(|e| BenchError::Output(format!("{spec}: {e}")))?;
         log(&format!(
@@ -994,7 +994,7 @@ fn secs_rough(t: f64) -> String {
 pub fn markdown(report: &BenchReport) -> String {
     let mut s = String::new();
     s.push_str(&format!(
-        "Mode `{:?}`, median of {} run(s), {} thread(s). **Pointwise** errors of the reflected radiosity: each solution's piecewise-constant reconstruction at the points of the independent reference ({}), each point weighted by the area it stands for, relative to the RMS reflected radiosity (see `radlab::pointwise`): rel L2 debiased (the reference's noise Σaσ² taken out; \"< x\" where below what the reference resolves); L∞ debiased, max (|ΔB| − kσ)₊ with k = √(2 ln(3N/0.05)) so that the reference's noise alone reads 0 with 95 % probability (the raw L∞ is in the JSON); p95, the level that 5 % of the area exceeds (robust, but not debiased). Beside them the element-average rel L2: element values against the reference averaged over each element's points.\n\n",
+        "Mode `{:?}`, median of {} run(s), {} thread(s). **Pointwise** errors of the reflected radiosity: each solution's piecewise-constant reconstruction at the points of the independent reference ({}), each point weighted by the area it stands for, relative to the RMS reflected radiosity (see `radlab::eval::pointwise`): rel L2 debiased (the reference's noise Σaσ² taken out; \"< x\" where below what the reference resolves); L∞ debiased, max (|ΔB| − kσ)₊ with k = √(2 ln(3N/0.05)) so that the reference's noise alone reads 0 with 95 % probability (the raw L∞ is in the JSON); p95, the level that 5 % of the area exceeds (robust, but not debiased). Beside them the element-average rel L2: element values against the reference averaged over each element's points.\n\n",
         report.mode,
         report.repeats,
         report.threads,
@@ -1185,7 +1185,7 @@ fn time_tick(x: f64) -> String {
 }
 
 /// DejaVu Sans (Bitstream Vera licence, assets/fonts/LICENSE-DejaVu.txt), registered with plotters.
-static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 
 pub(crate) fn register_font() {
     static ONCE: std::sync::Once = std::sync::Once::new();

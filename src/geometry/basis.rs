@@ -1,6 +1,6 @@
 //! Element basis functions of order p = 0 and p = 1, and the quadrature rules on an element that
 //! the Galerkin solver ([`crate::solver::linear`]) and the reconstructions
-//! ([`crate::reconstruction`]) share.
+//! ([`crate::eval::reconstruction`]) share.
 //!
 //! A radiosity function on an element e is `B(x) = Σ_k b_k φ_k(x)` [Heckbert & Winget 1991,
 //! "Finite element methods for global illumination"; Zatz 1993, "Galerkin radiosity"]:
@@ -22,7 +22,7 @@
 //! position, their weight (area) and the basis values there. With n ≥ 2 it integrates the mass
 //! matrix `M_kl = ∫_e φ_k φ_l dA` exactly on parallelograms and triangles.
 
-use crate::form_factor::gauss_legendre;
+use crate::geometry::form_factor::gauss_legendre;
 use crate::math::DVec3;
 
 /// Polynomial order of an element's basis (the lecture's p).

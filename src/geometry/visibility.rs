@@ -17,7 +17,7 @@
 //! itself; sample points sit strictly inside the regions (5 % to 95 % across their stratum), so
 //! rays never graze a shared edge.
 
-use crate::accel::Accel;
+use crate::geometry::accel::Accel;
 use crate::math::{DVec3, Pcg32, splitmix64};
 use glam::Vec3A;
 
@@ -202,7 +202,7 @@ pub fn visible_fraction_oriented(
     seed: u64,
     key: u64,
 ) -> f64 {
-    let mut last = crate::accel::NO_HIT;
+    let mut last = crate::geometry::accel::NO_HIT;
     visibility_sample(accel, receiver, source, rays, seed, key, &mut last, Stop::Never, false).0
 }
 

@@ -4,8 +4,8 @@
 //!
 //! For a point x of patch p (normal n) and each emitter e ≠ p (E_e ≠ 0), with F_e(x) the
 //! unoccluded point-to-polygon form factor (Lambert's closed form,
-//! [`crate::form_factor::point_to_polygon`]) and the emitter sampled at the centres y_k of a
-//! `side × side` grid of its area-uniform map ([`crate::reference::area_point`]):
+//! [`crate::geometry::form_factor::point_to_polygon`]) and the emitter sampled at the centres y_k of a
+//! `side × side` grid of its area-uniform map ([`crate::geometry::area_map::area_point`]):
 //!
 //! ```text
 //! v_e(x)  = Σ_k K(x, y_k) V(x, y_k) / Σ_k K(x, y_k)      K = cosθ_x cosθ_y / r⁴ (∝ the kernel per area)
@@ -19,15 +19,15 @@
 //! umbra (0) and fully lit (1), by margins `lo` and `1 − hi`; and that direct light matters at x
 //! (it is at least `min_direct` of the reference value B̂(x), mean over channels), so grazing
 //! points that receive almost nothing directly do not count. V is a shadow ray
-//! ([`crate::accel::Accel::occluded`]), the grid is fixed (no randomness), so the band depends
+//! ([`crate::geometry::accel::Accel::occluded`]), the grid is fixed (no randomness), so the band depends
 //! only on the scene, the points and the reference values — not on any solution — and works on
 //! any scene (table-room, cornell) as well as on the exact single-bounce scenes, where lit(x) is
-//! the fraction [`crate::exact`] computes in closed form (up to the grid's quadrature error).
-//! [`crate::pointwise::score_solution_in_band`] scores a solution over the band.
+//! the fraction [`crate::geometry::exact`] computes in closed form (up to the grid's quadrature error).
+//! [`crate::eval::pointwise::score_solution_in_band`] scores a solution over the band.
 
-use crate::accel::Accel;
-use crate::form_factor::point_to_polygon;
-use crate::reference::{Estimate, RefPoint, area_point};
+use crate::eval::reference::{Estimate, RefPoint};
+use crate::geometry::accel::Accel;
+use crate::geometry::lit::{FULLY_LIT_ABOVE, MIN_DIRECT_SHARE, UMBRA_BELOW, lit_fraction};
 use crate::scene::Scene;
 use rayon::prelude::*;
 
@@ -50,7 +50,7 @@ impl BandParams {
     /// shadow that changes B by less than a tenth is not counted as a shadow.
     #[must_use]
     pub const fn standard() -> BandParams {
-        BandParams { side: 16, lo: 0.02, hi: 0.98, min_direct: 0.1 }
+        BandParams { side: 16, lo: UMBRA_BELOW, hi: FULLY_LIT_ABOVE, min_direct: MIN_DIRECT_SHARE }
     }
 }
 
@@ -58,52 +58,6 @@ impl Default for BandParams {
     fn default() -> Self {
         Self::standard()
     }
-}
-
-/// lit(x) and D(x) at one point (module docs); `None` when no emitter faces it (D = 0).
-#[must_use]
-pub fn lit_fraction(
-    scene: &Scene,
-    accel: &Accel,
-    patch: usize,
-    x: crate::math::DVec3,
-    side: u32,
-) -> Option<(f64, f64)> {
-    let p = &scene.patches[patch];
-    let (mut seen, mut total) = (0.0, 0.0);
-    let mut last = crate::accel::NO_HIT;
-    let n = f64::from(side);
-    for (e, emitter) in scene.patches.iter().enumerate() {
-        let power = emitter.emission.mean();
-        if e == patch || power <= 0.0 {
-            continue;
-        }
-        let f = point_to_polygon(x, p.normal, &emitter.vertices);
-        if f <= 0.0 {
-            continue;
-        }
-        let (mut k_all, mut k_vis) = (0.0, 0.0);
-        for j in 0..side {
-            for i in 0..side {
-                let y = area_point(&emitter.vertices, (f64::from(i) + 0.5) / n, (f64::from(j) + 0.5) / n);
-                let d = y - x;
-                let r2 = d.length_squared();
-                let k = (p.normal.dot(d).max(0.0) * (-emitter.normal.dot(d)).max(0.0)) / (r2 * r2);
-                if k <= 0.0 {
-                    continue;
-                }
-                k_all += k;
-                if !accel.occluded_cached(x, y, [patch as u32, e as u32], &mut last) {
-                    k_vis += k;
-                }
-            }
-        }
-        if k_all > 0.0 {
-            total += power * f;
-            seen += power * f * (k_vis / k_all);
-        }
-    }
-    (total > 0.0).then(|| (seen / total, p.reflectance.mean() * total))
 }
 
 /// Which points are in the penumbra band (module docs), in point order (parallel; identical for
@@ -130,7 +84,8 @@ pub fn band(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::exact::SingleBounce;
+    use crate::geometry::exact::SingleBounce;
+    use crate::geometry::form_factor::point_to_polygon;
     use crate::math::{DVec3, Rgb};
 
     /// lit(x) against the closed form on shadow-wide (two overlapping occluders): a 16 × 16 grid
@@ -175,7 +130,7 @@ mod tests {
                 let s = (f64::from(k) + 0.5) / 200.0;
                 let v = &r.vertices;
                 let x = v[0].lerp(v[1], s).lerp(v[3].lerp(v[2], s), 0.5);
-                let cell = crate::reference::Cell { patch: sb.receiver as u32, level: 0, i: k, j: 0 };
+                let cell = crate::eval::reference::Cell { patch: sb.receiver as u32, level: 0, i: k, j: 0 };
                 RefPoint { patch: sb.receiver, position: x, area: 1.0, cell }
             })
             .collect();

@@ -9,7 +9,7 @@
 //!
 //! A texel holds the solution's own reconstruction at its centre — the radiosity of the leaf
 //! element that contains it, linear in the element's slope where it has one
-//! ([`crate::pointwise::PiecewiseConstant`]) — exposed and clipped as `COLOR_0` is, then
+//! ([`crate::eval::pointwise::PiecewiseConstant`]) — exposed and clipped as `COLOR_0` is, then
 //! sRGB-encoded, because glTF decodes a base-colour texture from sRGB [glTF 2.0, sec. 3.9.2]:
 //!
 //! ```text
@@ -44,9 +44,9 @@
 //! patch count; the bytes are deterministic (atlas rows in parallel, each written by one task).
 
 use super::BakeError;
-use crate::image::srgb_encode;
+use crate::eval::pointwise::{PiecewiseConstant, Reconstruction};
 use crate::math::DVec3;
-use crate::pointwise::{PiecewiseConstant, Reconstruction};
+use crate::present::image::srgb_encode;
 use crate::scene::{Patch, Scene};
 use crate::solver::Solution;
 use rayon::prelude::*;
@@ -308,7 +308,7 @@ impl Lightmap {
     #[must_use]
     pub fn png(&self) -> Vec<u8> {
         let mut out = Vec::new();
-        crate::image::encode_srgb8_png(&mut out, self.params.size, self.params.size, &self.rgb)
+        crate::present::image::encode_srgb8_png(&mut out, self.params.size, self.params.size, &self.rgb)
             .expect("the atlas holds size² RGB texels, encoded to memory");
         out
     }

@@ -11,7 +11,7 @@
 //!
 //! Where a closed form exists the case carries it as per-patch expected average radiosity,
 //! computed from the catalog form factors below (Howell, "A Catalog of Radiation Heat Transfer
-//! Configuration Factors", C-11 and C-14), never from `crate::form_factor`:
+//! Configuration Factors", C-11 and C-14), never from `crate::geometry::form_factor`:
 //!
 //! ```text
 //! parallel, directly opposed a×b rectangles at distance c, X = a/c, Y = b/c:

@@ -21,7 +21,7 @@
 //! Rows are rendered in parallel (rayon); every pixel is a pure function of its coordinates, so
 //! the image is identical for any thread count.
 
-use crate::accel::Accel;
+use crate::geometry::accel::Accel;
 use crate::math::{DVec3, orthonormal_basis};
 use crate::scene::{Scene, Viewpoint};
 use crate::solver::SolvedElement;
@@ -687,6 +687,33 @@ fn draw_text(img: &mut Image, x: usize, y: usize, scale: usize, s: &str, color: 
         }
         cx += 4 * scale;
     }
+}
+
+/// Error image: each region coloured by its entry of `errors` (e.g. [`crate::eval::metrics::ErrorReport::per_element`],
+/// the error relative to the scene's RMS reflected radiosity) through the viridis map, with a
+/// colour bar, from `camera` — to sit next to the solution's own image.
+#[must_use]
+pub fn error_image(
+    scene: &Scene,
+    accel: &Accel,
+    regions: &[crate::eval::reference::RefElement],
+    errors: &[f64],
+    camera: &Camera,
+    width: usize,
+    height: usize,
+) -> Image {
+    let elements: Vec<SolvedElement> = regions
+        .iter()
+        .map(|r| SolvedElement {
+            patch: r.patch,
+            vertices: r.vertices.clone(),
+            area: crate::math::polygon_area(&r.vertices),
+            radiosity: crate::math::Rgb::ZERO,
+            error_estimate: None,
+            slope: None,
+        })
+        .collect();
+    value_image(scene, accel, &elements, camera, width, height, errors, Colormap::Viridis)
 }
 
 #[cfg(test)]

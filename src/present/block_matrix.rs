@@ -18,7 +18,7 @@
 //!      └──────────┴──┴──┘
 //! ```
 
-use crate::overlay::{ElementView, LinkView};
+use crate::present::overlay::{ElementView, LinkView};
 
 /// One link as a block of the leaf-to-leaf matrix.
 #[derive(Copy, Clone, Debug, PartialEq)]

@@ -738,8 +738,10 @@ fn find_t_vertices(
     for (k, (p, _)) in corners {
         by_patch.entry(k.0).or_default().push((*k, *p));
     }
-    let grids: HashMap<u32, crate::reconstruction::BucketGrid<Key>> =
-        by_patch.into_iter().map(|(patch, v)| (patch, crate::reconstruction::BucketGrid::new(v))).collect();
+    let grids: HashMap<u32, crate::eval::reconstruction::BucketGrid<Key>> = by_patch
+        .into_iter()
+        .map(|(patch, v)| (patch, crate::eval::reconstruction::BucketGrid::new(v)))
+        .collect();
     let tol = 4.0 * quant.diag * MERGE_REL;
     let mut out = TVertices::new();
     let mut seen = std::collections::HashSet::new();

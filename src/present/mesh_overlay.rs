@@ -7,7 +7,7 @@
 //!   1992]. Over any mesh they show where element edges should lie; over the quadtree, how its
 //!   axis-aligned cuts miss them.
 //!
-//! - **Artifacts**: the samples behind each of the five artifacts of [`crate::artifacts`]
+//! - **Artifacts**: the samples behind each of the five artifacts of [`crate::eval::artifacts`]
 //!   ([`ArtifactSamples`]) where they lie — A the penumbra band's grid points as small crosses
 //!   coloured by their error, B the features' grid points (missing ones marked), C and D the
 //!   interior element edges (Mach bands, inappropriate jumps marked), E the critical segments
@@ -26,12 +26,12 @@
 //!      ─────────  −WIDTH
 //! ```
 
-use crate::artifacts::{ArtifactReport, ArtifactSamples, PointMark};
+use crate::eval::artifacts::{ArtifactReport, ArtifactSamples, PointMark};
 use crate::math::{DVec3, orthonormal_basis};
 use crate::mesh::DEFAULT_SNAP;
 use crate::mesh::discontinuity::{CriticalSegment, Discontinuity, SegmentCounts, scene_segments};
-use crate::overlay::LineList;
-use crate::overlay::Palette;
+use crate::present::overlay::LineList;
+use crate::present::overlay::Palette;
 use crate::scene::Scene;
 
 /// Height of overlay lines above their surface, × the scene's diagonal.
@@ -202,7 +202,7 @@ pub fn artifact_lines(scene: &Scene, samples: &ArtifactSamples, which: Artifact)
         }
     }
     for (a, flag) in [
-        (Artifact::MachBands, (|e: &crate::artifacts::EdgeMark| e.mach_band) as fn(&_) -> bool),
+        (Artifact::MachBands, (|e: &crate::eval::artifacts::EdgeMark| e.mach_band) as fn(&_) -> bool),
         (Artifact::InappropriateDiscontinuities, |e| e.jump),
     ] {
         if show(a) {
@@ -299,10 +299,10 @@ mod tests {
 
     #[test]
     fn artifact_overlays_mark_what_the_report_counts() {
-        use crate::artifacts::{ArtifactParams, measure_samples};
-        use crate::exact::SingleBounce;
+        use crate::eval::artifacts::{ArtifactParams, measure_samples};
+        use crate::geometry::exact::SingleBounce;
         let scene = Scene::load("builtin:shadow-narrow").unwrap();
-        let accel = crate::accel::Accel::build(&scene);
+        let accel = crate::geometry::accel::Accel::build(&scene);
         let p = crate::solver::uniform::UniformParams { element_size: 0.5, ..Default::default() };
         let sol = crate::solver::uniform::solve(&scene, &accel, &p, &mut |_, _| {}).unwrap();
         let sb = SingleBounce::new(&scene).unwrap();

@@ -1,10 +1,10 @@
 //! The pointwise ruler: a solution evaluated through its own reconstruction at the reference's
-//! points ([`crate::reference::points`]), and its error there — the error a user sees.
+//! points ([`crate::eval::reference::points`]), and its error there — the error a user sees.
 //!
 //! A point x_k of patch p stands for a cell of area a_k (Σ_k a_k = the scene's area), with the
 //! reference estimate B̂_k ± σ_k. A solution's reconstruction B(p, x) — piecewise constant today:
 //! the radiosity of the leaf element of patch p that contains x — is evaluated at every point, and
-//! the norms of [`crate::metrics`] are taken with the points as regions of weight a_k:
+//! the norms of [`crate::eval::metrics`] are taken with the points as regions of weight a_k:
 //!
 //! ```text
 //! rel L2  = √( Σ_k a_k Σ_c (B_c(x_k) − B̂_kc)² − Σ_k a_k Σ_c σ_kc² )  /  √( Σ_k a_k Σ_c (B̂_kc − E_kc)² )
@@ -13,7 +13,7 @@
 //! ```
 //!
 //! i.e. the midpoint rule for ∫_S |B − B_true|² dA over the cells, debiased by the reference's
-//! noise exactly as for regions ([`crate::metrics::Norms`]); R is the RMS reflected radiosity.
+//! noise exactly as for regions ([`crate::eval::metrics::Norms`]); R is the RMS reflected radiosity.
 //! Unlike an average over a reference region, a point sees a shadow edge that a coarse element
 //! smears: an element straddling a penumbra is charged its full representation error.
 //!
@@ -26,16 +26,16 @@
 //!
 //! A reconstruction is anything that implements [`Reconstruction`] — [`PiecewiseConstant`] for
 //! a [`Solution`]'s leaves, a closure `Fn(patch, point) -> Rgb`, or the Gouraud and p = 1 views
-//! of [`crate::reconstruction`] ([`score_reconstruction_in_band`] scores them). Evaluation runs
+//! of [`crate::eval::reconstruction`] ([`score_reconstruction_in_band`] scores them). Evaluation runs
 //! in parallel and is a pure function of its inputs.
 //!
 //! An element that carries a [`crate::solver::Slope`] (the hierarchical solver's leaves, from the
 //! irradiance slopes it pushes down) is reconstructed linearly, B(x) = B_e + ∇B_e·(x − c_e), the
 //! same element average; the others are constant.
 
+use crate::eval::metrics::{ErrorReport, Locator, MetricsError, compare_regions};
+use crate::eval::reference::{Estimate, RefPoint};
 use crate::math::{DVec3, Rgb};
-use crate::metrics::{ErrorReport, Locator, MetricsError, compare_regions};
-use crate::reference::{Estimate, RefPoint};
 use crate::scene::Scene;
 use crate::solver::{Solution, SolvedElement};
 use rayon::prelude::*;
@@ -66,7 +66,7 @@ pub struct PiecewiseConstant<'a> {
 impl<'a> PiecewiseConstant<'a> {
     /// Index the elements by patch. Errors if an element names a patch the scene lacks.
     pub fn new(scene: &'a Scene, elements: &'a [SolvedElement]) -> Result<Self, MetricsError> {
-        let locators = crate::metrics::patch_locators(scene, elements)?;
+        let locators = crate::eval::metrics::patch_locators(scene, elements)?;
         Ok(PiecewiseConstant { scene, elements, locators })
     }
 
@@ -183,7 +183,7 @@ fn element_averages(
 }
 
 /// [`compare_points`] over the points where `band` is true (e.g. the penumbra band,
-/// [`crate::penumbra::band`]); the norms are relative to the band's own RMS reflected radiosity.
+/// [`crate::eval::penumbra::band`]); the norms are relative to the band's own RMS reflected radiosity.
 /// `None` when the band is empty.
 pub fn compare_points_in(
     scene: &Scene,
@@ -245,7 +245,7 @@ pub fn score_solution(
 }
 
 /// [`score_solution`], and the pointwise error over `band` (one flag per point, e.g.
-/// [`crate::penumbra::band`]) as well when it is given.
+/// [`crate::eval::penumbra::band`]) as well when it is given.
 pub fn score_solution_in_band(
     scene: &Scene,
     solution: &Solution,
@@ -289,7 +289,7 @@ fn score_values(
 }
 
 /// [`score_solution_in_band`] with the pointwise figures read through `reconstruction` (e.g. a
-/// p = 1 solution's own functions, or Gouraud shading, [`crate::reconstruction`]) instead of
+/// p = 1 solution's own functions, or Gouraud shading, [`crate::eval::reconstruction`]) instead of
 /// the elements' constant values; the element-average figure is the solution's elements', as
 /// there.
 pub fn score_reconstruction_in_band<R: Reconstruction + ?Sized>(
@@ -380,7 +380,7 @@ pub fn check_estimate(
     }
     Ok(Some(EstimateCheck {
         global_estimate,
-        spearman: crate::metrics::spearman(&est, &err),
+        spearman: crate::eval::metrics::spearman(&est, &err),
         elements: est.len(),
     }))
 }
@@ -544,7 +544,7 @@ mod tests {
 
     #[test]
     fn point_interpolant_is_exact_at_points_and_linear_between() {
-        use crate::reference::Cell;
+        use crate::eval::reference::Cell;
         let scene = Scene::load("builtin:parallel").unwrap();
         let patch = &scene.patches[0];
         // B = 1 + 2 s + 3 t over a 9 × 9 lattice of the patch (s, t its bilinear parameters):

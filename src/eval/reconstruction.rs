@@ -1,7 +1,7 @@
 //! Display reconstructions of a solution, each a [`Reconstruction`] the pointwise ruler
-//! ([`crate::pointwise`]) can score:
+//! ([`crate::eval::pointwise`]) can score:
 //!
-//! - **flat**: [`crate::pointwise::PiecewiseConstant`], each element's value;
+//! - **flat**: [`crate::eval::pointwise::PiecewiseConstant`], each element's value;
 //! - **Gouraud from vertex averages** ([`gouraud`] + [`Nodal`]): every mesh vertex of a patch
 //!   takes the area-weighted average of the elements around it, and each element interpolates
 //!   its vertices' values with its p = 1 basis (linear on triangles, bilinear on quads) — what
@@ -14,17 +14,17 @@
 //! B(x) = Σ_k c_k φ_k(local(x))        on the element e of x's patch that contains x
 //! ```
 //!
-//! [`crate::artifacts::Gouraud`] (the Mach-band measure's reconstruction) is this one.
+//! [`crate::eval::artifacts::Gouraud`] (the Mach-band measure's reconstruction) is this one.
 //!
 //! T-vertices: a vertex of one element lying inside another's edge (the hierarchical quadtree
 //! and the BSP mesh are not conforming; the uniform mesh of a patch and the CDT are) is
 //! *anchored* to that edge [Baum et al. 1991]: it takes the value the larger element interpolates
 //! there, so the Gouraud view is continuous across every edge ([`gouraud`]).
 
-use crate::basis::{self, Order};
+use crate::eval::metrics::MetricsError;
+use crate::eval::pointwise::{PiecewiseConstant, Reconstruction};
+use crate::geometry::basis::{self, Order};
 use crate::math::{DVec3, Rgb};
-use crate::metrics::MetricsError;
-use crate::pointwise::{PiecewiseConstant, Reconstruction};
 use crate::scene::Scene;
 use crate::solver::SolvedElement;
 use std::collections::HashMap;
@@ -98,7 +98,7 @@ impl Reconstruction for Nodal<'_> {
 /// │ s1   │  s2  │
 /// ```
 ///
-/// (The viewer's Gouraud shading does the same for the quadtree, [`crate::overlay::VertexField`];
+/// (The viewer's Gouraud shading does the same for the quadtree, [`crate::present::overlay::VertexField`];
 /// this one also handles T-vertices anywhere along an edge, as in a BSP mesh.)
 #[must_use]
 pub fn gouraud(scene: &Scene, elements: &[SolvedElement]) -> Vec<Vec<Rgb>> {
@@ -220,7 +220,7 @@ impl VertexAverages {
 }
 
 /// Vertices of one patch in a uniform 3-D bucket grid, for "which vertices lie on this segment"
-/// (also the viewer's T-vertices, [`crate::overlay::VertexField`]); `K` names a vertex.
+/// (also the viewer's T-vertices, [`crate::present::overlay::VertexField`]); `K` names a vertex.
 pub(crate) struct BucketGrid<K> {
     origin: DVec3,
     cell: f64,

@@ -29,7 +29,7 @@
 //! below ~1000 paths read the standard error as optimistic by up to 40 % (tests/reference.rs).
 //!
 //! ## Independence
-//! This module uses the BVH ([`crate::accel`]) for ray casts and nothing else of the solvers: its
+//! This module uses the BVH ([`crate::geometry::accel`]) for ray casts and nothing else of the solvers: its
 //! own polygon sampling, its own cosine sampling, its own meshing ([`reference_mesh`]), no form
 //! factors, no hierarchy. A bug in a solver's kernel therefore cannot hide in its reference.
 //!
@@ -40,7 +40,8 @@
 //! parallel (rayon) and the result is identical for any thread count. A [`Control`] reports
 //! progress (elements finished) and cancels a long estimate without changing any result.
 
-use crate::accel::Accel;
+use crate::geometry::accel::Accel;
+use crate::geometry::area_map::AreaMap;
 use crate::math::{DVec3, Pcg32, Rgb, orthonormal_basis, polygon_area, splitmix64};
 use crate::scene::Scene;
 use rayon::prelude::*;
@@ -182,56 +183,6 @@ pub fn reference_mesh(scene: &Scene, element_size: f64) -> Result<Vec<RefElement
         }
     }
     Ok(out)
-}
-
-/// Map (u, v) ∈ [0,1)² to a point of a triangle, uniform in area (the square-root map,
-/// [Shirley & Chiu 1997; pbrt-v4 §A.5.5]).
-fn triangle_point(a: DVec3, b: DVec3, c: DVec3, u: f64, v: f64) -> DVec3 {
-    let su = u.sqrt();
-    a * (1.0 - su) + b * (su * (1.0 - v)) + c * (su * v)
-}
-
-/// An area-uniform map from the unit square onto a triangle or convex quad: a quad is cut along
-/// its 0–2 diagonal, and u picks the half in proportion to its area (so strata stay strata).
-#[derive(Clone, Copy, Debug)]
-struct AreaMap {
-    v: [DVec3; 4],
-    quad: bool,
-    /// Fraction of the area in triangle (0, 1, 2).
-    split: f64,
-}
-
-impl AreaMap {
-    fn new(verts: &[DVec3]) -> Self {
-        let mut v = [verts[0]; 4];
-        v[..verts.len()].copy_from_slice(verts);
-        if verts.len() == 4 {
-            let a1 = polygon_area(&verts[..3]);
-            let a2 = polygon_area(&[verts[0], verts[2], verts[3]]);
-            let total = a1 + a2;
-            let split = if total > 0.0 { a1 / total } else { 0.5 };
-            AreaMap { v, quad: true, split }
-        } else {
-            AreaMap { v, quad: false, split: 1.0 }
-        }
-    }
-    fn point(&self, u: f64, v: f64) -> DVec3 {
-        let w = &self.v;
-        if !self.quad || u < self.split {
-            let uu = if self.quad { u / self.split } else { u };
-            triangle_point(w[0], w[1], w[2], uu.min(1.0), v)
-        } else {
-            let uu = (u - self.split) / (1.0 - self.split);
-            triangle_point(w[0], w[2], w[3], uu.min(1.0), v)
-        }
-    }
-}
-
-/// A point of a triangle or convex quad from (u, v) ∈ [0,1)², uniform in area (the map the
-/// reference samples elements with; metrics reuse it to evaluate solutions at the same kind of points).
-#[must_use]
-pub fn area_point(verts: &[DVec3], u: f64, v: f64) -> DVec3 {
-    AreaMap::new(verts).point(u, v)
 }
 
 /// Cosine-distributed direction about `n`: Malley's method (uniform disk, lifted).

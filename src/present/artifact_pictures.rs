@@ -1,4 +1,4 @@
-//! One picture per meshing artifact ([`crate::artifacts`]): every reflecting patch drawn flat in
+//! One picture per meshing artifact ([`crate::eval::artifacts`]): every reflecting patch drawn flat in
 //! its own plane, as a tile of a contact sheet (patches in scene order, left to right, top to
 //! bottom, each scaled to fill its tile), so a floor's shadow and a wall's highlight are seen as
 //! a plan view.
@@ -15,11 +15,11 @@
 //! | `D-shading-discontinuities.png` | interior element edges (blue) and their inappropriate jumps (red) |
 //! | `E-unresolved-discontinuities.png` | critical segments resolved by an element edge (green) or inside an element (red) |
 
-use crate::artifacts::ArtifactMaps;
-use crate::image::{Colormap, Image};
+use crate::eval::artifacts::ArtifactMaps;
+use crate::eval::pointwise::PointInterpolant;
 use crate::math::DVec3;
 use crate::mesh::ReceiverPlane;
-use crate::pointwise::PointInterpolant;
+use crate::present::image::{Colormap, Image};
 use crate::scene::Scene;
 use std::path::{Path, PathBuf};
 
@@ -169,7 +169,7 @@ pub fn pictures(scene: &Scene, maps: &ArtifactMaps) -> [Image; 5] {
         -1 => RED,
         _ => sheet.grey(maps, &maps.solution, k),
     });
-    let base = |img: &mut Image, flag: &dyn Fn(&crate::artifacts::EdgeMark) -> bool| {
+    let base = |img: &mut Image, flag: &dyn Fn(&crate::eval::artifacts::EdgeMark) -> bool| {
         for e in &maps.edges {
             sheet.line(img, e.patch, e.x, e.along, e.length, BLUE);
         }
@@ -203,8 +203,8 @@ pub fn write_pictures(scene: &Scene, maps: &ArtifactMaps, dir: &Path) -> std::io
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::artifacts::{ArtifactParams, Gouraud, measure_views};
-    use crate::pointwise::PiecewiseConstant;
+    use crate::eval::artifacts::{ArtifactParams, Gouraud, measure_views};
+    use crate::eval::pointwise::PiecewiseConstant;
     use crate::solver::Solution;
 
     /// Pixels of `img` equal to `c`.
@@ -213,7 +213,7 @@ mod tests {
     }
 
     fn pictures_of(scene: &Scene, sol: &Solution) -> [Image; 5] {
-        let sb = crate::exact::SingleBounce::new(scene).unwrap();
+        let sb = crate::geometry::exact::SingleBounce::new(scene).unwrap();
         let exact = |p: usize, x: DVec3| sb.patch_radiosity_at(p, x);
         let pc = PiecewiseConstant::new(scene, &sol.elements).unwrap();
         let g = Gouraud::new(scene, sol).unwrap();
@@ -227,7 +227,7 @@ mod tests {
     #[test]
     fn pictures_mark_what_the_numbers_count() {
         let scene = Scene::load("builtin:shadow-narrow").unwrap();
-        let accel = crate::accel::Accel::build(&scene);
+        let accel = crate::geometry::accel::Accel::build(&scene);
         let p = crate::solver::uniform::UniformParams {
             element_size: f64::INFINITY,
             ff_tolerance: crate::solver::uniform::COARSE_FF_TOLERANCE,

@@ -11,7 +11,7 @@
 //! ```
 //!
 //! with F the point-to-polygon form factor, in closed form by Lambert's contour integral
-//! [`crate::form_factor::point_to_polygon_oriented`] (Cohen & Wallace 1993, eq. 4.17; tested
+//! [`crate::geometry::form_factor::point_to_polygon_oriented`] (Cohen & Wallace 1993, eq. 4.17; tested
 //! against the catalog). What is left is the visible part, which this module builds exactly.
 //!
 //! ## How it works
@@ -50,7 +50,7 @@
 //! (parallel unit squares, F = 0.199825) to better than 1e-9 and, in penumbrae, against a
 //! 4× tighter tolerance.
 
-use crate::form_factor::point_to_polygon_oriented;
+use crate::geometry::form_factor::point_to_polygon_oriented;
 use crate::math::{DVec3, Rgb, newell_normal, polygon_area};
 use crate::scene::Scene;
 use std::cmp::Ordering;

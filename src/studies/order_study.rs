@@ -1,7 +1,7 @@
 //! h- against p-refinement, measured (the lecture's "element order and
 //! continuity"): the pointwise error of Galerkin solutions ([`crate::solver::linear`]) of order
 //! p = 0 and p = 1 on a sequence of uniform meshes, against the exact single-bounce answer
-//! ([`crate::exact`]: no reference noise).
+//! ([`crate::geometry::exact`]: no reference noise).
 //!
 //! For a smooth solution the error of the best approximation by degree-p pieces of size h is
 //! O(h^(p+1)) [Ciarlet 1978; for radiosity Heckbert & Winget 1991, Zatz 1993]:
@@ -26,13 +26,13 @@
 //! Methods: p = 0 shown flat, p = 0 shown Gouraud from vertex averages (the common display),
 //! p = 1 discontinuous and continuous.
 
-use crate::accel::Accel;
-use crate::basis::Order;
-use crate::exact::SingleBounce;
-use crate::form_factor::point_to_polygon;
+use crate::eval::pointwise::{PiecewiseConstant, Reconstruction};
+use crate::eval::reconstruction::{Nodal, gouraud};
+use crate::geometry::accel::Accel;
+use crate::geometry::basis::Order;
+use crate::geometry::exact::SingleBounce;
+use crate::geometry::form_factor::point_to_polygon;
 use crate::math::{DVec3, Rgb, polygon_area};
-use crate::pointwise::{PiecewiseConstant, Reconstruction};
-use crate::reconstruction::{Nodal, gouraud};
 use crate::scene::{Patch, Scene};
 use crate::solver::linear::{self, LinearParams};
 use crate::solver::uniform::{Element, mesh_patch};
@@ -189,7 +189,7 @@ fn lattice(scene: &Scene, sb: &SingleBounce, grid: usize) -> Lattice {
     for j in 0..grid {
         for i in 0..grid {
             let (s, t) = ((i as f64 + 0.5) / grid as f64, (j as f64 + 0.5) / grid as f64);
-            let x = crate::basis::position(&r.vertices, crate::basis::Local(s, t));
+            let x = crate::geometry::basis::position(&r.vertices, crate::geometry::basis::Local(s, t));
             let visible = sb.visible_form_factor(x);
             let open = point_to_polygon(x, r.normal, &e.vertices);
             let lit = if open > 0.0 { visible / open } else { 0.0 };
@@ -398,7 +398,7 @@ type Point = (&'static str, f64, f64);
 /// is one), one line per method, its fitted slope in the legend.
 pub fn plot_png(rows: &[StudyRow], path: &Path) -> Result<(), String> {
     use plotters::prelude::*;
-    crate::bench::register_font();
+    crate::studies::bench::register_font();
     let mut panels: Vec<(String, Vec<Point>, Option<f64>)> = Vec::new();
     let mut scenes: Vec<&str> = rows.iter().map(|r| r.scene).collect();
     scenes.dedup();
@@ -498,7 +498,7 @@ pub fn plot_png(rows: &[StudyRow], path: &Path) -> Result<(), String> {
         }
         root.present().map_err(|e| err(&e))?;
     }
-    crate::bench::write_png_rgb(path, w, h, &buf).map_err(|e| e.to_string())
+    crate::studies::bench::write_png_rgb(path, w, h, &buf).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]

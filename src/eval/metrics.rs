@@ -26,12 +26,12 @@
 //!
 //! over N regions (3N channel values): by the Gaussian tail bound P(|Z| > k) ≤ e^(−k²/2) and a
 //! union bound, a perfect solver reads 0 with probability ≥ 95 % (when σ is right; below ~1000
-//! paths per region σ runs low, see [`crate::reference`]). k is 4.7 for 1000 regions, 5.1 for
+//! paths per region σ runs low, see [`crate::eval::reference`]). k is 4.7 for 1000 regions, 5.1 for
 //! 10 000. And the robust alternatives [`Norms::p95`] / [`Norms::p99`]: the area-weighted 95th /
 //! 99th percentile of the per-region error |ΔB| (mean over channels) / R — the level that 5 % / 1 %
 //! of the area exceeds; one noisy element cannot move them.
 //!
-//! **Pointwise**: [`crate::pointwise`] evaluates a solution at the points of the pointwise
+//! **Pointwise**: [`crate::eval::pointwise`] evaluates a solution at the points of the pointwise
 //! reference and takes the same norms with each point weighted by the area of its cell — the
 //! default figure of `radlab bench` and `radlab reference --compare`; this module's
 //! element-average comparisons stay beside it.
@@ -44,8 +44,9 @@
 //! correlation [Spearman 1904] (how well the solver's own error estimate ranks the true error),
 //! and an image of the per-element error (see [`error_image`]).
 
+use crate::eval::reference::{Estimate, RefElement};
+use crate::geometry::area_map::area_point;
 use crate::math::{DVec3, Rgb, orthonormal_basis};
-use crate::reference::{Estimate, RefElement, area_point};
 use crate::scene::Scene;
 use crate::solver::{Solution, SolvedElement};
 use serde::Serialize;
@@ -261,7 +262,7 @@ pub fn compare_solution(
     compare_regions(scene, &regions, &values, reference, solution.energy.relative_residual())
 }
 
-/// Compare a solution with a reference computed on other regions (e.g. [`crate::reference::reference_mesh`]):
+/// Compare a solution with a reference computed on other regions (e.g. [`crate::eval::reference::reference_mesh`]):
 /// the solution is first [`resample`]d onto them.
 pub fn compare_resampled(
     scene: &Scene,
@@ -438,42 +439,6 @@ impl Locator {
         };
         *candidates.iter().min_by(|&&a, &&b| dist(a).total_cmp(&dist(b))).expect("a locator has elements")
     }
-}
-
-/// Error image: each region coloured by its entry of `errors` (e.g. [`ErrorReport::per_element`],
-/// the error relative to the scene's RMS reflected radiosity) through the viridis map, with a
-/// colour bar, from `camera` — to sit next to the solution's own image.
-#[must_use]
-pub fn error_image(
-    scene: &Scene,
-    accel: &crate::accel::Accel,
-    regions: &[RefElement],
-    errors: &[f64],
-    camera: &crate::image::Camera,
-    width: usize,
-    height: usize,
-) -> crate::image::Image {
-    let elements: Vec<SolvedElement> = regions
-        .iter()
-        .map(|r| SolvedElement {
-            patch: r.patch,
-            vertices: r.vertices.clone(),
-            area: crate::math::polygon_area(&r.vertices),
-            radiosity: Rgb::ZERO,
-            error_estimate: None,
-            slope: None,
-        })
-        .collect();
-    crate::image::value_image(
-        scene,
-        accel,
-        &elements,
-        camera,
-        width,
-        height,
-        errors,
-        crate::image::Colormap::Viridis,
-    )
 }
 
 /// Ranks with ties averaged (1-based), for Spearman's correlation.

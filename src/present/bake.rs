@@ -136,7 +136,7 @@ pub enum BakeError {
     )]
     LightmapTooSmall { size: u32, charts: usize },
     #[error(transparent)]
-    Locate(#[from] crate::metrics::MetricsError),
+    Locate(#[from] crate::eval::metrics::MetricsError),
 }
 
 /// What geometry a bake holds.

@@ -2,21 +2,21 @@
 //! number per artifact.
 //!
 //! The reference is anything that gives B at any point of any patch ([`Reconstruction`]): the
-//! closed form of a single-bounce scene ([`crate::exact::SingleBounce::patch_radiosity_at`]), or
+//! closed form of a single-bounce scene ([`crate::geometry::exact::SingleBounce::patch_radiosity_at`]), or
 //! a fine solve's reconstruction. The solution is read through its piecewise-constant
 //! reconstruction ([`PiecewiseConstant`]): B(x) = B_e of the leaf element e holding x;
 //! [`measure_views`] reads it through given views instead (a p = 1 solution's own functions) and
 //! also returns where each artifact lies ([`ArtifactMaps`], drawn by
-//! [`crate::artifact_pictures`]; `radlab artifacts`). Only patches that reflect (ρ̄ > 0) are
+//! [`crate::present::artifact_pictures`]; `radlab artifacts`). Only patches that reflect (ρ̄ > 0) are
 //! examined: the rest hold B = E, constant by construction.
 //!
 //! Every patch p is sampled on a `side × side` grid of its area-uniform map
-//! ([`crate::reference::area_point`]), cell centres x_k of equal area a_k = A_p / side². With
+//! ([`crate::geometry::area_map::area_point`]), cell centres x_k of equal area a_k = A_p / side². With
 //! B̄ the mean over channels, m_p = Σ_k a_k B̄_ref(x_k) / A_p the reference's patch mean and
 //! s_p the same of the solution:
 //!
-//! **A — blocky shadows.** The pointwise rel L2 error ([`crate::pointwise::compare_points_in`])
-//! over the grid points in the penumbra band ([`crate::penumbra::band`], standard settings):
+//! **A — blocky shadows.** The pointwise rel L2 error ([`crate::eval::pointwise::compare_points_in`])
+//! over the grid points in the penumbra band ([`crate::eval::penumbra::band`], standard settings):
 //! `A = √(Σ_band a_k |B(x_k) − B_ref(x_k)|²) / √(Σ_band a_k |B_ref(x_k) − E|²)`.
 //! `None` when the scene has no penumbra.
 //!
@@ -103,15 +103,16 @@
 //! accurate radiosity", IEEE CG&A 12(6), Fig. 1 (blocky shadows, missing features, Mach bands,
 //! inappropriate shading discontinuities, unresolved discontinuities).
 
-use crate::accel::Accel;
+use crate::eval::metrics::MetricsError;
+use crate::eval::penumbra::{BandParams, band};
+use crate::eval::pointwise::{PiecewiseConstant, Reconstruction, compare_points_in};
+use crate::eval::reference::{Cell, Estimate, RefPoint};
+use crate::geometry::accel::Accel;
+use crate::geometry::area_map::area_point;
 use crate::math::{DVec3, Rgb};
 use crate::mesh::DEFAULT_SNAP;
 use crate::mesh::discontinuity::scene_segments;
 use crate::mesh::grade::shadow_segments;
-use crate::metrics::MetricsError;
-use crate::penumbra::{BandParams, band};
-use crate::pointwise::{PiecewiseConstant, Reconstruction, compare_points_in};
-use crate::reference::{Cell, Estimate, RefPoint, area_point};
 use crate::scene::Scene;
 use crate::solver::Solution;
 use rayon::prelude::*;
@@ -289,7 +290,7 @@ pub fn measure<R: Reconstruction + ?Sized>(
 /// [`measure`] with the solution read through given views, and where each artifact lies
 /// ([`ArtifactMaps`], for pictures): `values` is what A, B, D and E read (the flat view of a
 /// p = 0 solution, [`PiecewiseConstant`]; a p = 1 solution's own functions,
-/// [`crate::reconstruction::Nodal`]), `shaded` what C reads for kinks ([`Gouraud`] for p = 0, the
+/// [`crate::eval::reconstruction::Nodal`]), `shaded` what C reads for kinks ([`Gouraud`] for p = 0, the
 /// same p = 1 functions for p = 1). The elements of `solution` give the edges and locate the
 /// points. D's jump is `values` on both sides of the edge ([`measure`] takes the two elements'
 /// averages: the same for constant elements, not for leaves that carry a slope).
@@ -316,8 +317,8 @@ fn measure_all<R: Reconstruction + ?Sized>(
 ) -> Result<(ArtifactReport, ArtifactMaps), ArtifactError> {
     let pc = PiecewiseConstant::new(scene, &solution.elements)?;
     let points = grid_points(scene, params.side);
-    let sol: Vec<Rgb> = crate::pointwise::evaluate(values, &points);
-    let refs: Vec<Rgb> = crate::pointwise::evaluate(reference, &points);
+    let sol: Vec<Rgb> = crate::eval::pointwise::evaluate(values, &points);
+    let refs: Vec<Rgb> = crate::eval::pointwise::evaluate(reference, &points);
     let means = patch_means(scene, &points, &refs, &sol);
 
     // A
@@ -724,17 +725,17 @@ fn shading_jumps<R: Reconstruction + ?Sized>(
 }
 
 /// The reconstruction a viewer draws from constant elements (Gouraud,
-/// [`crate::reconstruction::gouraud`]): each element corner takes the area-weighted mean of the
+/// [`crate::eval::reconstruction::gouraud`]): each element corner takes the area-weighted mean of the
 /// elements of its patch that share that corner (welded within 10⁻⁹ of the scene's diagonal; a
 /// T-junction's corner is not shared by the long edge), and the value inside an element is the
 /// linear (triangle) or bilinear (quad) interpolation of its corners' values.
-pub struct Gouraud<'a>(crate::reconstruction::Nodal<'a>);
+pub struct Gouraud<'a>(crate::eval::reconstruction::Nodal<'a>);
 
 impl<'a> Gouraud<'a> {
     /// Weld the corners of `solution`'s elements and average them.
     pub fn new(scene: &'a Scene, solution: &'a Solution) -> Result<Self, MetricsError> {
-        let corners = crate::reconstruction::gouraud(scene, &solution.elements);
-        Ok(Gouraud(crate::reconstruction::Nodal::new(scene, &solution.elements, corners)?))
+        let corners = crate::eval::reconstruction::gouraud(scene, &solution.elements);
+        Ok(Gouraud(crate::eval::reconstruction::Nodal::new(scene, &solution.elements, corners)?))
     }
 }
 

@@ -932,12 +932,12 @@ mod tests {
             for _ in 0..20_000 {
                 let i = (rng.next_u32() as usize) % n;
                 let j = (rng.next_u32() as usize) % n;
-                let a = crate::visibility::point_on_polygon(
+                let a = crate::geometry::visibility::point_on_polygon(
                     &sc.patches[i].vertices,
                     rng.next_f64(),
                     rng.next_f64(),
                 );
-                let b = crate::visibility::point_on_polygon(
+                let b = crate::geometry::visibility::point_on_polygon(
                     &sc.patches[j].vertices,
                     rng.next_f64(),
                     rng.next_f64(),
@@ -1044,10 +1044,16 @@ mod tests {
         for _ in 0..3000 {
             let i = (rng.next_u32() as usize) % n;
             let j = (rng.next_u32() as usize) % n;
-            let a =
-                crate::visibility::point_on_polygon(&sc.patches[i].vertices, rng.next_f64(), rng.next_f64());
-            let b =
-                crate::visibility::point_on_polygon(&sc.patches[j].vertices, rng.next_f64(), rng.next_f64());
+            let a = crate::geometry::visibility::point_on_polygon(
+                &sc.patches[i].vertices,
+                rng.next_f64(),
+                rng.next_f64(),
+            );
+            let b = crate::geometry::visibility::point_on_polygon(
+                &sc.patches[j].vertices,
+                rng.next_f64(),
+                rng.next_f64(),
+            );
             let (la, lb) = (acc.to_local(a), acc.to_local(b));
             let len = (lb - la).length();
             if !(len > 2.0 * END_EPS) {
