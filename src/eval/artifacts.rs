@@ -56,48 +56,20 @@
 //! multiplicity) are sampled at `segment_samples` midpoints each. The events found are a superset
 //! (a wedge hidden by another occluder is not clipped): a D1/D2 segment inside an umbra or in full
 //! light is no discontinuity of B at all, so it is not scored, for every method alike (`dropped`
-//! counts them; before this filter E read 22–29 % on graded meshes, which leave those segments
-//! inside elements on purpose). A sample is *resolved* when
+//! counts them; graded meshes leave such segments inside elements on purpose). A sample is
+//! *resolved* when
 //! it lies within `on_edge` × patch diameter of the boundary of the element holding it — or,
 //! when it lies outside every element by a rounding error (on an edge of a non-conforming mesh,
 //! beside a T-vertex, where the point locator falls back to the nearest centroid), of the
-//! boundary of any element of its patch. Before that fallback was caught, cornell's graded CDT
-//! read E 1.4 % (1 448 pieces), all of it such samples: its pieces put every scored segment on
-//! an edge.
+//! boundary of any element of its patch (a mesh whose pieces put every segment on an edge reads
+//! E = 0).
 //! `E = unresolved segment length / all segment length`; beside them, the error at the points
 //! x ± δ n (n the segment's in-plane normal, δ = `near` × patch diameter, points off the patch
 //! dropped): `E_err = √(Σ |B(x) − B_ref(x)|²) / √(Σ |B_ref(x)|²)` (channels summed).
 //!
-//! Measured (release, `radlab reference builtin:SCENE --samples 16 --exact --compare`,
-//! standard settings, branch meshcli: the Gouraud view with T-vertices anchored; re-measured on
-//! branch mesh16 with E scoring only the shadow-bounding segments: on shadow-narrow all 32 bound
-//! the penumbra and nothing moved, on shadow-wide the uniform mesh's error beside E went from
-//! 20.4 to 20.1 %; B as features missing of all, C, D and E as fractions of length):
-//!
-//! | scene | method | elements | A | B | C | D | E | E_err |
-//! |---|---|---|---|---|---|---|---|---|
-//! | shadow-narrow | uniform | 110 | 76.7 % | 0 of 10 | 86.5 % | 86.7 % | 100 % | 56.3 % |
-//! | shadow-narrow | hierarchical | 180 | 78.0 % | 0 of 10 | 82.1 % | 73.8 % | 97.0 % | 45.7 % |
-//! | shadow-narrow | dmesh-cdt | 428 | 59.2 % | 4 of 10 (1.3 % of area) | 71.5 % | 60.8 % | 0 % | – |
-//! | shadow-narrow | dmesh-bsp | 17 | 56.5 % | 6 of 10 (2.1 % of area) | 41.6 % | 92.2 % | 0 % | – |
-//! | shadow-wide | uniform | 157 | 14.6 % | 0 of 4 | 86.4 % | 79.4 % | 100 % | 20.1 % |
-//! | shadow-wide | dmesh-cdt | 160 | 24.4 % | 0 of 4 | 66.1 % | 73.4 % | 0 % | – |
-//!
-//! The D-mesh resolves every critical segment (E = 0) but, at p = 0, still jumps at most of its
-//! edges (D): its edges lie on D1/D2 segments, where the reference is continuous in value; and
-//! Gouraud-shaded it kinks (C) on most edges that are not D1 segments.
-//!
-//! **Why D is high for constant elements.** D counts every visible jump (> `jump` of the patch
-//! mean) where the reference is continuous, weighted by edge length; a p = 0 solution jumps at
-//! every edge across which B changes by more than 2 % of the patch mean over one element's width,
-//! which on a graded mesh of 1 322 elements is most of them (table-room: 76–80 %, the flagged
-//! jumps ~10 % of the patch mean on average, not marginal). The hierarchical quadtree reads 15 %
-//! only because its leaves carry the slopes the solver pushes down (B_e + ∇B_e·(x − c_e)): read
-//! as constants (`radlab artifacts --drop-slopes`) the same quadtree reads 79.5 % (cornell: 35.8
-//! → 78.2 %). So the figure is the elements', not the measure's; a slope per element (p = 1,
-//! the hierarchical top level) is what lowers it (docs/meshing.md). Its
-//! missing features are small (≤ 2 % of the feature area; which ones was not examined): the count
-//! weighs a fragment of a few grid points as much as a whole shadow, the area fraction does not.
+//! What the five read on the built-in scenes, for each mesh and order, and why D stays high for
+//! constant elements (a p = 0 solution jumps at most of its edges, where the reference is
+//! continuous; slopes or p = 1 lower it) is in docs/meshing.md, "The five artifacts".
 //!
 //! The lecture's artifacts: Lischinski, Tampieri & Greenberg 1992, "Discontinuity meshing for
 //! accurate radiosity", IEEE CG&A 12(6), Fig. 1 (blocky shadows, missing features, Mach bands,

@@ -42,9 +42,9 @@
 //! is the hierarchical solver's top level): the patches the kept segments' mesh already has, plus
 //! one piece per square of side d/17 of reflecting area (d the scene's diagonal). The first part
 //! draws the shadows' edges; the second is what the top level needs for the smooth light, since
-//! the hierarchy's oracle, started from a wall left as 2–3 pieces, stops with it 3–6 % off. The
-//! constant is measured (docs/meshing.md: table-room and cornell, both A_r/d² ≈ 2, reach their
-//! lowest scene error near 1 000 patches, i.e. 400–650 beyond the segments' pieces).
+//! the hierarchy's oracle, started from a wall left as two or three pieces, stops early on it.
+//! The constant is where table-room and cornell reach their lowest error (docs/meshing.md, "A
+//! graded discontinuity mesh").
 //!
 //! Pieces stay convex (a convex polygon cut by a line); pieces of more than 4 vertices count as
 //! the triangles of their fan, which is how [`super::remesh`] turns them into patches. The cuts
@@ -81,8 +81,7 @@ pub const AUTO_PIECES_PER_DIAGONAL_SQUARED: f64 = 289.0;
 /// already has, plus [`AUTO_PIECES_PER_DIAGONAL_SQUARED`] · A_r / d² for the smooth light, A_r
 /// the reflecting area and d the scene's diagonal, capped at `cap`. The segments' pieces resolve
 /// the shadows' edges; the rest gives every reflecting surface pieces about d / 17 across before
-/// any hierarchical refinement (table-room: walls left as 2–3 pieces reach 3–6 %, cut to ~30
-/// they reach 1.2–1.7 %; docs/meshing.md).
+/// any hierarchical refinement (docs/meshing.md).
 #[must_use]
 pub fn auto_budget(scene: &Scene, before: usize, cap: usize) -> usize {
     let reflecting: f64 = scene.patches.iter().filter(|p| p.reflectance.mean() > 0.0).map(|p| p.area).sum();

@@ -52,8 +52,8 @@ pub enum Events {
 /// Settings of [`discontinuity_scene`].
 /// The most pieces [`crate::solver::discontinuity::solve_hierarchical`]'s callers let a discontinuity mesh have (the CLI's cap
 /// for the hierarchical top level): the hierarchical solver clusters a scene of more than 3 000
-/// patches and links it in about linear memory (furnished-100k: 34 s, 1.3 GB, docs/scale.md),
-/// where the uniform solver's n² couplings keep [`RemeshParams::cdt`]'s 10 000.
+/// patches and links it in about linear memory (docs/scale.md), where the uniform solver's n²
+/// couplings keep [`RemeshParams::cdt`]'s 10 000.
 pub const HIERARCHICAL_MAX_PIECES: usize = 100_000;
 
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]

@@ -39,8 +39,8 @@ pub const MIN_RAYS: u32 = 4;
 pub const MAX_RAYS: u32 = 4096;
 
 /// A scene whose rays leave it at most this often is closed: a room's shell stops them all but
-/// those that slip through gaps where pieces meet (box-grid-100k: 94 of 846 413, rays from just
-/// above the floor at the boxes' feet); the open Cornell box lets 16 % go.
+/// the few that slip through gaps where pieces meet (rays from just above a floor at the feet of
+/// boxes standing on it); an open box lets a sizeable fraction go.
 pub const CLOSED_RAY_FRACTION: f64 = 1e-3;
 
 /// The cosine-weighted fractions of a hemisphere by what its rays meet first (they add to 1).

@@ -245,9 +245,9 @@ pub enum TopLevel {
 }
 
 /// [`TopLevel::Auto`] meshes contacts below this many input patches. Above it the scene is
-/// clustered, and the contact mesh's pieces cost more than they return: furnished-10k (10 004
-/// patches) at `quality` takes 316 s on its 30 252 contact pieces against 51 s on its patches
-/// (2 threads), where the clustered links, not the mesh, bound the error.
+/// clustered, and the contact mesh's pieces (about three per patch on a furnished room) cost
+/// more time than they return: there the clustered links, not the mesh, bound the error
+/// (docs/scale.md).
 pub const CONTACT_AUTO_PATCHES: usize = super::params::Clustering::AUTO_PATCHES;
 
 /// The solver and its settings.
