@@ -18,7 +18,16 @@ fn figures_json_lists_every_figure_with_its_scene_settings_and_caption() {
         assert_eq!(f["name"], want.name);
         assert_eq!(f["slide"], want.slide);
         assert_eq!(f["scene"], want.scene);
-        assert!(f["caption"].as_str().is_some_and(|c| c.len() > 80), "{f}");
+        // The caption is a template: every name in braces is listed and is one the viewer fills.
+        let template = f["caption_template"].as_str().expect("the caption template");
+        assert!(template.len() > 80, "{f}");
+        assert!(f.get("caption").is_none(), "no unfilled caption posing as text: {f}");
+        let fills: Vec<&str> =
+            f["caption_fills"].as_array().unwrap().iter().map(|n| n.as_str().unwrap()).collect();
+        assert_eq!(fills, radlab::present::figures::placeholders(template));
+        for name in &fills {
+            assert!(radlab::present::figures::PLACEHOLDERS.contains(name), "{} quotes {{{name}}}", want.name);
+        }
         assert!(f["params"]["feps"].is_number(), "the solver settings are in the JSON: {f}");
         assert!(f["overlays"]["quadtree"].is_boolean());
     }

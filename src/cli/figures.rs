@@ -3,14 +3,15 @@
 //! --screenshot DIR/NAME.png` (needs a display, e.g. Xvfb, and the viewer).
 
 use anyhow::{Context as _, bail};
-use radlab::present::figures::{FIGURES, Figure, find};
+use radlab::present::figures::{FIGURES, Figure, find, placeholders};
 use std::path::PathBuf;
 use std::process::Command;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Print every figure as JSON (name, slide, scene, preset, settings, overlays, camera,
-    /// caption) instead of a table.
+    /// Print every figure as JSON (name, slide, scene, preset, settings, overlays, camera, and
+    /// its caption as a template: `caption_template`, whose names in braces, listed in
+    /// `caption_fills`, the viewer fills from the state it shows) instead of a table.
     #[arg(long, conflicts_with = "screenshots")]
     pub json: bool,
     /// Write one PNG per figure into this folder (DIR/NAME.png), each by a `radlab view
@@ -24,7 +25,8 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
-        println!("{}", serde_json::to_string_pretty(FIGURES)?);
+        let figures = FIGURES.iter().map(figure_json).collect::<anyhow::Result<Vec<_>>>()?;
+        println!("{}", serde_json::to_string_pretty(&figures)?);
         return Ok(());
     }
     let Some(dir) = args.screenshots else {
@@ -59,4 +61,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// A figure as JSON. Its caption's numbers depend on the state a solve reaches when the figure
+/// opens, so the caption is given as what it is, a template (`caption_template`), with the
+/// names it quotes (`caption_fills`, see `radlab::present::figures::PLACEHOLDERS`); `radlab view
+/// --figure NAME` shows it filled.
+fn figure_json(f: &Figure) -> anyhow::Result<serde_json::Value> {
+    let mut v = serde_json::to_value(f)?;
+    let object = v.as_object_mut().context("a figure serialises to an object")?;
+    let caption = object.remove("caption").unwrap_or_default();
+    object.insert("caption_template".to_owned(), caption);
+    object.insert("caption_fills".to_owned(), serde_json::json!(placeholders(f.caption)));
+    Ok(v)
 }
