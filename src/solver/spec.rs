@@ -486,7 +486,23 @@ pub fn solve(
             d.solution
         }
     };
+    notes.extend(budget_note(&solution, &spec.plan));
     Ok(Solved { solution, spec: *spec, hierarchical, coefficients, remesh, notes, cancelled })
+}
+
+/// A line for the user when the link budget stopped a hierarchical refinement before its oracle
+/// was satisfied: the solution is coarser than the threshold asks, and its error estimate reads
+/// low (the unrefined links' error is not in it).
+fn budget_note(solution: &Solution, plan: &Plan) -> Option<String> {
+    let Plan::Hierarchical { params, .. } = plan else { return None };
+    let hit = solution.stats.extra.as_ref()?.get("budget_hit")?.as_bool()?;
+    hit.then(|| {
+        format!(
+            "refinement stopped at the link budget ({} links) before the threshold was met: the \
+             answer is coarser than asked; raise --max-links or coarsen the threshold",
+            params.max_links
+        )
+    })
 }
 
 /// One step of a walk down thresholds ([`solve_walk`]).
@@ -571,8 +587,8 @@ pub fn solve_walk(
     };
     let last = thresholds.get(steps.len().saturating_sub(1)).copied().unwrap_or(first);
     let spec = SolveSpec { plan: Plan::Hierarchical { params: at(last), top }, ..spec };
-    let solved =
-        Solved { solution, spec, hierarchical, coefficients: None, remesh, notes: Vec::new(), cancelled };
+    let notes = budget_note(&solution, &spec.plan).into_iter().collect();
+    let solved = Solved { solution, spec, hierarchical, coefficients: None, remesh, notes, cancelled };
     Ok((solved, steps))
 }
 
@@ -721,6 +737,27 @@ mod tests {
             assert_eq!(s.coefficients.is_some(), spec.order().0 == 1, "{mesh}");
             assert_eq!(s.remesh.is_some(), mesh.starts_with("discontinuity") || mesh == "contact", "{mesh}");
         }
+    }
+
+    /// A refinement the link budget stops says so; one that ends on its own says nothing.
+    #[test]
+    fn a_solve_stopped_by_the_link_budget_says_so() {
+        let (scene, accel) = load("shadow-narrow");
+        let run = |max_links| {
+            let params = HierarchicalParams { max_links, ..ladder_params(0.1) };
+            let spec =
+                SolveSpec { plan: Plan::Hierarchical { params, top: TopLevel::Auto }, estimate: false };
+            solve(&scene, &accel, 0.0, &spec.resolved(&scene), &mut |_, _| {}, None).unwrap()
+        };
+        let free = run(HierarchicalParams::quality().max_links);
+        assert!(free.notes.is_empty(), "{:?}", free.notes);
+        let links = free.solution.stats.links;
+        let bound = run(links / 4);
+        assert!(
+            bound.notes.iter().any(|n| n.contains("link budget") && n.contains(&format!("{}", links / 4))),
+            "{:?} ({links} links unbounded)",
+            bound.notes
+        );
     }
 
     /// A p = 1 solve on a discontinuity mesh with more pieces than the cap's unknowns is graded
