@@ -306,35 +306,16 @@ fn solve(
     let bvh_s = t0.elapsed().as_secs_f64();
     let mut spec = super::solve::solve_spec(a, &scene)?;
     spec.estimate = true;
-    let solved = if a.threshold.len() > 1 {
-        // A walk down thresholds, warm: scored at its last step.
-        let floor_follows = a.aeps.is_none() && a.aeps_rel.is_none();
-        let (solved, walk) = radlab::solver::spec::solve_walk(
-            &scene,
-            &accel,
-            bvh_s,
-            &spec,
-            &a.threshold,
-            floor_follows,
-            &mut |_, _| {},
-            None,
-        )
-        .with_context(|| format!("solving {}", args.scene))?;
-        for w in &walk {
-            let how = if w.warm { "warm" } else { "cold" };
-            writeln!(
-                log,
-                "threshold {} ({how}): {:.3} s, {} leaves, {} links",
-                w.threshold, w.solve_s, w.leaves, w.links
-            )?;
-        }
-        solved
-    } else {
-        radlab::solver::spec::solve(&scene, &accel, bvh_s, &spec, &mut |_, _| {}, None)
-            .with_context(|| format!("solving {}", args.scene))?
-    };
-    for note in &solved.notes {
-        eprintln!("radlab: {}: {note}", args.scene);
+    // With several thresholds, a walk down them, warm: scored at its last step.
+    let (solved, walk) =
+        super::solve::solve_with(a, &args.scene, &spec, &scene, &accel, bvh_s, &mut |_, _| {})?;
+    for w in &walk {
+        let how = if w.warm { "warm" } else { "cold" };
+        writeln!(
+            log,
+            "threshold {} ({how}): {:.3} s, {} leaves, {} links",
+            w.threshold, w.solve_s, w.leaves, w.links
+        )?;
     }
     let secs = t0.elapsed().as_secs_f64();
     let sol = solved.solution;

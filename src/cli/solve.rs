@@ -20,6 +20,7 @@ use radlab::solver::{PhaseTimes, Solution};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -311,6 +312,10 @@ pub struct SolverArgs {
     /// global relative L2, no reference needed); costs about as much again as the solve.
     #[arg(long)]
     pub estimate: bool,
+    /// Stop the hierarchical solver after this many seconds of solving and keep the state it
+    /// reached (said on stderr and in the JSON's `cancelled`). Hierarchical solves only.
+    #[arg(long, value_name = "SECONDS")]
+    pub time_budget: Option<f64>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -751,19 +756,76 @@ pub fn solve_scene(
     progress: radlab::solver::Progress,
 ) -> anyhow::Result<(Solved, Vec<spec::WalkStep>)> {
     let s = solve_spec(a, scene)?;
-    let (solved, walk) = if a.threshold.len() > 1 {
-        let floor_follows = a.aeps.is_none() && a.aeps_rel.is_none();
-        spec::solve_walk(scene, accel, bvh_s, &s, &a.threshold, floor_follows, progress, None)
-            .with_context(|| format!("solving {spec}"))?
-    } else {
-        let solved = spec::solve(scene, accel, bvh_s, &s, progress, None)
-            .with_context(|| format!("solving {spec}"))?;
-        (solved, Vec::new())
-    };
+    solve_with(a, spec, &s, scene, accel, bvh_s, progress)
+}
+
+/// Solve `scene` by `s` with the rest of `a` (the thresholds of a walk, the time budget), and
+/// print the solve's notes on stderr; `spec` names the scene in errors.
+pub fn solve_with(
+    a: &SolverArgs,
+    spec: &str,
+    s: &SolveSpec,
+    scene: &Arc<Scene>,
+    accel: &Arc<Accel>,
+    bvh_s: f64,
+    progress: radlab::solver::Progress,
+) -> anyhow::Result<(Solved, Vec<spec::WalkStep>)> {
+    if let Some(secs) = a.time_budget {
+        if !(secs > 0.0 && secs <= MAX_TIME_BUDGET_S) {
+            bail!("--time-budget {secs}: a number of seconds in (0, {MAX_TIME_BUDGET_S}]");
+        }
+        if s.hierarchical().is_none() {
+            bail!("--time-budget stops the hierarchical solver only; --mesh {} runs another", s.mesh_name());
+        }
+    }
+    let (mut solved, walk) = within_time_budget(a.time_budget, |cancel| {
+        if a.threshold.len() > 1 {
+            let floor_follows = a.aeps.is_none() && a.aeps_rel.is_none();
+            spec::solve_walk(scene, accel, bvh_s, s, &a.threshold, floor_follows, progress, cancel)
+                .with_context(|| format!("solving {spec}"))
+        } else {
+            let solved = spec::solve(scene, accel, bvh_s, s, progress, cancel)
+                .with_context(|| format!("solving {spec}"))?;
+            Ok((solved, Vec::new()))
+        }
+    })?;
+    if let (true, Some(secs)) = (solved.cancelled, a.time_budget) {
+        solved.notes.push(format!(
+            "stopped at the time budget of {secs} s before the solve converged: the answer is the state reached"
+        ));
+    }
     for note in &solved.notes {
         eprintln!("radlab: {spec}: {note}");
     }
     Ok((solved, walk))
+}
+
+/// The longest `--time-budget`: a week.
+const MAX_TIME_BUDGET_S: f64 = 7.0 * 24.0 * 3600.0;
+
+/// Run `f` with a cancel flag that a watchdog thread sets once `budget` seconds have passed
+/// (`None`: no flag, nothing watches).
+fn within_time_budget<T>(budget: Option<f64>, f: impl FnOnce(Option<&Arc<AtomicBool>>) -> T) -> T {
+    let Some(secs) = budget else { return f(None) };
+    let cancel = Arc::new(AtomicBool::new(false));
+    let done = Arc::new(AtomicBool::new(false));
+    let watchdog = {
+        let (cancel, done) = (Arc::clone(&cancel), Arc::clone(&done));
+        std::thread::spawn(move || {
+            let start = Instant::now();
+            while !done.load(Ordering::Relaxed) {
+                if start.elapsed().as_secs_f64() >= secs {
+                    cancel.store(true, Ordering::Relaxed);
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        })
+    };
+    let out = f(Some(&cancel));
+    done.store(true, Ordering::Relaxed);
+    let _ = watchdog.join();
+    out
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -879,6 +941,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if !walk.is_empty() {
             doc["walk"] = json!(walk);
         }
+        // Whether the time budget stopped the solve, and what the solve said on stderr.
+        doc["cancelled"] = json!(solved.cancelled);
+        doc["notes"] = json!(solved.notes);
         match target {
             "-" => println!("{}", serde_json::to_string_pretty(&doc)?),
             path => std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")

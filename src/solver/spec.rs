@@ -592,21 +592,32 @@ pub fn solve_walk(
     Ok((solved, steps))
 }
 
-/// Run `s.solve`, stopping it when `cancel` is set: the flag is checked at each progress report
-/// and forwarded to the solver's own. Returns whether the solve was cancelled.
+/// Run `s.solve`, stopping it when `cancel` is set (the solver looks at its flag between
+/// refinement passes and between gathers). Returns whether the solve was cancelled.
 fn forward_solve(s: &mut HierarchicalSolver, cancel: Option<&Arc<AtomicBool>>, progress: Progress) -> bool {
     match cancel {
         None => s.solve(progress).cancelled,
         Some(outer) => {
+            // A relay thread hands the caller's flag to the solver's own within milliseconds,
+            // whether or not the solver reports progress meanwhile (a refinement pass may not).
             let inner = s.cancel_handle();
-            let outer = Arc::clone(outer);
-            let mut forwarded = move |d: u64, n: u64| {
-                if outer.load(Ordering::Relaxed) {
-                    inner.store(true, Ordering::Relaxed);
-                }
-                progress(d, n);
+            let done = Arc::new(AtomicBool::new(false));
+            let relay = {
+                let (outer, done) = (Arc::clone(outer), Arc::clone(&done));
+                std::thread::spawn(move || {
+                    while !done.load(Ordering::Relaxed) {
+                        if outer.load(Ordering::Relaxed) {
+                            inner.store(true, Ordering::Relaxed);
+                            return;
+                        }
+                        std::thread::sleep(std::time::Duration::from_millis(2));
+                    }
+                })
             };
-            s.solve(&mut forwarded).cancelled
+            let cancelled = s.solve(progress).cancelled;
+            done.store(true, Ordering::Relaxed);
+            let _ = relay.join();
+            cancelled
         }
     }
 }

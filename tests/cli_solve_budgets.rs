@@ -1,0 +1,56 @@
+//! `radlab solve`'s budgets: a time budget stops the hierarchical solver and keeps the state it
+//! reached, saying so; absurd budgets and solvers that cannot be stopped are one-line errors.
+
+use std::process::Command;
+
+fn radlab(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_radlab")).args(args).output().unwrap()
+}
+
+#[test]
+fn a_time_budget_stops_the_solve_and_says_so() {
+    let json = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("time-budget.json");
+    // The finest ladder step on cornell takes tens of seconds; a fifth of a second stops it.
+    let out = radlab(&[
+        "solve",
+        "builtin:cornell",
+        "--preset",
+        "reference",
+        "--time-budget",
+        "0.2",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("time budget of 0.2 s"), "{stderr}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(doc["cancelled"], true, "{doc}");
+    assert!(doc["notes"].as_array().is_some_and(|n| n.len() == 1), "{}", doc["notes"]);
+    // The state reached is a solution: every patch has a finite radiosity.
+    assert!(doc["patches"].as_array().is_some_and(|p| !p.is_empty()));
+
+    // Without the budget a quick solve is not cancelled and has no note.
+    let out = radlab(&["solve", "builtin:cornell", "--preset", "draft", "--json", json.to_str().unwrap()]);
+    assert!(out.status.success());
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(doc["cancelled"], false);
+    assert_eq!(doc["notes"], serde_json::json!([]));
+}
+
+#[test]
+fn absurd_budgets_and_unstoppable_solvers_are_one_line_errors() {
+    for (args, says) in [
+        (&["--time-budget", "0"][..], "--time-budget 0"),
+        (&["--time-budget=-3"][..], "--time-budget -3"),
+        (&["--time-budget", "NaN"][..], "--time-budget NaN"),
+        (&["--time-budget", "1e12"][..], "--time-budget 1000000000000"),
+        (&["--time-budget", "5", "--mesh", "uniform"][..], "hierarchical solver only"),
+    ] {
+        let out = radlab(&[&["solve", "builtin:shadow-narrow"][..], args].concat());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert_eq!(stderr.trim().lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.contains(says), "{args:?}: {stderr}");
+    }
+}
