@@ -1,4 +1,4 @@
-//! The hard-case suite: every solver on every generated hard case (src/hard_cases.rs).
+//! The hard-case suite: every solver on every generated hard case (src/studies/hard_cases.rs).
 //!
 //! Each (case, solver) asserts: every B finite and ≥ 0; the energy balance within the solver's
 //! stated tolerance; per-patch agreement with the closed form (where the case has one) or with
