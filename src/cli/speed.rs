@@ -64,16 +64,9 @@ pub struct Row {
     pub links: usize,
     pub links_created: u64,
     pub rays_cast: u64,
-    pub refine_s: f64,
-    /// Parts of refine: initial linking, oracle (parallel), splitting (serial), new links
-    /// (parallel), installing them (serial).
-    pub refine_initial_s: f64,
-    pub refine_decide_s: f64,
-    pub refine_split_s: f64,
-    pub refine_links_s: f64,
-    pub refine_install_s: f64,
-    pub gather_s: f64,
-    pub push_pull_s: f64,
+    /// The median-time run's phase times, under their names in [`HierarchicalStats`].
+    #[serde(flatten)]
+    pub phases: Phases,
     pub total_s: f64,
     pub totals_s: Vec<f64>,
     /// Seeds cycled through, and the fewest and most links over the timed runs.
@@ -84,19 +77,36 @@ pub struct Row {
     pub rays_per_s: f64,
 }
 
+/// The statistics of one solve, of which a [`Row`] shows the phase times: refinement
+/// (`refine_s`) and its parts — initial linking, the oracle (parallel), splitting (serial), new
+/// links (parallel), installing them (serial) — then gather and push-pull.
+#[derive(Clone, Debug)]
+pub struct Phases(pub HierarchicalStats);
+
+impl Serialize for Phases {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap as _;
+        let st = &self.0;
+        let times = [
+            ("refine_s", st.refine_s),
+            ("refine_initial_s", st.refine_initial_s),
+            ("refine_decide_s", st.refine_decide_s),
+            ("refine_split_s", st.refine_split_s),
+            ("refine_links_s", st.refine_links_s),
+            ("refine_install_s", st.refine_install_s),
+            ("gather_s", st.gather_s),
+            ("push_pull_s", st.push_pull_s),
+        ];
+        let mut map = serializer.serialize_map(Some(times.len()))?;
+        for (name, seconds) in times {
+            map.serialize_entry(name, &seconds)?;
+        }
+        map.end()
+    }
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.repeats == 0 || args.repeats > 1000 {
-        bail!("--repeats must be between 1 and 1000 (got {})", args.repeats);
-    }
-    if args.seeds == 0 || args.seeds > 1000 {
-        bail!("--seeds must be between 1 and 1000 (got {})", args.seeds);
-    }
-    if args.rays.iter().any(|&r| r == 0 || r > 4096) {
-        bail!("--rays must be between 1 and 4096");
-    }
-    if args.threads.iter().any(|&t| t == 0 || t > 1024) {
-        bail!("--threads must be between 1 and 1024");
-    }
+    check(&args)?;
     let preset = radlab::solver::spec::Preset::from_name(&args.preset)
         .with_context(|| {
             format!("unknown preset {:?} (one of {})", args.preset, radlab::solver::spec::Preset::names())
@@ -120,60 +130,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut rows = Vec::new();
     for &rays in &args.rays {
         for &threads in &args.threads {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .context("building the thread pool")?;
-            let mut runs = Vec::new();
-            for i in 0..=args.repeats {
-                // The warm-up (i = 0) uses the last seed; run i the preset's seed + (i - 1) mod N.
-                let k = (i as u64 + args.seeds - 1) % args.seeds;
-                let params = HierarchicalParams { rays, seed: preset.seed.wrapping_add(k), ..preset };
-                let (total, stats) = pool.install(|| {
-                    let t = Instant::now();
-                    let mut s =
-                        HierarchicalSolver::with_accel(Arc::clone(&scene), Arc::clone(&accel), params, 0.0);
-                    s.solve(&mut |_, _| {});
-                    (t.elapsed().as_secs_f64(), s.stats())
-                });
-                if i > 0 {
-                    runs.push((total, stats));
-                }
-            }
-            runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let totals: Vec<f64> = runs.iter().map(|r| r.0).collect();
-            let (total, st) = runs[runs.len() / 2].clone();
-            // Counts from the run with the median link count (they depend on the seed only, so
-            // they agree across thread counts; times come from the median-time run).
-            let mut by_links: Vec<&HierarchicalStats> = runs.iter().map(|r| &r.1).collect();
-            by_links.sort_by_key(|s| (s.links, s.elements, s.rays));
-            let counts = by_links[by_links.len() / 2].clone();
-            let links_min = runs.iter().map(|r| r.1.links).min().unwrap_or(0);
-            let links_max = runs.iter().map(|r| r.1.links).max().unwrap_or(0);
-            let row = Row {
-                rays,
-                threads,
-                elements: counts.elements,
-                leaves: counts.leaves,
-                links: counts.links,
-                links_created: counts.links_created,
-                rays_cast: counts.rays,
-                refine_s: st.refine_s,
-                refine_initial_s: st.refine_initial_s,
-                refine_decide_s: st.refine_decide_s,
-                refine_split_s: st.refine_split_s,
-                refine_links_s: st.refine_links_s,
-                refine_install_s: st.refine_install_s,
-                gather_s: st.gather_s,
-                push_pull_s: st.push_pull_s,
-                total_s: total,
-                totals_s: totals,
-                seeds: args.seeds,
-                links_min,
-                links_max,
-                links_per_s: st.links_created as f64 / st.refine_s.max(1e-9),
-                rays_per_s: st.rays as f64 / st.refine_s.max(1e-9),
-            };
+            let row = measure(&args, &scene, &accel, preset, rays, threads)?;
+            let ph = &row.phases.0;
             println!(
                 "| {} | {} | {} ({}) | {} | {} | {} | {:.3} s | {:.3} s | {:.3} s | {:.2} M | {:.2} M |",
                 row.rays,
@@ -183,8 +141,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 row.links,
                 row.links_created,
                 row.rays_cast,
-                row.refine_s,
-                row.gather_s + row.push_pull_s,
+                ph.refine_s,
+                ph.gather_s + ph.push_pull_s,
                 row.total_s,
                 row.links_per_s / 1e6,
                 row.rays_per_s / 1e6
@@ -192,31 +150,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             rows.push(row);
         }
     }
-    println!();
-    println!("Refinement by phase (same runs; install is mostly serial):");
-    println!("| rays | threads | initial linking | oracle | split | new links | install | other |");
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for r in &rows {
-        let parts =
-            r.refine_initial_s + r.refine_decide_s + r.refine_split_s + r.refine_links_s + r.refine_install_s;
-        println!(
-            "| {} | {} | {:.3} s | {:.3} s | {:.3} s | {:.3} s | {:.3} s | {:.3} s |",
-            r.rays,
-            r.threads,
-            r.refine_initial_s,
-            r.refine_decide_s,
-            r.refine_split_s,
-            r.refine_links_s,
-            r.refine_install_s,
-            r.refine_s - parts
-        );
-    }
-    if args.seeds > 1 {
-        println!("Links over the seeds (row: fewest to most):");
-        for r in &rows {
-            println!("  {} rays, {} threads: {} to {}", r.rays, r.threads, r.links_min, r.links_max);
-        }
-    }
+    print_phases(&rows, args.seeds);
     println!(
         "SPLASH-2 radiosity on this class of machine (issue figure): {SPLASH2_CPU_S} s CPU on one thread, \
          {SPLASH2_ELEMENTS} elements, {SPLASH2_LINKS} links, 10 rays per link."
@@ -227,4 +161,110 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// Refuse counts outside what the benchmark can run.
+fn check(args: &Args) -> anyhow::Result<()> {
+    if args.repeats == 0 || args.repeats > 1000 {
+        bail!("--repeats must be between 1 and 1000 (got {})", args.repeats);
+    }
+    if args.seeds == 0 || args.seeds > 1000 {
+        bail!("--seeds must be between 1 and 1000 (got {})", args.seeds);
+    }
+    if args.rays.iter().any(|&r| r == 0 || r > 4096) {
+        bail!("--rays must be between 1 and 4096");
+    }
+    if args.threads.iter().any(|&t| t == 0 || t > 1024) {
+        bail!("--threads must be between 1 and 1024");
+    }
+    Ok(())
+}
+
+/// One row: a warm-up and `args.repeats` timed solves at `rays` per link on `threads` threads,
+/// cycling through the seeds.
+fn measure(
+    args: &Args,
+    scene: &Arc<radlab::scene::Scene>,
+    accel: &Arc<Accel>,
+    preset: HierarchicalParams,
+    rays: u32,
+    threads: usize,
+) -> anyhow::Result<Row> {
+    let pool =
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("building the thread pool")?;
+    let mut runs = Vec::new();
+    for i in 0..=args.repeats {
+        // The warm-up (i = 0) uses the last seed; run i the preset's seed + (i - 1) mod N.
+        let k = (i as u64 + args.seeds - 1) % args.seeds;
+        let params = HierarchicalParams { rays, seed: preset.seed.wrapping_add(k), ..preset };
+        let (total, stats) = pool.install(|| {
+            let t = Instant::now();
+            let mut s = HierarchicalSolver::with_accel(Arc::clone(scene), Arc::clone(accel), params, 0.0);
+            s.solve(&mut |_, _| {});
+            (t.elapsed().as_secs_f64(), s.stats())
+        });
+        if i > 0 {
+            runs.push((total, stats));
+        }
+    }
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let totals: Vec<f64> = runs.iter().map(|r| r.0).collect();
+    let (total, st) = runs[runs.len() / 2].clone();
+    // Counts from the run with the median link count (they depend on the seed only, so they
+    // agree across thread counts; times come from the median-time run).
+    let mut by_links: Vec<&HierarchicalStats> = runs.iter().map(|r| &r.1).collect();
+    by_links.sort_by_key(|s| (s.links, s.elements, s.rays));
+    let counts = by_links[by_links.len() / 2].clone();
+    let links_min = runs.iter().map(|r| r.1.links).min().unwrap_or(0);
+    let links_max = runs.iter().map(|r| r.1.links).max().unwrap_or(0);
+    Ok(Row {
+        rays,
+        threads,
+        elements: counts.elements,
+        leaves: counts.leaves,
+        links: counts.links,
+        links_created: counts.links_created,
+        rays_cast: counts.rays,
+        total_s: total,
+        totals_s: totals,
+        seeds: args.seeds,
+        links_min,
+        links_max,
+        links_per_s: st.links_created as f64 / st.refine_s.max(1e-9),
+        rays_per_s: st.rays as f64 / st.refine_s.max(1e-9),
+        phases: Phases(st),
+    })
+}
+
+/// Refinement by phase, row by row, and with several seeds the range of links.
+fn print_phases(rows: &[Row], seeds: u64) {
+    println!();
+    println!("Refinement by phase (same runs; install is mostly serial):");
+    println!("| rays | threads | initial linking | oracle | split | new links | install | other |");
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for r in rows {
+        let ph = &r.phases.0;
+        let parts = ph.refine_initial_s
+            + ph.refine_decide_s
+            + ph.refine_split_s
+            + ph.refine_links_s
+            + ph.refine_install_s;
+        println!(
+            "| {} | {} | {:.3} s | {:.3} s | {:.3} s | {:.3} s | {:.3} s | {:.3} s |",
+            r.rays,
+            r.threads,
+            ph.refine_initial_s,
+            ph.refine_decide_s,
+            ph.refine_split_s,
+            ph.refine_links_s,
+            ph.refine_install_s,
+            ph.refine_s - parts
+        );
+    }
+    if seeds > 1 {
+        println!("Links over the seeds (row: fewest to most):");
+        for r in rows {
+            println!("  {} rays, {} threads: {} to {}", r.rays, r.threads, r.links_min, r.links_max);
+        }
+    }
 }

@@ -51,9 +51,9 @@
 //! 4× tighter tolerance.
 
 use crate::geometry::form_factor::point_to_polygon_oriented;
+use crate::geometry::form_factor::region::{Region, totals};
 use crate::math::{DVec3, Rgb, newell_normal, polygon_area};
 use crate::scene::Scene;
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 /// A vertex within this distance of a clipping plane, relative to the clipped polygon's size,
@@ -354,49 +354,13 @@ fn gl_rule() -> [(f64, f64); GL_ORDER] {
     [at(-x2, w2), at(-x1, w1), at(0.0, 128.0 / 225.0), at(x1, w1), at(x2, w2)]
 }
 
-/// A region of the adaptive cubature: `[u0,u1]×[v0,v1]` of one piece, its 5×5 value, its four
-/// quarters' values (its refined value is their sum) and its error estimate.
-#[derive(Copy, Clone, Debug)]
-struct Region {
-    piece: usize,
-    u: [f64; 2],
-    v: [f64; 2],
-    quarters: [f64; 4],
-    error: f64,
-}
-
-impl Region {
-    fn value(&self) -> f64 {
-        self.quarters.iter().sum()
-    }
-    fn quarter(&self, q: usize) -> ([f64; 2], [f64; 2]) {
-        let (mu, mv) = (0.5 * (self.u[0] + self.u[1]), 0.5 * (self.v[0] + self.v[1]));
-        let u = if q & 1 == 0 { [self.u[0], mu] } else { [mu, self.u[1]] };
-        let v = if q & 2 == 0 { [self.v[0], mv] } else { [mv, self.v[1]] };
-        (u, v)
-    }
-}
-
-impl PartialEq for Region {
-    fn eq(&self, o: &Self) -> bool {
-        self.cmp(o) == Ordering::Equal
-    }
-}
-impl Eq for Region {}
-impl PartialOrd for Region {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Region {
-    /// Largest error first; ties by position, so the order never depends on the heap.
-    fn cmp(&self, o: &Self) -> Ordering {
-        self.error
-            .total_cmp(&o.error)
-            .then(o.piece.cmp(&self.piece))
-            .then(o.u[0].total_cmp(&self.u[0]))
-            .then(o.v[0].total_cmp(&self.v[0]))
-    }
+/// The four quarters of the rectangle `[u0,u1]×[v0,v1]`: bit 0 of `q` picks the upper half in u,
+/// bit 1 in v.
+fn quarter(u: [f64; 2], v: [f64; 2], q: usize) -> ([f64; 2], [f64; 2]) {
+    let (mu, mv) = (0.5 * (u[0] + u[1]), 0.5 * (v[0] + v[1]));
+    let u = if q & 1 == 0 { [u[0], mu] } else { [mu, u[1]] };
+    let v = if q & 2 == 0 { [v[0], mv] } else { [mv, v[1]] };
+    (u, v)
 }
 
 /// Result of [`integrate`]: the area average of the integrand.
@@ -433,23 +397,22 @@ fn integrate(verts: &[DVec3], abs_tol: f64, g: &dyn Fn(DVec3) -> f64) -> Average
         points.set(points.get() + (GL_ORDER * GL_ORDER) as u64);
         s * hu * hv
     };
-    let region = |piece: usize, u: [f64; 2], v: [f64; 2], whole: f64| {
-        let mut r = Region { piece, u, v, quarters: [0.0; 4], error: 0.0 };
-        r.quarters = std::array::from_fn(|q| {
-            let (qu, qv) = r.quarter(q);
-            rect(piece, qu, qv)
+    // A region keeps its quarters' values: its value is their sum, its error estimate the
+    // difference to the whole, and they are its children's wholes when it is split.
+    let region = |piece: u32, u: [f64; 2], v: [f64; 2], whole: f64| {
+        let quarters: [f64; 4] = std::array::from_fn(|q| {
+            let (qu, qv) = quarter(u, v, q);
+            rect(piece as usize, qu, qv)
         });
-        r.error = (whole - r.value()).abs();
-        r
+        let value = quarters.iter().sum();
+        Region { piece, u, v, value, error: (whole - value).abs(), detail: quarters }
     };
     let tol = abs_tol.max(0.0) * area;
     let mut heap = BinaryHeap::new();
     for p in 0..pcs.len() {
         let whole = rect(p, [0.0, 1.0], [0.0, 1.0]);
-        heap.push(region(p, [0.0, 1.0], [0.0, 1.0], whole));
+        heap.push(region(p as u32, [0.0, 1.0], [0.0, 1.0], whole));
     }
-    let totals =
-        |heap: &BinaryHeap<Region>| heap.iter().fold((0.0, 0.0), |(s, e), r| (s + r.value(), e + r.error));
     let mut error = totals(&heap).1;
     let converged = loop {
         if error <= tol {
@@ -463,8 +426,8 @@ fn integrate(verts: &[DVec3], abs_tol: f64, g: &dyn Fn(DVec3) -> f64) -> Average
         }
         let Some(r) = heap.pop() else { break true };
         error -= r.error;
-        for (q, &whole) in r.quarters.iter().enumerate() {
-            let (qu, qv) = r.quarter(q);
+        for (q, &whole) in r.detail.iter().enumerate() {
+            let (qu, qv) = quarter(r.u, r.v, q);
             let c = region(r.piece, qu, qv, whole);
             error += c.error;
             heap.push(c);

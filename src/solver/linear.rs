@@ -47,7 +47,7 @@
 //! Memory is O(unknowns²): `max_unknowns` caps the coefficients (4 per bilinear element when
 //! discontinuous, ~1 per element when continuous).
 
-use super::uniform::{Element, SharedProgress, mesh_scene};
+use super::uniform::{Element, SharedProgress, mesh_scene, mesh_solution};
 use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
 use crate::geometry::accel::Accel;
 use crate::geometry::basis::{self, Domain, Local, MAX_FUNCTIONS, Order, QuadPoint, Values};
@@ -205,7 +205,84 @@ pub fn solve_mesh(
         ));
     }
     let t_start = Instant::now();
-    // Unknowns.
+    let (elems, nu) = number_unknowns(elems, groups, params)?;
+    let system = mass_system(scene, &elems, nu, params.order);
+    let (rows, evaluations, rays) = couplings(accel, &elems, nu, params, progress);
+    let entries: usize = rows.iter().map(Vec::len).sum();
+    let t_ff = t_start.elapsed().as_secs_f64();
+
+    // b ← M⁻¹ (e + ρ G b).
+    let t_solve = Instant::now();
+    let apply = |b: &[Rgb]| -> Vec<Rgb> {
+        rows.par_iter().map(|r| r.iter().map(|&(j, g)| b[j as usize] * g).sum::<Rgb>()).collect()
+    };
+    let System { mass_rows, integral, load, rho } = system;
+    let mut b = mass_solve(&mass_rows, &load, None);
+    let (mut iterations, mut converged, mut last_change) = (0usize, false, f64::INFINITY);
+    for _ in 0..params.max_iterations {
+        iterations += 1;
+        let gb = apply(&b);
+        let rhs: Vec<Rgb> = (0..nu).map(|i| load[i] + rho[i].mul_rgb(gb[i])).collect();
+        let next = mass_solve(&mass_rows, &rhs, Some(&b));
+        let change = next.iter().zip(&b).map(|(x, y)| x.abs_diff_max(*y)).fold(0.0, f64::max);
+        let scale = next.iter().map(|x| x.max_channel().abs()).fold(0.0, f64::max);
+        b = next;
+        last_change = if scale > 0.0 { change / scale } else { 0.0 };
+        if last_change <= params.tolerance {
+            converged = true;
+            break;
+        }
+    }
+
+    // Energy balance (module docs).
+    let gb = apply(&b);
+    let mut energy = EnergyBalance::default();
+    for i in 0..nu {
+        let column: f64 = rows[i].iter().map(|&(_, g)| g).sum(); // = Σ_k G_ki (G symmetric)
+        energy.emitted += load[i];
+        energy.absorbed += (Rgb::ONE - rho[i]).mul_rgb(gb[i]);
+        energy.escaped += b[i] * (integral[i] - column);
+    }
+    let t_solve = t_solve.elapsed().as_secs_f64();
+
+    let (elements, coefficients) = solved_elements(elems, &b, params.order);
+    Ok(LinearSolution {
+        solution: mesh_solution(
+            scene,
+            format!("galerkin-{}", params.label()),
+            elements,
+            energy,
+            SolveStats {
+                links: entries,
+                iterations,
+                rays,
+                time_s: PhaseTimes::of_solve(t_ff, t_solve),
+                extra: Some(serde_json::json!({
+                    "order": params.order.degree(),
+                    "continuity": if params.continuous { "continuous" } else { "discontinuous" },
+                    "unknowns": nu,
+                    "converged": converged,
+                    "final_change": last_change,
+                    "kernel_evaluations": evaluations,
+                    "params": params,
+                })),
+                ..SolveStats::default()
+            },
+        ),
+        order: params.order,
+        coefficients,
+    })
+}
+
+/// Number the unknowns: each element's basis functions in element order, a vertex function
+/// shared by the elements of its continuity group that meet at the vertex when
+/// `params.continuous`. The prepared elements and the number of unknowns; an error past
+/// `params.max_unknowns`.
+fn number_unknowns(
+    elems: Vec<Element>,
+    groups: &[usize],
+    params: &LinearParams,
+) -> Result<(Vec<Prepared>, usize), String> {
     let mut shared: HashMap<(usize, [u64; 3]), u32> = HashMap::new();
     let mut unknowns = 0u32;
     let mut prepared = Vec::with_capacity(elems.len());
@@ -245,16 +322,29 @@ pub fn solve_mesh(
             ));
         }
     }
-    let elems = prepared;
-    let (n, nu) = (elems.len(), unknowns as usize);
+    Ok((prepared, unknowns as usize))
+}
 
-    // Mass matrix, load vector, material per unknown.
+/// The left side and the sources of M b = e + ρ G b, per unknown.
+struct System {
+    /// The mass matrix M, row by row (sorted, duplicates added).
+    mass_rows: Vec<Vec<(u32, f64)>>,
+    /// ∫ φ_i dA.
+    integral: Vec<f64>,
+    /// e_i = E ∫ φ_i dA.
+    load: Vec<Rgb>,
+    /// The reflectance of the unknown's patch.
+    rho: Vec<Rgb>,
+}
+
+/// The mass matrix, load vector and material of every unknown.
+fn mass_system(scene: &Scene, elems: &[Prepared], nu: usize, order: Order) -> System {
     let mut mass_rows: Vec<Vec<(u32, f64)>> = vec![Vec::new(); nu];
     let mut integral = vec![0.0; nu];
     let mut load = vec![Rgb::ZERO; nu];
     let mut rho = vec![Rgb::ZERO; nu];
-    for e in &elems {
-        let (m, int) = basis::mass(params.order, &e.verts);
+    for e in elems {
+        let (m, int) = basis::mass(order, &e.verts);
         let patch = &scene.patches[e.patch];
         for (k, &dk) in e.dofs.iter().enumerate() {
             integral[dk as usize] += int[k];
@@ -266,8 +356,20 @@ pub fn solve_mesh(
         }
     }
     let mass_rows: Vec<Vec<(u32, f64)>> = mass_rows.into_iter().map(merge).collect();
+    System { mass_rows, integral, load, rho }
+}
 
-    // Couplings, streamed into rows chunk by chunk (the blocks are 16 values per pair).
+/// The coupling matrix G, row by row (sorted, duplicates added), from every pair's block
+/// ([`pair_block`]), streamed into the rows chunk by chunk (the blocks are 16 values per pair);
+/// and the kernel evaluations and rays spent.
+fn couplings(
+    accel: &Accel,
+    elems: &[Prepared],
+    nu: usize,
+    params: &LinearParams,
+    progress: Progress,
+) -> (Vec<Vec<(u32, f64)>>, u64, u64) {
+    let n = elems.len();
     let total_pairs = (n as u64) * (n as u64).saturating_sub(1) / 2;
     let shared_progress = SharedProgress::new(progress, total_pairs);
     let mut rows: Vec<Vec<(u32, f64)>> = vec![Vec::new(); nu];
@@ -280,7 +382,7 @@ pub fn solve_mesh(
                 let (mut evals, mut rays) = (0u64, 0u64);
                 let mut out = Vec::new();
                 for b in a + 1..n {
-                    if let Some((block, e, r)) = pair_block(accel, &elems, a, b, params) {
+                    if let Some((block, e, r)) = pair_block(accel, elems, a, b, params) {
                         evals += e;
                         rays += r;
                         out.push((b, block));
@@ -310,47 +412,17 @@ pub fn solve_mesh(
     }
     shared_progress.finish();
     let rows: Vec<Vec<(u32, f64)>> = rows.into_par_iter().map(merge).collect();
-    let entries: usize = rows.iter().map(Vec::len).sum();
-    let t_ff = t_start.elapsed().as_secs_f64();
+    (rows, evaluations, rays)
+}
 
-    // b ← M⁻¹ (e + ρ G b).
-    let t_solve = Instant::now();
-    let apply = |b: &[Rgb]| -> Vec<Rgb> {
-        rows.par_iter().map(|r| r.iter().map(|&(j, g)| b[j as usize] * g).sum::<Rgb>()).collect()
-    };
-    let mut b = mass_solve(&mass_rows, &load, None);
-    let (mut iterations, mut converged, mut last_change) = (0usize, false, f64::INFINITY);
-    for _ in 0..params.max_iterations {
-        iterations += 1;
-        let gb = apply(&b);
-        let rhs: Vec<Rgb> = (0..nu).map(|i| load[i] + rho[i].mul_rgb(gb[i])).collect();
-        let next = mass_solve(&mass_rows, &rhs, Some(&b));
-        let change = next.iter().zip(&b).map(|(x, y)| x.abs_diff_max(*y)).fold(0.0, f64::max);
-        let scale = next.iter().map(|x| x.max_channel().abs()).fold(0.0, f64::max);
-        b = next;
-        last_change = if scale > 0.0 { change / scale } else { 0.0 };
-        if last_change <= params.tolerance {
-            converged = true;
-            break;
-        }
-    }
-
-    // Energy balance (module docs).
-    let gb = apply(&b);
-    let mut energy = EnergyBalance::default();
-    for i in 0..nu {
-        let column: f64 = rows[i].iter().map(|&(_, g)| g).sum(); // = Σ_k G_ki (G symmetric)
-        energy.emitted += load[i];
-        energy.absorbed += (Rgb::ONE - rho[i]).mul_rgb(gb[i]);
-        energy.escaped += b[i] * (integral[i] - column);
-    }
-    let t_solve = t_solve.elapsed().as_secs_f64();
-
-    let mut coefficients = Vec::with_capacity(n);
+/// The solved elements, each with its average (∫ Σ_k b_k φ_k dA / A), and each element's
+/// coefficients in the order of its basis functions.
+fn solved_elements(elems: Vec<Prepared>, b: &[Rgb], order: Order) -> (Vec<SolvedElement>, Vec<Vec<Rgb>>) {
+    let mut coefficients = Vec::with_capacity(elems.len());
     let elements: Vec<SolvedElement> = elems
         .into_iter()
         .map(|e| {
-            let (_, int) = basis::mass(params.order, &e.verts);
+            let (_, int) = basis::mass(order, &e.verts);
             let coef: Vec<Rgb> = e.dofs.iter().map(|&d| b[d as usize]).collect();
             let total: Rgb = coef.iter().zip(int).map(|(c, w)| *c * w).sum();
             coefficients.push(coef);
@@ -365,34 +437,7 @@ pub fn solve_mesh(
             }
         })
         .collect();
-    let patch_radiosity = Solution::patch_averages(scene.patches.len(), &elements);
-    Ok(LinearSolution {
-        solution: Solution {
-            method: format!("galerkin-{}", params.label()),
-            stats: SolveStats {
-                patches: scene.patches.len(),
-                elements: elements.len(),
-                links: entries,
-                iterations,
-                rays,
-                time_s: PhaseTimes::of_solve(t_ff, t_solve),
-                extra: Some(serde_json::json!({
-                    "order": params.order.degree(),
-                    "continuity": if params.continuous { "continuous" } else { "discontinuous" },
-                    "unknowns": nu,
-                    "converged": converged,
-                    "final_change": last_change,
-                    "kernel_evaluations": evaluations,
-                    "params": params,
-                })),
-            },
-            elements,
-            patch_radiosity,
-            energy,
-        },
-        order: params.order,
-        coefficients,
-    })
+    (elements, coefficients)
 }
 
 /// Sort a row's entries by column and add duplicates.

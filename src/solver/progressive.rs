@@ -25,8 +25,11 @@
 //! Energy: `absorbed = Σ A_r (1−ρ_r) H_r`, `escaped` accumulated shot by shot; the balance
 //! `emitted − absorbed − escaped` equals the power still unshot (≤ tolerance × emitted).
 
-use super::uniform::{CouplingSettings, Element, SharedProgress, mesh_scene, pair_coupling, validate_common};
-use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
+use super::uniform::{
+    CouplingSettings, Element, SharedProgress, constant_elements, mesh_scene, mesh_solution, pair_coupling,
+    validate_common,
+};
+use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats};
 use crate::geometry::accel::Accel;
 use crate::math::Rgb;
 use crate::scene::Scene;
@@ -146,16 +149,7 @@ pub fn solve(
     let log_tol = params.tolerance.ln();
     let mut fraction = unshot_fraction(&unshot, &elems, emitted);
     while fraction > params.tolerance && shots < params.max_shots as usize {
-        // The shooter: largest unshot power (lowest index on a tie).
-        let mut s = 0;
-        let mut best = -1.0;
-        for (j, (d, e)) in unshot.iter().zip(&elems).enumerate() {
-            let p = d.mean() * e.area;
-            if p > best {
-                best = p;
-                s = j;
-            }
-        }
+        let (s, best) = shooter(&unshot, &elems);
         if best.is_nan() || best <= 0.0 {
             break;
         }
@@ -164,33 +158,10 @@ pub fn solve(
         let row = match cache[s].take() {
             Some(row) => row,
             None => {
-                let cache_ref = &cache;
-                let computed: Vec<Option<RowEntry>> = (0..n)
-                    .into_par_iter()
-                    .map(|r| {
-                        // Reuse the pair from the receiver's own cached row (it shot before).
-                        if let Some(row_r) = &cache_ref[r] {
-                            let k = row_r.binary_search_by_key(&(s as u32), |e| e.0).ok()?;
-                            let (_, f_sr, f_rs) = row_r[k];
-                            return Some((r as u32, f_rs, f_sr, 0, 0));
-                        }
-                        let (a, c) = (r.min(s), r.max(s));
-                        pair_coupling(accel, &elems, a, c, &settings).map(|(fac, fca, ry, ev)| {
-                            // (F_rs, F_sr): receiver r gathers from shooter s.
-                            let (frs, fsr) = if r < s { (fac, fca) } else { (fca, fac) };
-                            (r as u32, frs, fsr, ry, ev)
-                        })
-                    })
-                    .collect();
-                computed
-                    .into_iter()
-                    .flatten()
-                    .filter_map(|(r, frs, fsr, ry, ev)| {
-                        rays += ry;
-                        evaluations += ev;
-                        (frs > 0.0 || fsr > 0.0).then_some((r, frs, fsr))
-                    })
-                    .collect()
+                let (row, ry, ev) = shot_row(accel, &elems, &settings, &cache, s);
+                rays += ry;
+                evaluations += ev;
+                row
             }
         };
         t_ff += t.elapsed();
@@ -215,11 +186,7 @@ pub fn solve(
         }
         shots += 1;
         fraction = unshot_fraction(&unshot, &elems, emitted);
-        let done = if fraction > 0.0 && log_tol < 0.0 {
-            ((fraction.ln() / log_tol).clamp(0.0, 1.0) * PROGRESS_UNITS as f64) as u64
-        } else {
-            PROGRESS_UNITS
-        };
+        let done = progress_done(fraction, log_tol);
         if done > reported {
             shared.add(done - reported);
             reported = done;
@@ -228,13 +195,7 @@ pub fn solve(
     shared.finish();
     let converged = fraction <= params.tolerance;
 
-    // Ambient term for display.
-    let total_area: f64 = elems.iter().map(|e| e.area).sum::<f64>().max(f64::MIN_POSITIVE);
-    let rho_avg: Rgb = rho.iter().zip(&elems).map(|(r, e)| *r * e.area).sum::<Rgb>() / total_area;
-    let unshot_avg: Rgb = unshot.iter().zip(&elems).map(|(d, e)| *d * e.area).sum::<Rgb>() / total_area;
-    // ρ ≤ RHO_MAX in a valid scene; the floor keeps a hand-built ρ = 1 scene finite.
-    let ambient =
-        Rgb(std::array::from_fn(|c| unshot_avg.0[c] / (1.0 - rho_avg.0[c]).max(1.0 - crate::scene::RHO_MAX)));
+    let ambient = ambient_term(&elems, &rho, &unshot);
 
     let mut energy = EnergyBalance { emitted, escaped, ..EnergyBalance::default() };
     for ((h, r), e) in irradiance.iter().zip(&rho).zip(&elems) {
@@ -242,24 +203,12 @@ pub fn solve(
     }
     let elapsed = t_start.elapsed().as_secs_f64();
     let t_ff = t_ff.as_secs_f64();
-    let elements: Vec<SolvedElement> = elems
-        .into_iter()
-        .zip(&b)
-        .map(|(e, &radiosity)| SolvedElement {
-            patch: e.patch,
-            vertices: e.vertices,
-            area: e.area,
-            radiosity,
-            error_estimate: None,
-            slope: None,
-        })
-        .collect();
-    let patch_radiosity = Solution::patch_averages(scene.patches.len(), &elements);
-    Ok(Solution {
-        method: "progressive".into(),
-        stats: SolveStats {
-            patches: scene.patches.len(),
-            elements: elements.len(),
+    Ok(mesh_solution(
+        scene,
+        "progressive".into(),
+        constant_elements(elems, &b),
+        energy,
+        SolveStats {
             links: shots,
             iterations: shots,
             rays,
@@ -278,9 +227,82 @@ pub fn solve(
                 "kernel_evaluations": evaluations,
                 "params": params,
             })),
+            ..SolveStats::default()
         },
-        elements,
-        patch_radiosity,
-        energy,
-    })
+    ))
+}
+
+/// The next shooter: the element with the largest unshot power ΔB A (the lowest index on a tie),
+/// and that power (−1 for no elements).
+fn shooter(unshot: &[Rgb], elems: &[Element]) -> (usize, f64) {
+    let mut s = 0;
+    let mut best = -1.0;
+    for (j, (d, e)) in unshot.iter().zip(elems).enumerate() {
+        let p = d.mean() * e.area;
+        if p > best {
+            best = p;
+            s = j;
+        }
+    }
+    (s, best)
+}
+
+/// Shooter `s`'s row of couplings, in parallel over receivers: a receiver that shot before gives
+/// the pair from its own cached row, the others [`pair_coupling`]; pairs that exchange nothing are
+/// left out. Also the rays cast and kernel evaluations spent.
+fn shot_row(
+    accel: &Accel,
+    elems: &[Element],
+    settings: &CouplingSettings,
+    cache: &[Option<ShotRow>],
+    s: usize,
+) -> (ShotRow, u64, u64) {
+    let computed: Vec<Option<RowEntry>> = (0..elems.len())
+        .into_par_iter()
+        .map(|r| {
+            // Reuse the pair from the receiver's own cached row (it shot before).
+            if let Some(row_r) = &cache[r] {
+                let k = row_r.binary_search_by_key(&(s as u32), |e| e.0).ok()?;
+                let (_, f_sr, f_rs) = row_r[k];
+                return Some((r as u32, f_rs, f_sr, 0, 0));
+            }
+            let (a, c) = (r.min(s), r.max(s));
+            pair_coupling(accel, elems, a, c, settings).map(|(fac, fca, ry, ev)| {
+                // (F_rs, F_sr): receiver r gathers from shooter s.
+                let (frs, fsr) = if r < s { (fac, fca) } else { (fca, fac) };
+                (r as u32, frs, fsr, ry, ev)
+            })
+        })
+        .collect();
+    let (mut rays, mut evaluations) = (0u64, 0u64);
+    let row = computed
+        .into_iter()
+        .flatten()
+        .filter_map(|(r, frs, fsr, ry, ev)| {
+            rays += ry;
+            evaluations += ev;
+            (frs > 0.0 || fsr > 0.0).then_some((r, frs, fsr))
+        })
+        .collect();
+    (row, rays, evaluations)
+}
+
+/// Progress in [`PROGRESS_UNITS`]: how far the unshot fraction has come from 1 towards the
+/// tolerance, on a log scale (`log_tol` = ln tolerance).
+fn progress_done(fraction: f64, log_tol: f64) -> u64 {
+    if fraction > 0.0 && log_tol < 0.0 {
+        ((fraction.ln() / log_tol).clamp(0.0, 1.0) * PROGRESS_UNITS as f64) as u64
+    } else {
+        PROGRESS_UNITS
+    }
+}
+
+/// The ambient term for display (sec. 4): `B_amb = Σ_j ΔB_j A_j / Σ_j A_j / (1 − ρ_avg)`, per
+/// channel, ρ_avg the area-averaged reflectance.
+fn ambient_term(elems: &[Element], rho: &[Rgb], unshot: &[Rgb]) -> Rgb {
+    let total_area: f64 = elems.iter().map(|e| e.area).sum::<f64>().max(f64::MIN_POSITIVE);
+    let rho_avg: Rgb = rho.iter().zip(elems).map(|(r, e)| *r * e.area).sum::<Rgb>() / total_area;
+    let unshot_avg: Rgb = unshot.iter().zip(elems).map(|(d, e)| *d * e.area).sum::<Rgb>() / total_area;
+    // ρ ≤ RHO_MAX in a valid scene; the floor keeps a hand-built ρ = 1 scene finite.
+    Rgb(std::array::from_fn(|c| unshot_avg.0[c] / (1.0 - rho_avg.0[c]).max(1.0 - crate::scene::RHO_MAX)))
 }

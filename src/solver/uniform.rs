@@ -469,24 +469,12 @@ pub fn solve(
     }
     let t_solve = t_solve.elapsed().as_secs_f64();
 
-    let elements: Vec<SolvedElement> = elems
-        .into_iter()
-        .zip(&b)
-        .map(|(e, &radiosity)| SolvedElement {
-            patch: e.patch,
-            vertices: e.vertices,
-            area: e.area,
-            radiosity,
-            error_estimate: None,
-            slope: None,
-        })
-        .collect();
-    let patch_radiosity = Solution::patch_averages(scene.patches.len(), &elements);
-    Ok(Solution {
-        method: "uniform".into(),
-        stats: SolveStats {
-            patches: scene.patches.len(),
-            elements: elements.len(),
+    Ok(mesh_solution(
+        scene,
+        "uniform".into(),
+        constant_elements(elems, &b),
+        energy,
+        SolveStats {
             links,
             iterations,
             rays,
@@ -497,9 +485,44 @@ pub fn solve(
                 "kernel_evaluations": evaluations,
                 "params": params,
             })),
+            ..SolveStats::default()
         },
+    ))
+}
+
+/// The elements of a mesh with one radiosity each (`b`, in element order): constant, no error
+/// estimate, no slope.
+pub(super) fn constant_elements(elems: Vec<Element>, b: &[Rgb]) -> Vec<SolvedElement> {
+    elems
+        .into_iter()
+        .zip(b)
+        .map(|(e, &radiosity)| SolvedElement {
+            patch: e.patch,
+            vertices: e.vertices,
+            area: e.area,
+            radiosity,
+            error_estimate: None,
+            slope: None,
+        })
+        .collect()
+}
+
+/// The [`Solution`] of a solver on a mesh of the input patches: its elements, each patch's
+/// area-weighted average of them, the energy balance, and `stats` with the patch and element
+/// counts filled in.
+pub(super) fn mesh_solution(
+    scene: &Scene,
+    method: String,
+    elements: Vec<SolvedElement>,
+    energy: EnergyBalance,
+    stats: SolveStats,
+) -> Solution {
+    let patch_radiosity = Solution::patch_averages(scene.patches.len(), &elements);
+    Solution {
+        method,
+        stats: SolveStats { patches: scene.patches.len(), elements: elements.len(), ..stats },
         elements,
         patch_radiosity,
         energy,
-    })
+    }
 }
