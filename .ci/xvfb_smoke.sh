@@ -10,7 +10,8 @@
 #   2. the viewport region is not blank (enough distinct colours: a shaded room has hundreds;
 #      an empty viewport has one),
 #   3. the inspector shows the picked element (its panel region changed after the click),
-#   4. a lecture figure with a split view (h-vs-p-linear) writes its window screenshot and exits.
+#   4. dragging BFeps finer re-solves without a blank frame,
+#   5. a lecture figure with a split view (h-vs-p-linear) writes its window screenshot and exits.
 # Exits non-zero on any failure. Screenshots are left in $OUT_DIR (default: target/xvfb-smoke).
 set -euo pipefail
 
@@ -90,6 +91,27 @@ diff_px=${diff_px%% *}
 echo "xvfb_smoke: inspector region changed in $diff_px pixels after the click"
 if [ "${diff_px%.*}" -lt 100 ] 2>/dev/null; then
     echo "xvfb_smoke: the click did not pick an element (see $OUT_DIR/after.png)" >&2
+    exit 1
+fi
+# A warm re-solve in a real window: drag BFeps finer (its slider in the side panel at 1280 x 800;
+# the interactive preset's 0.1 sits at x = 87) and grab the screen as each value re-solves: no
+# frame may be blank (the last finished picture stays, marked stale, until the new one is ready).
+xdotool mousemove 87 153 mousedown 1
+for x in 85 83 81; do
+    xdotool mousemove "$x" 153
+    sleep 0.7
+    import -window root "$OUT_DIR/drag-$x.png"
+    colours=$(convert "$OUT_DIR/drag-$x.png" -crop 400x300+420+250 +repage -format %k info:)
+    echo "xvfb_smoke: while re-solving (slider at x = $x) the viewport has $colours distinct colours"
+    if [ "$colours" -lt "$MIN_VIEWPORT_COLOURS" ]; then
+        echo "xvfb_smoke: the viewport went blank while re-solving (see $OUT_DIR/drag-$x.png)" >&2
+        exit 1
+    fi
+done
+xdotool mouseup 1
+if ! kill -0 "$APP_PID" 2>/dev/null; then
+    echo "xvfb_smoke: radlab died during the drag:" >&2
+    cat "$OUT_DIR/radlab.log" >&2
     exit 1
 fi
 # A lecture figure in a real window: the split view of two solves scored against the closed

@@ -12,6 +12,17 @@ out="$(dirname "$0")"
 "$bin" view builtin:cornell --screenshot "$out/cornell-plots.png" --plots --window
 "$bin" view builtin:splash_room --screenshot "$out/splash_room-quadtree.png" --overlay quadtree
 "$bin" view builtin:table-room --screenshot "$out/table-room-error.png" --overlay error
+# The refinement replay: the first round of the Cornell box's solve, and its result cut at depth 3.
+"$bin" view builtin:cornell --screenshot "$out/replay-round1.png" --replay 1 --overlay quadtree
+"$bin" view builtin:cornell --screenshot "$out/replay-depth3.png" --replay 99 --depth-cut 3
+# The split view: the linear-links figure's sweep (with an empty cache: its solves alone, no
+# reference among them), and the Cornell box beside its Monte Carlo reference (computed once and
+# cached, a few minutes, when it is not cached yet).
+no_cache="$(mktemp -d)"
+RADLAB_CACHE="$no_cache" "$bin" view --figure linear-links --split 3 --window --screenshot "$out/split-view.png"
+rmdir "$no_cache"
+"$bin" reference builtin:cornell >/dev/null
+"$bin" view builtin:cornell --split 2 --window --screenshot "$out/split-reference.png"
 "$bin" solve builtin:furnished-9000 --method progressive --max-shots 300 --element-size 100 \
   --png "$out/furnished-9k.png" --width 800 --height 500 --quiet
 "$bin" figures --screenshots "$out/figures"

@@ -17,14 +17,14 @@ use super::display::{self, CLUSTER_LEVELS, Display, DisplayInput, DisplayPanel, 
 use super::file_dialog::{Answer, FileDialogs, Purpose};
 use super::geometry::{BuildKey, ShownGeometry};
 use super::help::{self, Action};
-use super::history::{HistoryAction, RunHistory};
+use super::history::{HistoryAction, Ruler, RunHistory};
 use super::inspector::{self, Inspector, InspectorInput};
 use super::lecture::Lecture;
 use super::legends::{self, Legends};
 use super::matrix::MatrixAction;
 use super::options::ViewerOptions;
 use super::pane::{self, PaneStyle};
-use super::plots::{Plots, PlotsInput};
+use super::plots::{Plots, PlotsInput, ResolveMark};
 use super::reference::{RefClient, RefReply, RefThread};
 use super::reference_panel::{RefState, ReferenceAction, ReferenceInput, ReferencePanel};
 use super::replay::{Replay, ReplayInput};
@@ -33,7 +33,7 @@ use super::solver_panel::{
     MESH_SOLVE_LABEL, ProgressAction, ProgressInput, ProgressPanel, SolverAction, SolverInput, SolverPanel,
 };
 use super::split::{SplitAction, SplitInput, SplitView};
-use super::status_bar::{StatusBar, StatusInput};
+use super::status_bar::{SolveNote, SolveStart, StatusBar, StatusInput};
 use super::top_bar::{TopBar, TopBarAction, TopBarInput};
 use super::view::View;
 use super::viewport::{self, Picture, Shade};
@@ -89,6 +89,16 @@ pub struct RadlabApp {
     held_view: Option<Arc<ViewData>>,
     /// Pictures of solves in progress shown so far (`Reply::Partial`).
     partial_shown: usize,
+    /// Where the next Solve starts from (set by the solver thread's answers: a load or a restart,
+    /// a retarget that kept the state, a step by hand).
+    solve_start: SolveStart,
+    /// How the last finished Solve started and how long it took (the status bar says it).
+    last_solve: Option<SolveNote>,
+    /// Solves finished warm in this window (each a retarget's: finer thresholds, the last
+    /// solve's state kept).
+    warm_solves: usize,
+    /// Where each warm re-solve since the last cold start began (the plots mark them).
+    resolve_marks: Vec<ResolveMark>,
     pub auto_run: bool,
     view: Arc<ViewData>,
     last_report: Option<StepReport>,
@@ -219,6 +229,10 @@ impl RadlabApp {
             resolve_pending: false,
             hold_view: false,
             partial_shown: 0,
+            solve_start: SolveStart::Cold,
+            last_solve: None,
+            warm_solves: 0,
+            resolve_marks: Vec::new(),
             held_view: None,
             auto_run: true,
             view: Arc::new(ViewData::default()),
@@ -457,6 +471,7 @@ impl RadlabApp {
         self.error_samples.clear();
         self.samples_from = self.view_seq + 1;
         self.last_report = None;
+        self.last_solve = None;
         self.state_error = None;
         self.reference.view = None;
         self.artifacts.clear();
@@ -486,6 +501,25 @@ impl RadlabApp {
             w.send(cmd);
             label.clone_into(&mut self.busy_label);
         }
+    }
+
+    /// How the last finished Solve started (cold, warm, after steps) and how long it took.
+    #[must_use]
+    pub fn last_solve(&self) -> Option<SolveNote> {
+        self.last_solve
+    }
+
+    /// Solves finished warm in this window: each after a threshold made finer, from the last
+    /// solve's hierarchy, links and radiosity.
+    #[must_use]
+    pub fn warm_solves(&self) -> usize {
+        self.warm_solves
+    }
+
+    /// Where each warm re-solve since the last cold start began (the plots mark them).
+    #[must_use]
+    pub fn resolve_marks(&self) -> &[ResolveMark] {
+        &self.resolve_marks
     }
 
     /// How many pictures of solves in progress have been shown (a long solve sends one after
@@ -522,7 +556,7 @@ impl RadlabApp {
     /// Where the last frame drew the plots and their legends.
     #[must_use]
     pub fn plots_layout(&self) -> &[super::plots::PlotLayout] {
-        self.plots.layout()
+        if self.plots.open { self.plots.layout() } else { &[] }
     }
 
     /// The current solver state.
@@ -613,7 +647,10 @@ impl RadlabApp {
         Preset::from_name(&self.solver_panel.preset).map_or(TopLevel::Patches, Preset::top)
     }
 
-    /// Change the solver parameters: restart the solver with them (and re-solve with auto-run).
+    /// Change the solver parameters and, with auto-run, re-solve with them: warm where only the
+    /// thresholds got finer (the solver keeps its hierarchy, links and radiosity and refines on
+    /// from them, [`Command::Retarget`]), else from a restart. Without auto-run the solver
+    /// restarts from the input patches, for stepping by hand.
     pub fn set_params(&mut self, p: HierarchicalParams) {
         if p == self.params {
             return;
@@ -639,6 +676,7 @@ impl RadlabApp {
                 self.loaded_top = top;
                 self.send(Command::Load { scene, params: p, top }, "meshing");
             }
+            _ if self.auto_run => self.send(Command::Retarget(p), "re-solving"),
             _ => self.send(Command::SetParams(p), "restarting"),
         }
         if self.auto_run {
@@ -782,6 +820,7 @@ impl RadlabApp {
             | Reply::Partial { .. }
             | Reply::Progress { .. }
             | Reply::Replay { .. }
+            | Reply::Retargeted
                 if self.loading => {}
             Reply::Replay { frames } => self.replay_frames = Some(frames),
             // The load of a scene opened before the one shown now (its Load ran before the
@@ -799,6 +838,8 @@ impl RadlabApp {
                 self.progress = None;
                 self.solver_time_s = 0.0;
                 self.error_samples.clear();
+                self.solve_start = SolveStart::Cold;
+                self.resolve_marks.clear();
                 // The loaded state is the first sample (unless held back: the next shown).
                 self.samples_from = self.view_seq + u64::from(self.hold_view);
             }
@@ -818,9 +859,16 @@ impl RadlabApp {
                     self.held_view = None;
                     self.set_view(view);
                 }
+                // The time a superseded solve spent counts: a warm re-solve goes on from its state.
+                if superseded && let Some(r) = &report {
+                    self.solver_time_s += r.time_s;
+                }
                 let report = report.filter(|_| !superseded);
                 self.progress = None;
                 if report.is_none() {
+                    // A restart (superseded or not): the next solve starts from the input patches.
+                    self.solve_start = SolveStart::Cold;
+                    self.resolve_marks.clear();
                     // SetParams / Reset restart the solver: element ids start over, and the
                     // last step's report no longer describes what is shown (unless held back).
                     if !superseded {
@@ -835,6 +883,9 @@ impl RadlabApp {
                     }
                 }
                 if let Some(rep) = report {
+                    if self.view.mesh.is_none() {
+                        self.note_step(&rep);
+                    }
                     self.solver_time_s += rep.time_s;
                     self.last_report = Some(rep);
                     if rep.kind == StepKind::Solve
@@ -879,6 +930,8 @@ impl RadlabApp {
                 }
             }
             Reply::Skipped => {}
+            // Finer thresholds, the solver's state kept: the Solve that follows is warm.
+            Reply::Retargeted => self.solve_start = SolveStart::Warm,
             // A mesh solve dropped on Cancel: the picture shown stays.
             Reply::Cancelled { report } => {
                 self.progress = None;
@@ -901,6 +954,31 @@ impl RadlabApp {
                 self.errors.push(e);
             }
         }
+    }
+
+    /// What a finished step of the hierarchical solver tells about the next Solve's start, and a
+    /// finished Solve about itself: how it started and how long it took (the status bar's line),
+    /// and where a warm one began (marked in the plots: its first gather, the solver time then).
+    /// Call before the step's time is added to the solver time.
+    fn note_step(&mut self, rep: &StepReport) {
+        if rep.kind != StepKind::Solve {
+            self.solve_start = SolveStart::Stepped;
+            return;
+        }
+        if rep.cancelled {
+            return;
+        }
+        if self.solve_start == SolveStart::Warm {
+            self.warm_solves += 1;
+            // The replay's first frame is the state the solve started from.
+            let gathers = self.replay_frames.as_ref().and_then(|f| f.first()).map(|f| f.residuals.len());
+            if let Some(gathers) = gathers {
+                let threshold = super::history::oracle_threshold(&self.view.params);
+                self.resolve_marks.push(ResolveMark { gathers, time_s: self.solver_time_s, threshold });
+            }
+        }
+        self.last_solve = Some(SolveNote { start: self.solve_start, time_s: rep.time_s });
+        self.solve_start = SolveStart::Stepped;
     }
 
     /// A scripted run cannot go on: it ends with an error, whose message is its first
@@ -1005,10 +1083,10 @@ impl RadlabApp {
                 self.score_runs();
             }
             RefReply::Evaluated(e) if self.reference.scored_run(e.view_seq) => {
-                self.history.set_reference_error(e.view_seq, e.rel_l2, e.band_l2);
+                self.history.set_reference_error(e.view_seq, e.rel_l2, e.band_l2, e.ruler);
             }
             RefReply::Evaluated(e) => {
-                self.history.set_reference_error(e.view_seq, e.rel_l2, e.band_l2);
+                self.history.set_reference_error(e.view_seq, e.rel_l2, e.band_l2, e.ruler);
                 if e.view_seq == self.view_seq {
                     self.true_error = Some(Arc::new(e.per_element));
                     self.state_error = e.rel_l2.is_finite().then_some((e.view_seq, e.rel_l2, e.band_l2));
@@ -1068,10 +1146,7 @@ impl RadlabApp {
     /// else the solver's estimate, else why there is none.
     #[must_use]
     pub fn error_line(&self) -> String {
-        let against = match &self.ref_state {
-            RefState::Ready { how, .. } if how == super::reference::CLOSED_FORM => "the closed form",
-            _ => "the reference",
-        };
+        let against = self.ruler().the();
         match (self.state_error(), &self.ref_state) {
             (Some(e), _) => {
                 let band = self.state_band_error();
@@ -1084,7 +1159,7 @@ impl RadlabApp {
                 )
             }
             (None, RefState::Ready { .. } | RefState::Looking) => {
-                "error: scoring against the reference…".into()
+                format!("error: scoring against {against}…")
             }
             (None, _) if self.mesh_view() => {
                 "error unknown: a mesh solve has no estimate of its own (Compute reference)".into()
@@ -1184,7 +1259,17 @@ impl RadlabApp {
     /// What the error heatmap shows.
     #[must_use]
     pub fn error_label(&self) -> &'static str {
-        inspector::error_label(self.true_error().is_some())
+        inspector::error_label(self.true_error().map(|_| self.ruler()))
+    }
+
+    /// What the scene's errors are measured against: its closed form (a single-bounce scene) or
+    /// its reference.
+    #[must_use]
+    pub fn ruler(&self) -> Ruler {
+        match &self.ref_state {
+            RefState::Ready { how, .. } if how == super::reference::CLOSED_FORM => Ruler::ClosedForm,
+            _ => Ruler::Reference,
+        }
     }
 
     /// What the display settings ask of a geometry build (the split view's panes use them too).
@@ -1417,11 +1502,27 @@ impl RadlabApp {
                 error: (self.display.error && self.error_applies()).then(|| self.error_label()),
                 busy: self.busy(),
                 split_on: self.split.on,
+                stale: self.stale_note(),
             },
         };
         viewport::paint(ui, rect, &picture);
         ui.horizontal(|_| {});
         let _ = response;
+    }
+
+    /// While a settings change is re-solved, the picture shown is the last finished solve's: what
+    /// it is and what comes (`None` while the picture is the settings' own).
+    #[must_use]
+    pub fn stale_note(&self) -> Option<String> {
+        let held = self.hold_view || (self.resolve_pending && self.view.params != self.params);
+        if !held || self.view.elements.is_empty() || self.view.mesh.is_some() {
+            return None;
+        }
+        let (shown, next) = (&self.view.params, &self.params);
+        let what = super::history::oracle_threshold(shown);
+        let target = super::history::oracle_threshold(next);
+        let to = if what == target { "the new settings".to_owned() } else { target };
+        Some(format!("Stale: the last finished solve ({what}), shown until the re-solve at {to} is ready"))
     }
 
     /// The blocking matrix at the top of the inspector column, beside the viewport (drawn
@@ -1785,7 +1886,11 @@ impl eframe::App for RadlabApp {
         }
         egui::Panel::top("top").frame(frame).show(ui, |ui| self.top_bar(ui));
         egui::Panel::bottom("status").frame(frame).show(ui, |ui| {
-            let input = StatusInput { view: &self.view, last_report: self.last_report.as_ref() };
+            let input = StatusInput {
+                view: &self.view,
+                last_report: self.last_report.as_ref(),
+                last_solve: self.last_solve,
+            };
             self.status_bar.ui(ui, input);
         });
         self.dragging = ctx.dragged_id().is_some();
@@ -1810,12 +1915,14 @@ impl eframe::App for RadlabApp {
                         let true_error = self.true_error().filter(|_| self.selected_run.is_none()).cloned();
                         let picked = self.picked().map(|(id, v)| (id, Arc::clone(v)));
                         let cluster = self.picked_cluster();
+                        let ruler = self.ruler();
                         let input = InspectorInput {
                             errors: &mut self.errors,
                             picked: picked.as_ref().map(|(id, v)| (*id, v)),
                             cluster,
                             scene: self.scene.as_deref(),
                             true_error: true_error.as_deref().map(Vec::as_slice),
+                            ruler,
                             selected_links_only: &mut self.display.selected_links_only,
                         };
                         if let Some(PickCluster(c)) = self.inspector.ui(ui, input) {
@@ -1828,6 +1935,8 @@ impl eframe::App for RadlabApp {
                                 view: &self.view,
                                 history: &self.history,
                                 error_samples: &self.error_samples,
+                                marks: &self.resolve_marks,
+                                ruler,
                             };
                             self.plots.ui(ui, input);
                         }

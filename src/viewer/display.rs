@@ -96,6 +96,31 @@ pub fn next_artifact(a: Option<Artifact>) -> Option<Artifact> {
     order[(at + 1) % order.len()]
 }
 
+/// The artifact overlay's box (none, one of the five, all).
+fn artifact_box(ui: &mut egui::Ui, d: &mut Display) {
+    egui::ComboBox::from_label("artifact")
+        .width(ARTIFACT_BOX_W)
+        .selected_text(d.artifact.map_or("none", Artifact::name))
+        .show_ui(ui, |ui| {
+            ui.selectable_value(&mut d.artifact, None, "none").on_hover_text("No artifact overlay");
+            for a in Artifact::ALL.into_iter().chain([Artifact::All]) {
+                ui.selectable_value(&mut d.artifact, Some(a), a.name()).on_hover_text(a.description());
+            }
+        })
+        .response
+        .on_hover_text(
+            "The lecture's five meshing artifacts, where they are: measured against the closed \
+             form (single-bounce scenes) or the scene's reference, on a background thread (A \
+             steps through them)",
+        );
+}
+
+/// Width of the artifact box (beside the Overlays heading).
+const ARTIFACT_BOX_W: f32 = 110.0;
+
+/// Width of the cluster depth slider (beside the clusters box).
+const CLUSTER_SLIDER_W: f32 = 64.0;
+
 /// What the Display and Overlays sections are lent for one frame.
 pub struct DisplayInput<'a> {
     /// The settings edited.
@@ -117,9 +142,12 @@ impl View for DisplayPanel {
 
     fn ui(&mut self, ui: &mut egui::Ui, input: DisplayInput<'_>) -> Option<()> {
         let DisplayInput { display: d, view, error_applies } = input;
-        ui.heading("Display");
         let mesh_view = view.mesh.is_some();
+        // Headings share their row with the section's first control, and the three main overlays
+        // share one: the side panel fits a 1280 × 800 screen unscrolled with a caption open.
         ui.horizontal(|ui| {
+            ui.heading("Display");
+            ui.add_space(8.0);
             ui.selectable_value(&mut d.shading, Shading::Nodal, "solved").on_hover_text(
                 "Each element's own function, what the solver computed and the rulers score: its \
                  value with its slope (the hierarchical solver's leaves), its p = 1 vertex values \
@@ -155,18 +183,31 @@ impl View for DisplayPanel {
                 .on_hover_text("Back faces are drawn in striped magenta");
         });
         ui.separator();
-        ui.heading("Overlays");
-        if mesh_view {
-            ui.checkbox(&mut d.quadtree, "mesh edges").on_hover_text("The elements' edges; depth-tested (Q)");
-        } else {
-            ui.checkbox(&mut d.quadtree, "quadtree")
-                .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
-        }
-        ui.add_enabled(!mesh_view, egui::Checkbox::new(&mut d.links, "links"))
-            .on_hover_text("Element-centre lines coloured by log F (L)")
-            .on_disabled_hover_text(
-                "A mesh solve keeps no links: every pair of its elements is coupled (n² interactions)",
-            );
+        ui.horizontal(|ui| {
+            ui.heading("Overlays");
+            ui.add_space(8.0);
+            artifact_box(ui, d);
+        });
+        ui.horizontal(|ui| {
+            if mesh_view {
+                ui.checkbox(&mut d.quadtree, "mesh edges")
+                    .on_hover_text("The elements' edges; depth-tested (Q)");
+            } else {
+                ui.checkbox(&mut d.quadtree, "quadtree")
+                    .on_hover_text("Leaf edges coloured by depth; depth-tested (Q)");
+            }
+            ui.add_enabled(!mesh_view, egui::Checkbox::new(&mut d.links, "links"))
+                .on_hover_text("Element-centre lines coloured by log F (L)")
+                .on_disabled_hover_text(
+                    "A mesh solve keeps no links: every pair of its elements is coupled (n² interactions)",
+                );
+            ui.add_enabled(error_applies, egui::Checkbox::new(&mut d.error, "error heatmap"))
+                .on_hover_text("Per-element error on a log colour scale (E)")
+                .on_disabled_hover_text(
+                    "A mesh solve has no error estimate of its own: Compute reference (above) gives \
+                     the true error, then the heatmap shows it",
+                );
+        });
         if !mesh_view && (d.links || d.selected_links_only) {
             ui.indent("links", |ui| {
                 ui.checkbox(&mut d.selected_links_only, "picked element only")
@@ -244,26 +285,6 @@ impl View for DisplayPanel {
                     );
             });
         }
-        ui.add_enabled(error_applies, egui::Checkbox::new(&mut d.error, "error heatmap"))
-            .on_hover_text("Per-element error on a log colour scale (E)")
-            .on_disabled_hover_text(
-                "A mesh solve has no error estimate of its own: Compute reference (above) gives the \
-                 true error, then the heatmap shows it",
-            );
-        egui::ComboBox::from_label("artifact")
-            .selected_text(d.artifact.map_or("none", Artifact::name))
-            .show_ui(ui, |ui| {
-                ui.selectable_value(&mut d.artifact, None, "none").on_hover_text("No artifact overlay");
-                for a in Artifact::ALL.into_iter().chain([Artifact::All]) {
-                    ui.selectable_value(&mut d.artifact, Some(a), a.name()).on_hover_text(a.description());
-                }
-            })
-            .response
-            .on_hover_text(
-                "The lecture's five meshing artifacts, where they are: measured against the closed \
-                 form (single-bounce scenes) or the scene's reference, on a background thread (A \
-                 steps through them)",
-            );
         ui.checkbox(&mut d.critical, "critical edges (D0/D1/D2)").on_hover_text(
             "Where the radiosity is discontinuous: D0 where surfaces touch (a jump in value), D1 / D2 \
              where a shadow's umbra or penumbra begins (a jump in the first / second derivative), \
@@ -280,6 +301,8 @@ impl View for DisplayPanel {
                 ));
                 if let Some(m) = max_depth {
                     d.clusters_from = d.clusters_from.min(m);
+                    // A short slider: the row (box, slider, value, label) fits the side panel.
+                    ui.spacing_mut().slider_width = CLUSTER_SLIDER_W;
                     ui.add(egui::Slider::new(&mut d.clusters_from, 0..=m).text("from depth"))
                         .on_hover_text("The shallowest cluster level drawn");
                 }

@@ -38,11 +38,42 @@ pub const MAX_RUNS: usize = 500;
 /// Most runs picked for the split view at once.
 pub const MAX_PICKED: usize = 3;
 
+/// What an error is measured against: the scene's Monte Carlo reference, or the closed form of a
+/// single-bounce scene (exact, no noise).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum Ruler {
+    #[default]
+    Reference,
+    ClosedForm,
+}
+
+impl Ruler {
+    /// What labels say an error is "vs": "reference", "closed form".
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Ruler::Reference => "reference",
+            Ruler::ClosedForm => "closed form",
+        }
+    }
+
+    /// The same in a sentence: "the reference", "the closed form".
+    #[must_use]
+    pub fn the(self) -> &'static str {
+        match self {
+            Ruler::Reference => "the reference",
+            Ruler::ClosedForm => "the closed form",
+        }
+    }
+}
+
 /// The error of a run, and where it comes from.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub enum RunError {
     /// Relative L2 error against the reference solution.
     Reference(f64),
+    /// Relative L2 error against the closed form of a single-bounce scene.
+    ClosedForm(f64),
     /// The solver's own estimate of its relative L2 error (no reference).
     Estimate(f64),
     /// The reference's own Monte Carlo noise: its relative standard error.
@@ -56,27 +87,32 @@ impl RunError {
     #[must_use]
     pub fn value(self) -> Option<f64> {
         match self {
-            RunError::Reference(e) | RunError::Estimate(e) | RunError::Noise(e) => Some(e),
+            RunError::Reference(e) | RunError::ClosedForm(e) | RunError::Estimate(e) | RunError::Noise(e) => {
+                Some(e)
+            }
             RunError::Unknown => None,
         }
     }
 
-    /// "error 4.12 %" or "error ≈ 3.20 % (solver's estimate)".
+    /// "error 4.12 % (vs reference)", "error 0.81 % (vs closed form)" or "error ≈ 3.20 %
+    /// (solver's estimate)".
     #[must_use]
     pub fn label(self) -> String {
         match self {
             RunError::Reference(e) => format!("error {:.2} % (vs reference)", 100.0 * e),
+            RunError::ClosedForm(e) => format!("error {:.2} % (vs closed form)", 100.0 * e),
             RunError::Estimate(e) => format!("error ≈ {:.2} % (solver's estimate)", 100.0 * e),
             RunError::Noise(e) => format!("standard error {:.2} % (Monte Carlo noise)", 100.0 * e),
             RunError::Unknown => "error unknown".to_owned(),
         }
     }
 
-    /// The table's short form: "4.12 %" or "≈ 3.20 % est.".
+    /// The table's short form: "4.12 % vs ref.", "0.81 % vs closed form" or "≈ 3.20 % est.".
     #[must_use]
     pub fn short(self) -> String {
         match self {
-            RunError::Reference(e) => format!("{:.2} %", 100.0 * e),
+            RunError::Reference(e) => format!("{:.2} % vs ref.", 100.0 * e),
+            RunError::ClosedForm(e) => format!("{:.2} % vs closed form", 100.0 * e),
             RunError::Estimate(e) => format!("≈ {:.2} % est.", 100.0 * e),
             RunError::Noise(e) => format!("± {:.2} % noise", 100.0 * e),
             RunError::Unknown => "–".to_owned(),
@@ -124,8 +160,11 @@ pub struct Run {
     pub time_s: f64,
     /// The solver's estimate of its relative L2 error.
     pub estimate: Option<f64>,
-    /// The relative L2 error against the reference, once the reference thread has scored it.
+    /// The relative L2 error against the reference (or the closed form, `ruler`), once the
+    /// reference thread has scored it.
     pub reference: Option<f64>,
+    /// What `reference` was measured against.
+    pub ruler: Ruler,
     /// The same over the penumbra band, where the reference is a closed form.
     pub band: Option<f64>,
     /// The viewer's number of the solver state (matches the reference thread's answer).
@@ -143,6 +182,7 @@ impl Run {
             return noise.map_or(RunError::Unknown, RunError::Noise);
         }
         match (self.reference, self.estimate) {
+            (Some(e), _) if self.ruler == Ruler::ClosedForm => RunError::ClosedForm(e),
             (Some(e), _) => RunError::Reference(e),
             (None, Some(e)) => RunError::Estimate(e),
             (None, None) => RunError::Unknown,
@@ -181,8 +221,11 @@ impl Run {
         let band = self
             .band
             .map_or(String::new(), |b| format!(" · penumbra band {}", crate::present::figures::percent(b)));
+        // A mesh solve couples every pair of its elements: form-factor entries, as the status
+        // bar counts them, not links.
+        let coupled = if self.mesh.is_some() { "form-factor entries" } else { "links" };
         format!(
-            "{} elements{unknowns} · {} links · {:.2} s · {}{band}",
+            "{} elements{unknowns} · {} {coupled} · {:.2} s · {}{band}",
             self.elements,
             self.links,
             self.time_s,
@@ -230,6 +273,15 @@ pub fn thresholds(p: &HierarchicalParams) -> String {
         AreaEps::Absolute(a) => format!("Aeps {a:.1e}"),
     };
     format!("{}, {oracle} · {aeps} · {} rays", oracle_name(p.oracle), p.rays)
+}
+
+/// The threshold the oracle refines by, e.g. "BFeps 1.0e-3" or "Feps 5.0e-3".
+#[must_use]
+pub fn oracle_threshold(p: &HierarchicalParams) -> String {
+    match p.oracle {
+        Oracle::Feps => format!("Feps {:.1e}", p.feps),
+        Oracle::Bf | Oracle::Error => format!("BFeps {:.1e}", p.bf_eps),
+    }
 }
 
 /// A mesh solve's settings in one line, e.g. "discontinuity-cdt, refined to 20° · p = 1
@@ -339,6 +391,7 @@ impl RunHistory {
             // A mesh solve has no estimate of its own.
             estimate: if mesh.is_some() { None } else { estimate_of(&view) },
             reference: None,
+            ruler: Ruler::Reference,
             band: None,
             view_seq,
             view: Some(view),
@@ -383,6 +436,7 @@ impl RunHistory {
             time_s: 0.0,
             estimate: None,
             reference: None,
+            ruler: Ruler::Reference,
             band: None,
             view_seq: 0,
             view: Some(view),
@@ -399,13 +453,14 @@ impl RunHistory {
         }
     }
 
-    /// The reference thread scored solver state `view_seq`: its run (if one) gets the error (and
-    /// the penumbra band's, `band`).
-    pub fn set_reference_error(&mut self, view_seq: u64, rel_l2: f64, band: Option<f64>) {
+    /// The reference thread scored solver state `view_seq` against `ruler`: its run (if one)
+    /// gets the error (and the penumbra band's, `band`).
+    pub fn set_reference_error(&mut self, view_seq: u64, rel_l2: f64, band: Option<f64>, ruler: Ruler) {
         if let Some(r) = self.runs.iter_mut().rev().find(|r| r.view_seq == view_seq)
             && rel_l2.is_finite()
         {
             r.reference = Some(rel_l2);
+            r.ruler = ruler;
             r.band = band.filter(|b| b.is_finite());
         }
     }
@@ -500,10 +555,20 @@ impl RunHistory {
     }
 
     /// Error (log₁₀) against solver time, one series per scene and oracle and per kind of error
-    /// (against the reference, or the solver's estimate: never mixed in one line).
+    /// (against the reference, the closed form, or the solver's estimate: never mixed in one
+    /// line, each named so).
     #[must_use]
     pub fn error_series(&self) -> Vec<Series> {
-        let mut out = self.series_of(|r| r.reference.filter(|e| *e > 0.0).map(|e| [r.time_s, e.log10()]));
+        let mut out = Vec::new();
+        for ruler in [Ruler::Reference, Ruler::ClosedForm] {
+            let mut measured = self.series_of(|r| {
+                r.reference.filter(|e| *e > 0.0 && r.ruler == ruler).map(|e| [r.time_s, e.log10()])
+            });
+            for s in &mut measured {
+                s.name = format!("{} (vs {})", s.name, ruler.name());
+            }
+            out.append(&mut measured);
+        }
         let mut est = self.series_of(|r| {
             r.reference
                 .is_none()
@@ -714,12 +779,13 @@ mod tests {
         assert_eq!(h.len(), 2);
         assert_eq!((h.runs()[1].links, h.runs()[1].view_seq), (30, 3), "the newest solve's numbers");
         // Only while it is the newest run: the run before it stays.
-        h.set_reference_error(2, 0.1, Some(0.4));
+        h.set_reference_error(2, 0.1, Some(0.4), Ruler::ClosedForm);
         assert_eq!(h.record_over(Some(first), "box", 0.1, 4, view(bf, 40, 2.0, 0.1)), 3);
         assert_eq!(h.len(), 3);
         assert_eq!(h.runs()[1].band, None, "the replaced solve's score is not the new one's");
-        h.set_reference_error(4, 0.1, Some(0.4));
+        h.set_reference_error(4, 0.1, Some(0.4), Ruler::ClosedForm);
         assert!(h.runs()[2].numbers().contains("penumbra band 40.00 %"), "{}", h.runs()[2].numbers());
+        assert!(h.runs()[2].numbers().contains("(vs closed form)"), "{}", h.runs()[2].numbers());
     }
 
     #[test]
@@ -736,7 +802,7 @@ mod tests {
         assert_eq!(h.runs()[1].preset, "custom");
         assert!(matches!(h.runs()[0].error(), RunError::Estimate(_)));
         assert_eq!(h.unscored("box").len(), 3);
-        h.set_reference_error(7, 0.04, None);
+        h.set_reference_error(7, 0.04, None, Ruler::Reference);
         assert_eq!(h.unscored("box").iter().map(|u| u.0).collect::<Vec<_>>(), vec![8, 9]);
         assert_eq!(h.runs()[0].error(), RunError::Reference(0.04));
         assert!(h.runs()[0].error().label().contains("vs reference"));
@@ -749,7 +815,10 @@ mod tests {
         assert_eq!(links[1].points, vec![[0.0, 40f64.log10()]]);
         let err = h.error_series();
         let names: Vec<&str> = err.iter().map(|s| s.name.as_str()).collect();
-        assert_eq!(names, ["box · BF oracle", "box · Feps oracle (estimate)", "box · BF oracle (estimate)"]);
+        assert_eq!(
+            names,
+            ["box · BF oracle (vs reference)", "box · Feps oracle (estimate)", "box · BF oracle (estimate)"]
+        );
         assert_eq!(err[0].points, vec![[0.5, 0.04f64.log10()]]);
         assert_eq!(h.runs()[1].title(), "#2 box · custom");
         assert_eq!(preset_name(&crate::present::figures::uniform(1e-3)), "uniform mesh");

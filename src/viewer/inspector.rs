@@ -4,6 +4,7 @@
 //! B·F·V first.
 
 use super::clusters::{ClusterInput, ClusterSection, PickCluster};
+use super::history::Ruler;
 use super::view::View;
 use super::widgets::{grid_row, rgb_text};
 use super::worker::ViewData;
@@ -14,6 +15,9 @@ use std::sync::Arc;
 
 /// One row of the inspector's link table: (receiver, source, F, V, B·F·V).
 type LinkRow = (u32, u32, f32, f32, f64);
+
+/// Rows of the link table listed (the strongest by B·F·V).
+pub const TABLE_ROWS: usize = 200;
 
 /// The inspector and its cached link table.
 #[derive(Clone, Debug, Default)]
@@ -35,14 +39,21 @@ pub struct InspectorInput<'a> {
     pub scene: Option<&'a Scene>,
     /// Per-element true error against the reference, when it belongs to the picked solution.
     pub true_error: Option<&'a [f64]>,
+    /// What the true error is measured against.
+    pub ruler: Ruler,
     /// "show these links in the viewport".
     pub selected_links_only: &'a mut bool,
 }
 
-/// What the error heatmap and the inspector's error show.
+/// What the error heatmap and the inspector's error show: the true error against the reference
+/// or the closed form (`true_error`), else the solver's estimate.
 #[must_use]
-pub fn error_label(true_error: bool) -> &'static str {
-    if true_error { "true error |B − B_ref|" } else { "solver's error estimate" }
+pub fn error_label(true_error: Option<Ruler>) -> &'static str {
+    match true_error {
+        Some(Ruler::Reference) => "true error |B − B_ref|",
+        Some(Ruler::ClosedForm) => "true error |B − B_exact| (vs closed form)",
+        None => "solver's error estimate",
+    }
 }
 
 impl View for Inspector {
@@ -50,7 +61,7 @@ impl View for Inspector {
     type Action = PickCluster;
 
     fn ui(&mut self, ui: &mut egui::Ui, input: InspectorInput<'_>) -> Option<PickCluster> {
-        let InspectorInput { errors, picked, cluster, scene, true_error, selected_links_only } = input;
+        let InspectorInput { errors, picked, cluster, scene, true_error, ruler, selected_links_only } = input;
         if !errors.is_empty() {
             ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
             for e in errors.iter().rev().take(5) {
@@ -77,7 +88,7 @@ impl View for Inspector {
             Some(t) => t.get(id as usize).copied().unwrap_or(0.0),
             None => e.error_estimate,
         };
-        let err_label = error_label(true_error.is_some());
+        let err_label = error_label(true_error.map(|_| ruler));
         egui::Grid::new("element").num_columns(2).striped(true).show(ui, |ui| {
             grid_row(ui, "element", format!("{} (patch {})", e.id, e.patch));
             if let Some(p) = scene.and_then(|s| s.patches.get(e.patch as usize)) {
@@ -175,12 +186,21 @@ impl View for Inspector {
         let blocked = rows.iter().filter(|r| r.3 <= overlay::VIS_CLASS_EPS).count();
         let blocked =
             if blocked > 0 { format!(", {blocked} of them blocked (V = 0)") } else { String::new() };
-        ui.label(format!("{} links gathered through (own + ancestors'){blocked}, by B·F·V:", rows.len()))
-            .on_hover_text(
-                "The links this element gathers through: its own and its ancestors'. The viewport \
+        // The table lists the strongest TABLE_ROWS; the line says so when there are more.
+        let listed = if rows.len() > TABLE_ROWS {
+            format!(" ({TABLE_ROWS} of {} shown)", rows.len())
+        } else {
+            String::new()
+        };
+        ui.label(format!(
+            "{} links gathered through (own + ancestors'){blocked}, by B·F·V{listed}:",
+            rows.len()
+        ))
+        .on_hover_text(
+            "The links this element gathers through: its own and its ancestors'. The viewport \
                  draws the same links with \"show these links\" (the links filter's visibility \
                  classes apply: blocked links are hidden unless \"none\" is ticked)",
-            );
+        );
         egui::ScrollArea::both().max_height(220.0).auto_shrink([false, true]).id_salt("links").show(
             ui,
             |ui| {
@@ -189,7 +209,7 @@ impl View for Inspector {
                         ui.strong(h);
                     }
                     ui.end_row();
-                    for (r, s, f, vis, c) in rows.iter().take(200) {
+                    for (r, s, f, vis, c) in rows.iter().take(TABLE_ROWS) {
                         ui.monospace(if *r == id { "self".to_owned() } else { format!("↑{r}") });
                         ui.monospace(s.to_string());
                         ui.monospace(format!("{f:.3e}"));

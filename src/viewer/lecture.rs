@@ -208,15 +208,21 @@ impl Lecture {
         let Some(f) = self.figure.filter(|_| self.caption_open) else { return };
         let Some(text) = self.caption() else { return };
         egui::Panel::bottom("caption").frame(frame).resizable(false).show(ui, |ui| {
-            ui.horizontal(|ui| {
-                ui.heading(f.slide);
-                ui.weak(format!("figure {} · {} · {}", f.name, f.scene, f.method));
-                ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+            // The figure's name and method shrink (cut, the whole in their hover text) before the
+            // × does: a long slide title never runs under it.
+            egui::Sides::new().shrink_left().truncate().show(
+                ui,
+                |ui| {
+                    ui.heading(f.slide);
+                    let about = format!("figure {} · {} · {}", f.name, f.scene, f.method);
+                    ui.weak(&about).on_hover_text(about);
+                },
+                |ui| {
                     if ui.button("×").on_hover_text("Hide the caption (C shows it again)").clicked() {
                         self.caption_open = false;
                     }
-                });
-            });
+                },
+            );
             if self.left.is_some() {
                 ui.weak(
                     "The state shown is no longer the figure's (a step, setting or mesh changed it): \

@@ -39,6 +39,9 @@ pub struct Legends<'a> {
     pub busy: bool,
     /// The split view is on (but shows the viewport: fewer than two runs).
     pub split_on: bool,
+    /// The picture is the last finished solve's while a settings change is re-solved: why, in
+    /// one line (it is framed and the line shown at the bottom).
+    pub stale: Option<String>,
 }
 
 impl Legends<'_> {
@@ -162,7 +165,15 @@ impl Legends<'_> {
             };
             bar.draw(painter, Pos2::new(x, y), Some(&floor));
         }
-        if self.view.elements.is_empty() {
+        if let Some(why) = &self.stale {
+            painter.rect_stroke(
+                rect.shrink(1.0),
+                0.0,
+                egui::Stroke::new(2.0, STALE),
+                egui::StrokeKind::Inside,
+            );
+            bottom_note(painter, rect, why);
+        } else if self.view.elements.is_empty() {
             let msg = if self.busy {
                 "loading…"
             } else {
@@ -304,6 +315,9 @@ pub fn cluster_link_note(
         }
     })
 }
+
+/// The frame around a stale picture (amber).
+const STALE: Color32 = Color32::from_rgb(230, 170, 60);
 
 /// What the viewport says while the split view is on but has fewer than two runs to show.
 const SPLIT_NOTE: &str = "Split view: it needs two solved runs. Solve again with other settings \

@@ -13,7 +13,9 @@ use super::camera::OrbitCamera;
 use super::worker::ViewData;
 use crate::math::DVec3;
 use crate::present::overlay;
-use crate::render::{FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, Uniforms, ViewportCallback};
+use crate::render::{
+    FrameParams, Geometry, NO_SELECTION, OVERLAY_PICKED, OVERLAY_QUADTREE, Uniforms, ViewportCallback,
+};
 use eframe::egui::{self, Color32, Pos2, Rect};
 use eframe::egui_wgpu;
 use std::sync::Arc;
@@ -28,6 +30,17 @@ pub struct PaneStyle {
     pub origin: DVec3,
     /// A wgpu renderer is there to draw with.
     pub has_wgpu: bool,
+}
+
+impl PaneStyle {
+    /// The same without the element edges (the quadtree / mesh edges overlay).
+    #[must_use]
+    pub fn without_edges(self) -> PaneStyle {
+        PaneStyle {
+            uniforms: Uniforms { overlay: self.uniforms.overlay & !OVERLAY_QUADTREE, ..self.uniforms },
+            ..self
+        }
+    }
 }
 
 /// The leaf of `view` under the point `pos` of a picture drawn into `rect` through `camera` (the

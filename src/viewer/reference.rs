@@ -30,6 +30,7 @@
 //!  UI ── Evaluate{view} ────────► per-element error + rel L2 ── Reply ──► UI (heatmap, plot)
 //! ```
 
+use super::history::Ruler;
 use super::panics;
 use super::worker::ViewData;
 use crate::eval::reference::{Cache, CacheStatus, Control, Estimate, PointParams, RefPoint, ReferenceError};
@@ -114,6 +115,8 @@ pub struct Evaluation {
     pub rel_l2: f64,
     /// The same over the penumbra band (the closed form's only: there the band is exact).
     pub band_l2: Option<f64>,
+    /// What it was measured against: the Monte Carlo reference or the closed form.
+    pub ruler: Ruler,
 }
 
 /// The reference of one scene.
@@ -216,7 +219,11 @@ fn evaluate(r: &Loaded, view: &ViewData, view_seq: u64, solver_time_s: f64) -> R
         }
         per_element[l as usize] = sum / 9.0;
     }
-    Ok(Evaluation { view_seq, solver_time_s, per_element, rel_l2: report.scene.l2_debiased, band_l2 })
+    let ruler = match r.truth {
+        Truth::Points(_) => Ruler::Reference,
+        Truth::Exact(_) => Ruler::ClosedForm,
+    };
+    Ok(Evaluation { view_seq, solver_time_s, per_element, rel_l2: report.scene.l2_debiased, band_l2, ruler })
 }
 
 /// Name of the reference thread in its panic messages.
@@ -649,6 +656,7 @@ mod tests {
         });
         let e = eval.expect("evaluated");
         assert_eq!((e.view_seq, e.solver_time_s), (7, 0.5));
+        assert_eq!(e.ruler, Ruler::Reference, "scored against the Monte Carlo reference");
         assert_eq!(e.per_element.len(), 6);
         // The lit faces have B > 0 in the reference, so B = 0 is wrong by B̂ everywhere.
         assert!(e.per_element.iter().all(|&x| x > 0.0), "{:?}", e.per_element);
@@ -708,6 +716,7 @@ mod tests {
             });
             let e = eval.expect("scored");
             assert!(e.rel_l2 > 0.0 && e.rel_l2 < 0.2, "{}: {}", params.label(), e.rel_l2);
+            assert_eq!(e.ruler, Ruler::ClosedForm, "scored against the closed form, and says so");
             band.push(e.band_l2.expect("the closed form has a penumbra band"));
         }
         // The lecture's h vs p: linear elements follow the penumbra's ramp.

@@ -7,9 +7,9 @@ use super::view::View;
 use eframe::egui::{self, Color32};
 use std::time::Instant;
 
-/// Height reserved for the Reference section (its tallest state: heading, a line, a progress
-/// bar and a button).
-const REFERENCE_PANEL_H: f32 = 100.0;
+/// Height reserved for the Reference section: its heading row (with the button that applies)
+/// and one row, in every state.
+const REFERENCE_PANEL_H: f32 = 54.0;
 
 /// Where the reference solution of the current scene stands.
 #[derive(Clone, Debug, PartialEq)]
@@ -69,23 +69,45 @@ impl View for ReferencePanel {
     }
 }
 
+/// The section's two rows: the heading with the button that applies (Compute, Cancel) or the
+/// state's error against it, then where the reference stands.
 fn contents(ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAction> {
     let ReferenceInput { state, progress, error } = input;
     let mut action = None;
-    ui.heading("Reference");
-    let compute_button = |ui: &mut egui::Ui| {
-        ui.button("Compute reference")
-            .on_hover_text(
-                "Independent Monte Carlo reference (radlab reference), on a background thread; \
-                 saved in the disk cache",
-            )
-            .clicked()
-    };
+    let compute_tip = "Independent Monte Carlo reference (radlab reference), on a background thread; \
+                       saved in the disk cache";
+    ui.horizontal(|ui| {
+        ui.heading("Reference");
+        ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| match state {
+            RefState::Missing | RefState::Failed(_) => {
+                if ui.button("Compute reference").on_hover_text(compute_tip).clicked() {
+                    action = Some(ReferenceAction::Compute);
+                }
+            }
+            RefState::Computing { .. } => {
+                if ui
+                    .button("Cancel reference")
+                    .on_hover_text("Stop the computation (nothing is cached)")
+                    .clicked()
+                {
+                    action = Some(ReferenceAction::Cancel);
+                }
+            }
+            RefState::Ready { .. } => {
+                if let Some(e) = error {
+                    ui.label(format!("pointwise rel L2 {:.2} %", e * 100.0)).on_hover_text(
+                        "The current state's error at the reference's points, its noise taken \
+                         out; the plots show it against solver time",
+                    );
+                }
+            }
+            RefState::None | RefState::Looking => {}
+        });
+    });
     match state.clone() {
         RefState::None => {
             ui.weak("no scene");
         }
-        // Short lines: the panel widens to its widest line and keeps that width.
         RefState::Looking => {
             ui.horizontal(|ui| {
                 ui.spinner();
@@ -94,26 +116,19 @@ fn contents(ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAct
         }
         RefState::Missing => {
             ui.label("none cached for this scene");
-            if compute_button(ui) {
-                action = Some(ReferenceAction::Compute);
-            }
         }
         RefState::Computing { points, samples, since } => {
             let (done, total) = progress;
             let total = if total == 0 { points } else { total };
-            ui.label(format!("≥ {} points × {samples} paths", crate::eval::pointwise::thousands(points)));
             ui.add(
                 egui::ProgressBar::new(done as f32 / total.max(1) as f32)
                     .desired_width(PANEL_CONTENT_W)
                     .text(format!("{done}/{total} · {:.0} s", since.elapsed().as_secs_f64())),
-            );
-            if ui
-                .button("Cancel reference")
-                .on_hover_text("Stop the computation (nothing is cached)")
-                .clicked()
-            {
-                action = Some(ReferenceAction::Cancel);
-            }
+            )
+            .on_hover_text(format!(
+                "Computing the reference: at least {} points × {samples} paths",
+                crate::eval::pointwise::thousands(points)
+            ));
             ui.ctx().request_repaint_after(std::time::Duration::from_millis(250));
         }
         RefState::Ready { points, samples, how } => {
@@ -124,18 +139,12 @@ fn contents(ui: &mut egui::Ui, input: ReferenceInput<'_>) -> Option<ReferenceAct
                 format!("{} points × {samples} paths", crate::eval::pointwise::thousands(points))
             };
             ui.label(what).on_hover_text(how);
-            if let Some(e) = error {
-                ui.label(format!("pointwise rel L2 {:.2} %", e * 100.0)).on_hover_text(
-                    "of the current state at the reference's points, its noise taken out; the plots \
-                     show it against solver time",
-                );
-            }
         }
         RefState::Failed(e) => {
-            ui.colored_label(Color32::from_rgb(255, 150, 130), e);
-            if compute_button(ui) {
-                action = Some(ReferenceAction::Compute);
-            }
+            ui.add(
+                egui::Label::new(egui::RichText::new(&e).color(Color32::from_rgb(255, 150, 130))).truncate(),
+            )
+            .on_hover_text(e);
         }
     }
     action

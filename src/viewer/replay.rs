@@ -160,7 +160,8 @@ impl View for Replay {
                         "Scrub through the last solve: its start, the state after each round of refine + \
                          gathers, its result (mesh, links and radiosity as they were)",
                     );
-                ui.label(self.describe(self.position));
+                // Wrapped in the room beside the slider, not cut at the viewport's edge.
+                ui.add(egui::Label::new(self.describe(self.position)).wrap());
             });
             let deepest = self.frame().map_or(0, |v| v.stats.depth_histogram.len().saturating_sub(1));
             let deepest = u8::try_from(deepest).unwrap_or(u8::MAX);

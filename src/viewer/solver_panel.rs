@@ -115,27 +115,7 @@ impl SolverPanel {
             Some(preset) if preset.hierarchical() != params => format!("{} (edited)", self.preset),
             _ => self.preset.clone(),
         };
-        egui::ComboBox::from_label("preset")
-            .selected_text(shown)
-            .show_ui(ui, |ui| {
-                for preset in Preset::ALL {
-                    let name = preset.name();
-                    if ui
-                        .selectable_label(self.preset == name, name)
-                        .on_hover_text(preset.description())
-                        .clicked()
-                    {
-                        self.preset = name.to_owned();
-                        p = preset.hierarchical();
-                    }
-                }
-            })
-            .response
-            .on_hover_text(
-                "Named solver settings (all sliders below at once): the ladder draft … reference \
-                 refines the contact mesh by the error oracle, each step halving its threshold; \
-                 bf, lecture and splash2 refine the quadtree",
-            );
+        self.preset_box(ui, shown, &mut p);
         egui::ComboBox::from_label("oracle")
             .selected_text(format!("{:?}", p.oracle))
             .show_ui(ui, |ui| {
@@ -176,13 +156,48 @@ impl SolverPanel {
             p.aeps = AreaEps::Relative(aeps_rel);
         }
         log_slider(ui, "BFeps", &mut p.bf_eps, 1e-6, 1.0, "Threshold of the BF oracle (units of B)");
+        // The rays and the depth cap share a row: the side panel fits a 1280 × 800 screen
+        // unscrolled with a figure's caption open.
         ui.horizontal(|ui| {
-            ui.add(egui::Slider::new(&mut p.rays, 1..=256).logarithmic(true).text("rays"))
-                .on_hover_text("Shadow rays per link (visible fraction)");
+            let rays = ui
+                .add(egui::DragValue::new(&mut p.rays).range(1..=256).speed(0.25))
+                .on_hover_text("Shadow rays per link (visible fraction); drag or type");
+            ui.ctx().accesskit_node_builder(rays.id, |b| b.set_label("rays value"));
+            ui.label("rays");
+            ui.add_space(16.0);
+            let depth = ui
+                .add(egui::DragValue::new(&mut p.max_depth).range(1..=20).speed(0.1))
+                .on_hover_text("Deepest quadtree level below an input patch: a hard floor on resolution");
+            ui.ctx().accesskit_node_builder(depth.id, |b| b.set_label("max depth value"));
+            ui.label("max depth");
         });
-        ui.add(egui::Slider::new(&mut p.max_depth, 1..=20).text("max depth"))
-            .on_hover_text("Deepest quadtree level below an input patch: a hard floor on resolution");
         (p != params).then_some(p)
+    }
+
+    /// The preset box: the preset chosen last (`shown`: "(edited)" when the settings differ);
+    /// choosing one sets every setting of `p` to its values.
+    fn preset_box(&mut self, ui: &mut egui::Ui, shown: String, p: &mut HierarchicalParams) {
+        egui::ComboBox::from_label("preset")
+            .selected_text(shown)
+            .show_ui(ui, |ui| {
+                for preset in Preset::ALL {
+                    let name = preset.name();
+                    if ui
+                        .selectable_label(self.preset == name, name)
+                        .on_hover_text(preset.description())
+                        .clicked()
+                    {
+                        self.preset = name.to_owned();
+                        *p = preset.hierarchical();
+                    }
+                }
+            })
+            .response
+            .on_hover_text(
+                "Named solver settings (all sliders below at once): the ladder draft … reference \
+                 refines the contact mesh by the error oracle, each step halving its threshold; \
+                 bf, lecture and splash2 refine the quadtree",
+            );
     }
 }
 

@@ -17,7 +17,8 @@
 //!
 //! Each pane ([`super::pane`]) builds its geometry from its run's solution with the main view's
 //! display settings (shading or error heatmap, quadtree, links; not the picked element, whose id
-//! means nothing in another solution) and draws into its own renderer slot (1, 2, 3). The error
+//! means nothing in another solution; not the edges of the reference's cells) and draws into its
+//! own renderer slot (1, 2, 3). The error
 //! heatmap of a pane shows the solver's estimate (the true error is computed for the current
 //! solution only). A pane's label sits at the top of its column and its picture fills the rest,
 //! at the picture's own aspect; the field of view widens in a pane narrower than the viewport
@@ -26,7 +27,7 @@
 
 use super::builder::Settings;
 use super::camera::OrbitCamera;
-use super::history::{Run, RunHistory};
+use super::history::{Run, RunHistory, RunKind};
 use super::pane::{Pane, PaneStyle, pick};
 use super::view::View;
 use eframe::egui::{self, Color32, Rect, Sense, Vec2};
@@ -163,6 +164,12 @@ impl View for SplitView {
                 }
             }
             let outlined = picked.filter(|p| p.0 == run.number).map(|p| p.1);
+            // The reference's cells are its points' (tens of thousands), not a mesh a solver
+            // chose: their edges would hide its picture.
+            let style = match run.kind {
+                RunKind::Reference { .. } => style.without_edges(),
+                RunKind::Solve => style,
+            };
             self.slots[i].paint(ui, rect, &seen, style, outlined);
             self.shown.push((run.number, rect));
         }

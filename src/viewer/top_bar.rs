@@ -191,8 +191,10 @@ impl View for TopBar {
             }
             ui.separator();
             let name = scene.map_or("(no scene)".to_owned(), |s| s.name.clone());
-            ui.label(egui::RichText::new(name).strong());
-            ui.weak(scene_spec);
+            // Cut at the window's edge ("…", the whole in the hover text) rather than run past it.
+            ui.add(egui::Label::new(egui::RichText::new(name).strong()).truncate());
+            ui.add(egui::Label::new(egui::RichText::new(scene_spec).weak()).truncate())
+                .on_hover_text(scene_spec);
         });
         action
     }

@@ -401,6 +401,11 @@ pub enum Command {
     },
     /// Restart with new parameters (keeps the BVH).
     SetParams(HierarchicalParams),
+    /// New parameters, keeping what is solved where only the thresholds got finer
+    /// ([`HierarchicalSolver::retarget`]): answers [`Reply::Retargeted`] when the hierarchy,
+    /// links and radiosity were kept (the next Solve refines and gathers from them: a warm
+    /// re-solve), else restarts as `SetParams` does and answers as it does.
+    Retarget(HierarchicalParams),
     Reset,
     Step(StepKind),
     /// Solve the loaded scene on a uniform or discontinuity mesh ([`crate::solver::meshed`]);
@@ -425,7 +430,8 @@ pub enum Reply {
         view: Arc<ViewData>,
         scene: Arc<Scene>,
     },
-    /// A command finished (`report` is `None` for `SetParams` / `Reset`).
+    /// A command finished (`report` is `None` for `SetParams` / `Reset` and a `Retarget` that
+    /// restarted).
     Done {
         report: Option<StepReport>,
         view: Arc<ViewData>,
@@ -449,6 +455,9 @@ pub enum Reply {
     Failed(String),
     /// A command queued before [`Worker::cancel_all`] was dropped unrun.
     Skipped,
+    /// A `Retarget` kept the solver's state: only its settings changed (no new picture: the
+    /// state is the one shown, its thresholds finer).
+    Retargeted,
     /// A mesh solve was cancelled: its thread was left to finish on its own and its result will
     /// be dropped; the state shown stays (`report.cancelled` is set).
     Cancelled {
@@ -538,7 +547,8 @@ impl Worker {
                     | Reply::Cancelled { .. }
                     | Reply::Baked(_)
                     | Reply::Failed(_)
-                    | Reply::Skipped => self.in_flight = self.in_flight.saturating_sub(1),
+                    | Reply::Skipped
+                    | Reply::Retargeted => self.in_flight = self.in_flight.saturating_sub(1),
                     Reply::Progress { .. } | Reply::Partial { .. } | Reply::Replay { .. } => {}
                 }
                 Some(r)
@@ -568,7 +578,8 @@ impl Worker {
                         | Reply::Cancelled { .. }
                         | Reply::Baked(_)
                         | Reply::Failed(_)
-                        | Reply::Skipped => {
+                        | Reply::Skipped
+                        | Reply::Retargeted => {
                             self.in_flight -= 1;
                         }
                         Reply::Progress { .. } | Reply::Partial { .. } | Reply::Replay { .. } => {}
@@ -651,6 +662,18 @@ fn run(
                 None => Reply::Failed("no scene loaded".into()),
                 Some(s) => match s.set_params(p) {
                     Ok(()) => Reply::Done { report: None, view: view_of(s, false) },
+                    Err(e) => Reply::Failed(e),
+                },
+            },
+            Command::Retarget(p) => match solver.as_mut() {
+                None => Reply::Failed("no scene loaded".into()),
+                Some(s) => match s.retarget(p) {
+                    Ok(true) => Reply::Retargeted,
+                    Ok(false) => {
+                        unpushed = false;
+                        last_residual = 0.0;
+                        Reply::Done { report: None, view: view_of(s, false) }
+                    }
                     Err(e) => Reply::Failed(e),
                 },
             },
@@ -1013,6 +1036,46 @@ mod tests {
         assert!(!again.converged, "a push-pull without a gather does not converge the solve");
         let (_, v5) = step(StepKind::Refine);
         assert_eq!(v5.residuals, v2.residuals, "a refinement keeps the gathers' residuals");
+    }
+
+    /// A threshold made finer keeps the solved state: the Solve that follows refines on from the
+    /// last one's hierarchy and gathers from its radiosity (its residuals follow the last
+    /// solve's). A coarser one restarts from the input patches.
+    #[test]
+    fn a_finer_threshold_retargets_warm_and_a_coarser_one_restarts() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        let p = HierarchicalParams::interactive();
+        load(&mut w, "builtin:cornell", p);
+        let run = |w: &mut Worker, cmd: Command| {
+            w.send(cmd);
+            let mut answers = Vec::new();
+            w.wait_idle(|r| answers.push(r));
+            answers.pop().expect("an answer")
+        };
+        let Reply::Done { view: solved, .. } = run(&mut w, Command::Step(StepKind::Solve)) else {
+            panic!("the solve answers")
+        };
+        let finer = HierarchicalParams { bf_eps: p.bf_eps / 4.0, ..p };
+        assert!(matches!(run(&mut w, Command::Retarget(finer)), Reply::Retargeted), "kept");
+        let Reply::Done { report: Some(report), view } = run(&mut w, Command::Step(StepKind::Solve)) else {
+            panic!("the warm solve answers")
+        };
+        assert!(report.converged && report.refined > 0, "it refines on: {report:?}");
+        assert!(
+            view.stats.leaves > solved.stats.leaves,
+            "{} then {}",
+            solved.stats.leaves,
+            view.stats.leaves
+        );
+        assert_eq!(view.params, finer);
+        assert!(
+            view.residuals.len() > solved.residuals.len() && view.residuals.starts_with(&solved.residuals),
+            "the warm solve's gathers follow the last solve's"
+        );
+        let Reply::Done { report: None, view } = run(&mut w, Command::Retarget(p)) else {
+            panic!("a coarser threshold restarts")
+        };
+        assert!(view.links.is_empty() && view.residuals.is_empty(), "back to the input patches");
     }
 
     #[test]
