@@ -302,8 +302,8 @@ fn compare_solves_the_dmesh_top_level_with_its_grading() {
     assert!(!ok && text.contains("--dmesh-smooth"), "{text}");
 }
 
-/// `radlab reference --batches N` merges N cached batches on batch 1's points (the noise falls
-/// as 1/√N); `--compare --mesh contact` solves on the contact mesh (cornell: the blocks'
+/// `radlab reference --batches N` computes N cached batches on batch 1's points and scores
+/// against batches 2 … N (the noise falls as 1/√(N − 1)); `--compare --mesh contact` solves on the contact mesh (cornell: the blocks'
 /// 8 footprint edges on the floor) with the solver's own estimate; `--point-errors` writes one
 /// CSV row per point; `radlab solve --mesh contact` refuses a solver other than hierarchical.
 #[test]
@@ -346,7 +346,9 @@ fn batches_merge_and_the_contact_mesh_compares_with_point_errors() {
     assert!(ok, "{four}");
     assert!(four.contains("batch 4/4 (seed 3)"), "{four}");
     let (n1, n4) = (noise(&one), noise(&four));
+    // Scored against batches 2–4 (batch 1 placed the points): √3 less noise than one batch.
     assert!(n4 < 0.7 * n1, "4 batches: noise {n4} % against {n1} % with one");
+    assert!(four.contains("scored against batches 2–4 merged"), "{four}");
     assert!(four.contains("mesh: 8 critical segments"), "{four}");
     assert!(
         four.contains("pointwise rel L2") && four.contains("own error estimate (no reference)"),

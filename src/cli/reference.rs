@@ -29,9 +29,11 @@ pub struct Args {
     /// At least this many points (points ruler).
     #[arg(long, default_value_t = PointParams::standard().points)]
     pub points: u32,
-    /// Independent batches of `--samples` paths per point to merge (points ruler): batch b uses
-    /// seed `--seed + b` on batch 0's points, each cached on its own, as `radlab bench` computes
-    /// them (its batches are reused); the noise falls as 1/√batches.
+    /// Batches of `--samples` paths per point (points ruler): batch b uses seed `--seed + b` on
+    /// batch 1's points, each cached on its own, as `radlab bench` computes them (its batches are
+    /// reused). With two or more, the solution is scored against the merge of batches 2 … N,
+    /// which are independent of where batch 1 put the points
+    /// (`eval::reference::scoring_batches`); the noise falls as 1/√(N − 1).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
     pub batches: u32,
     /// Largest element side of the reference mesh, in scene units (regions ruler; default: scene
@@ -512,8 +514,20 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
             );
             batches.push(more.estimates);
         }
-        entry.estimates = radlab::eval::reference::merge_batches(&batches)
+        let (scoring, n) = radlab::eval::reference::scoring_batches(&batches)
             .context("reference batches of different lengths")?;
+        entry.estimates = scoring;
+        let which =
+            if n == 1 { "batch 2".to_string() } else { format!("batches 2–{} merged", args.batches) };
+        writeln!(
+            log,
+            "scored against {which}: batch 1 placed the points, so its estimates are not independent of them"
+        )?;
+    } else {
+        writeln!(
+            log,
+            "scored against batch 1, which placed the points: its debiased figures read low near the noise (`--batches 2` or more scores against batches that did not place them)"
+        )?;
     }
     let points = &entry.set.points;
     if args.exact {

@@ -106,17 +106,30 @@ pub(super) fn reference_quality(
     Ok((r.scene.reference_noise, r.scene.resolution))
 }
 
+/// The pointwise reference a scene's rows are scored against ([`reference_batches`]).
+pub(super) struct ReferenceBatches {
+    pub(super) points: Vec<RefPoint>,
+    /// The scoring estimates (`reference::scoring_batches`).
+    pub(super) estimates: Vec<Estimate>,
+    /// The last batch's cache file.
+    pub(super) file: String,
+    /// Batches computed, and merged into `estimates`.
+    pub(super) computed: u32,
+    pub(super) scoring: u32,
+}
+
 /// Compute (or read from the cache) reference batches with seeds seed, seed + 1, … until the
 /// merged reference meets `config.reference_target` or `reference_max_batches` is reached,
-/// logging each batch. Batch 0 places the points; the others re-estimate them. Returns the
-/// points, the merged estimates, the last batch's cache file and the count.
+/// logging each batch. Batch 0 places the points; the others re-estimate them, and once there
+/// are any they alone are the reference (`reference::scoring_batches`). Returns the points, the
+/// scoring estimates, the last batch's cache file, the batches computed and the batches merged.
 pub(super) fn reference_batches(
     config: &BenchConfig,
     spec: &str,
     scene: &Scene,
     accel: &Accel,
     log: &mut dyn FnMut(&str),
-) -> Result<(Vec<RefPoint>, Vec<Estimate>, String, u32), BenchError> {
+) -> Result<ReferenceBatches, BenchError> {
     let ref_err = |source| BenchError::Reference { spec: spec.into(), source };
     let mut batches: Vec<Vec<Estimate>> = Vec::new();
     let max = config.reference_max_batches.max(1);
@@ -138,16 +151,16 @@ pub(super) fn reference_batches(
         let file = file.display().to_string();
         batches.push(entry.estimates);
         let points = entry.set.points;
-        let merged = crate::eval::reference::merge_batches(&batches)
+        let (merged, scoring) = crate::eval::reference::scoring_batches(&batches)
             .expect("batches of one point set have equal length");
         let (noise, res) = reference_quality(scene, &points, &merged)
             .map_err(|e| BenchError::Output(format!("{spec}: {e}")))?;
         log(&format!(
-            "  reference batch {}/{max} ({how}; {:.0} s so far): {} points, {} paths per point, noise {:.3} %, resolution {:.3} %  [{file}]",
+            "  reference batch {}/{max} ({how}; {:.0} s so far): {} points, {} paths per point scored, noise {:.3} %, resolution {:.3} %  [{file}]",
             b + 1,
             t0.elapsed().as_secs_f64(),
             thousands(points.len()),
-            u64::from(config.reference.samples) * u64::from(b + 1),
+            u64::from(config.reference.samples) * scoring as u64,
             100.0 * noise,
             100.0 * res
         ));
@@ -158,7 +171,13 @@ pub(super) fn reference_batches(
                     "  reference: target not met after {max} batches; the table marks what it cannot resolve"
                 ));
             }
-            return Ok((points, merged, file, b + 1));
+            return Ok(ReferenceBatches {
+                points,
+                estimates: merged,
+                file,
+                computed: b + 1,
+                scoring: scoring as u32,
+            });
         }
     }
 }

@@ -18,7 +18,9 @@
 //!
 //! ## The reference must resolve the targets
 //! The reference is computed in independent **batches** (seeds s, s + 1, …, each cached on disk)
-//! merged by [`crate::eval::reference::merge_batches`]; batches are added until both
+//! merged by [`crate::eval::reference::merge_batches`], leaving out the batch that placed the
+//! points once another exists ([`crate::eval::reference::scoring_batches`]: its estimates are
+//! not independent of where it put them); batches are added until both
 //!
 //! ```text
 //! noise      = √(Σ a σ²) / √(Σ a (B̂ − E)²)             ≤ REFERENCE_TARGET = 0.5 %   (a: point weights)
@@ -247,9 +249,10 @@ pub struct SceneSummary {
     pub patches: usize,
     /// Points of the pointwise reference.
     pub reference_points: usize,
-    /// Paths per reference point, all batches together.
+    /// Paths per reference point of the batches scored against (`reference::scoring_batches`:
+    /// all but the one that placed the points, when there are others).
     pub reference_samples: u32,
-    /// Independent reference batches merged (`reference::merge_batches`).
+    /// Reference batches computed (the first places the points).
     pub reference_batches: u32,
     /// Relative L2 a perfect solver would show against this reference.
     pub reference_noise: f64,
@@ -325,7 +328,8 @@ fn bench_scene(
             config.reference_max_batches
         ))
     ));
-    let (points, estimates, cache_file, batches) = reference_batches(config, spec, &scene, &accel, log)?;
+    let measure::ReferenceBatches { points, estimates, file: cache_file, computed: batches, scoring } =
+        reference_batches(config, spec, &scene, &accel, log)?;
     let reference: &[Estimate] = &estimates;
     let (noise, resolution) = reference_quality(&scene, &points, reference)
         .map_err(|e| BenchError::Output(format!("{spec}: {e}")))?;
@@ -342,7 +346,7 @@ fn bench_scene(
         scene: spec.clone(),
         patches: scene.patches.len(),
         reference_points: points.len(),
-        reference_samples: config.reference.samples * batches,
+        reference_samples: config.reference.samples * scoring,
         reference_batches: batches,
         reference_noise: noise,
         resolution,
