@@ -199,7 +199,7 @@ fn drive_the_viewer() {
     let at = r.center();
     click_at(&mut h, at);
     settle(&mut h);
-    let sel = h.state().selected.expect("an element is picked");
+    let sel = h.state().pick.selected.expect("an element is picked");
     let v = Arc::clone(h.state().view());
     assert!(v.elements[sel as usize].leaf);
     assert_eq!(v.elements[sel as usize].patch, 2, "the back wall is in the middle of the view");
@@ -210,7 +210,7 @@ fn drive_the_viewer() {
 
     // A slider: Feps restarts the solver with the new value (without auto-run: from the
     // input patches, for stepping by hand).
-    h.state_mut().auto_run = false;
+    h.state_mut().set_auto_run(false);
     let before = h.state().params().feps;
     h.get_by_label("Feps").set_value_accesskit(0.2);
     settle(&mut h);
@@ -263,7 +263,7 @@ fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
     settle(&mut h);
     let solved = Arc::clone(h.state().view());
     assert!(solved.stats.links > 0);
-    assert!(h.state().auto_run, "auto-run is on by default");
+    assert!(h.state().auto_run(), "auto-run is on by default");
     let mut p = h.state().params();
     p.max_depth = 1;
     h.state_mut().set_params(p);
@@ -454,11 +454,11 @@ fn reference_feeds_the_true_error_and_the_error_plot() {
     let mut h = harness(ViewerOptions { reference: reference.clone(), ..opts() });
     h.state_mut().set_scene(Arc::new(cornell()));
     settle(&mut h);
-    assert_eq!(h.state().ref_state, RefState::Missing, "nothing cached yet");
+    assert_eq!(*h.state().ref_state(), RefState::Missing, "nothing cached yet");
     assert_eq!(h.state().error_label(), "solver's error estimate");
     h.get_by_label("Compute reference").click();
     settle(&mut h);
-    assert!(matches!(h.state().ref_state, RefState::Ready { .. }), "{:?}", h.state().ref_state);
+    assert!(matches!(h.state().ref_state(), RefState::Ready { .. }), "{:?}", h.state().ref_state());
     assert_eq!(h.state().error_label(), "true error |B − B_ref|");
     // The unlit initial state is scored at solver time 0: everything but the lamp is wrong.
     let s = h.state().error_samples().to_vec();
@@ -516,9 +516,9 @@ fn reference_feeds_the_true_error_and_the_error_plot() {
     h2.state_mut().set_scene(Arc::new(cornell()));
     settle(&mut h2);
     assert!(
-        matches!(&h2.state().ref_state, RefState::Ready { how, .. } if how.starts_with("cached")),
+        matches!(h2.state().ref_state(), RefState::Ready { how, .. } if how.starts_with("cached")),
         "{:?}",
-        h2.state().ref_state
+        h2.state().ref_state()
     );
     assert_eq!(h2.state().error_samples().len(), 1, "the loaded state is scored");
     let _ = std::fs::remove_dir_all(&dir);
@@ -539,23 +539,27 @@ fn reference_computation_shows_progress_and_can_be_cancelled() {
     let mut h = harness(ViewerOptions { reference, ..opts() });
     h.state_mut().set_scene(Arc::new(cornell()));
     settle(&mut h);
-    assert_eq!(h.state().ref_state, RefState::Missing);
+    assert_eq!(*h.state().ref_state(), RefState::Missing);
     h.get_by_label("Compute reference").click();
     // Wait (bounded) until the computation has finished at least one region.
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
     while h.state().reference_progress().0 == 0 {
-        assert!(std::time::Instant::now() < deadline, "no progress in {WAIT_S} s: {:?}", h.state().ref_state);
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no progress in {WAIT_S} s: {:?}",
+            h.state().ref_state()
+        );
         std::thread::sleep(std::time::Duration::from_millis(20));
         h.run_steps(1);
     }
     h.run_steps(2);
     let (done, total) = h.state().reference_progress();
-    assert!(matches!(h.state().ref_state, RefState::Computing { .. }), "{:?}", h.state().ref_state);
+    assert!(matches!(h.state().ref_state(), RefState::Computing { .. }), "{:?}", h.state().ref_state());
     assert!(done >= 1 && done < total, "progress {done}/{total}");
     assert!(h.query_by_label_contains(&format!("/{total} ·")).is_some(), "the progress bar shows done/total");
     h.get_by_label("Cancel reference").click();
     settle(&mut h);
-    assert_eq!(h.state().ref_state, RefState::Missing, "back to idle, without a reference");
+    assert_eq!(*h.state().ref_state(), RefState::Missing, "back to idle, without a reference");
     assert_eq!(h.state().error_label(), "solver's error estimate");
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
     assert!(h.query_by_label("Compute reference").is_some(), "it can be started again");
@@ -702,7 +706,7 @@ fn the_layout_does_not_jump() {
     same(&mut h, "link options folded out");
     h.get_by_label("Compute reference").click();
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
-    while !matches!(h.state().ref_state, RefState::Computing { .. }) {
+    while !matches!(h.state().ref_state(), RefState::Computing { .. }) {
         assert!(std::time::Instant::now() < deadline, "the reference did not start");
         std::thread::sleep(std::time::Duration::from_millis(20));
         h.run_steps(1);
@@ -714,7 +718,7 @@ fn the_layout_does_not_jump() {
     let at = h.state().viewport_rect().center();
     click_at(&mut h, at);
     settle(&mut h);
-    assert!(h.state().selected.is_some());
+    assert!(h.state().pick.selected.is_some());
     same(&mut h, "an element picked (the link table)");
     h.state_mut()
         .load_spec("builtin:a-long-name-that-does-not-exist-and-makes-a-long-error-line-in-the-panel");
@@ -919,7 +923,7 @@ fn lecture_figures_run_their_steps_pick_and_sweep() {
 
     h.state_mut().open_figure(find("recursive-gather").unwrap());
     settle(&mut h);
-    let sel = h.state().selected.expect("the figure picks an element once solved");
+    let sel = h.state().pick.selected.expect("the figure picks an element once solved");
     assert_eq!(h.state().view().elements[sel as usize].patch, 0, "a floor element (cornell's patch 0)");
     assert!(h.state().display.selected_links_only);
     // The viewport draws the links the inspector lists, the ones the picked element gathers
@@ -950,7 +954,7 @@ fn lecture_figures_run_their_steps_pick_and_sweep() {
     let m = h.state().lecture.matrix.matrix_rect().expect("the matrix is drawn");
     click_at(&mut h, m.lerp_inside(egui::vec2(0.75, 0.25)));
     h.run_steps(2);
-    assert!(h.state().selected.is_some(), "a click on a block picks its receiver");
+    assert!(h.state().pick.selected.is_some(), "a click on a block picks its receiver");
     assert!(h.state().display.selected_links_only);
     h.state_mut().lecture.matrix.open = false;
 
@@ -1026,7 +1030,7 @@ fn matrix_block_and_viewport_element_highlight_each_other() {
     // Picked, then the pointer leaves the viewport: the picked element stays highlighted.
     click_at(&mut h, at);
     h.run_steps(2);
-    assert_eq!(h.state().selected, Some(id));
+    assert_eq!(h.state().pick.selected, Some(id));
     h.hover_at(egui::pos2(5.0, 5.0));
     h.run_steps(2);
     assert_eq!(h.state().viewport_hover(), None);
@@ -1346,8 +1350,8 @@ fn picking_in_a_split_pane_picks_in_that_panes_solution() {
         let at = egui::pos2(rect.center().x, rect.top() + 0.45 * rect.height());
         click_at(&mut h, at);
         settle(&mut h);
-        assert_eq!(h.state().selected_run, Some(number), "picked in run #{number}'s pane");
-        let id = h.state().selected.expect("an element is picked");
+        assert_eq!(h.state().pick.selected_run, Some(number), "picked in run #{number}'s pane");
+        let id = h.state().pick.selected.expect("an element is picked");
         let view = run_view(&h, number);
         let e = &view.elements[id as usize];
         assert!(e.leaf, "a leaf of run #{number}'s solution: {id}");
@@ -1376,8 +1380,8 @@ fn picking_in_a_split_pane_picks_in_that_panes_solution() {
     let r = h.state().viewport_rect();
     click_at(&mut h, r.center());
     settle(&mut h);
-    assert_eq!(h.state().selected_run, None);
-    assert!(h.state().selected.is_some());
+    assert_eq!(h.state().pick.selected_run, None);
+    assert!(h.state().pick.selected.is_some());
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
 
@@ -1462,7 +1466,7 @@ fn earlier_runs_are_scored_once_the_reference_exists() {
     assert!(runs.iter().all(|r| r.reference.is_none() && r.estimate.is_some()), "no reference yet");
     h.get_by_label("Compute reference").click();
     settle(&mut h);
-    assert!(matches!(h.state().ref_state, RefState::Ready { .. }), "{:?}", h.state().ref_state);
+    assert!(matches!(h.state().ref_state(), RefState::Ready { .. }), "{:?}", h.state().ref_state());
     let runs = h.state().history.runs().to_vec();
     assert!(matches!(runs[2].kind, RunKind::Reference { .. }), "{:?}", runs[2].kind);
     for r in &runs[..2] {
@@ -1506,11 +1510,11 @@ fn mesh_kind_order_and_reconstruction_are_selectable() {
     assert!(h.query_by_label_contains("discontinuity-cdt p0: ").is_some(), "the status bar names the mesh");
     h.state_mut().pick_relative(0.5, 0.8);
     h.run_steps(2);
-    assert!(h.state().selected.is_some(), "a floor piece is picked");
+    assert!(h.state().pick.selected.is_some(), "a floor piece is picked");
     assert!(h.query_by_label_contains("no links — this element is coupled").is_some());
     // No estimate of its own; shadow-narrow's closed form gives the element's true error.
     assert!(h.query_by_label_contains("(true error |B − B_exact| (vs closed form))").is_some());
-    h.state_mut().selected = None;
+    h.state_mut().pick.selected = None;
     // No estimate of its own, but shadow-narrow's closed form gives its true error.
     assert!(!disabled(&h, "error heatmap"), "the closed form scores the mesh solve");
     assert_eq!(h.state().error_label(), "true error |B − B_exact| (vs closed form)");
@@ -1747,7 +1751,7 @@ fn clusters_overlay_draws_the_cluster_boxes() {
     // Picking an element lists the clusters above its patch in the inspector.
     h.state_mut().pick_relative(0.5, 0.8);
     h.run_steps(2);
-    let id = h.state().selected.expect("a floor element is picked");
+    let id = h.state().pick.selected.expect("a floor element is picked");
     let v = Arc::clone(h.state().view());
     let patch = v.elements[id as usize].patch as usize;
     let mut levels = 0;
@@ -1825,7 +1829,7 @@ fn links_overlay_draws_the_cluster_links() {
     // clusters holding it, and no others.
     h.state_mut().pick_relative(0.5, 0.85);
     h.run_steps(2);
-    let id = h.state().selected.expect("an element is picked");
+    let id = h.state().pick.selected.expect("an element is picked");
     h.state_mut().display.selected_links_only = true;
     settle(&mut h);
     let v = Arc::clone(h.state().view());
@@ -2016,7 +2020,7 @@ fn a_click_picks_a_cluster_and_the_inspector_walks_the_tree() {
     let at = egui::Pos2::new(r.left() + 0.5 * r.width(), r.top() + 0.8 * r.height());
     click_at(&mut h, at);
     settle(&mut h);
-    assert!(h.state().selected.is_some());
+    assert!(h.state().pick.selected.is_some());
     assert_eq!(h.state().picked_cluster(), None, "no cluster picked while the boxes are hidden");
     let element_only = viewport_below(&mut h, 0.0);
     h.key_press(egui::Key::K);
@@ -2025,7 +2029,7 @@ fn a_click_picks_a_cluster_and_the_inspector_walks_the_tree() {
     h.state_mut().display.clusters_from = 1;
     click_at(&mut h, at);
     settle(&mut h);
-    let id = h.state().selected.expect("an element is picked");
+    let id = h.state().pick.selected.expect("an element is picked");
     let v = Arc::clone(h.state().view());
     let chain = clusters_of(&v, v.elements[id as usize].patch);
     let deepest = 1 + CLUSTER_LEVELS - 1;
@@ -2108,7 +2112,7 @@ fn a_click_picks_a_cluster_and_the_inspector_walks_the_tree() {
     h.get_by_label("to element").click();
     h.run_steps(2);
     assert_eq!(h.state().picked_cluster(), None);
-    assert!(h.state().selected.is_some(), "the element stays picked");
+    assert!(h.state().pick.selected.is_some(), "the element stays picked");
     // From the element, the inspector's list of its clusters picks any of them.
     h.get_by_label_contains("clusters ·").click();
     h.run_steps(2);
@@ -2155,11 +2159,11 @@ fn a_panic_on_the_display_thread_is_reported_not_waited_for() {
         );
         assert!(!h.state().replay.building(), "the failed build counts as answered");
         if scripted {
-            assert_eq!(h.state().exit_code, Some(1), "a scripted run ends with an error");
+            assert_eq!(h.state().exit_code(), Some(1), "a scripted run ends with an error");
             assert_eq!(h.state().exit_error(), Some(errors[0].as_str()), "and says which");
             continue;
         }
-        assert_eq!(h.state().exit_code, None, "a window stays open");
+        assert_eq!(h.state().exit_code(), None, "a window stays open");
         h.run_steps(2);
         assert!(
             h.query_all_by_label_contains("the display thread panicked").count() >= 2,
@@ -2257,7 +2261,7 @@ fn caption_matches_the_state(h: &Harness<'static, RadlabApp>, f: &radlab::presen
         !caption.contains('…'),
         "{}: every number known once settled: {caption} (reference {:?}, errors {:?})",
         f.name,
-        app.ref_state,
+        app.ref_state(),
         app.errors()
     );
     let v = Arc::clone(app.view());
@@ -2461,7 +2465,7 @@ fn a_lecture_walk_through() {
     no_panics(&h, "stepping");
 
     // The split view with a reference: a Monte Carlo one on the test box, beside the solve.
-    h.state_mut().auto_run = true;
+    h.state_mut().set_auto_run(true);
     h.state_mut().set_scene(Arc::new(cornell()));
     settle(&mut h);
     h.get_by_label("Solve").click();
@@ -2579,7 +2583,7 @@ fn every_panel_fits_a_lecture_screen() {
                 h.state_mut().display.links = true;
                 h.state_mut().display.selected_links_only = true;
                 settle(&mut h);
-                assert!(h.state().selected.is_some(), "{name}: an element picked");
+                assert!(h.state().pick.selected.is_some(), "{name}: an element picked");
             }
             let last = h.get_by_label("clusters").rect();
             assert!(

@@ -62,16 +62,7 @@ impl View for Inspector {
 
     fn ui(&mut self, ui: &mut egui::Ui, input: InspectorInput<'_>) -> Option<PickCluster> {
         let InspectorInput { errors, picked, cluster, scene, true_error, ruler, selected_links_only } = input;
-        if !errors.is_empty() {
-            ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
-            for e in errors.iter().rev().take(5) {
-                ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
-            }
-            if ui.small_button("clear").on_hover_text("Forget these errors").clicked() {
-                errors.clear();
-            }
-            ui.separator();
-        }
+        errors_section(ui, errors);
         ui.heading("Inspect");
         let Some((id, v)) = picked else {
             ui.label("Click an element in the viewport.");
@@ -106,49 +97,8 @@ impl View for Inspector {
             }
             grid_row(ui, "stopped", e.stop.to_owned());
         });
-        // Clustered solves: the clusters holding the element's patch, smallest first.
-        // (A patch that is the whole tree, a one-patch scene, has no cluster: u32::MAX.)
-        if let Some(&first) = v.patch_cluster.get(e.patch as usize).filter(|&&c| c != u32::MAX) {
-            let mut chain = Vec::new();
-            let mut at = Some(first);
-            while let Some((i, c)) = at.and_then(|i| v.clusters.get(i as usize).map(|c| (i, c))) {
-                chain.push((i, *c));
-                at = c.parent;
-            }
-            let cluster_links: u32 = chain.iter().map(|(_, c)| c.links).sum();
-            egui::CollapsingHeader::new(format!(
-                "in {} clusters · {cluster_links} cluster links",
-                chain.len()
-            ))
-            .id_salt("clusters of the patch")
-            .show(ui, |ui| {
-                egui::Grid::new("clusters").num_columns(4).striped(true).show(ui, |ui| {
-                    for h in ["depth", "patches", "cluster links", ""] {
-                        ui.strong(h);
-                    }
-                    ui.end_row();
-                    for &(i, c) in &chain {
-                        ui.monospace(c.depth.to_string());
-                        ui.monospace(c.patches.to_string());
-                        ui.monospace(c.links.to_string());
-                        let picked = cluster == Some(i);
-                        if ui
-                            .selectable_label(picked, "pick")
-                            .on_hover_text(format!("Pick cluster {i}: its box, numbers and links"))
-                            .clicked()
-                        {
-                            action = Some(PickCluster(Some(i)));
-                        }
-                        ui.end_row();
-                    }
-                });
-            })
-            .header_response
-            .on_hover_text(
-                "The cluster tree above this element's patch, from the smallest cluster up to \
-                     the root: how many patches each holds and how many cluster links it has (the \
-                     header sums them); pick one to see its box and its links",
-            );
+        if let Some(pick) = patch_clusters(ui, v, e.patch, cluster) {
+            action = Some(pick);
         }
         ui.separator();
         if let Some(m) = &v.mesh {
@@ -160,9 +110,21 @@ impl View for Inspector {
             ));
             return action;
         }
-        // Links through which this element gathers: its own and its ancestors' (computed once
-        // per solver state and element, not every frame).
-        let rows = match &self.rows {
+        let rows = self.link_rows(v, id);
+        link_table(ui, &rows, id);
+        if cluster.is_none() {
+            ui.checkbox(selected_links_only, "show these links in the viewport")
+                .on_hover_text("Draw only these links, from the element and its ancestors");
+        }
+        action
+    }
+}
+
+impl Inspector {
+    /// The links through which element `id` of `v` gathers: its own and its ancestors', largest
+    /// B·F·V first (computed once per solver state and element, not every frame).
+    fn link_rows(&mut self, v: &Arc<ViewData>, id: u32) -> Arc<Vec<LinkRow>> {
+        match &self.rows {
             Some((seen, sel, rows)) if Arc::ptr_eq(seen, v) && *sel == id => Arc::clone(rows),
             _ => {
                 let chain = overlay::ancestors(&v.elements, id);
@@ -180,50 +142,103 @@ impl View for Inspector {
                 self.rows = Some((Arc::clone(v), id, Arc::clone(&rows)));
                 rows
             }
-        };
-        // The same links the viewport draws for this element ("picked element only"), less the
-        // links filter's (by default the blocked ones, V = 0, which carry no light).
-        let blocked = rows.iter().filter(|r| r.3 <= overlay::VIS_CLASS_EPS).count();
-        let blocked =
-            if blocked > 0 { format!(", {blocked} of them blocked (V = 0)") } else { String::new() };
-        // The table lists the strongest TABLE_ROWS; the line says so when there are more.
-        let listed = if rows.len() > TABLE_ROWS {
-            format!(" ({TABLE_ROWS} of {} shown)", rows.len())
-        } else {
-            String::new()
-        };
-        ui.label(format!(
-            "{} links gathered through (own + ancestors'){blocked}, by B·F·V{listed}:",
-            rows.len()
-        ))
+        }
+    }
+}
+
+/// The errors so far, newest first (five at most), with a button that forgets them.
+fn errors_section(ui: &mut egui::Ui, errors: &mut Vec<String>) {
+    if errors.is_empty() {
+        return;
+    }
+    ui.colored_label(Color32::from_rgb(255, 110, 90), "Errors");
+    for e in errors.iter().rev().take(5) {
+        ui.label(egui::RichText::new(e).color(Color32::from_rgb(255, 150, 130)));
+    }
+    if ui.small_button("clear").on_hover_text("Forget these errors").clicked() {
+        errors.clear();
+    }
+    ui.separator();
+}
+
+/// Clustered solves: the clusters holding `patch`, smallest first, each with a button that
+/// picks it (`picked`: the cluster picked now). Answers the cluster picked this frame. (A patch
+/// that is the whole tree, a one-patch scene, has no cluster: u32::MAX.)
+fn patch_clusters(ui: &mut egui::Ui, v: &ViewData, patch: u32, picked: Option<u32>) -> Option<PickCluster> {
+    let &first = v.patch_cluster.get(patch as usize).filter(|&&c| c != u32::MAX)?;
+    let mut chain = Vec::new();
+    let mut at = Some(first);
+    while let Some((i, c)) = at.and_then(|i| v.clusters.get(i as usize).map(|c| (i, c))) {
+        chain.push((i, *c));
+        at = c.parent;
+    }
+    let cluster_links: u32 = chain.iter().map(|(_, c)| c.links).sum();
+    let mut action = None;
+    egui::CollapsingHeader::new(format!("in {} clusters · {cluster_links} cluster links", chain.len()))
+        .id_salt("clusters of the patch")
+        .show(ui, |ui| {
+            egui::Grid::new("clusters").num_columns(4).striped(true).show(ui, |ui| {
+                for h in ["depth", "patches", "cluster links", ""] {
+                    ui.strong(h);
+                }
+                ui.end_row();
+                for &(i, c) in &chain {
+                    ui.monospace(c.depth.to_string());
+                    ui.monospace(c.patches.to_string());
+                    ui.monospace(c.links.to_string());
+                    if ui
+                        .selectable_label(picked == Some(i), "pick")
+                        .on_hover_text(format!("Pick cluster {i}: its box, numbers and links"))
+                        .clicked()
+                    {
+                        action = Some(PickCluster(Some(i)));
+                    }
+                    ui.end_row();
+                }
+            });
+        })
+        .header_response
+        .on_hover_text(
+            "The cluster tree above this element's patch, from the smallest cluster up to \
+                 the root: how many patches each holds and how many cluster links it has (the \
+                 header sums them); pick one to see its box and its links",
+        );
+    action
+}
+
+/// The link table of element `id`: a line that counts its links (the blocked ones too), then
+/// the strongest [`TABLE_ROWS`] of `rows`.
+fn link_table(ui: &mut egui::Ui, rows: &[LinkRow], id: u32) {
+    // The same links the viewport draws for this element ("picked element only"), less the
+    // links filter's (by default the blocked ones, V = 0, which carry no light).
+    let blocked = rows.iter().filter(|r| r.3 <= overlay::VIS_CLASS_EPS).count();
+    let blocked = if blocked > 0 { format!(", {blocked} of them blocked (V = 0)") } else { String::new() };
+    // The table lists the strongest TABLE_ROWS; the line says so when there are more.
+    let listed = if rows.len() > TABLE_ROWS {
+        format!(" ({TABLE_ROWS} of {} shown)", rows.len())
+    } else {
+        String::new()
+    };
+    ui.label(format!("{} links gathered through (own + ancestors'){blocked}, by B·F·V{listed}:", rows.len()))
         .on_hover_text(
             "The links this element gathers through: its own and its ancestors'. The viewport \
                  draws the same links with \"show these links\" (the links filter's visibility \
                  classes apply: blocked links are hidden unless \"none\" is ticked)",
         );
-        egui::ScrollArea::both().max_height(220.0).auto_shrink([false, true]).id_salt("links").show(
-            ui,
-            |ui| {
-                egui::Grid::new("links").num_columns(5).striped(true).show(ui, |ui| {
-                    for h in ["at", "source", "F", "V", "B·F·V"] {
-                        ui.strong(h);
-                    }
-                    ui.end_row();
-                    for (r, s, f, vis, c) in rows.iter().take(TABLE_ROWS) {
-                        ui.monospace(if *r == id { "self".to_owned() } else { format!("↑{r}") });
-                        ui.monospace(s.to_string());
-                        ui.monospace(format!("{f:.3e}"));
-                        ui.monospace(format!("{vis:.2}"));
-                        ui.monospace(format!("{c:.3e}"));
-                        ui.end_row();
-                    }
-                });
-            },
-        );
-        if cluster.is_none() {
-            ui.checkbox(selected_links_only, "show these links in the viewport")
-                .on_hover_text("Draw only these links, from the element and its ancestors");
-        }
-        action
-    }
+    egui::ScrollArea::both().max_height(220.0).auto_shrink([false, true]).id_salt("links").show(ui, |ui| {
+        egui::Grid::new("links").num_columns(5).striped(true).show(ui, |ui| {
+            for h in ["at", "source", "F", "V", "B·F·V"] {
+                ui.strong(h);
+            }
+            ui.end_row();
+            for (r, s, f, vis, c) in rows.iter().take(TABLE_ROWS) {
+                ui.monospace(if *r == id { "self".to_owned() } else { format!("↑{r}") });
+                ui.monospace(s.to_string());
+                ui.monospace(format!("{f:.3e}"));
+                ui.monospace(format!("{vis:.2}"));
+                ui.monospace(format!("{c:.3e}"));
+                ui.end_row();
+            }
+        });
+    });
 }

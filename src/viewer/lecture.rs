@@ -32,6 +32,8 @@ pub struct Lecture {
     /// The state has left the figure's (another step, setting or mesh): what the caption said
     /// last.
     left: Option<String>,
+    /// What the caption's numbers were last read from ([`Lecture::wants_facts`]).
+    facts_key: Option<FactsKey>,
     pub five_times: FiveTimes,
     pub matrix: MatrixWindow,
 }
@@ -76,6 +78,16 @@ impl Lecture {
             self.left = self.caption();
             self.caption_open = false;
         }
+    }
+
+    /// True when the caption's numbers are to be read (again): it has none, or what they are
+    /// read from (`key`) changed since they were last read.
+    pub fn wants_facts(&mut self, key: FactsKey) -> bool {
+        if self.facts_key == Some(key) && self.has_facts() {
+            return false;
+        }
+        self.facts_key = Some(key);
+        true
     }
 
     /// True once the caption has the numbers of a state.
@@ -236,6 +248,10 @@ impl Lecture {
         });
     }
 }
+
+/// What a caption's numbers are read from: (state shown, its error's bits, runs of the history,
+/// runs scored, where the reference stands).
+pub type FactsKey = (u64, Option<u64>, usize, usize, u8);
 
 /// What [`caption_facts`] reads.
 pub struct FactsInput<'a> {

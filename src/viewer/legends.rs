@@ -47,13 +47,38 @@ pub struct Legends<'a> {
 impl Legends<'_> {
     /// Draw the legends in the viewport's upper-left corner, and a note at the bottom.
     pub fn draw(&self, painter: &egui::Painter, rect: Rect) {
-        let mut y = rect.top() + 8.0;
         let x = rect.left() + 8.0;
+        let mut y = rect.top() + 8.0;
+        if self.display.quadtree {
+            y = self.edges_legend(painter, Pos2::new(x, y));
+        }
+        if self.links_shown() {
+            y = self.links_legend(painter, Pos2::new(x, y));
+        }
+        if let Some(c) = self.critical {
+            y = critical_legend(painter, Pos2::new(x, y), c) + 6.0;
+        }
+        if let Some(which) = self.display.artifact {
+            y = self.artifact_legend(painter, Pos2::new(x, y), which) + 6.0;
+        }
+        if let Some(what) = self.error {
+            self.error_legend(painter, Pos2::new(x, y), what);
+        }
+        self.note(painter, rect);
+    }
+
+    /// The element links are drawn: the links overlay, or the picked element's links.
+    fn links_shown(&self) -> bool {
+        let mesh_view = self.view.mesh.is_some();
+        !mesh_view && (self.display.links || (self.display.selected_links_only && self.picked))
+    }
+
+    /// The edges overlay's legend at `at`: a mesh solve's mesh and times, else the quadtree's
+    /// depth colours; returns where the next legend goes.
+    fn edges_legend(&self, painter: &egui::Painter, at: Pos2) -> f32 {
+        let Pos2 { x, y } = at;
         let font = egui::FontId::proportional(12.0);
-        let bg = Color32::from_black_alpha(170);
-        if self.display.quadtree
-            && let Some(m) = &self.view.mesh
-        {
+        if let Some(m) = &self.view.mesh {
             let text = format!(
                 "mesh edges: {} · {} elements · solve {:.2} s{}",
                 m.label(),
@@ -65,106 +90,106 @@ impl Legends<'_> {
                     String::new()
                 }
             );
-            let galley = painter.layout_no_wrap(text, font.clone(), Color32::WHITE);
+            let galley = painter.layout_no_wrap(text, font, Color32::WHITE);
             let box_r = Rect::from_min_size(Pos2::new(x, y), galley.size() + Vec2::new(8.0, 4.0));
-            painter.rect_filled(box_r, 4.0, bg);
+            painter.rect_filled(box_r, 4.0, LEGEND_BG);
+            painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
+            return box_r.bottom() + 6.0;
+        }
+        let max_depth = self.view.stats.depth_histogram.len().max(1);
+        let shown = max_depth.min(12);
+        let box_r =
+            Rect::from_min_size(Pos2::new(x, y), Vec2::new((8.0 + 18.0 * shown as f32).max(100.0), 36.0));
+        painter.rect_filled(box_r, 4.0, LEGEND_BG);
+        painter.text(
+            Pos2::new(x + 4.0, y + 2.0),
+            egui::Align2::LEFT_TOP,
+            "quadtree depth",
+            font,
+            Color32::WHITE,
+        );
+        for dpt in 0..shown {
+            let c = overlay::depth_color(dpt as u8);
+            let r = Rect::from_min_size(Pos2::new(x + 4.0 + 18.0 * dpt as f32, y + 18.0), Vec2::splat(14.0));
+            painter.rect_filled(r, 2.0, rgb32(c));
+            painter.text(
+                r.center(),
+                egui::Align2::CENTER_CENTER,
+                dpt.to_string(),
+                egui::FontId::proportional(9.0),
+                if dpt == 0 { Color32::BLACK } else { Color32::WHITE },
+            );
+        }
+        box_r.bottom() + 6.0
+    }
+
+    /// The links' legend at `at`: their F scale and how many are drawn, how they are drawn, and
+    /// the cluster links' line; returns where the next legend goes.
+    fn links_legend(&self, painter: &egui::Painter, at: Pos2) -> f32 {
+        let Pos2 { x, mut y } = at;
+        // With "picked element only", the links counted are the ones the picked element
+        // gathers through: the inspector's table lists the same links.
+        let whose = if self.display.selected_links_only && self.picked_cluster.is_none() {
+            " the picked element gathers through"
+        } else {
+            ""
+        };
+        let title = format!(
+            "links{whose}: F (log), {} of {} shown{}",
+            self.link_stats.0,
+            self.link_stats.1,
+            match (self.link_stats.0 < self.link_stats.1, self.display.link_filter.decimation) {
+                (false, _) => "",
+                (true, Decimation::Strided) => " (every k-th)",
+                (true, Decimation::LargestF) => " (largest F)",
+            }
+        );
+        let bar = ColourBar { title: &title, scale: self.link_scale, palette: Palette::Viridis, unit: "" };
+        y = bar.draw(painter, Pos2::new(x, y), None) + 6.0;
+        painter.text(
+            Pos2::new(x + 4.0, y),
+            egui::Align2::LEFT_TOP,
+            if self.display.links_xray {
+                "x-ray: links drawn through surfaces"
+            } else {
+                "depth-tested, alpha-blended"
+            },
+            egui::FontId::proportional(10.0),
+            Color32::LIGHT_GRAY,
+        );
+        y += 18.0;
+        if let Some(note) =
+            cluster_link_note(self.display, self.view, self.cluster_link_stats, self.picked_cluster)
+        {
+            let galley = painter.layout_no_wrap(note, egui::FontId::proportional(11.0), Color32::WHITE);
+            let box_r = Rect::from_min_size(Pos2::new(x, y), galley.size() + Vec2::new(8.0, 4.0));
+            painter.rect_filled(box_r, 4.0, LEGEND_BG);
             painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
             y = box_r.bottom() + 6.0;
-        } else if self.display.quadtree {
-            let max_depth = self.view.stats.depth_histogram.len().max(1);
-            let shown = max_depth.min(12);
-            let box_r =
-                Rect::from_min_size(Pos2::new(x, y), Vec2::new((8.0 + 18.0 * shown as f32).max(100.0), 36.0));
-            painter.rect_filled(box_r, 4.0, bg);
-            painter.text(
-                Pos2::new(x + 4.0, y + 2.0),
-                egui::Align2::LEFT_TOP,
-                "quadtree depth",
-                font.clone(),
-                Color32::WHITE,
-            );
-            for dpt in 0..shown {
-                let c = overlay::depth_color(dpt as u8);
-                let r =
-                    Rect::from_min_size(Pos2::new(x + 4.0 + 18.0 * dpt as f32, y + 18.0), Vec2::splat(14.0));
-                painter.rect_filled(r, 2.0, rgb32(c));
-                painter.text(
-                    r.center(),
-                    egui::Align2::CENTER_CENTER,
-                    dpt.to_string(),
-                    egui::FontId::proportional(9.0),
-                    if dpt == 0 { Color32::BLACK } else { Color32::WHITE },
-                );
-            }
-            y = box_r.bottom() + 6.0;
         }
-        let mesh_view = self.view.mesh.is_some();
-        let show_links =
-            !mesh_view && (self.display.links || (self.display.selected_links_only && self.picked));
-        if show_links {
-            // With "picked element only", the links counted are the ones the picked element
-            // gathers through: the inspector's table lists the same links.
-            let whose = if self.display.selected_links_only && self.picked_cluster.is_none() {
-                " the picked element gathers through"
-            } else {
-                ""
-            };
-            let title = format!(
-                "links{whose}: F (log), {} of {} shown{}",
-                self.link_stats.0,
-                self.link_stats.1,
-                match (self.link_stats.0 < self.link_stats.1, self.display.link_filter.decimation) {
-                    (false, _) => "",
-                    (true, Decimation::Strided) => " (every k-th)",
-                    (true, Decimation::LargestF) => " (largest F)",
-                }
-            );
-            let bar =
-                ColourBar { title: &title, scale: self.link_scale, palette: Palette::Viridis, unit: "" };
-            y = bar.draw(painter, Pos2::new(x, y), None) + 6.0;
-            painter.text(
-                Pos2::new(x + 4.0, y),
-                egui::Align2::LEFT_TOP,
-                if self.display.links_xray {
-                    "x-ray: links drawn through surfaces"
-                } else {
-                    "depth-tested, alpha-blended"
-                },
-                egui::FontId::proportional(10.0),
-                Color32::LIGHT_GRAY,
-            );
-            y += 18.0;
-            if let Some(note) =
-                cluster_link_note(self.display, self.view, self.cluster_link_stats, self.picked_cluster)
-            {
-                let galley = painter.layout_no_wrap(note, egui::FontId::proportional(11.0), Color32::WHITE);
-                let box_r = Rect::from_min_size(Pos2::new(x, y), galley.size() + Vec2::new(8.0, 4.0));
-                painter.rect_filled(box_r, 4.0, bg);
-                painter.galley(box_r.min + Vec2::new(4.0, 2.0), galley, Color32::WHITE);
-                y = box_r.bottom() + 6.0;
-            }
-        }
-        if let Some(c) = self.critical {
-            y = critical_legend(painter, Pos2::new(x, y), c) + 6.0;
-        }
-        if let Some(which) = self.display.artifact {
-            y = self.artifact_legend(painter, Pos2::new(x, y), which) + 6.0;
-        }
-        if let Some(what) = self.error {
-            let title = format!("error: {what} (log scale, ends at the 10th / 99th percentile)");
-            let bar = ColourBar {
-                title: &title,
-                scale: self.error_scale,
-                palette: Palette::Heat,
-                unit: " (units of B)",
-            };
-            // The scale's foot is black: the lowest tenth, and the elements with no error.
-            let floor = match self.error_scale {
-                Some(s) => format!("black: at or below {:.1e}, or zero", s.lo),
-                None => "black: zero (no error to show)".to_owned(),
-            };
-            bar.draw(painter, Pos2::new(x, y), Some(&floor));
-        }
+        y
+    }
+
+    /// The error heatmap's legend at `at`: its scale, and what its black foot stands for.
+    fn error_legend(&self, painter: &egui::Painter, at: Pos2, what: &str) {
+        let title = format!("error: {what} (log scale, ends at the 10th / 99th percentile)");
+        let bar = ColourBar {
+            title: &title,
+            scale: self.error_scale,
+            palette: Palette::Heat,
+            unit: " (units of B)",
+        };
+        // The scale's foot is black: the lowest tenth, and the elements with no error.
+        let floor = match self.error_scale {
+            Some(s) => format!("black: at or below {:.1e}, or zero", s.lo),
+            None => "black: zero (no error to show)".to_owned(),
+        };
+        bar.draw(painter, at, Some(&floor));
+    }
+
+    /// The note over the picture: why it is stale (framed), that there is nothing yet, what to
+    /// do next on a scene only lit by its lamps, or why the split view shows one picture.
+    fn note(&self, painter: &egui::Painter, rect: Rect) {
         if let Some(why) = &self.stale {
             painter.rect_stroke(
                 rect.shrink(1.0),
@@ -179,8 +204,9 @@ impl Legends<'_> {
             } else {
                 "No scene. Open… a .gltf/.glb, drop one here, or type builtin:NAME above and press Load."
             };
+            let font = egui::FontId::proportional(12.0);
             painter.text(rect.center(), egui::Align2::CENTER_CENTER, msg, font, Color32::LIGHT_GRAY);
-        } else if self.view.links.is_empty() && !self.busy && !mesh_view {
+        } else if self.view.links.is_empty() && !self.busy && self.view.mesh.is_none() {
             // A freshly loaded scene: only the lamps are lit. Say what to do next.
             bottom_note(
                 painter,
@@ -315,6 +341,9 @@ pub fn cluster_link_note(
         }
     })
 }
+
+/// The legends' boxes.
+const LEGEND_BG: Color32 = Color32::from_black_alpha(170);
 
 /// The frame around a stale picture (amber).
 const STALE: Color32 = Color32::from_rgb(230, 170, 60);

@@ -1,7 +1,12 @@
 //! The interactive viewer (feature `gui`): an eframe/egui app with a wgpu viewport.
 //!
 //! - [`app`]: the app: owns the threads and the state shown, lays the panels out and routes their
-//!   answers; the viewport (camera, picking, paint callback), files, drag-and-drop.
+//!   answers; the viewport (camera, picking, paint callback), files, drag-and-drop. Its state,
+//!   one struct per concern: [`solve`] (the solver thread, its settings and work), [`shown`] (the
+//!   state shown and the one held back), [`solve_log`] (solver time, error samples, warm and cold
+//!   solves), [`comparison`] (the reference and the scores of the state shown), [`pick`] (the
+//!   pick and the hovers), [`framing`] (the camera, the viewport's place), [`drag`] (a slider
+//!   drag as one run of the history).
 //! - [`view`]: the small `View` trait every panel implements (one type per panel). The panels:
 //!   [`top_bar`] (menus, scene field) with [`mesh_menu`]; [`solver_panel`] (settings, steps,
 //!   progress line); [`reference_panel`]; [`display`] (the `Display` settings and their
@@ -15,7 +20,8 @@
 //!   and picking.
 //! - [`geometry`]: the viewport's display build (what it was asked for, the numbers it brings).
 //! - [`artifacts`]: the `radlab-artifacts` thread that measures the artifact overlays.
-//! - [`bench`](mod@bench): frame-time statistics of `--bench-frames`; [`script`]: the scripted runs.
+//! - [`bench`](mod@bench): frame-time statistics of `--bench-frames`; [`script`]: the scripted runs
+//!   (what they wait for, and how they end).
 //! - [`builder`]: the `radlab-display` thread that builds GPU vertex arrays off the UI thread.
 //! - [`camera`]: orbit / pan / zoom camera and its keys.
 //! - [`file_dialog`]: the desktop's file dialog, or an in-app one where none answers.
@@ -27,7 +33,8 @@
 //!   error exit.
 //! - [`reference`](mod@reference): the `radlab-reference` thread: cached/computed reference, true error.
 //! - [`widgets`]: small widgets the panels share (the log slider).
-//! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver.
+//! - [`worker`]: the `radlab-solver` thread that owns the hierarchical solver (what the UI sends
+//!   and receives); [`solver_thread`]: the thread's side, one command at a time.
 //!
 //! Rendering is in [`crate::render`]; display lists in [`crate::present::overlay`].
 
@@ -37,9 +44,12 @@ pub mod bench;
 pub mod builder;
 pub mod camera;
 pub mod clusters;
+pub mod comparison;
 pub mod display;
+pub mod drag;
 pub mod file_dialog;
 pub mod five_times;
+pub mod framing;
 pub mod geometry;
 pub mod help;
 pub mod history;
@@ -51,12 +61,17 @@ pub mod mesh_menu;
 pub mod options;
 pub mod pane;
 pub mod panics;
+pub mod pick;
 pub mod plots;
 pub mod reference;
 pub mod reference_panel;
 pub mod replay;
 pub mod script;
+pub mod shown;
+pub mod solve;
+pub mod solve_log;
 pub mod solver_panel;
+pub mod solver_thread;
 pub mod split;
 pub mod status_bar;
 pub mod top_bar;
@@ -157,7 +172,7 @@ impl eframe::App for ExitReporter {
 
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.app.ui(ui, frame);
-        if let Some(c) = self.app.exit_code
+        if let Some(c) = self.app.exit_code()
             && let Ok(mut g) = self.exit.lock()
         {
             *g = Some((c, self.app.exit_error().map(str::to_owned)));

@@ -1,9 +1,13 @@
 //! The scripted runs (`radlab view --screenshot PATH`, `--bench-frames N`): what the run waits
-//! for ([`Script`]), the part of the window a screenshot keeps, and the benchmark's report.
+//! for ([`Script`]) and what it keeps on the way ([`ScriptRun`]: the screenshot asked for, the
+//! frame times, how it ends), the part of the window a screenshot keeps, and the benchmark's
+//! report.
 
 use super::bench::{FrameBench, load_average};
 use crate::render::RgbaImage;
 use eframe::egui::{self, Pos2, Rect, Vec2};
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, channel};
 
 /// Frames drawn before `--bench-frames` starts measuring: the first uploads the geometry.
 pub const BENCH_WARMUP_FRAMES: usize = 3;
@@ -34,6 +38,95 @@ impl Script {
         } else {
             Script::Settle(4)
         }
+    }
+}
+
+/// A scripted run as it goes (also an interactive window's screenshot, asked for by the top
+/// bar's button): what it waits for, the screenshot on its way, the frame times the benchmark
+/// reports, and how the run ends.
+pub struct ScriptRun {
+    pub(super) script: Script,
+    /// The screenshot asked for, until egui hands it over.
+    shot_rx: Option<Receiver<Arc<egui::ColorImage>>>,
+    /// Frame times while a scripted benchmark waits for its solve.
+    pub(super) solve_frames: FrameBench,
+    /// Longest geometry upload seen (seconds; read from the renderer).
+    pub(super) max_upload_s: f64,
+    /// Wall time of the last `ui` call (seconds).
+    pub(super) last_ui_s: f64,
+    /// On-CPU time of the last `ui` call (benchmarks only).
+    pub(super) last_ui_cpu_s: Option<f64>,
+    /// Set when the window should close (scripted runs); read by the runner.
+    pub(super) exit_code: Option<i32>,
+    /// Why a scripted run failed (its first failure, one line): the runner's error message.
+    pub(super) exit_error: Option<String>,
+}
+
+impl Default for ScriptRun {
+    fn default() -> ScriptRun {
+        ScriptRun {
+            script: Script::None,
+            shot_rx: None,
+            solve_frames: FrameBench::default(),
+            max_upload_s: 0.0,
+            last_ui_s: 0.0,
+            last_ui_cpu_s: None,
+            exit_code: None,
+            exit_error: None,
+        }
+    }
+}
+
+impl ScriptRun {
+    /// A scripted run cannot go on: it ends with an error, whose message is its first
+    /// failure's (`message`, one line; nothing in a window: the error list shows it).
+    pub fn failed(&mut self, message: String) {
+        if self.script != Script::None {
+            self.exit_code = Some(1);
+            self.exit_error.get_or_insert(message);
+        }
+    }
+
+    /// The solver thread finished a command and has nothing left (`idle`): a run waiting for
+    /// its solve goes on to the benchmark's frames (`bench`) or the screenshot's.
+    pub fn solver_answered(&mut self, idle: bool, bench: bool) {
+        if self.script == Script::Solving && idle {
+            self.script = Script::after_solve(bench);
+        }
+    }
+
+    /// The run is over: the window closes with success unless it failed first.
+    pub fn finish(&mut self) {
+        self.script = Script::Done;
+        self.exit_code.get_or_insert(0);
+    }
+
+    /// The window should close: the run is done, or it failed.
+    #[must_use]
+    pub fn should_close(&self) -> bool {
+        self.exit_code.is_some_and(|code| self.script == Script::Done || code != 0)
+    }
+
+    /// Ask egui for a screenshot of the next frame.
+    pub fn request_screenshot(&mut self, ctx: &egui::Context) {
+        let (tx, rx) = channel();
+        ctx.request_screenshot(move |img| {
+            let _ = tx.send(img);
+        });
+        self.shot_rx = Some(rx);
+        ctx.request_repaint();
+    }
+
+    /// The screenshot asked for, once egui has taken it (`None`: none asked for, or not taken
+    /// yet; then another frame is asked for).
+    pub fn take_screenshot(&mut self, ctx: &egui::Context) -> Option<Arc<egui::ColorImage>> {
+        let rx = self.shot_rx.as_ref()?;
+        let Ok(img) = rx.try_recv() else {
+            ctx.request_repaint();
+            return None;
+        };
+        self.shot_rx = None;
+        Some(img)
     }
 }
 

@@ -1,5 +1,7 @@
 //! The solver thread: owns the [`HierarchicalSolver`], runs one command at a time and sends back
-//! a read-only [`ViewData`] after each, so the UI thread never waits on the solver.
+//! a read-only [`ViewData`] after each, so the UI thread never waits on the solver. This module
+//! holds what the UI sees of it (the commands, the replies, the [`Worker`] handle, [`ViewData`]);
+//! the thread's own side is [`super::solver_thread`].
 //!
 //! ```text
 //!  UI ── Command (mpsc) ──► "radlab-solver" thread ── Reply (mpsc) + request_repaint ──► UI
@@ -8,6 +10,7 @@
 //!                     solver thread watches the flag and drops it on Cancel)
 //! ```
 
+use super::solver_thread;
 use crate::math::Rgb;
 use crate::present::overlay::{ElementView, LinkView};
 use crate::scene::Scene;
@@ -17,7 +20,7 @@ use crate::solver::hierarchical::{
 };
 use crate::solver::meshed::{MeshMethod, MeshSolution, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
-use crate::solver::spec::{Plan, SolveSpec, TopLevel};
+use crate::solver::spec::TopLevel;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
@@ -87,26 +90,6 @@ impl DmeshOptions {
     pub fn label(self, m: &MeshSolveParams) -> String {
         if self.apply_to(m) { " top of hierarchy".into() } else { String::new() }
     }
-}
-
-/// Solve `scene` on the mesh of `params` with the viewer's D-mesh options (`hierarchical`: the
-/// solver settings of its top-level solve): [`crate::solver::meshed::solve`] unless they apply,
-/// else the hierarchical solver on the mesh [`MeshSolveParams::remesh`] builds (graded or not).
-fn solve_on_mesh(
-    scene: &Scene,
-    params: &MeshSolveParams,
-    dmesh: DmeshOptions,
-    hierarchical: HierarchicalParams,
-    progress: crate::solver::Progress,
-) -> Result<MeshSolution, String> {
-    if !dmesh.apply_to(params) {
-        return crate::solver::meshed::solve(scene, params, progress);
-    }
-    params.validate()?;
-    let mesh = params.remesh()?;
-    let d = crate::solver::discontinuity::solve_hierarchical(scene, &mesh, hierarchical, progress)
-        .map_err(|e| e.to_string())?;
-    Ok(MeshSolution { solution: d.solution, coefficients: None, meshing_s: d.mesh.total_s })
 }
 
 /// What a mesh solve adds to its [`ViewData`].
@@ -497,8 +480,9 @@ impl Worker {
             .spawn(move || {
                 // A panic ends the thread (the solver may be half changed): its message is the
                 // last answer, and what is still queued is answered "stopped".
-                if let Err(e) = super::panics::catching("solver", || run(&cmd_rx, &skip, &reply_tx, &notify))
-                {
+                if let Err(e) = super::panics::catching("solver", || {
+                    solver_thread::run(&cmd_rx, &skip, &reply_tx, &notify)
+                }) {
                     let _ = reply_tx.send(Reply::Failed(e));
                     notify();
                 }
@@ -600,320 +584,6 @@ impl Drop for Worker {
         // Stop a running step; the thread ends when it sees the closed channel.
         self.cancel();
     }
-}
-
-fn run(
-    rx: &Receiver<(u64, Command)>,
-    skip_through: &AtomicU64,
-    tx: &Sender<Reply>,
-    notify: &(impl Fn() + Send),
-) {
-    let mut solver: Option<HierarchicalSolver> = None;
-    // The input scene, and on a mesh top level the input patch of each of the solver's patches.
-    let mut input: Option<Arc<Scene>> = None;
-    let mut origin: Origin = None;
-    // The solver has gathered since its last push-pull: show the pushed-pulled values.
-    let mut unpushed = false;
-    // The residual of the last gather (what a step that gathers nothing reports).
-    let mut last_residual = 0.0;
-    let send = |r: Reply| {
-        let ok = tx.send(r).is_ok();
-        notify();
-        ok
-    };
-    while let Ok((seq, cmd)) = rx.recv() {
-        if seq <= skip_through.load(Ordering::Relaxed) {
-            if !send(Reply::Skipped) {
-                break;
-            }
-            continue;
-        }
-        // A cancel applies to the command that was running when it was pressed.
-        if let Some(s) = &solver {
-            s.cancel_handle().store(false, Ordering::Relaxed);
-        }
-        if matches!(cmd, Command::Load { .. } | Command::SetParams(_) | Command::Reset) {
-            unpushed = false;
-            last_residual = 0.0;
-        }
-        let view_of = |s: &HierarchicalSolver, unpushed: bool| {
-            ViewData::of_solver_on(
-                s,
-                unpushed,
-                true,
-                CLUSTER_LINKS_KEPT,
-                origin.as_deref().map(Vec::as_slice),
-            )
-        };
-        let reply = match cmd {
-            Command::Load { scene, params, top } => match solver_on(&scene, params, top) {
-                Ok((s, o)) => {
-                    let on = o.as_deref().map(Vec::as_slice);
-                    let view = ViewData::of_solver_on(&s, false, true, CLUSTER_LINKS_KEPT, on);
-                    origin = o;
-                    input = Some(Arc::clone(&scene));
-                    let r = Reply::Loaded { cancel: s.cancel_handle(), view, scene };
-                    solver = Some(s);
-                    r
-                }
-                Err(e) => Reply::Failed(e),
-            },
-            Command::SetParams(p) => match solver.as_mut() {
-                None => Reply::Failed("no scene loaded".into()),
-                Some(s) => match s.set_params(p) {
-                    Ok(()) => Reply::Done { report: None, view: view_of(s, false) },
-                    Err(e) => Reply::Failed(e),
-                },
-            },
-            Command::Retarget(p) => match solver.as_mut() {
-                None => Reply::Failed("no scene loaded".into()),
-                Some(s) => match s.retarget(p) {
-                    Ok(true) => Reply::Retargeted,
-                    Ok(false) => {
-                        unpushed = false;
-                        last_residual = 0.0;
-                        Reply::Done { report: None, view: view_of(s, false) }
-                    }
-                    Err(e) => Reply::Failed(e),
-                },
-            },
-            Command::Reset => match solver.as_mut() {
-                None => Reply::Failed("no scene loaded".into()),
-                Some(s) => {
-                    s.reset();
-                    Reply::Done { report: None, view: view_of(s, false) }
-                }
-            },
-            Command::SolveMesh(params, dmesh) => match (solver.as_ref(), input.as_ref()) {
-                (Some(s), Some(scene)) => {
-                    solve_mesh(scene, (params, dmesh, s.params()), &s.cancel_handle(), tx, notify)
-                }
-                _ => Reply::Failed("no scene loaded".into()),
-            },
-            Command::Bake { path, options, form } => match (solver.as_ref(), input.as_ref()) {
-                (Some(s), Some(scene)) => {
-                    let on = (scene, origin.as_deref().map(Vec::as_slice));
-                    Reply::Baked(bake_to(s, on, unpushed, &path, &options, form))
-                }
-                _ => Reply::Failed("no scene loaded".into()),
-            },
-            Command::Step(kind) => match solver.as_mut() {
-                None => Reply::Failed("no scene loaded".into()),
-                Some(s) => {
-                    // Each Gather moves one bounce: a gather not yet pushed and pulled is pushed
-                    // and pulled before any other step, as the lecture's loop does between
-                    // gathers (else the next gather, or the oracle, reads the radiosities the
-                    // last gather read; the view has shown the pushed values already).
-                    if unpushed && kind != StepKind::PushPull {
-                        s.push_pull_step();
-                        unpushed = false;
-                    }
-                    let report = match kind {
-                        StepKind::Refine => s.refine_step(),
-                        StepKind::Gather => s.gather_step(),
-                        StepKind::PushPull if unpushed => s.push_pull_step(),
-                        // Nothing gathered since the last push-pull: it would change nothing and
-                        // record a residual of no gather. Answered as done, the state as it is.
-                        StepKind::PushPull => StepReport {
-                            kind,
-                            time_s: 0.0,
-                            refined: 0,
-                            new_links: 0,
-                            residual: last_residual,
-                            converged: s.is_converged(),
-                            cancelled: false,
-                        },
-                        StepKind::Iterate => s.iterate(),
-                        StepKind::Solve => {
-                            let ptx = tx.clone();
-                            let mut progress = move |done: u64, total: u64| {
-                                let _ = ptx.send(Reply::Progress { done, total });
-                            };
-                            // Intermediate pictures of a long solve, at most every
-                            // PARTIAL_EVERY (a snapshot copies every element and link).
-                            // The first round's picture at once, then at most every PARTIAL_EVERY.
-                            let mut last: Option<std::time::Instant> = None;
-                            // The replay's frames: where the solve starts, then each round.
-                            let on = origin.as_deref().map(Vec::as_slice);
-                            let mut frames =
-                                vec![ViewData::of_solver_on(s, unpushed, false, REPLAY_CLUSTER_LINKS, on)];
-                            let mut budget = REPLAY_BUDGET_BYTES.saturating_sub(frames[0].bytes());
-                            let mut on_round = |s: &HierarchicalSolver| {
-                                if budget > 0 {
-                                    let frame =
-                                        ViewData::of_solver_on(s, false, false, REPLAY_CLUSTER_LINKS, on);
-                                    budget = budget.saturating_sub(frame.bytes());
-                                    if budget > 0 {
-                                        frames.push(frame);
-                                    }
-                                }
-                                // `cancel_all` while this solve ran: the flag it set may have
-                                // landed between two sub-steps (each clears it); set it again.
-                                if seq <= skip_through.load(Ordering::Relaxed) {
-                                    s.cancel_handle().store(true, Ordering::Relaxed);
-                                }
-                                let now = std::time::Instant::now();
-                                if last.is_none_or(|t| now.duration_since(t) >= PARTIAL_EVERY) {
-                                    last = Some(now);
-                                    let view = ViewData::of_solver_on(s, false, true, CLUSTER_LINKS_KEPT, on);
-                                    let _ = tx.send(Reply::Partial { view });
-                                    notify();
-                                }
-                            };
-                            let report = s.solve_observed(&mut progress, &mut on_round);
-                            let _ = tx.send(Reply::Replay { frames });
-                            report
-                        }
-                    };
-                    // Gauss-Seidel gathers push and pull patch by patch themselves; Iterate and
-                    // Solve end with a push-pull (or stop before their gather).
-                    unpushed = kind == StepKind::Gather && !s.params().gauss_seidel;
-                    let view = view_of(s, unpushed);
-                    let mut report = report;
-                    if unpushed {
-                        // The solver records a gather's residual at its push-pull; the view has
-                        // it already (`from_gathered_snapshot`): the report says this gather's.
-                        report.residual = view.residuals.last().copied().unwrap_or(0.0);
-                        report.converged = report.residual < s.params().tolerance;
-                    }
-                    last_residual = report.residual;
-                    Reply::Done { report: Some(report), view }
-                }
-            },
-        };
-        if !send(reply) {
-            break;
-        }
-    }
-}
-
-/// On a mesh top level, the input patch of each of the solver's patches (`None`: the solver is on
-/// the input patches).
-type Origin = Option<Arc<Vec<usize>>>;
-
-/// The hierarchical solver on `top` of `scene` (the scene's size resolves [`TopLevel::Auto`]),
-/// and on a mesh the input patch of each of its patches.
-fn solver_on(
-    scene: &Arc<Scene>,
-    params: HierarchicalParams,
-    top: TopLevel,
-) -> Result<(HierarchicalSolver, Origin), String> {
-    let spec = SolveSpec { plan: Plan::Hierarchical { params, top }, estimate: false }.resolved(scene);
-    match spec.plan {
-        Plan::Hierarchical { top: TopLevel::Mesh(mesh), .. } => {
-            let meshed = crate::mesh::remesh::discontinuity_scene(scene, &mesh)
-                .map_err(|e| format!("{}: {e}", scene.name))?;
-            let s = HierarchicalSolver::new(Arc::new(meshed.scene), params)?;
-            Ok((s, Some(Arc::new(meshed.origin))))
-        }
-        _ => Ok((HierarchicalSolver::new(Arc::clone(scene), params)?, None)),
-    }
-}
-
-/// How often a mesh solve's waiting solver thread looks at the cancel flag.
-const MESH_CANCEL_POLL: std::time::Duration = std::time::Duration::from_millis(20);
-
-/// A mesh solve, its progress forwarded. The mesh solvers have no cancel flag, so the solve runs
-/// on a thread of its own ("radlab-mesh-solve") while the solver thread waits for it and watches
-/// `cancel`: on Cancel it answers [`Reply::Cancelled`] at once and the solve is left to finish in
-/// the background (its progress no longer forwarded, its result dropped; `max_unknowns` keeps it
-/// bounded), so the next command runs without waiting for it.
-fn solve_mesh(
-    scene: &Arc<Scene>,
-    (params, dmesh, hierarchical): (MeshSolveParams, DmeshOptions, HierarchicalParams),
-    cancel: &AtomicBool,
-    tx: &Sender<Reply>,
-    notify: &(impl Fn() + Send),
-) -> Reply {
-    let t = std::time::Instant::now();
-    let abandoned = Arc::new(AtomicBool::new(false));
-    let (done_tx, done_rx) = channel();
-    let (ptx, quiet, on) = (tx.clone(), Arc::clone(&abandoned), Arc::clone(scene));
-    let spawned = std::thread::Builder::new().name("radlab-mesh-solve".into()).spawn(move || {
-        let mut progress = move |done: u64, total: u64| {
-            if !quiet.load(Ordering::Relaxed) {
-                let _ = ptx.send(Reply::Progress { done, total });
-            }
-        };
-        let solved = super::panics::catching("mesh solve", || {
-            solve_on_mesh(&on, &params, dmesh, hierarchical, &mut progress)
-        });
-        let _ = done_tx.send(solved.flatten());
-    });
-    if let Err(e) = spawned {
-        return Reply::Failed(format!("cannot start the mesh solve's thread: {e}"));
-    }
-    notify();
-    let report = |cancelled: bool| StepReport {
-        kind: StepKind::Solve,
-        time_s: t.elapsed().as_secs_f64(),
-        refined: 0,
-        new_links: 0,
-        residual: 0.0,
-        converged: !cancelled,
-        cancelled,
-    };
-    loop {
-        match done_rx.recv_timeout(MESH_CANCEL_POLL) {
-            Ok(Ok(m)) => {
-                let report = report(false);
-                let mut view = ViewData::of_mesh_solution(scene, params, m, report.time_s);
-                if let Some(info) = view.mesh.as_mut() {
-                    info.dmesh = dmesh;
-                }
-                return Reply::Done { report: Some(report), view: Arc::new(view) };
-            }
-            Ok(Err(e)) => return Reply::Failed(format!("{}{}: {e}", params.label(), dmesh.label(&params))),
-            Err(std::sync::mpsc::RecvTimeoutError::Timeout) if cancel.load(Ordering::Relaxed) => {
-                abandoned.store(true, Ordering::Relaxed);
-                return Reply::Cancelled { report: report(true) };
-            }
-            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
-            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
-                return Reply::Failed(format!("{}: the mesh solve's thread stopped", params.label()));
-            }
-        }
-    }
-}
-
-/// Bake the solver's leaves (pushed and pulled first if it has gathered since its last
-/// push-pull, as the view shows them) and write the file.
-fn bake_to(
-    s: &HierarchicalSolver,
-    (scene, origin): (&Arc<Scene>, Option<&[usize]>),
-    unpushed: bool,
-    path: &std::path::Path,
-    options: &crate::present::bake::BakeOptions,
-    form: crate::present::bake::BakeForm,
-) -> Result<String, String> {
-    let fail = |e: &dyn std::fmt::Display| format!("export {}: {e}", path.display());
-    let format = crate::present::bake::BakeFormat::from_path(path).map_err(|e| fail(&e))?;
-    let mut solution = s.solution_with(false);
-    if unpushed {
-        let v = ViewData::from_gathered_snapshot(s.snapshot(), &s.push_pull_preview());
-        for (e, &id) in solution.elements.iter_mut().zip(&v.leaves) {
-            e.radiosity = v.elements[id as usize].radiosity;
-        }
-    }
-    if let Some(origin) = origin {
-        solution = crate::solver::discontinuity::pull_back(solution, origin, scene.patches.len());
-    }
-    let bytes =
-        crate::present::bake::bake_as(scene, &solution, options, form, format).map_err(|e| fail(&e))?;
-    std::fs::write(path, bytes).map_err(|e| fail(&e))?;
-    Ok(match form {
-        crate::present::bake::BakeForm::Elements => {
-            format!("baked {} elements to {}", solution.elements.len(), path.display())
-        }
-        // The CLI's words (radlab solve --bake-lightmap).
-        crate::present::bake::BakeForm::Lightmap(m) => format!(
-            "baked {} patches with a {}×{} lightmap to {}",
-            scene.patches.len(),
-            m.size,
-            m.size,
-            path.display()
-        ),
-    })
 }
 
 #[cfg(test)]
