@@ -1,5 +1,5 @@
 //! The speed-against-error plot: a log-log PNG, one panel per scene, time on x and pointwise
-//! relative L2 error on y, one colour per method with its Pareto-optimal rows joined, the 1 % and
+//! relative L2 error on y, one colour per method with its Pareto-optimal rows joined, the 1 %, 2 % and
 //! 5 % targets dashed and the band below the reference's resolution shaded (plotters, bitmap
 //! backend, DejaVu Sans shipped with the crate).
 
@@ -26,7 +26,7 @@ pub(crate) fn register_font() {
 }
 
 /// Log-log PNG: time on x, relative L2 error on y, one panel per scene, one curve (colour) per
-/// method, Pareto-optimal points of each method joined by a line, the 1 % and 5 % levels dashed.
+/// method, Pareto-optimal points of each method joined by a line, the 1 %, 2 % and 5 % levels dashed.
 pub fn plot_png(report: &BenchReport, path: &Path) -> Result<(), BenchError> {
     use plotters::prelude::*;
     register_font();

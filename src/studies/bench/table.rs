@@ -4,7 +4,7 @@
 //! on the contact mesh as its threshold halves.
 
 use super::sweep::{CLUSTER_MARK, CONTACT_MARK, FAST_CAUSE_TAIL, TAIL_MARK};
-use super::{BenchReport, Row, SceneSummary};
+use super::{BenchReport, Row, SceneSummary, TARGETS};
 use crate::eval::pointwise::thousands;
 
 fn pct(x: f64) -> String {
@@ -38,7 +38,8 @@ pub(super) fn secs_rough(t: f64) -> String {
     }
 }
 
-/// The report as Markdown: the full table, then per scene the time to 1 % and 5 % and the ratio.
+/// The report as Markdown: the full table, then per scene the time to 5 %, 2 % and 1 % and the
+/// ratios.
 #[must_use]
 pub fn markdown(report: &BenchReport) -> String {
     let mut s = String::new();
@@ -61,7 +62,7 @@ pub fn markdown(report: &BenchReport) -> String {
     ));
     s.push_str(&rows_table(&report.rows));
     s.push_str(
-        "\n| scene | reference points / paths per point / noise / resolution | method | time to 5 % | time to 1 % | least pointwise error reached (time) |\n|---|---:|---|---:|---:|---:|\n",
+        "\n| scene | reference points / paths per point / noise / resolution | method | time to 5 % | time to 2 % | time to 1 % | least pointwise error reached (time) |\n|---|---:|---|---:|---:|---:|---:|\n",
     );
     for sc in &report.scenes {
         s.push_str(&scene_summary(report, sc));
@@ -102,8 +103,16 @@ fn rows_table(rows: &[Row]) -> String {
     s
 }
 
-/// One scene's rows of the summary table: each method's time to 5 % and 1 % and the least error
-/// it reached, then the hierarchical solver's time ratios.
+/// The summary's targets, coarsest first (its columns).
+const COLUMNS: [f64; 3] = [TARGETS[2], TARGETS[1], TARGETS[0]];
+
+/// One summary row: `label` and one cell per target of [`COLUMNS`].
+fn summary_row(name: &str, label: &str, cells: [String; 3]) -> String {
+    format!("| {name} | | {label} | {} | {} | {} | |\n", cells[0], cells[1], cells[2])
+}
+
+/// One scene's rows of the summary table: each method's time to 5 %, 2 % and 1 % and the least
+/// error it reached, then the hierarchical solver's time ratios.
 fn scene_summary(report: &BenchReport, sc: &SceneSummary) -> String {
     let mut s = String::new();
     for m in ["uniform", "progressive", "hierarchical"] {
@@ -133,33 +142,25 @@ fn scene_summary(report: &BenchReport, sc: &SceneSummary) -> String {
             .min_by(|a, b| a.error().total_cmp(&b.error()))
             .map_or_else(|| "–".into(), |r| format!("{} ({:.3} s)", pct(r.error()), r.time_s));
         s.push_str(&format!(
-            "| {} | {} / {} / {} / {} | {m} | {} | {} | {best} |\n",
+            "| {} | {} / {} / {} / {} | {m} | {} | {} | {} | {best} |\n",
             sc.scene.trim_start_matches("builtin:"),
             thousands(sc.reference_points),
             sc.reference_samples,
             pct(sc.reference_noise),
             pct(sc.resolution),
-            cell(0.05),
-            cell(0.01)
+            cell(COLUMNS[0]),
+            cell(COLUMNS[1]),
+            cell(COLUMNS[2])
         ));
     }
     let name = sc.scene.trim_start_matches("builtin:");
     let ratio = |target: f64| at(&sc.ratios, target).map_or_else(|| "n/a".into(), |r| format!("{r:.2}×"));
-    s.push_str(&format!(
-        "| {name} | | **hierarchical / best other** | {} | {} | |\n",
-        ratio(0.05),
-        ratio(0.01)
-    ));
+    s.push_str(&summary_row(name, "**hierarchical / best other**", COLUMNS.map(ratio)));
     // Rows shown only where a target has a value.
     let mut optional_row = |label: &str, cell: &dyn Fn(f64) -> Option<String>| {
-        let (five, one) = (cell(0.05), cell(0.01));
-        if five.is_some() || one.is_some() {
-            let na = || "n/a".to_string();
-            s.push_str(&format!(
-                "| {name} | | {label} | {} | {} | |\n",
-                five.unwrap_or_else(na),
-                one.unwrap_or_else(na)
-            ));
+        let cells = COLUMNS.map(cell);
+        if cells.iter().any(Option::is_some) {
+            s.push_str(&summary_row(name, label, cells.map(|c| c.unwrap_or_else(|| "n/a".to_string()))));
         }
     };
     optional_row("hierarchical / **uniform** (uniform had not reached it in its longest run)", &|t| {
@@ -246,11 +247,11 @@ mod tests {
             reference_noise: 0.02,
             resolution: 0.003,
             reference_cache: String::new(),
-            resolved: vec![(0.01, false), (0.05, true)],
+            resolved: vec![(0.01, false), (0.02, true), (0.05, true)],
             crossings: Vec::new(),
-            ratios: vec![(0.01, None), (0.05, None)],
-            ratios_extrapolated: vec![(0.01, None), (0.05, Some(0.0046))],
-            ratios_uniform_bound: vec![(0.01, None), (0.05, bound)],
+            ratios: vec![(0.01, None), (0.02, Some(0.5)), (0.05, None)],
+            ratios_extrapolated: vec![(0.01, None), (0.02, None), (0.05, Some(0.0046))],
+            ratios_uniform_bound: vec![(0.01, None), (0.02, None), (0.05, bound)],
         };
         let report = |bound| BenchReport {
             mode: Mode::Standard,
@@ -261,9 +262,10 @@ mod tests {
         };
         let md = markdown(&report(Some(0.0601)));
         for line in [
-            "| splash_room | | **hierarchical / best other** | n/a | n/a | |\n",
-            "| splash_room | | hierarchical / **uniform** (uniform had not reached it in its longest run) | < 0.060× (measured) | n/a | |\n",
-            "| splash_room | | hierarchical / best other's **extrapolated** time | 4.6e-3× (estimate) | n/a | |\n",
+            "| time to 5 % | time to 2 % | time to 1 % |",
+            "| splash_room | | **hierarchical / best other** | n/a | 0.50× | n/a | |\n",
+            "| splash_room | | hierarchical / **uniform** (uniform had not reached it in its longest run) | < 0.060× (measured) | n/a | n/a | |\n",
+            "| splash_room | | hierarchical / best other's **extrapolated** time | 4.6e-3× (estimate) | n/a | n/a | |\n",
         ] {
             assert!(md.contains(line), "{line} in\n{md}");
         }
