@@ -40,3 +40,31 @@ fn speed_benchmark_writes_rows_with_identical_counts_for_any_thread_count() {
     assert!(err.contains("--repeats") && err.lines().count() == 1, "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A ladder preset is timed as `radlab solve` runs it: on the contact mesh, with the same
+/// leaves, links and rays.
+#[test]
+fn speed_runs_a_ladder_preset_on_its_mesh_as_solve_does() {
+    let dir = std::env::temp_dir().join(format!("radlab-speed-ladder-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (speed_json, solve_json) = (dir.join("speed.json"), dir.join("solve.json"));
+    let run = |args: &[&str], json: &std::path::Path| {
+        let out =
+            Command::new(env!("CARGO_BIN_EXE_radlab")).args(args).arg("--json").arg(json).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(json).unwrap()).unwrap()
+    };
+    let speed = run(
+        &["speed", "builtin:cornell", "--preset", "draft", "--rays", "4", "--threads", "1", "--repeats", "1"],
+        &speed_json,
+    );
+    let solve = run(
+        &["solve", "builtin:cornell", "--preset", "draft", "--rays", "4", "--threads", "1", "-q"],
+        &solve_json,
+    );
+    assert!(solve["method"].as_str().unwrap().contains("contact mesh"), "{}", solve["method"]);
+    for (key, in_solve) in [("leaves", "leaves"), ("links", "links"), ("rays_cast", "rays")] {
+        assert_eq!(speed[0][key], solve["stats"][in_solve], "{key}: speed against solve");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1,7 +1,9 @@
 //! `radlab speed [SCENE] [--preset P] [--rays 4,10] [--threads 1,2] [--repeats N] [--seeds K] [--json PATH]`:
-//! the hierarchical solver's speed benchmark (issue: "faster than the classic implementation").
+//! the hierarchical solver's speed benchmark.
 //!
-//! Runs the full HSA91 solve (`HierarchicalSolver::solve`, BVH reused) for every rays × threads
+//! Runs the preset's full hierarchical solve, set up as `radlab solve` sets it up
+//! (`solver::spec::setup`: on the input patches with the BVH reused, or on the preset's mesh,
+//! whose meshing and BVH are then timed too), for every rays × threads
 //! combination, `repeats` times after one untimed warm-up, and prints the median wall time per
 //! phase, the element and link counts, and the link-creation rate (links created by refinement,
 //! including replaced ones, per second of refinement). With `--seeds K` the timed runs cycle
@@ -13,8 +15,9 @@
 
 use anyhow::{Context, bail};
 use radlab::geometry::accel::Accel;
-use radlab::solver::hierarchical::{HierarchicalSolver, HierarchicalStats};
+use radlab::solver::hierarchical::HierarchicalStats;
 use radlab::solver::params::HierarchicalParams;
+use radlab::solver::spec::{Plan, SolveSpec, TopLevel, setup};
 use serde::Serialize;
 use std::sync::Arc;
 use std::time::Instant;
@@ -107,11 +110,10 @@ impl Serialize for Phases {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     check(&args)?;
-    let preset = radlab::solver::spec::Preset::from_name(&args.preset)
-        .with_context(|| {
-            format!("unknown preset {:?} (one of {})", args.preset, radlab::solver::spec::Preset::names())
-        })?
-        .hierarchical();
+    let ladder = radlab::solver::spec::Preset::from_name(&args.preset).with_context(|| {
+        format!("unknown preset {:?} (one of {})", args.preset, radlab::solver::spec::Preset::names())
+    })?;
+    let (preset, top) = (ladder.hierarchical(), ladder.top());
     let scene = Arc::new(super::solve::load_scene(&args.scene, 5_000_000)?);
     let accel = Arc::new(Accel::build(&scene));
     println!(
@@ -130,7 +132,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut rows = Vec::new();
     for &rays in &args.rays {
         for &threads in &args.threads {
-            let row = measure(&args, &scene, &accel, preset, rays, threads)?;
+            let row = measure(&args, &scene, &accel, (preset, top), rays, threads)?;
             let ph = &row.phases.0;
             println!(
                 "| {} | {} | {} ({}) | {} | {} | {} | {:.3} s | {:.3} s | {:.3} s | {:.2} M | {:.2} M |",
@@ -186,7 +188,7 @@ fn measure(
     args: &Args,
     scene: &Arc<radlab::scene::Scene>,
     accel: &Arc<Accel>,
-    preset: HierarchicalParams,
+    (preset, top): (HierarchicalParams, TopLevel),
     rays: u32,
     threads: usize,
 ) -> anyhow::Result<Row> {
@@ -199,10 +201,11 @@ fn measure(
         let params = HierarchicalParams { rays, seed: preset.seed.wrapping_add(k), ..preset };
         let (total, stats) = pool.install(|| {
             let t = Instant::now();
-            let mut s = HierarchicalSolver::with_accel(Arc::clone(scene), Arc::clone(accel), params, 0.0);
-            s.solve(&mut |_, _| {});
-            (t.elapsed().as_secs_f64(), s.stats())
-        });
+            let spec = SolveSpec { plan: Plan::Hierarchical { params, top }, estimate: false };
+            let mut s = setup(scene, Some((accel, 0.0)), &spec)?;
+            s.solver_mut().solve(&mut |_, _| {});
+            anyhow::Ok((t.elapsed().as_secs_f64(), s.solver().stats()))
+        })?;
         if i > 0 {
             runs.push((total, stats));
         }

@@ -270,6 +270,12 @@ impl HierarchicalOnMesh {
         })
     }
 
+    /// The solver on the pieces, and each piece's input patch.
+    #[must_use]
+    pub fn into_parts(self) -> (HierarchicalSolver, Vec<usize>) {
+        (self.solver, self.origin)
+    }
+
     /// The solved hierarchy's leaves pulled back onto the input scene, with the solver's own
     /// per-element error estimates if `estimates` ([`HierarchicalSolver::solution_with`]; they
     /// are computed on the pieces, which carry their input patch's material); `solve_s` counts

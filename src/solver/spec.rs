@@ -425,6 +425,70 @@ impl Solved {
     }
 }
 
+/// A hierarchical solve set up as its spec says, before it runs: on the input patches, or on
+/// the pieces of a mesh (the contact mesh of the ladder) with each piece's input patch. What
+/// [`solve`] runs to the end, and what the viewer steps.
+pub enum Setup {
+    Patches(Box<HierarchicalSolver>),
+    Mesh(Box<HierarchicalOnMesh>),
+}
+
+impl Setup {
+    #[must_use]
+    pub fn solver(&self) -> &HierarchicalSolver {
+        match self {
+            Setup::Patches(s) => s,
+            Setup::Mesh(m) => &m.solver,
+        }
+    }
+
+    pub fn solver_mut(&mut self) -> &mut HierarchicalSolver {
+        match self {
+            Setup::Patches(s) => s,
+            Setup::Mesh(m) => &mut m.solver,
+        }
+    }
+
+    /// The solver, and on a mesh each of its patches' input patch.
+    #[must_use]
+    pub fn into_parts(self) -> (HierarchicalSolver, Option<Vec<usize>>) {
+        match self {
+            Setup::Patches(s) => (*s, None),
+            Setup::Mesh(m) => {
+                let (s, origin) = m.into_parts();
+                (s, Some(origin))
+            }
+        }
+    }
+}
+
+/// Set up the hierarchical solve of `spec` on `scene` ([`TopLevel::Auto`] resolved by the
+/// scene's size): `accel`, the scene's BVH and the seconds it took, if built (a mesh builds its
+/// own). An error if the spec is invalid or not hierarchical, or the mesh fails.
+pub fn setup(
+    scene: &Arc<Scene>,
+    accel: Option<(&Arc<Accel>, f64)>,
+    spec: &SolveSpec,
+) -> Result<Setup, SolveError> {
+    spec.validate()?;
+    let failed = SolveError::Failed;
+    match &spec.resolved(scene).plan {
+        Plan::Hierarchical { params, top: TopLevel::Patches | TopLevel::Auto } => {
+            Ok(Setup::Patches(Box::new(match accel {
+                Some((accel, bvh_s)) => {
+                    HierarchicalSolver::with_accel(Arc::clone(scene), Arc::clone(accel), *params, bvh_s)
+                }
+                None => HierarchicalSolver::new(Arc::clone(scene), *params).map_err(failed)?,
+            })))
+        }
+        Plan::Hierarchical { params, top: TopLevel::Mesh(mesh) } => Ok(Setup::Mesh(Box::new(
+            HierarchicalOnMesh::new(scene, mesh, *params)
+                .map_err(|e| failed(format!("{}: {e}", scene.name)))?,
+        ))),
+        _ => Err(failed(format!("{}: the {} solver has no hierarchy to step", scene.name, spec.mesh_name()))),
+    }
+}
+
 /// Solve `scene` (with its BVH `accel`, built in `bvh_s` seconds) as `spec` says. Setting
 /// `cancel` makes a hierarchical solve stop at its next sub-step (the mesh solvers run to the
 /// end); the solution is then the state reached.
@@ -443,21 +507,20 @@ pub fn solve(
     let mut notes = Vec::new();
     let mut cancelled = false;
     let solution = match &spec.plan {
-        Plan::Hierarchical { params, top: TopLevel::Patches | TopLevel::Auto } => {
-            let mut s = HierarchicalSolver::with_accel(Arc::clone(scene), Arc::clone(accel), *params, bvh_s);
-            cancelled = forward_solve(&mut s, cancel, progress);
-            let sol = s.solution_with(spec.estimate);
-            hierarchical = Some(s);
-            sol
-        }
-        Plan::Hierarchical { params, top: TopLevel::Mesh(mesh) } => {
-            let mut on_mesh =
-                HierarchicalOnMesh::new(scene, mesh, *params).map_err(|e| failed(e.to_string()))?;
-            cancelled = forward_solve(&mut on_mesh.solver, cancel, progress);
-            let d = on_mesh.finish(spec.estimate);
-            remesh = Some((d.mesh, d.solve_s));
-            d.solution
-        }
+        Plan::Hierarchical { .. } => match setup(scene, Some((accel, bvh_s)), spec)? {
+            Setup::Patches(mut s) => {
+                cancelled = forward_solve(&mut s, cancel, progress);
+                let sol = s.solution_with(spec.estimate);
+                hierarchical = Some(*s);
+                sol
+            }
+            Setup::Mesh(mut on_mesh) => {
+                cancelled = forward_solve(&mut on_mesh.solver, cancel, progress);
+                let d = on_mesh.finish(spec.estimate);
+                remesh = Some((d.mesh, d.solve_s));
+                d.solution
+            }
+        },
         Plan::Uniform(p) => uniform::solve(scene, accel, p, progress).map_err(failed)?,
         Plan::Linear(p) => {
             let s = linear::solve(scene, accel, p, progress).map_err(failed)?;

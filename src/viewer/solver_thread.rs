@@ -282,16 +282,9 @@ fn solver_on(
     params: HierarchicalParams,
     top: TopLevel,
 ) -> Result<(HierarchicalSolver, Origin), String> {
-    let spec = SolveSpec { plan: Plan::Hierarchical { params, top }, estimate: false }.resolved(scene);
-    match spec.plan {
-        Plan::Hierarchical { top: TopLevel::Mesh(mesh), .. } => {
-            let meshed = crate::mesh::remesh::discontinuity_scene(scene, &mesh)
-                .map_err(|e| format!("{}: {e}", scene.name))?;
-            let s = HierarchicalSolver::new(Arc::new(meshed.scene), params)?;
-            Ok((s, Some(Arc::new(meshed.origin))))
-        }
-        _ => Ok((HierarchicalSolver::new(Arc::clone(scene), params)?, None)),
-    }
+    let spec = SolveSpec { plan: Plan::Hierarchical { params, top }, estimate: false };
+    let (s, origin) = crate::solver::spec::setup(scene, None, &spec).map_err(|e| e.to_string())?.into_parts();
+    Ok((s, origin.map(Arc::new)))
 }
 
 /// How often a mesh solve's waiting solver thread looks at the cancel flag.
