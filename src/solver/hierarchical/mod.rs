@@ -394,7 +394,7 @@ pub struct HierarchicalSolver {
     pair_memo: PairMemo,
     /// The error oracle's kernels at each element's child points per linked source, from the
     /// last refinement (`oracle::ErrorField::kernels`): the next one evaluates only new pairs.
-    error_kernels: Vec<Vec<(u32, [f64; 4])>>,
+    error_kernels: Vec<oracle::Kernels>,
     /// The cluster tree above the input patches (built at the first linking, when
     /// `params.cluster` applies; [`cluster`]).
     clusters: Option<Arc<ClusterTree>>,

@@ -97,7 +97,30 @@ pub(super) struct ErrorField {
     /// its own links, sorted by q: what `own_terms` evaluated, for the decisions to look up
     /// instead of evaluating again (a pair's kernel is geometry alone, fixed for the pair's
     /// life, so an entry never goes stale).
-    pub kernels: Vec<Vec<(u32, [f64; 4])>>,
+    pub kernels: Vec<Kernels>,
+}
+
+/// One element's kernels at its child points, per linked source: the sources sorted, and the
+/// kernels in the same order. Kept apart so that looking a source up searches a dense list of
+/// ids (the decisions look up two a link, and the search was bound by memory latency).
+#[derive(Clone, Debug, Default)]
+pub struct Kernels {
+    sources: Vec<u32>,
+    values: Vec<[f64; 4]>,
+}
+
+impl Kernels {
+    /// From (source, kernel) pairs in any order.
+    fn from_pairs(mut pairs: Vec<(u32, [f64; 4])>) -> Kernels {
+        pairs.sort_unstable_by_key(|&(q, _)| q);
+        let (sources, values) = pairs.into_iter().unzip();
+        Kernels { sources, values }
+    }
+
+    /// The kernel of the pair with source `q`, if held.
+    fn get(&self, q: u32) -> Option<[f64; 4]> {
+        self.sources.binary_search(&q).ok().map(|i| self.values[i])
+    }
 }
 
 /// The four points where a split would put the children's centroids (see `hierarchy` for the
@@ -209,9 +232,8 @@ fn kernel_at(r: &Element, pts: &[DVec3; 4], q: &Element) -> ([f64; 4], f64) {
 
 /// The kernel of the pair (r, q) at r's child points, if `kernels` (an error field's, per
 /// element, sorted by source) holds it.
-pub(super) fn known_kernel(kernels: &[Vec<(u32, [f64; 4])>], r: u32, q: u32) -> Option<[f64; 4]> {
-    let k = kernels.get(r as usize)?;
-    k.binary_search_by_key(&q, |&(s, _)| s).ok().map(|i| k[i].1)
+pub(super) fn known_kernel(kernels: &[Kernels], r: u32, q: u32) -> Option<[f64; 4]> {
+    kernels.get(r as usize)?.get(q)
 }
 
 /// The mean of the kernel at the four child points (one expression, so the same bits wherever
@@ -226,8 +248,8 @@ struct OwnTerms {
     partial: Rgb,
     disc: Rgb,
     cause: f64,
-    /// The own links' kernels at the child points, sorted by source (`ErrorField::kernels`).
-    kernels: Vec<(u32, [f64; 4])>,
+    /// The own links' kernels at the child points (`ErrorField::kernels`).
+    kernels: Kernels,
 }
 
 /// F_rq of a link of `r`'s (or of its mirror: the pair's coupling over `r`'s area), the same
@@ -257,7 +279,7 @@ impl HierarchicalSolver {
     /// The error field of the current state (parallel over elements, deterministic).
     /// `known`: the kernels of an earlier field (`ErrorField::kernels`, per element), reused
     /// where a pair is still linked.
-    pub(super) fn error_field(&self, known: &[Vec<(u32, [f64; 4])>]) -> ErrorField {
+    pub(super) fn error_field(&self, known: &[Kernels]) -> ErrorField {
         let n = self.hier.len();
         let mut field = ErrorField {
             err: vec![0.0; n],
@@ -272,7 +294,7 @@ impl HierarchicalSolver {
         let terms: Vec<OwnTerms> = (0..n as u32)
             .into_par_iter()
             .with_min_len(64)
-            .map(|r| self.own_terms(r, known.get(r as usize).map_or(&[], Vec::as_slice)))
+            .map(|r| self.own_terms(r, known.get(r as usize)))
             .collect();
         field.own_h = terms.iter().map(|t| t.h).collect();
         field.partial = terms.iter().map(|t| t.partial).collect();
@@ -299,11 +321,8 @@ impl HierarchicalSolver {
         }
         let todo: Vec<u32> = (0..n as u32).filter(|&r| dirty[r as usize]).collect();
         let kernels = &field.kernels;
-        let terms: Vec<OwnTerms> = todo
-            .par_iter()
-            .with_min_len(16)
-            .map(|&r| self.own_terms(r, kernels.get(r as usize).map_or(&[], Vec::as_slice)))
-            .collect();
+        let terms: Vec<OwnTerms> =
+            todo.par_iter().with_min_len(16).map(|&r| self.own_terms(r, kernels.get(r as usize))).collect();
         field.err.resize(n, 0.0);
         field.spread.resize(n, 0.0);
         field.cause.resize(n, f64::INFINITY);
@@ -311,7 +330,7 @@ impl HierarchicalSolver {
         field.own_h.resize(n, [Rgb::ZERO; 4]);
         field.partial.resize(n, Rgb::ZERO);
         field.disc.resize(n, Rgb::ZERO);
-        field.kernels.resize_with(n, Vec::new);
+        field.kernels.resize_with(n, Kernels::default);
         for (&r, t) in todo.iter().zip(terms) {
             field.own_h[r as usize] = t.h;
             field.partial[r as usize] = t.partial;
@@ -374,7 +393,7 @@ impl HierarchicalSolver {
     /// The exact terms of one element's own links: their part of h, the visibility term, and
     /// the threshold `cause`. `known`: kernels of r's pairs already evaluated (sorted by source),
     /// the same numbers as evaluating them again.
-    fn own_terms(&self, r: u32, known: &[(u32, [f64; 4])]) -> OwnTerms {
+    fn own_terms(&self, r: u32, known: Option<&Kernels>) -> OwnTerms {
         let e = self.hier.get(r);
         let pts = child_points(e);
         let mut h = [Rgb::ZERO; 4];
@@ -385,9 +404,9 @@ impl HierarchicalSolver {
         let mut kernels = Vec::with_capacity(own.len());
         for l in own {
             let src = self.hier.get(l.source);
-            let (f, mean) = match known.binary_search_by_key(&l.source, |&(q, _)| q) {
-                Ok(i) => (known[i].1, kernel_mean(&known[i].1)),
-                Err(_) => kernel_at(e, &pts, src),
+            let (f, mean) = match known.and_then(|k| k.get(l.source)) {
+                Some(f) => (f, kernel_mean(&f)),
+                None => kernel_at(e, &pts, src),
             };
             kernels.push((l.source, f));
             let vb = src.radiosity * f64::from(l.vis).min(1.0);
@@ -411,8 +430,7 @@ impl HierarchicalSolver {
             cause = ck;
             tail -= ck;
         }
-        kernels.sort_unstable_by_key(|&(q, _)| q);
-        OwnTerms { h, partial, disc, cause, kernels }
+        OwnTerms { h, partial, disc, cause, kernels: Kernels::from_pairs(kernels) }
     }
 
     /// e_r (module docs) from h and the visibility term; 0 without own links.
