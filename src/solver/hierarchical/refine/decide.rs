@@ -31,8 +31,6 @@ impl HierarchicalSolver {
         })
     }
 
-    /// Whether links weight their visibility samples by the kernel (`visibility_sample`): the
-
     /// The oracle's radiosity term of the pair (receiver `r`, source `s`): the larger of the two
     /// elements' `source_b`, so that the link r ← s and its mirror s ← r get the same verdict
     /// and the pair's links stay mirror images (see [`transfer`]: energy is conserved only if
