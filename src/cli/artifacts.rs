@@ -8,11 +8,11 @@
 //! interpolant ([`radlab::eval::pointwise::PointInterpolant`]). With the cached reference the pointwise
 //! error at its own points (debiased by its noise) is printed too.
 
-use super::solve::{LazyBar, SolverArgs, load_scene, set_threads, solve_scene};
+use super::solve::{LazyBar, Solved, SolverArgs, load_scene, set_threads, solve_scene};
 use anyhow::Context as _;
-use radlab::eval::artifacts::{ArtifactParams, ArtifactReport, Gouraud, measure_views};
+use radlab::eval::artifacts::{ArtifactMaps, ArtifactParams, ArtifactReport, Gouraud, measure_views};
 use radlab::eval::pointwise::{PiecewiseConstant, PointInterpolant, Reconstruction, thousands};
-use radlab::eval::reference::{Cache, Control, PointParams, ReferenceParams};
+use radlab::eval::reference::{Cache, CachedPoints, Control, PointParams, ReferenceParams};
 use radlab::geometry::accel::Accel;
 use radlab::math::{DVec3, Rgb};
 use serde_json::json;
@@ -71,6 +71,25 @@ impl Reconstruction for Ruler {
     }
 }
 
+impl Ruler {
+    /// How the report names the ruler.
+    fn label(&self) -> String {
+        match self {
+            Ruler::Exact(_) => "the closed form (exact single-bounce scene)".to_string(),
+            Ruler::Points { label, .. } => label.clone(),
+        }
+    }
+}
+
+/// The pointwise error of the solution at the cached reference's own points, debiased by its
+/// noise: the scene's, its noise, the penumbra band's, and per patch (JSON rows).
+struct Pointwise {
+    rel_l2: f64,
+    noise: f64,
+    band: Option<f64>,
+    per_patch: Vec<serde_json::Value>,
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let a = &args.solver;
     set_threads(a.threads)?;
@@ -92,21 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let exact = if args.path_traced { None } else { radlab::geometry::exact::SingleBounce::new(&scene).ok() };
     let cached = match exact {
         Some(_) => None,
-        None => {
-            let params = PointParams {
-                paths: ReferenceParams { samples: args.samples, ..ReferenceParams::standard() },
-                ..PointParams::standard()
-            };
-            let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
-            writeln!(log, "reference: looking up (or computing) the pointwise reference of {}", args.scene)?;
-            let (entry, status) = cache
-                .get_or_compute_points(&scene, &accel, &params, &Control::default())
-                .with_context(|| format!("reference of {}", args.scene))?;
-            if let radlab::eval::reference::CacheStatus::Computed(f) = &status {
-                writeln!(log, "reference: computed in {:.1} s, cached in {}", entry.compute_s, f.display())?;
-            }
-            Some(entry)
-        }
+        None => Some(cached_reference(&args, &scene, &accel, &mut log)?),
     };
 
     let mut bar = LazyBar::new("solve", args.quiet);
@@ -118,14 +123,62 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.drop_slopes {
         solved.solution.elements.iter_mut().for_each(|e| e.slope = None);
     }
-    let sol = &solved.solution;
 
     let t = Instant::now();
-    let ruler = match (exact, &cached) {
+    let ruler = ruler(&scene, exact, cached.as_ref())?;
+    let params = ArtifactParams { side: args.side, ..ArtifactParams::standard() };
+    let (report, maps, pointwise) = measure(&scene, &accel, &solved, &ruler, cached.as_ref(), &params)?;
+    let measure_s = t.elapsed().as_secs_f64();
+    let pictures = radlab::present::artifact_pictures::write_pictures(&scene, &maps, &args.out)
+        .with_context(|| format!("writing the pictures into {}", args.out.display()))?;
+
+    let measured = Measured { ruler_label: ruler.label(), report, pointwise, pictures, solve_s, measure_s };
+    print_measured(&args, &solved, &measured, &mut log)?;
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&measured_json(&args, &solved, &params, measured))?;
+        if to_stdout {
+            println!("{text}");
+        } else {
+            std::fs::write(path, text + "\n").with_context(|| format!("writing {path}"))?;
+        }
+    }
+    Ok(())
+}
+
+/// The cached path-traced pointwise reference of the scene, computed and cached first when
+/// missing (`radlab reference`'s, at `--samples` paths a point).
+fn cached_reference(
+    args: &Args,
+    scene: &radlab::scene::Scene,
+    accel: &Accel,
+    log: &mut dyn Write,
+) -> anyhow::Result<CachedPoints> {
+    let params = PointParams {
+        paths: ReferenceParams { samples: args.samples, ..ReferenceParams::standard() },
+        ..PointParams::standard()
+    };
+    let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
+    writeln!(log, "reference: looking up (or computing) the pointwise reference of {}", args.scene)?;
+    let (entry, status) = cache
+        .get_or_compute_points(scene, accel, &params, &Control::default())
+        .with_context(|| format!("reference of {}", args.scene))?;
+    if let radlab::eval::reference::CacheStatus::Computed(f) = &status {
+        writeln!(log, "reference: computed in {:.1} s, cached in {}", entry.compute_s, f.display())?;
+    }
+    Ok(entry)
+}
+
+/// The ruler: the closed form where there is one, else the cached reference's interpolant.
+fn ruler(
+    scene: &radlab::scene::Scene,
+    exact: Option<radlab::geometry::exact::SingleBounce>,
+    cached: Option<&CachedPoints>,
+) -> anyhow::Result<Ruler> {
+    Ok(match (exact, cached) {
         (Some(sb), _) => Ruler::Exact(sb),
         (None, Some(entry)) => {
             let values: Vec<Rgb> = entry.estimates.iter().map(|e| e.radiosity).collect();
-            let interpolant = PointInterpolant::new(&scene, &entry.set.points, &values)?;
+            let interpolant = PointInterpolant::new(scene, &entry.set.points, &values)?;
             let label = format!(
                 "the cached path-traced reference ({} points, {} paths each), linearly interpolated",
                 thousands(entry.set.points.len()),
@@ -134,72 +187,113 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Ruler::Points { interpolant, label }
         }
         (None, None) => unreachable!("a reference is looked up when there is no closed form"),
-    };
-    let ruler_label = match &ruler {
-        Ruler::Exact(_) => "the closed form (exact single-bounce scene)".to_string(),
-        Ruler::Points { label, .. } => label.clone(),
-    };
-    let params = ArtifactParams { side: args.side, ..ArtifactParams::standard() };
+    })
+}
+
+/// The five artifacts of the solution against `ruler` (values read as the solution's
+/// reconstruction; shading as a p = 1 solution's own, else Gouraud over the element averages),
+/// and the pointwise error at the cached reference's points when there is one.
+fn measure(
+    scene: &radlab::scene::Scene,
+    accel: &Accel,
+    solved: &Solved,
+    ruler: &Ruler,
+    cached: Option<&CachedPoints>,
+    params: &ArtifactParams,
+) -> anyhow::Result<(ArtifactReport, ArtifactMaps, Option<Pointwise>)> {
+    let sol = &solved.solution;
     let nodal = match &solved.coefficients {
-        Some(c) => Some(radlab::eval::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?),
+        Some(c) => Some(radlab::eval::reconstruction::Nodal::new(scene, &sol.elements, c.clone())?),
         None => None,
     };
-    let flat = PiecewiseConstant::new(&scene, &sol.elements)?;
-    let gouraud = Gouraud::new(&scene, sol)?;
+    let flat = PiecewiseConstant::new(scene, &sol.elements)?;
+    let gouraud = Gouraud::new(scene, sol)?;
     let (values, shaded): (&dyn Reconstruction, &dyn Reconstruction) = match &nodal {
         Some(n) => (n, n),
         None => (&flat, &gouraud),
     };
-    let (report, maps) = measure_views(&scene, sol, values, shaded, &ruler, &params)?;
-    // The pointwise error where the reference was estimated (debiased by its noise).
-    let pointwise = match &cached {
-        Some(entry) => {
-            let band = radlab::eval::penumbra::band(
-                &scene,
-                &accel,
-                &entry.set.points,
-                &entry.estimates,
-                &radlab::eval::penumbra::BandParams::standard(),
-            );
-            let s = radlab::eval::pointwise::score_reconstruction_in_band(
-                &scene,
-                sol,
-                values,
-                &entry.set.points,
-                &entry.estimates,
-                Some(&band),
-            )?;
-            let per_patch: Vec<serde_json::Value> = s
-                .pointwise
-                .per_patch
-                .iter()
-                .map(|p| {
-                    json!({"patch": p.patch, "name": p.name, "area": p.norms.area,
-                           "rel_l2": p.norms.l2_debiased, "reference_mean": p.reference.mean(),
-                           "solution_mean": p.solution.mean()})
-                })
-                .collect();
-            Some((
-                s.pointwise.scene.l2_debiased,
-                s.pointwise.scene.reference_noise,
-                s.penumbra.map(|b| b.report.scene.l2_debiased),
-                per_patch,
-            ))
-        }
+    let (report, maps) = measure_views(scene, sol, values, shaded, ruler, params)?;
+    let pointwise = match cached {
+        Some(entry) => Some(pointwise_at_reference(scene, accel, sol, values, entry)?),
         None => None,
     };
-    let measure_s = t.elapsed().as_secs_f64();
-    let pictures = radlab::present::artifact_pictures::write_pictures(&scene, &maps, &args.out)
-        .with_context(|| format!("writing the pictures into {}", args.out.display()))?;
+    Ok((report, maps, pointwise))
+}
 
-    let unknowns =
-        sol.stats.extra.as_ref().and_then(|x| x.get("unknowns")).and_then(serde_json::Value::as_u64);
+/// The pointwise error where the reference was estimated (debiased by its noise), over the
+/// scene, its penumbra band and per patch.
+fn pointwise_at_reference(
+    scene: &radlab::scene::Scene,
+    accel: &Accel,
+    sol: &radlab::solver::Solution,
+    values: &dyn Reconstruction,
+    entry: &CachedPoints,
+) -> anyhow::Result<Pointwise> {
+    let band = radlab::eval::penumbra::band(
+        scene,
+        accel,
+        &entry.set.points,
+        &entry.estimates,
+        &radlab::eval::penumbra::BandParams::standard(),
+    );
+    let s = radlab::eval::pointwise::score_reconstruction_in_band(
+        scene,
+        sol,
+        values,
+        &entry.set.points,
+        &entry.estimates,
+        Some(&band),
+    )?;
+    let per_patch: Vec<serde_json::Value> = s
+        .pointwise
+        .per_patch
+        .iter()
+        .map(|p| {
+            json!({"patch": p.patch, "name": p.name, "area": p.norms.area,
+                   "rel_l2": p.norms.l2_debiased, "reference_mean": p.reference.mean(),
+                   "solution_mean": p.solution.mean()})
+        })
+        .collect();
+    Ok(Pointwise {
+        rel_l2: s.pointwise.scene.l2_debiased,
+        noise: s.pointwise.scene.reference_noise,
+        band: s.penumbra.map(|b| b.report.scene.l2_debiased),
+        per_patch,
+    })
+}
+
+/// What a run measured, for the printed report and the JSON.
+struct Measured {
+    ruler_label: String,
+    report: ArtifactReport,
+    pointwise: Option<Pointwise>,
+    pictures: Vec<PathBuf>,
+    solve_s: f64,
+    measure_s: f64,
+}
+
+/// The solution's order as the report names it, with its number (0 or 1).
+fn basis(solved: &Solved) -> (String, u32) {
     let (order_n, continuous) = solved.spec.order();
     let order = match (order_n, continuous) {
         (0, _) => "p0".to_string(),
         (_, true) => "p1-continuous".to_string(),
         _ => "p1-discontinuous".to_string(),
     };
+    (order, order_n)
+}
+
+/// The solution's unknowns, where its solver counts them.
+fn unknowns(sol: &radlab::solver::Solution) -> Option<u64> {
+    sol.stats.extra.as_ref().and_then(|x| x.get("unknowns")).and_then(serde_json::Value::as_u64)
+}
+
+/// The report on `log`: what was solved and measured against what, the pointwise error, the
+/// table, the times and the pictures written.
+fn print_measured(args: &Args, solved: &Solved, m: &Measured, log: &mut dyn Write) -> anyhow::Result<()> {
+    let sol = &solved.solution;
+    let (order, _) = basis(solved);
+    let ruler_label = &m.ruler_label;
     writeln!(
         log,
         "{}: {} on the {} mesh, {order}, {} elements{}; ruler: {ruler_label}",
@@ -207,60 +301,60 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sol.method,
         solved.spec.mesh_name(),
         thousands(sol.elements.len()),
-        unknowns.map_or_else(String::new, |u| format!(", {} unknowns", thousands(u as usize)))
+        unknowns(sol).map_or_else(String::new, |u| format!(", {} unknowns", thousands(u as usize)))
     )?;
-    if let Some((scene_l2, noise, band, _)) = &pointwise {
-        let (scene_l2, noise, band) = (*scene_l2, *noise, *band);
+    if let Some(p) = &m.pointwise {
         writeln!(
             log,
             "pointwise rel L2 at the reference's points {:.2} % (noise {:.2} %), penumbra band {}",
-            100.0 * scene_l2,
-            100.0 * noise,
-            band.map_or_else(|| "none".into(), |b| format!("{:.2} %", 100.0 * b))
+            100.0 * p.rel_l2,
+            100.0 * p.noise,
+            p.band.map_or_else(|| "none".into(), |b| format!("{:.2} %", 100.0 * b))
         )?;
     }
-    print_table(&report, args.side, &mut log)?;
-    let meshing_s = solved.remesh.as_ref().map(|(m, _)| m.total_s);
+    print_table(&m.report, args.side, log)?;
+    let meshing_s = solved.remesh.as_ref().map(|(r, _)| r.total_s);
+    let (solve_s, measure_s) = (m.solve_s, m.measure_s);
     writeln!(
         log,
         "times: {}solve {solve_s:.3} s, artifacts {measure_s:.3} s",
-        meshing_s.map_or_else(String::new, |m| format!("meshing {m:.4} s (inside the solve), "))
+        meshing_s.map_or_else(String::new, |x| format!("meshing {x:.4} s (inside the solve), "))
     )?;
-    for p in &pictures {
+    for p in &m.pictures {
         writeln!(log, "wrote {}", p.display())?;
     }
-    if let Some(path) = &args.json {
-        let doc = json!({
-            "scene": args.scene,
-            "method": sol.method,
-            "mesh": solved.spec.mesh_name(),
-            "order": order_n,
-            "basis": order,
-            "elements": sol.elements.len(),
-            "unknowns": unknowns,
-            "ruler": ruler_label,
-            "params": params,
-            "solver_params": solved.spec.params_json(),
-            "pointwise": pointwise.map(|(l2, noise, band, per_patch)| json!({"rel_l2": l2, "noise": noise, "penumbra_band_rel_l2": band, "per_patch": per_patch})),
-            "artifacts": report,
-            "fractions": {
-                "A": report.blocky_shadows,
-                "B": report.missing_features.fraction(),
-                "C": report.mach_bands.fraction(),
-                "D": report.shading_jumps.fraction(),
-                "E": report.unresolved.fraction(),
-            },
-            "times_s": {"solve": solve_s, "meshing": meshing_s, "artifacts": measure_s},
-            "pictures": pictures,
-        });
-        let text = serde_json::to_string_pretty(&doc)?;
-        if to_stdout {
-            println!("{text}");
-        } else {
-            std::fs::write(path, text + "\n").with_context(|| format!("writing {path}"))?;
-        }
-    }
     Ok(())
+}
+
+/// The `--json` document: the table, the settings, the pointwise error, the times and the
+/// pictures.
+fn measured_json(args: &Args, solved: &Solved, params: &ArtifactParams, m: Measured) -> serde_json::Value {
+    let sol = &solved.solution;
+    let (order, order_n) = basis(solved);
+    let report = &m.report;
+    json!({
+        "scene": args.scene,
+        "method": sol.method,
+        "mesh": solved.spec.mesh_name(),
+        "order": order_n,
+        "basis": order,
+        "elements": sol.elements.len(),
+        "unknowns": unknowns(sol),
+        "ruler": m.ruler_label,
+        "params": params,
+        "solver_params": solved.spec.params_json(),
+        "pointwise": m.pointwise.map(|p| json!({"rel_l2": p.rel_l2, "noise": p.noise, "penumbra_band_rel_l2": p.band, "per_patch": p.per_patch})),
+        "artifacts": report,
+        "fractions": {
+            "A": report.blocky_shadows,
+            "B": report.missing_features.fraction(),
+            "C": report.mach_bands.fraction(),
+            "D": report.shading_jumps.fraction(),
+            "E": report.unresolved.fraction(),
+        },
+        "times_s": {"solve": m.solve_s, "meshing": solved.remesh.as_ref().map(|(r, _)| r.total_s), "artifacts": m.measure_s},
+        "pictures": m.pictures,
+    })
 }
 
 /// The five-artifact table, one row each (shared with `radlab reference --exact --compare`).

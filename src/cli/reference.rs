@@ -7,7 +7,7 @@ use anyhow::Context;
 use radlab::eval::metrics::ErrorReport;
 use radlab::eval::pointwise::thousands;
 use radlab::eval::reference::{
-    Cache, CacheStatus, Control, Estimate, PointParams, ReferenceParams, reference_mesh,
+    Cache, CacheStatus, CachedPoints, Control, Estimate, PointParams, ReferenceParams, reference_mesh,
 };
 use radlab::geometry::accel::Accel;
 use radlab::math::{Rgb, polygon_area};
@@ -483,7 +483,57 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         thousands(params.points as usize),
         params.paths.samples
     )?;
-    let (mut entry, status) = cache.get_or_compute_points(&scene, &accel, &params, &Control::default())?;
+    let (mut entry, file) = cached_points(args, &scene, &accel, &cache, &params, &mut log)?;
+    if args.exact {
+        let sb = radlab::geometry::exact::SingleBounce::new(&scene).context("--exact")?;
+        entry.estimates = entry
+            .set
+            .points
+            .iter()
+            .map(|p| Estimate { radiosity: sb.patch_radiosity_at(p.patch, p.position), std_error: Rgb::ZERO })
+            .collect();
+        writeln!(
+            log,
+            "--exact: the reference values are the closed-form single-bounce answer at the points"
+        )?;
+    }
+    print_point_quality(&scene, &entry, &mut log)?;
+    let points = &entry.set.points;
+    let cells = points.iter().zip(&entry.estimates).map(|(p, e)| (p.patch, p.area, e));
+    let patches = patch_summaries(&scene, cells, "points", &mut log)?;
+    if args.compare {
+        compare_points(args, &scene, &accel, &entry, &mut log)?;
+    } else if args.images.is_some() {
+        anyhow::bail!("--images needs --compare");
+    }
+    if let Some(path) = &args.json {
+        let doc = serde_json::json!({
+            "scene": scene.source,
+            "ruler": "points",
+            "cache_file": file.display().to_string(),
+            "params": entry.params,
+            "patches": patches,
+            "points": points.iter().zip(&entry.estimates).map(|(p, e)| serde_json::json!({
+                "patch": p.patch, "position": p.position, "area": p.area, "level": p.cell.level,
+                "radiosity": e.radiosity, "std_error": e.std_error,
+            })).collect::<Vec<_>>(),
+        });
+        write_doc(&doc, path, to_stdout, &mut log)?;
+    }
+    Ok(())
+}
+
+/// The reference at the points, from the cache (computed and cached when missing or invalid),
+/// with `--batches` independent batches merged; and its cache file.
+fn cached_points(
+    args: &Args,
+    scene: &radlab::scene::Scene,
+    accel: &Accel,
+    cache: &Cache,
+    params: &PointParams,
+    log: &mut Box<dyn Write>,
+) -> anyhow::Result<(CachedPoints, PathBuf)> {
+    let (mut entry, status) = cache.get_or_compute_points(scene, accel, params, &Control::default())?;
     let file = match &status {
         CacheStatus::Hit(f) => {
             writeln!(log, "cache: read {}", f.display())?;
@@ -503,7 +553,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         for b in 1..args.batches {
             let seed = args.ref_seed.wrapping_add(u64::from(b));
             let (more, status) =
-                cache.get_or_compute_points(&scene, &accel, &params.batch(seed), &Control::default())?;
+                cache.get_or_compute_points(scene, accel, &params.batch(seed), &Control::default())?;
             let (how, f) = status.describe(more.compute_s);
             writeln!(log, "batch {}/{} (seed {seed}): {how}, {}", b + 1, args.batches, f.display())?;
             anyhow::ensure!(
@@ -529,21 +579,19 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
             "scored against batch 1, which placed the points: its debiased figures read low near the noise (`--batches 2` or more scores against batches that did not place them)"
         )?;
     }
+    Ok((entry, file.clone()))
+}
+
+/// The point set's size and refinement, and the reference's own noise and resolution.
+fn print_point_quality(
+    scene: &radlab::scene::Scene,
+    entry: &CachedPoints,
+    log: &mut Box<dyn Write>,
+) -> anyhow::Result<()> {
     let points = &entry.set.points;
-    if args.exact {
-        let sb = radlab::geometry::exact::SingleBounce::new(&scene).context("--exact")?;
-        entry.estimates = points
-            .iter()
-            .map(|p| Estimate { radiosity: sb.patch_radiosity_at(p.patch, p.position), std_error: Rgb::ZERO })
-            .collect();
-        writeln!(
-            log,
-            "--exact: the reference values are the closed-form single-bounce answer at the points"
-        )?;
-    }
     let regions = entry.set.weights();
     let values: Vec<Rgb> = entry.estimates.iter().map(|e| e.radiosity).collect();
-    let quality = radlab::eval::metrics::compare_regions(&scene, &regions, &values, &entry.estimates, 0.0)?;
+    let quality = radlab::eval::metrics::compare_regions(scene, &regions, &values, &entry.estimates, 0.0)?;
     let max_level = points.iter().map(|p| p.cell.level).max().unwrap_or(0);
     let refined = points.iter().filter(|p| p.cell.level > 0).count();
     writeln!(
@@ -554,142 +602,161 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
         100.0 * quality.scene.reference_noise,
         100.0 * quality.scene.resolution
     )?;
-    let cells = points.iter().zip(&entry.estimates).map(|(p, e)| (p.patch, p.area, e));
-    let patches = patch_summaries(&scene, cells, "points", &mut log)?;
-    if args.compare {
-        let (sol, coefficients) = solve(args, &scene, &mut log)?;
-        let band_params = radlab::eval::penumbra::BandParams::standard();
-        // The band costs side² rays per point and facing emitter patch: skipped (and said so)
-        // above BAND_RAY_BUDGET, as on a furnished room whose lamps are many small polygons.
-        let emitters = scene.patches.iter().filter(|p| p.emission.mean() > 0.0).count();
-        let band_rays = points.len() as f64 * emitters as f64 * f64::from(band_params.side).powi(2);
-        let band = (band_rays <= BAND_RAY_BUDGET)
-            .then(|| radlab::eval::penumbra::band(&scene, &accel, points, &entry.estimates, &band_params));
-        let kind = match args.reconstruction.as_deref() {
-            None | Some("nodal") => "solved",
-            Some(k) => k,
-        };
-        let mut sol = sol;
-        let nodal_coefficients = match (kind, coefficients) {
-            ("gouraud", _) => Some(radlab::eval::reconstruction::gouraud(&scene, &sol.elements)),
-            ("solved", c) => c,
-            _ => {
-                // Flat: each element's average alone.
-                for e in &mut sol.elements {
-                    e.slope = None;
-                }
-                None
-            }
-        };
-        writeln!(log, "reconstruction: {kind}")?;
-        let score = match &nodal_coefficients {
-            Some(c) => {
-                let r = radlab::eval::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?;
-                radlab::eval::pointwise::score_reconstruction_in_band(
-                    &scene,
-                    &sol,
-                    &r,
-                    points,
-                    &entry.estimates,
-                    band.as_deref(),
-                )?
-            }
-            None => radlab::eval::pointwise::score_solution_in_band(
-                &scene,
+    Ok(())
+}
+
+/// `--compare`: solve the scene and print its error against the reference at the points, in
+/// the penumbra band and per element; the solver's own estimate checked against it; with
+/// `--exact` the five artifacts; `--point-errors` and `--images` written.
+fn compare_points(
+    args: &Args,
+    scene: &radlab::scene::Scene,
+    accel: &Accel,
+    entry: &CachedPoints,
+    log: &mut Box<dyn Write>,
+) -> anyhow::Result<()> {
+    let points = &entry.set.points;
+    let (sol, coefficients) = solve(args, scene, log)?;
+    let band_params = radlab::eval::penumbra::BandParams::standard();
+    // The band costs side² rays per point and facing emitter patch: skipped (and said so)
+    // above BAND_RAY_BUDGET, as on a furnished room whose lamps are many small polygons.
+    let emitters = scene.patches.iter().filter(|p| p.emission.mean() > 0.0).count();
+    let band_rays = points.len() as f64 * emitters as f64 * f64::from(band_params.side).powi(2);
+    let band = (band_rays <= BAND_RAY_BUDGET)
+        .then(|| radlab::eval::penumbra::band(scene, accel, points, &entry.estimates, &band_params));
+    let (sol, nodal_coefficients) = reconstruction(args, scene, sol, coefficients, log)?;
+    let score = match &nodal_coefficients {
+        Some(c) => {
+            let r = radlab::eval::reconstruction::Nodal::new(scene, &sol.elements, c.clone())?;
+            radlab::eval::pointwise::score_reconstruction_in_band(
+                scene,
                 &sol,
+                &r,
                 points,
                 &entry.estimates,
                 band.as_deref(),
-            )?,
+            )?
+        }
+        None => radlab::eval::pointwise::score_solution_in_band(
+            scene,
+            &sol,
+            points,
+            &entry.estimates,
+            band.as_deref(),
+        )?,
+    };
+    writeln!(log, "{}:", radlab::eval::pointwise::label(&score.pointwise, points.len()))?;
+    print_report(&score.pointwise, true, log)?;
+    if let Some(path) = &args.point_errors {
+        let values = match &nodal_coefficients {
+            Some(c) => radlab::eval::pointwise::evaluate(
+                &radlab::eval::reconstruction::Nodal::new(scene, &sol.elements, c.clone())?,
+                points,
+            ),
+            None => radlab::eval::pointwise::evaluate(
+                &radlab::eval::pointwise::PiecewiseConstant::new(scene, &sol.elements)?,
+                points,
+            ),
         };
-        writeln!(log, "{}:", radlab::eval::pointwise::label(&score.pointwise, points.len()))?;
-        print_report(&score.pointwise, true, &mut log)?;
-        if let Some(path) = &args.point_errors {
-            let values = match &nodal_coefficients {
-                Some(c) => radlab::eval::pointwise::evaluate(
-                    &radlab::eval::reconstruction::Nodal::new(&scene, &sol.elements, c.clone())?,
-                    points,
-                ),
-                None => radlab::eval::pointwise::evaluate(
-                    &radlab::eval::pointwise::PiecewiseConstant::new(&scene, &sol.elements)?,
-                    points,
-                ),
-            };
-            write_point_errors(path, points, &entry.estimates, &values)?;
-            writeln!(log, "wrote {} ({} points)", path.display(), thousands(points.len()))?;
-        }
-        match &score.penumbra {
-            Some(b) => {
-                let total: f64 = points.iter().map(|p| p.area).sum();
-                writeln!(
-                    log,
-                    "penumbra band ({} points, {:.2} % of the area; lit strictly between {} and {} % of the unoccluded direct light):",
-                    thousands(b.points),
-                    100.0 * b.area / total,
-                    100.0 * band_params.lo,
-                    100.0 * band_params.hi
-                )?;
-                print_report(&b.report, false, &mut log)?;
-            }
-            None if band.is_none() => writeln!(
-                log,
-                "penumbra band: skipped ({} points × {emitters} emitter patches × {}² rays = {band_rays:.1e} rays, above the budget of {BAND_RAY_BUDGET:.0e})",
-                thousands(points.len()),
-                band_params.side
-            )?,
-            None => writeln!(log, "penumbra band: no point of the reference is in a penumbra")?,
-        }
-        writeln!(
-            log,
-            "element-average error (element values against the reference averaged over each element's points, {} elements):",
-            score.element_average.per_element.len()
-        )?;
-        print_report(&score.element_average, false, &mut log)?;
-        if let Some(c) = radlab::eval::pointwise::check_estimate(&scene, &sol, points, &entry.estimates)? {
+        write_point_errors(path, points, &entry.estimates, &values)?;
+        writeln!(log, "wrote {} ({} points)", path.display(), thousands(points.len()))?;
+    }
+    match &score.penumbra {
+        Some(b) => {
+            let total: f64 = points.iter().map(|p| p.area).sum();
             writeln!(
                 log,
-                "the solver's own error estimate (no reference): pointwise rel L2 {:.2} %, measured/estimate {:.2}; per element: Spearman {:.3} against each element's own pointwise error, over the {} elements holding ≥ {} points",
-                100.0 * c.global_estimate,
-                score.pointwise.scene.l2_debiased / c.global_estimate,
-                c.spearman,
-                c.elements,
-                radlab::eval::pointwise::ESTIMATE_CHECK_MIN_POINTS
+                "penumbra band ({} points, {:.2} % of the area; lit strictly between {} and {} % of the unoccluded direct light):",
+                thousands(b.points),
+                100.0 * b.area / total,
+                100.0 * band_params.lo,
+                100.0 * band_params.hi
             )?;
-            let cluster_links = sol
-                .stats
-                .extra
-                .as_ref()
-                .and_then(|x| x.get("cluster_links"))
-                .and_then(serde_json::Value::as_u64)
-                .unwrap_or(0);
-            if cluster_links > 0 {
-                writeln!(
-                    log,
-                    "  (the estimate leaves out the error of the solve's {cluster_links} cluster links)"
-                )?;
-            }
+            print_report(&b.report, false, log)?;
         }
-        if args.exact {
-            print_artifacts(&scene, &sol, &mut log)?;
-        }
-        let cells = entry.set.cell_regions(&scene);
-        write_images(args, &sol, &scene, &accel, &cells, &score.pointwise.per_element, &mut log)?;
-    } else if args.images.is_some() {
-        anyhow::bail!("--images needs --compare");
+        None if band.is_none() => writeln!(
+            log,
+            "penumbra band: skipped ({} points × {emitters} emitter patches × {}² rays = {band_rays:.1e} rays, above the budget of {BAND_RAY_BUDGET:.0e})",
+            thousands(points.len()),
+            band_params.side
+        )?,
+        None => writeln!(log, "penumbra band: no point of the reference is in a penumbra")?,
     }
-    if let Some(path) = &args.json {
-        let doc = serde_json::json!({
-            "scene": scene.source,
-            "ruler": "points",
-            "cache_file": file.display().to_string(),
-            "params": entry.params,
-            "patches": patches,
-            "points": points.iter().zip(&entry.estimates).map(|(p, e)| serde_json::json!({
-                "patch": p.patch, "position": p.position, "area": p.area, "level": p.cell.level,
-                "radiosity": e.radiosity, "std_error": e.std_error,
-            })).collect::<Vec<_>>(),
-        });
-        write_doc(&doc, path, to_stdout, &mut log)?;
+    writeln!(
+        log,
+        "element-average error (element values against the reference averaged over each element's points, {} elements):",
+        score.element_average.per_element.len()
+    )?;
+    print_report(&score.element_average, false, log)?;
+    print_estimate_check(scene, &sol, entry, score.pointwise.scene.l2_debiased, log)?;
+    if args.exact {
+        print_artifacts(scene, &sol, log)?;
+    }
+    let cells = entry.set.cell_regions(scene);
+    write_images(args, &sol, scene, accel, &cells, &score.pointwise.per_element, log)
+}
+
+/// The solution as `--reconstruction` reads it: `nodal` (the default) the solver's own
+/// coefficients where it has them, `gouraud` vertex values averaged from the elements, `flat`
+/// each element's average alone (its slope dropped). Returns the solution and the nodal
+/// coefficients to score, if any.
+fn reconstruction(
+    args: &Args,
+    scene: &radlab::scene::Scene,
+    mut sol: radlab::solver::Solution,
+    coefficients: Option<Vec<Vec<Rgb>>>,
+    log: &mut Box<dyn Write>,
+) -> anyhow::Result<(radlab::solver::Solution, Option<Vec<Vec<Rgb>>>)> {
+    let kind = match args.reconstruction.as_deref() {
+        None | Some("nodal") => "solved",
+        Some(k) => k,
+    };
+    let nodal_coefficients = match (kind, coefficients) {
+        ("gouraud", _) => Some(radlab::eval::reconstruction::gouraud(scene, &sol.elements)),
+        ("solved", c) => c,
+        _ => {
+            // Flat: each element's average alone.
+            for e in &mut sol.elements {
+                e.slope = None;
+            }
+            None
+        }
+    };
+    writeln!(log, "reconstruction: {kind}")?;
+    Ok((sol, nodal_coefficients))
+}
+
+/// The solver's own error estimate, where it made one, against the measured pointwise error
+/// `measured` (globally and, per element, by rank).
+fn print_estimate_check(
+    scene: &radlab::scene::Scene,
+    sol: &radlab::solver::Solution,
+    entry: &CachedPoints,
+    measured: f64,
+    log: &mut Box<dyn Write>,
+) -> anyhow::Result<()> {
+    let Some(c) = radlab::eval::pointwise::check_estimate(scene, sol, &entry.set.points, &entry.estimates)?
+    else {
+        return Ok(());
+    };
+    writeln!(
+        log,
+        "the solver's own error estimate (no reference): pointwise rel L2 {:.2} %, measured/estimate {:.2}; per element: Spearman {:.3} against each element's own pointwise error, over the {} elements holding ≥ {} points",
+        100.0 * c.global_estimate,
+        measured / c.global_estimate,
+        c.spearman,
+        c.elements,
+        radlab::eval::pointwise::ESTIMATE_CHECK_MIN_POINTS
+    )?;
+    let cluster_links = sol
+        .stats
+        .extra
+        .as_ref()
+        .and_then(|x| x.get("cluster_links"))
+        .and_then(serde_json::Value::as_u64)
+        .unwrap_or(0);
+    if cluster_links > 0 {
+        writeln!(log, "  (the estimate leaves out the error of the solve's {cluster_links} cluster links)")?;
     }
     Ok(())
 }

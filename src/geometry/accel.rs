@@ -427,24 +427,14 @@ impl Accel {
     /// once); another scene, of a different patch count, answers `false`.
     #[must_use]
     pub fn shaft_clear(&self, scene: &Scene, a: &[DVec3], b: &[DVec3], ignore: [u32; 2]) -> bool {
-        const MAX: usize = 16;
-        if self.wide.is_empty() || a.len() + b.len() > MAX || scene.patches.len() != self.polys.len() {
+        if self.wide.is_empty()
+            || a.len() + b.len() > SHAFT_MAX_VERTICES
+            || scene.patches.len() != self.polys.len()
+        {
             return false;
         }
-        let poly_verts = self.poly_verts.get_or_init(|| {
-            self.polys
-                .iter()
-                .map(|p| {
-                    let v = &scene.patches[p.patch as usize].vertices;
-                    let mut out = [Vec3A::ZERO; 4];
-                    for (o, &q) in out.iter_mut().zip(v) {
-                        *o = self.to_local(q);
-                    }
-                    (out, v.len().min(4) as u8)
-                })
-                .collect()
-        });
-        let mut pts = [DVec3::ZERO; MAX];
+        let poly_verts = self.poly_verts(scene);
+        let mut pts = [DVec3::ZERO; SHAFT_MAX_VERTICES];
         let n = a.len() + b.len();
         for (o, &p) in pts.iter_mut().zip(a.iter().chain(b)) {
             *o = self.local_f64(p);
@@ -454,47 +444,7 @@ impl Accel {
             return false;
         }
         let tol = f64::from(SHAFT_TOL);
-        // Outward face planes (n·x <= d inside) of the hull, then its bounding box's six.
-        let mut planes: Vec<(DVec3, f64)> = Vec::with_capacity(32);
-        for i in 0..n {
-            for j in i + 1..n {
-                for k in j + 1..n {
-                    let nrm = (pts[j] - pts[i]).cross(pts[k] - pts[i]);
-                    let len = nrm.length();
-                    if !(len > 1e-12) {
-                        continue;
-                    }
-                    let nrm = nrm / len;
-                    let d = nrm.dot(pts[i]);
-                    let (lo, hi) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-                        let s = nrm.dot(*p) - d;
-                        (lo.min(s), hi.max(s))
-                    });
-                    let plane = if hi <= tol {
-                        (nrm, d)
-                    } else if lo >= -tol {
-                        (-nrm, -d)
-                    } else {
-                        continue;
-                    };
-                    if !planes.iter().any(|q| q.0.dot(plane.0) > 1.0 - 1e-9 && (q.1 - plane.1).abs() <= tol) {
-                        planes.push(plane);
-                    }
-                }
-            }
-        }
-        // A closed hull has four faces at least; fewer: flat (coplanar polygons), no shaft.
-        if planes.len() < 4 {
-            return false;
-        }
-        let (bmin, bmax) =
-            pts.iter().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
-                (lo.min(*p), hi.max(*p))
-            });
-        for (axis, unit) in [DVec3::X, DVec3::Y, DVec3::Z].into_iter().enumerate() {
-            planes.push((unit, bmax[axis]));
-            planes.push((-unit, -bmin[axis]));
-        }
+        let Some(planes) = hull_planes(pts, tol) else { return false };
         let planes32: Vec<([f32; 3], f32)> = planes
             .iter()
             .map(|(nrm, d)| ([nrm.x as f32, nrm.y as f32, nrm.z as f32], (*d + tol) as f32))
@@ -518,6 +468,32 @@ impl Accel {
             });
             lo >= -SHAFT_TOL || hi <= SHAFT_TOL
         };
+        self.none_in_shaft(&planes32, |id| {
+            let patch = self.polys[id].patch;
+            patch == ignore[0] || patch == ignore[1] || separated(id)
+        })
+    }
+
+    /// Each polygon's vertices in the tree's local frame (BVH order), read from `scene` once.
+    fn poly_verts(&self, scene: &Scene) -> &[([Vec3A; 4], u8)] {
+        self.poly_verts.get_or_init(|| {
+            self.polys
+                .iter()
+                .map(|p| {
+                    let v = &scene.patches[p.patch as usize].vertices;
+                    let mut out = [Vec3A::ZERO; 4];
+                    for (o, &q) in out.iter_mut().zip(v) {
+                        *o = self.to_local(q);
+                    }
+                    (out, v.len().min(4) as u8)
+                })
+                .collect()
+        })
+    }
+
+    /// Walk the wide tree down the child boxes not wholly outside one of `planes` (n·x <= d
+    /// inside): true when every polygon in a box that reaches the shaft passes `outside`.
+    fn none_in_shaft(&self, planes: &[([f32; 3], f32)], outside: impl Fn(usize) -> bool) -> bool {
         let mut stack = [0u32; WIDE_STACK];
         let mut sp = 0;
         let mut node = 0u32;
@@ -525,7 +501,7 @@ impl Accel {
             let w = &self.wide[node as usize];
             // Child boxes not wholly outside one of the planes: min over the box of n·x <= d.
             let mut mask = 0xFF;
-            for (nrm, d) in &planes32 {
+            for (nrm, d) in planes {
                 let mut m = F8::splat(0.0);
                 for (axis, &n) in w.planes.iter().zip(nrm) {
                     let side = usize::from(n < 0.0);
@@ -545,9 +521,7 @@ impl Accel {
                 while lanes != 0 {
                     let k = lanes.trailing_zeros() as usize;
                     lanes &= lanes - 1;
-                    let id = pack.first as usize + k;
-                    let patch = self.polys[id].patch;
-                    if patch != ignore[0] && patch != ignore[1] && !separated(id) {
+                    if !outside(pack.first as usize + k) {
                         return false;
                     }
                 }
@@ -752,6 +726,58 @@ fn intersect(p: &Poly, r: &Ray) -> f32 {
 fn inside_edges(p: &Poly, q: Vec3A) -> bool {
     let dot = p.edge_x * q.x + p.edge_y * q.y + p.edge_z * q.z;
     dot.cmplt(p.edge_o).bitmask() & p.edges == 0
+}
+
+/// Most vertices of the two polygons [`Accel::shaft_clear`] takes (its hull's face planes are
+/// found over every triple of them).
+const SHAFT_MAX_VERTICES: usize = 16;
+
+/// The outward face planes (n·x <= d inside, within `tol`) of the convex hull of `pts`, found
+/// by brute force over the vertex triples, then its bounding box's six; `None` when the hull
+/// is flat (fewer than four faces: coplanar polygons, no shaft).
+fn hull_planes(pts: &[DVec3], tol: f64) -> Option<Vec<(DVec3, f64)>> {
+    let n = pts.len();
+    let mut planes: Vec<(DVec3, f64)> = Vec::with_capacity(32);
+    for i in 0..n {
+        for j in i + 1..n {
+            for k in j + 1..n {
+                let nrm = (pts[j] - pts[i]).cross(pts[k] - pts[i]);
+                let len = nrm.length();
+                if !(len > 1e-12) {
+                    continue;
+                }
+                let nrm = nrm / len;
+                let d = nrm.dot(pts[i]);
+                let (lo, hi) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                    let s = nrm.dot(*p) - d;
+                    (lo.min(s), hi.max(s))
+                });
+                let plane = if hi <= tol {
+                    (nrm, d)
+                } else if lo >= -tol {
+                    (-nrm, -d)
+                } else {
+                    continue;
+                };
+                if !planes.iter().any(|q| q.0.dot(plane.0) > 1.0 - 1e-9 && (q.1 - plane.1).abs() <= tol) {
+                    planes.push(plane);
+                }
+            }
+        }
+    }
+    // A closed hull has four faces at least; fewer: flat (coplanar polygons), no shaft.
+    if planes.len() < 4 {
+        return None;
+    }
+    let (bmin, bmax) =
+        pts.iter().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        });
+    for (axis, unit) in [DVec3::X, DVec3::Y, DVec3::Z].into_iter().enumerate() {
+        planes.push((unit, bmax[axis]));
+        planes.push((-unit, -bmin[axis]));
+    }
+    Some(planes)
 }
 
 #[cfg(test)]

@@ -288,7 +288,87 @@ fn document(
     if solution.elements.is_empty() {
         return Err(BakeError::Empty);
     }
-    // Group elements by their patch's mesh name, meshes in patch order.
+    let (mesh_names, mesh_of_patch) = mesh_groups(scene);
+    let mut streams: Vec<Streams> = mesh_names.iter().map(|_| Streams::default()).collect();
+    let (clipped, b_max) = element_streams(scene, solution, opts, form, &mesh_of_patch, &mut streams)?;
+    let mut info = json!({
+        "exposure": opts.exposure,
+        "exposure_rule": opts.exposure_rule,
+        "units": UNITS,
+        "color": COLOR_RULE,
+        "scene": opts.scene_label,
+        "method": solution.method,
+        "elements": solution.elements.len(),
+        "patches": scene.patches.len(),
+        "clipped_elements": clipped,
+        "radiosity_max": b_max,
+        "params": opts.params,
+        "radlab_version": env!("CARGO_PKG_VERSION"),
+    });
+    let mut material = json!({
+        "name": "radlab baked radiosity (unlit, COLOR_0)",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "doubleSided": false,
+        "extensions": {"KHR_materials_unlit": {}},
+    });
+    let lightmap = match form {
+        BakeForm::Lightmap(params) => {
+            let map = Lightmap::bake(scene, solution, opts.exposure, params)?;
+            lightmap_streams(scene, &map, params, &mesh_of_patch, &mut streams);
+            info["color"] = json!(lightmap::TEXEL_RULE);
+            info["lightmap"] = json!({
+                "size": params.size,
+                "padding": params.padding,
+                "texels_per_unit": map.texels_per_unit,
+                "charts": map.charts.len(),
+                "coverage": map.coverage(),
+                "clipped_texels": map.clipped_texels,
+                "texcoord": LIGHTMAP_TEXCOORD_RULE,
+            });
+            material["name"] = json!("radlab baked radiosity (unlit, lightmap on TEXCOORD_1)");
+            material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0, "texCoord": 1});
+            Some(map)
+        }
+        BakeForm::Elements => None,
+    };
+    let mut b = Buffers::default();
+    for (name, s) in mesh_names.iter().zip(&streams) {
+        if s.indices.is_empty() {
+            continue; // a mesh whose patches have no elements (none of radlab's solvers does this)
+        }
+        b.push_mesh(name, s);
+    }
+    let bytes = b.bin.len() as u64;
+    if u32::try_from(bytes).is_err() {
+        return Err(BakeError::TooLarge { bytes });
+    }
+    let mut doc = json!({
+        "asset": {
+            "version": "2.0",
+            "generator": concat!("radlab ", env!("CARGO_PKG_VERSION"), " (baked radiosity)"),
+            "extras": {"radlab": info},
+        },
+        "extensionsUsed": ["KHR_materials_unlit"],
+        "scene": 0,
+        "scenes": [{"name": scene.name, "nodes": (0..b.nodes.len()).collect::<Vec<_>>(), "extras": {"radlab": info}}],
+        "nodes": b.nodes,
+        "meshes": b.meshes,
+        "materials": [material],
+        "accessors": b.accessors,
+        "bufferViews": b.views,
+        "buffers": [{"byteLength": b.bin.len()}],
+    });
+    if lightmap.is_some() {
+        doc["samplers"] = json!([{"magFilter": GL_LINEAR, "minFilter": GL_LINEAR, "wrapS": GL_CLAMP_TO_EDGE, "wrapT": GL_CLAMP_TO_EDGE}]);
+        doc["textures"] = json!([{"name": "radlab lightmap", "sampler": 0, "source": 0}]);
+        doc["images"] = json!([{"name": "radlab lightmap"}]);
+    }
+    Ok(Document { json: doc, bin: b.bin, image: lightmap.map(|m| m.png()) })
+}
+
+/// The meshes' names in patch order (first appearance) and each patch's mesh: elements are
+/// grouped by their patch's mesh name.
+fn mesh_groups(scene: &Scene) -> (Vec<&str>, Vec<usize>) {
     let mut mesh_names: Vec<&str> = Vec::new();
     let mut mesh_of_name: HashMap<&str, usize> = HashMap::new();
     let mesh_of_patch: Vec<usize> = scene
@@ -301,7 +381,20 @@ fn document(
             })
         })
         .collect();
-    let mut streams: Vec<Streams> = mesh_names.iter().map(|_| Streams::default()).collect();
+    (mesh_names, mesh_of_patch)
+}
+
+/// Check every element (its patch in the scene, finite values) and, in the elements form, add
+/// its polygon with its own reconstruction at its vertices to its mesh's streams. Returns the
+/// elements whose exposed colour leaves [0, 1], and the largest B per channel.
+fn element_streams(
+    scene: &Scene,
+    solution: &Solution,
+    opts: &BakeOptions,
+    form: BakeForm,
+    mesh_of_patch: &[usize],
+    streams: &mut [Streams],
+) -> Result<(usize, [f64; 3]), BakeError> {
     let mut clipped = 0usize;
     let mut b_max = [0.0f64; 3];
     for (i, e) in solution.elements.iter().enumerate() {
@@ -330,62 +423,43 @@ fn document(
             debug_assert_eq!(e.corner_values().len(), n);
         }
     }
+    Ok((clipped, b_max))
+}
 
-    let mut info = json!({
-        "exposure": opts.exposure,
-        "exposure_rule": opts.exposure_rule,
-        "units": UNITS,
-        "color": COLOR_RULE,
-        "scene": opts.scene_label,
-        "method": solution.method,
-        "elements": solution.elements.len(),
-        "patches": scene.patches.len(),
-        "clipped_elements": clipped,
-        "radiosity_max": b_max,
-        "params": opts.params,
-        "radlab_version": env!("CARGO_PKG_VERSION"),
-    });
-    let mut material = json!({
-        "name": "radlab baked radiosity (unlit, COLOR_0)",
-        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
-        "doubleSided": false,
-        "extensions": {"KHR_materials_unlit": {}},
-    });
-    let mut lightmap = None;
-    if let BakeForm::Lightmap(params) = form {
-        let map = Lightmap::bake(scene, solution, opts.exposure, params)?;
-        for c in &map.charts {
-            let patch = &scene.patches[c.patch];
-            let s = &mut streams[mesh_of_patch[c.patch]];
-            s.push_polygon(&patch.vertices, unit_f32(patch.normal.to_array()));
-            s.uv0.extend(patch.vertices.iter().map(|&v| c.plane_uv(v)));
-            s.uv1.extend(patch.vertices.iter().map(|&v| c.uv(v, params.size)));
-        }
-        info["color"] = json!(lightmap::TEXEL_RULE);
-        info["lightmap"] = json!({
-            "size": params.size,
-            "padding": params.padding,
-            "texels_per_unit": map.texels_per_unit,
-            "charts": map.charts.len(),
-            "coverage": map.coverage(),
-            "clipped_texels": map.clipped_texels,
-            "texcoord": LIGHTMAP_TEXCOORD_RULE,
-        });
-        material["name"] = json!("radlab baked radiosity (unlit, lightmap on TEXCOORD_1)");
-        material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0, "texCoord": 1});
-        lightmap = Some(map);
+/// The lightmap form's polygons: each charted input patch whole, with its planar map
+/// (TEXCOORD_0) and its place in the atlas (TEXCOORD_1).
+fn lightmap_streams(
+    scene: &Scene,
+    map: &Lightmap,
+    params: LightmapParams,
+    mesh_of_patch: &[usize],
+    streams: &mut [Streams],
+) {
+    for c in &map.charts {
+        let patch = &scene.patches[c.patch];
+        let s = &mut streams[mesh_of_patch[c.patch]];
+        s.push_polygon(&patch.vertices, unit_f32(patch.normal.to_array()));
+        s.uv0.extend(patch.vertices.iter().map(|&v| c.plane_uv(v)));
+        s.uv1.extend(patch.vertices.iter().map(|&v| c.uv(v, params.size)));
     }
-    let mut bin: Vec<u8> = Vec::new();
-    let mut accessors: Vec<Value> = Vec::new();
-    let mut views: Vec<Value> = Vec::new();
-    let mut meshes: Vec<Value> = Vec::new();
-    let mut nodes: Vec<Value> = Vec::new();
-    for (name, s) in mesh_names.iter().zip(&streams) {
-        if s.indices.is_empty() {
-            continue; // a mesh whose patches have no elements (none of radlab's solvers does this)
-        }
-        let mut floats =
-            |data: &[_], min_max: bool| push_floats(&mut accessors, &mut views, &mut bin, data, min_max);
+}
+
+/// The binary buffer and the glTF arrays that point into it, filled mesh by mesh.
+#[derive(Default)]
+struct Buffers {
+    bin: Vec<u8>,
+    accessors: Vec<Value>,
+    views: Vec<Value>,
+    meshes: Vec<Value>,
+    nodes: Vec<Value>,
+}
+
+impl Buffers {
+    /// One mesh (and its node): its streams' accessors, the indices, one primitive.
+    fn push_mesh(&mut self, name: &str, s: &Streams) {
+        let mut floats = |data: &[_], min_max: bool| {
+            push_floats(&mut self.accessors, &mut self.views, &mut self.bin, data, min_max)
+        };
         let mut attributes = json!({
             "POSITION": floats(&s.positions, true),
             "NORMAL": floats(&s.normals, false),
@@ -396,20 +470,20 @@ fn document(
         }
         if !s.uv0.is_empty() {
             attributes["TEXCOORD_0"] =
-                json!(push_floats(&mut accessors, &mut views, &mut bin, &s.uv0, false));
+                json!(push_floats(&mut self.accessors, &mut self.views, &mut self.bin, &s.uv0, false));
             attributes["TEXCOORD_1"] =
-                json!(push_floats(&mut accessors, &mut views, &mut bin, &s.uv1, false));
+                json!(push_floats(&mut self.accessors, &mut self.views, &mut self.bin, &s.uv1, false));
         }
         let view = push_view(
-            &mut views,
-            &mut bin,
+            &mut self.views,
+            &mut self.bin,
             s.indices.iter().flat_map(|i| i.to_le_bytes()),
             GL_ELEMENT_ARRAY_BUFFER,
         );
-        accessors.push(json!({"bufferView": view, "componentType": GL_UNSIGNED_INT, "count": s.indices.len(), "type": "SCALAR"}));
-        let indices = accessors.len() - 1;
-        nodes.push(json!({"name": name, "mesh": meshes.len()}));
-        meshes.push(json!({
+        self.accessors.push(json!({"bufferView": view, "componentType": GL_UNSIGNED_INT, "count": s.indices.len(), "type": "SCALAR"}));
+        let indices = self.accessors.len() - 1;
+        self.nodes.push(json!({"name": name, "mesh": self.meshes.len()}));
+        self.meshes.push(json!({
             "name": name,
             "primitives": [{
                 "attributes": attributes,
@@ -419,32 +493,6 @@ fn document(
             }],
         }));
     }
-    let bytes = bin.len() as u64;
-    if u32::try_from(bytes).is_err() {
-        return Err(BakeError::TooLarge { bytes });
-    }
-    let mut doc = json!({
-        "asset": {
-            "version": "2.0",
-            "generator": concat!("radlab ", env!("CARGO_PKG_VERSION"), " (baked radiosity)"),
-            "extras": {"radlab": info},
-        },
-        "extensionsUsed": ["KHR_materials_unlit"],
-        "scene": 0,
-        "scenes": [{"name": scene.name, "nodes": (0..nodes.len()).collect::<Vec<_>>(), "extras": {"radlab": info}}],
-        "nodes": nodes,
-        "meshes": meshes,
-        "materials": [material],
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": [{"byteLength": bin.len()}],
-    });
-    if lightmap.is_some() {
-        doc["samplers"] = json!([{"magFilter": GL_LINEAR, "minFilter": GL_LINEAR, "wrapS": GL_CLAMP_TO_EDGE, "wrapT": GL_CLAMP_TO_EDGE}]);
-        doc["textures"] = json!([{"name": "radlab lightmap", "sampler": 0, "source": 0}]);
-        doc["images"] = json!([{"name": "radlab lightmap"}]);
-    }
-    Ok(Document { json: doc, bin, image: lightmap.map(|m| m.png()) })
 }
 
 /// A unit vector in f32 (normalised again after rounding, for the validator's unit-length check).

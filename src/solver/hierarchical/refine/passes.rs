@@ -1,0 +1,328 @@
+//! `Refine` as passes over the link lists, until nothing splits [HSA91, sec. 4]:
+//! ```text
+//! A (parallel, read-only)  a verdict per receiver: keep / split source / split receiver
+//! B (sorted ids)           split the chosen elements → deterministic element ids
+//! C (parallel)             the replacement links (coupling, visibility, verdicts)
+//! D (receiver order)       install them; the next pass examines exactly the new links
+//! ```
+//! Before the first pass a refinement links the input patches (or clusters) once, or refines
+//! the cluster links; after the last it records why each leaf stopped and updates the sums
+//! and the gather plan where the link lists changed.
+
+use super::super::*;
+use super::replace::Replaced;
+use super::verdict::{IdSet, ReceiverDecision, Split, Verdict};
+
+/// Receivers whose link lists the oracle's first pass loads together (see `decide_all`).
+pub(super) const TOUCH_AHEAD: usize = 16;
+
+/// What one refinement carries from pass to pass.
+struct Refinement {
+    /// Links created, and elements split, by this refinement.
+    new_links: usize,
+    refined: usize,
+    /// Links in all the lists now (the budget's count).
+    total_links: usize,
+    /// Receivers whose link lists changed (their sums and gather plan are updated at the end).
+    changed: IdSet,
+    /// The gather plan was whole before this refinement (it is then updated, not rebuilt).
+    plan_whole: bool,
+    /// Per element, the strongest reason among the links it keeps, over all passes.
+    kept_reason: Vec<StopReason>,
+    /// The verdicts on the links made by the last pass (None: the first pass, which examines
+    /// every link, as B has changed since the last refinement).
+    pending: Option<Vec<ReceiverDecision>>,
+    /// The error oracle's field, kept up to date pass by pass (`update_error_field`), and the
+    /// receivers whose link lists the last pass changed (tracked for the error oracle only).
+    err_field: Option<oracle::ErrorField>,
+    pass_changed: Vec<u32>,
+    track: bool,
+}
+
+impl HierarchicalSolver {
+    /// One refinement pass: on the first call, link every mutually visible pair of input
+    /// patches; then apply the oracle to every link until nothing splits.
+    pub fn refine_step(&mut self) -> StepReport {
+        self.cancel.store(false, Ordering::Relaxed);
+        self.refine_inner()
+    }
+
+    pub(in crate::solver::hierarchical) fn refine_inner(&mut self) -> StepReport {
+        let t = Instant::now();
+        let mut run = self.begin_refinement();
+        self.stats.refine_initial_s += t.elapsed().as_secs_f64();
+        // The row check reads the rows of the links the last solution gathered through (none
+        // before the first gather). Not with cluster links: their transfer is a bounded
+        // approximation whose share of a row no element link's split corrects (furnished-2k
+        // `interactive`: 175 k links, then 505 k and the budget).
+        self.row_floor =
+            if self.gathered_once && self.cluster_links.is_empty() { self.row_floors() } else { Vec::new() };
+        while !self.cancelled() {
+            if run.total_links >= self.params.max_links {
+                self.stats.budget_hit = true;
+                break;
+            }
+            // A: decide, in parallel, read-only.
+            let phase = Instant::now();
+            let decisions = self.decide_pass(&mut run);
+            self.stats.refine_passes += 1;
+            self.stats.refine_decided += decisions.len();
+            if decisions.is_empty() {
+                break;
+            }
+            let mut to_split =
+                chosen_elements(&self.links.by_receiver, &decisions, self.hier.len(), &mut run);
+            self.stats.refine_decide_s += phase.elapsed().as_secs_f64();
+            if to_split.is_empty() {
+                break;
+            }
+            // B: split, in id order (children computed in parallel).
+            let phase = Instant::now();
+            run.refined += self.hier.split_many(&to_split.take_sorted());
+            self.links.grow(self.hier.len());
+            self.sync_oracle_b();
+            self.stats.refine_split_s += phase.elapsed().as_secs_f64();
+            // C: replacement links, in parallel.
+            let phase = Instant::now();
+            let work: Vec<ReceiverDecision> =
+                decisions.into_iter().filter(|(_, v)| !v.splits.is_empty()).collect();
+            let results: Vec<Replaced> =
+                work.par_iter().map(|(r, v)| self.replace_links(*r, &v.splits)).collect();
+            self.pair_memo.clear();
+            self.stats.refine_links_s += phase.elapsed().as_secs_f64();
+            // D: install, in receiver order.
+            let phase = Instant::now();
+            self.install(results, &mut run);
+            self.stats.refine_install_s += phase.elapsed().as_secs_f64();
+        }
+        self.finish_refinement(run, t)
+    }
+
+    /// The state a refinement starts from: the oracle's threshold and its copy of B, and the
+    /// first links (input patches or clusters) or the cluster links refined.
+    fn begin_refinement(&mut self) -> Refinement {
+        let mut new_links = 0;
+        if self.params.oracle == Oracle::Error && self.params.bf_relative {
+            self.bf_eps = self.error_eps();
+        }
+        self.oracle_b.clear();
+        self.sync_oracle_b();
+        // The gather plan is updated where the link lists change (`install`), if it was whole.
+        let plan_whole = self.plan_valid;
+        self.plan_valid = false;
+        let mut changed = IdSet::default();
+        if !self.linked {
+            new_links += if self.clustering() { self.cluster_linking() } else { self.initial_linking() };
+            self.linked = true;
+            for r in 0..self.hier.roots as u32 {
+                changed.insert(r);
+            }
+        } else if !self.cluster_links.is_empty() {
+            let (created, touched) = self.cluster_refine();
+            new_links += created;
+            if touched {
+                for r in 0..self.hier.roots as u32 {
+                    changed.insert(r);
+                }
+            }
+        }
+        Refinement {
+            new_links,
+            refined: 0,
+            total_links: self.links.len(),
+            changed,
+            plan_whole,
+            kept_reason: Vec::new(),
+            pending: None,
+            err_field: None,
+            pass_changed: Vec::new(),
+            track: self.params.oracle == Oracle::Error,
+        }
+    }
+
+    /// Phase A: the verdicts of this pass. The error oracle examines, after its first pass, the
+    /// links of the receivers whose error the last pass changed (their own or an ancestor's
+    /// links changed) and their mirrors; the other oracles take the verdicts made with the new
+    /// links, or examine every link in their first pass.
+    fn decide_pass(&mut self, run: &mut Refinement) -> Vec<ReceiverDecision> {
+        let decisions = if self.params.oracle == Oracle::Error {
+            self.decide_error_pass(run)
+        } else {
+            match run.pending.take() {
+                Some(d) => d,
+                None => self.decide_all(),
+            }
+        };
+        run.pass_changed.clear();
+        decisions
+    }
+
+    /// The error oracle's verdicts: from its field, updated where the last pass changed the
+    /// lists (or built whole in the first pass, or every pass with `full_error_passes`).
+    fn decide_error_pass(&mut self, run: &mut Refinement) -> Vec<ReceiverDecision> {
+        let ids: Vec<u32> = match run.err_field.as_mut() {
+            Some(f) if !self.full_error_passes => self.update_error_field(f, &run.pass_changed),
+            _ => {
+                let known = run
+                    .err_field
+                    .take()
+                    .map_or_else(|| std::mem::take(&mut self.error_kernels), |f| f.kernels);
+                run.err_field = Some(self.error_field(&known));
+                (0..self.hier.len() as u32).collect()
+            }
+        };
+        let field = run.err_field.as_ref();
+        ids.into_par_iter()
+            .filter(|&r| !self.links.by_receiver[r as usize].is_empty())
+            .map(|r| self.decide_receiver(r, field))
+            .collect()
+    }
+
+    /// The oracle on every link, receiver by receiver.
+    fn decide_all(&self) -> Vec<ReceiverDecision> {
+        let lists = &self.links.by_receiver;
+        let ids: Vec<u32> = (0..self.hier.len() as u32).collect();
+        ids.par_chunks(TOUCH_AHEAD)
+            .flat_map_iter(|chunk| {
+                // Each list is its own allocation: load the first link of all of the chunk's
+                // lists at once, so their cache misses overlap instead of stalling one receiver
+                // after the other.
+                let touched = chunk
+                    .iter()
+                    .fold(0u32, |acc, &r| acc ^ lists[r as usize].first().map_or(0, |l| l.source));
+                std::hint::black_box(touched);
+                chunk
+                    .iter()
+                    .filter(|&&r| !lists[r as usize].is_empty())
+                    .map(|&r| self.decide_receiver(r, None))
+            })
+            .collect()
+    }
+
+    /// Phase D: install the replacement links, in receiver order: every receiver's own list
+    /// first, then the links pushed down to children (a child may itself have been a receiver
+    /// in this pass). The verdicts on the new links become the next pass's (`pending`).
+    fn install(&mut self, results: Vec<Replaced>, run: &mut Refinement) {
+        let mut next: Vec<ReceiverDecision> = Vec::new();
+        let mut pushed_down = Vec::new();
+        let mut owns = Vec::with_capacity(results.len());
+        for rep in results {
+            let r = rep.receiver;
+            self.stats.rays += rep.rays;
+            if rep.own_changed {
+                next.push((r, rep.own_verdict));
+            }
+            run.new_links += rep.created;
+            let pushed: usize = rep.kids.iter().map(Vec::len).sum();
+            run.total_links =
+                run.total_links + rep.own.len() + pushed - self.links.by_receiver[r as usize].len();
+            run.changed.insert(r);
+            if run.track {
+                run.pass_changed.push(r);
+            }
+            owns.push((r, rep.own));
+            if pushed > 0 {
+                let first = rep.first_child;
+                for (k, (ls, v)) in rep.kids.into_iter().zip(rep.kid_verdicts).enumerate() {
+                    if !ls.is_empty() {
+                        pushed_down.push((first + k as u32, ls, v));
+                    }
+                }
+            }
+        }
+        // The new own lists replace the old ones in parallel (freeing them is most of it).
+        let slots = disjoint_mut(&mut self.links.by_receiver, owns.iter().map(|o| o.0));
+        slots.into_par_iter().zip(owns).with_min_len(64).for_each(|(slot, (_, own))| *slot = own);
+        for (c, ls, mut v) in pushed_down {
+            if run.track {
+                run.pass_changed.push(c);
+            }
+            let list = &mut self.links.by_receiver[c as usize];
+            // The child's list may hold links already (its own, just replaced, or earlier ones).
+            let offset = list.len() as u32;
+            if list.is_empty() {
+                *list = ls;
+            } else {
+                list.extend(ls);
+            }
+            for (i, _) in &mut v.splits {
+                *i += offset;
+            }
+            next.push((c, v));
+            run.changed.insert(c);
+        }
+        merge_by_receiver(&mut next);
+        run.pending = (self.params.oracle != Oracle::Error).then_some(next);
+    }
+
+    /// After the last pass: measure what was left unmeasured, record on each leaf why it
+    /// stopped, update the sums and the gather plan where the lists changed.
+    fn finish_refinement(&mut self, run: Refinement, t: Instant) -> StepReport {
+        if self.stats.budget_hit || self.cancelled() {
+            self.measure_unmeasured();
+        }
+        for (r, kept) in run.kept_reason.iter().enumerate() {
+            let e = &mut self.hier.elements[r];
+            if *kept != StopReason::Unrefined && e.is_leaf() {
+                e.stop = *kept;
+            }
+        }
+        self.row_floor = Vec::new();
+        // The error oracle's kernels serve the next refinement's field (`oracle::ErrorField`).
+        if let Some(f) = run.err_field {
+            self.error_kernels = f.kernels;
+        }
+        let mut changed = run.changed;
+        let changed = changed.take_sorted();
+        self.update_sums(&changed);
+        if run.plan_whole {
+            self.plan_changed.extend_from_slice(&changed);
+            self.plan_valid = true;
+        }
+        self.converged = false;
+        self.stats.links_created += run.new_links as u64;
+        self.stats.refine_s += t.elapsed().as_secs_f64();
+        self.oracle_b.clear();
+        self.report(StepKind::Refine, t, run.refined, run.new_links)
+    }
+}
+
+/// The elements the verdicts split (a split source's or receiver's id); also records, per
+/// receiver, the strongest reason over all the links it keeps, examined now or in an earlier
+/// pass (written to the leaves once, after the last pass).
+fn chosen_elements(
+    lists: &[Vec<Link>],
+    decisions: &[ReceiverDecision],
+    elements: usize,
+    run: &mut Refinement,
+) -> IdSet {
+    run.kept_reason.resize(elements, StopReason::Unrefined);
+    let mut to_split = IdSet::default();
+    for (r, Verdict { reason, splits }) in decisions {
+        for &(i, side) in splits {
+            to_split.insert(match side {
+                Split::Source => lists[*r as usize][i as usize].source,
+                Split::Receiver => *r,
+            });
+        }
+        let kept = &mut run.kept_reason[*r as usize];
+        if reason.rank() > kept.rank() {
+            *kept = *reason;
+        }
+    }
+    to_split
+}
+
+/// Sort the next pass's verdicts by receiver and merge each receiver's: a child that was a
+/// receiver in this pass too has its own list's verdict first (lower indices), then its
+/// parent's pushed links'.
+fn merge_by_receiver(next: &mut Vec<ReceiverDecision>) {
+    next.sort_by_key(|d| d.0);
+    next.dedup_by(|later, first| {
+        let same = later.0 == first.0;
+        if same {
+            first.1.absorb(std::mem::take(&mut later.1));
+        }
+        same
+    });
+}
