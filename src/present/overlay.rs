@@ -218,11 +218,17 @@ impl LineList {
 
 /// Fixtures of the overlays' unit tests.
 #[cfg(test)]
-mod test_support {
+pub(crate) mod test_support {
     use super::{BoundaryPoint, ElementView, VertexField};
     use crate::math::{DVec3, Rgb};
 
-    pub(super) fn quad(id: u32, depth: u8, x0: f64, y0: f64, s: f64, b: f64) -> ElementView {
+    /// A leaf square of side `s` at (`x0`, `y0`) in the z = 0 plane, radiosity `b` in every channel.
+    pub(crate) fn quad(id: u32, depth: u8, x0: f64, y0: f64, s: f64, b: f64) -> ElementView {
+        quad_rgb(id, depth, x0, y0, s, Rgb::splat(b))
+    }
+
+    /// [`quad`] with radiosity `b`.
+    pub(crate) fn quad_rgb(id: u32, depth: u8, x0: f64, y0: f64, s: f64, b: Rgb) -> ElementView {
         ElementView {
             id,
             patch: 0,
@@ -239,7 +245,7 @@ mod test_support {
             area: s * s,
             reflectance: Rgb::splat(0.5),
             emission: Rgb::ZERO,
-            radiosity: Rgb::splat(b),
+            radiosity: b,
             error_estimate: 0.0,
             stop: "",
         }

@@ -156,26 +156,7 @@ mod tests {
     use super::*;
 
     fn quad(id: u32, depth: u8, x0: f64, y0: f64, s: f64, b: f64) -> ElementView {
-        ElementView {
-            id,
-            patch: 0,
-            parent: None,
-            depth,
-            leaf: true,
-            vertices: [
-                DVec3::new(x0, y0, 0.0),
-                DVec3::new(x0 + s, y0, 0.0),
-                DVec3::new(x0 + s, y0 + s, 0.0),
-                DVec3::new(x0, y0 + s, 0.0),
-            ],
-            n_vertices: 4,
-            area: s * s,
-            reflectance: Rgb::splat(0.5),
-            emission: Rgb::ZERO,
-            radiosity: Rgb::new(b, 0.0, 0.0),
-            error_estimate: 0.0,
-            stop: "",
-        }
+        crate::present::overlay::test_support::quad_rgb(id, depth, x0, y0, s, Rgb::new(b, 0.0, 0.0))
     }
 
     #[test]
