@@ -408,3 +408,41 @@ fn the_cli_generates_and_refuses_bad_input_in_one_line() {
     assert_eq!(load(&out, &LoadOptions::default()).unwrap().patches.len(), file.patches.len());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `radlab bench --scale` solves each family at each size in a process of its own and reports
+/// what the solve's JSON says: the row's links per element, time, peak memory and energy, in the
+/// table and in its JSON. Bad names and sizes are refused in one line before any solve.
+#[test]
+fn bench_scale_solves_each_family_at_each_size() {
+    let dir = scratch("bench-scale");
+    let json = dir.join("scale.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_radlab"))
+        .args(["bench", "--scale", "--families", "corridor", "--sizes", "1000", "--preset", "draft"])
+        .args(["--threads", "2", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("| `corridor-1000` | "), "{stdout}");
+    let rows: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let row = &rows.as_array().unwrap()[0];
+    assert_eq!((row["scene"].as_str(), row["status"].as_str()), (Some("builtin:corridor-1000"), Some("ok")));
+    // The same scene as the generator makes, about 500 patches at 1 000 triangles.
+    let patches = generate(Family::Corridor, 1000, 0).patches.len() as u64;
+    assert_eq!(row["patches"].as_u64(), Some(patches));
+    let f = |k: &str| row[k].as_f64().unwrap();
+    assert!(f("links_per_element") > 1.0 && f("wall_s") >= f("solve_s") && f("solve_s") > 0.0, "{row}");
+    assert!(row["peak_rss_bytes"].as_u64().unwrap() > 1_000_000, "{row}");
+    assert!(f("absorbed") > 0.0 && f("absorbed") <= f("emitted") * (1.0 + 1e-3), "{row}");
+    assert_eq!(row["light_created"].as_bool(), Some(false));
+    for (args, names) in [(["--families", "boxes"], "--families"), (["--sizes", "10"], "--sizes")] {
+        let out = Command::new(env!("CARGO_BIN_EXE_radlab"))
+            .args(["bench", "--scale"])
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(names) && err.lines().count() == 1, "{err}");
+    }
+}

@@ -5,6 +5,8 @@ use radlab::eval::reference::Cache;
 use radlab::studies::bench::{self, BenchConfig, Mode};
 use std::path::PathBuf;
 
+pub mod scale;
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Comma-separated scenes (`builtin:NAME`, `hard:NAME` or paths; a bare NAME means builtin:NAME).
@@ -49,9 +51,74 @@ pub struct Args {
     /// Reference cache folder (default: $RADLAB_CACHE, else .radlab-cache/).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
+    /// The scale study instead: the generated scene families (`radlab scenes --generate`) solved
+    /// at growing sizes, one `radlab solve` process a row (wall time, peak memory, links per
+    /// element, energy; docs/scale.md). `--budget` then sets each solve's `--time-budget`.
+    #[arg(long, conflicts_with_all = ["quick", "full", "scenes", "plot"])]
+    pub scale: bool,
+    /// With --scale: the families (default: all of them).
+    #[arg(long, value_delimiter = ',', requires = "scale")]
+    pub families: Vec<String>,
+    /// With --scale: the sizes in triangles (default: 10k,100k,1m).
+    #[arg(long, value_delimiter = ',', requires = "scale")]
+    pub sizes: Vec<String>,
+    /// With --scale: the preset each row solves at (default: the default preset).
+    #[arg(long, requires = "scale")]
+    pub preset: Option<String>,
+    /// With --scale: solver threads of each row (default: all cores).
+    #[arg(long, requires = "scale")]
+    pub threads: Option<usize>,
+}
+
+/// `radlab bench --scale`.
+fn run_scale(args: &Args) -> anyhow::Result<()> {
+    let config = scale::ScaleConfig {
+        families: if args.families.is_empty() {
+            radlab::scene::families::Family::ALL.map(|f| f.name().to_string()).to_vec()
+        } else {
+            args.families.clone()
+        },
+        sizes: if args.sizes.is_empty() {
+            scale::SIZES.map(String::from).to_vec()
+        } else {
+            args.sizes.clone()
+        },
+        preset: args
+            .preset
+            .clone()
+            .unwrap_or_else(|| radlab::solver::spec::Preset::Quality.name().to_string()),
+        budget_s: args.budget,
+        threads: args.threads,
+    };
+    scale::check(&config)?;
+    if let Some(b) = config.budget_s {
+        anyhow::ensure!(b.is_finite() && b > 0.0, "--budget must be a number of seconds > 0 (got {b})");
+    }
+    if let Some(t) = config.threads {
+        anyhow::ensure!(t >= 1, "--threads must be at least 1");
+    }
+    let scratch = scale::Scratch::new()?;
+    let rows = scale::run(&config, &scratch.0, &mut |line| eprintln!("{line}"))?;
+    let table = scale::markdown(&rows, &config);
+    println!("{table}");
+    write_outputs(args, &serde_json::to_string_pretty(&rows)?, &table, &mut |l| eprintln!("{l}"))
+}
+
+/// Write `--json` and `--table` where asked, saying so through `say`.
+fn write_outputs(args: &Args, json: &str, table: &str, say: &mut dyn FnMut(&str)) -> anyhow::Result<()> {
+    for (path, text) in [(&args.json, json), (&args.table, table)] {
+        if let Some(p) = path {
+            std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+            say(&format!("wrote {}", p.display()));
+        }
+    }
+    Ok(())
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.scale {
+        return run_scale(&args);
+    }
     let mode = if args.quick {
         Mode::Quick
     } else if args.full {
@@ -97,22 +164,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::ensure!(b.is_finite() && b > 0.0, "--budget must be a number of seconds > 0 (got {b})");
         config.budget_s = b;
     }
-    if let Some(dir) = args.cache_dir {
-        config.cache = Cache::at(dir);
+    if let Some(dir) = &args.cache_dir {
+        config.cache = Cache::at(dir.clone());
     }
     println!("reference cache: {}", config.cache.dir.display());
     let report = bench::run(&config, &mut |line| println!("{line}"))?;
     let table = bench::markdown(&report);
     println!("\n{table}");
-    if let Some(p) = &args.json {
-        std::fs::write(p, serde_json::to_string_pretty(&report)?)
-            .with_context(|| format!("writing {}", p.display()))?;
-        println!("wrote {}", p.display());
-    }
-    if let Some(p) = &args.table {
-        std::fs::write(p, &table).with_context(|| format!("writing {}", p.display()))?;
-        println!("wrote {}", p.display());
-    }
+    write_outputs(&args, &serde_json::to_string_pretty(&report)?, &table, &mut |l| println!("{l}"))?;
     if let Some(p) = &args.plot {
         bench::plot_png(&report, p)?;
         println!("wrote {}", p.display());
