@@ -5,7 +5,7 @@
 
 use super::worker::{
     CLUSTER_LINKS_KEPT, Command, DmeshOptions, PARTIAL_EVERY, REPLAY_BUDGET_BYTES, REPLAY_CLUSTER_LINKS,
-    Reply, ViewData,
+    Reply, ViewData, Worker,
 };
 use crate::scene::Scene;
 use crate::solver::hierarchical::{HierarchicalSolver, StepKind, StepReport};
@@ -15,6 +15,29 @@ use crate::solver::spec::{Plan, SolveSpec, TopLevel};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
+
+impl Worker {
+    /// Start the thread; `notify` is called after every reply (the UI's repaint request).
+    pub fn spawn(notify: impl Fn() + Send + 'static) -> Result<Worker, String> {
+        let (tx, cmd_rx) = channel::<(u64, Command)>();
+        let (reply_tx, rx) = channel::<Reply>();
+        let skip_through = Arc::new(AtomicU64::new(0));
+        let skip = Arc::clone(&skip_through);
+        std::thread::Builder::new()
+            .name("radlab-solver".into())
+            .spawn(move || {
+                // A panic ends the thread (the solver may be half changed): its message is the
+                // last answer, and what is still queued is answered "stopped".
+                if let Err(e) = super::panics::catching("solver", || run(&cmd_rx, &skip, &reply_tx, &notify))
+                {
+                    let _ = reply_tx.send(Reply::Failed(e));
+                    notify();
+                }
+            })
+            .map_err(|e| format!("cannot start the solver thread: {e}"))?;
+        Ok(Worker { tx, rx, cancel: None, in_flight: 0, sent: 0, skip_through })
+    }
+}
 
 /// The way back to the UI: the replies' channel, the repaint request, and the number of the
 /// last command [`super::worker::Worker::cancel_all`] dropped.

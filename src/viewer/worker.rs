@@ -10,7 +10,6 @@
 //!                     solver thread watches the flag and drops it on Cancel)
 //! ```
 
-use super::solver_thread;
 use crate::math::Rgb;
 use crate::present::overlay::{ElementView, LinkView};
 use crate::scene::Scene;
@@ -23,7 +22,7 @@ use crate::solver::params::HierarchicalParams;
 use crate::solver::spec::TopLevel;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
+use std::sync::mpsc::{Receiver, Sender, TryRecvError};
 
 /// The solver's state as the viewer shows it.
 #[derive(Clone, Debug, Default)]
@@ -456,41 +455,20 @@ pub const PARTIAL_EVERY: std::time::Duration = std::time::Duration::from_millis(
 pub const REPLAY_BUDGET_BYTES: usize = 64 << 20;
 
 /// Handle of the solver thread (the thread ends when this is dropped).
+/// Started by [`Worker::spawn`], which `super::solver_thread` holds beside the thread's loop.
 pub struct Worker {
-    tx: Sender<(u64, Command)>,
-    rx: Receiver<Reply>,
-    cancel: Option<Arc<AtomicBool>>,
+    pub(super) tx: Sender<(u64, Command)>,
+    pub(super) rx: Receiver<Reply>,
+    pub(super) cancel: Option<Arc<AtomicBool>>,
     /// Commands sent but not answered yet.
-    in_flight: usize,
+    pub(super) in_flight: usize,
     /// Commands sent so far (each goes with its number).
-    sent: u64,
+    pub(super) sent: u64,
     /// Commands numbered up to this one are dropped unrun ([`Worker::cancel_all`]).
-    skip_through: Arc<AtomicU64>,
+    pub(super) skip_through: Arc<AtomicU64>,
 }
 
 impl Worker {
-    /// Start the thread; `notify` is called after every reply (the UI's repaint request).
-    pub fn spawn(notify: impl Fn() + Send + 'static) -> Result<Worker, String> {
-        let (tx, cmd_rx) = channel::<(u64, Command)>();
-        let (reply_tx, rx) = channel::<Reply>();
-        let skip_through = Arc::new(AtomicU64::new(0));
-        let skip = Arc::clone(&skip_through);
-        std::thread::Builder::new()
-            .name("radlab-solver".into())
-            .spawn(move || {
-                // A panic ends the thread (the solver may be half changed): its message is the
-                // last answer, and what is still queued is answered "stopped".
-                if let Err(e) = super::panics::catching("solver", || {
-                    solver_thread::run(&cmd_rx, &skip, &reply_tx, &notify)
-                }) {
-                    let _ = reply_tx.send(Reply::Failed(e));
-                    notify();
-                }
-            })
-            .map_err(|e| format!("cannot start the solver thread: {e}"))?;
-        Ok(Worker { tx, rx, cancel: None, in_flight: 0, sent: 0, skip_through })
-    }
-
     pub fn send(&mut self, cmd: Command) {
         if self.tx.send((self.sent + 1, cmd)).is_ok() {
             self.sent += 1;
@@ -589,6 +567,7 @@ impl Drop for Worker {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::mpsc::channel;
 
     fn load(w: &mut Worker, spec: &str, params: HierarchicalParams) -> Arc<ViewData> {
         w.send(Command::Load { scene: Arc::new(Scene::load(spec).unwrap()), params, top: TopLevel::Patches });
