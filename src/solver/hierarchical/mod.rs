@@ -107,6 +107,7 @@
 //! unchanged, the visibility of the initial patch pairs; elements and links are rebuilt.
 
 mod audit;
+mod closure;
 pub mod cluster;
 pub mod estimate;
 mod gather;
@@ -404,6 +405,9 @@ pub struct HierarchicalSolver {
     cluster_xfer: ClusterTransfer,
     /// Each input patch's Σ F·V through cluster links (its energy row's share).
     cluster_fv: Vec<f64>,
+    /// Closed rows: which patches are enclosed, the leaves' scale and balanced rows
+    /// ([`closure`]).
+    closure: closure::Closure,
 }
 
 impl HierarchicalSolver {
@@ -422,6 +426,10 @@ impl HierarchicalSolver {
     /// Like `new`, sharing an already built BVH.
     #[must_use]
     pub fn with_accel(scene: Arc<Scene>, accel: Arc<Accel>, params: HierarchicalParams, bvh_s: f64) -> Self {
+        let mut params = params;
+        if std::env::var("RADLAB_CLOSE_ROWS").is_ok_and(|v| v == "0") {
+            params.close_rows = false; // TEMPORARY measurement switch
+        }
         let hier = Hierarchy::from_scene(&scene);
         let links = LinkStore::new(hier.len());
         let aeps = params.aeps.resolve(scene.total_area());
@@ -461,6 +469,7 @@ impl HierarchicalSolver {
             cluster_links: Vec::new(),
             cluster_xfer: ClusterTransfer::default(),
             cluster_fv: Vec::new(),
+            closure: closure::Closure::default(),
         };
         s.energy.emitted = s.scene.emitted_power();
         s
@@ -556,6 +565,7 @@ impl HierarchicalSolver {
         self.moment.clear();
         self.cluster_links.clear();
         self.cluster_fv.clear();
+        self.closure_reset();
         self.linked = false;
         self.stats = HierarchicalStats::default();
         self.residuals.clear();
@@ -815,18 +825,21 @@ impl HierarchicalSolver {
         }
     }
 
-    /// Each leaf's slope of B, ρ times the irradiance's slope pushed down to it (`Chain`); empty
-    /// without `push_slopes`, None for interior elements and flat leaves.
+    /// Each leaf's slope of B, ρ times the irradiance's slope pushed down to it (`Chain`; with
+    /// the rows closed, times the leaf's scale, as its irradiance is); empty without
+    /// `push_slopes`, None for interior elements and flat leaves.
     fn leaf_slopes(&self) -> Vec<Option<crate::solver::Slope>> {
         if !self.params.push_slopes {
             return Vec::new();
         }
+        let scale = &self.closure.scale;
         self.hier
             .elements
             .iter()
             .zip(self.chains())
-            .map(|(e, own)| {
-                let d = own.slope.map(|g| e.reflectance.mul_rgb(g));
+            .enumerate()
+            .map(|(i, (e, own))| {
+                let d = own.slope.map(|g| e.reflectance.mul_rgb(leaf_irradiance(g, scale, i)));
                 (e.is_leaf() && d.iter().any(|g| *g != Rgb::ZERO))
                     .then_some(crate::solver::Slope { centroid: e.centroid, d })
             })
