@@ -43,6 +43,11 @@
 use super::*;
 use crate::solver::escape::{Hit, Region, cast_hemisphere};
 
+pub(super) fn own_exponent() -> f64 {
+    static M: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    *M.get_or_init(|| std::env::var("GAMMA").ok().and_then(|v| v.parse().ok()).unwrap_or(1.0))
+}
+
 /// Rays shared by the input patches in proportion to their area to decide which are enclosed,
 /// beside [`ENCLOSURE_MIN_RAYS`] each and at most [`ENCLOSURE_MAX_RAYS`] a patch.
 pub(super) const ENCLOSURE_RAY_BUDGET: f64 = 131_072.0;
@@ -234,13 +239,21 @@ impl HierarchicalSolver {
     /// One application of the leaves' operator to the leaf values `v` (by element id): each
     /// leaf's (K v)_x / A_x into `out`, the same sums in the same order as a gather and a push
     /// (pull, per receiver Σ F·V v plus the source moments' terms, push with the slopes).
-    fn apply_operator(&self, plan: &GatherPlan, v: &[f64], out: &mut [f64], scratch: &mut OperatorScratch) {
+    fn apply_operator(&self, plan: &GatherPlan, v: &[f64], out: &mut [(f64, f64)], scratch: &mut OperatorScratch) {
         let els = &self.hier.elements;
         let slopes = self.params.push_slopes;
         let OperatorScratch { value, world, moment, gathered, basis } = scratch;
         value.clear();
         value.extend_from_slice(v);
         pull(els, value, world, moment, slopes);
+        let gamma = own_exponent();
+        if gamma != 1.0 {
+            for (x, e) in value.iter_mut().zip(els) {
+                if e.is_leaf() {
+                    *x = x.powf(gamma);
+                }
+            }
+        }
         let (value, moment) = (&*value, &*moment);
         gathered.clear();
         gathered.par_extend((0..els.len()).into_par_iter().with_min_len(256).map(|r| plan.gather_scalar(r, value, moment)));
@@ -262,7 +275,7 @@ impl HierarchicalSolver {
             };
             at.push((up + g, grad));
             if e.is_leaf() {
-                out[i] = up + g;
+                out[i] = (g, up);
             }
         }
     }
@@ -290,19 +303,31 @@ impl HierarchicalSolver {
         // Each enclosed leaf's reach: |ln d| ≤ SCALE_REACH · max(|ln row|, SCALE_FLOOR) of its row
         // as it is (the chain's Σ F·V), at most ln SCALE_RANGE.
         let mut raw = vec![0.0; n];
+        let gamma = own_exponent();
+        // The raw row's log over its log-derivative in d: how far this leaf's scale alone would
+        // move to close it (stored as the equivalent row).
+        let each = |i: usize, e: &Element, _: Rgb, row: f64| {
+            let up = row - e.fv_sum;
+            let slope = if row > 0.0 { (gamma * e.fv_sum + up) / row } else { 1.0 };
+            raw[i] = if row > 0.0 && slope > 0.0 { (row.ln() / slope).exp() } else { 0.0 };
+        };
         if self.params.push_slopes {
-            for_each_leaf_row(els, &mut Vec::<Chain>::new(), |i, _, _, row| raw[i] = row);
+            for_each_leaf_row(els, &mut Vec::<Chain>::new(), each);
         } else {
-            for_each_leaf_row(els, &mut Vec::<FlatChain>::new(), |i, _, _, row| raw[i] = row);
+            for_each_leaf_row(els, &mut Vec::<FlatChain>::new(), each);
         }
+        let (reach_k, range): (f64, f64) = (
+            std::env::var("REACH").ok().and_then(|v| v.parse().ok()).unwrap_or(SCALE_REACH),
+            std::env::var("RANGE").ok().and_then(|v| v.parse().ok()).unwrap_or(SCALE_RANGE),
+        );
         let bounds: Vec<(f64, f64)> = part
             .iter()
             .map(|&x| {
                 let row = raw[x as usize];
                 let reach = if row > 0.0 {
-                    (SCALE_REACH * row.ln().abs().max(SCALE_FLOOR)).min(SCALE_RANGE.ln())
+                    (reach_k * row.ln().abs().max(SCALE_FLOOR)).min(range.ln())
                 } else {
-                    SCALE_RANGE.ln()
+                    range.ln()
                 };
                 ((-reach).exp(), reach.exp())
             })
@@ -328,7 +353,9 @@ impl HierarchicalSolver {
             })
             .collect();
         let tol = (CLOSURE_TOL_SHARE * self.params.tolerance).clamp(CLOSURE_TOL_MIN, CLOSURE_TOL_MAX);
-        let mut r = vec![0.0; n];
+        let mut r = vec![(0.0, 0.0); n];
+        // The row with scale d: d^γ own + d inherited.
+        let row_of = |dx: f64, (own, up): (f64, f64)| dx.powf(gamma) * own + dx * up;
         let mut iterations = 0;
         let mut anderson = Anderson::default();
         // Leaves the step would carry past their reach stay there for the rest of the balance
@@ -340,7 +367,9 @@ impl HierarchicalSolver {
             let worst = part
                 .iter()
                 .zip(&held)
-                .map(|(&x, &h)| if h { 0.0 } else { (d[x as usize] * r[x as usize] - 1.0).abs() })
+                .map(|(&x, &h)| {
+                    if h || (gamma == 0.0 && r[x as usize].1 <= 0.0) { 0.0 } else { (row_of(d[x as usize], r[x as usize]) - 1.0).abs() }
+                })
                 .fold(0.0, f64::max);
             if worst <= tol || iterations >= CLOSURE_MAX_ITERATIONS {
                 break worst;
@@ -351,8 +380,12 @@ impl HierarchicalSolver {
                 .iter()
                 .zip(&held)
                 .map(|(&x, &h)| {
-                    let (dx, rx) = (d[x as usize], r[x as usize]);
-                    if h || rx <= 0.0 { 0.0 } else { -CLOSURE_STEP * (dx * rx).ln() }
+                    let dx = d[x as usize];
+                    let (own, up) = r[x as usize];
+                    let (mine, theirs) = (dx.powf(gamma) * own, dx * up);
+                    let row = mine + theirs;
+                    let slope = if row > 0.0 { (gamma * mine + theirs) / row } else { 0.0 };
+                    if h || row <= 0.0 || slope <= 0.0 { 0.0 } else { -CLOSURE_STEP * row.ln() / slope }
                 })
                 .collect();
             let mut newly_held = false;
@@ -374,7 +407,7 @@ impl HierarchicalSolver {
         };
         let mut row = std::mem::take(&mut self.closure.row);
         row.clear();
-        row.extend(d.iter().zip(&r).map(|(dx, rx)| dx * rx));
+        row.extend(d.iter().zip(&r).map(|(&dx, &rx)| row_of(dx, rx)));
         if std::env::var_os("RADLAB_CLOSURE_DEBUG").is_some() {
             eprintln!("balance: {} leaves enclosed of {n} elements, {iterations} iterations, residual {residual:.2e}, {:.3} s, {} links", part.len(), t0.elapsed().as_secs_f64(), self.links.len());
             let lns: Vec<f64> = part.iter().map(|&x| d[x as usize].ln().abs()).collect();
@@ -396,6 +429,14 @@ impl HierarchicalSolver {
         c.sent.clear();
         c.sent.extend(els.iter().zip(&c.scale).map(|(e, d)| if e.is_leaf() { e.radiosity * *d } else { Rgb::ZERO }));
         pull(els, &mut c.sent, &mut c.world, &mut c.sent_moment, self.params.push_slopes);
+        let gamma = own_exponent();
+        if gamma != 1.0 {
+            for ((x, e), d) in c.sent.iter_mut().zip(els).zip(&c.scale) {
+                if e.is_leaf() {
+                    *x = e.radiosity * d.powf(gamma);
+                }
+            }
+        }
     }
 }
 

@@ -839,7 +839,14 @@ impl HierarchicalSolver {
             .zip(self.chains())
             .enumerate()
             .map(|(i, (e, own))| {
-                let d = own.slope.map(|g| e.reflectance.mul_rgb(leaf_irradiance(g, scale, i)));
+                let d = if closure::own_exponent() != 1.0 && scale.get(i).is_some() {
+                    let [su, sv] = e.gathered_slope;
+                    let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+                    let mine = [su * t1.x + sv * t2.x, su * t1.y + sv * t2.y, su * t1.z + sv * t2.z];
+                    [0, 1, 2].map(|k| e.reflectance.mul_rgb(leaf_irradiance(own.slope[k], mine[k], scale, i)))
+                } else {
+                    own.slope.map(|g| e.reflectance.mul_rgb(leaf_irradiance(g, Rgb::ZERO, scale, i)))
+                };
                 (e.is_leaf() && d.iter().any(|g| *g != Rgb::ZERO))
                     .then_some(crate::solver::Slope { centroid: e.centroid, d })
             })

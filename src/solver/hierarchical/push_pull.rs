@@ -161,7 +161,7 @@ pub(super) fn push_down<S: Sums>(
         let own = up.down(e);
         chain.push(own);
         if e.is_leaf() {
-            let h = leaf_irradiance(own.irradiance(), scale, i);
+            let h = leaf_irradiance(own.irradiance(), e.gathered, scale, i);
             let b = e.emission + e.reflectance.mul_rgb(h);
             let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
             max_change = max_change.max(b.abs_diff_max(old));
@@ -199,8 +199,9 @@ pub(super) fn for_each_leaf_row<S: Sums>(
 
 /// A leaf's irradiance: its chain's, times its scale where the rows are closed (`scale` by
 /// element id; empty: 1).
-pub(super) fn leaf_irradiance(h: Rgb, scale: &[f64], id: usize) -> Rgb {
+pub(super) fn leaf_irradiance(h: Rgb, own: Rgb, scale: &[f64], id: usize) -> Rgb {
     match scale.get(id) {
+        Some(&d) if super::closure::own_exponent() != 1.0 => own * d.powf(super::closure::own_exponent()) + (h - own) * d,
         Some(&d) => h * d,
         None => h,
     }
@@ -216,7 +217,7 @@ pub(super) fn energy_sums<S: Sums>(
     let mut absorbed = Rgb::ZERO;
     let mut escaped = Rgb::ZERO;
     for_each_leaf_row(els, chain, |i, e, h, fv| {
-        let h = leaf_irradiance(h, scale, i);
+        let h = leaf_irradiance(h, e.gathered, scale, i);
         let fv = rows.get(i).copied().unwrap_or(fv);
         absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
         escaped += e.radiosity * (e.area * (1.0 - fv));
@@ -301,7 +302,7 @@ impl HierarchicalSolver {
             .enumerate()
             .map(|(i, (e, c))| {
                 if e.is_leaf() {
-                    e.emission + e.reflectance.mul_rgb(leaf_irradiance(c.full + c.rest, scale, i))
+                    e.emission + e.reflectance.mul_rgb(leaf_irradiance(c.full + c.rest, e.gathered, scale, i))
                 } else {
                     Rgb::ZERO
                 }
