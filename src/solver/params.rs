@@ -180,9 +180,9 @@ pub struct HierarchicalParams {
     /// faces enclose (no hemisphere ray leaves the scene or meets a back face), gather through
     /// the symmetric scaling of the leaves' operator whose rows sum to exactly 1, as a point's
     /// form factors do in an enclosure. The white furnace then comes out exact under every
-    /// oracle (refined by the BF or Feps oracle it was up to 7 % off at ρ 0.9, 32 % at Feps
-    /// 0.1), and an enclosed leaf's row neither loses nor creates light. Off in clustered solves
-    /// and with `gauss_seidel`.
+    /// oracle (without it, refined by the BF or Feps oracle, B is off by the rows' error, ρ/(1 −
+    /// ρ) times it), and an enclosed leaf's row neither loses nor creates light. Off in
+    /// clustered solves and with `gauss_seidel`.
     pub close_rows: bool,
     /// The error oracle's tail share (`solver::hierarchical::oracle`): of a receiver whose
     /// answer is wrong, the links with the largest variation are split until the others add up

@@ -13,26 +13,41 @@
 //! ## How it works
 //! The leaves' operator is symmetric: with K_xy = A_x × (the weight of B_y in leaf x's
 //! irradiance H_x), a link and its mirror carry one coupling G ([`super::transfer`]) and their
-//! slopes and source moments mirror each other ([`super::push_pull`]), so K_xy = K_yx. On the
-//! leaves of enclosed patches the solver gathers through D K D instead, D = diag(d), d chosen so
-//! that their rows sum to exactly 1 (d = 1 on every other leaf):
+//! slopes and source moments mirror each other ([`super::push_pull`]), so K_xy = K_yx. Each
+//! link's end is either the leaf itself or one of its ancestors, and a link and its mirror have
+//! the same two ends. On the leaves of enclosed patches the solver gathers through K', each
+//! link's term scaled at both ends: by d_x^γ where the end is the leaf x itself, by d_x where it
+//! is an ancestor of x (d = 1 on every other leaf), with d chosen so that the enclosed leaves'
+//! rows sum to exactly 1:
 //!
 //! ```text
-//! H_x = d_x Σ_y (K_xy / A_x) d_y B_y          r_x = Σ_y (K_xy / A_x) d_y          d_x r_x = 1
+//! K'_xy = Σ_links s_x s_y K_xy,   s_x = d_x^γ (own end) or d_x (inherited end)
+//! H_x   = d_x^γ Σ_own (K'/A_x) … + d_x Σ_inherited (K'/A_x) …      r_x(d) = Σ_y K'_xy / A_x = 1
 //!
-//!   gather:  sources send d·B (pulled: area averages and first moments of d·B)
-//!   push:    a leaf's irradiance × d_x
-//!   balance: d_x ← d_x (d_x r_x)^(−ω), r from one gather of d, until every |d_x r_x − 1| is small
+//!   gather:  a leaf sends d^γ·B through its own links; an interior element the area average
+//!            and first moment of d·B over its leaves
+//!   push:    a leaf's own irradiance × d_x^γ, its inherited rest × d_x
+//!   balance: ln d_x ← ln d_x − ω ln r_x / (∂ ln r_x / ∂ ln d_x), r from one gather of d,
+//!            until every |r_x − 1| is small
 //! ```
-//! The balance is the symmetric Sinkhorn–Knopp iteration (ω = ½) [Sinkhorn & Knopp 1967; Knight
-//! 2008, "The Sinkhorn–Knopp algorithm: convergence and applications"], over-relaxed
-//! ([`CLOSURE_STEP`]), run after every change of the links from the last d (new leaves start
-//! from their parent's). D K D is symmetric as K is, so
-//! what a source sends is still what its receivers gather: the power balance closes
-//! (Σ A B (1 − d r) is the escaped power), and an enclosed leaf, its row being 1, neither loses
-//! nor creates light. A one-sided scale, H_x / r_x, makes the furnace exact too, but it is not
-//! reciprocal: it created light in every closed room measured (table-room `interactive` 0.52 %
-//! of the emitted power, `splash2` 2.2 %, cube-one-light `draft` 0.21 %).
+//! K' is symmetric as K is, since both ends' factors are the link's own, so what a source sends
+//! is still what its receivers gather: the power balance closes (Σ A B (1 − r) is the escaped
+//! power), and an enclosed leaf, its row being 1, neither loses nor creates light. A one-sided
+//! scale, H_x / r_x, makes the furnace exact too, but it is not reciprocal: it creates light in
+//! closed rooms.
+//!
+//! The row's error is the inherited part's: a leaf's own links are evaluated at its own size
+//! (their Galerkin coefficients to `link_tol`, [`super::transfer`]), its ancestors' are averages
+//! over larger elements moved along their slopes, which miss the kernel's curvature across the
+//! ancestor [Hanrahan, Salzman & Aupperle 1991, §4; Lischinski, Smits & Greenberg 1994, "Bounds
+//! and error estimates for radiosity"]. So the balance moves the inherited part, d, and the own
+//! part only by [`OWN_EXPONENT`] of it: one factor on the whole row would scale a leaf's
+//! accurate direct light by its inherited links' error, a mix of sources of different radiosity
+//! (the per-leaf normalisation's bias, [`super`]). With γ = 1 (K' = D K D) the balance is the
+//! symmetric Sinkhorn–Knopp iteration (ω = ½) [Sinkhorn & Knopp 1967; Knight 2008, "The
+//! Sinkhorn–Knopp algorithm: convergence and applications"]; here it is over-relaxed
+//! ([`CLOSURE_STEP`]), Anderson-accelerated ([`Anderson`]), and run after every change of the
+//! links from the last d (new leaves start from their parent's).
 //!
 //! A patch is enclosed when none of the cosine-distributed rays cast from it
 //! ([`crate::solver::escape::cast_hemisphere`], [`enclosure_rays`]) leaves the scene or meets a
@@ -43,9 +58,16 @@
 use super::*;
 use crate::solver::escape::{Hit, Region, cast_hemisphere};
 
-pub(super) fn own_exponent() -> f64 {
-    static M: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
-    *M.get_or_init(|| std::env::var("GAMMA").ok().and_then(|v| v.parse().ok()).unwrap_or(1.0))
+/// γ, the share of a leaf's scale on its own links (d^γ; its inherited links take d). 0 would
+/// leave a leaf that has only its own links no way to close its row, 1 scales its own links' light
+/// by its ancestors' error; at ¼ the pointwise error of the closed rooms is that of γ = 0 and
+/// below that of γ = 1 (docs/solver.md, "Closed rows"), and every leaf still balances.
+pub(super) const OWN_EXPONENT: f64 = 0.25;
+
+/// d^γ: a leaf's scale on its own links ([`OWN_EXPONENT`]).
+#[inline]
+pub(super) fn own_scale(d: f64) -> f64 {
+    d.powf(OWN_EXPONENT)
 }
 
 /// Rays shared by the input patches in proportion to their area to decide which are enclosed,
@@ -63,35 +85,34 @@ pub(super) const CLOSURE_TOL_SHARE: f64 = 0.1;
 pub(super) const CLOSURE_TOL_MAX: f64 = 1e-5;
 pub(super) const CLOSURE_TOL_MIN: f64 = 1e-12;
 
-/// The step's exponent: d_x ← d_x (d_x r_x)^(−ω). Linearised about the balance, an error mode of
-/// the row operator's eigenvalue λ shrinks by (1 − ω) − ωλ per step; the symmetric
-/// Sinkhorn–Knopp step ω = ½ leaves ½(1 − λ), and ω = 0.7 is smaller for every λ ≤ 1 down to
-/// −1 (the refined furnace's balance from scratch to 1e-10: 28 steps at ½, 18 at 0.7; at 0.9
-/// it overshoots, 66).
+/// The step's relaxation ω: ln d_x ← ln d_x − ω ln r_x / s_x, s_x = ∂ ln r_x / ∂ ln d_x (1 where
+/// γ = 1: d_x ← d_x (d_x r_x)^(−ω)). Linearised about the balance, an error mode of the row
+/// operator's eigenvalue λ shrinks by (1 − ω) − ωλ per step; the symmetric Sinkhorn–Knopp step
+/// ω = ½ leaves ½(1 − λ), and ω = 0.7 is smaller for every λ ≤ 1 down to −1 (at 0.9 the
+/// modes near λ = −1 overshoot).
 pub(super) const CLOSURE_STEP: f64 = 0.7;
 
-/// Steps that Anderson acceleration combines ([`Anderson`]). Measured to 1e-6 on splash_room's
-/// contact mesh (`draft`, 14 balances): 1901 steps without (several stopped at the cap, slow
-/// modes between facing surfaces: a floor and a table's underside see mostly each other), 637
-/// with 3, 375 with 6, 332 with 10; the refined furnace to 1e-11, 363 → 184 (6) and 200 (10).
+/// Steps that Anderson acceleration combines ([`Anderson`]): the plain step is slow on the modes
+/// between facing surfaces that see mostly each other (a floor and a table's underside, λ near
+/// −1); a few steps' history removes most of them, and a longer one gains little.
 pub(super) const ANDERSON_DEPTH: usize = 6;
 
 /// A step whose largest row residual is this many times the smallest so far restarts the
 /// acceleration's history (a safeguard: the extrapolation went astray).
 pub(super) const ANDERSON_RESTART: f64 = 4.0;
 
-/// Iterations of the balance at most (each one gather of d). The furnace refined by the BF oracle
-/// takes about 20 to 1e-10, from scratch or after a refinement.
+/// Iterations of the balance at most (each one gather of d; the refined furnace balances to
+/// 1e-10 in a few tens, from scratch or after a refinement).
 pub(super) const CLOSURE_MAX_ITERATIONS: u32 = 200;
 
-/// How far the balance may move a leaf's scale: |ln d| ≤ SCALE_REACH · max(|ln row|,
-/// SCALE_FLOOR) of its row as it is, and ≤ ln SCALE_RANGE. Where the exact balance asks more, a
-/// leaf whose own row is nearly right is making up another's error through weak couplings: a
-/// pocket whose two sides see mostly each other (a floor under a desk and the desk's underside)
-/// can share only one coupling, so a mismatch of their rows of 1 % falls on their little
-/// coupling to the room, which the exact balance scaled by 1.55 and 0.65 on splash_room
-/// (`quality`). The furnace's balance stays within 2.25 × its rows' own (BF oracle at 0.1, ρ 0.5)
-/// and within 0.171 in all (Feps 0.1).
+/// How far the balance may move a leaf's scale: |ln d| ≤ SCALE_REACH · max(|ln r| / s,
+/// SCALE_FLOOR), |ln r| / s how far its scale alone would move to close its row r of Σ F·V as it
+/// is (s as in [`CLOSURE_STEP`]), and ≤ ln SCALE_RANGE. Where the exact balance asks more, a leaf
+/// whose own row is nearly right is making up another's error through weak couplings: a pocket
+/// whose two sides see mostly each other (a floor under a desk and the desk's underside) can
+/// share only one coupling, so a mismatch of their rows falls on their little coupling to the
+/// room, which the exact balance would scale far from 1. The furnace's balance stays well
+/// within the reach.
 pub(super) const SCALE_REACH: f64 = 3.0;
 pub(super) const SCALE_FLOOR: f64 = 0.02;
 
@@ -110,19 +131,16 @@ pub(super) struct Closure {
     /// Per element id: d of each leaf (1 on leaves of patches not enclosed; interior elements
     /// keep the value they had as leaves, the start of their children's). Empty: not balanced.
     pub(super) scale: Vec<f64>,
-    /// Per element id: each leaf's balanced row d_x r_x, the row the power balance reads.
+    /// Per element id: each leaf's balanced row r_x(d), the row the power balance reads.
     pub(super) row: Vec<f64>,
     /// `scale` and `row` match the current links.
     pub(super) balanced: bool,
-    /// Per element id: what it sends through a link, the area average of d·B over its leaves,
-    /// and (with slopes) the first moment of d·B in its tangent basis.
+    /// Per element id: what it sends through a link, a leaf d^γ·B, an interior element the area
+    /// average of d·B over its leaves and (with slopes) their first moment in its tangent basis.
     pub(super) sent: Vec<Rgb>,
     pub(super) sent_moment: Vec<[Rgb; 2]>,
     /// Scratch: world moments while pulling.
     world: Vec<[Rgb; 3]>,
-    /// Iterations of the last balance and its largest |d r − 1| over the enclosed leaves.
-    pub(super) iterations: u32,
-    pub(super) residual: f64,
 }
 
 /// Rays for a patch of area `area` of a scene of area `total`.
@@ -180,7 +198,11 @@ where
             if slopes {
                 let d = (c.centroid - at) * w;
                 let mc = world[first as usize + k];
-                m = [m[0] + (mc[0] * w + vc * d.x), m[1] + (mc[1] * w + vc * d.y), m[2] + (mc[2] * w + vc * d.z)];
+                m = [
+                    m[0] + (mc[0] * w + vc * d.x),
+                    m[1] + (mc[1] * w + vc * d.y),
+                    m[2] + (mc[2] * w + vc * d.z),
+                ];
             }
         }
         v[i] = s;
@@ -210,13 +232,10 @@ impl HierarchicalSolver {
     /// Decide which input patches are enclosed (once per scene and seed).
     pub(super) fn closure_prepare(&mut self) {
         if self.closure_applies()
-            && (self.closure.enclosed.len() != self.scene.patches.len() || self.closure.seed != self.params.seed)
+            && (self.closure.enclosed.len() != self.scene.patches.len()
+                || self.closure.seed != self.params.seed)
         {
-            let t = Instant::now();
             self.closure.enclosed = enclosed_patches(&self.scene, &self.accel, self.params.seed);
-            if std::env::var_os("RADLAB_CLOSURE_DEBUG").is_some() {
-                eprintln!("enclosure: {} of {} patches, {:.3} s", self.closure.enclosed.iter().filter(|&&e| e).count(), self.closure.enclosed.len(), t.elapsed().as_secs_f64());
-            }
             self.closure.seed = self.params.seed;
         }
     }
@@ -239,24 +258,29 @@ impl HierarchicalSolver {
     /// One application of the leaves' operator to the leaf values `v` (by element id): each
     /// leaf's (K v)_x / A_x into `out`, the same sums in the same order as a gather and a push
     /// (pull, per receiver Σ F·V v plus the source moments' terms, push with the slopes).
-    fn apply_operator(&self, plan: &GatherPlan, v: &[f64], out: &mut [(f64, f64)], scratch: &mut OperatorScratch) {
+    fn apply_operator(
+        &self,
+        plan: &GatherPlan,
+        v: &[f64],
+        out: &mut [(f64, f64)],
+        scratch: &mut OperatorScratch,
+    ) {
         let els = &self.hier.elements;
         let slopes = self.params.push_slopes;
         let OperatorScratch { value, world, moment, gathered, basis } = scratch;
         value.clear();
         value.extend_from_slice(v);
         pull(els, value, world, moment, slopes);
-        let gamma = own_exponent();
-        if gamma != 1.0 {
-            for (x, e) in value.iter_mut().zip(els) {
-                if e.is_leaf() {
-                    *x = x.powf(gamma);
-                }
+        for (x, e) in value.iter_mut().zip(els) {
+            if e.is_leaf() {
+                *x = own_scale(*x);
             }
         }
         let (value, moment) = (&*value, &*moment);
         gathered.clear();
-        gathered.par_extend((0..els.len()).into_par_iter().with_min_len(256).map(|r| plan.gather_scalar(r, value, moment)));
+        gathered.par_extend(
+            (0..els.len()).into_par_iter().with_min_len(256).map(|r| plan.gather_scalar(r, value, moment)),
+        );
         // Push: the value at each element's centroid and its world gradient, parents first.
         let mut at: Vec<(f64, DVec3)> = Vec::with_capacity(els.len());
         for (i, e) in els.iter().enumerate() {
@@ -280,12 +304,12 @@ impl HierarchicalSolver {
         }
     }
 
-    /// Balance the rows of the enclosed leaves for the current links (`plan`): the symmetric
-    /// Sinkhorn–Knopp iteration from the last scale, until every enclosed leaf's row d r is within
-    /// the tolerance of 1 ([`CLOSURE_TOL_SHARE`]) (leaves whose scale reached [`SCALE_RANGE`] aside) or
-    /// [`CLOSURE_MAX_ITERATIONS`]. Then every leaf's balanced row is kept for the power balance.
+    /// Balance the rows of the enclosed leaves for the current links (`plan`): the iteration of
+    /// the module doc from the last scale, until every enclosed leaf's row r(d) is within the
+    /// tolerance of 1 ([`CLOSURE_TOL_SHARE`]; leaves whose scale reached its reach,
+    /// [`SCALE_REACH`], aside) or [`CLOSURE_MAX_ITERATIONS`]. Then every leaf's balanced row is
+    /// kept for the power balance.
     pub(super) fn balance_rows(&mut self, plan: &GatherPlan) {
-        let t0 = Instant::now();
         let n = self.hier.len();
         let enclosed = &self.closure.enclosed;
         let els = &self.hier.elements;
@@ -300,15 +324,13 @@ impl HierarchicalSolver {
             self.closure.balanced = true;
             return;
         }
-        // Each enclosed leaf's reach: |ln d| ≤ SCALE_REACH · max(|ln row|, SCALE_FLOOR) of its row
-        // as it is (the chain's Σ F·V), at most ln SCALE_RANGE.
+        // Each enclosed leaf's reach ([`SCALE_REACH`]) from its row as it is (the chain's Σ F·V):
+        // the row's log over its log-derivative in d, how far this leaf's scale alone would move
+        // to close it, stored as the equivalent row.
         let mut raw = vec![0.0; n];
-        let gamma = own_exponent();
-        // The raw row's log over its log-derivative in d: how far this leaf's scale alone would
-        // move to close it (stored as the equivalent row).
         let each = |i: usize, e: &Element, _: Rgb, row: f64| {
             let up = row - e.fv_sum;
-            let slope = if row > 0.0 { (gamma * e.fv_sum + up) / row } else { 1.0 };
+            let slope = if row > 0.0 { (OWN_EXPONENT * e.fv_sum + up) / row } else { 1.0 };
             raw[i] = if row > 0.0 && slope > 0.0 { (row.ln() / slope).exp() } else { 0.0 };
         };
         if self.params.push_slopes {
@@ -316,18 +338,14 @@ impl HierarchicalSolver {
         } else {
             for_each_leaf_row(els, &mut Vec::<FlatChain>::new(), each);
         }
-        let (reach_k, range): (f64, f64) = (
-            std::env::var("REACH").ok().and_then(|v| v.parse().ok()).unwrap_or(SCALE_REACH),
-            std::env::var("RANGE").ok().and_then(|v| v.parse().ok()).unwrap_or(SCALE_RANGE),
-        );
         let bounds: Vec<(f64, f64)> = part
             .iter()
             .map(|&x| {
                 let row = raw[x as usize];
                 let reach = if row > 0.0 {
-                    (reach_k * row.ln().abs().max(SCALE_FLOOR)).min(range.ln())
+                    (SCALE_REACH * row.ln().abs().max(SCALE_FLOOR)).min(SCALE_RANGE.ln())
                 } else {
-                    range.ln()
+                    SCALE_RANGE.ln()
                 };
                 ((-reach).exp(), reach.exp())
             })
@@ -344,37 +362,37 @@ impl HierarchicalSolver {
         for (&x, &(lo, hi)) in part.iter().zip(&bounds) {
             d[x as usize] = d[x as usize].clamp(lo, hi);
         }
-        let mut scratch = OperatorScratch::default();
-        scratch.basis = els
-            .iter()
-            .map(|e| {
-                let (t1, t2) = crate::math::orthonormal_basis(e.normal);
-                [t1, t2]
-            })
-            .collect();
+        let mut scratch = OperatorScratch {
+            basis: els
+                .iter()
+                .map(|e| {
+                    let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+                    [t1, t2]
+                })
+                .collect(),
+            ..OperatorScratch::default()
+        };
         let tol = (CLOSURE_TOL_SHARE * self.params.tolerance).clamp(CLOSURE_TOL_MIN, CLOSURE_TOL_MAX);
         let mut r = vec![(0.0, 0.0); n];
         // The row with scale d: d^γ own + d inherited.
-        let row_of = |dx: f64, (own, up): (f64, f64)| dx.powf(gamma) * own + dx * up;
+        let row_of = |dx: f64, (own, up): (f64, f64)| own_scale(dx) * own + dx * up;
         let mut iterations = 0;
         let mut anderson = Anderson::default();
         // Leaves the step would carry past their reach stay there for the rest of the balance
         // (the others then balance against them; extrapolating past a bound stalls the
         // acceleration, so its history restarts).
         let mut held = vec![false; part.len()];
-        let residual = loop {
+        loop {
             self.apply_operator(plan, &d, &mut r, &mut scratch);
             let worst = part
                 .iter()
                 .zip(&held)
-                .map(|(&x, &h)| {
-                    if h || (gamma == 0.0 && r[x as usize].1 <= 0.0) { 0.0 } else { (row_of(d[x as usize], r[x as usize]) - 1.0).abs() }
-                })
+                .map(|(&x, &h)| if h { 0.0 } else { (row_of(d[x as usize], r[x as usize]) - 1.0).abs() })
                 .fold(0.0, f64::max);
             if worst <= tol || iterations >= CLOSURE_MAX_ITERATIONS {
-                break worst;
+                break;
             }
-            // The step in ln d, x ← x − ω ln(d r), accelerated.
+            // The step in ln d, x ← x − ω ln r / s (s = ∂ ln r / ∂ ln d), accelerated.
             let xs: Vec<f64> = part.iter().map(|&x| d[x as usize].ln()).collect();
             let fs: Vec<f64> = part
                 .iter()
@@ -382,14 +400,16 @@ impl HierarchicalSolver {
                 .map(|(&x, &h)| {
                     let dx = d[x as usize];
                     let (own, up) = r[x as usize];
-                    let (mine, theirs) = (dx.powf(gamma) * own, dx * up);
+                    let (mine, theirs) = (own_scale(dx) * own, dx * up);
                     let row = mine + theirs;
-                    let slope = if row > 0.0 { (gamma * mine + theirs) / row } else { 0.0 };
+                    let slope = if row > 0.0 { (OWN_EXPONENT * mine + theirs) / row } else { 0.0 };
                     if h || row <= 0.0 || slope <= 0.0 { 0.0 } else { -CLOSURE_STEP * row.ln() / slope }
                 })
                 .collect();
             let mut newly_held = false;
-            for (((&x, &(lo, hi)), h), v) in part.iter().zip(&bounds).zip(&mut held).zip(anderson.step(xs, fs, worst)) {
+            for (((&x, &(lo, hi)), h), v) in
+                part.iter().zip(&bounds).zip(&mut held).zip(anderson.step(xs, fs, worst))
+            {
                 if *h {
                     continue;
                 }
@@ -404,37 +424,26 @@ impl HierarchicalSolver {
                 anderson.restart();
             }
             iterations += 1;
-        };
+        }
         let mut row = std::mem::take(&mut self.closure.row);
         row.clear();
         row.extend(d.iter().zip(&r).map(|(&dx, &rx)| row_of(dx, rx)));
-        if std::env::var_os("RADLAB_CLOSURE_DEBUG").is_some() {
-            eprintln!("balance: {} leaves enclosed of {n} elements, {iterations} iterations, residual {residual:.2e}, {:.3} s, {} links", part.len(), t0.elapsed().as_secs_f64(), self.links.len());
-            let lns: Vec<f64> = part.iter().map(|&x| d[x as usize].ln().abs()).collect();
-            let mx = lns.iter().copied().fold(0.0, f64::max);
-            let c = |t: f64| lns.iter().filter(|&&v| v > t).count();
-            eprintln!("   |ln d| max {mx:.3}  >0.05: {}  >0.1: {}  >0.2: {}  >0.3: {}", c(0.05), c(0.1), c(0.2), c(0.3));
-            let at = part.iter().zip(&bounds).filter(|(x, (lo, hi))| d[**x as usize] <= *lo || d[**x as usize] >= *hi).count();
-            eprintln!("   at their reach: {at}");
-        }
         let c = &mut self.closure;
-        (c.scale, c.row, c.balanced, c.iterations, c.residual) = (d, row, true, iterations, residual);
+        (c.scale, c.row, c.balanced) = (d, row, true);
     }
 
-    /// What every element sends through a link while the rows are balanced: the area averages
-    /// and first moments of d·B over its leaves (`Closure::sent`).
+    /// What every element sends through a link while the rows are balanced (`Closure::sent`).
     pub(super) fn pull_sent(&mut self) {
         let c = &mut self.closure;
         let els = &self.hier.elements;
         c.sent.clear();
-        c.sent.extend(els.iter().zip(&c.scale).map(|(e, d)| if e.is_leaf() { e.radiosity * *d } else { Rgb::ZERO }));
+        c.sent.extend(
+            els.iter().zip(&c.scale).map(|(e, d)| if e.is_leaf() { e.radiosity * *d } else { Rgb::ZERO }),
+        );
         pull(els, &mut c.sent, &mut c.world, &mut c.sent_moment, self.params.push_slopes);
-        let gamma = own_exponent();
-        if gamma != 1.0 {
-            for ((x, e), d) in c.sent.iter_mut().zip(els).zip(&c.scale) {
-                if e.is_leaf() {
-                    *x = e.radiosity * d.powf(gamma);
-                }
+        for ((x, e), d) in c.sent.iter_mut().zip(els).zip(&c.scale) {
+            if e.is_leaf() {
+                *x = e.radiosity * own_scale(*d);
             }
         }
     }
@@ -494,23 +503,21 @@ impl Anderson {
         let k = self.df.len();
         let mut next: Vec<f64> = x.iter().zip(&f).map(|(a, b)| a + b).collect();
         if k > 0 {
-            // Normal equations (ΔFᵀΔF + εI) γ = ΔFᵀ f, by Gaussian elimination with pivoting.
+            // Normal equations (ΔFᵀΔF + εI) g = ΔFᵀ f, by Gaussian elimination with pivoting.
             let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-            let mut m = vec![vec![0.0; k + 1]; k];
-            for i in 0..k {
-                for j in 0..k {
-                    m[i][j] = dot(&self.df[i], &self.df[j]);
-                }
-                m[i][k] = dot(&self.df[i], &f);
-            }
-            let scale = (0..k).map(|i| m[i][i]).fold(0.0, f64::max);
+            let mut m: Vec<Vec<f64>> = self
+                .df
+                .iter()
+                .map(|di| self.df.iter().map(|dj| dot(di, dj)).chain([dot(di, &f)]).collect())
+                .collect();
+            let scale = m.iter().enumerate().map(|(i, row)| row[i]).fold(0.0, f64::max);
             for (i, row) in m.iter_mut().enumerate() {
                 row[i] += 1e-10 * scale + f64::MIN_POSITIVE;
             }
             if let Some(g) = solve_small(m) {
-                for i in 0..k {
-                    for (v, (a, b)) in next.iter_mut().zip(self.dx[i].iter().zip(&self.df[i])) {
-                        *v -= g[i] * (a + b);
+                for ((gi, dx), df) in g.iter().zip(&self.dx).zip(&self.df) {
+                    for (v, (a, b)) in next.iter_mut().zip(dx.iter().zip(df)) {
+                        *v -= gi * (a + b);
                     }
                 }
             }
@@ -530,10 +537,12 @@ fn solve_small(mut m: Vec<Vec<f64>>) -> Option<Vec<f64>> {
             return None;
         }
         m.swap(c, p);
-        for r in c + 1..k {
-            let f = m[r][c] / m[c][c];
-            for j in c..=k {
-                m[r][j] -= f * m[c][j];
+        let (top, below) = m.split_at_mut(c + 1);
+        let pivot = &top[c];
+        for row in below {
+            let f = row[c] / pivot[c];
+            for (x, p) in row[c..].iter_mut().zip(&pivot[c..]) {
+                *x -= f * p;
             }
         }
     }

@@ -315,7 +315,7 @@ impl HierarchicalSolver {
             self.plan_changed.clear();
         }
         // Closed rows: balance the enclosed leaves' rows for these links, and what every element
-        // sends (d·B, `closure`).
+        // sends (`closure`).
         if self.closure_applies() {
             if links_changed || !self.closure.balanced {
                 self.closure_prepare();

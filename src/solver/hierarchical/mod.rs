@@ -426,10 +426,6 @@ impl HierarchicalSolver {
     /// Like `new`, sharing an already built BVH.
     #[must_use]
     pub fn with_accel(scene: Arc<Scene>, accel: Arc<Accel>, params: HierarchicalParams, bvh_s: f64) -> Self {
-        let mut params = params;
-        if std::env::var("RADLAB_CLOSE_ROWS").is_ok_and(|v| v == "0") {
-            params.close_rows = false; // TEMPORARY measurement switch
-        }
         let hier = Hierarchy::from_scene(&scene);
         let links = LinkStore::new(hier.len());
         let aeps = params.aeps.resolve(scene.total_area());
@@ -839,13 +835,15 @@ impl HierarchicalSolver {
             .zip(self.chains())
             .enumerate()
             .map(|(i, (e, own))| {
-                let d = if closure::own_exponent() != 1.0 && scale.get(i).is_some() {
+                let d = if scale.get(i).is_some() {
+                    // The leaf's own links' gradient (tangent basis to world), scaled apart from
+                    // the inherited rest.
                     let [su, sv] = e.gathered_slope;
                     let (t1, t2) = crate::math::orthonormal_basis(e.normal);
                     let mine = [su * t1.x + sv * t2.x, su * t1.y + sv * t2.y, su * t1.z + sv * t2.z];
                     [0, 1, 2].map(|k| e.reflectance.mul_rgb(leaf_irradiance(own.slope[k], mine[k], scale, i)))
                 } else {
-                    own.slope.map(|g| e.reflectance.mul_rgb(leaf_irradiance(g, Rgb::ZERO, scale, i)))
+                    own.slope.map(|g| e.reflectance.mul_rgb(g))
                 };
                 (e.is_leaf() && d.iter().any(|g| *g != Rgb::ZERO))
                     .then_some(crate::solver::Slope { centroid: e.centroid, d })

@@ -140,7 +140,8 @@ impl Sums for FlatChain {
 /// The down sweep of push-pull over the whole forest (parents before children): each
 /// element's sums from its parent's; each leaf's radiosity B = E + ρ·H and, with `energy`, its
 /// absorbed and escaped power. With the rows closed (`super::closure`; both slices by element
-/// id, empty otherwise) a leaf's H is its chain's times its `scale`, and its row is `rows`'.
+/// id, empty otherwise) a leaf's H is its chain's scaled by [`leaf_irradiance`], and its row is
+/// `rows`'.
 /// Returns (largest leaf change against `before` or the old value, largest reflected
 /// radiosity, absorbed, escaped).
 pub(super) fn push_down<S: Sums>(
@@ -168,7 +169,8 @@ pub(super) fn push_down<S: Sums>(
             max_reflected = max_reflected.max((b - e.emission).max_channel());
             if energy {
                 absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                let fv = rows.get(i).copied().unwrap_or_else(|| up.inherited_fv() + e.fv_sum + own.fv_shift());
+                let fv =
+                    rows.get(i).copied().unwrap_or_else(|| up.inherited_fv() + e.fv_sum + own.fv_shift());
                 escaped += b * (e.area * (1.0 - fv));
             }
             e.radiosity = b;
@@ -197,12 +199,12 @@ pub(super) fn for_each_leaf_row<S: Sums>(
     }
 }
 
-/// A leaf's irradiance: its chain's, times its scale where the rows are closed (`scale` by
-/// element id; empty: 1).
+/// A leaf's irradiance `h` (its chain's), of which `own` came through its own links: where the
+/// rows are closed (`scale` by element id; empty: none are), the own part times d^γ and the
+/// inherited rest times d (`super::closure`).
 pub(super) fn leaf_irradiance(h: Rgb, own: Rgb, scale: &[f64], id: usize) -> Rgb {
     match scale.get(id) {
-        Some(&d) if super::closure::own_exponent() != 1.0 => own * d.powf(super::closure::own_exponent()) + (h - own) * d,
-        Some(&d) => h * d,
+        Some(&d) => own * super::closure::own_scale(d) + (h - own) * d,
         None => h,
     }
 }
@@ -425,7 +427,7 @@ impl HierarchicalSolver {
         } else {
             push_down(&mut self.hier.elements, &mut self.flat_chain, before, energy, closed)
         };
-        // With the rows closed the gather pulls its own moments, of d·B (`pull_sent`).
+        // With the rows closed the gather pulls its own moments, of the scaled B (`pull_sent`).
         let slopes = slopes && !self.closure_active();
         let els = &mut self.hier.elements;
         // World moments Σ_leaves A B (c − c_e) / A_e while pulling (leaves: 0), then each in its
