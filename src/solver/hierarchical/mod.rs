@@ -98,7 +98,10 @@
 //!   centroid links, but one scalar per leaf mixes sources of different radiosity (Cornell's
 //!   floor came out 15 % dark, tests/hierarchical.rs `direct_light_is_not_biased_by_inherited_links`),
 //!   and with Galerkin links it does not apply. The furnace is exact with the error oracle,
-//!   which does not refine it ([`oracle`]).
+//!   which does not refine it ([`oracle`]), and under every oracle with the **closed rows**
+//!   ([`closure`], `HierarchicalParams::close_rows`): on enclosed patches a symmetric scaling of
+//!   the leaves' operator, mostly of their inherited links, brings every row to exactly 1
+//!   without creating light.
 //! - **Parallel and deterministic**: element ids are assigned serially in sorted order, visibility
 //!   jitter is keyed by the (receiver, source) ids, and parallel results are collected in order,
 //!   so every count and value is identical for any thread count.
