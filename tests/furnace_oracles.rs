@@ -31,7 +31,7 @@ const CREATED_TOL: f64 = 1e-4;
 /// within [`CREATED_TOL`]: with nothing escaping, what the front faces absorb beyond the emitted
 /// power is the gathers' residual (they stop when B changes by less than `tolerance`, 3e-4 in
 /// `interactive`), not the rows' (cube-one-light `interactive`: escaped −1.5e-6, absorbed
-/// 1.000102 of the emitted, residual 1.0e-4).
+/// 1.000102 of the emitted, residual 1.0e-4; 1.0000012 at `tolerance` 1e-6).
 const BALANCE_TOL: f64 = 1e-3;
 
 /// The oracles' thresholds (Feps; BFeps and ε relative, to the brightest emission and to the mean
