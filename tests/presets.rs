@@ -12,9 +12,13 @@ use std::sync::Arc;
 /// The energy balance's residual: the last gather's change, held under 1e-3 by the presets'
 /// stopping tolerance.
 const BALANCE_TOL: f64 = 1e-3;
-/// Light created: escaped power below zero, or absorbed above emitted, as a fraction of the
-/// emitted power. 1e-4 is ten times finer than the balance: what a created-light bug produces
-/// is far above it (a coarse link's average on a leaf whose row exceeds 1 gave 4.5e-3).
+/// Light created: escaped power below zero, as a fraction of the emitted power. 1e-4 is ten
+/// times finer than the balance: what a created-light bug produces is far above it (a coarse
+/// link's average on a leaf whose row exceeds 1 gave 4.5e-3). The absorbed power is held to the
+/// emitted within [`BALANCE_TOL`], not this: with nothing escaping, what the front faces absorb
+/// beyond the emitted power is the gathers' residual, not the rows' (cube-one-light
+/// `interactive`, whose enclosed rows are closed: escaped −1.5e-6, absorbed 1 + 1.0e-4 of the
+/// emitted at the preset's tolerance 3e-4, 1 + 1.2e-6 at 1e-6, 1 + 5e-9 at 1e-8).
 const CREATED_TOL: f64 = 1e-4;
 
 fn solve(scene: Scene, spec: &SolveSpec) -> radlab::solver::spec::Solved {
@@ -41,7 +45,7 @@ fn the_ladder_conserves_energy_on_every_builtin() {
             }
             for c in 0..3 {
                 let emitted = e.emitted.0[c];
-                if e.escaped.0[c] < -CREATED_TOL * emitted || e.absorbed.0[c] > emitted * (1.0 + CREATED_TOL)
+                if e.escaped.0[c] < -CREATED_TOL * emitted || e.absorbed.0[c] > emitted * (1.0 + BALANCE_TOL)
                 {
                     failures.push(format!(
                         "{who}: light created, channel {c}: escaped {:.2e} of the emitted ({e:?})",

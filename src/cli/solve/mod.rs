@@ -282,6 +282,12 @@ pub struct SolverArgs {
     /// "Push-pull with slopes").
     #[arg(long)]
     pub push_slopes: Option<bool>,
+    /// Closed rows: balance the rows of form factors of the leaves of enclosed patches to exactly
+    /// 1 by a symmetric scaling, so the white furnace is exact under every oracle and no enclosed
+    /// leaf loses or creates light: true in every preset (hierarchical, not clustered, Jacobi;
+    /// see docs/solver.md, "Closed rows").
+    #[arg(long)]
+    pub close_rows: Option<bool>,
     /// Row check: push down the links above a leaf whose row of form factors exceeds 1 (which
     /// creates light) where that adds more than this fraction of the mean reflected radiosity
     /// to its answer; 0 off. 0.05 in interactive, 0.1 in quality, off in lecture and splash2
@@ -477,6 +483,9 @@ pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalPara
     }
     if let Some(v) = args.push_slopes {
         p.push_slopes = v;
+    }
+    if let Some(v) = args.close_rows {
+        p.close_rows = v;
     }
     if let Some(v) = args.cluster {
         p.cluster = v;

@@ -24,6 +24,11 @@
 //! w_x² = ρ_x² ⊙ var_k Σ_l d_l(y_k)                       (the variation about the points' mean)
 //! ```
 //!
+//! With the rows closed (`super::closure`) the leaf shows each source as the gather sent it,
+//! S_q, scaled at the leaf's end of the link by s (d_x^γ on its own links, d_x on inherited
+//! ones), so r_x adds ρ_x ⊙ Σ_l (B_q − s S_q)(F_l V_l + s_l·(c_x − c_a)), the closure's share of
+//! the leaf's error.
+//!
 //! r_x is the error of the leaf's value (its mean): an inherited link's average, slope and
 //! visibility re-evaluated at the leaf, and an own link's visibility measured again with 72 rays
 //! (its kernel average is the Galerkin coefficient, exact, `transfer`). w_x is what a leaf that
@@ -241,6 +246,10 @@ fn local_terms(solver: &HierarchicalSolver, x: u32, cutoff: f64) -> (Rgb, Rgb) {
     let mut r = Rgb::ZERO;
     // Per sample point: what all the links bring there against what the leaf shows.
     let mut dev = [Rgb::ZERO; WITHIN_POINTS];
+    // With the rows closed the leaf shows each source as the gather sent it, scaled at the
+    // leaf's end of the link (`super::closure`): (own, inherited) scale, and what was sent.
+    let closed = &solver.closure;
+    let scale = closed.scale.get(x as usize).map(|&d| (super::closure::own_scale(d), d));
     for a in hier.ancestors(x) {
         let ae = hier.get(a);
         let basis = crate::math::orthonormal_basis(ae.normal);
@@ -249,6 +258,12 @@ fn local_terms(solver: &HierarchicalSolver, x: u32, cutoff: f64) -> (Rgb, Rgb) {
         for l in &links.by_receiver[a as usize] {
             let v = f64::from(l.vis).clamp(0.0, 1.0);
             let (src, ff) = (hier.get(l.source), f64::from(l.ff));
+            if let (Some((own, inherited)), Some(&sent)) = (scale, closed.sent.get(l.source as usize)) {
+                // The link's share of the closed row's correction, B_q − s S_q times what the leaf
+                // gathers through it at its centroid.
+                let (s, at) = if a == x { (own, 0.0) } else { (inherited, slope_at(l, centre)) };
+                r += (src.radiosity - sent * s) * (ff * v + at);
+            }
             if src.radiosity.max_channel() <= 0.0 {
                 continue;
             }
@@ -395,7 +410,13 @@ mod tests {
     fn without_normalisation_the_furnace_error_is_estimated_in_size_and_rank() {
         // B = 2 exactly everywhere, so every leaf's true error is known.
         let scene = Arc::new(crate::studies::hard_cases::furnace(0.5).scene);
-        let p = HierarchicalParams { aeps: AreaEps::Relative(1e-3), ..HierarchicalParams::lecture() };
+        // The rows as the links make them: closed (`close_rows`), the furnace is exact and has
+        // no error to rank; this is the error the estimate is built for, that of the links.
+        let p = HierarchicalParams {
+            aeps: AreaEps::Relative(1e-3),
+            close_rows: false,
+            ..HierarchicalParams::lecture()
+        };
         let mut s = HierarchicalSolver::new(scene, p).unwrap();
         s.solve(&mut |_, _| {});
         let est = error_estimates(&s);

@@ -220,6 +220,36 @@ impl GatherPlan {
     }
 }
 
+impl GatherPlan {
+    /// [`GatherPlan::gather`] of one number per source (`v` by element id, its sources' first
+    /// moments `mu`): (Σ F·V v plus the moment terms, Σ slope·v), the same sums in the same
+    /// order. Receivers new since the plan was made have no entries (0).
+    pub(super) fn gather_scalar(&self, r: usize, v: &[f64], mu: &[[f64; 2]]) -> (f64, [f64; 2]) {
+        if r >= self.start.len() {
+            return (0.0, [0.0; 2]);
+        }
+        let (lo, hi) = (self.start[r] as usize, self.end[r] as usize);
+        let mut g = 0.0;
+        let mut slope = [0.0; 2];
+        for (&s, &w) in self.source[lo..hi].iter().zip(&self.weight[lo..hi]) {
+            g += v[(s & !FULL_BIT) as usize] * w;
+        }
+        if !self.slope.is_empty() {
+            for (&s, &[gu, gv]) in self.source[lo..hi].iter().zip(&self.slope[lo..hi]) {
+                let vs = v[(s & !FULL_BIT) as usize];
+                slope[0] += vs * f64::from(gu);
+                slope[1] += vs * f64::from(gv);
+            }
+            for (&s, &[mu_w, mv_w]) in self.source[lo..hi].iter().zip(&self.moment[lo..hi]) {
+                if let Some(&[mu_u, mu_v]) = mu.get((s & !FULL_BIT) as usize) {
+                    g += mu_u * f64::from(mu_w) + mu_v * f64::from(mv_w);
+                }
+            }
+        }
+        (g, slope)
+    }
+}
+
 impl HierarchicalSolver {
     /// Recompute Σ F and Σ F·V of every receiver whose link list changed since the last call
     /// (`changed`).
@@ -261,7 +291,8 @@ impl HierarchicalSolver {
         let t = Instant::now();
         // The links as one contiguous plan, rebuilt after they change.
         let mut plan = std::mem::take(&mut self.gather_plan);
-        if !self.plan_valid || !self.plan_changed.is_empty() {
+        let links_changed = !self.plan_valid || !self.plan_changed.is_empty();
+        if links_changed {
             if self.params.push_slopes {
                 self.fill_slopes();
             }
@@ -282,6 +313,17 @@ impl HierarchicalSolver {
             }
             self.plan_valid = true;
             self.plan_changed.clear();
+        }
+        // Closed rows: balance the enclosed leaves' rows for these links, and what every element
+        // sends (`closure`).
+        if self.closure_applies() {
+            if links_changed || !self.closure.balanced {
+                self.closure_prepare();
+                self.balance_rows(&plan);
+            }
+            if self.closure_active() {
+                self.pull_sent();
+            }
         }
         // What the input patches gather through cluster links, from the radiosities before
         // this gather (both sweeps).
@@ -316,11 +358,15 @@ impl HierarchicalSolver {
             // every receiver gathers in parallel.
             let mut b = std::mem::take(&mut self.b_prev);
             b.resize(self.hier.len(), Rgb::ZERO);
-            b.par_iter_mut()
-                .zip(self.hier.elements.par_iter())
-                .with_min_len(1024)
-                .for_each(|(b, e)| *b = e.radiosity);
-            let mu = &self.moment;
+            if self.closure_active() {
+                b.copy_from_slice(&self.closure.sent);
+            } else {
+                b.par_iter_mut()
+                    .zip(self.hier.elements.par_iter())
+                    .with_min_len(1024)
+                    .for_each(|(b, e)| *b = e.radiosity);
+            }
+            let mu = if self.closure_active() { &self.closure.sent_moment } else { &self.moment };
             self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
                 (e.gathered, e.gathered_full, e.gathered_slope) = plan.gather(r, |s| b[s as usize], mu);
             });

@@ -98,7 +98,10 @@
 //!   centroid links, but one scalar per leaf mixes sources of different radiosity (Cornell's
 //!   floor came out 15 % dark, tests/hierarchical.rs `direct_light_is_not_biased_by_inherited_links`),
 //!   and with Galerkin links it does not apply. The furnace is exact with the error oracle,
-//!   which does not refine it ([`oracle`]).
+//!   which does not refine it ([`oracle`]), and under every oracle with the **closed rows**
+//!   ([`closure`], `HierarchicalParams::close_rows`): on enclosed patches a symmetric scaling of
+//!   the leaves' operator, mostly of their inherited links, brings every row to exactly 1
+//!   without creating light.
 //! - **Parallel and deterministic**: element ids are assigned serially in sorted order, visibility
 //!   jitter is keyed by the (receiver, source) ids, and parallel results are collected in order,
 //!   so every count and value is identical for any thread count.
@@ -107,6 +110,7 @@
 //! unchanged, the visibility of the initial patch pairs; elements and links are rebuilt.
 
 mod audit;
+mod closure;
 pub mod cluster;
 pub mod estimate;
 mod gather;
@@ -404,6 +408,9 @@ pub struct HierarchicalSolver {
     cluster_xfer: ClusterTransfer,
     /// Each input patch's Σ F·V through cluster links (its energy row's share).
     cluster_fv: Vec<f64>,
+    /// Closed rows: which patches are enclosed, the leaves' scale and balanced rows
+    /// ([`closure`]).
+    closure: closure::Closure,
 }
 
 impl HierarchicalSolver {
@@ -461,6 +468,7 @@ impl HierarchicalSolver {
             cluster_links: Vec::new(),
             cluster_xfer: ClusterTransfer::default(),
             cluster_fv: Vec::new(),
+            closure: closure::Closure::default(),
         };
         s.energy.emitted = s.scene.emitted_power();
         s
@@ -556,6 +564,7 @@ impl HierarchicalSolver {
         self.moment.clear();
         self.cluster_links.clear();
         self.cluster_fv.clear();
+        self.closure_reset();
         self.linked = false;
         self.stats = HierarchicalStats::default();
         self.residuals.clear();
@@ -815,18 +824,30 @@ impl HierarchicalSolver {
         }
     }
 
-    /// Each leaf's slope of B, ρ times the irradiance's slope pushed down to it (`Chain`); empty
-    /// without `push_slopes`, None for interior elements and flat leaves.
+    /// Each leaf's slope of B, ρ times the irradiance's slope pushed down to it (`Chain`; with
+    /// the rows closed, times the leaf's scale, as its irradiance is); empty without
+    /// `push_slopes`, None for interior elements and flat leaves.
     fn leaf_slopes(&self) -> Vec<Option<crate::solver::Slope>> {
         if !self.params.push_slopes {
             return Vec::new();
         }
+        let scale = &self.closure.scale;
         self.hier
             .elements
             .iter()
             .zip(self.chains())
-            .map(|(e, own)| {
-                let d = own.slope.map(|g| e.reflectance.mul_rgb(g));
+            .enumerate()
+            .map(|(i, (e, own))| {
+                let d = if scale.get(i).is_some() {
+                    // The leaf's own links' gradient (tangent basis to world), scaled apart from
+                    // the inherited rest.
+                    let [su, sv] = e.gathered_slope;
+                    let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+                    let mine = [su * t1.x + sv * t2.x, su * t1.y + sv * t2.y, su * t1.z + sv * t2.z];
+                    [0, 1, 2].map(|k| e.reflectance.mul_rgb(leaf_irradiance(own.slope[k], mine[k], scale, i)))
+                } else {
+                    own.slope.map(|g| e.reflectance.mul_rgb(g))
+                };
                 (e.is_leaf() && d.iter().any(|g| *g != Rgb::ZERO))
                     .then_some(crate::solver::Slope { centroid: e.centroid, d })
             })

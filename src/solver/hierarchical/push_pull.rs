@@ -139,13 +139,17 @@ impl Sums for FlatChain {
 
 /// The down sweep of push-pull over the whole forest (parents before children): each
 /// element's sums from its parent's; each leaf's radiosity B = E + ρ·H and, with `energy`, its
-/// absorbed and escaped power. Returns (largest leaf change against `before` or the old value,
-/// largest reflected radiosity, absorbed, escaped).
+/// absorbed and escaped power. With the rows closed (`super::closure`; both slices by element
+/// id, empty otherwise) a leaf's H is its chain's scaled by [`leaf_irradiance`], and its row is
+/// `rows`'.
+/// Returns (largest leaf change against `before` or the old value, largest reflected
+/// radiosity, absorbed, escaped).
 pub(super) fn push_down<S: Sums>(
     els: &mut [Element],
     chain: &mut Vec<S>,
     before: Option<&[Rgb]>,
     energy: bool,
+    (scale, rows): (&[f64], &[f64]),
 ) -> (f64, f64, Rgb, Rgb) {
     let mut max_change: f64 = 0.0;
     let mut max_reflected: f64 = 0.0;
@@ -158,14 +162,15 @@ pub(super) fn push_down<S: Sums>(
         let own = up.down(e);
         chain.push(own);
         if e.is_leaf() {
-            let h = own.irradiance();
+            let h = leaf_irradiance(own.irradiance(), e.gathered, scale, i);
             let b = e.emission + e.reflectance.mul_rgb(h);
             let old = before.and_then(|v| v.get(i).copied()).unwrap_or(e.radiosity);
             max_change = max_change.max(b.abs_diff_max(old));
             max_reflected = max_reflected.max((b - e.emission).max_channel());
             if energy {
                 absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
-                let fv = up.inherited_fv() + e.fv_sum + own.fv_shift();
+                let fv =
+                    rows.get(i).copied().unwrap_or_else(|| up.inherited_fv() + e.fv_sum + own.fv_shift());
                 escaped += b * (e.area * (1.0 - fv));
             }
             e.radiosity = b;
@@ -194,11 +199,28 @@ pub(super) fn for_each_leaf_row<S: Sums>(
     }
 }
 
-/// The absorbed and escaped power of the elements as they are (see `energy_pass`).
-pub(super) fn energy_sums<S: Sums>(els: &[Element], chain: &mut Vec<S>) -> (Rgb, Rgb) {
+/// A leaf's irradiance `h` (its chain's), of which `own` came through its own links: where the
+/// rows are closed (`scale` by element id; empty: none are), the own part times d^γ and the
+/// inherited rest times d (`super::closure`).
+pub(super) fn leaf_irradiance(h: Rgb, own: Rgb, scale: &[f64], id: usize) -> Rgb {
+    match scale.get(id) {
+        Some(&d) => own * super::closure::own_scale(d) + (h - own) * d,
+        None => h,
+    }
+}
+
+/// The absorbed and escaped power of the elements as they are (see `energy_pass`), with the
+/// closed rows' `scale` and `rows` as in [`push_down`].
+pub(super) fn energy_sums<S: Sums>(
+    els: &[Element],
+    chain: &mut Vec<S>,
+    (scale, rows): (&[f64], &[f64]),
+) -> (Rgb, Rgb) {
     let mut absorbed = Rgb::ZERO;
     let mut escaped = Rgb::ZERO;
-    for_each_leaf_row(els, chain, |_, e, h, fv| {
+    for_each_leaf_row(els, chain, |i, e, h, fv| {
+        let h = leaf_irradiance(h, e.gathered, scale, i);
+        let fv = rows.get(i).copied().unwrap_or(fv);
         absorbed += (Rgb::ONE - e.reflectance).mul_rgb(h) * e.area;
         escaped += e.radiosity * (e.area * (1.0 - fv));
     });
@@ -249,13 +271,16 @@ impl HierarchicalSolver {
         }
     }
 
-    /// Every leaf's row of F·V as the power balance reads it, in id order ([`LeafRow`]).
+    /// Every leaf's row of F·V as the power balance reads it, in id order ([`LeafRow`]): with
+    /// the rows closed, the balanced row d_x r_x (`super::closure`).
     #[must_use]
     pub fn leaf_rows(&self) -> Vec<LeafRow> {
         let mut rows = Vec::new();
         let cluster = &self.cluster_fv;
+        let closed = &self.closure.row;
         let mut each = |i: usize, e: &Element, _: Rgb, row: f64| {
             let cluster = cluster.get(e.patch as usize).copied().unwrap_or(0.0);
+            let row = closed.get(i).copied().unwrap_or(row);
             rows.push(LeafRow { id: i as u32, row, cluster });
         };
         if self.params.push_slopes {
@@ -272,13 +297,19 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn push_pull_preview(&self) -> Vec<Rgb> {
         let els = &self.hier.elements;
-        let mut b: Vec<Rgb> =
-            els.iter()
-                .zip(self.chains())
-                .map(|(e, c)| {
-                    if e.is_leaf() { e.emission + e.reflectance.mul_rgb(c.full + c.rest) } else { Rgb::ZERO }
-                })
-                .collect();
+        let scale = &self.closure.scale;
+        let mut b: Vec<Rgb> = els
+            .iter()
+            .zip(self.chains())
+            .enumerate()
+            .map(|(i, (e, c))| {
+                if e.is_leaf() {
+                    e.emission + e.reflectance.mul_rgb(leaf_irradiance(c.full + c.rest, e.gathered, scale, i))
+                } else {
+                    Rgb::ZERO
+                }
+            })
+            .collect();
         for i in (0..els.len()).rev() {
             let first = els[i].first_child;
             if first != NONE {
@@ -390,11 +421,14 @@ impl HierarchicalSolver {
         let slopes = self.params.push_slopes;
         // Per element: its own and inherited sums (full-visibility irradiance, other irradiance,
         // full-visibility F, other F·V; with slopes, their gradients).
+        let closed = (&self.closure.scale[..], &self.closure.row[..]);
         let (max_change, max_reflected, absorbed, escaped) = if slopes {
-            push_down(&mut self.hier.elements, &mut self.chain, before, energy)
+            push_down(&mut self.hier.elements, &mut self.chain, before, energy, closed)
         } else {
-            push_down(&mut self.hier.elements, &mut self.flat_chain, before, energy)
+            push_down(&mut self.hier.elements, &mut self.flat_chain, before, energy, closed)
         };
+        // With the rows closed the gather pulls its own moments, of the scaled B (`pull_sent`).
+        let slopes = slopes && !self.closure_active();
         let els = &mut self.hier.elements;
         // World moments Σ_leaves A B (c − c_e) / A_e while pulling (leaves: 0), then each in its
         // element's tangent basis.
@@ -451,10 +485,11 @@ impl HierarchicalSolver {
     /// summed them (the same terms in the same order, with each leaf's B as it left them): for
     /// `solve`, whose iterations skip these sums until the end.
     pub(super) fn energy_pass(&mut self) {
+        let closed = (&self.closure.scale[..], &self.closure.row[..]);
         let (absorbed, escaped) = if self.params.push_slopes {
-            energy_sums(&self.hier.elements, &mut self.chain)
+            energy_sums(&self.hier.elements, &mut self.chain, closed)
         } else {
-            energy_sums(&self.hier.elements, &mut self.flat_chain)
+            energy_sums(&self.hier.elements, &mut self.flat_chain, closed)
         };
         self.energy.absorbed = absorbed;
         self.energy.escaped = escaped;
