@@ -4,8 +4,8 @@
 
 use serde::Serialize;
 
-/// The error oracle's tail share in every preset (`HierarchicalParams::cause_tail`; measured in
-/// `solver::hierarchical::oracle`).
+/// The error oracle's tail share in every preset (`HierarchicalParams::cause_tail`; why this
+/// value: `solver::hierarchical::oracle`).
 pub const DEFAULT_CAUSE_TAIL: f64 = 0.25;
 
 /// Which test decides that a link is accurate enough (HSA91, sec. 4; SPLASH-2 `radiosity`).
@@ -128,10 +128,9 @@ pub struct HierarchicalParams {
     /// visibility (unless it is 0) is re-tested with up to `zero_confirm × rays` more rays before
     /// the zero is accepted (0: never). For such a link a zero is the only way refinement stops,
     /// so without the test each level of refinement loses the expected P(zero) · V of the
-    /// link's light, and the losses compound: on splash_room at 4 rays the floor came out 14 %
-    /// dark (2–4 % with `zero_confirm` 2; see `solver::hierarchical`). With `conservative`, links
-    /// the oracle would refine only were they partially visible are re-tested too (Cornell's
-    /// ceiling, one bounce from the floor: −5.7 % → −3.2 %).
+    /// link's light, and the losses compound over the levels (a floor lit through many small
+    /// links comes out dark; docs/solver.md, "Visibility"). With `conservative`, links the
+    /// oracle would refine only were they partially visible are re-tested too.
     pub zero_confirm: u32,
     /// Partially visible links refine at this fraction of BFeps (BF oracle; in (0, 1]). 1 is the
     /// SPLASH-2 program's criterion (its error term counts a partially visible link's whole
@@ -142,7 +141,7 @@ pub struct HierarchicalParams {
     /// source term is its brightest leaf rather than its average (B_avg · V_avg counts a hidden
     /// dark part twice); zero visibility estimates of links it would refine were they partially
     /// visible are re-tested (`zero_confirm`). Off in `splash2`, which follows the SPLASH-2
-    /// program's centroid estimates; +20 % links there.
+    /// program's centroid estimates.
     pub conservative: bool,
     /// The lecture's five-times rule for link form factors: a pair whose larger element is at
     /// least five of its diameters from the smaller one's centroid, and wholly in front of it,
@@ -161,9 +160,9 @@ pub struct HierarchicalParams {
     /// Push each link's variation across its receiver down with the irradiance (`Link::slope`):
     /// a descendant gathers a coarse link's transfer at its own centroid, not the receiver's
     /// average. Without it an element inherits the average of every coarse link above it, its
-    /// row of form factors no longer sums to its own (up to 1.18 in cube-one-light), and as
-    /// its radiosity follows that row, the solve creates light (splash_room −11 % escaped at
-    /// `interactive`). Off in `splash2` (SPLASH-2 pushes constants).
+    /// row of form factors no longer sums to its own (it exceeds 1 near corners), and as its
+    /// radiosity follows that row, the solve creates light. Off in `splash2` (SPLASH-2 pushes
+    /// constants).
     pub push_slopes: bool,
     /// Row check (`solver::hierarchical::refine`): no point receives more than all of its
     /// hemisphere, so a leaf whose row of F·V over its own and inherited links (with their
@@ -172,9 +171,8 @@ pub struct HierarchicalParams {
     /// that excess adds more than `row_tol` times the scene's mean reflected radiosity to a
     /// leaf's answer, the largest links of its ancestors are pushed down a level at each
     /// refinement. 0: off (`lecture`, the lecture's Refine alone; `splash2`, SPLASH-2's
-    /// criterion); off too in a solve with cluster links. At 0.1, table-room `quality` conserves energy (escaped +0.10 % of the
-    /// emitted power, was −0.92…+0.24 % depending on the threshold) with 2.1× the links; at
-    /// 0.03 it takes 6× the links for the same balance.
+    /// criterion); off too in a solve with cluster links. Smaller values push more links down for
+    /// little more balance (docs/solver.md, "The row check").
     pub row_tol: f64,
     /// Closed rows (`solver::hierarchical::closure`): on the leaves of the patches that front
     /// faces enclose (no hemisphere ray leaves the scene or meets a back face), gather through
@@ -207,13 +205,10 @@ impl HierarchicalParams {
             bf_relative: true,
             rays: 4,
             max_depth: 12,
-            // 2 M, not 500 k: the BF oracle refines a closed box for the light
-            // that flows in it, and a refinement the budget stops half-way leaves leaves whose
-            // rows of F·V exceed 1, before the row check can act (the budget is reached before
-            // the first gather): cube-one-light created 0.45 % of its light at 538 k links, none
-            // beyond 6e-6 at 1.86 M (2.2 s). The built-in scenes and figures stay far below it
-            // (splash_room 76 k); the furnace reaches it (2.4 M, 2.7 s, 3e-4 created);
-            // furnished-30k finishes its refinement (1.03 M links, 7.5 s; 6.1 s stopped at 500 k).
+            // Room for the BF oracle to finish a closed box: it refines for the light that flows,
+            // and a refinement the budget stops half-way, before the first gather, leaves leaves
+            // whose rows of F·V exceed 1 before the row check can act. The built-in scenes and
+            // figures stay far below it.
             max_links: 2_000_000,
             // The energy balance's residual is the last gather's change: 3e-4 keeps it under 1e-3.
             tolerance: 3e-4,
@@ -237,12 +232,10 @@ impl HierarchicalParams {
         }
     }
 
-    /// Balanced default for the CLI: the error oracle, each element's answer allowed to vary by
-    /// 10 % of the scene's mean reflected radiosity across it. Pointwise rel L2 against the
-    /// cached references (65 537 points × 1024 paths; 2 shared threads): cornell 4.6 % (0.8 s),
-    /// table-room 6.0 %, splash_room 5.4 % (~20 s) with slopes pushed (`push_slopes`; 6.6 %,
-    /// 8.4 %, 6.6 % without); the BF oracle at its old setting (2e-3 of E_max, Aeps 5e-5) read
-    /// 11.6 %, 8.5 %, 15.4 %, and its error did not fall as BFeps shrank.
+    /// The error oracle's settings: each element's answer allowed to vary by 10 % of the scene's
+    /// mean reflected radiosity across it, slopes pushed down (`push_slopes`). The ladder's
+    /// steps (`spec::Preset`) start from these and set the threshold and the area floor; their
+    /// measured error and time: README, "Presets".
     #[must_use]
     pub const fn quality() -> Self {
         HierarchicalParams {
@@ -310,10 +303,9 @@ impl HierarchicalParams {
 
     /// Equivalent of the SPLASH-2 `radiosity` defaults on its room scene: minimum element area
     /// 2000 (scene units), BF epsilon 0.015, energy tolerance 0.005. Partially visible links
-    /// refine at BFeps, as in the SPLASH-2 program (`partial_bf_factor` 0.5: relative L2 error
-    /// 9.9 % instead of 10.9 % on splash_room, 9.1 % instead of 10.8 % on splash_largeroom, at
-    /// +13 % links); zero estimates of links refined at any other visibility are confirmed with
-    /// 2 × rays more rays (without: splash_room 2.6 % too dark on the whole, its floor 14 %).
+    /// refine at BFeps, as in the SPLASH-2 program; zero estimates of links refined at any other
+    /// visibility are confirmed with 2 × rays more rays (without, the room comes out dark, its
+    /// floor most: `zero_confirm`).
     #[must_use]
     pub const fn splash2() -> Self {
         HierarchicalParams {
