@@ -1,7 +1,8 @@
 #!/bin/bash
 # The preset ladder and the teaching presets on the three rooms: wall time of `radlab solve`
 # (median of 3, one run for `reference`, 2 threads) and the pointwise error against radlab's
-# path-traced reference (65 537 points x 2 batches of 1 024 paths, cached in CACHE).
+# path-traced reference (65 537 points x 1 024 paths, cached in CACHE), scored against batch 2,
+# which did not place the points.
 #   scripts/preset_ladder.sh [RADLAB_BINARY] [CACHE_DIR] > ladder.tsv
 set -euo pipefail
 B=${1:-target/release/radlab}
