@@ -39,7 +39,7 @@
 //! The row's error is the inherited part's: a leaf's own links are evaluated at its own size
 //! (their Galerkin coefficients to `link_tol`, [`super::transfer`]), its ancestors' are averages
 //! over larger elements moved along their slopes, which miss the kernel's curvature across the
-//! ancestor [Hanrahan, Salzman & Aupperle 1991, §4; Lischinski, Smits & Greenberg 1994, "Bounds
+//! ancestor [Hanrahan, Salzman & Aupperle 1991, sec. 4; Lischinski, Smits & Greenberg 1994, "Bounds
 //! and error estimates for radiosity"]. So the balance moves the inherited part, d, and the own
 //! part only by [`OWN_EXPONENT`] of it: one factor on the whole row would scale a leaf's
 //! accurate direct light by its inherited links' error, a mix of sources of different radiosity
