@@ -194,15 +194,14 @@ pub struct HierarchicalParams {
 }
 
 impl HierarchicalParams {
-    /// Fast enough to drag sliders: coarse floor, few rays.
+    /// Fast enough to drag sliders: coarse floor, few rays. [`Self::quality`] with the BF oracle
+    /// and a looser threshold and tolerance.
     #[must_use]
     pub const fn interactive() -> Self {
         HierarchicalParams {
             oracle: Oracle::Bf,
             feps: 0.05,
-            aeps: AreaEps::Relative(1e-4),
             bf_eps: 2e-3,
-            bf_relative: true,
             rays: 4,
             max_depth: 12,
             // Room for the BF oracle to finish a closed box: it refines for the light that flows,
@@ -214,28 +213,16 @@ impl HierarchicalParams {
             tolerance: 3e-4,
             max_iterations: 100,
             max_rounds: 16,
-            round_iterations: 3,
-            settle: 1e-3,
-            gauss_seidel: false,
-            split_fallback: false,
-            zero_confirm: 4,
-            partial_bf_factor: 0.25,
-            conservative: true,
-            five_times: false,
             link_tol: 1e-3,
-            push_slopes: true,
             row_tol: 0.05,
-            close_rows: true,
-            cause_tail: DEFAULT_CAUSE_TAIL,
-            cluster: Clustering::Auto,
-            seed: 0,
+            ..Self::quality()
         }
     }
 
     /// The error oracle's settings: each element's answer allowed to vary by 10 % of the scene's
     /// mean reflected radiosity across it, slopes pushed down (`push_slopes`). The ladder's
     /// steps (`spec::Preset`) start from these and set the threshold and the area floor; their
-    /// measured error and time: README, "Presets".
+    /// measured error and time: README, "Presets". The other presets start from these too.
     #[must_use]
     pub const fn quality() -> Self {
         HierarchicalParams {
@@ -268,36 +255,17 @@ impl HierarchicalParams {
         }
     }
 
-    /// The lecture's Refine: the form-factor oracle alone.
+    /// The lecture's Refine: the form-factor oracle alone, one round.
     #[must_use]
     pub const fn lecture() -> Self {
         HierarchicalParams {
             oracle: Oracle::Feps,
-            feps: 0.02,
-            aeps: AreaEps::Relative(1e-4),
             bf_eps: 0.0,
-            bf_relative: true,
             rays: 8,
             max_depth: 12,
-            max_links: 4_000_000,
-            tolerance: 1e-4,
-            max_iterations: 200,
             max_rounds: 1,
-            round_iterations: 3,
-            settle: 1e-3,
-            gauss_seidel: false,
-            split_fallback: false,
-            zero_confirm: 4,
-            partial_bf_factor: 0.25,
-            conservative: true,
-            five_times: false,
-            link_tol: 1e-4,
-            push_slopes: true,
             row_tol: 0.0,
-            close_rows: true,
-            cause_tail: DEFAULT_CAUSE_TAIL,
-            cluster: Clustering::Auto,
-            seed: 0,
+            ..Self::quality()
         }
     }
 
@@ -316,14 +284,8 @@ impl HierarchicalParams {
             bf_relative: false,
             rays: 4,
             max_depth: 16,
-            max_links: 4_000_000,
             tolerance: 0.005,
             max_iterations: 100,
-            max_rounds: 24,
-            round_iterations: 3,
-            settle: 1e-3,
-            gauss_seidel: false,
-            split_fallback: false,
             zero_confirm: 2,
             partial_bf_factor: 1.0,
             conservative: false,
@@ -331,10 +293,7 @@ impl HierarchicalParams {
             link_tol: 0.0,
             push_slopes: false,
             row_tol: 0.0,
-            close_rows: true,
-            cause_tail: DEFAULT_CAUSE_TAIL,
-            cluster: Clustering::Auto,
-            seed: 0,
+            ..Self::quality()
         }
     }
 
