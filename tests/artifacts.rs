@@ -255,13 +255,8 @@ fn dropped_segments_inside_elements_do_not_count_kept_ones_do() {
     let value = whole.elements.iter().find(|e| e.patch == floor).unwrap().radiosity;
     let mut meshed = whole.clone();
     meshed.elements.retain(|e| e.patch != floor);
-    meshed.elements.extend(cdt.triangles.iter().map(|t| SolvedElement {
-        patch: floor,
-        area: radlab::math::polygon_area(&t.vertices),
-        vertices: t.vertices.to_vec(),
-        radiosity: value,
-        error_estimate: None,
-        slope: None,
+    meshed.elements.extend(cdt.triangles.iter().map(|t| {
+        SolvedElement::constant(floor, t.vertices.to_vec(), radlab::math::polygon_area(&t.vertices), value)
     }));
     // The case is real: some dropped segment's midpoint lies inside a triangle, farther than
     // 10⁻³ of the floor's size from each of its edges (E's `on_edge` is 10⁻⁴).

@@ -440,14 +440,8 @@ fn pieces_as_elements(scene: &Scene, mesh: &RemeshParams) -> Vec<radlab::solver:
         .enumerate()
         .map(|(i, (p, &origin))| {
             let h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 11;
-            radlab::solver::SolvedElement {
-                patch: origin,
-                area: p.area,
-                vertices: p.vertices.clone(),
-                radiosity: Rgb::splat(1.0 + h as f64 / (1u64 << 53) as f64),
-                error_estimate: None,
-                slope: None,
-            }
+            let radiosity = Rgb::splat(1.0 + h as f64 / (1u64 << 53) as f64);
+            radlab::solver::SolvedElement::constant(origin, p.vertices.clone(), p.area, radiosity)
         })
         .collect()
 }

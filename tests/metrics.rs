@@ -14,7 +14,7 @@ use radlab::scene::Scene;
 use radlab::solver::hierarchical::HierarchicalSolver;
 use radlab::solver::params::{AreaEps, HierarchicalParams};
 use radlab::solver::uniform::{self, UniformParams};
-use radlab::solver::{EnergyBalance, Solution, SolveStats, SolvedElement};
+use radlab::solver::{Solution, SolvedElement};
 use radlab::studies::hard_cases;
 use std::sync::Arc;
 
@@ -22,25 +22,12 @@ use std::sync::Arc;
 const EXACT: f64 = 1e-12;
 
 fn solution_on(scene: &Scene, mesh: &[RefElement], values: &[Rgb]) -> Solution {
-    let elements: Vec<SolvedElement> = mesh
+    let elements = mesh
         .iter()
         .zip(values)
-        .map(|(e, b)| SolvedElement {
-            patch: e.patch,
-            vertices: e.vertices.clone(),
-            area: polygon_area(&e.vertices),
-            radiosity: *b,
-            error_estimate: None,
-            slope: None,
-        })
+        .map(|(e, b)| SolvedElement::constant(e.patch, e.vertices.clone(), polygon_area(&e.vertices), *b))
         .collect();
-    Solution {
-        method: "test".into(),
-        patch_radiosity: Solution::patch_averages(scene.patches.len(), &elements),
-        elements,
-        energy: EnergyBalance::default(),
-        stats: SolveStats::default(),
-    }
+    Solution::of_elements("test", scene.patches.len(), elements)
 }
 
 /// A synthetic reference: smooth radiosity over the box-room, with a noise level.

@@ -302,14 +302,7 @@ mod tests {
     }
 
     fn el(vertices: Vec<DVec3>, area: f64, b: f64) -> SolvedElement {
-        SolvedElement {
-            patch: 0,
-            area,
-            vertices,
-            radiosity: Rgb::splat(b),
-            error_estimate: None,
-            slope: None,
-        }
+        SolvedElement::constant(0, vertices, area, Rgb::splat(b))
     }
 
     #[test]

@@ -562,29 +562,11 @@ mod tests {
     use super::*;
     use crate::math::Rgb;
     use crate::scene::builtin;
-    use crate::solver::{EnergyBalance, SolveStats, SolvedElement};
+    use crate::solver::SolvedElement;
 
     fn one_element_per_patch(scene: &Scene) -> Solution {
-        let elements: Vec<SolvedElement> = scene
-            .patches
-            .iter()
-            .enumerate()
-            .map(|(i, p)| SolvedElement {
-                patch: i,
-                vertices: p.vertices.clone(),
-                area: p.area,
-                radiosity: Rgb::new(0.5, 1.0, 3.0) * (i as f64 + 1.0),
-                error_estimate: None,
-                slope: None,
-            })
-            .collect();
-        Solution {
-            method: "test".into(),
-            patch_radiosity: Solution::patch_averages(scene.patches.len(), &elements),
-            elements,
-            energy: EnergyBalance::default(),
-            stats: SolveStats::default(),
-        }
+        let elements = SolvedElement::whole_patches(scene, |i| Rgb::new(0.5, 1.0, 3.0) * (i as f64 + 1.0));
+        Solution::of_elements("test", scene.patches.len(), elements)
     }
 
     fn opts(exposure: f64) -> BakeOptions {

@@ -704,13 +704,9 @@ pub fn error_image(
 ) -> Image {
     let elements: Vec<SolvedElement> = regions
         .iter()
-        .map(|r| SolvedElement {
-            patch: r.patch,
-            vertices: r.vertices.clone(),
-            area: crate::math::polygon_area(&r.vertices),
-            radiosity: crate::math::Rgb::ZERO,
-            error_estimate: None,
-            slope: None,
+        .map(|r| {
+            let area = crate::math::polygon_area(&r.vertices);
+            SolvedElement::constant(r.patch, r.vertices.clone(), area, crate::math::Rgb::ZERO)
         })
         .collect();
     value_image(scene, accel, &elements, camera, width, height, errors, Colormap::Viridis)
@@ -724,19 +720,7 @@ mod tests {
 
     /// One element per patch with B = E (no solve needed to test the renderer).
     fn emission_elements(scene: &Scene) -> Vec<SolvedElement> {
-        scene
-            .patches
-            .iter()
-            .enumerate()
-            .map(|(i, p)| SolvedElement {
-                patch: i,
-                vertices: p.vertices.clone(),
-                area: p.area,
-                radiosity: p.emission + Rgb::splat(0.1 * i as f64),
-                error_estimate: None,
-                slope: None,
-            })
-            .collect()
+        SolvedElement::whole_patches(scene, |i| scene.patches[i].emission + Rgb::splat(0.1 * i as f64))
     }
 
     /// Split every quad patch into n×n bilinear elements and every triangle 1→4 at its edge
@@ -744,15 +728,8 @@ mod tests {
     fn split_elements(scene: &Scene, n: usize) -> Vec<SolvedElement> {
         let mut out = Vec::new();
         let mut push = |patch: usize, verts: Vec<DVec3>| {
-            let k = out.len();
-            out.push(SolvedElement {
-                patch,
-                area: crate::math::polygon_area(&verts),
-                vertices: verts,
-                radiosity: Rgb::splat(k as f64),
-                error_estimate: None,
-                slope: None,
-            });
+            let (k, area) = (out.len(), crate::math::polygon_area(&verts));
+            out.push(SolvedElement::constant(patch, verts, area, Rgb::splat(k as f64)));
         };
         for (i, p) in scene.patches.iter().enumerate() {
             let v = &p.vertices;

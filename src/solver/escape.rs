@@ -284,19 +284,7 @@ mod tests {
 
     /// Every patch one element with B = 1 where `lit`.
     fn elements(scene: &Scene, lit: impl Fn(usize) -> bool) -> Vec<SolvedElement> {
-        scene
-            .patches
-            .iter()
-            .enumerate()
-            .map(|(i, p)| SolvedElement {
-                patch: i,
-                vertices: p.vertices.clone(),
-                area: p.area,
-                radiosity: if lit(i) { Rgb::ONE } else { Rgb::ZERO },
-                error_estimate: None,
-                slope: None,
-            })
-            .collect()
+        SolvedElement::whole_patches(scene, |i| if lit(i) { Rgb::ONE } else { Rgb::ZERO })
     }
 
     /// A closed box keeps every ray; without its top it is open, and what leaves is the five

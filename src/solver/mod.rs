@@ -77,6 +77,22 @@ pub struct SolvedElement {
 }
 
 impl SolvedElement {
+    /// An element with one radiosity across it: no error estimate, no slope.
+    #[must_use]
+    pub fn constant(patch: usize, vertices: Vec<DVec3>, area: f64, radiosity: Rgb) -> SolvedElement {
+        SolvedElement { patch, vertices, area, radiosity, error_estimate: None, slope: None }
+    }
+
+    /// Every patch of `scene` one constant element, patch `i` with B = `radiosity(i)`: a
+    /// solution's shape without a solve (to test what reads solutions).
+    pub fn whole_patches(
+        scene: &crate::scene::Scene,
+        radiosity: impl Fn(usize) -> Rgb,
+    ) -> Vec<SolvedElement> {
+        let patches = scene.patches.iter().enumerate();
+        patches.map(|(i, p)| SolvedElement::constant(i, p.vertices.clone(), p.area, radiosity(i))).collect()
+    }
+
     /// B at `x` on the element: its average with its slope where it has one, the one
     /// reconstruction that the viewer draws, the bake and the image write and the rulers score.
     #[must_use]
@@ -164,6 +180,23 @@ pub struct Solution {
 }
 
 impl Solution {
+    /// A solution made of `elements` on a scene of `n_patches` patches, with their per-patch
+    /// averages and no energy balance or statistics.
+    #[must_use]
+    pub fn of_elements(
+        method: impl Into<String>,
+        n_patches: usize,
+        elements: Vec<SolvedElement>,
+    ) -> Solution {
+        Solution {
+            method: method.into(),
+            patch_radiosity: Solution::patch_averages(n_patches, &elements),
+            elements,
+            energy: EnergyBalance::default(),
+            stats: SolveStats::default(),
+        }
+    }
+
     /// Area-weighted per-patch averages of the elements' radiosity.
     #[must_use]
     pub fn patch_averages(n_patches: usize, elements: &[SolvedElement]) -> Vec<Rgb> {

@@ -496,14 +496,7 @@ pub(super) fn constant_elements(elems: Vec<Element>, b: &[Rgb]) -> Vec<SolvedEle
     elems
         .into_iter()
         .zip(b)
-        .map(|(e, &radiosity)| SolvedElement {
-            patch: e.patch,
-            vertices: e.vertices,
-            area: e.area,
-            radiosity,
-            error_estimate: None,
-            slope: None,
-        })
+        .map(|(e, &radiosity)| SolvedElement::constant(e.patch, e.vertices, e.area, radiosity))
         .collect()
 }
 
