@@ -30,6 +30,9 @@
 //! shades (glowing outward, lined with a non-emitting inner layer 2 mm in).
 
 use super::Mat;
+use super::pieces::{
+    ALL, BOOKS, BookRow, CEILING, Draw, METAL, NX, NY, NZ, PX, PY, PZ, Quads, SIDES, WALL, WOODS, Xf, mat,
+};
 use super::{Patch, Scene, SceneError, Viewpoint};
 use crate::math::{DVec3, Pcg32, Rgb};
 use std::f64::consts::PI;
@@ -103,6 +106,17 @@ pub(super) fn parse_triangles(size: &str, min: usize, max: usize) -> Result<usiz
 
 /// Load `builtin:NAME` for a furnished-room name: parse it and generate the room.
 pub fn load(name: &str, params: Result<FurnishedParams, String>) -> Result<Scene, SceneError> {
+    load_generated(name, params, generate)
+}
+
+/// The scene `generate` makes from the parsed `params`, named `name` and sourced
+/// `builtin:NAME` (a generator's own name spells the size out); a parse error as
+/// [`SceneError::BadGenerated`].
+pub(super) fn load_generated<P>(
+    name: &str,
+    params: Result<P, String>,
+    generate: impl FnOnce(P) -> Scene,
+) -> Result<Scene, SceneError> {
     let params = params.map_err(|cause| SceneError::BadGenerated { name: name.into(), cause })?;
     let mut scene = generate(params);
     scene.name = name.to_string();
@@ -161,18 +175,7 @@ fn cell_size(plan: &mut Plan, target: usize) -> f64 {
 // ---------------------------------------------------------------------------------------------
 // Materials
 
-const fn mat(name: &'static str, r: f64, g: f64, b: f64) -> Mat {
-    Mat { name, rho: Rgb::new(r, g, b), emission: Rgb::ZERO }
-}
-
-const WALL: Mat = mat("wall", 0.75, 0.72, 0.66);
-const CEILING: Mat = mat("ceiling", 0.8, 0.8, 0.78);
 const FLOOR: [Mat; 2] = [mat("floor_oak", 0.5, 0.36, 0.23), mat("floor_walnut", 0.42, 0.3, 0.2)];
-const WOODS: [Mat; 3] = [
-    mat("wood_light", 0.62, 0.48, 0.32),
-    mat("wood_dark", 0.38, 0.26, 0.2),
-    mat("wood_white", 0.78, 0.76, 0.72),
-];
 const FABRICS: [Mat; 5] = [
     mat("fabric_red", 0.6, 0.22, 0.2),
     mat("fabric_blue", 0.22, 0.3, 0.6),
@@ -180,15 +183,6 @@ const FABRICS: [Mat; 5] = [
     mat("fabric_grey", 0.5, 0.5, 0.5),
     mat("fabric_mustard", 0.7, 0.55, 0.2),
 ];
-const BOOKS: [Mat; 6] = [
-    mat("book_red", 0.65, 0.2, 0.2),
-    mat("book_blue", 0.2, 0.28, 0.55),
-    mat("book_green", 0.22, 0.45, 0.28),
-    mat("book_cream", 0.78, 0.74, 0.62),
-    mat("book_black", 0.2, 0.2, 0.22),
-    mat("book_orange", 0.75, 0.42, 0.2),
-];
-const METAL: Mat = mat("metal", 0.3, 0.3, 0.32);
 const CERAMIC: Mat = mat("ceramic", 0.8, 0.8, 0.78);
 const SHADE_INSIDE: Mat = mat("shade_inside", 0.7, 0.65, 0.55);
 const PANEL_LIGHT: Mat =
@@ -198,45 +192,6 @@ const SHADE_LIGHT: Mat =
 
 // ---------------------------------------------------------------------------------------------
 // The plan: primitive pieces, each in its object's frame
-
-/// A rotation about +y by `yaw` then a translation: object frame → room.
-#[derive(Clone, Copy, Debug)]
-struct Xf {
-    cos: f64,
-    sin: f64,
-    at: DVec3,
-}
-
-impl Xf {
-    fn at(at: DVec3) -> Xf {
-        Xf { cos: 1.0, sin: 0.0, at }
-    }
-    /// The object's −z (its front) turned to point along `front` (horizontal).
-    fn facing(at: DVec3, front: DVec3) -> Xf {
-        let f = DVec3::new(front.x, 0.0, front.z).normalize();
-        Xf { cos: -f.z, sin: -f.x, at }
-    }
-    /// A turn by `yaw` radians about +y, no translation.
-    fn turn(yaw: f64) -> Xf {
-        Xf { cos: yaw.cos(), sin: yaw.sin(), at: DVec3::ZERO }
-    }
-    fn rotate(&self, p: DVec3) -> DVec3 {
-        DVec3::new(self.cos * p.x + self.sin * p.z, p.y, -self.sin * p.x + self.cos * p.z)
-    }
-    fn apply(&self, p: DVec3) -> DVec3 {
-        self.rotate(p) + self.at
-    }
-}
-
-/// Faces of a cuboid: −x +x −y +y −z +z.
-const NX: u8 = 1;
-const PX: u8 = 2;
-const NY: u8 = 4;
-const PY: u8 = 8;
-const NZ: u8 = 16;
-const PZ: u8 = 32;
-const ALL: u8 = 63;
-const SIDES: u8 = NX | PX | NZ | PZ;
 
 #[derive(Clone, Copy, Debug)]
 enum Shape {
@@ -336,16 +291,13 @@ struct Planner {
     pieces: Vec<Piece>,
 }
 
+impl Draw for Planner {
+    fn rng(&mut self) -> &mut Pcg32 {
+        &mut self.rng
+    }
+}
+
 impl Planner {
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.rng.next_f64()
-    }
-    fn chance(&mut self, p: f64) -> bool {
-        self.rng.next_f64() < p
-    }
-    fn pick<T: Copy>(&mut self, from: &[T]) -> T {
-        from[(self.rng.next_u32() as usize) % from.len()]
-    }
     fn add(&mut self, mesh: &str, mat: Mat, xf: Xf, shape: Shape) {
         self.pieces.push(Piece { mesh: mesh.to_string(), mat, xf, shape });
     }
@@ -557,9 +509,9 @@ impl Planner {
             NX | NY | NZ | PZ,
         );
         // The lamp at the back left corner, the books on the right.
-        let lamp_xf = Xf { at: xf.apply(DVec3::new(-w / 2.0 + 0.2, top_y, d / 2.0 - 0.18)), ..xf };
+        let lamp_xf = xf.moved_to(xf.apply(DVec3::new(-w / 2.0 + 0.2, top_y, d / 2.0 - 0.18)));
         self.lamp(&format!("{bay}_desklamp"), lamp_xf, 0.08, 0.35, (0.12, 0.08, 0.14), METAL);
-        self.tabletop(&mesh, Xf { at: xf.apply(DVec3::new(0.15 * w, 0.0, 0.0)), ..xf }, top_y, 0.5 * w, d);
+        self.tabletop(&mesh, xf.moved_to(xf.apply(DVec3::new(0.15 * w, 0.0, 0.0))), top_y, 0.5 * w, d);
         // The chair in front (the desk's −z side), facing the desk.
         let chair_at = xf.apply(DVec3::new(0.0, 0.0, -d / 2.0 - 0.3));
         self.chair(&format!("{bay}_chair"), Xf::facing(chair_at, -front), wood, fabric);
@@ -656,31 +608,11 @@ impl Planner {
             );
         }
         // Books standing on each board, left to right, a gap now and then.
+        let row = BookRow { fill: (0.4, 0.95), margin: 0.01, thickness: (0.018, 0.05), gap_chance: 0.1 };
         for s in 0..shelves {
-            let y = s as f64 * pitch + t;
-            let fill = self.uniform(0.4, 0.95);
-            let mut x = -inner + 0.01;
-            let mut k = 0;
-            while x < -inner + 2.0 * inner * fill {
-                let bw = self.uniform(0.018, 0.05);
-                let bh = (pitch - t - 0.03).min(self.uniform(0.17, 0.3));
-                let bd = self.uniform(0.14, 0.24);
-                if x + bw > inner - 0.01 {
-                    break;
-                }
-                let book = self.pick(&BOOKS);
-                let z1 = d / 2.0 - t - 0.005;
-                let lo = DVec3::new(x, y, z1 - bd);
-                self.cuboid(
-                    &format!("{mesh}_s{s}b{k}"),
-                    book,
-                    xf,
-                    lo,
-                    DVec3::new(x + bw, y + bh, z1),
-                    ALL ^ NY,
-                );
-                x += bw + if self.chance(0.1) { self.uniform(0.02, 0.08) } else { 0.002 };
-                k += 1;
+            let books = row.books(self, inner, s as f64 * pitch + t, pitch - t - 0.03, d / 2.0 - t - 0.005);
+            for (k, (lo, hi, book)) in books.into_iter().enumerate() {
+                self.cuboid(&format!("{mesh}_s{s}b{k}"), book, xf, lo, hi, ALL ^ NY);
             }
         }
     }
@@ -852,34 +784,6 @@ impl Tess {
         self.triangle += 1;
     }
 
-    /// The quad a b c d (counter-clockwise from the front) as two triangles.
-    fn quad(&mut self, a: DVec3, b: DVec3, c: DVec3, d: DVec3) {
-        self.tri(a, b, c);
-        self.tri(a, c, d);
-    }
-
-    /// The parallelogram o + a u + b v cut into nu × nv cells, facing u × v.
-    fn grid(&mut self, o: DVec3, u: DVec3, v: DVec3, nu: usize, nv: usize) {
-        let at = |i: usize, j: usize| o + u * (i as f64 / nu as f64) + v * (j as f64 / nv as f64);
-        for i in 0..nu {
-            for j in 0..nv {
-                self.quad(at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
-            }
-        }
-    }
-
-    fn cuboid(&mut self, lo: DVec3, hi: DVec3, faces: u8) {
-        let d = hi - lo;
-        let (x, y, z) = (DVec3::new(d.x, 0.0, 0.0), DVec3::new(0.0, d.y, 0.0), DVec3::new(0.0, 0.0, d.z));
-        // (corner, u, v) with u × v pointing out of the box, in the mask's bit order.
-        let sides = [(lo, z, y), (lo + x, y, z), (lo, x, z), (lo + y, z, x), (lo, y, x), (lo + z, x, y)];
-        for (bit, (o, u, v)) in sides.into_iter().enumerate() {
-            if faces & (1 << bit) != 0 {
-                self.grid(o, u, v, cells(u.length(), self.h), cells(v.length(), self.h));
-            }
-        }
-    }
-
     /// The side of a vertical (truncated) cone, `k` segments, rows of height ≤ h along its slant.
     fn band(&mut self, base: DVec3, r0: f64, r1: f64, len: f64, k: usize, outward: bool) {
         let rows = cells(len.hypot(r1 - r0), self.h);
@@ -923,6 +827,19 @@ impl Tess {
                 if up { self.quad(a, b, c, d) } else { self.quad(a, d, c, b) }
             }
         }
+    }
+}
+
+impl Quads for Tess {
+    /// The quad a b c d as two triangles.
+    fn quad(&mut self, a: DVec3, b: DVec3, c: DVec3, d: DVec3) {
+        self.tri(a, b, c);
+        self.tri(a, c, d);
+    }
+
+    /// Cells of side ≤ h.
+    fn face_cells(&self, u: DVec3, v: DVec3) -> (usize, usize) {
+        (cells(u.length(), self.h), cells(v.length(), self.h))
     }
 }
 

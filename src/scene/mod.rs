@@ -12,6 +12,7 @@ pub mod decal;
 pub mod families;
 pub mod furnished;
 pub mod gltf;
+mod pieces;
 pub mod texture;
 
 use crate::math::{DVec3, Rgb, polygon_area, polygon_centroid, polygon_normal};

@@ -15,7 +15,7 @@
 //! and browns (ρ 0.3–0.7); walls 0.75, floor 0.45, ceiling 0.8; the panel emits E = 20 (80 in
 //! all), ρ 0.8.
 
-use super::kit::{ALL, Kit, Layout, NY, Xf, light, mat};
+use super::kit::{ALL, Draw, Kit, Layout, NY, Xf, light, mat};
 use crate::math::DVec3;
 use crate::scene::Mat;
 use crate::scene::Viewpoint;

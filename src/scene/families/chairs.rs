@@ -12,7 +12,7 @@
 //! ±0.08 rad. A chair is a seat, four legs 22 mm square, two back posts and a back rest: 72
 //! triangles. Frames are metal or wood, seats fabric. Panels 0.6 × 0.6 (E = 30) on a 2.4 m grid.
 
-use super::kit::{ALL, FABRICS, Kit, Layout, METAL, NY, NZ, PY, PZ, SIDES, WOODS, Xf, light, mat};
+use super::kit::{ALL, Draw, FABRICS, Kit, Layout, METAL, NY, NZ, PY, PZ, SIDES, WOODS, Xf, light, mat};
 use crate::math::DVec3;
 use crate::scene::Mat;
 use crate::scene::Viewpoint;
@@ -34,14 +34,7 @@ pub(super) fn layout(k: usize, seed: u64) -> Layout {
     let w = cols as f64 * PITCH_X + aisle + 2.0 * MARGIN;
     let d = FRONT + rows as f64 * PITCH_Z + MARGIN;
     kit.room(w, d, HEIGHT, 1.0);
-    let (nx, nz) = (((w / 2.4).round() as usize).max(1), ((d / 2.4).round() as usize).max(1));
-    for i in 0..nx {
-        for j in 0..nz {
-            let at =
-                DVec3::new(w * (i as f64 + 0.5) / nx as f64, HEIGHT - 0.02, d * (j as f64 + 0.5) / nz as f64);
-            kit.panel(&format!("panel{i}_{j}"), PANEL, at, 0.6, 0.6);
-        }
-    }
+    kit.panel_grid(PANEL, (w, d), 2.4, HEIGHT - 0.02, (0.6, 0.6));
     // The board on the front wall and a desk before it.
     let board = (w - 2.0).clamp(0.8, 4.0);
     let (bx0, bx1) = (w / 2.0 - board / 2.0, w / 2.0 + board / 2.0);

@@ -16,7 +16,7 @@
 //! the floor, the ceiling or another wall; a bay is about 200 triangles, the building's
 //! ceiling and outer walls are cut into 1 m panels.
 
-use super::kit::{ALL, Kit, Layout, METAL, NX, NY, NZ, PX, PY, PZ, SIDES, WALL, WOODS, Xf, light};
+use super::kit::{ALL, Draw, Kit, Layout, METAL, NX, NY, NZ, PX, PY, PZ, SIDES, WALL, WOODS, Xf, light};
 use crate::math::DVec3;
 use crate::scene::Mat;
 use crate::scene::Viewpoint;

@@ -19,39 +19,20 @@
 use crate::math::{DVec3, Pcg32, Rgb};
 use crate::scene::Mat;
 use crate::scene::gltf::mergeable;
+pub(super) use crate::scene::pieces::{
+    ALL, CEILING, Draw, METAL, NX, NY, NZ, PX, PY, PZ, Quads, SIDES, WALL, WOODS, Xf, mat,
+};
 use crate::scene::{Patch, Viewpoint};
 
-/// Faces of a box, in its own frame: −x +x −y +y −z +z.
-pub(super) const NX: u8 = 1;
-pub(super) const PX: u8 = 2;
-pub(super) const NY: u8 = 4;
-pub(super) const PY: u8 = 8;
-pub(super) const NZ: u8 = 16;
-pub(super) const PZ: u8 = 32;
-pub(super) const ALL: u8 = 63;
-/// The four vertical faces.
-pub(super) const SIDES: u8 = NX | PX | NZ | PZ;
-
 // ---------------------------------------------------------------------------------------------
-// Materials shared by the families (ρ of common interior surfaces, 0.2–0.8).
-
-pub(super) const fn mat(name: &'static str, r: f64, g: f64, b: f64) -> Mat {
-    Mat { name, rho: Rgb::new(r, g, b), emission: Rgb::ZERO }
-}
+// Materials the families share besides [`crate::scene::pieces`]'s.
 
 /// An emitter: white-ish exitance `e` (the unit of B), ρ 0.8.
 pub(super) const fn light(name: &'static str, e: f64) -> Mat {
     Mat { name, rho: Rgb::new(0.8, 0.8, 0.8), emission: Rgb::new(e, 0.95 * e, 0.85 * e) }
 }
 
-pub(super) const WALL: Mat = mat("wall", 0.75, 0.72, 0.66);
-pub(super) const CEILING: Mat = mat("ceiling", 0.8, 0.8, 0.78);
 pub(super) const FLOOR: Mat = mat("floor", 0.45, 0.34, 0.24);
-pub(super) const WOODS: [Mat; 3] = [
-    mat("wood_light", 0.62, 0.48, 0.32),
-    mat("wood_dark", 0.38, 0.26, 0.2),
-    mat("wood_white", 0.78, 0.76, 0.72),
-];
 pub(super) const FABRICS: [Mat; 4] = [
     mat("fabric_red", 0.6, 0.22, 0.2),
     mat("fabric_blue", 0.22, 0.3, 0.6),
@@ -63,37 +44,9 @@ pub(super) const CARDBOARD: [Mat; 3] = [
     mat("cardboard_light", 0.68, 0.56, 0.4),
     mat("cardboard_white", 0.8, 0.78, 0.74),
 ];
-pub(super) const METAL: Mat = mat("metal", 0.3, 0.3, 0.32);
 
 // ---------------------------------------------------------------------------------------------
 // Pieces
-
-/// A turn by `yaw` about +y, then a translation: piece frame → room.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Xf {
-    cos: f64,
-    sin: f64,
-    at: DVec3,
-}
-
-impl Xf {
-    pub(super) fn at(at: DVec3) -> Xf {
-        Xf { cos: 1.0, sin: 0.0, at }
-    }
-    /// Turned by `yaw` radians (counter-clockwise seen from above) about +y, then moved to `at`.
-    /// Quarter turns are exact (cos and sin within 1e-15 of 0 or ±1 are snapped), so their
-    /// faces stay axis-aligned.
-    pub(super) fn turned(yaw: f64, at: DVec3) -> Xf {
-        let snap = |c: f64| if (c - c.round()).abs() < 1e-15 { c.round() } else { c };
-        Xf { cos: snap(yaw.cos()), sin: snap(yaw.sin()), at }
-    }
-    pub(super) fn rotate(&self, p: DVec3) -> DVec3 {
-        DVec3::new(self.cos * p.x + self.sin * p.z, p.y, -self.sin * p.x + self.cos * p.z)
-    }
-    pub(super) fn apply(&self, p: DVec3) -> DVec3 {
-        self.rotate(p) + self.at
-    }
-}
 
 #[derive(Clone, Copy, Debug)]
 pub(super) enum Shape {
@@ -222,7 +175,9 @@ impl Tess {
             .expect("generated pieces have positive area by construction");
         self.patches.push(patch);
     }
+}
 
+impl Quads for Tess {
     /// The quad a b c d (counter-clockwise from the front), in the room, at f32 precision: one
     /// patch where the loader would merge its two triangles, else the two triangles.
     fn quad(&mut self, a: DVec3, b: DVec3, c: DVec3, d: DVec3) {
@@ -237,26 +192,9 @@ impl Tess {
         }
     }
 
-    /// The parallelogram o + a u + b v cut into nu × nv cells, facing u × v.
-    fn grid(&mut self, o: DVec3, u: DVec3, v: DVec3, nu: usize, nv: usize) {
-        let at = |i: usize, j: usize| o + u * (i as f64 / nu as f64) + v * (j as f64 / nv as f64);
-        for i in 0..nu {
-            for j in 0..nv {
-                self.quad(at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
-            }
-        }
-    }
-
-    fn cuboid(&mut self, lo: DVec3, hi: DVec3, faces: u8) {
-        let d = hi - lo;
-        let (x, y, z) = (DVec3::new(d.x, 0.0, 0.0), DVec3::new(0.0, d.y, 0.0), DVec3::new(0.0, 0.0, d.z));
-        // (corner, u, v) with u × v pointing out of the box, in the mask's bit order.
-        let sides = [(lo, z, y), (lo + x, y, z), (lo, x, z), (lo + y, z, x), (lo, y, x), (lo + z, x, y)];
-        for (bit, (o, u, v)) in sides.into_iter().enumerate() {
-            if faces & (1 << bit) != 0 {
-                self.grid(o, u, v, 1, 1);
-            }
-        }
+    /// One quad a face.
+    fn face_cells(&self, _u: DVec3, _v: DVec3) -> (usize, usize) {
+        (1, 1)
     }
 }
 
@@ -269,22 +207,16 @@ pub(super) struct Kit {
     pub(super) pieces: Vec<Piece>,
 }
 
+impl Draw for Kit {
+    fn rng(&mut self) -> &mut Pcg32 {
+        &mut self.rng
+    }
+}
+
 impl Kit {
     /// A planner for one family (`stream` keeps families with the same seed apart).
     pub(super) fn new(seed: u64, stream: u64) -> Kit {
         Kit { rng: Pcg32::new(seed, stream), pieces: Vec::new() }
-    }
-    pub(super) fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.rng.next_f64()
-    }
-    pub(super) fn chance(&mut self, p: f64) -> bool {
-        self.rng.next_f64() < p
-    }
-    pub(super) fn below(&mut self, n: usize) -> usize {
-        (self.rng.next_u32() as usize) % n.max(1)
-    }
-    pub(super) fn pick<T: Copy>(&mut self, from: &[T]) -> T {
-        from[self.below(from.len())]
     }
     pub(super) fn add(&mut self, mesh: &str, mat: Mat, xf: Xf, shape: Shape) {
         self.pieces.push(Piece { mesh: mesh.to_string(), mat, xf, shape });
@@ -314,6 +246,25 @@ impl Kit {
         let shape =
             Shape::Rect { o, u: DVec3::new(w, 0.0, 0.0), v: DVec3::new(0.0, 0.0, d), cell: f64::INFINITY };
         self.add(mesh, mat, Xf::at(DVec3::ZERO), shape);
+    }
+
+    /// Light panels `panel{i}_{j}` of `size` (along x, along z) over the floor [0, w] × [0, d],
+    /// in a grid of cells about `spacing` on a side, one centred in each, at height `y`.
+    pub(super) fn panel_grid(
+        &mut self,
+        mat: Mat,
+        (w, d): (f64, f64),
+        spacing: f64,
+        y: f64,
+        size: (f64, f64),
+    ) {
+        let (nx, nz) = (((w / spacing).round() as usize).max(1), ((d / spacing).round() as usize).max(1));
+        for i in 0..nx {
+            for j in 0..nz {
+                let at = DVec3::new(w * (i as f64 + 0.5) / nx as f64, y, d * (j as f64 + 0.5) / nz as f64);
+                self.panel(&format!("panel{i}_{j}"), mat, at, size.0, size.1);
+            }
+        }
     }
 
     /// The layout of the pieces placed.

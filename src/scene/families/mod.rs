@@ -161,11 +161,7 @@ pub fn parse(name: &str) -> Option<Result<FamilyParams, String>> {
 
 /// Load `builtin:NAME` for a family name: parse it and generate the scene.
 pub fn load(name: &str, params: Result<FamilyParams, String>) -> Result<Scene, SceneError> {
-    let params = params.map_err(|cause| SceneError::BadGenerated { name: name.into(), cause })?;
-    let mut scene = generate(params);
-    scene.name = name.to_string();
-    scene.source = format!("builtin:{name}");
-    Ok(scene)
+    super::furnished::load_generated(name, params, generate)
 }
 
 /// The scene for these parameters (deterministic).

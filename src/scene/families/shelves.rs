@@ -15,10 +15,11 @@
 //! faces (10 triangles: it stands on the board); cases touch their neighbours side to side and
 //! back to back. Panels 1.2 × 0.6 emit E = 30 over every aisle, one every 2.5 m.
 
-use super::kit::{ALL, Kit, Layout, NX, NY, NZ, PX, PY, PZ, WOODS, Xf, light, mat};
+use super::kit::{ALL, Draw, Kit, Layout, NX, NY, NZ, PX, PY, PZ, WOODS, Xf, light};
 use crate::math::DVec3;
 use crate::scene::Mat;
 use crate::scene::Viewpoint;
+use crate::scene::pieces::BookRow;
 use std::f64::consts::PI;
 
 const WIDTH: f64 = 0.9;
@@ -27,14 +28,6 @@ const BOARD: f64 = 0.02;
 const AISLE: f64 = 1.4;
 const MARGIN: f64 = 1.2;
 const HEIGHT: f64 = 2.8;
-const BOOKS: [Mat; 6] = [
-    mat("book_red", 0.65, 0.2, 0.2),
-    mat("book_blue", 0.2, 0.28, 0.55),
-    mat("book_green", 0.22, 0.45, 0.28),
-    mat("book_cream", 0.78, 0.74, 0.62),
-    mat("book_black", 0.2, 0.2, 0.22),
-    mat("book_orange", 0.75, 0.42, 0.2),
-];
 const PANEL: Mat = light("panel_light", 30.0);
 
 /// The library with `k` boards of books.
@@ -119,25 +112,12 @@ fn bookcase(kit: &mut Kit, mesh: &str, xf: Xf, n: usize, filled: usize) {
         kit.cuboid(mesh, wood, xf, DVec3::new(-inner, y, -hd), DVec3::new(inner, y + t, hd - t), faces);
     }
     // Books standing on the boards, left to right, 2 mm apart, a gap now and then.
+    let row = BookRow { fill: (0.6, 0.97), margin: 0.005, thickness: (0.012, 0.04), gap_chance: 0.08 };
     for s in 0..filled {
-        let y = s as f64 * pitch + t;
-        let fill = kit.uniform(0.6, 0.97);
-        let mut x = -inner + 0.005;
-        let mut b = 0;
-        while x < -inner + 2.0 * inner * fill {
-            let bw = kit.uniform(0.012, 0.04);
-            let bh = (pitch - t - 0.03).min(kit.uniform(0.17, 0.3));
-            let bd = kit.uniform(0.14, 0.24);
-            if x + bw > inner - 0.005 {
-                break;
-            }
-            let book = kit.pick(&BOOKS);
-            let z1 = hd - t - 0.005;
-            let (lo, hi) = (DVec3::new(x, y, z1 - bd), DVec3::new(x + bw, y + bh, z1));
+        let books = row.books(kit, inner, s as f64 * pitch + t, pitch - t - 0.03, hd - t - 0.005);
+        debug_assert!(!books.is_empty(), "a board holds at least one book");
+        for (lo, hi, book) in books {
             kit.cuboid(&format!("{mesh}_books{s}"), book, xf, lo, hi, ALL ^ NY);
-            x += bw + if kit.chance(0.08) { kit.uniform(0.02, 0.08) } else { 0.002 };
-            b += 1;
         }
-        debug_assert!(b > 0, "a board holds at least one book");
     }
 }

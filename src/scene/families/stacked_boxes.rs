@@ -12,7 +12,7 @@
 //! A box is 10 triangles on the floor, 12 on another box; a stack about 30. Cardboard colours
 //! (ρ 0.55–0.8); panels 1.2 × 0.6 (E = 40) on a 3 m grid, the room 4 m high.
 
-use super::kit::{ALL, CARDBOARD, Kit, Layout, NY, Xf, light};
+use super::kit::{ALL, CARDBOARD, Draw, Kit, Layout, NY, Xf, light};
 use crate::math::DVec3;
 use crate::scene::Mat;
 use crate::scene::Viewpoint;
@@ -30,14 +30,7 @@ pub(super) fn layout(k: usize, seed: u64) -> Layout {
     let nz = k.div_ceil(nx);
     let (w, d) = (nx as f64 * PITCH + 2.0 * MARGIN - 0.6, nz as f64 * PITCH + 2.0 * MARGIN - 0.6);
     kit.room(w, d, HEIGHT, 1.0);
-    let (px, pz) = (((w / 3.0).round() as usize).max(1), ((d / 3.0).round() as usize).max(1));
-    for i in 0..px {
-        for j in 0..pz {
-            let at =
-                DVec3::new(w * (i as f64 + 0.5) / px as f64, HEIGHT - 0.03, d * (j as f64 + 0.5) / pz as f64);
-            kit.panel(&format!("panel{i}_{j}"), PANEL, at, 1.2, 0.6);
-        }
-    }
+    kit.panel_grid(PANEL, (w, d), 3.0, HEIGHT - 0.03, (1.2, 0.6));
     for s in 0..k {
         let (i, j) = (s % nx, s / nx);
         let at = DVec3::new(
