@@ -174,6 +174,28 @@ fn scene(name: &str, patches: Vec<Patch>) -> Scene {
     Scene::new(name, format!("hard:{name}"), patches)
 }
 
+/// A grey receiver (patch 0, ρ = 0.5) and a black unit emitter (patch 1, E = 1) alone, with
+/// the receiver→emitter form factor `f`: the receiver's B = ρ E F (`why` says whose F), the
+/// emitter's B = E.
+fn floor_and_lamp(
+    name: &'static str,
+    doc: &'static str,
+    [floor, lamp]: [Patch; 2],
+    f: f64,
+    why: &'static str,
+) -> HardCase {
+    HardCase {
+        name,
+        doc,
+        scene: scene(name, vec![floor, lamp]),
+        expected: vec![
+            Expected { patch: 0, radiosity: GREY * f, why },
+            Expected { patch: 1, radiosity: Rgb::ONE, why: "black emitter: B = E" },
+        ],
+        transforms_ok: true,
+    }
+}
+
 /// Floor (unit square, ρ = 0.5) and a unit emitter wall (E = 1, black) standing on its edge.
 #[must_use]
 pub fn shared_edge_perpendicular() -> HardCase {
@@ -182,16 +204,13 @@ pub fn shared_edge_perpendicular() -> HardCase {
     let wall = quad(DVec3::ZERO, DVec3::Y, DVec3::Z, BLACK, Rgb::ONE, "wall");
     debug_assert!(wall.normal.x > 0.99);
     let f = ff_perpendicular_common_edge(1.0, 1.0, 1.0);
-    HardCase {
-        name: "shared_edge_perpendicular",
-        doc: "two perpendicular unit squares sharing an edge: the kernel is singular along it",
-        scene: scene("shared_edge_perpendicular", vec![floor, wall]),
-        expected: vec![
-            Expected { patch: 0, radiosity: GREY * f, why: "ρ E F(floor→wall), Howell C-14" },
-            Expected { patch: 1, radiosity: Rgb::ONE, why: "black emitter: B = E" },
-        ],
-        transforms_ok: true,
-    }
+    floor_and_lamp(
+        "shared_edge_perpendicular",
+        "two perpendicular unit squares sharing an edge: the kernel is singular along it",
+        [floor, wall],
+        f,
+        "ρ E F(floor→wall), Howell C-14",
+    )
 }
 
 /// Room with two boxes resting on the floor without sharing vertices with it.
@@ -381,16 +400,13 @@ pub fn open_scene() -> HardCase {
     let lamp = quad(DVec3::new(0.0, 0.0, 2.0), DVec3::Y * 0.5, DVec3::X * 0.5, BLACK, Rgb::ONE, "lamp");
     let floor = quad(DVec3::ZERO, DVec3::X * 0.5, DVec3::Y * 0.5, GREY, BLACK, "floor");
     let f = ff_parallel_rectangles(0.5, 0.5, 2.0);
-    HardCase {
-        name: "open_scene",
-        doc: "two small facing plates far apart: almost all energy escapes",
-        scene: scene("open_scene", vec![floor, lamp]),
-        expected: vec![
-            Expected { patch: 0, radiosity: GREY * f, why: "ρ E F, Howell C-11" },
-            Expected { patch: 1, radiosity: Rgb::ONE, why: "black emitter: B = E" },
-        ],
-        transforms_ok: true,
-    }
+    floor_and_lamp(
+        "open_scene",
+        "two small facing plates far apart: almost all energy escapes",
+        [floor, lamp],
+        f,
+        "ρ E F, Howell C-11",
+    )
 }
 
 /// An emitter facing a blocker that covers it entirely; the floor behind the blocker gets nothing.
@@ -415,16 +431,13 @@ pub fn close_parallel_plates(gap: f64) -> HardCase {
     let floor = quad(DVec3::ZERO, DVec3::X, DVec3::Y, GREY, BLACK, "floor");
     let lamp = quad(DVec3::new(0.0, 0.0, gap), DVec3::Y, DVec3::X, BLACK, Rgb::ONE, "lamp");
     let f = ff_parallel_rectangles(1.0, 1.0, gap);
-    HardCase {
-        name: "close_parallel_plates",
-        doc: "two parallel unit squares 1e-3 apart: link count as Feps shrinks",
-        scene: scene("close_parallel_plates", vec![floor, lamp]),
-        expected: vec![
-            Expected { patch: 0, radiosity: GREY * f, why: "ρ E F, Howell C-11" },
-            Expected { patch: 1, radiosity: Rgb::ONE, why: "black emitter: B = E" },
-        ],
-        transforms_ok: true,
-    }
+    floor_and_lamp(
+        "close_parallel_plates",
+        "two parallel unit squares 1e-3 apart: link count as Feps shrinks",
+        [floor, lamp],
+        f,
+        "ρ E F, Howell C-11",
+    )
 }
 
 /// Every hard case, in a fixed order.
