@@ -282,20 +282,32 @@ impl Accel {
         }
         let boxes = SlabRay::new(ray);
         let planes = PlaneRay::new(ray);
+        // Leaves first, then the nodes: the same polygons in the same order as visiting the
+        // children in slot order, since pushing a node tests nothing.
+        self.find_in_leaves::<N, u32>(|n| boxes.hits(n), |pack| self.pack_blocker(pack, ray, &planes, ignore))
+    }
+
+    /// Walk the wide tree from its root down the children `reach` selects (bit c for child c),
+    /// a node's leaves before its nodes, each in slot order, with a stack of `N` entries: the
+    /// first `Some` that `leaf` gives a leaf pack, or `None` when none does.
+    #[inline(always)]
+    fn find_in_leaves<const N: usize, R>(
+        &self,
+        reach: impl Fn(&WideNode) -> u32,
+        mut leaf: impl FnMut(&LeafPack) -> Option<R>,
+    ) -> Option<R> {
         let mut stack = [0u32; N];
         let mut sp = 0;
         let mut node = 0u32;
         loop {
             let n = &self.wide[node as usize];
-            let mask = boxes.hits(n);
-            // Leaves first, then the nodes: the same polygons in the same order as visiting the
-            // children in slot order, since pushing a node tests nothing.
+            let mask = reach(n);
             let mut leaves = mask & n.leaves;
             while leaves != 0 {
                 let c = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
-                if let Some(id) = self.pack_blocker(&n.packs[c], ray, &planes, ignore) {
-                    return Some(id);
+                if let Some(found) = leaf(&n.packs[c]) {
+                    return Some(found);
                 }
             }
             let mut nodes = mask & !n.leaves;
@@ -494,12 +506,8 @@ impl Accel {
     /// Walk the wide tree down the child boxes not wholly outside one of `planes` (n·x <= d
     /// inside): true when every polygon in a box that reaches the shaft passes `outside`.
     fn none_in_shaft(&self, planes: &[([f32; 3], f32)], outside: impl Fn(usize) -> bool) -> bool {
-        let mut stack = [0u32; WIDE_STACK];
-        let mut sp = 0;
-        let mut node = 0u32;
-        loop {
-            let w = &self.wide[node as usize];
-            // Child boxes not wholly outside one of the planes: min over the box of n·x <= d.
+        // Child boxes not wholly outside one of the planes: min over the box of n·x <= d.
+        let reach = |w: &WideNode| {
             let mut mask = 0xFF;
             for (nrm, d) in planes {
                 let mut m = F8::splat(0.0);
@@ -512,33 +520,20 @@ impl Accel {
                     break;
                 }
             }
-            let mut leaves = mask & w.leaves;
-            while leaves != 0 {
-                let c = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let pack = &w.packs[c];
-                let mut lanes = pack.lanes;
-                while lanes != 0 {
-                    let k = lanes.trailing_zeros() as usize;
-                    lanes &= lanes - 1;
-                    if !outside(pack.first as usize + k) {
-                        return false;
-                    }
+            mask
+        };
+        let inside = |pack: &LeafPack| {
+            let mut lanes = pack.lanes;
+            while lanes != 0 {
+                let k = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                if !outside(pack.first as usize + k) {
+                    return Some(());
                 }
             }
-            let mut nodes = mask & !w.leaves;
-            while nodes != 0 {
-                let c = nodes.trailing_zeros() as usize;
-                nodes &= nodes - 1;
-                stack[sp] = w.child[c];
-                sp += 1;
-            }
-            if sp == 0 {
-                return true;
-            }
-            sp -= 1;
-            node = stack[sp];
-        }
+            None
+        };
+        self.find_in_leaves::<WIDE_STACK, ()>(reach, inside).is_none()
     }
 
     /// First patch hit along the ray from `origin` in direction `dir` (any length), ignoring
@@ -953,36 +948,49 @@ mod tests {
             let acc = Accel::build(&sc);
             assert!(!acc.wide.is_empty(), "{name}: the decoded tree must be in use");
             let mut rng = crate::math::Pcg32::keyed(7, 11);
-            let n = sc.patches.len();
             let (mut blocked, mut total) = (0, 0);
             for _ in 0..20_000 {
-                let i = (rng.next_u32() as usize) % n;
-                let j = (rng.next_u32() as usize) % n;
-                let a = crate::geometry::visibility::point_on_polygon(
-                    &sc.patches[i].vertices,
-                    rng.next_f64(),
-                    rng.next_f64(),
-                );
-                let b = crate::geometry::visibility::point_on_polygon(
-                    &sc.patches[j].vertices,
-                    rng.next_f64(),
-                    rng.next_f64(),
-                );
-                let ignore = [i as u32, j as u32];
-                let (la, lb) = (acc.to_local(a), acc.to_local(b));
-                let len = (lb - la).length();
-                if !(len > 2.0 * END_EPS) {
-                    continue;
-                }
-                let ray = Ray::new(la, (lb - la) / len, END_EPS, len - END_EPS);
+                let Some(seg) = random_segment(&sc, &acc, &mut rng) else { continue };
+                let (a, b, ignore) = (seg.a, seg.b, seg.patches);
+                let ray = Ray::new(seg.local_a, seg.dir, END_EPS, seg.len - END_EPS);
                 let brute =
                     acc.polys.iter().any(|p| !ignore.contains(&p.patch) && intersect(p, &ray).is_finite());
-                assert_eq!(acc.occluded(a, b, ignore), brute, "{name}: {a} → {b} (patches {i}, {j})");
+                assert_eq!(acc.occluded(a, b, ignore), brute, "{name}: {a} → {b} (patches {ignore:?})");
                 blocked += usize::from(brute);
                 total += 1;
             }
             assert!(blocked > total / 20 && blocked < total, "{name}: {blocked} of {total} blocked");
         }
+    }
+
+    /// A segment between random points of two random patches.
+    struct Segment {
+        patches: [u32; 2],
+        a: DVec3,
+        b: DVec3,
+        /// `a` in the accelerator's frame, the unit direction to `b` and the length there.
+        local_a: Vec3A,
+        dir: Vec3A,
+        len: f32,
+    }
+
+    /// The next random segment, `None` where it is too short to test (under 2 `END_EPS`).
+    fn random_segment(sc: &Scene, acc: &Accel, rng: &mut crate::math::Pcg32) -> Option<Segment> {
+        let n = sc.patches.len();
+        let i = (rng.next_u32() as usize) % n;
+        let j = (rng.next_u32() as usize) % n;
+        let point = |k: usize, rng: &mut crate::math::Pcg32| {
+            let (s, t) = (rng.next_f64(), rng.next_f64());
+            crate::geometry::visibility::point_on_polygon(&sc.patches[k].vertices, s, t)
+        };
+        let a = point(i, rng);
+        let b = point(j, rng);
+        let (la, lb) = (acc.to_local(a), acc.to_local(b));
+        let len = (lb - la).length();
+        if !(len > 2.0 * END_EPS) {
+            return None;
+        }
+        Some(Segment { patches: [i as u32, j as u32], a, b, local_a: la, dir: (lb - la) / len, len })
     }
 
     /// Random unit directions, with some components forced to ±0, ±ε and a hair above ε (where
@@ -1065,29 +1073,12 @@ mod tests {
         let sc = Scene::load("builtin:splash_room").unwrap();
         let acc = Accel::build(&sc);
         let mut rng = crate::math::Pcg32::keyed(2, 8);
-        let n = sc.patches.len();
         let mut found = 0;
         for _ in 0..3000 {
-            let i = (rng.next_u32() as usize) % n;
-            let j = (rng.next_u32() as usize) % n;
-            let a = crate::geometry::visibility::point_on_polygon(
-                &sc.patches[i].vertices,
-                rng.next_f64(),
-                rng.next_f64(),
-            );
-            let b = crate::geometry::visibility::point_on_polygon(
-                &sc.patches[j].vertices,
-                rng.next_f64(),
-                rng.next_f64(),
-            );
-            let (la, lb) = (acc.to_local(a), acc.to_local(b));
-            let len = (lb - la).length();
-            if !(len > 2.0 * END_EPS) {
-                continue;
-            }
-            let ray = shadow_ray(la, (lb - la) / len, END_EPS, len - END_EPS);
+            let Some(seg) = random_segment(&sc, &acc, &mut rng) else { continue };
+            let (a, b, ignore) = (seg.a, seg.b, seg.patches);
+            let ray = shadow_ray(seg.local_a, seg.dir, END_EPS, seg.len - END_EPS);
             let planes = PlaneRay::new(&ray);
-            let ignore = [i as u32, j as u32];
             for w in &acc.wide {
                 for c in 0..8 {
                     if w.leaves & (1 << c) == 0 {
