@@ -6,7 +6,7 @@
 use radlab::eval::pointwise::{PiecewiseConstant, Reconstruction};
 use radlab::geometry::accel::Accel;
 use radlab::present::bake::{self, BakeForm, BakeFormat, BakeOptions, LightmapParams};
-use radlab::present::image::{Camera, auto_exposure};
+use radlab::present::image::{Camera, View};
 use radlab::scene::{Scene, builtin};
 use radlab::solver::Solution;
 use radlab::solver::hierarchical::HierarchicalSolver;
@@ -26,7 +26,10 @@ fn solve(name: &str) -> (Scene, Solution, f64) {
     solver.solve(&mut |_, _| {});
     let solution = solver.solution();
     let accel = Accel::build(&scene);
-    let exposure = auto_exposure(&scene, &accel, &solution.elements, &Camera::for_scene(&scene), 640, 480);
+    let camera = Camera::for_scene(&scene);
+    let view =
+        View { scene: &scene, accel: &accel, elements: &solution.elements, camera, width: 640, height: 480 };
+    let exposure = view.auto_exposure();
     (scene, solution, exposure)
 }
 

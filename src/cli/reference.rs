@@ -11,6 +11,7 @@ use radlab::eval::reference::{
 };
 use radlab::geometry::accel::Accel;
 use radlab::math::{Rgb, polygon_area};
+use radlab::present::image::View;
 use radlab::studies::hard_cases;
 use std::io::Write;
 use std::path::PathBuf;
@@ -449,7 +450,8 @@ fn write_images(
         let (w, h) = (640, 480);
         let sol_path = PathBuf::from(format!("{}_solution.png", prefix.display()));
         let err_path = PathBuf::from(format!("{}_error.png", prefix.display()));
-        radlab::present::image::radiosity_image(scene, accel, &sol.elements, &camera, w, h)
+        let view = View { scene, accel, elements: &sol.elements, camera, width: w, height: h };
+        view.radiosity_image()
             .write_png(&sol_path)
             .with_context(|| format!("writing {}", sol_path.display()))?;
         radlab::present::image::error_image(scene, accel, regions, errors, &camera, w, h)

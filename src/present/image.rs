@@ -4,9 +4,9 @@
 //!
 //! Radiosity is view-independent: for a diffuse surface the radiance leaving it is L = B/π in
 //! every direction [Cohen & Wallace 1993, sec. 2.4], so an image of a solution is just B (up to the
-//! constant π) of the first surface each pixel sees. [`radiosity_image`] shows linear B scaled so
+//! constant π) of the first surface each pixel sees. [`View::radiosity_image`] shows linear B scaled so
 //! the 99th percentile of the visible pixels' luminance maps to white, then sRGB-encoded
-//! (IEC 61966-2-1); [`value_image`] maps any per-element value through a colour map and draws a
+//! (IEC 61966-2-1); [`View::value_image`] maps any per-element value through a colour map and draws a
 //! colour bar with its min/max written in a tiny built-in digit font.
 //!
 //! ## How it works
@@ -39,7 +39,7 @@ pub const NO_VALUE: [f32; 3] = [0.35, 0.35, 0.35];
 const INSIDE_REL: f64 = 1e-9;
 /// How much more a back face seen by a default open-scene camera counts than a front face.
 pub const BACK_FACE_PENALTY: f64 = 2.0;
-/// The percentile of visible-pixel luminance that maps to white in [`radiosity_image`].
+/// The percentile of visible-pixel luminance that maps to white in [`View::radiosity_image`].
 const EXPOSURE_PERCENTILE: f64 = 0.99;
 
 /// A pinhole camera.
@@ -363,62 +363,124 @@ fn inside_2d(poly: &[[f64; 2]], q: [f64; 2]) -> bool {
     })
 }
 
-/// What every pixel of a `w`×`h` view sees (row-major from the top-left).
-#[must_use]
-pub fn render_hits(
-    scene: &Scene,
-    accel: &Accel,
-    elements: &[SolvedElement],
-    camera: &Camera,
-    w: usize,
-    h: usize,
-) -> Vec<PixelHit> {
-    render_points(scene, accel, elements, camera, w, h).into_iter().map(|(hit, _)| hit).collect()
+/// What a picture shows: a solution's `elements` on `scene` (with its BVH), seen from
+/// `camera`, `width` × `height` pixels.
+#[derive(Clone, Copy)]
+pub struct View<'a> {
+    pub scene: &'a Scene,
+    pub accel: &'a Accel,
+    pub elements: &'a [SolvedElement],
+    pub camera: Camera,
+    pub width: usize,
+    pub height: usize,
 }
 
-/// [`render_hits`] with the point each pixel's ray hits (the origin where it hits nothing).
-fn render_points(
-    scene: &Scene,
-    accel: &Accel,
-    elements: &[SolvedElement],
-    camera: &Camera,
-    w: usize,
-    h: usize,
-) -> Vec<(PixelHit, DVec3)> {
-    let locator = ElementLocator::new(scene, elements);
-    (0..h)
-        .into_par_iter()
-        .flat_map_iter(|y| {
-            let locator = &locator;
-            (0..w).map(move |x| {
-                let (o, d) = camera.ray(x as f64, y as f64, w, h);
-                let Some((patch, t)) = accel.first_hit(o, d, u32::MAX) else {
-                    return (PixelHit::Background, o);
-                };
-                let patch = patch as usize;
-                let at = o + d * t;
-                if scene.patches[patch].normal.dot(d) >= 0.0 {
-                    return (PixelHit::BackFace, at);
-                }
-                (locator.locate(patch, at).map_or(PixelHit::NoElement, PixelHit::Element), at)
+impl View<'_> {
+    /// What every pixel sees (row-major from the top-left).
+    #[must_use]
+    pub fn hits(&self) -> Vec<PixelHit> {
+        self.points().into_iter().map(|(hit, _)| hit).collect()
+    }
+
+    /// [`View::hits`] with the point each pixel's ray hits (the origin where it hits nothing).
+    fn points(&self) -> Vec<(PixelHit, DVec3)> {
+        let View { scene, accel, elements, camera, width: w, height: h } = *self;
+        let locator = ElementLocator::new(scene, elements);
+        (0..h)
+            .into_par_iter()
+            .flat_map_iter(|y| {
+                let locator = &locator;
+                (0..w).map(move |x| {
+                    let (o, d) = camera.ray(x as f64, y as f64, w, h);
+                    let Some((patch, t)) = accel.first_hit(o, d, u32::MAX) else {
+                        return (PixelHit::Background, o);
+                    };
+                    let patch = patch as usize;
+                    let at = o + d * t;
+                    if scene.patches[patch].normal.dot(d) >= 0.0 {
+                        return (PixelHit::BackFace, at);
+                    }
+                    (locator.locate(patch, at).map_or(PixelHit::NoElement, PixelHit::Element), at)
+                })
             })
-        })
-        .collect()
-}
+            .collect()
+    }
 
-/// Render a view: each pixel gets `shade(element)` for the element it sees, or one of the flat
-/// colours [`BACKGROUND`], [`BACK_FACE`], [`NO_VALUE`].
-pub fn render(
-    scene: &Scene,
-    accel: &Accel,
-    elements: &[SolvedElement],
-    camera: &Camera,
-    w: usize,
-    h: usize,
-    shade: impl Fn(usize) -> [f32; 3] + Sync,
-) -> Image {
-    let hits = render_hits(scene, accel, elements, camera, w, h);
-    Image { width: w, height: h, pixels: hits.par_iter().map(|h| flat_or(*h, &shade)).collect() }
+    /// Render: each pixel gets `shade(element)` for the element it sees, or one of the flat
+    /// colours [`BACKGROUND`], [`BACK_FACE`], [`NO_VALUE`].
+    pub fn render(&self, shade: impl Fn(usize) -> [f32; 3] + Sync) -> Image {
+        let hits = self.hits();
+        let pixels = hits.par_iter().map(|h| flat_or(*h, &shade)).collect();
+        Image { width: self.width, height: self.height, pixels }
+    }
+
+    /// Image of the radiosity B (each element's value with its slope at the pixel's point):
+    /// linear, scaled so that the 99th percentile of the visible pixels' luminance is 1,
+    /// clipped, sRGB-encoded. Also returns the exposure scale used.
+    #[must_use]
+    pub fn radiosity_image_with_exposure(&self) -> (Image, f64) {
+        let elements = self.elements;
+        let points = self.points();
+        let hits: Vec<PixelHit> = points.iter().map(|(hit, _)| *hit).collect();
+        let scale = exposure_of_hits(&hits, elements);
+        // Each element's own reconstruction at the pixel's point (its value with its slope).
+        let pixels = points
+            .par_iter()
+            .map(|&(hit, at)| {
+                let shade = |e: usize| -> [f32; 3] {
+                    let b = elements[e].radiosity_at(at);
+                    if !b.is_finite() {
+                        return NO_VALUE;
+                    }
+                    b.0.map(|c| srgb_encode(c * scale) as f32)
+                };
+                flat_or(hit, &shade)
+            })
+            .collect();
+        (Image { width: self.width, height: self.height, pixels }, scale)
+    }
+
+    /// [`View::radiosity_image_with_exposure`] without the scale.
+    #[must_use]
+    pub fn radiosity_image(&self) -> Image {
+        self.radiosity_image_with_exposure().0
+    }
+
+    /// The exposure scale [`View::radiosity_image`] uses, without shading an image: 1 over the
+    /// 99th percentile of the visible pixels' luminance of B (1 if no pixel sees a lit
+    /// element). `radlab solve --bake` uses it so that a bake looks like the `--png` of the
+    /// same solve.
+    #[must_use]
+    pub fn auto_exposure(&self) -> f64 {
+        exposure_of_hits(&self.hits(), self.elements)
+    }
+
+    /// Image of one value per element (`values[i]` for `elements[i]`) through `colormap`, with
+    /// a colour bar along the bottom labelled with the range's min (left) and max (right).
+    /// Non-finite values are drawn in [`NO_VALUE`].
+    #[must_use]
+    pub fn value_image(&self, values: &[f64], colormap: Colormap) -> Image {
+        let (w, h) = (self.width, self.height);
+        debug_assert_eq!(values.len(), self.elements.len(), "one value per element");
+        let (lo, hi) = colormap.range(values);
+        let span = if hi > lo { hi - lo } else { 1.0 };
+        // The bar takes a band at the bottom when the image is tall enough to hold it.
+        let band = if h >= 48 && w >= 48 { (h / 8).clamp(20, 64) } else { 0 };
+        let view_h = h - band;
+        let shade = |e: usize| -> [f32; 3] {
+            match values.get(e) {
+                Some(v) if v.is_finite() => colormap.at((v - lo) / span),
+                _ => NO_VALUE,
+            }
+        };
+        let view = View { height: view_h, ..*self }.render(shade);
+        let mut img = Image::new(w, h, BACKGROUND);
+        img.pixels[..w * view_h].copy_from_slice(&view.pixels);
+        if band > 0 {
+            draw_colorbar(&mut img, view_h, band, colormap, lo, hi);
+        }
+        img
+    }
 }
 
 fn flat_or(hit: PixelHit, shade: &impl Fn(usize) -> [f32; 3]) -> [f32; 3] {
@@ -435,53 +497,6 @@ fn flat_or(hit: PixelHit, shade: &impl Fn(usize) -> [f32; 3]) -> [f32; 3] {
 pub fn srgb_encode(c: f64) -> f64 {
     let c = c.clamp(0.0, 1.0);
     if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
-}
-
-/// Image of the radiosity B (each element's value with its slope at the pixel's point): linear,
-/// scaled so that the 99th percentile of the visible pixels' luminance is 1, clipped,
-/// sRGB-encoded. Also returns the exposure scale used.
-#[must_use]
-pub fn radiosity_image_with_exposure(
-    scene: &Scene,
-    accel: &Accel,
-    elements: &[SolvedElement],
-    camera: &Camera,
-    w: usize,
-    h: usize,
-) -> (Image, f64) {
-    let points = render_points(scene, accel, elements, camera, w, h);
-    let hits: Vec<PixelHit> = points.iter().map(|(hit, _)| *hit).collect();
-    let scale = exposure_of_hits(&hits, elements);
-    // Each element's own reconstruction at the pixel's point (its value with its slope).
-    let pixels = points
-        .par_iter()
-        .map(|&(hit, at)| {
-            let shade = |e: usize| -> [f32; 3] {
-                let b = elements[e].radiosity_at(at);
-                if !b.is_finite() {
-                    return NO_VALUE;
-                }
-                b.0.map(|c| srgb_encode(c * scale) as f32)
-            };
-            flat_or(hit, &shade)
-        })
-        .collect();
-    (Image { width: w, height: h, pixels }, scale)
-}
-
-/// The exposure scale [`radiosity_image`] uses for this view, without shading an image: 1 over
-/// the 99th percentile of the visible pixels' luminance of B (1 if no pixel sees a lit element).
-/// `radlab solve --bake` uses it so that a bake looks like the `--png` of the same solve.
-#[must_use]
-pub fn auto_exposure(
-    scene: &Scene,
-    accel: &Accel,
-    elements: &[SolvedElement],
-    camera: &Camera,
-    w: usize,
-    h: usize,
-) -> f64 {
-    exposure_of_hits(&render_hits(scene, accel, elements, camera, w, h), elements)
 }
 
 fn exposure_of_hits(hits: &[PixelHit], elements: &[SolvedElement]) -> f64 {
@@ -501,20 +516,7 @@ fn exposure_of_hits(hits: &[PixelHit], elements: &[SolvedElement]) -> f64 {
     if *p > 0.0 { 1.0 / *p } else { 1.0 }
 }
 
-/// [`radiosity_image_with_exposure`] without the scale.
-#[must_use]
-pub fn radiosity_image(
-    scene: &Scene,
-    accel: &Accel,
-    elements: &[SolvedElement],
-    camera: &Camera,
-    w: usize,
-    h: usize,
-) -> Image {
-    radiosity_image_with_exposure(scene, accel, elements, camera, w, h).0
-}
-
-/// Colour maps for [`value_image`] (display-referred colours).
+/// Colour maps for [`View::value_image`] (display-referred colours).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Colormap {
     /// Perceptually uniform, dark purple (min) → yellow (max) [van der Walt & Smith, matplotlib 2015].
@@ -570,41 +572,6 @@ impl Colormap {
             }
         }
     }
-}
-
-/// Image of one value per element (`values[i]` for `elements[i]`) through `colormap`, with a
-/// colour bar along the bottom labelled with the range's min (left) and max (right).
-/// Non-finite values are drawn in [`NO_VALUE`].
-#[must_use]
-pub fn value_image(
-    scene: &Scene,
-    accel: &Accel,
-    elements: &[SolvedElement],
-    camera: &Camera,
-    w: usize,
-    h: usize,
-    values: &[f64],
-    colormap: Colormap,
-) -> Image {
-    debug_assert_eq!(values.len(), elements.len(), "one value per element");
-    let (lo, hi) = colormap.range(values);
-    let span = if hi > lo { hi - lo } else { 1.0 };
-    // The bar takes a band at the bottom when the image is tall enough to hold it.
-    let band = if h >= 48 && w >= 48 { (h / 8).clamp(20, 64) } else { 0 };
-    let view_h = h - band;
-    let shade = |e: usize| -> [f32; 3] {
-        match values.get(e) {
-            Some(v) if v.is_finite() => colormap.at((v - lo) / span),
-            _ => NO_VALUE,
-        }
-    };
-    let view = render(scene, accel, elements, camera, w, view_h, shade);
-    let mut img = Image::new(w, h, BACKGROUND);
-    img.pixels[..w * view_h].copy_from_slice(&view.pixels);
-    if band > 0 {
-        draw_colorbar(&mut img, view_h, band, colormap, lo, hi);
-    }
-    img
 }
 
 /// Colour bar in rows [top, top + band): a gradient strip, then min and max labels under it.
@@ -709,7 +676,8 @@ pub fn error_image(
             SolvedElement::constant(r.patch, r.vertices.clone(), area, crate::math::Rgb::ZERO)
         })
         .collect();
-    value_image(scene, accel, &elements, camera, width, height, errors, Colormap::Viridis)
+    let view = View { scene, accel, elements: &elements, camera: *camera, width, height };
+    view.value_image(errors, Colormap::Viridis)
 }
 
 #[cfg(test)]
@@ -753,6 +721,27 @@ mod tests {
         out
     }
 
+    /// A built-in scene, its BVH and elements on it.
+    struct Fixture {
+        scene: Scene,
+        accel: Accel,
+        elements: Vec<SolvedElement>,
+    }
+
+    impl Fixture {
+        /// `name` with [`emission_elements`], or with [`split_elements`] `n` × `n` for `Some(n)`.
+        fn new(name: &str, split: Option<usize>) -> Fixture {
+            let scene = builtin::build(name).unwrap();
+            let accel = Accel::build(&scene);
+            let elements = split.map_or_else(|| emission_elements(&scene), |n| split_elements(&scene, n));
+            Fixture { scene, accel, elements }
+        }
+
+        fn view(&self, camera: Camera, width: usize, height: usize) -> View<'_> {
+            View { scene: &self.scene, accel: &self.accel, elements: &self.elements, camera, width, height }
+        }
+    }
+
     #[test]
     fn closed_rooms_are_seen_from_inside_open_scenes_from_outside() {
         let furnace = builtin::build("furnace").unwrap();
@@ -767,10 +756,8 @@ mod tests {
         assert_eq!(Camera::for_scene(&cornell), Camera::from(cornell.camera.unwrap()));
         // Open scenes are framed so that the fronts of both squares show and no back face does.
         for name in ["parallel", "perpendicular"] {
-            let scene = builtin::build(name).unwrap();
-            let accel = Accel::build(&scene);
-            let elements = emission_elements(&scene);
-            let hits = render_hits(&scene, &accel, &elements, &Camera::for_scene(&scene), 40, 30);
+            let f = Fixture::new(name, None);
+            let hits = f.view(Camera::for_scene(&f.scene), 40, 30).hits();
             assert!(!hits.contains(&PixelHit::BackFace), "{name}: back face in the default view");
             assert!(hits.contains(&PixelHit::Element(0)) && hits.contains(&PixelHit::Element(1)), "{name}");
         }
@@ -778,10 +765,8 @@ mod tests {
 
     #[test]
     fn every_pixel_of_a_closed_room_sees_a_front_face_element() {
-        let scene = builtin::build("furnace").unwrap();
-        let accel = Accel::build(&scene);
-        let elements = split_elements(&scene, 2);
-        let hits = render_hits(&scene, &accel, &elements, &Camera::for_scene(&scene), 40, 30);
+        let f = Fixture::new("furnace", Some(2));
+        let hits = f.view(Camera::for_scene(&f.scene), 40, 30).hits();
         assert!(hits.iter().all(|h| matches!(h, PixelHit::Element(_))), "{hits:?}");
         // The located element contains the hit point: its patch is the hit patch, and all four
         // quarters of several faces show up.
@@ -796,15 +781,15 @@ mod tests {
 
     #[test]
     fn element_lookup_matches_brute_force() {
-        let scene = builtin::build("cornell").unwrap();
-        let accel = Accel::build(&scene);
         // 16×16 elements per quad (grids of 16×16 cells), triangles split 1→4.
-        let elements = split_elements(&scene, 16);
+        let Fixture { scene, accel, elements } = Fixture::new("cornell", Some(16));
         let cam = Camera::for_scene(&scene);
         // Hit points come from an f32 BVH in a frame where the scene's diagonal is 1.
         let hit_tol = 1e-5 * scene.bounds().diagonal();
         let (w, h) = (64, 64);
-        let hits = render_hits(&scene, &accel, &elements, &cam, w, h);
+        let hits =
+            View { scene: &scene, accel: &accel, elements: &elements, camera: cam, width: w, height: h }
+                .hits();
         let mut checked = 0;
         for y in 0..h {
             for x in 0..w {
@@ -831,9 +816,7 @@ mod tests {
 
     #[test]
     fn backfaces_and_background_get_flat_colours() {
-        let scene = builtin::build("parallel").unwrap();
-        let accel = Accel::build(&scene);
-        let elements = emission_elements(&scene);
+        let f = Fixture::new("parallel", None);
         // From below the bottom square (which faces up): its back is seen in the middle.
         let cam = Camera {
             eye: DVec3::new(0.5, -2.0, 0.5),
@@ -841,7 +824,7 @@ mod tests {
             up: DVec3::Z,
             fov_y_deg: 40.0,
         };
-        let img = render(&scene, &accel, &elements, &cam, 21, 21, |_| [1.0, 1.0, 1.0]);
+        let img = f.view(cam, 21, 21).render(|_| [1.0, 1.0, 1.0]);
         assert_eq!(img.get(10, 10), BACK_FACE);
         assert_eq!(img.get(0, 0), BACKGROUND);
         // From between the squares looking up: the emitter's front.
@@ -851,56 +834,41 @@ mod tests {
             up: DVec3::Z,
             fov_y_deg: 40.0,
         };
-        let img = render(&scene, &accel, &elements, &cam, 21, 21, |e| [e as f32, 0.0, 0.0]);
+        let img = f.view(cam, 21, 21).render(|e| [e as f32, 0.0, 0.0]);
         assert_eq!(img.get(10, 10), [1.0, 0.0, 0.0]);
     }
 
     #[test]
     fn radiosity_image_exposes_the_99th_percentile_to_white() {
-        let scene = builtin::build("furnace").unwrap();
-        let accel = Accel::build(&scene);
-        let mut elements = emission_elements(&scene);
-        for e in &mut elements {
+        let mut f = Fixture::new("furnace", None);
+        for e in &mut f.elements {
             e.radiosity = Rgb::splat(2.0);
         }
-        let (img, scale) =
-            radiosity_image_with_exposure(&scene, &accel, &elements, &Camera::for_scene(&scene), 24, 16);
+        let view = f.view(Camera::for_scene(&f.scene), 24, 16);
+        let (img, scale) = view.radiosity_image_with_exposure();
         assert!((scale - 0.5).abs() < 1e-12);
-        assert_eq!(auto_exposure(&scene, &accel, &elements, &Camera::for_scene(&scene), 24, 16), scale);
+        assert_eq!(view.auto_exposure(), scale);
         assert!(img.pixels.iter().all(|p| *p == [1.0, 1.0, 1.0]));
         assert!((srgb_encode(0.5) - 0.735_356_983_052_04).abs() < 1e-12);
     }
 
     #[test]
     fn rendering_is_identical_for_any_thread_count() {
-        let scene = builtin::build("cornell").unwrap();
-        let accel = Accel::build(&scene);
-        let elements = split_elements(&scene, 2);
-        let cam = Camera::for_scene(&scene);
+        let f = Fixture::new("cornell", Some(2));
+        let view = f.view(Camera::for_scene(&f.scene), 48, 40);
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let three = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
-        let a = one.install(|| radiosity_image(&scene, &accel, &elements, &cam, 48, 40));
-        let b = three.install(|| radiosity_image(&scene, &accel, &elements, &cam, 48, 40));
+        let a = one.install(|| view.radiosity_image());
+        let b = three.install(|| view.radiosity_image());
         assert_eq!(a, b);
     }
 
     #[test]
     fn value_image_has_a_labelled_colour_bar() {
-        let scene = builtin::build("cube-one-light").unwrap();
-        let accel = Accel::build(&scene);
-        let elements = emission_elements(&scene);
-        let values: Vec<f64> = (0..elements.len()).map(|i| i as f64 * 0.5).collect();
+        let f = Fixture::new("cube-one-light", None);
+        let values: Vec<f64> = (0..f.elements.len()).map(|i| i as f64 * 0.5).collect();
         let (w, h) = (96, 80);
-        let img = value_image(
-            &scene,
-            &accel,
-            &elements,
-            &Camera::for_scene(&scene),
-            w,
-            h,
-            &values,
-            Colormap::Viridis,
-        );
+        let img = f.view(Camera::for_scene(&f.scene), w, h).value_image(&values, Colormap::Viridis);
         let band = (h / 8).clamp(20, 64);
         let bar_y = h - band + 4;
         let margin = (band / 4).max(2);

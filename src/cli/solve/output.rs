@@ -6,7 +6,7 @@ use super::Args;
 use anyhow::{Context as _, bail};
 use radlab::geometry::accel::Accel;
 use radlab::present::bake::{BakeForm, BakeFormat, LightmapParams};
-use radlab::present::image::Camera;
+use radlab::present::image::{Camera, View};
 use radlab::scene::Scene;
 use radlab::solver::Solution;
 use radlab::solver::escape::EscapeSplit;
@@ -41,14 +41,22 @@ pub(super) fn write(
             .with_context(|| format!("writing {}", path.display()))?;
     }
     let solution = &solved.solution;
-    let cam = Camera::for_scene(scene);
+    // What `--png` shows and what `--bake` takes its exposure from.
+    let view = View {
+        scene,
+        accel,
+        elements: &solution.elements,
+        camera: Camera::for_scene(scene),
+        width: args.width,
+        height: args.height,
+    };
     let png_exposure = match &args.png {
-        Some(path) => Some(write_png(args, scene, accel, solution, &cam, path)?),
+        Some(path) => Some(write_png(&view, path)?),
         None => None,
     };
     let baked = match (&args.bake, bake_format) {
         (Some(path), Some(format)) => {
-            Some(bake(args, scene, accel, solution, &cam, &params_json, png_exposure, path, format)?)
+            Some(bake(args, solution, &view, &params_json, png_exposure, path, format)?)
         }
         _ => None,
     };
@@ -67,34 +75,18 @@ pub(super) fn write(
 }
 
 /// `--png`: the solution seen from the scene's default camera; returns the image's exposure.
-fn write_png(
-    args: &Args,
-    scene: &Scene,
-    accel: &Accel,
-    solution: &Solution,
-    cam: &Camera,
-    path: &Path,
-) -> anyhow::Result<f64> {
-    let (img, exposure) = radlab::present::image::radiosity_image_with_exposure(
-        scene,
-        accel,
-        &solution.elements,
-        cam,
-        args.width,
-        args.height,
-    );
+fn write_png(view: &View, path: &Path) -> anyhow::Result<f64> {
+    let (img, exposure) = view.radiosity_image_with_exposure();
     img.write_png(path).with_context(|| format!("writing {}", path.display()))?;
     Ok(exposure)
 }
 
 /// `--bake`: the solution baked to `path`, at `--bake-exposure` or else the image's exposure
-/// (`png_exposure`, or computed as `--png` would).
+/// (`png_exposure`, or computed as `--png` would from `view`).
 fn bake<'a>(
     args: &Args,
-    scene: &Scene,
-    accel: &Accel,
     solution: &Solution,
-    cam: &Camera,
+    view: &View,
     params_json: &serde_json::Value,
     png_exposure: Option<f64>,
     path: &'a Path,
@@ -103,16 +95,7 @@ fn bake<'a>(
     let (exposure, exposure_rule) = match args.bake_exposure {
         Some(x) => (x, "--bake-exposure".to_string()),
         None => (
-            png_exposure.unwrap_or_else(|| {
-                radlab::present::image::auto_exposure(
-                    scene,
-                    accel,
-                    &solution.elements,
-                    cam,
-                    args.width,
-                    args.height,
-                )
-            }),
+            png_exposure.unwrap_or_else(|| view.auto_exposure()),
             format!(
                 "auto, as radlab solve --png: 1 / the 99th percentile of the luminance of B seen by the scene's default camera at {}x{} pixels",
                 args.width, args.height
@@ -128,7 +111,7 @@ fn bake<'a>(
     let t = Instant::now();
     let form =
         args.bake_lightmap.map_or(BakeForm::Elements, |size| BakeForm::Lightmap(LightmapParams::new(size)));
-    let bytes = radlab::present::bake::bake_as(scene, solution, &opts, form, format)
+    let bytes = radlab::present::bake::bake_as(view.scene, solution, &opts, form, format)
         .with_context(|| format!("baking {}", path.display()))?;
     let secs = t.elapsed().as_secs_f64();
     std::fs::write(path, &bytes).with_context(|| format!("writing {}", path.display()))?;
