@@ -235,9 +235,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ReferenceParams { samples: args.samples, seed: args.ref_seed, ..ReferenceParams::standard() };
     let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
     let accel = Accel::build(&scene);
-    let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
-    let mut log: Box<dyn Write> =
-        if to_stdout { Box::new(std::io::stderr()) } else { Box::new(std::io::stdout()) };
+    let mut log = log_stream(&args);
     writeln!(
         log,
         "reference for {} ({} patches): {} elements of size ≤ {size:.4}, {} paths each",
@@ -275,8 +273,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else if args.images.is_some() {
         anyhow::bail!("--images needs --compare");
     }
-    if let Some(path) = &args.json {
-        let doc = serde_json::json!({
+    write_json(&args, &mut log, || {
+        serde_json::json!({
             "scene": scene.source,
             "element_size": size,
             "cache_file": match &status {
@@ -287,10 +285,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "elements": entry.elements.iter().zip(&entry.estimates).map(|(m, e)| serde_json::json!({
                 "patch": m.patch, "vertices": m.vertices, "radiosity": e.radiosity, "std_error": e.std_error,
             })).collect::<Vec<_>>(),
-        });
-        write_doc(&doc, path, to_stdout, &mut log)?;
-    }
-    Ok(())
+        })
+    })
 }
 
 /// Solve the scene as `radlab solve` would with the same solver flags ([`super::solve::solve_spec`]),
@@ -474,9 +470,7 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     };
     let cache = args.cache_dir.clone().map_or_else(Cache::default_location, Cache::at);
     let accel = Accel::build(&scene);
-    let to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
-    let mut log: Box<dyn Write> =
-        if to_stdout { Box::new(std::io::stderr()) } else { Box::new(std::io::stdout()) };
+    let mut log = log_stream(args);
     writeln!(
         log,
         "pointwise reference for {} ({} patches): at least {} points, {} paths each",
@@ -508,8 +502,8 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
     } else if args.images.is_some() {
         anyhow::bail!("--images needs --compare");
     }
-    if let Some(path) = &args.json {
-        let doc = serde_json::json!({
+    write_json(args, &mut log, || {
+        serde_json::json!({
             "scene": scene.source,
             "ruler": "points",
             "cache_file": file.display().to_string(),
@@ -519,10 +513,8 @@ fn run_points(args: &Args) -> anyhow::Result<()> {
                 "patch": p.patch, "position": p.position, "area": p.area, "level": p.cell.level,
                 "radiosity": e.radiosity, "std_error": e.std_error,
             })).collect::<Vec<_>>(),
-        });
-        write_doc(&doc, path, to_stdout, &mut log)?;
-    }
-    Ok(())
+        })
+    })
 }
 
 /// The reference at the points, from the cache (computed and cached when missing or invalid),
@@ -782,16 +774,26 @@ fn print_artifacts(
     super::artifacts::print_table(&r, ArtifactParams::standard().side, log)
 }
 
-/// Write a `--json` document to `path`, or to stdout when `to_stdout` (`--json -`), saying so in
-/// `log`.
-fn write_doc(
-    doc: &serde_json::Value,
-    path: &std::path::Path,
-    to_stdout: bool,
-    log: &mut dyn std::io::Write,
+/// `--json -`: the document goes to stdout.
+fn json_to_stdout(args: &Args) -> bool {
+    args.json.as_deref().is_some_and(|p| p.as_os_str() == "-")
+}
+
+/// Where the log goes: stderr when the `--json` document takes stdout, else stdout.
+fn log_stream(args: &Args) -> Box<dyn Write> {
+    if json_to_stdout(args) { Box::new(std::io::stderr()) } else { Box::new(std::io::stdout()) }
+}
+
+/// With `--json PATH`, write the document `doc` makes to PATH, or to stdout for `-`, saying so
+/// in `log`; without, nothing.
+fn write_json(
+    args: &Args,
+    log: &mut dyn Write,
+    doc: impl FnOnce() -> serde_json::Value,
 ) -> anyhow::Result<()> {
-    let text = serde_json::to_string_pretty(doc)?;
-    if to_stdout {
+    let Some(path) = &args.json else { return Ok(()) };
+    let text = serde_json::to_string_pretty(&doc())?;
+    if json_to_stdout(args) {
         println!("{text}");
     } else {
         std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
