@@ -115,7 +115,50 @@ pub struct Element {
     pub verts: [DVec3; 4],
 }
 
+/// An element with nothing gathered, the rest placeholders: what [`Element::with_nothing_gathered`]
+/// takes its gather sums from.
+const NOTHING_GATHERED: Element = Element {
+    parent: NONE,
+    first_child: NONE,
+    area: 0.0,
+    f_sum: 0.0,
+    fv_partial: 0.0,
+    fv_sum: 0.0,
+    b_max: 0.0,
+    radiosity: Rgb::ZERO,
+    gathered: Rgb::ZERO,
+    gathered_full: Rgb::ZERO,
+    gathered_slope: [Rgb::ZERO; 2],
+    fv_slope: [0.0; 2],
+    emission: Rgb::ZERO,
+    reflectance: Rgb::ZERO,
+    patch: 0,
+    depth: 0,
+    n_verts: 0,
+    stop: StopReason::Unrefined,
+    diam: 0.0,
+    centroid: DVec3::ZERO,
+    normal: DVec3::ZERO,
+    verts: [DVec3::ZERO; 4],
+};
+
 impl Element {
+    /// This element with the sums a gather fills in cleared: how a new element starts.
+    #[must_use]
+    fn with_nothing_gathered(self) -> Element {
+        let n = &NOTHING_GATHERED;
+        Element {
+            gathered: n.gathered,
+            gathered_full: n.gathered_full,
+            gathered_slope: n.gathered_slope,
+            fv_slope: n.fv_slope,
+            fv_sum: n.fv_sum,
+            f_sum: n.f_sum,
+            fv_partial: n.fv_partial,
+            ..self
+        }
+    }
+
     #[must_use]
     pub fn vertices(&self) -> &[DVec3] {
         &self.verts[..self.n_verts as usize]
@@ -174,15 +217,9 @@ fn child(parent: &Element, id: u32, k: usize) -> Element {
         area: polygon_area(used),
         diam: max_pairwise_distance(used),
         centroid: polygon_centroid(used),
-        gathered: Rgb::ZERO,
-        gathered_full: Rgb::ZERO,
-        gathered_slope: [Rgb::ZERO; 2],
-        fv_slope: [0.0; 2],
-        fv_sum: 0.0,
-        f_sum: 0.0,
-        fv_partial: 0.0,
         ..parent.clone()
     }
+    .with_nothing_gathered()
 }
 
 fn max_pairwise_distance(v: &[DVec3]) -> f64 {
@@ -229,13 +266,7 @@ impl Hierarchy {
                     emission: p.emission,
                     radiosity: p.emission,
                     b_max: p.emission.max_channel(),
-                    gathered: Rgb::ZERO,
-                    gathered_full: Rgb::ZERO,
-                    gathered_slope: [Rgb::ZERO; 2],
-                    fv_slope: [0.0; 2],
-                    fv_sum: 0.0,
-                    f_sum: 0.0,
-                    fv_partial: 0.0,
+                    ..NOTHING_GATHERED
                 }
             })
             .collect();
