@@ -69,13 +69,7 @@ fn furnace_spec(preset: Preset, threshold: f64, edit: impl Fn(&mut HierarchicalP
 /// A furnace solve's (worst relative error of B, leaves, escaped / emitted).
 fn furnace(rho: f64, spec: &SolveSpec) -> (f64, usize, f64) {
     let s = solve(common::furnace(rho, 1.0), spec);
-    let exact = 1.0 / (1.0 - rho);
-    let worst = s
-        .solution
-        .elements
-        .iter()
-        .map(|e| (e.radiosity.max_channel() / exact - 1.0).abs())
-        .fold(0.0, f64::max);
+    let worst = common::furnace_error(&s.solution, rho);
     let e = s.solution.energy;
     (worst, s.solution.elements.len(), e.escaped.mean() / e.emitted.mean())
 }

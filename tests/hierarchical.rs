@@ -34,12 +34,7 @@ fn white_furnace_is_exact_at_any_threshold() {
                 ..HierarchicalParams::quality()
             };
             let sol = solve(common::furnace(rho, 1.0), p).solution();
-            let exact = 1.0 / (1.0 - rho);
-            let worst = sol
-                .elements
-                .iter()
-                .map(|e| (e.radiosity.max_channel() / exact - 1.0).abs())
-                .fold(0.0, f64::max);
+            let worst = common::furnace_error(&sol, rho);
             assert_eq!(sol.elements.len(), 6, "rho {rho} BFeps {bf_eps}: the furnace needs no refinement");
             assert!(worst < FURNACE_TOL, "rho {rho} BFeps {bf_eps} Aeps {aeps}: worst rel err {worst:e}");
         }

@@ -71,13 +71,7 @@ fn the_furnace_is_exact_at_every_step() {
                 params.max_iterations = 1000;
             }
             let s = solve(common::furnace(rho, 1.0), &spec);
-            let exact = 1.0 / (1.0 - rho);
-            let worst = s
-                .solution
-                .elements
-                .iter()
-                .map(|e| (e.radiosity.max_channel() / exact - 1.0).abs())
-                .fold(0.0, f64::max);
+            let worst = common::furnace_error(&s.solution, rho);
             assert!(worst < 1e-6, "{} rho {rho}: worst relative error {worst:e}", preset.name());
             assert_eq!(s.solution.elements.len(), 6, "{} rho {rho}: refined the furnace", preset.name());
         }
