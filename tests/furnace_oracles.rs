@@ -6,16 +6,14 @@
 //! creates light on a built-in scene.
 //!
 //! The full sweeps, at the presets' own area floors and on every preset, are measurements
-//! (`cargo test --release --no-default-features --test furnace_oracles -- --ignored
-//! --nocapture`): `furnace_table` and `energy_table`, their numbers in docs/solver.md.
+//! (`cargo run --release --no-default-features --example conservation -- furnace|energy`),
+//! their numbers in docs/solver.md.
 
 mod common;
 
-use radlab::geometry::accel::Accel;
 use radlab::scene::Scene;
 use radlab::solver::params::{AreaEps, HierarchicalParams, Oracle};
-use radlab::solver::spec::{self, Plan, Preset, SolveSpec};
-use std::sync::Arc;
+use radlab::solver::spec::Preset;
 
 /// The furnace's answer, relative, worst element: the rows are balanced to 1e-11 and the gathers
 /// iterated to 1e-10, so B is off by about ρ/(1 − ρ) × 1e-10 (9e-10 at ρ 0.9, measured 7.9e-10).
@@ -34,45 +32,12 @@ const CREATED_TOL: f64 = 1e-4;
 /// 1.000102 of the emitted, residual 1.0e-4; 1.0000012 at `tolerance` 1e-6).
 const BALANCE_TOL: f64 = 1e-3;
 
-/// The oracles' thresholds (Feps; BFeps and ε relative, to the brightest emission and to the mean
-/// reflected radiosity): 0.1 down to 1e-4.
-const THRESHOLDS: [f64; 4] = [0.1, 1e-2, 1e-3, 1e-4];
-
 /// The BF and Feps runs' area floor in this test, relative to the scene's area. At the presets'
 /// own, 1e-4, they refine the furnace to 4 000–17 000 leaves and up to 2 M links (0.1–11 s each
-/// in a release build, `furnace_table`); at 4e-3 every threshold stops at depth 3 or above (the
+/// in a release build, `examples/conservation.rs`); at 4e-3 every threshold stops at depth 3 or above (the
 /// finest refines every face to 64 leaves), and without the closed rows B is still off by far
 /// more than [`FURNACE_TOL`] at ρ 0.9 (asserted below).
 const TEST_AREA_FLOOR: f64 = 4e-3;
-
-fn solve(scene: Scene, spec: &SolveSpec) -> spec::Solved {
-    let scene = Arc::new(scene);
-    let accel = Arc::new(Accel::build(&scene));
-    spec::solve(&scene, &accel, 0.0, spec, &mut |_, _| {}, None).unwrap()
-}
-
-/// `preset`'s spec with its oracle's threshold at `threshold` (the error oracle's area floor
-/// following it, as on the ladder), iterated to 1e-10, edited by `edit`.
-fn furnace_spec(preset: Preset, threshold: f64, edit: impl Fn(&mut HierarchicalParams)) -> SolveSpec {
-    let mut s = preset.spec();
-    if let Plan::Hierarchical { params, .. } = &mut s.plan {
-        *params = HierarchicalParams {
-            tolerance: 1e-10,
-            max_iterations: 1000,
-            ..spec::with_threshold(*params, threshold, true)
-        };
-        edit(params);
-    }
-    s
-}
-
-/// A furnace solve's (worst relative error of B, leaves, escaped / emitted).
-fn furnace(rho: f64, spec: &SolveSpec) -> (f64, usize, f64) {
-    let s = solve(common::furnace(rho, 1.0), spec);
-    let worst = common::furnace_error(&s.solution, rho);
-    let e = s.solution.energy;
-    (worst, s.solution.elements.len(), e.escaped.mean() / e.emitted.mean())
-}
 
 /// The furnace is exact under the BF oracle (`bf`), the Feps oracle (`lecture`) and the error
 /// oracle (`quality`, which does not refine it), for ρ 0.5 and 0.9 and every threshold, and its
@@ -84,14 +49,14 @@ fn every_oracle_keeps_the_furnace_exact() {
         [(Preset::Bf, Oracle::Bf), (Preset::Lecture, Oracle::Feps), (Preset::Quality, Oracle::Error)]
     {
         for rho in [0.5, 0.9] {
-            for threshold in THRESHOLDS {
+            for threshold in common::THRESHOLDS {
                 let spec = if oracle == Oracle::Error {
-                    furnace_spec(preset, threshold, |_| {})
+                    common::furnace_spec(preset, threshold, |_| {})
                 } else {
-                    furnace_spec(preset, threshold, floor)
+                    common::furnace_spec(preset, threshold, floor)
                 };
                 assert_eq!(spec.hierarchical().unwrap().oracle, oracle);
-                let (worst, leaves, escaped) = furnace(rho, &spec);
+                let (worst, leaves, escaped) = common::furnace_solve(rho, &spec);
                 let who = format!("{} ρ {rho} threshold {threshold}", preset.name());
                 assert!(worst < FURNACE_TOL, "{who}: worst relative error {worst:.2e} ({leaves} leaves)");
                 assert!(escaped.abs() < FURNACE_TOL, "{who}: escaped {escaped:.2e} of the emitted");
@@ -113,8 +78,9 @@ fn without_closed_rows_the_refined_furnace_is_not_exact() {
         p.close_rows = false;
     };
     for preset in [Preset::Bf, Preset::Lecture] {
-        for threshold in THRESHOLDS {
-            let (worst, leaves, _) = furnace(0.9, &furnace_spec(preset, threshold, open));
+        for threshold in common::THRESHOLDS {
+            let (worst, leaves, _) =
+                common::furnace_solve(0.9, &common::furnace_spec(preset, threshold, open));
             assert!(
                 worst > 10.0 * FURNACE_TOL,
                 "{} threshold {threshold}: worst relative error {worst:.2e} over {leaves} leaves",
@@ -171,7 +137,7 @@ fn the_ladder_creates_no_light() {
 
 /// What `preset` creates on the built-in scene `name`, if anything: a line per channel.
 fn created(name: &str, preset: Preset) -> Vec<String> {
-    let s = solve(Scene::load(&format!("builtin:{name}")).unwrap(), &preset.spec());
+    let s = common::solve(Scene::load(&format!("builtin:{name}")).unwrap(), &preset.spec());
     let e = s.solution.energy;
     (0..3)
         .filter(|&c| {
@@ -187,55 +153,4 @@ fn created(name: &str, preset: Preset) -> Vec<String> {
             )
         })
         .collect()
-}
-
-/// The furnace table: every oracle, ρ, threshold, at the presets' own area floors (`PRESETS`,
-/// `THRESHOLDS`: comma-separated filters).
-#[test]
-#[ignore = "a measurement (about 2 min in a release build): prints the furnace table"]
-fn furnace_table() {
-    let pick = |var: &str, name: &str| std::env::var(var).map_or(true, |v| v.split(',').any(|x| x == name));
-    for preset in [Preset::Bf, Preset::Lecture, Preset::Quality, Preset::Splash2] {
-        for rho in [0.5, 0.9] {
-            for threshold in THRESHOLDS {
-                if !pick("PRESETS", preset.name()) || !pick("THRESHOLDS", &threshold.to_string()) {
-                    continue;
-                }
-                let t = std::time::Instant::now();
-                let (worst, leaves, escaped) = furnace(rho, &furnace_spec(preset, threshold, |_| {}));
-                println!(
-                    "{:<8} rho {rho} threshold {threshold:<6}: worst {worst:.2e}  leaves {leaves:>7}  escaped {escaped:+.2e}  {:.2} s",
-                    preset.name(),
-                    t.elapsed().as_secs_f64()
-                );
-            }
-        }
-    }
-}
-
-/// Every preset on every built-in scene: escaped and absorbed against the emitted power
-/// (`SCENES`, `PRESETS`: comma-separated filters).
-#[test]
-#[ignore = "a measurement (about 15 min in a release build): prints the energy table"]
-fn energy_table() {
-    let pick = |var: &str, name: &str| std::env::var(var).map_or(true, |v| v.split(',').any(|x| x == name));
-    for &(name, _) in radlab::scene::builtin::BUILTINS {
-        for preset in Preset::ALL {
-            if !pick("SCENES", name) || !pick("PRESETS", preset.name()) {
-                continue;
-            }
-            let t = std::time::Instant::now();
-            let s = solve(Scene::load(&format!("builtin:{name}")).unwrap(), &preset.spec());
-            let e = s.solution.energy;
-            let escaped = (0..3).map(|c| e.escaped.0[c] / e.emitted.0[c]).fold(f64::INFINITY, f64::min);
-            let absorbed = (0..3).map(|c| e.absorbed.0[c] / e.emitted.0[c]).fold(0.0, f64::max);
-            println!(
-                "{name:<17} {:<12} escaped {escaped:+.2e}  absorbed {absorbed:.6}  residual {:.1e}  leaves {:>7}  {:.2} s",
-                preset.name(),
-                e.relative_residual(),
-                s.solution.elements.len(),
-                t.elapsed().as_secs_f64()
-            );
-        }
-    }
 }

@@ -1,10 +1,15 @@
-//! Scenes built in code for the solver tests (independent of the glTF loader), and how far a
-//! solution of the furnace is from its closed form.
+//! Scenes built in code for the solver tests (independent of the glTF loader), how far a
+//! solution of the furnace is from its closed form, and the furnace solved at an oracle's
+//! threshold (shared with `examples/conservation.rs`).
 #![allow(dead_code)]
 
+use radlab::geometry::accel::Accel;
 use radlab::math::{DVec3, Rgb};
 use radlab::scene::{Patch, Scene};
 use radlab::solver::Solution;
+use radlab::solver::params::HierarchicalParams;
+use radlab::solver::spec::{self, Plan, Preset, SolveSpec};
+use std::sync::Arc;
 
 pub fn quad(v: [[f64; 3]; 4], rho: f64, e: f64, name: &str) -> Patch {
     Patch::new(
@@ -85,3 +90,36 @@ pub fn table_room() -> Scene {
     ));
     Scene::new("table-room", "test:table-room", p)
 }
+
+pub fn solve(scene: Scene, spec: &SolveSpec) -> spec::Solved {
+    let scene = Arc::new(scene);
+    let accel = Arc::new(Accel::build(&scene));
+    spec::solve(&scene, &accel, 0.0, spec, &mut |_, _| {}, None).unwrap()
+}
+
+/// `preset`'s spec with its oracle's threshold at `threshold` (the error oracle's area floor
+/// following it, as on the ladder), iterated to 1e-10, edited by `edit`.
+pub fn furnace_spec(preset: Preset, threshold: f64, edit: impl Fn(&mut HierarchicalParams)) -> SolveSpec {
+    let mut s = preset.spec();
+    if let Plan::Hierarchical { params, .. } = &mut s.plan {
+        *params = HierarchicalParams {
+            tolerance: 1e-10,
+            max_iterations: 1000,
+            ..spec::with_threshold(*params, threshold, true)
+        };
+        edit(params);
+    }
+    s
+}
+
+/// A furnace solve's (worst relative error of B, leaves, escaped / emitted).
+pub fn furnace_solve(rho: f64, spec: &SolveSpec) -> (f64, usize, f64) {
+    let s = solve(furnace(rho, 1.0), spec);
+    let worst = furnace_error(&s.solution, rho);
+    let e = s.solution.energy;
+    (worst, s.solution.elements.len(), e.escaped.mean() / e.emitted.mean())
+}
+
+/// The oracles' thresholds of the furnace sweeps (Feps; BFeps and ε relative, to the brightest
+/// emission and to the mean reflected radiosity): 0.1 down to 1e-4.
+pub const THRESHOLDS: [f64; 4] = [0.1, 1e-2, 1e-3, 1e-4];
