@@ -42,9 +42,10 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn row_audit(&self, rays: u32, seed: u64) -> Vec<LeafAudit> {
         let rows = self.leaf_rows();
-        let clustered = self.clusters.as_deref().filter(|_| !self.cluster_links.is_empty());
+        let clustered = self.cluster.tree.as_deref().filter(|_| !self.cluster.links.is_empty());
         let pos = clustered.map(ClusterTree::positions).unwrap_or_default();
-        let (scene, accel, hier, xfer) = (&self.scene, &self.accel, &self.hier, &self.cluster_xfer);
+        let (scene, accel, hier, xfer) =
+            (&self.setup.scene, &self.setup.accel, &self.hier, &self.cluster.xfer);
         rows.par_iter()
             .with_min_len(64)
             .map(|r| {

@@ -226,17 +226,18 @@ impl HierarchicalSolver {
     /// Do the closed rows apply to this solve (`HierarchicalParams::close_rows`, not clustered,
     /// Jacobi gathers)?
     pub(super) fn closure_applies(&self) -> bool {
-        self.params.close_rows && !self.params.gauss_seidel && !self.clustering()
+        self.setup.params.close_rows && !self.setup.params.gauss_seidel && !self.clustering()
     }
 
     /// Decide which input patches are enclosed (once per scene and seed).
     pub(super) fn closure_prepare(&mut self) {
         if self.closure_applies()
-            && (self.closure.enclosed.len() != self.scene.patches.len()
-                || self.closure.seed != self.params.seed)
+            && (self.closure.enclosed.len() != self.setup.scene.patches.len()
+                || self.closure.seed != self.setup.params.seed)
         {
-            self.closure.enclosed = enclosed_patches(&self.scene, &self.accel, self.params.seed);
-            self.closure.seed = self.params.seed;
+            self.closure.enclosed =
+                enclosed_patches(&self.setup.scene, &self.setup.accel, self.setup.params.seed);
+            self.closure.seed = self.setup.params.seed;
         }
     }
 
@@ -266,7 +267,7 @@ impl HierarchicalSolver {
         scratch: &mut OperatorScratch,
     ) {
         let els = &self.hier.elements;
-        let slopes = self.params.push_slopes;
+        let slopes = self.setup.params.push_slopes;
         let OperatorScratch { value, world, moment, gathered, basis } = scratch;
         value.clear();
         value.extend_from_slice(v);
@@ -333,7 +334,7 @@ impl HierarchicalSolver {
             let slope = if row > 0.0 { (OWN_EXPONENT * e.fv_sum + up) / row } else { 1.0 };
             raw[i] = if row > 0.0 && slope > 0.0 { (row.ln() / slope).exp() } else { 0.0 };
         };
-        if self.params.push_slopes {
+        if self.setup.params.push_slopes {
             for_each_leaf_row(els, &mut Vec::<Chain>::new(), each);
         } else {
             for_each_leaf_row(els, &mut Vec::<FlatChain>::new(), each);
@@ -372,7 +373,7 @@ impl HierarchicalSolver {
                 .collect(),
             ..OperatorScratch::default()
         };
-        let tol = (CLOSURE_TOL_SHARE * self.params.tolerance).clamp(CLOSURE_TOL_MIN, CLOSURE_TOL_MAX);
+        let tol = (CLOSURE_TOL_SHARE * self.setup.params.tolerance).clamp(CLOSURE_TOL_MIN, CLOSURE_TOL_MAX);
         let mut r = vec![(0.0, 0.0); n];
         // The row with scale d: d^γ own + d inherited.
         let row_of = |dx: f64, (own, up): (f64, f64)| own_scale(dx) * own + dx * up;
@@ -440,7 +441,7 @@ impl HierarchicalSolver {
         c.sent.extend(
             els.iter().zip(&c.scale).map(|(e, d)| if e.is_leaf() { e.radiosity * *d } else { Rgb::ZERO }),
         );
-        pull(els, &mut c.sent, &mut c.world, &mut c.sent_moment, self.params.push_slopes);
+        pull(els, &mut c.sent, &mut c.world, &mut c.sent_moment, self.setup.params.push_slopes);
         for ((x, e), d) in c.sent.iter_mut().zip(els).zip(&c.scale) {
             if e.is_leaf() {
                 *x = e.radiosity * own_scale(*d);

@@ -254,7 +254,7 @@ impl HierarchicalSolver {
     /// Recompute Σ F and Σ F·V of every receiver whose link list changed since the last call
     /// (`changed`).
     pub(super) fn update_sums(&mut self, changed: &[u32]) {
-        let links = &self.links.by_receiver;
+        let links = &self.graph.links.by_receiver;
         disjoint_mut(&mut self.hier.elements, changed.iter().copied())
             .into_par_iter()
             .zip(changed.par_iter())
@@ -267,7 +267,7 @@ impl HierarchicalSolver {
             });
         // Input patches' rows include what they gather through cluster links.
         for &r in changed {
-            if let Some(&fv) = self.cluster_fv.get(r as usize) {
+            if let Some(&fv) = self.cluster.fv.get(r as usize) {
                 let e = &mut self.hier.elements[r as usize];
                 e.fv_sum += fv;
                 e.fv_partial += fv;
@@ -283,36 +283,36 @@ impl HierarchicalSolver {
     /// radiosities of the previous iteration. With `gauss_seidel`, gathers and pushes patch by
     /// patch instead, each patch using the newest values (then push-pull is already done).
     pub fn gather_step(&mut self) -> StepReport {
-        self.cancel.store(false, Ordering::Relaxed);
+        self.setup.cancel.store(false, Ordering::Relaxed);
         self.gather_inner()
     }
 
     pub(super) fn gather_inner(&mut self) -> StepReport {
         let t = Instant::now();
         // The links as one contiguous plan, rebuilt after they change.
-        let mut plan = std::mem::take(&mut self.gather_plan);
-        let links_changed = !self.plan_valid || !self.plan_changed.is_empty();
+        let mut plan = std::mem::take(&mut self.gather.plan);
+        let links_changed = !self.gather.plan_valid || !self.gather.plan_changed.is_empty();
         if links_changed {
-            if self.params.push_slopes {
+            if self.setup.params.push_slopes {
                 self.fill_slopes();
             }
-            let slopes = self.params.push_slopes.then_some(&self.hier);
-            if self.plan_valid {
-                let mut changed = std::mem::take(&mut self.plan_changed);
+            let slopes = self.setup.params.push_slopes.then_some(&self.hier);
+            if self.gather.plan_valid {
+                let mut changed = std::mem::take(&mut self.gather.plan_changed);
                 changed.sort_unstable();
                 changed.dedup();
-                plan.update(&self.links, slopes, &changed);
+                plan.update(&self.graph.links, slopes, &changed);
                 #[cfg(debug_assertions)]
                 {
                     let mut whole = GatherPlan::default();
-                    whole.rebuild(&self.links, slopes);
+                    whole.rebuild(&self.graph.links, slopes);
                     plan.assert_same(&whole);
                 }
             } else {
-                plan.rebuild(&self.links, slopes);
+                plan.rebuild(&self.graph.links, slopes);
             }
-            self.plan_valid = true;
-            self.plan_changed.clear();
+            self.gather.plan_valid = true;
+            self.gather.plan_changed.clear();
         }
         // Closed rows: balance the enclosed leaves' rows for these links, and what every element
         // sends (`closure`).
@@ -328,13 +328,13 @@ impl HierarchicalSolver {
         // What the input patches gather through cluster links, from the radiosities before
         // this gather (both sweeps).
         let cluster_h = self.cluster_irradiance();
-        if self.params.gauss_seidel {
+        if self.setup.params.gauss_seidel {
             let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
             for root in 0..self.hier.roots as u32 {
                 let ids = self.subtree(root);
                 let g: Vec<(Rgb, Rgb, [Rgb; 2])> = ids
                     .iter()
-                    .map(|&r| plan.gather(r as usize, |s| self.hier.get(s).radiosity, &self.moment))
+                    .map(|&r| plan.gather(r as usize, |s| self.hier.get(s).radiosity, &self.push_pull.moment))
                     .collect();
                 for (&r, (g, full, slope)) in ids.iter().zip(g) {
                     let e = &mut self.hier.elements[r as usize];
@@ -352,11 +352,11 @@ impl HierarchicalSolver {
             // Recomputes the same leaf values (nothing was gathered since each root's push) and
             // measures the change against the values before the sweep.
             self.push_pull_flat(Some(&before), true);
-            self.stats.gather_s += t.elapsed().as_secs_f64();
+            self.log.stats.gather_s += t.elapsed().as_secs_f64();
         } else {
             // Sources' radiosity in a compact array (read once per link, in any order), then
             // every receiver gathers in parallel.
-            let mut b = std::mem::take(&mut self.b_prev);
+            let mut b = std::mem::take(&mut self.gather.b_prev);
             b.resize(self.hier.len(), Rgb::ZERO);
             if self.closure_active() {
                 b.copy_from_slice(&self.closure.sent);
@@ -366,7 +366,7 @@ impl HierarchicalSolver {
                     .with_min_len(1024)
                     .for_each(|(b, e)| *b = e.radiosity);
             }
-            let mu = if self.closure_active() { &self.closure.sent_moment } else { &self.moment };
+            let mu = if self.closure_active() { &self.closure.sent_moment } else { &self.push_pull.moment };
             self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
                 (e.gathered, e.gathered_full, e.gathered_slope) = plan.gather(r, |s| b[s as usize], mu);
             });
@@ -379,12 +379,12 @@ impl HierarchicalSolver {
                     add_slope(&mut e.gathered_slope, *s);
                 }
             }
-            self.b_prev = b;
-            self.stats.gather_s += t.elapsed().as_secs_f64();
+            self.gather.b_prev = b;
+            self.log.stats.gather_s += t.elapsed().as_secs_f64();
         }
-        self.gather_plan = plan;
-        self.gathered_once = true;
-        self.stats.iterations += 1;
+        self.gather.plan = plan;
+        self.log.gathered_once = true;
+        self.log.stats.iterations += 1;
         self.report(StepKind::Gather, t, 0, 0)
     }
 

@@ -261,13 +261,13 @@ pub(super) fn row_excess<S: Sums>(els: &[Element], chain: &mut Vec<S>, eps: f64)
 impl HierarchicalSolver {
     /// The row check's excess of every element now (empty when `row_tol` is 0).
     pub(super) fn row_excess_now(&mut self) -> Vec<f32> {
-        let eps = self.params.row_tol * self.mean_reflected();
+        let eps = self.setup.params.row_tol * self.mean_reflected();
         if eps <= 0.0 {
             Vec::new()
-        } else if self.params.push_slopes {
-            row_excess(&self.hier.elements, &mut self.chain, eps)
+        } else if self.setup.params.push_slopes {
+            row_excess(&self.hier.elements, &mut self.push_pull.chain, eps)
         } else {
-            row_excess(&self.hier.elements, &mut self.flat_chain, eps)
+            row_excess(&self.hier.elements, &mut self.push_pull.flat_chain, eps)
         }
     }
 
@@ -276,14 +276,14 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn leaf_rows(&self) -> Vec<LeafRow> {
         let mut rows = Vec::new();
-        let cluster = &self.cluster_fv;
+        let cluster = &self.cluster.fv;
         let closed = &self.closure.row;
         let mut each = |i: usize, e: &Element, _: Rgb, row: f64| {
             let cluster = cluster.get(e.patch as usize).copied().unwrap_or(0.0);
             let row = closed.get(i).copied().unwrap_or(row);
             rows.push(LeafRow { id: i as u32, row, cluster });
         };
-        if self.params.push_slopes {
+        if self.setup.params.push_slopes {
             for_each_leaf_row(&self.hier.elements, &mut Vec::<Chain>::new(), &mut each);
         } else {
             for_each_leaf_row(&self.hier.elements, &mut Vec::<FlatChain>::new(), &mut each);
@@ -325,8 +325,9 @@ impl HierarchicalSolver {
     /// slope depends on its two elements and V only, so it is computed once per link).
     pub(super) fn fill_slopes(&mut self) {
         let hier = &self.hier;
-        let kernels = &self.error_kernels;
+        let kernels = &self.oracle.error_kernels;
         let sums: Vec<[f64; 2]> = self
+            .graph
             .links
             .by_receiver
             .par_iter_mut()
@@ -376,7 +377,7 @@ impl HierarchicalSolver {
     pub fn push_pull_step(&mut self) -> StepReport {
         let t = Instant::now();
         self.push_pull_flat(None, true);
-        self.stats.push_pull_s += t.elapsed().as_secs_f64();
+        self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
         self.report(StepKind::PushPull, t, 0, 0)
     }
 
@@ -387,7 +388,7 @@ impl HierarchicalSolver {
     /// `up`: the irradiance inherited from the ancestors (`Chain`).
     pub(super) fn push_pull_rec(&mut self, id: u32, up: Chain) -> Rgb {
         let e = &self.hier.elements[id as usize];
-        let own = up.step(e, self.params.push_slopes);
+        let own = up.step(e, self.setup.params.push_slopes);
         if let Some(kids) = e.children() {
             let area = e.area;
             let mut b = Rgb::ZERO;
@@ -418,21 +419,21 @@ impl HierarchicalSolver {
     /// the largest leaf change against `before` (default: the values before this call).
     pub(super) fn push_pull_flat(&mut self, before: Option<&[Rgb]>, energy: bool) {
         let n = self.hier.len();
-        let slopes = self.params.push_slopes;
+        let slopes = self.setup.params.push_slopes;
         // Per element: its own and inherited sums (full-visibility irradiance, other irradiance,
         // full-visibility F, other F·V; with slopes, their gradients).
         let closed = (&self.closure.scale[..], &self.closure.row[..]);
         let (max_change, max_reflected, absorbed, escaped) = if slopes {
-            push_down(&mut self.hier.elements, &mut self.chain, before, energy, closed)
+            push_down(&mut self.hier.elements, &mut self.push_pull.chain, before, energy, closed)
         } else {
-            push_down(&mut self.hier.elements, &mut self.flat_chain, before, energy, closed)
+            push_down(&mut self.hier.elements, &mut self.push_pull.flat_chain, before, energy, closed)
         };
         // With the rows closed the gather pulls its own moments, of the scaled B (`pull_sent`).
         let slopes = slopes && !self.closure_active();
         let els = &mut self.hier.elements;
         // World moments Σ_leaves A B (c − c_e) / A_e while pulling (leaves: 0), then each in its
         // element's tangent basis.
-        let world = &mut self.moment_world;
+        let world = &mut self.push_pull.moment_world;
         world.clear();
         world.resize(if slopes { n } else { 0 }, [Rgb::ZERO; 3]);
         for i in (0..n).rev() {
@@ -462,22 +463,24 @@ impl HierarchicalSolver {
                 world[i] = m;
             }
         }
-        self.moment.clear();
+        self.push_pull.moment.clear();
         if slopes {
-            self.moment.par_extend(els.par_iter().zip(world.par_iter()).with_min_len(1024).map(|(e, m)| {
-                if e.is_leaf() {
-                    return [Rgb::ZERO; 2];
-                }
-                let (t1, t2) = crate::math::orthonormal_basis(e.normal);
-                [m[0] * t1.x + m[1] * t1.y + m[2] * t1.z, m[0] * t2.x + m[1] * t2.y + m[2] * t2.z]
-            }));
+            self.push_pull.moment.par_extend(els.par_iter().zip(world.par_iter()).with_min_len(1024).map(
+                |(e, m)| {
+                    if e.is_leaf() {
+                        return [Rgb::ZERO; 2];
+                    }
+                    let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+                    [m[0] * t1.x + m[1] * t1.y + m[2] * t1.z, m[0] * t2.x + m[1] * t2.y + m[2] * t2.z]
+                },
+            ));
         }
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
-        self.residuals.push(residual);
-        self.converged = residual < self.params.tolerance;
+        self.log.residuals.push(residual);
+        self.log.converged = residual < self.setup.params.tolerance;
         if energy {
-            self.energy.absorbed = absorbed;
-            self.energy.escaped = escaped;
+            self.log.energy.absorbed = absorbed;
+            self.log.energy.escaped = escaped;
         }
     }
 
@@ -486,12 +489,12 @@ impl HierarchicalSolver {
     /// `solve`, whose iterations skip these sums until the end.
     pub(super) fn energy_pass(&mut self) {
         let closed = (&self.closure.scale[..], &self.closure.row[..]);
-        let (absorbed, escaped) = if self.params.push_slopes {
-            energy_sums(&self.hier.elements, &mut self.chain, closed)
+        let (absorbed, escaped) = if self.setup.params.push_slopes {
+            energy_sums(&self.hier.elements, &mut self.push_pull.chain, closed)
         } else {
-            energy_sums(&self.hier.elements, &mut self.flat_chain, closed)
+            energy_sums(&self.hier.elements, &mut self.push_pull.flat_chain, closed)
         };
-        self.energy.absorbed = absorbed;
-        self.energy.escaped = escaped;
+        self.log.energy.absorbed = absorbed;
+        self.log.energy.escaped = escaped;
     }
 }

@@ -115,7 +115,7 @@ impl HierarchicalSolver {
     /// New links replacing the split ones of receiver `r` (its own list, links for its
     /// children), with the next pass's verdicts on them.
     pub(super) fn replace_links(&self, r: u32, splits: &[(u32, Split)]) -> Replaced {
-        let old = &self.links.by_receiver[r as usize];
+        let old = &self.graph.links.by_receiver[r as usize];
         // The new links of each split link (its source's or its receiver's children, in child
         // order), in parallel when the receiver has many: one busy receiver must not keep a
         // thread waiting. Each split link has its own shadow cache, so the result does not
@@ -188,7 +188,7 @@ impl HierarchicalSolver {
         let key = pair_key(parent, other);
         let mut out = [None; 4];
         let mut rays = 0;
-        if let Some(made) = self.pair_memo.get(key) {
+        if let Some(made) = self.graph.pair_memo.get(key) {
             for (k, (c, o)) in children.into_iter().zip(made).enumerate() {
                 let (receiver, source) = ends(c);
                 if let Some(o) = o {
@@ -212,7 +212,7 @@ impl HierarchicalSolver {
                 _ => 0,
             };
         }
-        self.pair_memo.put(key, made);
+        self.graph.pair_memo.put(key, made);
         (out, rays)
     }
 
@@ -238,8 +238,14 @@ impl HierarchicalSolver {
         {
             let q = self.hier.get(source);
             let straddle = pair_sides(p, q).straddle;
-            let mut made =
-                new_link((p, receiver), (q, source), out.g, out.vis, straddle, self.params.conservative);
+            let mut made = new_link(
+                (p, receiver),
+                (q, source),
+                out.g,
+                out.vis,
+                straddle,
+                self.setup.params.conservative,
+            );
             made.unmeasured = out.unmeasured;
             made.clear = out.clear;
             // (Debug formatting: an unmeasured link's coupling is NaN, which `==` rejects.)
