@@ -12,8 +12,11 @@
 //! both fractions; a share above its own is light the solve creates. [Cohen & Wallace 1993,
 //! ch. 2: Σ_j F_ij ≤ 1; Smits, Arvo & Greenberg 1994 for the cluster links.]
 
-use super::*;
+use super::cluster::ClusterTree;
+use super::{HierarchicalSolver, cluster};
 use crate::solver::escape::{Hit, Region, cast_hemisphere};
+use rayon::prelude::*;
+use serde::Serialize;
 
 /// One leaf's row of F·V and its hemisphere, as the rays found it.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]

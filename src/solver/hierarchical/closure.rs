@@ -55,8 +55,15 @@
 //! back, an open box's walls see out: they keep their own rows. Off in clustered solves (cluster
 //! links carry bounded approximations of their rows, `super::cluster`) and with Gauss–Seidel.
 
-use super::*;
+use super::HierarchicalSolver;
+use super::gather::GatherPlan;
+use super::push_pull::{Chain, FlatChain, for_each_leaf_row};
+use crate::geometry::accel::Accel;
+use crate::math::{DVec3, Rgb, splitmix64};
+use crate::scene::Scene;
 use crate::solver::escape::{Hit, Region, cast_hemisphere};
+use crate::solver::hierarchy::{Element, NONE};
+use rayon::prelude::*;
 
 /// γ, the share of a leaf's scale on its own links (d^γ; its inherited links take d). 0 would
 /// leave a leaf that has only its own links no way to close its row, 1 scales its own links' light

@@ -7,7 +7,13 @@
 //! F_pq V_pq is fixed between refinements, so the links are flattened once into a
 //! [`GatherPlan`]; ancestors' links reach the leaves in [`super::push_pull`].
 
-use super::*;
+use super::{HierarchicalSolver, StepKind, StepReport, disjoint_mut};
+use crate::math::Rgb;
+use crate::solver::hierarchy::Hierarchy;
+use crate::solver::link::{Link, LinkStore};
+use rayon::prelude::*;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
 
 /// Every receiver's links with F·V > 0, flattened for gathering (links do not change between
 /// refinements): source (high bit set when fully visible) and weight F·V, in list order.

@@ -8,7 +8,18 @@
 //! ```
 //! The cluster tree and its transfer are in [`super::cluster`].
 
-use super::*;
+use super::cluster::{ClusterLink, ClusterTransfer, ClusterTree, Pairing};
+use super::refine::{new_link, pair_key, pair_sides};
+use super::{
+    ClusterEnd, ClusterInfo, ClusterLinkView, HierarchicalSolver, ROOT_CONFIRM_RAYS, cluster, transfer,
+};
+use crate::geometry::accel::NO_HIT;
+use crate::geometry::visibility::{self, Stop};
+use crate::math::{Rgb, newell_normal};
+use crate::solver::link::Link;
+use crate::solver::params::Oracle;
+use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Cached initial links: ((rays, seed, conservative, weighted), links per root receiver, pairs skipped).
 pub(super) type InitialLinks = ((u32, u64, bool, bool), Vec<Vec<Link>>, usize);

@@ -122,22 +122,17 @@ mod refine;
 mod transfer;
 
 pub use audit::LeafAudit;
-use gather::*;
 use parts::{ClusterState, GatherState, LinkGraph, OracleState, PushPullState, RunLog, Setup};
-use push_pull::*;
-use refine::*;
+use push_pull::{Chain, leaf_irradiance};
 
 use super::params::{HierarchicalParams, Oracle};
-use crate::geometry::accel::{Accel, NO_HIT};
-use crate::geometry::form_factor;
-use crate::geometry::visibility::{self, Stop};
-use crate::math::{DVec3, Rgb, newell_normal, splitmix64};
+use crate::geometry::accel::Accel;
+use crate::math::{DVec3, Rgb};
 use crate::scene::Scene;
 use crate::solver::hierarchy::{Element, Hierarchy, NONE, StopReason};
 use crate::solver::link::{Link, LinkStore, VisClass};
 use crate::solver::{PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
-use cluster::{ClusterLink, ClusterTransfer, ClusterTree, Pairing};
-use rayon::prelude::*;
+use cluster::ClusterLink;
 use serde::Serialize;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -836,6 +831,7 @@ impl HierarchicalSolver {
 mod tests {
     use super::*;
     use crate::scene::Patch;
+    use refine::{coupling_in, new_link};
 
     /// The five-times rule's disk estimate against the exact coupling at five diameters or more
     /// (the lecture quotes the rule as good to about a percent; 3 % allows for off-axis pairs).

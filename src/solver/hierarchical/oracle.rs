@@ -376,7 +376,7 @@ impl HierarchicalSolver {
         for &(r, e) in &errs {
             field.err[r as usize] = e;
         }
-        let mut decide = super::IdSet::default();
+        let mut decide = super::refine::IdSet::default();
         for &(r, e) in &errs {
             field.spread[r as usize] = self.element_spread(r, e);
             let own = &self.graph.links.by_receiver[r as usize];
@@ -511,7 +511,7 @@ impl HierarchicalSolver {
             (true, false) => (lo, None),
             (false, true) => (hi, None),
             (true, true) => {
-                let lo_larger = super::nearly_equal(elo.area, ehi.area) || elo.area > ehi.area;
+                let lo_larger = super::refine::nearly_equal(elo.area, ehi.area) || elo.area > ehi.area;
                 if lo_larger { (lo, Some(hi)) } else { (hi, Some(lo)) }
             }
         };

@@ -11,7 +11,11 @@
 //! between levels. The same sweep sums the power balance (`EnergyBalance`): absorbed
 //! Σ A (1 − ρ) H and escaped Σ A B (1 − Σ F·V of the leaf's row).
 
-use super::*;
+use super::{HierarchicalSolver, LeafRow, StepKind, StepReport, oracle};
+use crate::math::{DVec3, Rgb};
+use crate::solver::hierarchy::{Element, NONE};
+use rayon::prelude::*;
+use std::time::Instant;
 
 /// Sums an element inherits in push-pull, its own included.
 #[derive(Copy, Clone, Debug, Default)]

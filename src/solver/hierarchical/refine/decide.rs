@@ -7,8 +7,12 @@
 //! side:  F_pq > F_qp → the source q, else the receiver p (ties: the larger, then the lower id)
 //! ```
 
-use super::super::*;
 use super::verdict::{Decision, ReceiverDecision, Split, Verdict};
+use crate::scene::Scene;
+use crate::solver::hierarchical::{HierarchicalSolver, oracle};
+use crate::solver::hierarchy::{Element, StopReason};
+use crate::solver::link::{Link, VisClass};
+use crate::solver::params::{HierarchicalParams, Oracle};
 
 impl HierarchicalSolver {
     pub(in crate::solver::hierarchical) fn can_split(&self, e: &Element) -> Result<(), StopReason> {

@@ -2,10 +2,16 @@
 //! and its visibility V, estimated in the pair's canonical order so that a link and its
 //! mirror carry the same F·V·A, with as few rays as the next pass's verdict needs.
 
-use super::super::*;
 use super::pair::{PairSides, new_link, pair_key, pair_sides};
 use super::replace::PairOutcome;
 use super::verdict::Decision;
+use crate::geometry::accel::NO_HIT;
+use crate::geometry::visibility::{self, Stop};
+use crate::solver::hierarchical::{HierarchicalSolver, transfer};
+use crate::solver::hierarchy::{Element, Hierarchy, NONE};
+use crate::solver::link::{Link, VisClass};
+use crate::solver::params::Oracle;
+use rayon::prelude::*;
 
 /// Which visibility classes the next pass would split a new link in.
 #[derive(Copy, Clone)]

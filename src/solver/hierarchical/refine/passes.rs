@@ -9,9 +9,15 @@
 //! the cluster links; after the last it records why each leaf stopped and updates the sums
 //! and the gather plan where the link lists changed.
 
-use super::super::*;
 use super::replace::Replaced;
 use super::verdict::{IdSet, ReceiverDecision, Split, Verdict};
+use crate::solver::hierarchical::{HierarchicalSolver, StepKind, StepReport, disjoint_mut, oracle};
+use crate::solver::hierarchy::StopReason;
+use crate::solver::link::Link;
+use crate::solver::params::Oracle;
+use rayon::prelude::*;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
 
 /// Receivers whose link lists the oracle's first pass loads together (see `decide_all`).
 pub(super) const TOUCH_AHEAD: usize = 16;

@@ -3,8 +3,14 @@
 //! pass's verdicts on them. A split pair is replaced in both receivers' lists in the same
 //! pass; the second one reuses the first one's new pairs (`PairMemo`) as mirror links.
 
-use super::super::*;
 use super::verdict::{Decision, Split, Verdict};
+use crate::geometry::accel::NO_HIT;
+use crate::math::splitmix64;
+use crate::solver::hierarchical::HierarchicalSolver;
+use crate::solver::hierarchical::refine::{new_link, pair_key, pair_sides};
+use crate::solver::hierarchy::NONE;
+use crate::solver::link::Link;
+use rayon::prelude::*;
 
 /// A receiver with at least this many links to split computes their replacements in parallel.
 pub(super) const PARALLEL_SPLITS: usize = 32;

@@ -18,7 +18,9 @@
 //! reads only the pair's coupling, V and the two elements' marks, so a link and its mirror
 //! agree.
 
-use super::super::*;
+use crate::solver::hierarchical::HierarchicalSolver;
+use crate::solver::link::Link;
+use rayon::prelude::*;
 
 /// The row check pushes down, of an element with an excess row below it, the largest links
 /// that together carry this multiple of the excess (`row_split`).
