@@ -15,7 +15,7 @@ use super::{
 };
 use crate::geometry::accel::NO_HIT;
 use crate::geometry::visibility::{self, Stop};
-use crate::math::{Rgb, newell_normal};
+use crate::math::newell_normal;
 use crate::solver::link::Link;
 use crate::solver::params::Oracle;
 use rayon::prelude::*;
@@ -356,23 +356,6 @@ impl HierarchicalSolver {
             });
         }
         (infos, patch_cluster)
-    }
-
-    /// Every input patch's irradiance through the cluster links, and with `push_slopes` its
-    /// slope ([`ClusterTransfer::irradiance_and_slopes`]; else no slopes; None: no cluster
-    /// links).
-    pub(super) fn cluster_irradiance(&mut self) -> Option<(Vec<Rgb>, Vec<[Rgb; 2]>)> {
-        let tree = self.cluster.tree.as_ref()?;
-        if self.cluster.links.is_empty() {
-            return None;
-        }
-        let hier = &self.hier;
-        let b = |p: u32| hier.get(p).radiosity;
-        Some(if self.setup.params.push_slopes {
-            self.cluster.xfer.irradiance_and_slopes(tree, hier, &b)
-        } else {
-            (self.cluster.xfer.irradiance(tree, hier, &b), Vec::new())
-        })
     }
 
     /// The form-factor accuracy of input patch pairs: they carry a closed scene's whole

@@ -470,7 +470,7 @@ impl HierarchicalSolver {
         self.push_pull.moment.clear();
         self.cluster.links.clear();
         self.cluster.fv.clear();
-        self.closure_reset();
+        self.closure.reset();
         self.graph.linked = false;
         self.log = RunLog::new(&self.setup.scene);
         self.setup.cancel.store(false, Ordering::Relaxed);

@@ -13,13 +13,14 @@ use super::cluster::{ClusterLink, ClusterTransfer, ClusterTree};
 use super::gather::GatherPlan;
 use super::linking::InitialLinks;
 use super::oracle::Kernels;
-use super::push_pull::{Chain, FlatChain};
+use super::push_pull::{Chain, FlatChain, Pushed};
 use super::refine::PairMemo;
 use super::refine::resolve_bf_eps;
 use crate::geometry::accel::Accel;
 use crate::math::Rgb;
 use crate::scene::Scene;
 use crate::solver::EnergyBalance;
+use crate::solver::hierarchy::Hierarchy;
 use crate::solver::link::LinkStore;
 use crate::solver::params::HierarchicalParams;
 use std::sync::Arc;
@@ -154,6 +155,27 @@ pub(super) struct ClusterState {
     pub(super) fv: Vec<f64>,
 }
 
+/// What the input patches gather through cluster links: per patch the irradiance, and (with
+/// slopes) its gradient in the patch's tangent basis.
+pub(super) type ClusterIrradiance = (Vec<Rgb>, Vec<[Rgb; 2]>);
+
+impl ClusterState {
+    /// What the input patches of `hier` gather through the cluster links from the current
+    /// radiosities (None when there are none); `slopes`: with the gradients.
+    pub(super) fn irradiance(&mut self, hier: &Hierarchy, slopes: bool) -> Option<ClusterIrradiance> {
+        let tree = self.tree.as_ref()?;
+        if self.links.is_empty() {
+            return None;
+        }
+        let b = |p: u32| hier.get(p).radiosity;
+        Some(if slopes {
+            self.xfer.irradiance_and_slopes(tree, hier, &b)
+        } else {
+            (self.xfer.irradiance(tree, hier, &b), Vec::new())
+        })
+    }
+}
+
 /// The run log: statistics, the residual of every gather, convergence and the power balance.
 #[derive(Default)]
 pub(super) struct RunLog {
@@ -166,6 +188,16 @@ pub(super) struct RunLog {
 }
 
 impl RunLog {
+    /// Record a push-pull: its residual, whether it is below `tolerance`, and its power sums.
+    pub(super) fn record_push(&mut self, pushed: Pushed, tolerance: f64) {
+        self.residuals.push(pushed.residual);
+        self.converged = pushed.residual < tolerance;
+        if let Some((absorbed, escaped)) = pushed.energy {
+            self.energy.absorbed = absorbed;
+            self.energy.escaped = escaped;
+        }
+    }
+
     /// Nothing run yet: all emitted power still to be gathered.
     pub(super) fn new(scene: &Scene) -> Self {
         RunLog {

@@ -11,6 +11,7 @@
 
 use super::replace::Replaced;
 use super::verdict::{IdSet, ReceiverDecision, Split, Verdict};
+use crate::solver::hierarchical::gather::update_sums;
 use crate::solver::hierarchical::{HierarchicalSolver, StepKind, StepReport, disjoint_mut, oracle};
 use crate::solver::hierarchy::StopReason;
 use crate::solver::link::Link;
@@ -283,7 +284,7 @@ impl HierarchicalSolver {
         }
         let mut changed = run.changed;
         let changed = changed.take_sorted();
-        self.update_sums(&changed);
+        update_sums(&mut self.hier, &self.graph.links, &self.cluster.fv, &changed);
         if run.plan_whole {
             self.gather.plan_changed.extend_from_slice(&changed);
             self.gather.plan_valid = true;
