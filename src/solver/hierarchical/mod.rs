@@ -17,7 +17,27 @@
 //! - [`push_pull`]: push-pull, the reflection at the leaves and the power balance;
 //! - [`estimate`]: the solver's own estimate of its pointwise error;
 //! - [`cluster`]: the cluster hierarchy above the input patches and its transfer;
-//! - `audit`: every leaf's row of F·V against what rays find in its hemisphere ([`LeafAudit`]).
+//! - `audit`: every leaf's row of F·V against what rays find in its hemisphere ([`LeafAudit`]);
+//! - `parts`: the solver's state, in named parts.
+//!
+//! ## The solver's parts
+//! [`HierarchicalSolver`] holds the mesh (`Hierarchy`: elements, radiosity, gathered sums) and
+//! named parts, each with what one stage owns; a pass takes the parts it reads and writes:
+//! ```text
+//!  Setup          scene, BVH, parameters, resolved Aeps/BFeps, cancel flag     read by all
+//!  LinkGraph      links by receiver, the initial-link cache, the pair memo     refine → gather
+//!  GatherState    the links flattened into a plan, the changed receivers       gather
+//!  PushPullState  push-pull's per-element sums, the first moments of B          push-pull → gather
+//!  OracleState    refine's per-element B cache, row floors, error kernels       refine
+//!  ClusterState   the cluster tree, its links and transfer                      linking, gather
+//!  Closure        enclosed patches, the leaves' scales and balanced rows        gather, push-pull
+//!  RunLog         statistics, residuals, convergence, the power balance         every step
+//! ```
+//! The gather's sweeps are `GatherState` methods taking the mesh, the closure and the moments;
+//! push-pull's are `PushPullState` methods whose residual and power sums the `RunLog` records;
+//! the closed rows' balance is a `Closure` method taking the elements and parameters; the error
+//! estimate reads the mesh, links, BVH and closure. Refinement and linking change the mesh, the
+//! links, the oracle's cache and the clusters together, and stay methods of the solver.
 //!
 //! ## How it works
 //! ```text
