@@ -14,8 +14,7 @@ use super::gather::GatherPlan;
 use super::linking::InitialLinks;
 use super::oracle::Kernels;
 use super::push_pull::{Chain, FlatChain, Pushed};
-use super::refine::PairMemo;
-use super::refine::resolve_bf_eps;
+use super::refine::{PairMemo, resolve_bf_eps};
 use crate::geometry::accel::Accel;
 use crate::math::Rgb;
 use crate::scene::Scene;
@@ -48,6 +47,7 @@ pub(super) struct Setup {
 }
 
 impl Setup {
+    /// The setup of a solve of `scene` with BVH `accel` (built in `bvh_s` seconds).
     pub(super) fn new(scene: Arc<Scene>, accel: Arc<Accel>, params: HierarchicalParams, bvh_s: f64) -> Self {
         let mut s = Setup {
             aeps: 0.0,
