@@ -12,8 +12,11 @@
 //! both fractions; a share above its own is light the solve creates. [Cohen & Wallace 1993,
 //! ch. 2: Σ_j F_ij ≤ 1; Smits, Arvo & Greenberg 1994 for the cluster links.]
 
-use super::*;
+use super::cluster::ClusterTree;
+use super::{HierarchicalSolver, cluster};
 use crate::solver::escape::{Hit, Region, cast_hemisphere};
+use rayon::prelude::*;
+use serde::Serialize;
 
 /// One leaf's row of F·V and its hemisphere, as the rays found it.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
@@ -42,9 +45,10 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn row_audit(&self, rays: u32, seed: u64) -> Vec<LeafAudit> {
         let rows = self.leaf_rows();
-        let clustered = self.clusters.as_deref().filter(|_| !self.cluster_links.is_empty());
+        let clustered = self.cluster.tree.as_deref().filter(|_| !self.cluster.links.is_empty());
         let pos = clustered.map(ClusterTree::positions).unwrap_or_default();
-        let (scene, accel, hier, xfer) = (&self.scene, &self.accel, &self.hier, &self.cluster_xfer);
+        let (scene, accel, hier, xfer) =
+            (&self.setup.scene, &self.setup.accel, &self.hier, &self.cluster.xfer);
         rows.par_iter()
             .with_min_len(64)
             .map(|r| {

@@ -55,8 +55,16 @@
 //! back, an open box's walls see out: they keep their own rows. Off in clustered solves (cluster
 //! links carry bounded approximations of their rows, `super::cluster`) and with Gauss–Seidel.
 
-use super::*;
+use super::HierarchicalSolver;
+use super::gather::GatherPlan;
+use super::push_pull::{Chain, FlatChain, for_each_leaf_row};
+use crate::geometry::accel::Accel;
+use crate::math::{DVec3, Rgb, splitmix64};
+use crate::scene::Scene;
 use crate::solver::escape::{Hit, Region, cast_hemisphere};
+use crate::solver::hierarchy::{Element, NONE};
+use crate::solver::params::HierarchicalParams;
+use rayon::prelude::*;
 
 /// γ, the share of a leaf's scale on its own links (d^γ; its inherited links take d). 0 would
 /// leave a leaf that has only its own links no way to close its row, 1 scales its own links' light
@@ -226,47 +234,44 @@ impl HierarchicalSolver {
     /// Do the closed rows apply to this solve (`HierarchicalParams::close_rows`, not clustered,
     /// Jacobi gathers)?
     pub(super) fn closure_applies(&self) -> bool {
-        self.params.close_rows && !self.params.gauss_seidel && !self.clustering()
+        self.setup.params.close_rows && !self.setup.params.gauss_seidel && !self.clustering()
     }
+}
 
-    /// Decide which input patches are enclosed (once per scene and seed).
-    pub(super) fn closure_prepare(&mut self) {
-        if self.closure_applies()
-            && (self.closure.enclosed.len() != self.scene.patches.len()
-                || self.closure.seed != self.params.seed)
-        {
-            self.closure.enclosed = enclosed_patches(&self.scene, &self.accel, self.params.seed);
-            self.closure.seed = self.params.seed;
+impl Closure {
+    /// Decide which input patches of `scene` are enclosed (once per scene and seed).
+    pub(super) fn prepare(&mut self, scene: &Scene, accel: &Accel, seed: u64) {
+        if self.enclosed.len() != scene.patches.len() || self.seed != seed {
+            self.enclosed = enclosed_patches(scene, accel, seed);
+            self.seed = seed;
         }
     }
 
     /// Forget the balance (the links are gone); which patches are enclosed stays.
-    pub(super) fn closure_reset(&mut self) {
-        let c = &mut self.closure;
-        c.scale.clear();
-        c.row.clear();
-        c.sent.clear();
-        c.sent_moment.clear();
-        c.balanced = false;
+    pub(super) fn reset(&mut self) {
+        self.scale.clear();
+        self.row.clear();
+        self.sent.clear();
+        self.sent_moment.clear();
+        self.balanced = false;
     }
 
     /// Is the balance in use now (links exist and some patch is enclosed)?
-    pub(super) fn closure_active(&self) -> bool {
-        !self.closure.scale.is_empty()
+    pub(super) fn active(&self) -> bool {
+        !self.scale.is_empty()
     }
 
     /// One application of the leaves' operator to the leaf values `v` (by element id): each
     /// leaf's (K v)_x / A_x into `out`, the same sums in the same order as a gather and a push
     /// (pull, per receiver Σ F·V v plus the source moments' terms, push with the slopes).
     fn apply_operator(
-        &self,
+        els: &[Element],
+        slopes: bool,
         plan: &GatherPlan,
         v: &[f64],
         out: &mut [(f64, f64)],
         scratch: &mut OperatorScratch,
     ) {
-        let els = &self.hier.elements;
-        let slopes = self.params.push_slopes;
         let OperatorScratch { value, world, moment, gathered, basis } = scratch;
         value.clear();
         value.extend_from_slice(v);
@@ -309,10 +314,9 @@ impl HierarchicalSolver {
     /// tolerance of 1 ([`CLOSURE_TOL_SHARE`]; leaves whose scale reached its reach,
     /// [`SCALE_REACH`], aside) or [`CLOSURE_MAX_ITERATIONS`]. Then every leaf's balanced row is
     /// kept for the power balance.
-    pub(super) fn balance_rows(&mut self, plan: &GatherPlan) {
-        let n = self.hier.len();
-        let enclosed = &self.closure.enclosed;
-        let els = &self.hier.elements;
+    pub(super) fn balance_rows(&mut self, els: &[Element], params: &HierarchicalParams, plan: &GatherPlan) {
+        let n = els.len();
+        let enclosed = &self.enclosed;
         let part: Vec<u32> = els
             .iter()
             .enumerate()
@@ -320,8 +324,8 @@ impl HierarchicalSolver {
             .map(|(i, _)| i as u32)
             .collect();
         if part.is_empty() {
-            self.closure_reset();
-            self.closure.balanced = true;
+            self.reset();
+            self.balanced = true;
             return;
         }
         // Each enclosed leaf's reach ([`SCALE_REACH`]) from its row as it is (the chain's Σ F·V):
@@ -333,7 +337,7 @@ impl HierarchicalSolver {
             let slope = if row > 0.0 { (OWN_EXPONENT * e.fv_sum + up) / row } else { 1.0 };
             raw[i] = if row > 0.0 && slope > 0.0 { (row.ln() / slope).exp() } else { 0.0 };
         };
-        if self.params.push_slopes {
+        if params.push_slopes {
             for_each_leaf_row(els, &mut Vec::<Chain>::new(), each);
         } else {
             for_each_leaf_row(els, &mut Vec::<FlatChain>::new(), each);
@@ -350,7 +354,7 @@ impl HierarchicalSolver {
                 ((-reach).exp(), reach.exp())
             })
             .collect();
-        let mut d = std::mem::take(&mut self.closure.scale);
+        let mut d = std::mem::take(&mut self.scale);
         let old = d.len();
         d.resize(n, 1.0);
         for i in old..n {
@@ -372,7 +376,7 @@ impl HierarchicalSolver {
                 .collect(),
             ..OperatorScratch::default()
         };
-        let tol = (CLOSURE_TOL_SHARE * self.params.tolerance).clamp(CLOSURE_TOL_MIN, CLOSURE_TOL_MAX);
+        let tol = (CLOSURE_TOL_SHARE * params.tolerance).clamp(CLOSURE_TOL_MIN, CLOSURE_TOL_MAX);
         let mut r = vec![(0.0, 0.0); n];
         // The row with scale d: d^γ own + d inherited.
         let row_of = |dx: f64, (own, up): (f64, f64)| own_scale(dx) * own + dx * up;
@@ -383,7 +387,7 @@ impl HierarchicalSolver {
         // acceleration, so its history restarts).
         let mut held = vec![false; part.len()];
         loop {
-            self.apply_operator(plan, &d, &mut r, &mut scratch);
+            Self::apply_operator(els, params.push_slopes, plan, &d, &mut r, &mut scratch);
             let worst = part
                 .iter()
                 .zip(&held)
@@ -425,23 +429,20 @@ impl HierarchicalSolver {
             }
             iterations += 1;
         }
-        let mut row = std::mem::take(&mut self.closure.row);
+        let mut row = std::mem::take(&mut self.row);
         row.clear();
         row.extend(d.iter().zip(&r).map(|(&dx, &rx)| row_of(dx, rx)));
-        let c = &mut self.closure;
-        (c.scale, c.row, c.balanced) = (d, row, true);
+        (self.scale, self.row, self.balanced) = (d, row, true);
     }
 
     /// What every element sends through a link while the rows are balanced (`Closure::sent`).
-    pub(super) fn pull_sent(&mut self) {
-        let c = &mut self.closure;
-        let els = &self.hier.elements;
-        c.sent.clear();
-        c.sent.extend(
-            els.iter().zip(&c.scale).map(|(e, d)| if e.is_leaf() { e.radiosity * *d } else { Rgb::ZERO }),
+    pub(super) fn pull_sent(&mut self, els: &[Element], slopes: bool) {
+        self.sent.clear();
+        self.sent.extend(
+            els.iter().zip(&self.scale).map(|(e, d)| if e.is_leaf() { e.radiosity * *d } else { Rgb::ZERO }),
         );
-        pull(els, &mut c.sent, &mut c.world, &mut c.sent_moment, self.params.push_slopes);
-        for ((x, e), d) in c.sent.iter_mut().zip(els).zip(&c.scale) {
+        pull(els, &mut self.sent, &mut self.world, &mut self.sent_moment, slopes);
+        for ((x, e), d) in self.sent.iter_mut().zip(els).zip(&self.scale) {
             if e.is_leaf() {
                 *x = e.radiosity * own_scale(*d);
             }
@@ -449,7 +450,7 @@ impl HierarchicalSolver {
     }
 }
 
-/// Buffers of [`HierarchicalSolver::apply_operator`], kept over a balance's iterations.
+/// Buffers of [`Closure::apply_operator`], kept over a balance's iterations.
 #[derive(Default)]
 struct OperatorScratch {
     value: Vec<f64>,

@@ -90,6 +90,8 @@
 //! `radlab bench` times the solve without it.
 
 use super::HierarchicalSolver;
+use super::closure::{Closure, own_scale};
+use crate::geometry::accel::Accel;
 use crate::geometry::form_factor;
 use crate::math::{DVec3, Rgb};
 use crate::solver::hierarchy::Hierarchy;
@@ -100,12 +102,38 @@ use rayon::prelude::*;
 /// (ρ ≤ 0.8 in the built-in rooms leaves < 3 % of the series after 16).
 pub const TRANSPORT_BOUNCES: usize = 16;
 
+/// What the estimate reads of the solver: the mesh and its links, the BVH and seed of the probe
+/// rays, the closed rows (`super::closure`), and the sampling cutoff.
+#[derive(Copy, Clone)]
+struct Inputs<'a> {
+    hier: &'a Hierarchy,
+    links: &'a LinkStore,
+    accel: &'a Accel,
+    seed: u64,
+    closure: &'a Closure,
+    /// Links that could bring a leaf more than this are sampled ([`SAMPLE_SHARE`]).
+    cutoff: f64,
+}
+
+impl<'a> Inputs<'a> {
+    fn of(solver: &'a HierarchicalSolver) -> Self {
+        Inputs {
+            hier: &solver.hier,
+            links: &solver.graph.links,
+            accel: &solver.setup.accel,
+            seed: solver.setup.params.seed,
+            closure: &solver.closure,
+            cutoff: SAMPLE_SHARE * solver.mean_reflected(),
+        }
+    }
+}
+
 /// The solver's own a-posteriori error estimate of every element, indexed by element id
 /// (units of B, mean over channels; see the module docs). Interior elements get the area
 /// average of their children.
 #[must_use]
 pub fn error_estimates(solver: &HierarchicalSolver) -> Vec<f64> {
-    let (delta, within) = local_errors(solver);
+    let (delta, within) = local_errors(Inputs::of(solver));
     let mut est: Vec<f64> =
         delta.iter().zip(&within).map(|(d, w)| d.map(f64::abs).mean().hypot(w.mean())).collect();
     pull(solver.hierarchy(), &mut est);
@@ -156,7 +184,7 @@ pub fn solution_relative_l2(scene: &crate::scene::Scene, solution: &crate::solve
 #[must_use]
 pub fn residual_correction(solver: &HierarchicalSolver) -> Vec<Rgb> {
     let hier = solver.hierarchy();
-    let (mut delta, _) = local_errors(solver);
+    let (mut delta, _) = local_errors(Inputs::of(solver));
     for (d, e) in delta.iter_mut().zip(&hier.elements) {
         if !e.is_leaf() {
             *d = Rgb::ZERO;
@@ -167,15 +195,14 @@ pub fn residual_correction(solver: &HierarchicalSolver) -> Vec<Rgb> {
 
 /// (δ, w) per element: the local residual r of every leaf, transported, and the within-leaf
 /// variation w (not transported); zero on interior elements.
-fn local_errors(solver: &HierarchicalSolver) -> (Vec<Rgb>, Vec<Rgb>) {
-    let hier = solver.hierarchy();
-    let cutoff = SAMPLE_SHARE * solver.mean_reflected();
+fn local_errors(inputs: Inputs<'_>) -> (Vec<Rgb>, Vec<Rgb>) {
+    let hier = inputs.hier;
     let local: Vec<(Rgb, Rgb)> = (0..hier.len() as u32)
         .into_par_iter()
-        .map(|x| if hier.get(x).is_leaf() { local_terms(solver, x, cutoff) } else { (Rgb::ZERO, Rgb::ZERO) })
+        .map(|x| if hier.get(x).is_leaf() { local_terms(inputs, x) } else { (Rgb::ZERO, Rgb::ZERO) })
         .collect();
     let (r, w): (Vec<Rgb>, Vec<Rgb>) = local.into_iter().unzip();
-    (transport(hier, solver.links(), &r), w)
+    (transport(hier, inputs.links, &r), w)
 }
 
 /// `x − centroid` of element `e` in its tangent basis `(t1, t2)` (`orthonormal_basis(e.normal)`,
@@ -236,20 +263,18 @@ pub fn sample_points(v: &[DVec3]) -> [DVec3; WITHIN_POINTS] {
 /// link, only the visibility's part: its kernel average is the Galerkin coefficient, exact),
 /// its variation into w. An own link otherwise: its kernel at the points, with its V, into w.
 /// An inherited link otherwise: its kernel at x's centroid, with its V, into r.
-fn local_terms(solver: &HierarchicalSolver, x: u32, cutoff: f64) -> (Rgb, Rgb) {
-    let (hier, links) = (solver.hierarchy(), solver.links());
+fn local_terms(inputs: Inputs<'_>, x: u32) -> (Rgb, Rgb) {
+    let Inputs { hier, links, accel, seed, closure: closed, cutoff } = inputs;
     let leaf = hier.get(x);
     let pts = sample_points(leaf.vertices());
     let rho = leaf.reflectance.max_channel();
-    let seed = solver.params().seed;
     let inv = 1.0 / WITHIN_POINTS as f64;
     let mut r = Rgb::ZERO;
     // Per sample point: what all the links bring there against what the leaf shows.
     let mut dev = [Rgb::ZERO; WITHIN_POINTS];
     // With the rows closed the leaf shows each source as the gather sent it, scaled at the
     // leaf's end of the link (`super::closure`): (own, inherited) scale, and what was sent.
-    let closed = &solver.closure;
-    let scale = closed.scale.get(x as usize).map(|&d| (super::closure::own_scale(d), d));
+    let scale = closed.scale.get(x as usize).map(|&d| (own_scale(d), d));
     for a in hier.ancestors(x) {
         let ae = hier.get(a);
         let basis = crate::math::orthonormal_basis(ae.normal);
@@ -273,7 +298,7 @@ fn local_terms(solver: &HierarchicalSolver, x: u32, cutoff: f64) -> (Rgb, Rgb) {
                 // Seeded by the leaf, the source and the point: the same rays at any thread count.
                 let key = (u64::from(x) << 32 | u64::from(l.source)) ^ ((k as u64) << 59);
                 crate::geometry::visibility::visible_fraction_oriented(
-                    solver.accel(),
+                    accel,
                     (&[p; 3], leaf.patch, leaf.normal),
                     (src.vertices(), src.patch, src.normal),
                     rays,

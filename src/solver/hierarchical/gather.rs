@@ -7,7 +7,16 @@
 //! F_pq V_pq is fixed between refinements, so the links are flattened once into a
 //! [`GatherPlan`]; ancestors' links reach the leaves in [`super::push_pull`].
 
-use super::*;
+use super::closure::Closure;
+use super::parts::{ClusterIrradiance, GatherState};
+use super::push_pull::{Chain, fill_slopes, push_pull_rec};
+use super::{HierarchicalSolver, StepKind, StepReport, disjoint_mut};
+use crate::math::Rgb;
+use crate::solver::hierarchy::{Element, Hierarchy};
+use crate::solver::link::{Link, LinkStore};
+use rayon::prelude::*;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
 
 /// Every receiver's links with F·V > 0, flattened for gathering (links do not change between
 /// refinements): source (high bit set when fully visible) and weight F·V, in list order.
@@ -250,126 +259,157 @@ impl GatherPlan {
     }
 }
 
-impl HierarchicalSolver {
-    /// Recompute Σ F and Σ F·V of every receiver whose link list changed since the last call
-    /// (`changed`).
-    pub(super) fn update_sums(&mut self, changed: &[u32]) {
-        let links = &self.links.by_receiver;
-        disjoint_mut(&mut self.hier.elements, changed.iter().copied())
-            .into_par_iter()
-            .zip(changed.par_iter())
-            .with_min_len(256)
-            .for_each(|(e, &r)| {
-                let ls = &links[r as usize];
-                e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
-                e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
-                e.fv_partial = e.fv_sum - e.f_sum;
-            });
-        // Input patches' rows include what they gather through cluster links.
-        for &r in changed {
-            if let Some(&fv) = self.cluster_fv.get(r as usize) {
-                let e = &mut self.hier.elements[r as usize];
-                e.fv_sum += fv;
-                e.fv_partial += fv;
-            }
+/// Recompute Σ F and Σ F·V of every receiver of `hier` whose link list changed since the last
+/// call (`changed`); input patches' rows include what they gather through cluster links
+/// (`cluster_fv`).
+pub(super) fn update_sums(hier: &mut Hierarchy, links: &LinkStore, cluster_fv: &[f64], changed: &[u32]) {
+    let links = &links.by_receiver;
+    disjoint_mut(&mut hier.elements, changed.iter().copied())
+        .into_par_iter()
+        .zip(changed.par_iter())
+        .with_min_len(256)
+        .for_each(|(e, &r)| {
+            let ls = &links[r as usize];
+            e.f_sum = ls.iter().filter(|l| l.vis >= 1.0).map(|l| f64::from(l.ff)).sum();
+            e.fv_sum = ls.iter().map(|l| f64::from(l.ff) * f64::from(l.vis)).sum();
+            e.fv_partial = e.fv_sum - e.f_sum;
+        });
+    for &r in changed {
+        if let Some(&fv) = cluster_fv.get(r as usize) {
+            let e = &mut hier.elements[r as usize];
+            e.fv_sum += fv;
+            e.fv_partial += fv;
         }
     }
+}
 
-    // ------------------------------------------------------------------------------------------
-    // Gather and push-pull
-    // ------------------------------------------------------------------------------------------
+impl GatherState {
+    /// Have the links changed since the plan was made?
+    pub(super) fn links_changed(&self) -> bool {
+        !self.plan_valid || !self.plan_changed.is_empty()
+    }
 
+    /// Bring the plan up to date with `links`: the changed receivers' entries, or the whole plan
+    /// when it is not valid. `slopes`: the mesh, when the links' slopes are gathered.
+    pub(super) fn sync_plan(&mut self, links: &LinkStore, slopes: Option<&Hierarchy>) {
+        if self.plan_valid {
+            let mut changed = std::mem::take(&mut self.plan_changed);
+            changed.sort_unstable();
+            changed.dedup();
+            self.plan.update(links, slopes, &changed);
+            #[cfg(debug_assertions)]
+            {
+                let mut whole = GatherPlan::default();
+                whole.rebuild(links, slopes);
+                self.plan.assert_same(&whole);
+            }
+        } else {
+            self.plan.rebuild(links, slopes);
+        }
+        self.plan_valid = true;
+        self.plan_changed.clear();
+    }
+
+    /// One Jacobi gather: every element of `els` sums, in parallel, what its sources sent
+    /// before it (their radiosity and first `moment`, or with the rows closed what the
+    /// `closure` has them send).
+    pub(super) fn jacobi(&mut self, els: &mut [Element], closure: &Closure, moment: &[[Rgb; 2]]) {
+        // Sources' radiosity in a compact array (read once per link, in any order).
+        let mut b = std::mem::take(&mut self.b_prev);
+        b.resize(els.len(), Rgb::ZERO);
+        if closure.active() {
+            b.copy_from_slice(&closure.sent);
+        } else {
+            b.par_iter_mut().zip(els.par_iter()).with_min_len(1024).for_each(|(b, e)| *b = e.radiosity);
+        }
+        let mu = if closure.active() { &closure.sent_moment } else { moment };
+        let plan = &self.plan;
+        els.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
+            (e.gathered, e.gathered_full, e.gathered_slope) = plan.gather(r, |s| b[s as usize], mu);
+        });
+        self.b_prev = b;
+    }
+
+    /// One Gauss–Seidel sweep: input patch by input patch, its elements gather from the newest
+    /// radiosities (and `moment`), its cluster irradiance is added, and it is pushed and pulled
+    /// at once (`push_slopes`: with the links' slopes).
+    pub(super) fn gauss_seidel(
+        &self,
+        hier: &mut Hierarchy,
+        moment: &[[Rgb; 2]],
+        cluster_h: Option<&ClusterIrradiance>,
+        push_slopes: bool,
+    ) {
+        for root in 0..hier.roots as u32 {
+            let ids = subtree(hier, root);
+            let g: Vec<(Rgb, Rgb, [Rgb; 2])> = ids
+                .iter()
+                .map(|&r| self.plan.gather(r as usize, |s| hier.get(s).radiosity, moment))
+                .collect();
+            for (&r, (g, full, slope)) in ids.iter().zip(g) {
+                let e = &mut hier.elements[r as usize];
+                (e.gathered, e.gathered_full, e.gathered_slope) = (g, full, slope);
+            }
+            if let Some((h, slopes)) = cluster_h {
+                let e = &mut hier.elements[root as usize];
+                e.gathered += h[root as usize];
+                if let Some(s) = slopes.get(root as usize) {
+                    add_slope(&mut e.gathered_slope, *s);
+                }
+            }
+            push_pull_rec(&mut hier.elements, root, Chain::default(), push_slopes);
+        }
+    }
+}
+
+impl HierarchicalSolver {
     /// One gather over every link (the lecture's `Gather`), Jacobi: every receiver reads the
     /// radiosities of the previous iteration. With `gauss_seidel`, gathers and pushes patch by
     /// patch instead, each patch using the newest values (then push-pull is already done).
     pub fn gather_step(&mut self) -> StepReport {
-        self.cancel.store(false, Ordering::Relaxed);
+        self.setup.cancel.store(false, Ordering::Relaxed);
         self.gather_inner()
     }
 
     pub(super) fn gather_inner(&mut self) -> StepReport {
         let t = Instant::now();
-        // The links as one contiguous plan, rebuilt after they change.
-        let mut plan = std::mem::take(&mut self.gather_plan);
-        let links_changed = !self.plan_valid || !self.plan_changed.is_empty();
+        let params = self.setup.params;
+        // The links as one contiguous plan, brought up to date after they change.
+        let links_changed = self.gather.links_changed();
         if links_changed {
-            if self.params.push_slopes {
-                self.fill_slopes();
+            if params.push_slopes {
+                fill_slopes(&mut self.hier, &mut self.graph.links, &self.oracle.error_kernels);
             }
-            let slopes = self.params.push_slopes.then_some(&self.hier);
-            if self.plan_valid {
-                let mut changed = std::mem::take(&mut self.plan_changed);
-                changed.sort_unstable();
-                changed.dedup();
-                plan.update(&self.links, slopes, &changed);
-                #[cfg(debug_assertions)]
-                {
-                    let mut whole = GatherPlan::default();
-                    whole.rebuild(&self.links, slopes);
-                    plan.assert_same(&whole);
-                }
-            } else {
-                plan.rebuild(&self.links, slopes);
-            }
-            self.plan_valid = true;
-            self.plan_changed.clear();
+            self.gather.sync_plan(&self.graph.links, params.push_slopes.then_some(&self.hier));
         }
         // Closed rows: balance the enclosed leaves' rows for these links, and what every element
         // sends (`closure`).
         if self.closure_applies() {
-            if links_changed || !self.closure.balanced {
-                self.closure_prepare();
-                self.balance_rows(&plan);
+            let (setup, closure, els) = (&self.setup, &mut self.closure, &self.hier.elements);
+            if links_changed || !closure.balanced {
+                closure.prepare(&setup.scene, &setup.accel, params.seed);
+                closure.balance_rows(els, &params, &self.gather.plan);
             }
-            if self.closure_active() {
-                self.pull_sent();
+            if closure.active() {
+                closure.pull_sent(els, params.push_slopes);
             }
         }
         // What the input patches gather through cluster links, from the radiosities before
         // this gather (both sweeps).
-        let cluster_h = self.cluster_irradiance();
-        if self.params.gauss_seidel {
+        let cluster_h = self.cluster.irradiance(&self.hier, params.push_slopes);
+        if params.gauss_seidel {
             let before: Vec<Rgb> = self.hier.elements.iter().map(|e| e.radiosity).collect();
-            for root in 0..self.hier.roots as u32 {
-                let ids = self.subtree(root);
-                let g: Vec<(Rgb, Rgb, [Rgb; 2])> = ids
-                    .iter()
-                    .map(|&r| plan.gather(r as usize, |s| self.hier.get(s).radiosity, &self.moment))
-                    .collect();
-                for (&r, (g, full, slope)) in ids.iter().zip(g) {
-                    let e = &mut self.hier.elements[r as usize];
-                    (e.gathered, e.gathered_full, e.gathered_slope) = (g, full, slope);
-                }
-                if let Some((h, slopes)) = &cluster_h {
-                    let e = &mut self.hier.elements[root as usize];
-                    e.gathered += h[root as usize];
-                    if let Some(s) = slopes.get(root as usize) {
-                        add_slope(&mut e.gathered_slope, *s);
-                    }
-                }
-                self.push_pull_root(root);
-            }
+            self.gather.gauss_seidel(
+                &mut self.hier,
+                &self.push_pull.moment,
+                cluster_h.as_ref(),
+                params.push_slopes,
+            );
             // Recomputes the same leaf values (nothing was gathered since each root's push) and
             // measures the change against the values before the sweep.
             self.push_pull_flat(Some(&before), true);
-            self.stats.gather_s += t.elapsed().as_secs_f64();
         } else {
-            // Sources' radiosity in a compact array (read once per link, in any order), then
-            // every receiver gathers in parallel.
-            let mut b = std::mem::take(&mut self.b_prev);
-            b.resize(self.hier.len(), Rgb::ZERO);
-            if self.closure_active() {
-                b.copy_from_slice(&self.closure.sent);
-            } else {
-                b.par_iter_mut()
-                    .zip(self.hier.elements.par_iter())
-                    .with_min_len(1024)
-                    .for_each(|(b, e)| *b = e.radiosity);
-            }
-            let mu = if self.closure_active() { &self.closure.sent_moment } else { &self.moment };
-            self.hier.elements.par_iter_mut().enumerate().with_min_len(256).for_each(|(r, e)| {
-                (e.gathered, e.gathered_full, e.gathered_slope) = plan.gather(r, |s| b[s as usize], mu);
-            });
+            self.gather.jacobi(&mut self.hier.elements, &self.closure, &self.push_pull.moment);
             if let Some((h, slopes)) = &cluster_h {
                 for (e, h) in self.hier.elements.iter_mut().zip(h) {
                     e.gathered += *h;
@@ -379,26 +419,25 @@ impl HierarchicalSolver {
                     add_slope(&mut e.gathered_slope, *s);
                 }
             }
-            self.b_prev = b;
-            self.stats.gather_s += t.elapsed().as_secs_f64();
         }
-        self.gather_plan = plan;
-        self.gathered_once = true;
-        self.stats.iterations += 1;
+        self.log.stats.gather_s += t.elapsed().as_secs_f64();
+        self.log.gathered_once = true;
+        self.log.stats.iterations += 1;
         self.report(StepKind::Gather, t, 0, 0)
     }
+}
 
-    pub(super) fn subtree(&self, root: u32) -> Vec<u32> {
-        let mut out = Vec::new();
-        let mut stack = vec![root];
-        while let Some(id) = stack.pop() {
-            out.push(id);
-            if let Some(c) = self.hier.get(id).children() {
-                stack.extend(c.iter().rev());
-            }
+/// The ids of `root`'s subtree in `hier`, depth first.
+pub(super) fn subtree(hier: &Hierarchy, root: u32) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut stack = vec![root];
+    while let Some(id) = stack.pop() {
+        out.push(id);
+        if let Some(c) = hier.get(id).children() {
+            stack.extend(c.iter().rev());
         }
-        out
     }
+    out
 }
 
 /// Add a patch's cluster-link slope ([`cluster::ClusterTransfer::slopes`]) to its root

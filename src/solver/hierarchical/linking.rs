@@ -8,7 +8,18 @@
 //! ```
 //! The cluster tree and its transfer are in [`super::cluster`].
 
-use super::*;
+use super::cluster::{ClusterLink, ClusterTransfer, ClusterTree, Pairing};
+use super::refine::{new_link, pair_key, pair_sides};
+use super::{
+    ClusterEnd, ClusterInfo, ClusterLinkView, HierarchicalSolver, ROOT_CONFIRM_RAYS, cluster, transfer,
+};
+use crate::geometry::accel::NO_HIT;
+use crate::geometry::visibility::{self, Stop};
+use crate::math::newell_normal;
+use crate::solver::link::Link;
+use crate::solver::params::Oracle;
+use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Cached initial links: ((rays, seed, conservative, weighted), links per root receiver, pairs skipped).
 pub(super) type InitialLinks = ((u32, u64, bool, bool), Vec<Vec<Link>>, usize);
@@ -68,7 +79,7 @@ struct Installing {
 impl HierarchicalSolver {
     /// Does this solve cluster (decided by `params.cluster` and the patch count)?
     pub(super) fn clustering(&self) -> bool {
-        self.params.cluster.applies(self.hier.roots)
+        self.setup.params.cluster.applies(self.hier.roots)
     }
 
     /// Each cluster node's largest radiosity (leaves: their patch's `b_max`).
@@ -116,13 +127,13 @@ impl HierarchicalSolver {
         let f = frame.unwrap_or_else(|| cluster::link_frame(na, nb, w));
         let (f_ab, f_ba) =
             ((nb.projected_area(-w, f) / pg2).min(1.0), (na.projected_area(w, f) / pg2).min(1.0));
-        match self.params.oracle {
-            Oracle::Feps => f_ab.max(f_ba) < self.params.feps,
+        match self.setup.params.oracle {
+            Oracle::Feps => f_ab.max(f_ba) < self.setup.params.feps,
             Oracle::Bf | Oracle::Error => {
                 let var = (2.0 * (na.radius + nb.radius) / d).min(1.0);
                 let bf = (na.rho_max * b_max[b as usize] * f_ab).max(nb.rho_max * b_max[a as usize] * f_ba);
-                let share = if self.params.oracle == Oracle::Error { ERROR_CLUSTER_SHARE } else { 1.0 };
-                bf * var < share * self.bf_eps
+                let share = if self.setup.params.oracle == Oracle::Error { ERROR_CLUSTER_SHARE } else { 1.0 };
+                bf * var < share * self.setup.bf_eps
             }
         }
     }
@@ -130,7 +141,8 @@ impl HierarchicalSolver {
     /// The first linking of a clustered solve: link the cluster tree's root with itself.
     /// Returns the links made (element links, and cluster links counted twice).
     pub(super) fn cluster_linking(&mut self) -> usize {
-        let tree = Arc::clone(self.clusters.get_or_insert_with(|| Arc::new(ClusterTree::build(&self.hier))));
+        let tree =
+            Arc::clone(self.cluster.tree.get_or_insert_with(|| Arc::new(ClusterTree::build(&self.hier))));
         let b_max = self.cluster_b_max(&tree);
         let mut inst = self.install_start(Vec::new());
         let accept = |a: u32, b: u32| self.cluster_accept(&tree, &b_max, a, b);
@@ -141,10 +153,11 @@ impl HierarchicalSolver {
     /// Test every cluster link again with the current radiosities and replace those that fail
     /// by their subdivision. Returns the links made and whether any cluster link changed.
     pub(super) fn cluster_refine(&mut self) -> (usize, bool) {
-        let Some(tree) = self.clusters.clone() else { return (0, false) };
+        let Some(tree) = self.cluster.tree.clone() else { return (0, false) };
         let b_max = self.cluster_b_max(&tree);
         let keep: Vec<bool> = self
-            .cluster_links
+            .cluster
+            .links
             .par_iter()
             .with_min_len(64)
             .map(|l| self.cluster_accept_in(&tree, &b_max, l.a, l.b, Some(l.frame)))
@@ -152,7 +165,7 @@ impl HierarchicalSolver {
         if keep.iter().all(|&k| k) {
             return (0, false);
         }
-        let links = std::mem::take(&mut self.cluster_links);
+        let links = std::mem::take(&mut self.cluster.links);
         let kept = links.iter().zip(&keep).filter(|(_, k)| **k).map(|(l, _)| *l).collect();
         let mut inst = self.install_start(kept);
         // The failing links' subdivisions, in link order, a chunk of links at a time.
@@ -179,9 +192,9 @@ impl HierarchicalSolver {
     fn install_start(&mut self, kept: Vec<ClusterLink>) -> Installing {
         // The old transfer (its incoming links and moments: 0.2 GB at 100 k patches) is not
         // needed while the new links are made.
-        self.cluster_xfer = ClusterTransfer::default();
+        self.cluster.xfer = ClusterTransfer::default();
         Installing {
-            lists: std::mem::take(&mut self.links.by_receiver),
+            lists: std::mem::take(&mut self.graph.links.by_receiver),
             cluster_links: kept,
             created: 0,
             skipped: 0,
@@ -192,7 +205,7 @@ impl HierarchicalSolver {
     /// Make the links of `pairs` (cluster links with their visibility, element links of patch
     /// pairs as `initial_linking` does) and add them to `inst`, in pair order.
     fn install_chunk(&self, tree: &ClusterTree, inst: &mut Installing, pairs: &[Pairing]) {
-        let (rays, seed) = (self.params.rays.max(4), self.params.seed);
+        let (rays, seed) = (self.setup.params.rays.max(4), self.setup.params.seed);
         let acc = self.clustered_pair_accuracy();
         let make = |pair: &Pairing| -> Made {
             match *pair {
@@ -203,7 +216,7 @@ impl HierarchicalSolver {
                     if cluster::carries_nothing(na, nb, w, frame) {
                         return (None, None, 0);
                     }
-                    let (vis, cast) = tree.visibility(&self.hier, &self.accel, a, b, rays, seed);
+                    let (vis, cast) = tree.visibility(&self.hier, &self.setup.accel, a, b, rays, seed);
                     (Some(ClusterLink { a, b, vis, frame }), None, u64::from(cast))
                 }
                 Pairing::Patches(p, q) => {
@@ -239,18 +252,23 @@ impl HierarchicalSolver {
         // Lists grown a push at a time hold up to twice their links.
         lists[..self.hier.roots].par_iter_mut().with_min_len(256).for_each(Vec::shrink_to_fit);
         cluster_links.shrink_to_fit();
-        self.links.by_receiver = lists;
-        self.cluster_links = cluster_links;
-        self.stats.rays += rays;
-        self.stats.pairs_skipped += skipped;
+        self.graph.links.by_receiver = lists;
+        self.cluster.links = cluster_links;
+        self.log.stats.rays += rays;
+        self.log.stats.pairs_skipped += skipped;
         // Each patch's Σ F·V through the cluster links (the transfer with B = 1), bounded by
         // what its hemisphere sees of the patches they cover.
-        self.cluster_xfer = ClusterTransfer::new(tree, &self.cluster_links);
-        let bound =
-            self.cluster_xfer.bound_rows(tree, &self.hier, &self.scene, &self.accel, self.params.seed);
-        self.stats.rays += bound.rays;
-        self.stats.cluster_rows_cut = bound.cut;
-        self.cluster_fv = bound.rows;
+        self.cluster.xfer = ClusterTransfer::new(tree, &self.cluster.links);
+        let bound = self.cluster.xfer.bound_rows(
+            tree,
+            &self.hier,
+            &self.setup.scene,
+            &self.setup.accel,
+            self.setup.params.seed,
+        );
+        self.log.stats.rays += bound.rays;
+        self.log.stats.cluster_rows_cut = bound.cut;
+        self.cluster.fv = bound.rows;
         created
     }
 
@@ -273,7 +291,7 @@ impl HierarchicalSolver {
     /// room has 4 M cluster links.
     #[must_use]
     pub fn cluster_link_views(&self, max: usize) -> Vec<ClusterLinkView> {
-        let Some(tree) = &self.clusters else { return Vec::new() };
+        let Some(tree) = &self.cluster.tree else { return Vec::new() };
         let index = cluster_index(tree);
         let end = |node: u32| match index[node as usize] {
             u32::MAX => ClusterEnd::Patch(tree.patch(node)),
@@ -289,7 +307,7 @@ impl HierarchicalSolver {
             (na.center, nb.center, ff)
         };
         let mut order: Vec<(f64, u32)> =
-            self.cluster_links.par_iter().enumerate().map(|(i, l)| (ends(l).2, i as u32)).collect();
+            self.cluster.links.par_iter().enumerate().map(|(i, l)| (ends(l).2, i as u32)).collect();
         let by_f = |x: &(f64, u32), y: &(f64, u32)| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1));
         if order.len() > max && max > 0 {
             order.select_nth_unstable_by(max - 1, by_f);
@@ -299,7 +317,7 @@ impl HierarchicalSolver {
         order
             .into_iter()
             .map(|(_, i)| {
-                let l = &self.cluster_links[i as usize];
+                let l = &self.cluster.links[i as usize];
                 let (from, to, ff) = ends(l);
                 ClusterLinkView { from, to, vis: l.vis, ff, ends: [end(l.a), end(l.b)] }
             })
@@ -311,9 +329,9 @@ impl HierarchicalSolver {
     /// solve does not cluster).
     #[must_use]
     pub fn cluster_infos(&self) -> (Vec<ClusterInfo>, Vec<u32>) {
-        let Some(tree) = &self.clusters else { return (Vec::new(), Vec::new()) };
+        let Some(tree) = &self.cluster.tree else { return (Vec::new(), Vec::new()) };
         let mut links = vec![0u32; tree.len()];
-        for l in &self.cluster_links {
+        for l in &self.cluster.links {
             links[l.a as usize] += 1;
             links[l.b as usize] += 1;
         }
@@ -340,27 +358,10 @@ impl HierarchicalSolver {
         (infos, patch_cluster)
     }
 
-    /// Every input patch's irradiance through the cluster links, and with `push_slopes` its
-    /// slope ([`ClusterTransfer::irradiance_and_slopes`]; else no slopes; None: no cluster
-    /// links).
-    pub(super) fn cluster_irradiance(&mut self) -> Option<(Vec<Rgb>, Vec<[Rgb; 2]>)> {
-        let tree = self.clusters.as_ref()?;
-        if self.cluster_links.is_empty() {
-            return None;
-        }
-        let hier = &self.hier;
-        let b = |p: u32| hier.get(p).radiosity;
-        Some(if self.params.push_slopes {
-            self.cluster_xfer.irradiance_and_slopes(tree, hier, &b)
-        } else {
-            (self.cluster_xfer.irradiance(tree, hier, &b), Vec::new())
-        })
-    }
-
     /// The form-factor accuracy of input patch pairs: they carry a closed scene's whole
     /// answer, so to 1e-7 (one point with SPLASH-2's rule), never the disk formula.
     pub(super) fn root_accuracy(&self) -> transfer::Accuracy {
-        let tol = if self.params.link_tol > 0.0 { transfer::ROOT_REL_TOL } else { 0.0 };
+        let tol = if self.setup.params.link_tol > 0.0 { transfer::ROOT_REL_TOL } else { 0.0 };
         transfer::Accuracy { tol, adaptive_tol: tol, five_times: false }
     }
 
@@ -376,7 +377,8 @@ impl HierarchicalSolver {
         acc: transfer::Accuracy,
         root: bool,
     ) -> (Option<(Link, Link)>, u64) {
-        let (rays, seed, conservative) = (self.params.rays, self.params.seed, self.params.conservative);
+        let (rays, seed, conservative) =
+            (self.setup.params.rays, self.setup.params.seed, self.setup.params.conservative);
         let weighted = self.weighted_visibility();
         let (p, q) = (self.hier.get(pi), self.hier.get(qi));
         let sides = pair_sides(p, q);
@@ -389,7 +391,7 @@ impl HierarchicalSolver {
         let mut cast = 0u64;
         let mut vis = |n_rays: u32, salt: u64| {
             let (v, c) = visibility::visibility_sample(
-                &self.accel,
+                &self.setup.accel,
                 (p.vertices(), pi, n_p),
                 (q.vertices(), qi, n_q),
                 n_rays,
@@ -405,14 +407,19 @@ impl HierarchicalSolver {
         // Input pairs of an unclustered scene are confirmed with ROOT_CONFIRM_RAYS; the small
         // patches a clustered scene links pair by pair as refined links are (`zero_confirm` ×
         // rays: the 32 rays were a third of a 100 k-patch room's rays).
-        let confirm = if root { ROOT_CONFIRM_RAYS } else { self.params.zero_confirm * rays };
+        let confirm = if root { ROOT_CONFIRM_RAYS } else { self.setup.params.zero_confirm * rays };
         let mut v = vis(rays, 0);
         // With the error oracle, a pair whose rays all passed and whose shaft is empty sees
         // itself whole: V = 1 without confirmation (as `make_pair_link`), and so do all the
         // pairs below it.
         let clear = v == 1.0
-            && self.params.oracle == Oracle::Error
-            && self.accel.shaft_clear(&self.scene, p.vertices(), q.vertices(), [p.patch, q.patch]);
+            && self.setup.params.oracle == Oracle::Error
+            && self.setup.accel.shaft_clear(
+                &self.setup.scene,
+                p.vertices(),
+                q.vertices(),
+                [p.patch, q.patch],
+            );
         if v == 0.0 {
             // Confirm full occlusion with more rays before dropping the pair.
             if confirm == 0 || vis(confirm, 0x5EED) == 0.0 {
@@ -451,15 +458,20 @@ impl HierarchicalSolver {
 
     /// Link every pair of input patches that face each other and are not fully occluded.
     pub(super) fn initial_linking(&mut self) -> usize {
-        let key = (self.params.rays, self.params.seed, self.params.conservative, self.weighted_visibility());
-        if let Some((k, cached, skipped)) = &self.initial_cache
+        let key = (
+            self.setup.params.rays,
+            self.setup.params.seed,
+            self.setup.params.conservative,
+            self.weighted_visibility(),
+        );
+        if let Some((k, cached, skipped)) = &self.graph.initial_cache
             && *k == key
         {
             let n = cached.iter().map(Vec::len).sum();
             for (i, l) in cached.iter().enumerate() {
-                self.links.by_receiver[i] = l.clone();
+                self.graph.links.by_receiver[i] = l.clone();
             }
-            self.stats.pairs_skipped = *skipped;
+            self.log.stats.pairs_skipped = *skipped;
             return n;
         }
         let n = self.hier.roots as u32;
@@ -485,7 +497,7 @@ impl HierarchicalSolver {
         let mut skipped = 0;
         for (pi, (row, sk, cast)) in rows.into_iter().enumerate() {
             skipped += sk;
-            self.stats.rays += cast;
+            self.log.stats.rays += cast;
             for (qi, pq, qp) in row {
                 lists[pi].push(pq);
                 lists[qi as usize].push(qp);
@@ -497,10 +509,10 @@ impl HierarchicalSolver {
         }
         let total = lists.iter().map(Vec::len).sum();
         for (i, l) in lists.iter().enumerate() {
-            self.links.by_receiver[i] = l.clone();
+            self.graph.links.by_receiver[i] = l.clone();
         }
-        self.stats.pairs_skipped = skipped;
-        self.initial_cache = Some((key, lists, skipped));
+        self.log.stats.pairs_skipped = skipped;
+        self.graph.initial_cache = Some((key, lists, skipped));
         total
     }
 }

@@ -17,7 +17,27 @@
 //! - [`push_pull`]: push-pull, the reflection at the leaves and the power balance;
 //! - [`estimate`]: the solver's own estimate of its pointwise error;
 //! - [`cluster`]: the cluster hierarchy above the input patches and its transfer;
-//! - `audit`: every leaf's row of F·V against what rays find in its hemisphere ([`LeafAudit`]).
+//! - `audit`: every leaf's row of F·V against what rays find in its hemisphere ([`LeafAudit`]);
+//! - `parts`: the solver's state, in named parts.
+//!
+//! ## The solver's parts
+//! [`HierarchicalSolver`] holds the mesh (`Hierarchy`: elements, radiosity, gathered sums) and
+//! named parts, each with what one stage owns; a pass takes the parts it reads and writes:
+//! ```text
+//!  Setup          scene, BVH, parameters, resolved Aeps/BFeps, cancel flag     read by all
+//!  LinkGraph      links by receiver, the initial-link cache, the pair memo     refine → gather
+//!  GatherState    the links flattened into a plan, the changed receivers       gather
+//!  PushPullState  push-pull's per-element sums, the first moments of B          push-pull → gather
+//!  OracleState    refine's per-element B cache, row floors, error kernels       refine
+//!  ClusterState   the cluster tree, its links and transfer                      linking, gather
+//!  Closure        enclosed patches, the leaves' scales and balanced rows        gather, push-pull
+//!  RunLog         statistics, residuals, convergence, the power balance         every step
+//! ```
+//! The gather's sweeps are `GatherState` methods taking the mesh, the closure and the moments;
+//! push-pull's are `PushPullState` methods whose residual and power sums the `RunLog` records;
+//! the closed rows' balance is a `Closure` method taking the elements and parameters; the error
+//! estimate reads the mesh, links, BVH and closure. Refinement and linking change the mesh, the
+//! links, the oracle's cache and the clusters together, and stay methods of the solver.
 //!
 //! ## How it works
 //! ```text
@@ -116,27 +136,23 @@ pub mod estimate;
 mod gather;
 mod linking;
 mod oracle;
+mod parts;
 mod push_pull;
 mod refine;
 mod transfer;
 
 pub use audit::LeafAudit;
-use gather::*;
-use linking::InitialLinks;
-use push_pull::*;
-use refine::*;
+use parts::{ClusterState, GatherState, LinkGraph, OracleState, PushPullState, RunLog, Setup};
+use push_pull::{Chain, leaf_irradiance};
 
 use super::params::{HierarchicalParams, Oracle};
-use crate::geometry::accel::{Accel, NO_HIT};
-use crate::geometry::form_factor;
-use crate::geometry::visibility::{self, Stop};
-use crate::math::{DVec3, Rgb, newell_normal, splitmix64};
+use crate::geometry::accel::Accel;
+use crate::math::{DVec3, Rgb};
 use crate::scene::Scene;
 use crate::solver::hierarchy::{Element, Hierarchy, NONE, StopReason};
 use crate::solver::link::{Link, LinkStore, VisClass};
-use crate::solver::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
-use cluster::{ClusterLink, ClusterTransfer, ClusterTree, Pairing};
-use rayon::prelude::*;
+use crate::solver::{PhaseTimes, Progress, Solution, SolveStats, SolvedElement};
+use cluster::ClusterLink;
 use serde::Serialize;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -342,75 +358,20 @@ fn disjoint_mut<T>(v: &mut [T], ids: impl Iterator<Item = u32>) -> Vec<&mut T> {
 /// (`EnergyBalance::relative_residual`).
 pub const ENERGY_TOLERANCE: f64 = 1e-3;
 
-/// The HSA91 solver with a step API.
+/// The HSA91 solver with a step API: the mesh and its named parts ([`parts`]).
 pub struct HierarchicalSolver {
-    scene: Arc<Scene>,
-    accel: Arc<Accel>,
-    params: HierarchicalParams,
-    aeps: f64,
-    /// BFeps in units of B (resolved from a relative setting).
-    bf_eps: f64,
+    setup: Setup,
+    /// The element quadtrees, one per input patch: geometry, radiosity and the gathered sums.
     hier: Hierarchy,
-    links: LinkStore,
-    linked: bool,
-    /// Initial links of the input patch pairs, reusable while `rays` and `seed` are unchanged.
-    initial_cache: Option<InitialLinks>,
-    stats: HierarchicalStats,
-    residuals: Vec<f64>,
-    converged: bool,
-    cancel: Arc<AtomicBool>,
-    bvh_s: f64,
-    energy: EnergyBalance,
-    gathered_once: bool,
-    /// Scratch for `push_pull_flat`.
-    chain: Vec<Chain>,
-    /// The same without slopes.
-    flat_chain: Vec<FlatChain>,
-    /// Scratch for Jacobi gathers: every element's radiosity before the gather (kept between
-    /// gathers, so no large allocation per iteration).
-    b_prev: Vec<Rgb>,
-    /// Each element's first moment of radiosity about its centroid, Σ_leaves A B (c − c_e) / A_e,
-    /// in its tangent basis (u, v), from the last push-pull (empty without `push_slopes`).
-    moment: Vec<[Rgb; 2]>,
-    /// Scratch: the same moments in world coordinates (x, y, z), while pulling.
-    moment_world: Vec<[Rgb; 3]>,
-    /// The links flattened for gathering (buffers kept between rebuilds).
-    gather_plan: GatherPlan,
-    /// `gather_plan` matches the current links but for the receivers in `plan_changed` (false:
-    /// rebuild it whole).
-    plan_valid: bool,
-    /// Receivers whose link lists changed since `gather_plan` was made (refinements record
-    /// them; the next gather updates their entries).
-    plan_changed: Vec<u32>,
-    /// The oracle's compact copy of every element's (b_max, max channel of B) during
-    /// refinement; cleared afterwards, as B changes.
-    oracle_b: Vec<[f64; 2]>,
-    /// The row check's floor per element during refinement (`refine::row_floors`): the smallest
-    /// F·V of its links that `refine::row_split` pushes down, 0 for none; empty when off.
-    row_floor: Vec<f32>,
-    /// Stop casting a new link's rays once they settle what the next refinement pass does
-    /// with it (on by default; off only to check that it changes nothing).
-    early_exit: bool,
-    /// Recompute the error oracle's whole field every pass instead of updating it (off; only to
-    /// check that the update changes nothing).
-    full_error_passes: bool,
-    /// The new pairs of the current refinement pass (see `make_link`).
-    pair_memo: PairMemo,
-    /// The error oracle's kernels at each element's child points per linked source, from the
-    /// last refinement (`oracle::ErrorField::kernels`): the next one evaluates only new pairs.
-    error_kernels: Vec<oracle::Kernels>,
-    /// The cluster tree above the input patches (built at the first linking, when
-    /// `params.cluster` applies; [`cluster`]).
-    clusters: Option<Arc<ClusterTree>>,
-    /// Links with a cluster at one end at least.
-    cluster_links: Vec<ClusterLink>,
-    /// Scratch of the cluster transfer.
-    cluster_xfer: ClusterTransfer,
-    /// Each input patch's Σ F·V through cluster links (its energy row's share).
-    cluster_fv: Vec<f64>,
+    graph: LinkGraph,
+    gather: GatherState,
+    push_pull: PushPullState,
+    oracle: OracleState,
+    cluster: ClusterState,
     /// Closed rows: which patches are enclosed, the leaves' scale and balanced rows
     /// ([`closure`]).
     closure: closure::Closure,
+    log: RunLog,
 }
 
 impl HierarchicalSolver {
@@ -430,69 +391,39 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn with_accel(scene: Arc<Scene>, accel: Arc<Accel>, params: HierarchicalParams, bvh_s: f64) -> Self {
         let hier = Hierarchy::from_scene(&scene);
-        let links = LinkStore::new(hier.len());
-        let aeps = params.aeps.resolve(scene.total_area());
-        let bf_eps = resolve_bf_eps(&params, &scene);
-        let mut s = HierarchicalSolver {
-            scene,
-            accel,
-            params,
-            aeps,
-            bf_eps,
+        let graph = LinkGraph { links: LinkStore::new(hier.len()), ..Default::default() };
+        HierarchicalSolver {
+            log: RunLog::new(&scene),
+            setup: Setup::new(scene, accel, params, bvh_s),
             hier,
-            links,
-            linked: false,
-            initial_cache: None,
-            stats: HierarchicalStats::default(),
-            residuals: Vec::new(),
-            converged: false,
-            cancel: Arc::new(AtomicBool::new(false)),
-            bvh_s,
-            energy: EnergyBalance::default(),
-            gathered_once: false,
-            chain: Vec::new(),
-            flat_chain: Vec::new(),
-            b_prev: Vec::new(),
-            moment: Vec::new(),
-            moment_world: Vec::new(),
-            gather_plan: GatherPlan::default(),
-            plan_valid: false,
-            plan_changed: Vec::new(),
-            oracle_b: Vec::new(),
-            row_floor: Vec::new(),
-            early_exit: true,
-            full_error_passes: false,
-            pair_memo: PairMemo::default(),
-            error_kernels: Vec::new(),
-            clusters: None,
-            cluster_links: Vec::new(),
-            cluster_xfer: ClusterTransfer::default(),
-            cluster_fv: Vec::new(),
+            graph,
+            gather: GatherState::default(),
+            push_pull: PushPullState::default(),
+            oracle: OracleState::default(),
+            cluster: ClusterState::default(),
             closure: closure::Closure::default(),
-        };
-        s.energy.emitted = s.scene.emitted_power();
-        s
+        }
     }
 
     /// Turn off (or on) the early exits of link visibility (see `make_link`). They cast fewer
     /// rays and leave every result the same; turning them off is for checking exactly that.
     pub fn set_early_exit(&mut self, on: bool) {
-        self.early_exit = on;
+        self.setup.early_exit = on;
     }
 
     /// Recompute the error oracle's field for every element in every refinement pass (`true`)
     /// instead of only where links changed. The results are identical; for checking exactly that.
     pub fn set_full_error_passes(&mut self, on: bool) {
-        self.full_error_passes = on;
+        self.setup.full_error_passes = on;
     }
 
     #[must_use]
     pub fn scene(&self) -> &Arc<Scene> {
-        &self.scene
+        &self.setup.scene
     }
     #[must_use]
     pub fn params(&self) -> HierarchicalParams {
-        self.params
+        self.setup.params
     }
     #[must_use]
     pub fn hierarchy(&self) -> &Hierarchy {
@@ -500,20 +431,18 @@ impl HierarchicalSolver {
     }
     #[must_use]
     pub fn links(&self) -> &LinkStore {
-        &self.links
+        &self.graph.links
     }
     #[must_use]
     pub fn accel(&self) -> &Arc<Accel> {
-        &self.accel
+        &self.setup.accel
     }
 
     /// Restart with new parameters. Reuses the BVH, and the initial patch-pair links when `rays`,
     /// `seed` and `conservative` did not change.
     pub fn set_params(&mut self, p: HierarchicalParams) -> Result<(), String> {
         p.validate()?;
-        self.params = p;
-        self.aeps = p.aeps.resolve(self.scene.total_area());
-        self.bf_eps = resolve_bf_eps(&p, &self.scene);
+        self.setup.set_params(p);
         self.reset();
         Ok(())
     }
@@ -526,7 +455,7 @@ impl HierarchicalSolver {
     /// does. Returns whether the state was kept.
     pub fn retarget(&mut self, p: HierarchicalParams) -> Result<bool, String> {
         p.validate()?;
-        let old = self.params;
+        let old = self.setup.params;
         let others_same = HierarchicalParams {
             feps: old.feps,
             bf_eps: old.bf_eps,
@@ -536,58 +465,51 @@ impl HierarchicalSolver {
             row_tol: old.row_tol,
             ..p
         } == old;
-        let area = self.scene.total_area();
+        let area = self.setup.scene.total_area();
         let aeps = p.aeps.resolve(area);
         let finer = p.feps <= old.feps
             && p.bf_eps <= old.bf_eps
             && aeps <= old.aeps.resolve(area)
             && p.max_depth >= old.max_depth
             && p.max_links >= old.max_links;
-        if !(others_same && finer && self.linked) {
+        if !(others_same && finer && self.graph.linked) {
             self.set_params(p)?;
             return Ok(false);
         }
-        self.params = p;
-        self.aeps = aeps;
-        self.bf_eps = resolve_bf_eps(&p, &self.scene);
-        self.converged = false;
-        self.cancel.store(false, Ordering::Relaxed);
+        self.setup.set_params(p);
+        self.log.converged = false;
+        self.setup.cancel.store(false, Ordering::Relaxed);
         Ok(true)
     }
 
     /// Back to one element per patch, no links, B = E.
     pub fn reset(&mut self) {
-        self.hier = Hierarchy::from_scene(&self.scene);
-        self.links = LinkStore::new(self.hier.len());
-        self.plan_valid = false;
-        self.plan_changed.clear();
-        self.moment.clear();
-        self.cluster_links.clear();
-        self.cluster_fv.clear();
-        self.closure_reset();
-        self.linked = false;
-        self.stats = HierarchicalStats::default();
-        self.residuals.clear();
-        self.converged = false;
-        self.gathered_once = false;
-        self.energy = EnergyBalance { emitted: self.scene.emitted_power(), ..Default::default() };
-        self.cancel.store(false, Ordering::Relaxed);
+        self.hier = Hierarchy::from_scene(&self.setup.scene);
+        self.graph.links = LinkStore::new(self.hier.len());
+        self.gather.invalidate();
+        self.push_pull.moment.clear();
+        self.cluster.links.clear();
+        self.cluster.fv.clear();
+        self.closure.reset();
+        self.graph.linked = false;
+        self.log = RunLog::new(&self.setup.scene);
+        self.setup.cancel.store(false, Ordering::Relaxed);
     }
 
     /// Set the returned flag to make a running step return early (`StepReport::cancelled`).
     /// The state stays consistent: refinement stops between passes, gathering between iterations.
     #[must_use]
     pub fn cancel_handle(&self) -> Arc<AtomicBool> {
-        Arc::clone(&self.cancel)
+        Arc::clone(&self.setup.cancel)
     }
 
     fn cancelled(&self) -> bool {
-        self.cancel.load(Ordering::Relaxed)
+        self.setup.cancelled()
     }
 
     #[must_use]
     pub fn is_converged(&self) -> bool {
-        self.converged
+        self.log.converged
     }
 
     fn report(&self, kind: StepKind, t: Instant, refined: usize, new_links: usize) -> StepReport {
@@ -596,8 +518,8 @@ impl HierarchicalSolver {
             time_s: t.elapsed().as_secs_f64(),
             refined,
             new_links,
-            residual: self.residuals.last().copied().unwrap_or(0.0),
-            converged: self.converged,
+            residual: self.log.residuals.last().copied().unwrap_or(0.0),
+            converged: self.log.converged,
             cancelled: self.cancelled(),
         }
     }
@@ -606,14 +528,14 @@ impl HierarchicalSolver {
 impl HierarchicalSolver {
     /// Refine, gather, push-pull.
     pub fn iterate(&mut self) -> StepReport {
-        self.cancel.store(false, Ordering::Relaxed);
+        self.setup.cancel.store(false, Ordering::Relaxed);
         let t = Instant::now();
         let r = self.refine_inner();
         if r.cancelled {
             return self.report(StepKind::Iterate, t, r.refined, r.new_links);
         }
         self.gather_inner();
-        if !self.params.gauss_seidel {
+        if !self.setup.params.gauss_seidel {
             self.push_pull_step();
         }
         self.report(StepKind::Iterate, t, r.refined, r.new_links)
@@ -632,17 +554,17 @@ impl HierarchicalSolver {
     /// and push-pull (a consistent, displayable state: the viewer shows the picture as it
     /// forms). The result is the same as `solve`'s.
     pub fn solve_observed(&mut self, progress: Progress, on_round: &mut dyn FnMut(&Self)) -> StepReport {
-        self.cancel.store(false, Ordering::Relaxed);
+        self.setup.cancel.store(false, Ordering::Relaxed);
         let t = Instant::now();
         let mut refined_total = 0;
         let mut links_total = 0;
-        let rounds = self.params.max_rounds.max(1);
+        let rounds = self.setup.params.max_rounds.max(1);
         // Push-pulls inside the loop skip the power sums; one pass at the end makes them.
         let mut energy_due = false;
         for round in 0..rounds {
             progress(u64::from(round), u64::from(rounds));
             // Refinement marks the solution unconverged; remember whether the last gathers had.
-            let was_converged = self.converged;
+            let was_converged = self.log.converged;
             let r = self.refine_inner();
             refined_total += r.refined;
             links_total += r.new_links;
@@ -652,61 +574,62 @@ impl HierarchicalSolver {
             // A refinement that adds few links (at most `settle` of them) is gathered to
             // convergence before the next one; on an already converged solution it ends the
             // refinement (the mesh has settled).
-            let small = r.new_links as f64 <= self.params.settle * self.links.len() as f64;
+            let small = r.new_links as f64 <= self.setup.params.settle * self.graph.links.len() as f64;
             let settled = round > 0 && was_converged && small;
             if settled && r.new_links == 0 {
                 // Nothing changed since the converged gather: the solution stands.
-                self.converged = true;
+                self.log.converged = true;
                 break;
             }
             // While the mesh still changes, refine again after `round_iterations` gathers.
-            let last = settled || round + 1 == rounds || self.params.oracle == Oracle::Feps;
+            let last = settled || round + 1 == rounds || self.setup.params.oracle == Oracle::Feps;
             let cap = if last || small {
-                self.params.max_iterations
+                self.setup.params.max_iterations
             } else {
-                self.params.round_iterations.min(self.params.max_iterations)
+                self.setup.params.round_iterations.min(self.setup.params.max_iterations)
             };
             let mut iters = 0;
             loop {
                 self.gather_inner();
-                if !self.params.gauss_seidel {
+                if !self.setup.params.gauss_seidel {
                     let t = Instant::now();
                     self.push_pull_flat(None, false);
-                    self.stats.push_pull_s += t.elapsed().as_secs_f64();
+                    self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
                     energy_due = true;
                 }
                 iters += 1;
-                if self.converged || iters >= cap || self.cancelled() {
+                if self.log.converged || iters >= cap || self.cancelled() {
                     break;
                 }
             }
-            self.stats.rounds = round as usize + 1;
-            if self.cancelled() || settled || (self.params.oracle == Oracle::Feps && self.converged) {
+            self.log.stats.rounds = round as usize + 1;
+            if self.cancelled() || settled || (self.setup.params.oracle == Oracle::Feps && self.log.converged)
+            {
                 break;
             }
-            if !self.params.gauss_seidel || iters > 0 {
+            if !self.setup.params.gauss_seidel || iters > 0 {
                 on_round(self);
             }
         }
         if energy_due {
             let te = Instant::now();
             self.energy_pass();
-            self.stats.push_pull_s += te.elapsed().as_secs_f64();
+            self.log.stats.push_pull_s += te.elapsed().as_secs_f64();
         }
         // The power balance closes as far as the gathers converged: a preset whose stopping
         // tolerance leaves it open (splash2's 0.005 of B left table-room's at 1.1e-2) gathers on,
         // without refining, until it closes to ENERGY_TOLERANCE (a bounded number of sweeps).
         let mut extra = 0;
-        while self.gathered_once
-            && self.energy.relative_residual() > ENERGY_TOLERANCE
-            && extra < self.params.max_iterations
+        while self.log.gathered_once
+            && self.log.energy.relative_residual() > ENERGY_TOLERANCE
+            && extra < self.setup.params.max_iterations
             && !self.cancelled()
         {
             self.gather_inner();
-            if !self.params.gauss_seidel {
+            if !self.setup.params.gauss_seidel {
                 let t = Instant::now();
                 self.push_pull_flat(None, true);
-                self.stats.push_pull_s += t.elapsed().as_secs_f64();
+                self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
             }
             extra += 1;
         }
@@ -721,14 +644,14 @@ impl HierarchicalSolver {
     /// Statistics of the current state.
     #[must_use]
     pub fn stats(&self) -> HierarchicalStats {
-        let mut s = self.stats.clone();
+        let mut s = self.log.stats.clone();
         s.elements = self.hier.len();
         s.leaves = self.hier.elements.iter().filter(|e| e.is_leaf()).count();
-        s.links = self.links.len();
+        s.links = self.graph.links.len();
         s.links_full = 0;
         s.links_partial = 0;
         s.links_none = 0;
-        for l in self.links.by_receiver.iter().flatten() {
+        for l in self.graph.links.by_receiver.iter().flatten() {
             match l.class() {
                 VisClass::Full => s.links_full += 1,
                 VisClass::Partial => s.links_partial += 1,
@@ -739,11 +662,11 @@ impl HierarchicalSolver {
         s.bytes_per_link = std::mem::size_of::<Link>();
         s.bytes_per_element = std::mem::size_of::<Element>() + std::mem::size_of::<Vec<Link>>();
         s.memory_bytes =
-            self.hier.elements.capacity() * std::mem::size_of::<Element>() + self.links.memory_bytes();
-        s.clusters = self.clusters.as_ref().map_or(0, |t| t.len());
-        s.cluster_links = self.cluster_links.len();
-        s.memory_bytes += self.cluster_links.capacity() * std::mem::size_of::<ClusterLink>()
-            + self.clusters.as_ref().map_or(0, |t| t.len() * std::mem::size_of::<cluster::ClusterNode>());
+            self.hier.elements.capacity() * std::mem::size_of::<Element>() + self.graph.links.memory_bytes();
+        s.clusters = self.cluster.tree.as_ref().map_or(0, |t| t.len());
+        s.cluster_links = self.cluster.links.len();
+        s.memory_bytes += self.cluster.links.capacity() * std::mem::size_of::<ClusterLink>()
+            + self.cluster.tree.as_ref().map_or(0, |t| t.len() * std::mem::size_of::<cluster::ClusterNode>());
         // A cluster link moves light both ways, as an element link and its mirror do.
         let all = s.links + 2 * s.cluster_links;
         s.links_per_element = if s.elements > 0 { all as f64 / s.elements as f64 } else { 0.0 };
@@ -791,9 +714,10 @@ impl HierarchicalSolver {
                 slope: slopes.get(i).copied().flatten(),
             })
             .collect();
-        let oracle = self.params.oracle;
+        let oracle = self.setup.params.oracle;
         let hier = &self.hier;
         let links = self
+            .graph
             .links
             .by_receiver
             .iter()
@@ -820,7 +744,7 @@ impl HierarchicalSolver {
             clusters,
             patch_cluster,
             stats: self.stats(),
-            residuals: self.residuals.clone(),
+            residuals: self.log.residuals.clone(),
         }
     }
 
@@ -828,7 +752,7 @@ impl HierarchicalSolver {
     /// the rows closed, times the leaf's scale, as its irradiance is); empty without
     /// `push_slopes`, None for interior elements and flat leaves.
     fn leaf_slopes(&self) -> Vec<Option<crate::solver::Slope>> {
-        if !self.params.push_slopes {
+        if !self.setup.params.push_slopes {
             return Vec::new();
         }
         let scale = &self.closure.scale;
@@ -859,7 +783,7 @@ impl HierarchicalSolver {
         let mut chain: Vec<Chain> = Vec::with_capacity(self.hier.len());
         for e in &self.hier.elements {
             let up = if e.parent == NONE { Chain::default() } else { chain[e.parent as usize] };
-            chain.push(up.step(e, self.params.push_slopes));
+            chain.push(up.step(e, self.setup.params.push_slopes));
         }
         chain
     }
@@ -891,10 +815,10 @@ impl HierarchicalSolver {
                 slope: slopes.get(i).copied().flatten(),
             })
             .collect();
-        let patch_radiosity = Solution::patch_averages(self.scene.patches.len(), &elements);
+        let patch_radiosity = Solution::patch_averages(self.setup.scene.patches.len(), &elements);
         let st = self.stats();
-        let mut energy = self.energy;
-        if !self.gathered_once {
+        let mut energy = self.log.energy;
+        if !self.log.gathered_once {
             // Nothing gathered yet: all emitted power is still "in flight", nothing absorbed.
             energy.absorbed = Rgb::ZERO;
             energy.escaped = Rgb::ZERO;
@@ -904,17 +828,17 @@ impl HierarchicalSolver {
             patch_radiosity,
             energy,
             stats: SolveStats {
-                patches: self.scene.patches.len(),
+                patches: self.setup.scene.patches.len(),
                 elements: elements.len(),
                 links: st.links,
                 iterations: st.iterations,
                 rays: st.rays,
                 time_s: PhaseTimes {
                     load: 0.0,
-                    bvh: self.bvh_s,
+                    bvh: self.setup.bvh_s,
                     form_factors: st.refine_s,
                     solve: st.gather_s + st.push_pull_s,
-                    total: self.bvh_s + st.refine_s + st.gather_s + st.push_pull_s,
+                    total: self.setup.bvh_s + st.refine_s + st.gather_s + st.push_pull_s,
                 },
                 extra: serde_json::to_value(&st).ok(),
             },
@@ -927,6 +851,7 @@ impl HierarchicalSolver {
 mod tests {
     use super::*;
     use crate::scene::Patch;
+    use refine::{coupling_in, new_link};
 
     /// The five-times rule's disk estimate against the exact coupling at five diameters or more
     /// (the lecture quotes the rule as good to about a percent; 3 % allows for off-axis pairs).

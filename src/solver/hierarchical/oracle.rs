@@ -376,10 +376,10 @@ impl HierarchicalSolver {
         for &(r, e) in &errs {
             field.err[r as usize] = e;
         }
-        let mut decide = super::IdSet::default();
+        let mut decide = super::refine::IdSet::default();
         for &(r, e) in &errs {
             field.spread[r as usize] = self.element_spread(r, e);
-            let own = &self.links.by_receiver[r as usize];
+            let own = &self.graph.links.by_receiver[r as usize];
             if !own.is_empty() {
                 decide.insert(r);
                 for l in own {
@@ -399,7 +399,7 @@ impl HierarchicalSolver {
         let mut h = [Rgb::ZERO; 4];
         let mut partial = Rgb::ZERO;
         let mut disc = Rgb::ZERO;
-        let own = &self.links.by_receiver[r as usize];
+        let own = &self.graph.links.by_receiver[r as usize];
         let mut c = Vec::with_capacity(own.len());
         let mut kernels = Vec::with_capacity(own.len());
         for l in own {
@@ -424,7 +424,7 @@ impl HierarchicalSolver {
         let mut tail: f64 = c.iter().sum();
         let mut cause = f64::INFINITY;
         for &ck in &c {
-            if tail <= self.params.cause_tail * self.bf_eps {
+            if tail <= self.setup.params.cause_tail * self.setup.bf_eps {
                 break;
             }
             cause = ck;
@@ -435,7 +435,7 @@ impl HierarchicalSolver {
 
     /// e_r (module docs) from h and the visibility term; 0 without own links.
     fn error_from(&self, r: u32, h: &[Rgb; 4], partial: Rgb) -> f64 {
-        if self.links.by_receiver[r as usize].is_empty() {
+        if self.graph.links.by_receiver[r as usize].is_empty() {
             return 0.0;
         }
         let e = self.hier.get(r);
@@ -471,7 +471,7 @@ impl HierarchicalSolver {
     pub(super) fn decide_error(&self, field: &ErrorField, r: u32, link: &Link) -> Result<u32, StopReason> {
         let q = link.source;
         let (lo, hi) = if r < q { (r, q) } else { (q, r) };
-        let eps = self.bf_eps;
+        let eps = self.setup.bf_eps;
         let (elo, ehi) = (self.hier.get(lo), self.hier.get(hi));
         let v = f64::from(link.vis).clamp(0.0, 1.0);
         // Relative variation of the kernel across each side, diam / distance (capped at 1): what
@@ -511,14 +511,15 @@ impl HierarchicalSolver {
             (true, false) => (lo, None),
             (false, true) => (hi, None),
             (true, true) => {
-                let lo_larger = super::nearly_equal(elo.area, ehi.area) || elo.area > ehi.area;
+                let lo_larger = super::refine::nearly_equal(elo.area, ehi.area) || elo.area > ehi.area;
                 if lo_larger { (lo, Some(hi)) } else { (hi, Some(lo)) }
             }
         };
         match self.can_split(self.hier.get(first)) {
             Ok(()) => Ok(first),
             Err(why) => {
-                match second.or(self.params.split_fallback.then_some(if first == lo { hi } else { lo })) {
+                match second.or(self.setup.params.split_fallback.then_some(if first == lo { hi } else { lo }))
+                {
                     Some(s) if self.can_split(self.hier.get(s)).is_ok() => Ok(s),
                     _ => Err(why),
                 }

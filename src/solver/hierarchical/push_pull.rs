@@ -11,7 +11,15 @@
 //! between levels. The same sweep sums the power balance (`EnergyBalance`): absorbed
 //! Σ A (1 − ρ) H and escaped Σ A B (1 − Σ F·V of the leaf's row).
 
-use super::*;
+use super::closure::Closure;
+use super::oracle::{self, Kernels};
+use super::parts::PushPullState;
+use super::{HierarchicalSolver, LeafRow, StepKind, StepReport};
+use crate::math::{DVec3, Rgb};
+use crate::solver::hierarchy::{Element, Hierarchy, NONE};
+use crate::solver::link::LinkStore;
+use rayon::prelude::*;
+use std::time::Instant;
 
 /// Sums an element inherits in push-pull, its own included.
 #[derive(Copy, Clone, Debug, Default)]
@@ -261,14 +269,8 @@ pub(super) fn row_excess<S: Sums>(els: &[Element], chain: &mut Vec<S>, eps: f64)
 impl HierarchicalSolver {
     /// The row check's excess of every element now (empty when `row_tol` is 0).
     pub(super) fn row_excess_now(&mut self) -> Vec<f32> {
-        let eps = self.params.row_tol * self.mean_reflected();
-        if eps <= 0.0 {
-            Vec::new()
-        } else if self.params.push_slopes {
-            row_excess(&self.hier.elements, &mut self.chain, eps)
-        } else {
-            row_excess(&self.hier.elements, &mut self.flat_chain, eps)
-        }
+        let eps = self.setup.params.row_tol * self.mean_reflected();
+        self.push_pull.row_excess(&self.hier.elements, self.setup.params.push_slopes, eps)
     }
 
     /// Every leaf's row of F·V as the power balance reads it, in id order ([`LeafRow`]): with
@@ -276,14 +278,14 @@ impl HierarchicalSolver {
     #[must_use]
     pub fn leaf_rows(&self) -> Vec<LeafRow> {
         let mut rows = Vec::new();
-        let cluster = &self.cluster_fv;
+        let cluster = &self.cluster.fv;
         let closed = &self.closure.row;
         let mut each = |i: usize, e: &Element, _: Rgb, row: f64| {
             let cluster = cluster.get(e.patch as usize).copied().unwrap_or(0.0);
             let row = closed.get(i).copied().unwrap_or(row);
             rows.push(LeafRow { id: i as u32, row, cluster });
         };
-        if self.params.push_slopes {
+        if self.setup.params.push_slopes {
             for_each_leaf_row(&self.hier.elements, &mut Vec::<Chain>::new(), &mut each);
         } else {
             for_each_leaf_row(&self.hier.elements, &mut Vec::<FlatChain>::new(), &mut each);
@@ -321,115 +323,147 @@ impl HierarchicalSolver {
         b
     }
 
-    /// Fill `Link::slope` of every link that has none yet (parallel over receivers; a link's
-    /// slope depends on its two elements and V only, so it is computed once per link).
-    pub(super) fn fill_slopes(&mut self) {
-        let hier = &self.hier;
-        let kernels = &self.error_kernels;
-        let sums: Vec<[f64; 2]> = self
-            .links
-            .by_receiver
-            .par_iter_mut()
-            .enumerate()
-            .with_min_len(64)
-            .map(|(r, ls)| {
-                let re = hier.get(r as u32);
-                for l in ls.iter_mut().filter(|l| !l.slope_set) {
-                    let v = f64::from(l.vis).clamp(0.0, 1.0);
-                    let se = hier.get(l.source);
-                    let g = f64::from(l.g);
-                    // Both sides from the same inputs as the mirror link's: bit-identical.
-                    (l.slope, l.src_slope) = if v > 0.0 {
-                        (
-                            oracle::kernel_slope(
-                                re,
-                                se,
-                                v,
-                                g / re.area,
-                                oracle::known_kernel(kernels, r as u32, l.source),
-                            )
-                            .map(|x| x as f32),
-                            oracle::kernel_slope(
-                                se,
-                                re,
-                                v,
-                                g / se.area,
-                                oracle::known_kernel(kernels, l.source, r as u32),
-                            )
-                            .map(|x| x as f32),
-                        )
-                    } else {
-                        ([0.0; 2], [0.0; 2])
-                    };
-                    l.slope_set = true;
-                }
-                // Over every own link (a split may have removed some since the last fill).
-                ls.iter().fold([0.0; 2], |[u, v], l| [u + f64::from(l.slope[0]), v + f64::from(l.slope[1])])
-            })
-            .collect();
-        for (e, s) in self.hier.elements.iter_mut().zip(sums) {
-            e.fv_slope = s;
-        }
-    }
-
     /// Push gathered irradiance down to the leaves (B = E + ρ·H), pull area averages up.
     pub fn push_pull_step(&mut self) -> StepReport {
         let t = Instant::now();
         self.push_pull_flat(None, true);
-        self.stats.push_pull_s += t.elapsed().as_secs_f64();
+        self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
         self.report(StepKind::PushPull, t, 0, 0)
     }
 
-    pub(super) fn push_pull_root(&mut self, root: u32) {
-        self.push_pull_rec(root, Chain::default());
+    /// Push-pull over the whole forest ([`PushPullState::run`]), its residual and power sums
+    /// into the log.
+    pub(super) fn push_pull_flat(&mut self, before: Option<&[Rgb]>, energy: bool) {
+        let pushed = self.push_pull.run(
+            &mut self.hier.elements,
+            &self.closure,
+            self.setup.params.push_slopes,
+            before,
+            energy,
+        );
+        self.log.record_push(pushed, self.setup.params.tolerance);
     }
 
-    /// `up`: the irradiance inherited from the ancestors (`Chain`).
-    pub(super) fn push_pull_rec(&mut self, id: u32, up: Chain) -> Rgb {
-        let e = &self.hier.elements[id as usize];
-        let own = up.step(e, self.params.push_slopes);
-        if let Some(kids) = e.children() {
-            let area = e.area;
-            let mut b = Rgb::ZERO;
-            let mut b_max: f64 = 0.0;
-            for c in kids {
-                let bc = self.push_pull_rec(c, own);
-                let child = &self.hier.elements[c as usize];
-                b += bc * (child.area / area);
-                b_max = b_max.max(child.b_max);
+    /// The absorbed and escaped power of the current state, as the last push-pull would have
+    /// summed them: for `solve`, whose iterations skip these sums until the end.
+    pub(super) fn energy_pass(&mut self) {
+        let (absorbed, escaped) =
+            self.push_pull.energy(&self.hier.elements, &self.closure, self.setup.params.push_slopes);
+        self.log.energy.absorbed = absorbed;
+        self.log.energy.escaped = escaped;
+    }
+}
+
+/// Fill `Link::slope` of every link of `links` that has none yet (parallel over receivers; a link's
+/// slope depends on its two elements and V only, so it is computed once per link).
+pub(super) fn fill_slopes(hier: &mut Hierarchy, links: &mut LinkStore, kernels: &[Kernels]) {
+    let sums: Vec<[f64; 2]> = links
+        .by_receiver
+        .par_iter_mut()
+        .enumerate()
+        .with_min_len(64)
+        .map(|(r, ls)| {
+            let re = hier.get(r as u32);
+            for l in ls.iter_mut().filter(|l| !l.slope_set) {
+                let v = f64::from(l.vis).clamp(0.0, 1.0);
+                let se = hier.get(l.source);
+                let g = f64::from(l.g);
+                // Both sides from the same inputs as the mirror link's: bit-identical.
+                (l.slope, l.src_slope) = if v > 0.0 {
+                    (
+                        oracle::kernel_slope(
+                            re,
+                            se,
+                            v,
+                            g / re.area,
+                            oracle::known_kernel(kernels, r as u32, l.source),
+                        )
+                        .map(|x| x as f32),
+                        oracle::kernel_slope(
+                            se,
+                            re,
+                            v,
+                            g / se.area,
+                            oracle::known_kernel(kernels, l.source, r as u32),
+                        )
+                        .map(|x| x as f32),
+                    )
+                } else {
+                    ([0.0; 2], [0.0; 2])
+                };
+                l.slope_set = true;
             }
-            let e = &mut self.hier.elements[id as usize];
-            e.radiosity = b;
-            e.b_max = b_max;
-            b
-        } else {
-            let b = e.emission + e.reflectance.mul_rgb(own.full + own.rest);
-            let e = &mut self.hier.elements[id as usize];
-            e.radiosity = b;
-            e.b_max = b.max_channel();
-            b
-        }
+            // Over every own link (a split may have removed some since the last fill).
+            ls.iter().fold([0.0; 2], |[u, v], l| [u + f64::from(l.slope[0]), v + f64::from(l.slope[1])])
+        })
+        .collect();
+    for (e, s) in hier.elements.iter_mut().zip(sums) {
+        e.fv_slope = s;
     }
+}
 
+/// Push-pull of the subtree of `id` (recursive): `up`, the irradiance inherited from the
+/// ancestors (`Chain`); `slopes`: with the links' slopes. Returns the element's radiosity.
+pub(super) fn push_pull_rec(els: &mut [Element], id: u32, up: Chain, slopes: bool) -> Rgb {
+    let e = &els[id as usize];
+    let own = up.step(e, slopes);
+    if let Some(kids) = e.children() {
+        let area = e.area;
+        let mut b = Rgb::ZERO;
+        let mut b_max: f64 = 0.0;
+        for c in kids {
+            let bc = push_pull_rec(els, c, own, slopes);
+            let child = &els[c as usize];
+            b += bc * (child.area / area);
+            b_max = b_max.max(child.b_max);
+        }
+        let e = &mut els[id as usize];
+        e.radiosity = b;
+        e.b_max = b_max;
+        b
+    } else {
+        let b = e.emission + e.reflectance.mul_rgb(own.full + own.rest);
+        let e = &mut els[id as usize];
+        e.radiosity = b;
+        e.b_max = b.max_channel();
+        b
+    }
+}
+
+/// What one push-pull found: the residual (the largest leaf change relative to the largest
+/// reflected radiosity) and, when summed, the absorbed and escaped power.
+#[derive(Copy, Clone, Debug)]
+pub(super) struct Pushed {
+    pub(super) residual: f64,
+    pub(super) energy: Option<(Rgb, Rgb)>,
+}
+
+impl PushPullState {
     /// Push-pull over the whole forest in two flat sweeps (parents have smaller ids than their
     /// children): down in id order, each element's inherited sums from its parent's, leaves'
     /// radiosity B = E + ρ·(H_full + H_rest) and their energy terms; then up in reverse
     /// order, area averages. The same values as `push_pull_rec` from every root. The residual is
-    /// the largest leaf change against `before` (default: the values before this call).
-    pub(super) fn push_pull_flat(&mut self, before: Option<&[Rgb]>, energy: bool) {
-        let n = self.hier.len();
-        let slopes = self.params.push_slopes;
+    /// the largest leaf change against `before` (default: the values before this call), and the
+    /// power sums are made only with `energy`. The `closure`'s scales apply where it is active.
+    pub(super) fn run(
+        &mut self,
+        els: &mut [Element],
+        closure: &Closure,
+        slopes: bool,
+        before: Option<&[Rgb]>,
+        energy: bool,
+    ) -> Pushed {
+        let n = els.len();
         // Per element: its own and inherited sums (full-visibility irradiance, other irradiance,
         // full-visibility F, other F·V; with slopes, their gradients).
-        let closed = (&self.closure.scale[..], &self.closure.row[..]);
+        let closed = (&closure.scale[..], &closure.row[..]);
         let (max_change, max_reflected, absorbed, escaped) = if slopes {
-            push_down(&mut self.hier.elements, &mut self.chain, before, energy, closed)
+            push_down(els, &mut self.chain, before, energy, closed)
         } else {
-            push_down(&mut self.hier.elements, &mut self.flat_chain, before, energy, closed)
+            push_down(els, &mut self.flat_chain, before, energy, closed)
         };
         // With the rows closed the gather pulls its own moments, of the scaled B (`pull_sent`).
-        let slopes = slopes && !self.closure_active();
-        let els = &mut self.hier.elements;
+        let slopes = slopes && !closure.active();
         // World moments Σ_leaves A B (c − c_e) / A_e while pulling (leaves: 0), then each in its
         // element's tangent basis.
         let world = &mut self.moment_world;
@@ -473,25 +507,28 @@ impl HierarchicalSolver {
             }));
         }
         let residual = if max_reflected > 0.0 { max_change / max_reflected } else { max_change };
-        self.residuals.push(residual);
-        self.converged = residual < self.params.tolerance;
-        if energy {
-            self.energy.absorbed = absorbed;
-            self.energy.escaped = escaped;
+        Pushed { residual, energy: energy.then_some((absorbed, escaped)) }
+    }
+
+    /// The absorbed and escaped power of the elements as they are, as the last push-pull would
+    /// have summed them (the same terms in the same order, with each leaf's B as it left them).
+    pub(super) fn energy(&mut self, els: &[Element], closure: &Closure, slopes: bool) -> (Rgb, Rgb) {
+        let closed = (&closure.scale[..], &closure.row[..]);
+        if slopes {
+            energy_sums(els, &mut self.chain, closed)
+        } else {
+            energy_sums(els, &mut self.flat_chain, closed)
         }
     }
 
-    /// The absorbed and escaped power of the current state, as the last push-pull would have
-    /// summed them (the same terms in the same order, with each leaf's B as it left them): for
-    /// `solve`, whose iterations skip these sums until the end.
-    pub(super) fn energy_pass(&mut self) {
-        let closed = (&self.closure.scale[..], &self.closure.row[..]);
-        let (absorbed, escaped) = if self.params.push_slopes {
-            energy_sums(&self.hier.elements, &mut self.chain, closed)
+    /// The row check's excess of every element of `els` ([`row_excess`]; empty when `eps` ≤ 0).
+    pub(super) fn row_excess(&mut self, els: &[Element], slopes: bool, eps: f64) -> Vec<f32> {
+        if eps <= 0.0 {
+            Vec::new()
+        } else if slopes {
+            row_excess(els, &mut self.chain, eps)
         } else {
-            energy_sums(&self.hier.elements, &mut self.flat_chain, closed)
-        };
-        self.energy.absorbed = absorbed;
-        self.energy.escaped = escaped;
+            row_excess(els, &mut self.flat_chain, eps)
+        }
     }
 }

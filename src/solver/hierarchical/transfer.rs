@@ -154,7 +154,7 @@ pub(super) enum Rule {
 
 /// Which element of the pair is integrated over: the smaller (ties: the lower id). `true`: `a`.
 fn integrate_over_a(a: &Element, a_id: u32, b: &Element, b_id: u32) -> bool {
-    if super::nearly_equal(a.area, b.area) { a_id < b_id } else { a.area < b.area }
+    if super::refine::nearly_equal(a.area, b.area) { a_id < b_id } else { a.area < b.area }
 }
 
 /// How accurately link coefficients are computed (from `HierarchicalParams`).

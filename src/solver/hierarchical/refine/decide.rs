@@ -7,14 +7,18 @@
 //! side:  F_pq > F_qp → the source q, else the receiver p (ties: the larger, then the lower id)
 //! ```
 
-use super::super::*;
 use super::verdict::{Decision, ReceiverDecision, Split, Verdict};
+use crate::scene::Scene;
+use crate::solver::hierarchical::{HierarchicalSolver, oracle};
+use crate::solver::hierarchy::{Element, StopReason};
+use crate::solver::link::{Link, VisClass};
+use crate::solver::params::{HierarchicalParams, Oracle};
 
 impl HierarchicalSolver {
     pub(in crate::solver::hierarchical) fn can_split(&self, e: &Element) -> Result<(), StopReason> {
-        if e.depth >= self.params.max_depth {
+        if e.depth >= self.setup.params.max_depth {
             Err(StopReason::MaxDepth)
-        } else if e.area <= self.aeps || e.area / 4.0 <= 0.0 {
+        } else if e.area <= self.setup.aeps || e.area / 4.0 <= 0.0 {
             Err(StopReason::AepsFloor)
         } else {
             Ok(())
@@ -25,7 +29,7 @@ impl HierarchicalSolver {
     /// made for this refinement (radiosity does not change during refinement; new children
     /// inherit their parent's values), else from the element.
     pub(super) fn source_b(&self, id: u32) -> [f64; 2] {
-        self.oracle_b.get(id as usize).copied().unwrap_or_else(|| {
+        self.oracle.b.get(id as usize).copied().unwrap_or_else(|| {
             let e = self.hier.get(id);
             [e.b_max, e.radiosity.max_channel()]
         })
@@ -42,9 +46,10 @@ impl HierarchicalSolver {
 
     /// Extend the oracle's compact copy of B to every element (see `source_b`).
     pub(super) fn sync_oracle_b(&mut self) {
-        let start = self.oracle_b.len();
+        let start = self.oracle.b.len();
         let els = &self.hier.elements;
-        self.oracle_b
+        self.oracle
+            .b
             .extend(els[start.min(els.len())..].iter().map(|e| [e.b_max, e.radiosity.max_channel()]));
     }
 
@@ -54,7 +59,7 @@ impl HierarchicalSolver {
     pub(super) fn decide_receiver(&self, r: u32, field: Option<&oracle::ErrorField>) -> ReceiverDecision {
         let p = self.hier.get(r);
         let mut v = Verdict::default();
-        for (i, l) in self.links.by_receiver[r as usize].iter().enumerate() {
+        for (i, l) in self.graph.links.by_receiver[r as usize].iter().enumerate() {
             let d = match field {
                 Some(f) => {
                     self.decide_error(f, r, l).map(|x| if x == r { Split::Receiver } else { Split::Source })
@@ -80,7 +85,7 @@ impl HierarchicalSolver {
 
     /// Why a link the oracle does not want to split is kept.
     pub(super) fn below_reason(&self) -> StopReason {
-        match self.params.oracle {
+        match self.setup.params.oracle {
             Oracle::Feps => StopReason::BelowFeps,
             Oracle::Bf => StopReason::BelowBfEps,
             Oracle::Error => StopReason::BelowErrorEps,
@@ -90,8 +95,8 @@ impl HierarchicalSolver {
     /// Does the oracle's estimate call for splitting this link were its visibility of class
     /// `class` (Full or Partial)? `b`: the source's `source_b`.
     pub(super) fn wants_split(&self, link: &Link, class: VisClass, [b_max, b_channel]: [f64; 2]) -> bool {
-        match self.params.oracle {
-            Oracle::Feps => f64::from(link.fmax) >= self.params.feps,
+        match self.setup.params.oracle {
+            Oracle::Feps => f64::from(link.fmax) >= self.setup.params.feps,
             // Decided per pass from the error field (`decide_error`), never per link.
             Oracle::Error => false,
             Oracle::Bf => {
@@ -100,11 +105,11 @@ impl HierarchicalSolver {
                 // B_avg · V_avg then counts the darkness twice. Bound it by the source's
                 // brightest leaf.
                 let partial = class == VisClass::Partial;
-                let b = if partial && self.params.conservative { b_max } else { b_channel };
+                let b = if partial && self.setup.params.conservative { b_max } else { b_channel };
                 let (bound, thr) = if partial {
-                    (1.0, self.bf_eps * self.params.partial_bf_factor)
+                    (1.0, self.setup.bf_eps * self.setup.params.partial_bf_factor)
                 } else {
-                    (f64::from(link.bound), self.bf_eps)
+                    (f64::from(link.bound), self.setup.bf_eps)
                 };
                 b > 0.0 && b * f64::from(link.fmax) * bound > thr
             }
@@ -119,7 +124,7 @@ impl HierarchicalSolver {
         let side = |source: bool| if source { Split::Source } else { Split::Receiver };
         match self.can_split(first) {
             Ok(()) => Ok(side(link.split_source)),
-            Err(why_first) if !self.params.split_fallback => Err(why_first),
+            Err(why_first) if !self.setup.params.split_fallback => Err(why_first),
             Err(why_first) => match self.can_split(second) {
                 Ok(()) => Ok(side(!link.split_source)),
                 // The receiver's own limit is what the inspector reports.
@@ -143,7 +148,11 @@ impl HierarchicalSolver {
     /// `bf_eps` × the largest emission.
     pub(super) fn error_eps(&self) -> f64 {
         let mean = self.mean_reflected();
-        if mean > 0.0 { self.params.bf_eps * mean } else { resolve_bf_eps(&self.params, &self.scene) }
+        if mean > 0.0 {
+            self.setup.params.bf_eps * mean
+        } else {
+            resolve_bf_eps(&self.setup.params, &self.setup.scene)
+        }
     }
 }
 

@@ -2,10 +2,16 @@
 //! and its visibility V, estimated in the pair's canonical order so that a link and its
 //! mirror carry the same F·V·A, with as few rays as the next pass's verdict needs.
 
-use super::super::*;
 use super::pair::{PairSides, new_link, pair_key, pair_sides};
 use super::replace::PairOutcome;
 use super::verdict::Decision;
+use crate::geometry::accel::NO_HIT;
+use crate::geometry::visibility::{self, Stop};
+use crate::solver::hierarchical::{HierarchicalSolver, transfer};
+use crate::solver::hierarchy::{Element, Hierarchy, NONE};
+use crate::solver::link::{Link, VisClass};
+use crate::solver::params::Oracle;
+use rayon::prelude::*;
 
 /// Which visibility classes the next pass would split a new link in.
 #[derive(Copy, Clone)]
@@ -40,14 +46,14 @@ impl HierarchicalSolver {
     /// Whether links weight their visibility samples by the kernel (`visibility_sample`): the
     /// error oracle's do; the other oracles keep the plain fraction (SPLASH-2's semantics).
     pub(in crate::solver::hierarchical) fn weighted_visibility(&self) -> bool {
-        self.params.oracle == Oracle::Error
+        self.setup.params.oracle == Oracle::Error
     }
 
     /// How accurately link coefficients are computed: the Gauss rules to `link_tol`, the
     /// adaptive cubature of touching and near pairs, with the error oracle at a relative ε, to
     /// `max(link_tol, LINK_TOL_PER_EPS · ε)` (see [`transfer::LINK_TOL_PER_EPS`]).
     pub(in crate::solver::hierarchical) fn accuracy(&self) -> transfer::Accuracy {
-        let p = &self.params;
+        let p = &self.setup.params;
         let adaptive_tol = if p.oracle == Oracle::Error && p.bf_relative && p.link_tol > 0.0 {
             p.link_tol.max(transfer::LINK_TOL_PER_EPS * p.bf_eps)
         } else {
@@ -118,7 +124,8 @@ impl HierarchicalSolver {
         if g <= 0.0 && !sides.straddle {
             return (None, 0, g);
         }
-        let mut link = new_link((p, receiver), (q, source), g, 1.0, sides.straddle, self.params.conservative);
+        let mut link =
+            new_link((p, receiver), (q, source), g, 1.0, sides.straddle, self.setup.params.conservative);
         let splits = self.split_classes(receiver, p, &link);
         // Visibility in the pair's canonical order (lower id first): the mirror link gets the
         // very same estimate.
@@ -149,7 +156,8 @@ impl HierarchicalSolver {
     /// of B, and a threshold `partial_bf_factor` ≤ 1 times the full one). The error oracle
     /// decides per pass from its field, never per link: neither.
     fn split_classes(&self, receiver: u32, p: &Element, link: &Link) -> SplitClasses {
-        let (full, partial) = if self.params.oracle != Oracle::Error && self.split_side(p, link).is_ok() {
+        let (full, partial) = if self.setup.params.oracle != Oracle::Error && self.split_side(p, link).is_ok()
+        {
             let b = self.pair_b(receiver, link.source);
             (self.wants_split(link, VisClass::Full, b), self.wants_split(link, VisClass::Partial, b))
         } else {
@@ -172,8 +180,8 @@ impl HierarchicalSolver {
         clear: bool,
         last: &mut u32,
     ) -> (LinkVis, u64) {
-        let error_oracle = self.params.oracle == Oracle::Error;
-        let stop = if !self.early_exit {
+        let error_oracle = self.setup.params.oracle == Oracle::Error;
+        let stop = if !self.setup.early_exit {
             Stop::Never
         } else if splits.full {
             Stop::AtVisible
@@ -186,7 +194,7 @@ impl HierarchicalSolver {
         // whole, V = 1 exactly, with no ray cast (error oracle, see below).
         let shaft = error_oracle && clear;
         let (vis, cast) =
-            if shaft { (1.0, 0) } else { self.pair_visibility(pair, self.params.rays, 0, stop, last) };
+            if shaft { (1.0, 0) } else { self.pair_visibility(pair, self.setup.params.rays, 0, stop, last) };
         let settled = match stop {
             Stop::Never => false,
             Stop::AtVisible => vis > 0.0,
@@ -198,14 +206,14 @@ impl HierarchicalSolver {
         }
         // The error oracle splits partially visible links, so a zero estimate ends a refinement
         // that any other estimate continues: its zeros are replaced by a fresh estimate (below).
-        let confirm_zero = splits.full || (splits.partial && self.params.conservative) || error_oracle;
-        let (confirmed, more) = if vis == 0.0 && confirm_zero && self.params.zero_confirm > 0 {
+        let confirm_zero = splits.full || (splits.partial && self.setup.params.conservative) || error_oracle;
+        let (confirmed, more) = if vis == 0.0 && confirm_zero && self.setup.params.zero_confirm > 0 {
             self.confirm_zero(pair, splits, last)
         } else if vis == 1.0
             && !shaft
             && error_oracle
-            && self.accel.shaft_clear(
-                &self.scene,
+            && self.setup.accel.shaft_clear(
+                &self.setup.scene,
                 pair.lo.vertices(),
                 pair.hi.vertices(),
                 [pair.lo.patch, pair.hi.patch],
@@ -217,8 +225,8 @@ impl HierarchicalSolver {
             (LinkVis::Measured { vis, shaft: true }, 0)
         } else if vis == 1.0
             && !shaft
-            && ((splits.partial && self.params.conservative) || error_oracle)
-            && self.params.zero_confirm > 0
+            && ((splits.partial && self.setup.params.conservative) || error_oracle)
+            && self.setup.params.zero_confirm > 0
         {
             self.confirm_visible(pair, splits, last)
         } else {
@@ -235,8 +243,8 @@ impl HierarchicalSolver {
     /// its zeros and its all-visible estimates bias in opposite directions, and confirming only
     /// the zeros made splash_room 6 % too bright.
     fn confirm_zero(&self, pair: &PairRays<'_>, splits: SplitClasses, last: &mut u32) -> (LinkVis, u64) {
-        let more = self.params.zero_confirm.saturating_mul(self.params.rays);
-        let confirm = if self.early_exit && splits.full { Stop::AtVisible } else { Stop::Never };
+        let more = self.setup.params.zero_confirm.saturating_mul(self.setup.params.rays);
+        let confirm = if self.setup.early_exit && splits.full { Stop::AtVisible } else { Stop::Never };
         let (v2, c2) = self.pair_visibility(pair, more, 0x5EED, confirm, last);
         if v2 > 0.0 && confirm == Stop::AtVisible {
             return (LinkVis::Unmeasured(UNMEASURED_VIS), c2);
@@ -255,8 +263,8 @@ impl HierarchicalSolver {
     /// escaped/emitted −11 %). Confirmed the same way: a blocked ray settles the split, else
     /// the fresh estimate stands (unbiased, as for the zeros).
     fn confirm_visible(&self, pair: &PairRays<'_>, splits: SplitClasses, last: &mut u32) -> (LinkVis, u64) {
-        let more = self.params.zero_confirm.saturating_mul(self.params.rays);
-        let confirm = if self.early_exit && splits.partial { Stop::AtMixed } else { Stop::Never };
+        let more = self.setup.params.zero_confirm.saturating_mul(self.setup.params.rays);
+        let confirm = if self.setup.early_exit && splits.partial { Stop::AtMixed } else { Stop::Never };
         let (v2, c2) = self.pair_visibility(pair, more, 0x0DE5, confirm, last);
         if v2 > 0.0 && v2 < 1.0 && confirm == Stop::AtMixed {
             return (LinkVis::Unmeasured(v2 as f32), c2);
@@ -276,11 +284,11 @@ impl HierarchicalSolver {
     ) -> (f64, u64) {
         let (lo, hi) = (pair.lo, pair.hi);
         let (v, cast) = visibility::visibility_sample(
-            &self.accel,
+            &self.setup.accel,
             (lo.vertices(), lo.patch, lo.normal),
             (hi.vertices(), hi.patch, hi.normal),
             n,
-            self.params.seed ^ salt,
+            self.setup.params.seed ^ salt,
             pair.key,
             last,
             stop,
@@ -293,10 +301,11 @@ impl HierarchicalSolver {
     /// budget or a cancel, before the pass that would have replaced them).
     pub(super) fn measure_unmeasured(&mut self) {
         let hier = &self.hier;
-        let (accel, seed, rays) = (&self.accel, self.params.seed, self.params.rays);
+        let (accel, seed, rays) = (&self.setup.accel, self.setup.params.seed, self.setup.params.rays);
         let weighted = self.weighted_visibility();
         let acc = self.accuracy();
         let cast: u64 = self
+            .graph
             .links
             .by_receiver
             .par_iter_mut()
@@ -330,7 +339,7 @@ impl HierarchicalSolver {
                 cast
             })
             .sum();
-        self.stats.rays += cast;
+        self.log.stats.rays += cast;
     }
 }
 

@@ -2,7 +2,10 @@
 //! formula F ≈ A_q cos θ_p cos θ_q / (π r² + A_q), the split side, the error bound), how the
 //! two sit relative to each other's planes, and the pair's key for the visibility jitter.
 
-use super::super::*;
+use crate::geometry::{form_factor, visibility};
+use crate::math::DVec3;
+use crate::solver::hierarchy::Element;
+use crate::solver::link::Link;
 
 /// A link receiver `p` ← source `q` with the oracle's geometry cached: the Galerkin form factor
 /// F_pq = G / A_p (`g` the pair's coupling, see [`transfer`]), the disk estimates F_pq, F_qp

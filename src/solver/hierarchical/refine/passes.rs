@@ -9,9 +9,16 @@
 //! the cluster links; after the last it records why each leaf stopped and updates the sums
 //! and the gather plan where the link lists changed.
 
-use super::super::*;
 use super::replace::Replaced;
 use super::verdict::{IdSet, ReceiverDecision, Split, Verdict};
+use crate::solver::hierarchical::gather::update_sums;
+use crate::solver::hierarchical::{HierarchicalSolver, StepKind, StepReport, disjoint_mut, oracle};
+use crate::solver::hierarchy::StopReason;
+use crate::solver::link::Link;
+use crate::solver::params::Oracle;
+use rayon::prelude::*;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
 
 /// Receivers whose link lists the oracle's first pass loads together (see `decide_all`).
 pub(super) const TOUCH_AHEAD: usize = 16;
@@ -43,57 +50,60 @@ impl HierarchicalSolver {
     /// One refinement pass: on the first call, link every mutually visible pair of input
     /// patches; then apply the oracle to every link until nothing splits.
     pub fn refine_step(&mut self) -> StepReport {
-        self.cancel.store(false, Ordering::Relaxed);
+        self.setup.cancel.store(false, Ordering::Relaxed);
         self.refine_inner()
     }
 
     pub(in crate::solver::hierarchical) fn refine_inner(&mut self) -> StepReport {
         let t = Instant::now();
         let mut run = self.begin_refinement();
-        self.stats.refine_initial_s += t.elapsed().as_secs_f64();
+        self.log.stats.refine_initial_s += t.elapsed().as_secs_f64();
         // The row check reads the rows of the links the last solution gathered through (none
         // before the first gather). Not with cluster links: their transfer is a bounded
         // approximation whose share of a row no element link's split corrects (furnished-2k
         // `interactive`: 175 k links, then 505 k and the budget).
-        self.row_floor =
-            if self.gathered_once && self.cluster_links.is_empty() { self.row_floors() } else { Vec::new() };
+        self.oracle.row_floor = if self.log.gathered_once && self.cluster.links.is_empty() {
+            self.row_floors()
+        } else {
+            Vec::new()
+        };
         while !self.cancelled() {
-            if run.total_links >= self.params.max_links {
-                self.stats.budget_hit = true;
+            if run.total_links >= self.setup.params.max_links {
+                self.log.stats.budget_hit = true;
                 break;
             }
             // A: decide, in parallel, read-only.
             let phase = Instant::now();
             let decisions = self.decide_pass(&mut run);
-            self.stats.refine_passes += 1;
-            self.stats.refine_decided += decisions.len();
+            self.log.stats.refine_passes += 1;
+            self.log.stats.refine_decided += decisions.len();
             if decisions.is_empty() {
                 break;
             }
             let mut to_split =
-                chosen_elements(&self.links.by_receiver, &decisions, self.hier.len(), &mut run);
-            self.stats.refine_decide_s += phase.elapsed().as_secs_f64();
+                chosen_elements(&self.graph.links.by_receiver, &decisions, self.hier.len(), &mut run);
+            self.log.stats.refine_decide_s += phase.elapsed().as_secs_f64();
             if to_split.is_empty() {
                 break;
             }
             // B: split, in id order (children computed in parallel).
             let phase = Instant::now();
             run.refined += self.hier.split_many(&to_split.take_sorted());
-            self.links.grow(self.hier.len());
+            self.graph.links.grow(self.hier.len());
             self.sync_oracle_b();
-            self.stats.refine_split_s += phase.elapsed().as_secs_f64();
+            self.log.stats.refine_split_s += phase.elapsed().as_secs_f64();
             // C: replacement links, in parallel.
             let phase = Instant::now();
             let work: Vec<ReceiverDecision> =
                 decisions.into_iter().filter(|(_, v)| !v.splits.is_empty()).collect();
             let results: Vec<Replaced> =
                 work.par_iter().map(|(r, v)| self.replace_links(*r, &v.splits)).collect();
-            self.pair_memo.clear();
-            self.stats.refine_links_s += phase.elapsed().as_secs_f64();
+            self.graph.pair_memo.clear();
+            self.log.stats.refine_links_s += phase.elapsed().as_secs_f64();
             // D: install, in receiver order.
             let phase = Instant::now();
             self.install(results, &mut run);
-            self.stats.refine_install_s += phase.elapsed().as_secs_f64();
+            self.log.stats.refine_install_s += phase.elapsed().as_secs_f64();
         }
         self.finish_refinement(run, t)
     }
@@ -102,22 +112,22 @@ impl HierarchicalSolver {
     /// first links (input patches or clusters) or the cluster links refined.
     fn begin_refinement(&mut self) -> Refinement {
         let mut new_links = 0;
-        if self.params.oracle == Oracle::Error && self.params.bf_relative {
-            self.bf_eps = self.error_eps();
+        if self.setup.params.oracle == Oracle::Error && self.setup.params.bf_relative {
+            self.setup.bf_eps = self.error_eps();
         }
-        self.oracle_b.clear();
+        self.oracle.b.clear();
         self.sync_oracle_b();
         // The gather plan is updated where the link lists change (`install`), if it was whole.
-        let plan_whole = self.plan_valid;
-        self.plan_valid = false;
+        let plan_whole = self.gather.plan_valid;
+        self.gather.plan_valid = false;
         let mut changed = IdSet::default();
-        if !self.linked {
+        if !self.graph.linked {
             new_links += if self.clustering() { self.cluster_linking() } else { self.initial_linking() };
-            self.linked = true;
+            self.graph.linked = true;
             for r in 0..self.hier.roots as u32 {
                 changed.insert(r);
             }
-        } else if !self.cluster_links.is_empty() {
+        } else if !self.cluster.links.is_empty() {
             let (created, touched) = self.cluster_refine();
             new_links += created;
             if touched {
@@ -129,14 +139,14 @@ impl HierarchicalSolver {
         Refinement {
             new_links,
             refined: 0,
-            total_links: self.links.len(),
+            total_links: self.graph.links.len(),
             changed,
             plan_whole,
             kept_reason: Vec::new(),
             pending: None,
             err_field: None,
             pass_changed: Vec::new(),
-            track: self.params.oracle == Oracle::Error,
+            track: self.setup.params.oracle == Oracle::Error,
         }
     }
 
@@ -145,7 +155,7 @@ impl HierarchicalSolver {
     /// links changed) and their mirrors; the other oracles take the verdicts made with the new
     /// links, or examine every link in their first pass.
     fn decide_pass(&mut self, run: &mut Refinement) -> Vec<ReceiverDecision> {
-        let decisions = if self.params.oracle == Oracle::Error {
+        let decisions = if self.setup.params.oracle == Oracle::Error {
             self.decide_error_pass(run)
         } else {
             match run.pending.take() {
@@ -161,26 +171,26 @@ impl HierarchicalSolver {
     /// lists (or built whole in the first pass, or every pass with `full_error_passes`).
     fn decide_error_pass(&mut self, run: &mut Refinement) -> Vec<ReceiverDecision> {
         let ids: Vec<u32> = match run.err_field.as_mut() {
-            Some(f) if !self.full_error_passes => self.update_error_field(f, &run.pass_changed),
+            Some(f) if !self.setup.full_error_passes => self.update_error_field(f, &run.pass_changed),
             _ => {
                 let known = run
                     .err_field
                     .take()
-                    .map_or_else(|| std::mem::take(&mut self.error_kernels), |f| f.kernels);
+                    .map_or_else(|| std::mem::take(&mut self.oracle.error_kernels), |f| f.kernels);
                 run.err_field = Some(self.error_field(&known));
                 (0..self.hier.len() as u32).collect()
             }
         };
         let field = run.err_field.as_ref();
         ids.into_par_iter()
-            .filter(|&r| !self.links.by_receiver[r as usize].is_empty())
+            .filter(|&r| !self.graph.links.by_receiver[r as usize].is_empty())
             .map(|r| self.decide_receiver(r, field))
             .collect()
     }
 
     /// The oracle on every link, receiver by receiver.
     fn decide_all(&self) -> Vec<ReceiverDecision> {
-        let lists = &self.links.by_receiver;
+        let lists = &self.graph.links.by_receiver;
         let ids: Vec<u32> = (0..self.hier.len() as u32).collect();
         ids.par_chunks(TOUCH_AHEAD)
             .flat_map_iter(|chunk| {
@@ -208,14 +218,14 @@ impl HierarchicalSolver {
         let mut owns = Vec::with_capacity(results.len());
         for rep in results {
             let r = rep.receiver;
-            self.stats.rays += rep.rays;
+            self.log.stats.rays += rep.rays;
             if rep.own_changed {
                 next.push((r, rep.own_verdict));
             }
             run.new_links += rep.created;
             let pushed: usize = rep.kids.iter().map(Vec::len).sum();
             run.total_links =
-                run.total_links + rep.own.len() + pushed - self.links.by_receiver[r as usize].len();
+                run.total_links + rep.own.len() + pushed - self.graph.links.by_receiver[r as usize].len();
             run.changed.insert(r);
             if run.track {
                 run.pass_changed.push(r);
@@ -231,13 +241,13 @@ impl HierarchicalSolver {
             }
         }
         // The new own lists replace the old ones in parallel (freeing them is most of it).
-        let slots = disjoint_mut(&mut self.links.by_receiver, owns.iter().map(|o| o.0));
+        let slots = disjoint_mut(&mut self.graph.links.by_receiver, owns.iter().map(|o| o.0));
         slots.into_par_iter().zip(owns).with_min_len(64).for_each(|(slot, (_, own))| *slot = own);
         for (c, ls, mut v) in pushed_down {
             if run.track {
                 run.pass_changed.push(c);
             }
-            let list = &mut self.links.by_receiver[c as usize];
+            let list = &mut self.graph.links.by_receiver[c as usize];
             // The child's list may hold links already (its own, just replaced, or earlier ones).
             let offset = list.len() as u32;
             if list.is_empty() {
@@ -252,13 +262,13 @@ impl HierarchicalSolver {
             run.changed.insert(c);
         }
         merge_by_receiver(&mut next);
-        run.pending = (self.params.oracle != Oracle::Error).then_some(next);
+        run.pending = (self.setup.params.oracle != Oracle::Error).then_some(next);
     }
 
     /// After the last pass: measure what was left unmeasured, record on each leaf why it
     /// stopped, update the sums and the gather plan where the lists changed.
     fn finish_refinement(&mut self, run: Refinement, t: Instant) -> StepReport {
-        if self.stats.budget_hit || self.cancelled() {
+        if self.log.stats.budget_hit || self.cancelled() {
             self.measure_unmeasured();
         }
         for (r, kept) in run.kept_reason.iter().enumerate() {
@@ -267,22 +277,22 @@ impl HierarchicalSolver {
                 e.stop = *kept;
             }
         }
-        self.row_floor = Vec::new();
+        self.oracle.row_floor = Vec::new();
         // The error oracle's kernels serve the next refinement's field (`oracle::ErrorField`).
         if let Some(f) = run.err_field {
-            self.error_kernels = f.kernels;
+            self.oracle.error_kernels = f.kernels;
         }
         let mut changed = run.changed;
         let changed = changed.take_sorted();
-        self.update_sums(&changed);
+        update_sums(&mut self.hier, &self.graph.links, &self.cluster.fv, &changed);
         if run.plan_whole {
-            self.plan_changed.extend_from_slice(&changed);
-            self.plan_valid = true;
+            self.gather.plan_changed.extend_from_slice(&changed);
+            self.gather.plan_valid = true;
         }
-        self.converged = false;
-        self.stats.links_created += run.new_links as u64;
-        self.stats.refine_s += t.elapsed().as_secs_f64();
-        self.oracle_b.clear();
+        self.log.converged = false;
+        self.log.stats.links_created += run.new_links as u64;
+        self.log.stats.refine_s += t.elapsed().as_secs_f64();
+        self.oracle.b.clear();
         self.report(StepKind::Refine, t, run.refined, run.new_links)
     }
 }

@@ -3,8 +3,14 @@
 //! pass's verdicts on them. A split pair is replaced in both receivers' lists in the same
 //! pass; the second one reuses the first one's new pairs (`PairMemo`) as mirror links.
 
-use super::super::*;
 use super::verdict::{Decision, Split, Verdict};
+use crate::geometry::accel::NO_HIT;
+use crate::math::splitmix64;
+use crate::solver::hierarchical::HierarchicalSolver;
+use crate::solver::hierarchical::refine::{new_link, pair_key, pair_sides};
+use crate::solver::hierarchy::NONE;
+use crate::solver::link::Link;
+use rayon::prelude::*;
 
 /// A receiver with at least this many links to split computes their replacements in parallel.
 pub(super) const PARALLEL_SPLITS: usize = 32;
@@ -115,7 +121,7 @@ impl HierarchicalSolver {
     /// New links replacing the split ones of receiver `r` (its own list, links for its
     /// children), with the next pass's verdicts on them.
     pub(super) fn replace_links(&self, r: u32, splits: &[(u32, Split)]) -> Replaced {
-        let old = &self.links.by_receiver[r as usize];
+        let old = &self.graph.links.by_receiver[r as usize];
         // The new links of each split link (its source's or its receiver's children, in child
         // order), in parallel when the receiver has many: one busy receiver must not keep a
         // thread waiting. Each split link has its own shadow cache, so the result does not
@@ -188,7 +194,7 @@ impl HierarchicalSolver {
         let key = pair_key(parent, other);
         let mut out = [None; 4];
         let mut rays = 0;
-        if let Some(made) = self.pair_memo.get(key) {
+        if let Some(made) = self.graph.pair_memo.get(key) {
             for (k, (c, o)) in children.into_iter().zip(made).enumerate() {
                 let (receiver, source) = ends(c);
                 if let Some(o) = o {
@@ -212,7 +218,7 @@ impl HierarchicalSolver {
                 _ => 0,
             };
         }
-        self.pair_memo.put(key, made);
+        self.graph.pair_memo.put(key, made);
         (out, rays)
     }
 
@@ -238,8 +244,14 @@ impl HierarchicalSolver {
         {
             let q = self.hier.get(source);
             let straddle = pair_sides(p, q).straddle;
-            let mut made =
-                new_link((p, receiver), (q, source), out.g, out.vis, straddle, self.params.conservative);
+            let mut made = new_link(
+                (p, receiver),
+                (q, source),
+                out.g,
+                out.vis,
+                straddle,
+                self.setup.params.conservative,
+            );
             made.unmeasured = out.unmeasured;
             made.clear = out.clear;
             // (Debug formatting: an unmeasured link's coupling is NaN, which `==` rejects.)

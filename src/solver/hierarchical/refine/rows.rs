@@ -18,7 +18,9 @@
 //! reads only the pair's coupling, V and the two elements' marks, so a link and its mirror
 //! agree.
 
-use super::super::*;
+use crate::solver::hierarchical::HierarchicalSolver;
+use crate::solver::link::Link;
+use rayon::prelude::*;
 
 /// The row check pushes down, of an element with an excess row below it, the largest links
 /// that together carry this multiple of the excess (`row_split`).
@@ -31,7 +33,7 @@ impl HierarchicalSolver {
     /// them if they carry less).
     pub(super) fn row_floors(&mut self) -> Vec<f32> {
         let mut ex = self.row_excess_now();
-        let lists = &self.links.by_receiver;
+        let lists = &self.graph.links.by_receiver;
         ex.par_iter_mut().enumerate().with_min_len(256).filter(|(_, x)| **x > 0.0).for_each(|(r, x)| {
             let mut fv: Vec<f64> =
                 lists[r].iter().map(|l| f64::from(l.ff) * f64::from(l.vis).clamp(0.0, 1.0)).collect();
@@ -65,7 +67,7 @@ impl HierarchicalSolver {
     /// light (table-room `interactive`: escaped −2.1 % of the emitted power). Pushing the
     /// ancestors' links down a level replaces their averages by the children's own.
     pub(in crate::solver::hierarchical) fn row_split(&self, a: u32, b: u32, link: &Link) -> Option<u32> {
-        if self.row_floor.is_empty() {
+        if self.oracle.row_floor.is_empty() {
             return None;
         }
         let v = f64::from(link.vis).clamp(0.0, 1.0);
@@ -74,7 +76,7 @@ impl HierarchicalSolver {
             return None;
         }
         let wants = |x: u32| {
-            let floor = f64::from(self.row_floor.get(x as usize).copied().unwrap_or(0.0));
+            let floor = f64::from(self.oracle.row_floor.get(x as usize).copied().unwrap_or(0.0));
             let e = self.hier.get(x);
             floor > 0.0 && g / e.area >= floor && self.can_split(e).is_ok()
         };

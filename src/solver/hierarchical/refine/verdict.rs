@@ -2,7 +2,7 @@
 //! and the strongest reason among those it keeps), and the set of elements to split, read
 //! back in id order so that the new elements' ids do not depend on the thread count.
 
-use super::super::*;
+use crate::solver::hierarchy::StopReason;
 
 /// An [`IdSet`] holding at least 1/this of the ids up to its largest is read off its marks.
 pub(super) const DENSE_ID_SET: usize = 16;
