@@ -98,6 +98,13 @@ pub(super) struct ErrorField {
     /// instead of evaluating again (a pair's kernel is geometry alone, fixed for the pair's
     /// life, so an entry never goes stale).
     pub kernels: Vec<Kernels>,
+    /// Per element, (c_rq, F̂_rq) of each own link, in list order: what a verdict reads on the
+    /// receiver's side, without a search (the mirror's side looks its kernel up).
+    own_var: Vec<Vec<[f64; 2]>>,
+    /// Whether the last update changed what the element's verdicts read (its own list, or its
+    /// e or ΔB across the threshold; see `sweep`): a kept link is decided again only if one
+    /// of its ends is fresh.
+    pub fresh: Vec<bool>,
 }
 
 /// One element's kernels at its child points, per linked source: the sources sorted, and the
@@ -250,6 +257,8 @@ struct OwnTerms {
     cause: f64,
     /// The own links' kernels at the child points (`ErrorField::kernels`).
     kernels: Kernels,
+    /// (c_rq, F̂_rq) of the own links in list order (`ErrorField::own_var`).
+    var: Vec<[f64; 2]>,
 }
 
 /// F_rq of a link of `r`'s (or of its mirror: the pair's coupling over `r`'s area), the same
@@ -290,6 +299,8 @@ impl HierarchicalSolver {
             partial: Vec::new(),
             disc: Vec::new(),
             kernels: Vec::new(),
+            own_var: Vec::new(),
+            fresh: Vec::new(),
         };
         let terms: Vec<OwnTerms> = (0..n as u32)
             .into_par_iter()
@@ -300,7 +311,7 @@ impl HierarchicalSolver {
         field.partial = terms.iter().map(|t| t.partial).collect();
         field.disc = terms.iter().map(|t| t.disc).collect();
         field.cause = terms.iter().map(|t| t.cause).collect();
-        field.kernels = terms.into_iter().map(|t| t.kernels).collect();
+        (field.kernels, field.own_var) = terms.into_iter().map(|t| (t.kernels, t.var)).unzip();
         self.sweep(&mut field, vec![true; n]);
         field
     }
@@ -331,7 +342,9 @@ impl HierarchicalSolver {
         field.partial.resize(n, Rgb::ZERO);
         field.disc.resize(n, Rgb::ZERO);
         field.kernels.resize_with(n, Kernels::default);
+        field.own_var.resize_with(n, Vec::new);
         for (&r, t) in todo.iter().zip(terms) {
+            field.own_var[r as usize] = t.var;
             field.own_h[r as usize] = t.h;
             field.partial[r as usize] = t.partial;
             field.disc[r as usize] = t.disc;
@@ -347,6 +360,9 @@ impl HierarchicalSolver {
     fn sweep(&self, field: &mut ErrorField, mut redo: Vec<bool>) -> Vec<u32> {
         let hier = &self.hier;
         let n = hier.len();
+        // The elements whose own lists changed (or that are new) have links to decide whatever
+        // their error; the others below them only if the refit changed what a verdict reads.
+        let listed = redo.clone();
         for r in 0..n {
             let e = hier.get(r as u32);
             if !redo[r] {
@@ -373,12 +389,27 @@ impl HierarchicalSolver {
                 (r, self.error_from(r, &field.h[i], field.partial[i] + field.disc[i].map(f64::abs)))
             })
             .collect();
-        for &(r, e) in &errs {
-            field.err[r as usize] = e;
-        }
+        let eps = self.setup.bf_eps;
+        field.fresh.clear();
+        field.fresh.resize(n, false);
         let mut decide = super::refine::IdSet::default();
         for &(r, e) in &errs {
-            field.spread[r as usize] = self.element_spread(r, e);
+            let i = r as usize;
+            let spread = self.element_spread(r, e);
+            let (e_old, s_old) = (field.err[i], field.spread[i]);
+            field.err[i] = e;
+            field.spread[i] = spread;
+            // A verdict reads the pair's kernels and link (fixed), the threshold and the row
+            // floors (fixed during a refinement), r's cause (fixed unless its list changed),
+            // whether e_r > ε, and ΔB_r only through terms at most ΔB_r that split when they
+            // exceed ε: if none of these changed, every link r keeps stays kept.
+            let same = !listed[i]
+                && (e_old > eps) == (e > eps)
+                && (s_old.to_bits() == spread.to_bits() || (s_old <= eps && spread <= eps));
+            if same {
+                continue;
+            }
+            field.fresh[i] = true;
             let own = &self.graph.links.by_receiver[r as usize];
             if !own.is_empty() {
                 decide.insert(r);
@@ -401,6 +432,7 @@ impl HierarchicalSolver {
         let mut disc = Rgb::ZERO;
         let own = &self.graph.links.by_receiver[r as usize];
         let mut c = Vec::with_capacity(own.len());
+        let mut var = Vec::with_capacity(own.len());
         let mut kernels = Vec::with_capacity(own.len());
         for l in own {
             let src = self.hier.get(l.source);
@@ -417,7 +449,9 @@ impl HierarchicalSolver {
                 disc += vb * (galerkin(e, l) - mean);
             }
             partial += src.radiosity * (f64::from(l.ff) * partial_weight(l));
-            c.push(variation(e, src, l, &f, mean));
+            let cv = variation(e, src, l, &f, mean);
+            c.push(cv);
+            var.push([cv, mean]);
         }
         // The largest variations first, until the others add up to at most cause_tail · ε.
         c.sort_unstable_by(|a, b| b.total_cmp(a));
@@ -430,7 +464,7 @@ impl HierarchicalSolver {
             cause = ck;
             tail -= ck;
         }
-        OwnTerms { h, partial, disc, cause, kernels: Kernels::from_pairs(kernels) }
+        OwnTerms { h, partial, disc, cause, kernels: Kernels::from_pairs(kernels), var }
     }
 
     /// e_r (module docs) from h and the visibility term; 0 without own links.
@@ -468,7 +502,14 @@ impl HierarchicalSolver {
 
     /// The error oracle's decision on the pair (r, q) seen from the link r ← q: the element to
     /// split, or why the link is kept. Symmetric: the link q ← r gets the same element.
-    pub(super) fn decide_error(&self, field: &ErrorField, r: u32, link: &Link) -> Result<u32, StopReason> {
+    /// `i`: the link's index in r's list.
+    pub(super) fn decide_error(
+        &self,
+        field: &ErrorField,
+        r: u32,
+        i: usize,
+        link: &Link,
+    ) -> Result<u32, StopReason> {
         let q = link.source;
         let (lo, hi) = if r < q { (r, q) } else { (q, r) };
         let eps = self.setup.bf_eps;
@@ -485,7 +526,14 @@ impl HierarchicalSolver {
         let side = |x: &Element, xi: u32, yi: u32, var_y: f64| {
             let wanted = field.err[xi as usize] > eps
                 || x.reflectance.max_channel() * v * field.spread[yi as usize] * var_y > eps;
-            if wanted { self.link_variation(field, xi, link, yi) } else { (0.0, 0.0) }
+            if !wanted {
+                (0.0, 0.0)
+            } else if xi == r {
+                let [c, f] = field.own_var[r as usize][i];
+                (c, f)
+            } else {
+                self.link_variation(field, xi, link, yi)
+            }
         };
         let (c_lo, f_lo) = side(elo, lo, hi, var_hi);
         let (c_hi, f_hi) = side(ehi, hi, lo, var_lo);

@@ -59,11 +59,15 @@ impl HierarchicalSolver {
     pub(super) fn decide_receiver(&self, r: u32, field: Option<&oracle::ErrorField>) -> ReceiverDecision {
         let p = self.hier.get(r);
         let mut v = Verdict::default();
+        // The error oracle decides again only the links with a fresh end (`ErrorField::fresh`):
+        // the others keep the verdict they had, to keep them.
+        let all = field.is_none_or(|f| f.fresh[r as usize]);
         for (i, l) in self.graph.links.by_receiver[r as usize].iter().enumerate() {
             let d = match field {
-                Some(f) => {
-                    self.decide_error(f, r, l).map(|x| if x == r { Split::Receiver } else { Split::Source })
-                }
+                Some(f) if !all && !f.fresh[l.source as usize] => continue,
+                Some(f) => self
+                    .decide_error(f, r, i, l)
+                    .map(|x| if x == r { Split::Receiver } else { Split::Source }),
                 None => self.decide(r, p, l),
             };
             v.note(i, d);

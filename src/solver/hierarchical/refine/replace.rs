@@ -7,7 +7,9 @@ use super::verdict::{Decision, Split, Verdict};
 use crate::geometry::accel::NO_HIT;
 use crate::math::splitmix64;
 use crate::solver::hierarchical::HierarchicalSolver;
-use crate::solver::hierarchical::refine::{new_link, pair_key, pair_sides};
+use crate::solver::hierarchical::refine::pair_key;
+#[cfg(debug_assertions)]
+use crate::solver::hierarchical::refine::{new_link, pair_sides};
 use crate::solver::hierarchy::NONE;
 use crate::solver::link::Link;
 use rayon::prelude::*;
