@@ -115,9 +115,10 @@ pub struct HierarchicalParams {
     /// many gathers, not after convergence (a refinement that adds at most `settle` of the
     /// links, and the last allowed round, converge fully). `max_iterations`: converge every round.
     pub round_iterations: u32,
-    /// The mesh has settled, and refinement ends, when a refinement of the converged solution
-    /// adds at most this fraction of the links (its few links are gathered to convergence);
-    /// 0: refine until no link changes at all.
+    /// The mesh has settled, and refinement ends, when a refinement after the first adds at
+    /// most this fraction of the links (its few links are gathered to convergence, and no
+    /// refinement follows); 0: refine until a refinement of the converged solution changes no
+    /// link.
     pub settle: f64,
     /// Gauss–Seidel (use new radiosities as soon as a patch is gathered) instead of Jacobi.
     pub gauss_seidel: bool,
@@ -238,7 +239,7 @@ impl HierarchicalParams {
             max_iterations: 200,
             max_rounds: 24,
             round_iterations: 3,
-            settle: 1e-3,
+            settle: 0.02,
             gauss_seidel: false,
             split_fallback: false,
             zero_confirm: 4,
@@ -293,6 +294,7 @@ impl HierarchicalParams {
             link_tol: 0.0,
             push_slopes: false,
             row_tol: 0.0,
+            settle: 1e-3,
             ..Self::quality()
         }
     }

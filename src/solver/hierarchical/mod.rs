@@ -54,9 +54,9 @@
 //!       C (parallel)             form factors + visibility + verdicts of the replacement links
 //!       D (receiver order)       install the links
 //! ```
-//! `solve` runs the loop: refine, then `round_iterations` gathers (to convergence once a
-//! refinement adds at most `settle` of the links, or in the last allowed round), until a
-//! refinement of the converged solution adds at most `settle` of the links.
+//! `solve` runs the loop: refine, then `round_iterations` gathers, until a refinement adds at
+//! most `settle` of the links (or the last allowed round comes); those are gathered to
+//! convergence.
 //! - **Refine** (the lecture's `Refine(p, q, Feps, Aeps)`): estimate F_pq and F_qp with the disk
 //!   formula; if the oracle is satisfied, keep the link; else split the element with the larger
 //!   estimate (F_pq > F_qp → split the source q) unless it is at the Aeps floor or the maximum
@@ -542,8 +542,8 @@ impl HierarchicalSolver {
     }
 
     /// The HSA91 loop: refine → gather/push-pull (`round_iterations` times, or to convergence)
-    /// → refine again with the oracle on the new radiosities → … until a refinement of the
-    /// converged solution adds at most `settle` of the links (0: none) and those are gathered to
+    /// → refine again with the oracle on the new radiosities → … until a refinement adds at most
+    /// `settle` of the links (0: none, to a converged solution) and those are gathered to
     /// convergence, or the caps (`max_rounds`, `max_iterations` per round) are reached; the last
     /// allowed round converges fully.
     pub fn solve(&mut self, progress: Progress) -> StepReport {
@@ -571,12 +571,13 @@ impl HierarchicalSolver {
             if r.cancelled {
                 break;
             }
-            // A refinement that adds few links (at most `settle` of them) is gathered to
-            // convergence before the next one; on an already converged solution it ends the
-            // refinement (the mesh has settled).
+            // A refinement that adds few links (at most `settle` of them) ends the refinement:
+            // the mesh has settled, and its links are gathered to convergence with no
+            // refinement after them. One that adds none to a converged solution leaves it as it
+            // stands.
             let small = r.new_links as f64 <= self.setup.params.settle * self.graph.links.len() as f64;
-            let settled = round > 0 && was_converged && small;
-            if settled && r.new_links == 0 {
+            let settled = round > 0 && small;
+            if settled && was_converged && r.new_links == 0 {
                 // Nothing changed since the converged gather: the solution stands.
                 self.log.converged = true;
                 break;
