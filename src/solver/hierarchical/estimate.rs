@@ -125,11 +125,9 @@ pub fn solution_relative_l2(scene: &crate::scene::Scene, solution: &crate::solve
 
 /// The signed, transported residual δ of every leaf (per channel, units of B; zero on interior
 /// elements): the first-order change of the leaf's radiosity if its inherited links were
-/// evaluated at the leaf itself. `B + δ` is a defect-corrected solution. Measured on the
-/// solution's own leaves against the reference (interactive preset): relative L2
-/// cornell 11.5 % → 8.5 %, table-room 10.0 % → 3.6 %, boxes_on_floor 10.5 % → 8.4 %; the
-/// white furnace without normalisation keeps 1 % of its error (tests). Not applied by the
-/// solver; offered to it.
+/// evaluated at the leaf itself. `B + δ` is a defect-corrected solution, closer to the
+/// reference on the built-in rooms (docs/accuracy.md#the-solvers-own-estimate). Not applied by
+/// the solver; offered to it.
 #[must_use]
 pub fn residual_correction(solver: &HierarchicalSolver) -> Vec<Rgb> {
     let hier = solver.hierarchy();
