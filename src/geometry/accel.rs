@@ -83,7 +83,7 @@ pub const NO_HIT: u32 = u32::MAX;
 /// Eight `f32` lanes as two glam `Vec4`s: each operation is one SSE/AVX instruction per half
 /// (`minps`/`maxps`/`cmpleps`, as the min/max slab test always used). Safe code cannot name
 /// 256-bit intrinsics without `#[target_feature]` on every caller, and per-lane loops over
-/// `[f32; 8]` vectorise badly (measured: more instructions than two `Vec4`s).
+/// `[f32; 8]` vectorise badly (they compile to more instructions than two `Vec4`s).
 mod lanes {
     use glam::Vec4;
 

@@ -49,26 +49,16 @@
 //!
 //! ## Limiting the work
 //! [`occluder_matters`] keeps an occluder only if it can block a segment from the emitter to the
-//! receiver: some vertex strictly in front of the receiver plane, some vertex strictly in front of
-//! the emitter plane, and its bounding box meets the bounding box of emitter ∪ receiver (which
-//! contains their convex hull, hence every such segment). The test is conservative: it never
-//! culls an occluder that casts a shadow. The number of EV + VE segments per (receiver, emitter,
-//! kept occluder) is `|V_e|·|E_o| + |E_e|·|V_o|` (32 for two quads) before clipping, so a scene
-//! costs O(receivers × emitters × kept occluders); [`SegmentCounts`] reports what was kept.
+//! receiver (a vertex in front of each plane, and a bounding box meeting that of emitter ∪
+//! receiver, which holds their convex hull): conservative, it never culls a shadow. A scene costs
+//! O(receivers × emitters × kept occluders), `|V_e|·|E_o| + |E_e|·|V_o|` wedges each;
+//! [`SegmentCounts`] reports what was kept.
 //!
-//! ## Left out (the output is a superset of part of the true discontinuities)
-//! - **EEE events** (an emitter edge and two occluder edges, none sharing a vertex): their
-//!   surfaces are quadrics and their curves on the receiver are conics [Teller 1992; Heckbert
-//!   1992, sec. 3]. They exist only with two or more occluders whose shadows overlap.
-//! - **Events between occluders** (EV/VE where the vertex and the edge both belong to occluders,
-//!   lying in one emitter-vertex plane): the boundaries of one occluder's shadow *inside* another's
-//!   (Lischinski et al., sec. 4, trace them through the scene). Where shadows do not overlap
-//!   they do not occur.
-//! - **Visibility of the segments**: a segment is not clipped where a second occluder hides the
-//!   event (the wedge is blocked between emitter and receiver), so some segments lie where the
-//!   radiosity is smooth, e.g. inside another object's umbra. This only adds element edges.
-//! - D0 between coplanar polygons (a rug on a floor) and secondary emitters (reflected light's
-//!   discontinuities): not found.
+//! ## Left out
+//! EEE events (quadric surfaces, conic curves), events between occluders, the visibility of the
+//! segments (a wedge hidden by another occluder is not clipped, so the output is a superset of
+//! the events found), D0 between coplanar polygons and secondary emitters: docs/meshing.md,
+//! "What is left out" [Teller 1992; Heckbert 1992, sec. 3; Lischinski et al., sec. 4].
 
 use super::{ReceiverPlane, clip_interval};
 use crate::math::DVec3;

@@ -97,11 +97,9 @@ impl RemeshParams {
     /// ([`crate::solver::discontinuity::solve_hierarchical`], `radlab solve --mesh contact`).
     /// A quadtree cannot refine a contact line away — an element straddling it holds the lit
     /// and the hidden side's average, and its error falls only as √h — while the penumbrae,
-    /// which its oracle does refine, are left to it. Measured (`radlab reference … --compare
-    /// hierarchical|hierarchical-contact --preset quality --bf-eps-rel 0.05
-    /// --aeps-rel 3e-5`, pointwise, 65 537 points × 1 024 paths): quadtree → contact mesh,
-    /// cornell 2.26 → 1.24 %, splash_room 4.07 → 2.95 %; with the threshold halved again the
-    /// quadtree stalls and the contact mesh goes on (docs/meshing.md, docs/bench).
+    /// which its oracle does refine, are left to it. The contact mesh's error keeps falling as
+    /// the threshold is halved where the quadtree's stalls (docs/meshing.md#the-contact-mesh,
+    /// docs/bench).
     #[must_use]
     pub const fn contacts() -> RemeshParams {
         RemeshParams { events: Events::Contacts, max_patches: HIERARCHICAL_MAX_PIECES, ..RemeshParams::bsp() }

@@ -2,9 +2,9 @@
 //! it (a poster on a wall, a rug on a floor). Both would receive the same light: a ray that
 //! reaches the wall behind the poster ends in the poster's plane, so nothing blocks it, and the
 //! light that lands on the poster is counted a second time on the wall under it. The solver then
-//! creates light (the SPLASH-2 room's poster, patch 6 on wall 1: its lamps' rows of F·V summed
-//! to 1.05–1.08 and the `quality` solve created 1.9 % of the emitted power), and a path tracer
-//! picks one of the two surfaces by chance.
+//! creates light (the SPLASH-2 room's poster, patch 6 on wall 1: its lamps' rows of F·V sum
+//! above 1; docs/solver.md#decals-and-what-is-not-normalised), and a path tracer picks one of
+//! the two surfaces by chance.
 //!
 //! What an author means is that the decal covers what lies under it: no light reaches the
 //! covered part and none leaves it. [`cut_under_decals`] cuts each covered patch around its

@@ -6,7 +6,7 @@
 //! triangles. `SIZE` is a number of triangles with an optional `k` (10³) or `m` (10⁶) suffix,
 //! from [`MIN_TRIANGLES`] to [`MAX_TRIANGLES`]; `SEED` (default 0) picks another room of the
 //! same size. The same name always gives the same scene, patch for patch. Nothing is read or
-//! written: the scene is generated in memory (a 1 M room: about 0.5 s and 0.4 GB of patches).
+//! written: the scene is generated in memory (its time and size: docs/scale.md#the-rooms).
 //!
 //! ## How it works
 //! Two phases, so that the triangle count can be aimed at without changing the room:

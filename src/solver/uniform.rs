@@ -25,9 +25,8 @@
 //!
 //! Known limitation (the classical one): V_ij is the unweighted fraction of unblocked point
 //! pairs, so `F_ij V_ij` is exact only for no or full occlusion. In a closed room the row sums
-//! then miss 1 and `escaped` shows it: the SPLASH-2 room with one element per patch "leaks"
-//! 16 % of the power; with 2 000 elements `escaped` is −0.7 % (coplanar overlapping polygons
-//! there are both seen, so the rows can sum past 1).
+//! then miss 1 and `escaped` shows it, most on coarse meshes of rooms (docs/solver.md#the-solvers;
+//! coplanar overlapping polygons are both seen, so rows can also sum past 1).
 //!
 //! Memory is O(n²) (sparse rows of the non-zero entries): the element count is capped
 //! (`max_elements`), and the solver refuses larger meshes with a message.
@@ -45,16 +44,14 @@ use std::time::Instant;
 
 /// Default relative accuracy of each form factor's quadrature (`--ff-tol`): tight enough that a
 /// closed box with one element per face (`builtin:furnace`, `builtin:cube-one-light`) matches the
-/// exact 6×6 solution from the catalog form factors to 1e-9 (tests/classical_solvers.rs).
-/// Measured (uniform and progressive alike, worst face and channel): 1e-4 → 3.7e-5…6.6e-5 off,
-/// 1e-6 → 2.9e-8…5.6e-8, 1e-8 → 0.8e-9…1.5e-9 (not enough), 1e-9 → 1.1e-10…2.2e-10.
-/// It costs time: the uniform solve of `builtin:cornell` at the CLI's default mesh (277 elements)
-/// takes ~23× as long as at [`COARSE_FF_TOLERANCE`] and moves no patch by more than 9e-6.
+/// exact 6×6 solution from the catalog form factors to 1e-9 (tests/classical_solvers.rs);
+/// 1e-8 is not. It costs time against [`COARSE_FF_TOLERANCE`] for no visible change: chosen by
+/// measurement, see docs/solver.md#the-solvers.
 pub const DEFAULT_FF_TOLERANCE: f64 = 1e-9;
 
 /// The former fixed tolerance: for comparisons at the percent level (the bench, `reference
 /// --compare`, tests against a reference), where the quadrature error (≤ 1e-4 relative per form
-/// factor, 9e-6 on cornell's patches) is far below what is measured and the tight default would
+/// factor) is far below what is measured and the tight default would
 /// only cost time.
 pub const COARSE_FF_TOLERANCE: f64 = 1e-4;
 

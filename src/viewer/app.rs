@@ -106,7 +106,7 @@ pub struct RadlabApp {
     script: ScriptRun,
     /// Leave the side panels unfilled: the window's clear colour (the native runner sets it to
     /// the panel colour) shows through. On a CPU rasteriser egui's textured, blended fill of the
-    /// panels costs ~25 ms of CPU per frame at 1280×800; the clear is nearly free. Off by default
+    /// panels is a large share of a frame, and the clear is nearly free. Off by default
     /// (egui_kittest clears to transparent).
     pub panels_from_clear: bool,
 }

@@ -18,7 +18,8 @@ pub const PANEL_CONTENT_W: f32 = 260.0;
 pub const MESH_SOLVE_LABEL: &str = "solving on the mesh";
 
 /// BFeps the viewer starts the error oracle at (relative to the mean reflected radiosity):
-/// table-room converges to 15 % pointwise in 0.4 s there, 5 % at 0.05 in 3 s (README).
+/// coarse enough that the built-in rooms show a solution at once, to be walked down from
+/// (docs/solver.md#walking-down-thresholds-warm).
 const ERROR_ORACLE_START_EPS: f64 = 0.1;
 
 /// The Solver section and the name of the preset chosen.

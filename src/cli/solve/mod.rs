@@ -259,7 +259,7 @@ pub struct SolverArgs {
     pub max_shots: Option<u32>,
     /// Relative accuracy asked of each form factor's adaptive quadrature (uniform, progressive;
     /// default 1e-9: one element per face of a closed box then matches the exact solution to
-    /// 1e-9; 1e-4 is ~20× faster on cornell and good to ~1e-5).
+    /// 1e-9; 1e-4 is far faster and enough for a picture: docs/solver.md).
     #[arg(long)]
     pub ff_tol: Option<f64>,
 

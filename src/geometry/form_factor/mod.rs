@@ -14,7 +14,7 @@
 //!   Angles by `atan2` (accurate for tiny and near-π angles); the source is first clipped against
 //!   the receiver's tangent plane. Exact to rounding. Triangles and quads (every hierarchy
 //!   element) take a fixed-size path whose four edge terms are computed side by side in vector
-//!   lanes, the same operations in the same order: the same bits, 30–40 % faster.
+//!   lanes, the same operations in the same order: the same bits, fewer instructions.
 //! - [`disk`]: the lecture's disk approximation `F ≈ A cosθ cosθ' / (π r² + A)`.
 //! - [`polygon_to_polygon`]: the outer integral by globally adaptive cubature of the exact
 //!   kernel (Genz–Malik degree-7 rule with a degree-5 error estimate, bisection along the axis

@@ -255,7 +255,7 @@ fn contour_sum(c: &[DVec3], n: DVec3) -> f64 {
 /// and [`angle`] (the octant reduction by selects instead of branches, `min / max` for the
 /// ratio the branch divides), on arrays the compiler turns into vector instructions (the four
 /// edges' divisions, square roots and polynomials side by side instead of four dependent
-/// chains: 30–40 % less time per kernel evaluation). The same bits as `edge_term` (tested).
+/// chains). The same bits as `edge_term` (tested).
 /// None when an edge takes one of `angle`'s special cases (a zero, or non-finite input): then
 /// `edge_term` edge by edge.
 #[inline(always)]

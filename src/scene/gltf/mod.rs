@@ -4,29 +4,21 @@
 //! a list of planar convex patches:
 //!
 //! - **Geometry**: every `TRIANGLES` primitive of every mesh instance, with the node's world
-//!   transform applied (`M = M_root · … · M_node`, f64). A transform with det(M) < 0 mirrors the
-//!   geometry, so each triangle's winding is reversed to keep its front side where it was.
-//! - **Material**: `baseColorFactor.rgb` → ρ (linear RGB), times the mean of the base-colour
-//!   texture (PNG or JPEG, sRGB decoded to linear) over each patch when there is one
-//!   ([`super::texture`]: 16 stratified samples per triangle, a merged quad's two triangles
-//!   weighted by area; the product clamped to `RHO_MAX`), `emissiveFactor ×
-//!   KHR_materials_emissive_strength` → E (radiant exitance, the unit of B). No material → ρ = 0.5,
-//!   E = 0. `doubleSided` → two back-to-back patches (the back one right after the front one).
-//!   ρ ∈ [[`RHO_MAX`](crate::scene::RHO_MAX), 1] is clamped to `RHO_MAX` with a warning (the
-//!   SPLASH-2 lamps have ρ = 1.0, which would make an enclosure's system singular); ρ < 0,
-//!   ρ > 1, or E < 0 / non-finite are errors.
-//! - **Extensions**: `KHR_materials_emissive_strength` is read. `KHR_lights_punctual` lights are
-//!   skipped with a one-line warning (radlab is lit by emissive surfaces; a point has no area).
-//!   Every other extension in `extensionsUsed` is named in one warning and ignored; one in
-//!   `extensionsRequired` that is not read is an error.
-//! - **Quads**: two triangles of one primitive that share an edge (same positions, opposite
-//!   directions) and form a planar, strictly convex quadrilateral are merged into one quad patch,
-//!   so a quadtree can subdivide imported quads.
+//!   transform applied (`M = M_root · … · M_node`, f64); where det(M) < 0 the winding is reversed
+//!   to keep each triangle's front side. Two triangles of one primitive that share an edge and
+//!   form a planar, strictly convex quadrilateral are merged into one quad patch, so a quadtree
+//!   can subdivide imported quads.
+//! - **Material**: `baseColorFactor.rgb` → ρ (linear RGB), times the base-colour texture's mean
+//!   over the patch ([`super::texture`]); `emissiveFactor × KHR_materials_emissive_strength` → E
+//!   (radiant exitance, the unit of B). No material → ρ = 0.5, E = 0. `doubleSided` → two
+//!   back-to-back patches. ρ ∈ [[`RHO_MAX`](crate::scene::RHO_MAX), 1] is clamped with a warning
+//!   (the SPLASH-2 lamps' ρ = 1 would make an enclosure's system singular); ρ outside [0, 1] or a
+//!   negative or non-finite E is an error. `KHR_lights_punctual` is skipped with a warning
+//!   (radlab is lit by emissive surfaces); an unread extension in `extensionsRequired` is an error.
 //!
-//! ## Patch numbering (used by the CLI and tests)
-//! Scene nodes depth-first in document order; each mesh's primitives in order; triangles in index
-//! order. A merged quad takes its first triangle's place; the partner is the earliest later
-//! triangle that qualifies. Zero-area triangles are dropped (and counted in a warning).
+//! Patches are numbered (for the CLI and tests) by scene node depth-first in document order, then
+//! primitive, then triangle index; a merged quad takes its first triangle's place, its partner is
+//! the earliest later triangle that qualifies; zero-area triangles are dropped with a warning.
 //!
 //! ```text
 //!   tri i = (p0 p1 p2), shared edge p2→p0, tri j = (p0 p2 q)      p2 ──── q
@@ -35,39 +27,18 @@
 //!                                                                  p1 ── p0
 //! ```
 //!
-//! ## Untrusted input
-//! Buffers are read by this module, not by the `gltf` crate: only `data:` URIs (base64) and
-//! relative file paths that stay inside the scene's folder are accepted
-//! ([`SceneError::UriOutsideScene`] otherwise, for image URIs too). GLB containers are parsed
-//! here as well. Every buffer, buffer view and accessor range is checked with overflow-safe
-//! arithmetic before any byte is read, and the triangle count is checked against
-//! [`LoadOptions::max_triangles`] before any geometry is read, so a hostile file can neither panic
-//! the loader nor make it allocate without bound. `tests/gltf_loader.rs` and the fuzz target
-//! (`fuzz/`, docs/fuzzing.md) hold it to that. In detail:
+//! **Untrusted input.** Buffers and images are read by this module, not by the `gltf` crate: only
+//! `data:` URIs and relative paths to regular files inside the scene's folder
+//! ([`SceneError::UriOutsideScene`]), every range checked with overflow-safe arithmetic and every
+//! size against [`LoadOptions`] before a byte is read or a texture decoded; what the `gltf` crate
+//! assumes and does not validate (disjoint node trees, one source per image) is checked first;
+//! work is linear in the input plus the output. A hostile file can neither panic the loader nor
+//! make it allocate without bound (`tests/gltf_loader.rs`, the fuzz target; each case:
+//! docs/fuzzing.md).
 //!
-//! - **Files**: the scene file and buffer files are read only if they are regular files (a FIFO
-//!   would block, a device never end), opened read-only, and read up to
-//!   [`LoadOptions::max_file_bytes`]; the sum of the buffers' declared byteLengths is capped
-//!   the same way before any is read. Image files are read the same way when a material uses
-//!   them as its base-colour texture, and one that exists must be a regular file inside the
-//!   folder in any case; a texture's size is read from its header and refused above
-//!   [`LoadOptions::max_texture_pixels`] (8192 × 8192) before it is decoded, and a file's
-//!   textures may have `TEXTURE_BUDGET` (4) times that in all (kept at 3 bytes a pixel),
-//!   summed from all their headers before any is decoded. Nothing is ever written.
-//! - **Structure the `gltf` crate assumes** and does not validate is checked first: an image has
-//!   one source (and a MIME type with a buffer view), a camera has the projection its type
-//!   names, and the nodes form disjoint trees, so the walk visits each node once (a node reused
-//!   as a child would describe exponentially many instances).
-//! - **Work linear in the input plus the output**: each primitive is decoded once however many
-//!   nodes instance it, and an instance transforms only the vertices its triangles use; quad
-//!   merging looks at no more than `MAX_EDGE_CANDIDATES` partners per edge; names longer than
-//!   `MAX_NAME_BYTES` are shortened, since every patch carries them. The output is bounded by
-//!   the triangle cap.
-//!
-//! The writer ([`write_gltf`], [`write_glb`]) produces the inverse: one buffer (a data URI, or
-//! the .glb's BIN chunk), one mesh per run of patches with the same mesh name, one material per
-//! distinct (ρ, E), quads as two triangles `(0 1 2)(0 2 3)` that the loader merges back, and the
-//! scene camera as a camera node.
+//! The writer ([`write_gltf`], [`write_glb`]) produces the inverse: one buffer, one mesh per run
+//! of patches with the same mesh name, one material per distinct (ρ, E), quads as two triangles
+//! `(0 1 2)(0 2 3)` that the loader merges back, and the scene camera as a camera node.
 //!
 //! ## Files
 //! `loader` walks the document (nodes, meshes, materials, camera); `validate` checks the JSON

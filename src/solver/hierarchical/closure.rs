@@ -7,8 +7,9 @@
 //!
 //! (the white furnace). A leaf's row holds this only on average: it gathers through its own
 //! links and its ancestors', each an average over a larger element moved along its slope, so
-//! its row is off by the kernel's curvature across the ancestor (a refined furnace's rows run
-//! from 0.82 at a face's centre to 1.55 in its corners), and its radiosity follows the row.
+//! its row is off by the kernel's curvature across the ancestor (in a refined furnace, low at a
+//! face's centre and high in its corners: docs/solver.md#closed-rows), and its radiosity follows
+//! the row.
 //!
 //! ## How it works
 //! The leaves' operator is symmetric: with K_xy = A_x × (the weight of B_y in leaf x's

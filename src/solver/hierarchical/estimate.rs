@@ -1,93 +1,42 @@
-//! The hierarchical solver's own a-posteriori error estimate per element, without a reference
-//! solution: what each leaf's links bring it, evaluated again one level finer than the solve did,
-//! carried through the scene by the solver's own links.
+//! The hierarchical solver's own a-posteriori error estimate per leaf, without a reference: what
+//! each leaf's links bring it, evaluated again one level finer than the solve did, carried
+//! through the scene by the solver's own links.
 //!
-//! ## What it estimates
-//! The **pointwise** error of each leaf: the RMS over the leaf of B(x) − B_true(x), where B(x)
-//! is what the solution shows there (the leaf's value plus its slope, [`crate::eval::pointwise`]), in
-//! units of B, mean over the RGB channels. Squared and area-weighted against the reflected
-//! radiosity it is the global figure the pointwise ruler measures against a reference
-//! ([`global_relative_l2`], `radlab solve --estimate`, `radlab reference --compare --mesh quadtree`
-//! prints both).
+//! It estimates the **pointwise** error of each leaf, the RMS over the leaf of B(x) − B_true(x)
+//! (the leaf's value plus its slope, [`crate::eval::pointwise`]), in units of B, mean over RGB;
+//! squared and area-weighted against the reflected radiosity it is the figure the pointwise ruler
+//! measures against a reference ([`global_relative_l2`], `radlab solve --estimate`).
 //!
 //! ## How it works
-//! A leaf x gathers through its own links and through those of its proper ancestors a, whose
-//! form factor F_l, visibility V_l and slope were evaluated for a, not for x. What x shows through
-//! a link l ← q at a point y of x is F_l V_l + s_l·(y − c_a) (`Link::slope`, V included). At x's
-//! nine sample points y_k ([`sample_points`]: the centres of its 3 × 3 split) the link really
-//! brings F(y_k → q) v_k with the exact point kernel (`form_factor::point_to_polygon_oriented`)
-//! and v_k the visibility seen from y_k (8 rays, `WITHIN_RAYS`). Per link:
+//! A leaf x gathers through its own links and those of its ancestors a, whose F_l, V_l and slope
+//! s_l were evaluated for a. At x's nine sample points y_k ([`sample_points`], the centres of its
+//! 3 × 3 split) a link l ← q really brings F(y_k → q) v_k: the exact point kernel, and v_k the
+//! visibility seen from y_k (`WITHIN_RAYS` rays). Per link, and per leaf:
 //!
 //! ```text
 //! d_l(y_k) = B_q [ F(y_k → q) v_k − F_l V_l − s_l·(y_k − c_a) ]
 //! r_x  = ρ_x ⊙ [ Σ_{inherited l} mean_k d_l(y_k)  +  Σ_{own partial l} mean_k B_q F(y_k → q)(v_k − V_l) ]
-//! w_x² = ρ_x² ⊙ var_k Σ_l d_l(y_k)                       (the variation about the points' mean)
-//! ```
-//!
-//! With the rows closed (`super::closure`) the leaf shows each source as the gather sent it,
-//! S_q, scaled at the leaf's end of the link by s (d_x^γ on its own links, d_x on inherited
-//! ones), so r_x adds ρ_x ⊙ Σ_l (B_q − s S_q)(F_l V_l + s_l·(c_x − c_a)), the closure's share of
-//! the leaf's error.
-//!
-//! r_x is the error of the leaf's value (its mean): an inherited link's average, slope and
-//! visibility re-evaluated at the leaf, and an own link's visibility measured again with 72 rays
-//! (its kernel average is the Galerkin coefficient, exact, `transfer`). w_x is what a leaf that
-//! shows an affine function cannot show: the curvature of the kernel across it, and a shadow
-//! edge crossing it (v_k differing between the points). r is **transported** like light (the
-//! error of a source's B reappears, times ρ F V, in every receiver): δ = r + ρ K δ, K the
-//! solver's own link operator (gather over links, push down the ancestors, pull area averages
-//! up), truncated after [`TRANSPORT_BOUNCES`] Jacobi sweeps; w, zero-mean over the leaf, is not
-//! (a receiver gathers the leaf's average). The estimate is
-//!
-//! ```text
+//! w_x² = ρ_x² ⊙ var_k Σ_l d_l(y_k)
+//! δ    = r + ρ K δ          (K the solver's link operator, TRANSPORT_BOUNCES Jacobi sweeps)
 //! est_x = hypot( mean_c |δ_x,c| , mean_c w_x,c )
 //! ```
 //!
-//! This is the residual / defect-correction estimate of Galerkin radiosity error analysis
-//! [Lischinski, Smits, Greenberg 1994, "Bounds and error estimates for radiosity", SIGGRAPH '94:
-//! the error of a discrete solution solves the radiosity equation driven by its residual], with
-//! the residual taken one level down (at the leaf's points) instead of by a second, finer solve;
-//! the visibility re-sampled at the receiver's points is the visibility term of Holzschuch &
-//! Sillion 1998 ("An exhaustive error-bounding algorithm for hierarchical radiosity", sec. 3.2),
-//! measured instead of bounded.
+//! r is the error of the leaf's mean, and is transported like light: a source's error reappears,
+//! times ρ F V, in every receiver. w is what an affine leaf cannot show (the kernel's curvature, a
+//! shadow edge across it); zero-mean over the leaf, it is not transported. With the rows closed
+//! (`super::closure`) r also carries the closure's share, ρ_x ⊙ Σ_l (B_q − s S_q)(F_l V_l + …).
+//! Rays are cast only for partly visible links that could bring the leaf more than
+//! `SAMPLE_SHARE` of the mean reflected radiosity, and for a hidden own link that a probe ray
+//! gets through; the other links are evaluated at the centroid only, so the cost stays near the
+//! solve's. The rays' own noise is left in w: subtracting a variance bound ranked the leaves worse.
 //!
-//! **What is evaluated where** (the cost): rays only for links that are not fully visible and
-//! could bring the leaf more than `SAMPLE_SHARE` (2 %) of the mean reflected radiosity (ρ B_q
-//! F_l); a hidden link (V_l = 0) only if it is the leaf's own and one probe ray from some sample
-//! point gets through (the solver's rays can miss a sliver of light; probing the inherited hidden
-//! links too made furnished-4k's estimate take minutes, for the same figures on the rooms and
-//! the shadow scenes). An inherited fully visible (or negligible) link is
-//! evaluated at the leaf's centroid only, into r; an own link at the nine points, with its V.
-//! The rays' own noise (8 rays a point) is left in w: subtracting its binomial variance, an
-//! upper bound for stratified rays, made the estimate low and ranked worse (table-room ε 0.2:
-//! Spearman 0.71 → 0.58).
-//!
-//! ## How well it does
-//! Against the cached pointwise references (`radlab reference builtin:S --cache-dir DIR
-//! --compare --mesh quadtree --preset quality --bf-eps-rel X`, 65 537 points × 1024 paths;
-//! Spearman over the leaves holding ≥ 8 points, against each leaf's own debiased pointwise
-//! error), measured / estimate and Spearman:
-//!
-//! ```text
-//! scene        X = 0.2        X = 0.1        X = 0.05
-//! cornell      1.32, 0.78     1.49, 0.70     1.22, 0.67
-//! table-room   1.36, 0.72     1.53, 0.81     1.41, 0.64
-//! splash_room  1.54, 0.82     1.46, 0.79     (see the closing note)
-//! ```
-//!
-//! The estimate is low by a third to a half: what it leaves out is the variation of inherited
-//! fully visible links within a leaf and the error of links below the sampling share. On the
-//! single-bounce scenes, against the closed form (tests/exact.rs), it is within 1.3× on
-//! shadow-wide and sees half the error on shadow-narrow, whose penumbra is two floor-sized
-//! leaves wide. A simpler estimate (δ plus ½ × a transported visibility spread √(V(1−V)), a
-//! weight fitted to the data) read 0.42–2.43 × the measured on the same nine settings; the
-//! white furnace, exact, still reads a negligible estimate (unit test).
-//!
-//! Cost: the nine kernels per own link and the rays. Measured (release, 2 threads, a quiet
-//! machine): splash_room at the `splash2` preset, 0.16 s wall for the solve, 0.63 s with the
-//! estimate (the simpler estimate above: about 0.1 s); cornell `quality` 0.37 → 0.50 s.
-//! `solution()` and `snapshot()` pay it on every call; `solution_with(false)` skips it;
-//! `radlab bench` times the solve without it.
+//! This is the residual (defect-correction) estimate of Galerkin radiosity [Lischinski, Smits,
+//! Greenberg 1994, "Bounds and error estimates for radiosity": the error of a discrete solution
+//! solves the radiosity equation driven by its residual], the residual taken one level down
+//! instead of by a finer solve; the visibility re-sampled at the receiver's points is Holzschuch
+//! & Sillion 1998, sec. 3.2, measured instead of bounded. No weight in it is fitted to data. How
+//! well it tracks the measured error, and what it costs: docs/accuracy.md, "The solver's own
+//! estimate". `solution()` and `snapshot()` pay it on every call; `solution_with(false)` skips it.
 
 use super::HierarchicalSolver;
 use super::closure::{Closure, own_scale};
@@ -176,11 +125,9 @@ pub fn solution_relative_l2(scene: &crate::scene::Scene, solution: &crate::solve
 
 /// The signed, transported residual δ of every leaf (per channel, units of B; zero on interior
 /// elements): the first-order change of the leaf's radiosity if its inherited links were
-/// evaluated at the leaf itself. `B + δ` is a defect-corrected solution. Measured on the
-/// solution's own leaves against the reference (interactive preset): relative L2
-/// cornell 11.5 % → 8.5 %, table-room 10.0 % → 3.6 %, boxes_on_floor 10.5 % → 8.4 %; the
-/// white furnace without normalisation keeps 1 % of its error (tests). Not applied by the
-/// solver; offered to it.
+/// evaluated at the leaf itself. `B + δ` is a defect-corrected solution, closer to the
+/// reference on the built-in rooms (docs/accuracy.md#the-solvers-own-estimate). Not applied by
+/// the solver; offered to it.
 #[must_use]
 pub fn residual_correction(solver: &HierarchicalSolver) -> Vec<Rgb> {
     let hier = solver.hierarchy();
@@ -221,7 +168,7 @@ fn slope_at(l: &crate::solver::link::Link, (du, dv): (f64, f64)) -> f64 {
 pub const WITHIN_POINTS: usize = 9;
 
 /// A link is sampled with rays only if it could bring a leaf more than this share of the mean
-/// reflected radiosity (ρ B_q F_l): the cost knob of the estimate (module docs, "Cost").
+/// reflected radiosity (ρ B_q F_l): the cost knob of the estimate (module docs).
 const SAMPLE_SHARE: f64 = 0.02;
 
 /// Rays from each sample point to the source of each of the leaf's own partially visible links.

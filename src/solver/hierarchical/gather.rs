@@ -23,8 +23,8 @@ use std::time::Instant;
 ///
 /// After a refinement only the receivers whose lists changed get new entries, appended at the
 /// end ([`GatherPlan::update`]); their old entries stay behind unused until they outweigh the
-/// used ones, and then the plan is rebuilt whole. Rebuilding it after every round read every
-/// link each time (7 rounds on splash_room at `splash2`: 9 % of the solve's CPU time).
+/// used ones, and then the plan is rebuilt whole: rebuilding it after every round would read
+/// every link each time.
 #[derive(Debug, Default)]
 pub(super) struct GatherPlan {
     /// Receiver r's links are `start[r]..end[r]`.
@@ -85,8 +85,8 @@ pub(super) const PLAN_BLOCK: usize = 256;
 impl GatherPlan {
     /// Rebuild the plan from `links`, reusing its buffers. Built in parallel over blocks of
     /// receivers: each block flattens its receivers' links once into its own buffers (the link
-    /// lists are scattered over the heap, so every pass over them waits on memory: counting
-    /// first and filling after took two such passes, 8 % of a `splash2` solve), then the blocks
+    /// lists are scattered over the heap, so every pass over them waits on memory, and counting
+    /// first and filling after would take two), then the blocks
     /// are copied into place side by side. The same arrays as a serial pass in receiver order.
     fn rebuild(&mut self, links: &LinkStore, slopes: Option<&Hierarchy>) {
         let lists = &links.by_receiver;

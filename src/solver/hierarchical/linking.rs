@@ -38,15 +38,11 @@ const INSTALL_CHUNK: usize = 1 << 16;
 ///
 /// Why looser than element links: these pairs are neighbouring small pieces (a leg on the
 /// floor, books side by side), most of them touching or nearly so, where the adaptive
-/// cubature's cost grows fast with the tolerance (near pairs ~930 kernel evaluations each at
-/// 1e-3; two thirds of furnished-30k's couplings are adaptive). Their error is not what limits
-/// the solve: the cluster links beside them carry a point approximation good to a few percent
-/// and 4-ray visibility, and the rooms that reach the link budget keep one value per patch. A
-/// coupling 1 % off moves the answer by far less than that. Measured (docs/scale.md, session
-/// 14): furnished-30k 22 % less CPU (17.6 → 13.7 s user); its patches move by 0.21 %
-/// (area-weighted rel L2) and the escaped power by 0.01 points; the pointwise error against
-/// the path-traced furnished-4k reference stays 10.48 % (rel L2, debiased; L1 9.63 → 9.64 %).
-/// Presets with one-point couplings (`link_tol` 0) keep one point.
+/// cubature's cost grows fast with the tolerance. Their error is not what limits the solve: the
+/// cluster links beside them carry a point approximation good to a few percent and 4-ray
+/// visibility, and the rooms that reach the link budget keep one value per patch, so a coupling
+/// 1 % off moves the answer by far less than that. Chosen by measurement, see
+/// docs/scale.md#clustering. Presets with one-point couplings (`link_tol` 0) keep one point.
 const CLUSTERED_PAIR_TOL_FACTOR: f64 = 10.0;
 
 /// With the error oracle, a cluster link is accepted only while its bound is below this share
@@ -55,16 +51,10 @@ const CLUSTERED_PAIR_TOL_FACTOR: f64 = 10.0;
 /// Why: ε bounds the error of what a receiver gathers, and a node gathers through many cluster
 /// links (tens on the furnished rooms), each tested alone; the bound has no term for what a
 /// cluster link cannot see (its visibility is one estimate for all members, so a patch behind
-/// a shelf gathers what the open ones do). Subdividing the failing links as clusters did not
-/// help (a per-node sum rule made furnished-10k's cluster links 80 k → 261 k and left the
-/// error at 17.04 %); what helps is reaching patch pairs sooner, whose element links have
-/// their own rays and the oracle's refinement. Measured on furnished-10k (`radlab reference
-/// builtin:furnished-10k --compare --mesh quadtree --preset quality --cluster on
-/// --bf-eps-rel X`, pointwise rel L2 against the path-traced reference, noise 5.4 %;
-/// share, X: error, solve time, 2 threads):
-/// 1, 0.4: 21.45 % 3.8 s; 1, 0.2: 19.37 % 5.0 s; 1, 0.1: 17.04 %; 1, 0.05: 14.85 % ~20–30 s;
-/// 0.1, 0.4: 15.46 % 7.2 s; **0.03, 0.4: 12.45 % 11.8 s**; 0.03, 0.2: 10.38 % 19.9 s;
-/// 0.01, 0.4: 10.99 % 17.8 s. Every share below 1 beats the finer thresholds at share 1.
+/// a shelf gathers what the open ones do). Subdividing the failing links as clusters does not
+/// help; what helps is reaching patch pairs sooner, whose element links have their own rays and
+/// the oracle's refinement. Every share below 1 beats finer thresholds at share 1. Chosen by
+/// measurement on furnished-10k, see docs/scale.md#accuracy-on-the-furnished-rooms.
 pub(super) const ERROR_CLUSTER_SHARE: f64 = 0.03;
 
 /// Links being installed (`install_start` … `install_finish`).

@@ -9,59 +9,45 @@
 //! Hanrahan, Salzman, Aupperle 1991, sec. 3 (links carry F between two elements of the hierarchy)].
 //! A link p ← q gathers `F_pq = G_pq / A_p`, the mirror link q ← p gathers `F_qp = G_pq / A_q`:
 //! what q sends to p through the pair is exactly what p receives, so the hierarchy conserves
-//! energy (the power balance of a converged solve is exact up to the iteration's tolerance).
+//! energy (the power balance of a converged solve is exact up to the iteration's tolerance),
+//! whatever the rule below.
 //!
 //! ## How it is computed
-//! G is integrated over one element of the pair (the one with the smaller area, ties broken by
-//! the lower id, so both directions compute the very same number) with the exact point-to-polygon
-//! kernel to the other ([`form_factor::point_to_polygon_oriented`], Lambert's contour integral).
-//! The rule follows the accuracy asked for (`HierarchicalParams::link_tol`, relative) and how
-//! close the pair is relative to the integrated element's size `s` (diameter), measured by the
-//! gap `g` between the two elements' bounding spheres:
+//! G is integrated over one element of the pair (the smaller, ties broken by the lower id, so both
+//! directions compute the very same number) with the exact point-to-polygon kernel to the other
+//! ([`form_factor::point_to_polygon_oriented`], Lambert's contour integral). The rule follows the
+//! accuracy asked for (`HierarchicalParams::link_tol`, relative) and the gap `g` between the two
+//! elements' bounding spheres relative to the integrated element's diameter `s`:
 //!
 //! ```text
 //!   input patches, touching / near (g < s/2) ──► adaptive cubature to 1e-7 (1e-4 with link_tol 0;
 //!                 there, boxes apart: n×n Gauss–Legendre for the boxes' gap, n as below, to 1e-4)
-//!                                                              (form_factor::polygon_to_polygon_adaptive)
 //!   five-times rule (optional, centroids ≥ 5 diameters of either apart) ──► disk formula
 //!   link_tol = 0 (SPLASH-2's rule) ──► the kernel at the smaller element's centroid (1 point;
 //!                 input patches apart that straddle: at the centroid of the part in front)
 //!   otherwise ──► n×n Gauss–Legendre, n = ⌈ln(1/link_tol) / (2 ln ρ)⌉, ρ = 1 + 2g/s + √((1 + 2g/s)² − 1);
 //!                 straddling (apart) ──► the same n over the part in front of the other's plane
 //!                 touching (g ≤ 0), or n > MAX_GAUSS ──► adaptive cubature to link_tol
-//!   adaptive ──► instead the double contour integral, to the same tolerances, where its error
-//!                 estimate meets them (form_factor::polygon_to_polygon_contour: closed form for
-//!                 parallel edge pairs, graded Gauss rules for the others)
-//!   n ≥ 3, and every edge pair parallel or perpendicular (rooms, boxes, shelves and their
-//!                 quadtree elements) ──► instead the exact double contour integral
-//!                 (form_factor::polygon_to_polygon_axial)
+//!   adaptive ──► instead the double contour integral where its error estimate meets the
+//!                 tolerance (form_factor::polygon_to_polygon_contour)
+//!   n ≥ 3, every edge pair parallel or perpendicular ──► instead the exact double contour
+//!                 integral (form_factor::polygon_to_polygon_axial)
 //! ```
-//!
-//! The axial closed form made the white furnace's and cube-one-light's power balance close to
-//! 6e-8 at `splash2` (escaped / emitted −6.0e-8 and −5.5e-8; −7.7e-5 and −7.1e-5 with the 1e-4
-//! cubature of their touching faces) and `splash2`'s initial linking on splash_room 0.027 →
-//! 0.021 s on one thread. The contour integral with oblique edge pairs then took the
-//! cubature's place for the touching pairs whose edges meet at other angles (turned
-//! furniture): on splash_room at `splash2` 388 of its 402 adaptive pairs, 4.6× cheaper than
-//! the cubature to the same tolerance (the rest, whose rules disagree to the end, keep it); the
-//! clustered contact mesh at ε = 0.17 (`quality`) refines 6 % faster on one thread, the same
-//! links. Apart pairs keep their Gauss rules: the contour integral was no cheaper than 4×4
-//! kernel evaluations there.
-//!
-//! A straddling pair (a wall and a shelf whose plane cuts it) that is apart exchanges nothing
-//! behind the cutting plane and a transfer analytic in x in front of it (it falls to 0 linearly
-//! at the plane), so a Gauss rule over the clipped pieces
-//! ([`form_factor::polygon_to_polygon_rule`]) converges as for any pair at that distance. On
-//! splash_room's clustered contact mesh (ε = 0.2) such pairs had been 7 863 adaptive
-//! integrations of 93 kernel evaluations each; 219 remain adaptive (the closer ones).
 //!
 //! For an analytic integrand whose nearest singularity lies a distance g from an interval of
 //! length s, the n-point Gauss rule converges like ρ^(−2n) with that ρ [Trefethen 2008, "Is
-//! Gauss quadrature better than Clenshaw–Curtis?", Thm. 4.5]; the rule picks the smallest n
-//! whose bound meets the tolerance. The pairs of input patches carry a closed box's whole answer
-//! (the white furnace is exact only if Σ F = 1), so they are integrated adaptively where the
-//! kernel's derivative is log-singular (shared edges, contact). Reciprocity is exact by
-//! construction whatever the rule: one G serves both links.
+//! Gauss quadrature better than Clenshaw–Curtis?", Thm. 4.5]; the rule picks the smallest n whose
+//! bound meets the tolerance. Where the kernel's derivative is log-singular (shared edges,
+//! contact) a Gauss rule does not converge at that rate, so those pairs are integrated
+//! adaptively, or by the contour integral, whose inner integral is closed and whose outer rule is
+//! graded towards the singular points: cheaper than cubature for the same tolerance, and exact for
+//! axis-aligned pairs (rooms, boxes, shelves and their quadtree elements). Pairs apart keep their
+//! Gauss rules, where the contour integral costs as much. A straddling pair (a wall and a shelf
+//! whose plane cuts it) exchanges nothing behind the cutting plane and a transfer analytic in x in
+//! front of it, so a Gauss rule over the clipped pieces ([`form_factor::polygon_to_polygon_rule`])
+//! converges as for any pair at that distance. The pairs of input patches carry a closed box's
+//! whole answer (the white furnace is exact only if Σ F = 1), hence their tight tolerances. What
+//! each choice measured: docs/solver.md, "Link coefficients".
 
 use crate::geometry::form_factor;
 use crate::math::DVec3;
@@ -74,32 +60,20 @@ use std::sync::OnceLock;
 pub(super) const ROOT_REL_TOL: f64 = 1e-7;
 /// Absolute tolerance (in units of F, of the smaller element of the pair, so of both
 /// directions' F) of the adaptive rule for pairs of input patches. A grazing pair whose form
-/// factor is 1e-12 cannot be had to a relative tolerance (the rule ran into its 2 M evaluation
-/// cap on splash_room's furniture), and needs none: what matters is each patch's Σ F, which a
-/// closed box needs to 1e-6. Its few large F (0.2 in the furnace) are held by [`ROOT_REL_TOL`];
-/// a patch with k partners sums at most k · 1e-8 more (splash_room's contact mesh: ≤ 530
-/// partners, ≤ 5e-6).
-///
-/// 1e-10 had been used: on splash_room's contact mesh (527 patches) it cost 11.6 M kernel
-/// evaluations in the initial linking, mostly small-F pairs that straddle or touch (a panel's
-/// edge on a shelf), and the linking took 0.85 of the solve's 1.17 s (X = 0.4, 2 threads);
-/// at 1e-8, 5.9 M evaluations and 0.62 s for the whole solve, the same pointwise error (6.00 %
-/// at X = 0.2 against the 4-batch reference) and energy residual (3.30e-4).
+/// factor is 1e-12 cannot be had to a relative tolerance, and needs none: what matters is each
+/// patch's Σ F, which a closed box needs to 1e-6. Its few large F are held by [`ROOT_REL_TOL`];
+/// a patch with k partners sums at most k · 1e-8 more, below 1e-6 for the few hundred partners
+/// of a furnished room's patch. A tighter bound spends most of the initial linking on small-F
+/// pairs that straddle or touch, for the same error: chosen by measurement, see
+/// docs/solver.md#how-the-tolerances-were-chosen.
 pub(super) const ROOT_ABS_TOL: f64 = 1e-8;
 /// With SPLASH-2's one-point rule (`link_tol` 0), near input patch pairs are still integrated
 /// adaptively (one point at a centroid next to a shared edge can exceed the whole pair's F and
-/// create light), but only to this: the rest of that preset is accurate to a few percent, and
-/// 1e-7 made its initial linking 18× slower on splash_room (0.007 → 0.129 s). 1e-3 left the
-/// white furnace's Σ F a little above 1 and the solve created light (escaped/emitted −0.115 %,
-/// cube-one-light −0.105 %; now −0.007 % each).
-///
-/// Near pairs whose bounding boxes are apart take the Gauss rule of their box gap to this
-/// tolerance instead (`rule_gap`): on splash_room 1 546 of the 1 812 adaptive pairs had boxes
-/// apart, and `splash2`'s initial linking went from 0.024 to 0.014 s (`radlab speed --rays 4
-/// --threads 2`, 3 interleaved runs of 7, the same links and elements). Escaped / emitted at
-/// `splash2`: the furnace −7.44e-5 → −7.74e-5, cube-one-light −6.82e-5 → −7.10e-5 (the energy
-/// residual of the solve, 9.8e-4 and 8.2e-4, is ten times that), cornell, table-room and both
-/// SPLASH-2 rooms unchanged to 3 digits.
+/// create light), but only to this: the rest of that preset is accurate to a few percent. Looser
+/// leaves a closed box's Σ F above 1 (the solve creates light); tighter makes that preset's
+/// initial linking many times slower. Near pairs whose bounding boxes are apart take the Gauss
+/// rule of their box gap to this tolerance instead (`rule_gap`). Chosen by measurement, see
+/// docs/solver.md#how-the-tolerances-were-chosen.
 const ONE_POINT_ROOT_TOL: f64 = 1e-4;
 pub(super) const ELEMENT_ABS_TOL: f64 = 1e-8;
 /// The error oracle at a relative threshold ε integrates refined pairs adaptively (touching,
@@ -107,18 +81,11 @@ pub(super) const ELEMENT_ABS_TOL: f64 = 1e-8;
 /// lecture's "only compute things to the required precision". The oracle accepts an element
 /// whose gathered radiosity is wrong by ε of the mean; a coefficient off by ε/100 moves its
 /// link's transfer by a hundredth of that. Reciprocity, and so the power balance, stay exact at
-/// any tolerance (one G per pair).
-///
-/// Measured (4-batch references, `quality` on the contact mesh, interleaved medians of 7 solves,
-/// 2 threads):
-/// - splash_room clustered, ε = 0.2: 0.506 → 0.480 s, 0.91 → 0.85 s CPU, pointwise rel L2
-///   6.64 % both (ε = 0.3: 8.48 → 8.49 %). At ε/20: 0.437 s, 0.77 s CPU, the same error.
-/// - But at ε/20 table-room's error at ε = 0.05 rose 1.53 → 1.75 % (its table legs stand on the
-///   floor: many touching pairs); at ε/100 it reads 1.56 %. Cornell: 1.53 % at all three.
-/// - The Gauss rules of pairs apart keep `link_tol`: loosened too (to ε/20), table-room, a closed
-///   room, created light at `quality` (escaped +0.0131 → −0.0083 of 12.5 emitted); loosening
-///   only the cubature leaves it at +0.0136 (`tests/hierarchical.rs`
-///   `quality_creates_no_light_in_the_closed_rooms`).
+/// any tolerance (one G per pair). ε/100 rather than looser because a scene of many touching
+/// pairs (table legs on a floor) loses accuracy at ε/20; the Gauss rules of pairs apart keep
+/// `link_tol`, as loosening them too made a closed room create light at `quality`
+/// (`tests/hierarchical.rs` `quality_creates_no_light_in_the_closed_rooms`). Chosen by
+/// measurement, see docs/solver.md#how-the-tolerances-were-chosen.
 pub(super) const LINK_TOL_PER_EPS: f64 = 0.01;
 /// `min_gap` of [`coupling`] when nothing bounds the pair's distance but its centroids.
 pub(super) const NO_GAP_BOUND: f64 = f64::NEG_INFINITY;

@@ -16,45 +16,24 @@
 //!     then t_hier / t_uniform < t_hier / (longest uniform run) is measured, not extrapolated
 //! ```
 //!
-//! ## The reference must resolve the targets
-//! The reference is computed in independent **batches** (seeds s, s + 1, …, each cached on disk)
-//! merged by [`crate::eval::reference::merge_batches`], leaving out the batch that placed the
-//! points once another exists ([`crate::eval::reference::scoring_batches`]: its estimates are
-//! not independent of where it put them); batches are added until both
+//! The reference is computed in independent batches (each cached on disk) merged by
+//! [`crate::eval::reference::merge_batches`], leaving out the batch that placed the points once
+//! another exists ([`crate::eval::reference::scoring_batches`]: its estimates are not independent
+//! of where it put them); batches are added until it resolves half the smallest target:
 //!
 //! ```text
 //! noise      = √(Σ a σ²) / √(Σ a (B̂ − E)²)             ≤ REFERENCE_TARGET = 0.5 %   (a: point weights)
 //! resolution = 2 · noise · (2/N)^¼                      ≤ REFERENCE_TARGET
 //! ```
 //!
-//! i.e. half the smallest target (1 %). The rule: the issue's "reference error below a tenth of
-//! the errors it measures" is what a raw L2 needs (noise 0.1 % adds 0.5 % to a 1 % error); the
-//! debiased L2 subtracts Σaσ², so noise at half the target suffices: the debiased 1 % is then
-//! measured to about ±3 % of itself from the fluctuation (resolution ≤ 0.5 %) plus ≤ 2.5 % from a
-//! 20 % misestimate of σ² — 25× fewer paths than the raw rule. The standard run stops after 64
-//! batches (full: 256) and marks what it then cannot resolve ("unresolved" / "< x").
-//! `--quick` uses one small batch at 4096 points (a smoke run, under a minute); its table says so.
-//!
-//! ## What the error measures
-//! The **pointwise** error ([`crate::eval::pointwise`]): the solution's own reconstruction (piecewise
-//! constant) evaluated at the reference's points, each weighted by the area of its cell — the
-//! error a user sees, shadow edges included. The points are denser where the reference varies
-//! fast (65 536 at least in the standard run). It replaced the error of the solution's averages
-//! over a uniform reference mesh, which could not see inside a reference element: a blocky
-//! uniform solution of table-room read 0.47 %, and a solution whose mesh was the reference grid
-//! was flattered (cornell h = d/16 read 1.50 % against a d/16 reference, 4.94 % against a d/24
-//! one). The element-average error — the solution's element values against the reference
-//! averaged over the points in each element ([`crate::eval::pointwise::compare_element_averages`]) — is
-//! reported beside it (`avg_rel_l2_debiased`): what the solver computed, without its mesh's
-//! representation error.
-//!
-//! The reported error is the **debiased** L2 (the reference's own noise Σaσ² taken out of the
-//! squared error, see [`crate::eval::metrics`]); the raw L2 and the noise are in the table too. A
-//! figure below ~3× `reference_noise` measures the reference, not the solver.
-//!
-//! Every run has a wall-clock budget: a hierarchical run is cancelled through its cancel handle
-//! when it exceeds it and is reported as `over budget`; the classical solvers are bounded by
-//! their element caps and shot counts.
+//! Half the target, not a tenth, because the reported error is the **debiased** L2 (the
+//! reference's noise Σaσ² taken out, [`crate::eval::metrics`]), which a misestimated σ² moves far
+//! less than noise moves a raw L2. The error is **pointwise** ([`crate::eval::pointwise`]): the
+//! solution's own reconstruction at the reference's points, area-weighted, shadow edges included;
+//! the element-average error is reported beside it. Every run has a wall-clock budget: a
+//! hierarchical run is cancelled through its cancel handle and reported as `over budget`; the
+//! classical solvers are bounded by their element caps and shot counts. The rule's figures and
+//! the results: docs/performance.md.
 
 mod envelope;
 mod measure;

@@ -63,8 +63,8 @@ pub(super) type SplitOutcome = [Option<PairOutcome>; 4];
 /// lists in the same pass (the verdicts are symmetric: both split the same element), and the
 /// second receiver reuses the first one's four new pairs (coupling, visibility) instead of
 /// computing them again. Keyed by the split link, not by each new pair: one look-up per four
-/// links (the memo's hash probes and locks, two cache misses each, were 9 % of a `splash2`
-/// solve when each new pair had its own entry).
+/// links (a hash probe and a lock are two cache misses; one entry per new pair would pay them
+/// four times).
 pub(in crate::solver::hierarchical) struct PairMemo(Vec<MemoShard>);
 
 /// One shard, on its own cache lines: the two threads lock neighbouring shards all the time.

@@ -64,7 +64,7 @@ impl HierarchicalSolver {
     /// whose row exceeds it inherits a coarse link's average F where its own share is smaller
     /// (a wall's leaf by the corner, whose view the adjacent wall fills, inherits the whole
     /// wall's share of the far walls); its radiosity follows the row, and the solve creates
-    /// light (table-room `interactive`: escaped −2.1 % of the emitted power). Pushing the
+    /// light (docs/solver.md#the-row-check). Pushing the
     /// ancestors' links down a level replaces their averages by the children's own.
     pub(in crate::solver::hierarchical) fn row_split(&self, a: u32, b: u32, link: &Link) -> Option<u32> {
         if self.oracle.row_floor.is_empty() {
