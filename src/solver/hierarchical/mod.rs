@@ -57,71 +57,28 @@
 //! `solve` runs the loop: refine, then `round_iterations` gathers, until a refinement adds at
 //! most `settle` of the links (or the last allowed round comes); those are gathered to
 //! convergence.
-//! - **Refine** (the lecture's `Refine(p, q, Feps, Aeps)`): estimate F_pq and F_qp with the disk
-//!   formula; if the oracle is satisfied, keep the link; else split the element with the larger
-//!   estimate (F_pq > F_qp → split the source q) unless it is at the Aeps floor or the maximum
-//!   depth, then keep the link (`split_fallback` splits the other one instead). Each link caches
-//!   its estimates, split side and error bound when it is made (`Link`), so re-applying the
-//!   oracle after a gather costs one multiply per link.
-//! - **Oracles**: `Feps` (both estimates below Feps), and `Bf` (B · max(F_pq, F_qp) · error
-//!   bound below BFeps, the SPLASH-2 criterion, with B the larger of the two elements' radiosity
-//!   so that a link and its mirror get the same verdict; the bound is (diam_p + diam_q) /
-//!   distance, at most 1, for fully visible links and 1 for partially visible ones, which use
-//!   `partial_bf_factor` × BFeps: 1/4 in most presets, so shadow boundaries refine first; 1, as
-//!   in the SPLASH-2 program, in `splash2`). Pairs whose planes cut each other ("straddling") are
-//!   estimated with |cos|. With `conservative` (not in `splash2`), straddling pairs also take the
-//!   exact point value at four interior points, and a partially visible link's B is the
-//!   brightest leaf (B_avg · V_avg counts a hidden dark part twice).
-//! - **Mirror links**: every decision is symmetric in the pair (the split side is the larger
-//!   estimate's, ties broken by area, then id), so the links q ← p are the mirror images of the
-//!   links p ← q at every level.
-//! - **Link form factor** ([`transfer`]): the Galerkin (area-averaged) form factor F_pq = G / A_p
-//!   of a coupling G = A_p F_pq = A_q F_qp computed once per pair (quadrature of the exact
-//!   point-to-polygon kernel whose order grows as the pair gets closer); visibility V from
-//!   stratified point pairs in the pair's canonical order (`visibility::visibility_sample`), so
-//!   a link and its mirror carry the same F·V·A and what a source sends through a pair is what
-//!   the receiver gathers: the power balance closes (`EnergyBalance`).
-//! - **Push-pull with slopes** (`push_slopes`, all presets but `splash2`): a link r ← s also
-//!   carries how its transfer F(x → s)·V varies across r (`Link::slope`, the least-squares
-//!   gradient of the exact point kernel at r's four child points, limited so the transfer stays
-//!   ≥ 0 over r), and its mirror's (`Link::src_slope`, across s). Push moves each ancestor's
-//!   irradiance along its slope to the child's centroid instead of copying its average, and
-//!   the gather adds, per link, the source's first moment of radiosity M_s = Σ_leaves A B
-//!   (c − c_s) / A_s against the source-side slope (a coarse source sends what its bright and
-//!   dark parts send):
+//! - **Refine** (the lecture's `Refine(p, q, Feps, Aeps)`): if the oracle ([`oracle`], and
+//!   `refine::decide` for Feps and BF) is satisfied, keep the link; else split the element with
+//!   the larger estimate unless it is at the Aeps floor or the maximum depth. Each link caches
+//!   its estimates, split side and error bound (`Link`), so re-applying an oracle after a gather
+//!   costs a multiply per link.
+//! - **Mirror links**: every decision is symmetric in the pair, and a pair's coupling G and
+//!   visibility V are computed once ([`transfer`], `visibility::visibility_sample` in the pair's
+//!   canonical order), so the links q ← p mirror p ← q at every level and what a source sends is
+//!   what its receiver gathers: the power balance closes (`EnergyBalance`).
+//! - **Push-pull with slopes** (`push_slopes`): a link also carries how its transfer varies
+//!   across its receiver and its source; push moves an ancestor's irradiance along the slope,
+//!   the gather adds the source's first moment of radiosity ([`push_pull`]):
 //!   ```text
 //!   H_leaf = Σ_{links a ← s, a = leaf or an ancestor} [ F_as V B_s + slope_as · (c_leaf − c_a)
 //!            + (A_s / A_a) src_slope_as · M_s ]
 //!   ```
-//!   Both corrections integrate to zero over the element they act on (Σ_leaves A (c − c_a) = 0),
-//!   so each link still moves exactly its G·V·B; what changes is *where* it lands and where it
-//!   comes from. With constants, a leaf's row of form factors is its ancestors' averages, not
-//!   its own (Σ F up to 1.18 in cube-one-light at `quality`), its radiosity follows that row,
-//!   and the solve created light (escaped/emitted, cube-one-light `interactive` −2.9 %, the
-//!   furnace at `lecture` −1.6 %; now −0.45 % and −0.08 %). The energy balance uses the same
-//!   rows (`Chain::fv_slope`), so it closes. Leaves keep the slope for their reconstruction
-//!   (`solver::Slope`): the pointwise ruler reads them linearly. Pointwise rel L2 at `quality`
-//!   (cached references, 65 537 points): cornell 6.6 → 4.6 %, table-room 8.4 → 6.0 %,
-//!   splash_room 6.6 → 5.4 %; at `interactive` 11.9 → 8.8 %, 8.9 → 6.2 %, 18.5 → 15.8 %.
-//! - **Zero estimates**: a link the oracle would split at any visibility but 0 is refined unless
-//!   its estimate is 0, so an accepted noisy zero keeps only P(estimate > 0) · V of its light,
-//!   again at every level below. Such zeros are re-tested with `zero_confirm` × rays more rays
-//!   (the first that passes settles the split). Measured on splash_room (preset `splash2`,
-//!   4 rays): without the test the floor came out 14 % and the whole room 2.6 % darker than the
-//!   reference, with 1 ray 40 % darker; with 2 × 4 more rays the floor is 2 % dark at
-//!   `partial_bf_factor` 1/4, 4 % at 1 (the preset's). Symmetrically, with `conservative`, an
-//!   all-visible estimate of a link split only when partial (and of an input patch pair) is
-//!   confirmed with more rays, a blocked one making it partial: accepted false ones made
-//!   splash_room's floor gather 11 % too much (escaped/emitted at `interactive` −11 % → +0.1 %).
-//! - **No per-leaf normalisation**: scaling each leaf's inherited irradiance so that its total
-//!   form factor matches the point kernel at its centroid makes the white furnace exact with
-//!   centroid links, but one scalar per leaf mixes sources of different radiosity (Cornell's
-//!   floor came out 15 % dark, tests/hierarchical.rs `direct_light_is_not_biased_by_inherited_links`),
-//!   and with Galerkin links it does not apply. The furnace is exact with the error oracle,
-//!   which does not refine it ([`oracle`]), and under every oracle with the **closed rows**
-//!   ([`closure`], `HierarchicalParams::close_rows`): on enclosed patches a symmetric scaling of
-//!   the leaves' operator, mostly of their inherited links, brings every row to exactly 1
-//!   without creating light.
+//! - **Closed rows** ([`closure`]): on enclosed patches a symmetric scaling of the leaves'
+//!   operator brings every row of F·V to exactly 1 without creating light.
+//!
+//! Why each of these, with the measurements that chose them: docs/solver.md ("Hierarchical
+//! radiosity": oracles, link coefficients, visibility and its confirmations, push-pull with
+//! slopes, the row check, closed rows).
 //! - **Parallel and deterministic**: element ids are assigned serially in sorted order, visibility
 //!   jitter is keyed by the (receiver, source) ids, and parallel results are collected in order,
 //!   so every count and value is identical for any thread count.

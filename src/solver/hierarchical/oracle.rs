@@ -14,9 +14,7 @@
 //! fit, in the parent's plane, of the parent's h at its own four points, evaluated at r's
 //! (`inherit`). An ancestor's links vary smoothly across its descendants (where one does not,
 //! the ancestor's own error splits it), so the fit keeps their variation, and an element costs
-//! its own links only: evaluating every ancestor's links at every descendant made the field
-//! cost Σ_elements (links along the chain), 97 % of a cornell solve at ε = 0.1 (14.5 s, now
-//! 0.7 s, the same error against the reference).
+//! its own links only, not Σ (links along its chain of ancestors).
 //!
 //! (largest RGB channel). The first term is the receiver's variation of the total — a link
 //! whose contribution is uniform across r, or whose variation the other links cancel (in the
@@ -35,9 +33,8 @@
 //! F_rq is the link's Galerkin coefficient, the kernel's true average over r (`transfer`); when
 //! the four points' mean misses it, the kernel varies between them (a lamp grazing a wall lights
 //! a sliver of a large element that no child point lies in). Summed with signs, so that links
-//! whose misses cancel (the furnace, Σ_q F = 1 at every point and on average) add nothing. On
-//! splash_room (ε = 0.1, 16 rays) this took the pointwise error from 19 % to 7 %: a lamp beside
-//! a wall left a 5× too dark spot there. [The same idea as the a-posteriori quadrature
+//! whose misses cancel (the furnace, Σ_q F = 1 at every point and on average) add nothing.
+//! [The same idea as the a-posteriori quadrature
 //! estimates of Lischinski, Smits & Greenberg 1994, sec. 5: compare two rules of different order.]
 //!
 //! A link r ← q is split on the receiver's side when r's answer is wrong (e_r > ε) and the link
@@ -45,11 +42,7 @@
 //! |F_rq − mean|) (+ its visibility term), is among the largest of r's own links, taken largest first until
 //! the rest add up to at most `cause_tail` · ε, ε/4 in every preset (so the rest cannot make r
 //! wrong again on their own, and a receiver with thousands of small links does not split them
-//! all: with the rule c_rq ≥ e_r / (1 + n_r) instead, table-room at ε = 0.025 made 214 664
-//! links, against 156 600 at ε/2 and 336 730 at ε/4 for 3.3 % instead of 3.7 % pointwise;
-//! against the 4-batch references, ε/2 puts splash_room's clustered contact mesh on a
-//! better error-against-time front, 5.78 % at ε = 0.17 in 0.44 s against 5.81 % in 0.64 s, but
-//! cornell's ε = 0.025 reads 1.06 % instead of 0.93 %). It is split on the source's side when
+//! all; the share is chosen by measurement, docs/solver.md, "Oracles"). It is split on the source's side when
 //! q's radiosity varies (ΔB_q: q's own e_q, or the spread of its children's B) enough to matter
 //! through the kernel's variation across q: ρ_r F_rq V ΔB_q diam_q / distance > ε [Holzschuch &
 //! Sillion 1998, sec. 3.1, the source-radiosity term]. Every decision
@@ -63,9 +56,9 @@
 //! **Cost.** F(x_k → q) at r's four child points depends on the pair's geometry alone, so it is
 //! evaluated once per pair and kept (`ErrorField::kernels`, per receiver sorted by source,
 //! carried from one refinement to the next): the field's update, the decisions on both sides of
-//! a pair and the links' slopes (`kernel_slope`) look it up. Bit-identical to evaluating it each
-//! time; on cornell's contact mesh at ε = 0.05 it took the solve's CPU from 4.6 s to 2.9 s, the
-//! shadow rays now being the largest part.
+//! a pair and the links' slopes (`kernel_slope`) look it up, the same numbers as evaluating it
+//! each time. Within a refinement, a pass decides again only the links with an end whose
+//! verdict inputs changed (`ErrorField::fresh`).
 
 use super::HierarchicalSolver;
 use crate::geometry::form_factor;

@@ -60,8 +60,8 @@ impl HierarchicalSolver {
         self.log.stats.refine_initial_s += t.elapsed().as_secs_f64();
         // The row check reads the rows of the links the last solution gathered through (none
         // before the first gather). Not with cluster links: their transfer is a bounded
-        // approximation whose share of a row no element link's split corrects (furnished-2k
-        // `interactive`: 175 k links, then 505 k and the budget).
+        // approximation whose share of a row no element link's split corrects (with them, the
+        // check only spends the link budget: docs/solver.md, "The row check").
         self.oracle.row_floor = if self.log.gathered_once && self.cluster.links.is_empty() {
             self.row_floors()
         } else {
