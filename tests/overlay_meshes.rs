@@ -14,7 +14,9 @@
 use radlab::eval::reference::{Cell, PointSet, RefPoint};
 use radlab::math::{DVec3, Pcg32, Rgb};
 use radlab::mesh::remesh::RemeshParams;
-use radlab::present::overlay::{ElementView, MERGE_REL, SEAM_REL, VertexField, vertex_radiosity};
+use radlab::present::overlay::{
+    ElementCore, ElementView, MERGE_REL, SEAM_REL, VertexField, vertex_radiosity,
+};
 use radlab::scene::Scene;
 use radlab::solver::discontinuity::HierarchicalOnMesh;
 use radlab::solver::hierarchical::HierarchicalSolver;
@@ -216,18 +218,20 @@ fn reference_point_cells() {
 
 fn quad(id: u32, patch: u32, parent: Option<u32>, v: [DVec3; 4], b: f64) -> ElementView {
     ElementView {
-        id,
-        patch,
-        parent,
-        depth: u8::from(parent.is_some()),
+        core: ElementCore {
+            id,
+            patch,
+            parent,
+            depth: u8::from(parent.is_some()),
+            vertices: v,
+            n_vertices: 4,
+            area: 1.0,
+            reflectance: Rgb::splat(0.5),
+            emission: Rgb::ZERO,
+            radiosity: Rgb::splat(b),
+            error_estimate: 0.0,
+        },
         leaf: parent.is_some(),
-        vertices: v,
-        n_vertices: 4,
-        area: 1.0,
-        reflectance: Rgb::splat(0.5),
-        emission: Rgb::ZERO,
-        radiosity: Rgb::splat(b),
-        error_estimate: 0.0,
         stop: "",
     }
 }

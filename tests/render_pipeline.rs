@@ -7,7 +7,7 @@
 use eframe::egui_wgpu;
 use eframe::wgpu;
 use radlab::math::{DVec3, Rgb};
-use radlab::present::overlay::{self, ElementView, LinkFilter, LinkView};
+use radlab::present::overlay::{self, ElementCore, ElementView, LinkFilter, LinkView};
 use radlab::render::geometry::{self, MeshColors};
 use radlab::render::snapshot::{self, Thresholds};
 use radlab::render::{
@@ -44,18 +44,20 @@ fn square(id: u32, z: f64, b: Rgb, flip: bool) -> ElementView {
         v.reverse();
     }
     ElementView {
-        id,
-        patch: id,
-        parent: None,
-        depth: 0,
+        core: ElementCore {
+            id,
+            patch: id,
+            parent: None,
+            depth: 0,
+            vertices: v,
+            n_vertices: 4,
+            area: 4.0,
+            reflectance: Rgb::splat(0.5),
+            emission: Rgb::ZERO,
+            radiosity: b,
+            error_estimate: 0.0,
+        },
         leaf: true,
-        vertices: v,
-        n_vertices: 4,
-        area: 4.0,
-        reflectance: Rgb::splat(0.5),
-        emission: Rgb::ZERO,
-        radiosity: b,
-        error_estimate: 0.0,
         stop: "",
     }
 }
@@ -495,7 +497,8 @@ fn golden_box() {
         if id != 0 {
             v.reverse();
         }
-        ElementView { id, patch: id, vertices: v, radiosity: b, ..square(id, 0.0, b, false) }
+        let s = square(id, 0.0, b, false);
+        ElementView { core: ElementCore { id, patch: id, vertices: v, radiosity: b, ..s.core }, ..s }
     };
     let (l, h) = (-1.0, 1.0);
     let p = DVec3::new;
@@ -610,7 +613,8 @@ fn direct_drawing_into_the_host_pass_matches_the_offscreen_image() {
         if id != 0 {
             v.reverse();
         }
-        ElementView { id, patch: id, vertices: v, radiosity: b, ..square(id, 0.0, b, false) }
+        let s = square(id, 0.0, b, false);
+        ElementView { core: ElementCore { id, patch: id, vertices: v, radiosity: b, ..s.core }, ..s }
     };
     let els = vec![
         face(0, [p(l, l, l), p(h, l, l), p(h, l, h), p(l, l, h)], Rgb::splat(0.6)),

@@ -57,68 +57,38 @@ pub use quantize::MERGE_REL;
 pub use seams::SEAM_REL;
 pub use smooth::{BoundaryPoint, VertexField, vertex_radiosity};
 
-use crate::math::{DVec3, Rgb, polygon_centroid, polygon_normal};
+use crate::math::{DVec3, Rgb};
+pub use crate::solver::hierarchical::ElementCore;
 
-/// One element as the viewer sees it (leaf or interior). `id` indexes the element list.
+/// One element as the viewer sees it (leaf or interior), of any solver's solution: the solver
+/// layer's [`ElementCore`] (which it dereferences to), whether it is a leaf, and why refinement
+/// stopped there. `id` indexes the element list.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ElementView {
-    pub id: u32,
-    /// Input patch index.
-    pub patch: u32,
-    pub parent: Option<u32>,
-    /// Depth below the input patch (0 = the patch itself).
-    pub depth: u8,
+    pub core: ElementCore,
     pub leaf: bool,
-    /// `n_vertices` (3 or 4) valid entries, counter-clockwise seen from the front.
-    pub vertices: [DVec3; 4],
-    pub n_vertices: u8,
-    pub area: f64,
-    pub reflectance: Rgb,
-    pub emission: Rgb,
-    pub radiosity: Rgb,
-    /// The solver's own error estimate for B (units of B); 0 where it has none.
-    pub error_estimate: f64,
     /// Why refinement stopped at this element (a short label).
     pub stop: &'static str,
 }
 
-impl ElementView {
-    /// The valid vertices (at most four, whatever `n_vertices` says).
-    #[must_use]
-    pub fn verts(&self) -> &[DVec3] {
-        &self.vertices[..usize::from(self.n_vertices).min(4)]
+impl std::ops::Deref for ElementView {
+    type Target = ElementCore;
+    fn deref(&self) -> &ElementCore {
+        &self.core
     }
-    /// Area centroid (the origin for an element without vertices).
-    #[must_use]
-    pub fn centroid(&self) -> DVec3 {
-        let v = self.verts();
-        if v.is_empty() { DVec3::ZERO } else { polygon_centroid(v) }
-    }
-    /// Unit normal (zero for an element without vertices or area).
-    #[must_use]
-    pub fn normal(&self) -> DVec3 {
-        let v = self.verts();
-        if v.is_empty() { DVec3::ZERO } else { polygon_normal(v) }
-    }
+}
 
+impl std::ops::DerefMut for ElementView {
+    fn deref_mut(&mut self) -> &mut ElementCore {
+        &mut self.core
+    }
+}
+
+impl ElementView {
     /// The viewer's copy of a solver element.
     #[must_use]
     pub fn from_info(e: &crate::solver::hierarchical::ElementInfo) -> ElementView {
-        ElementView {
-            id: e.id,
-            patch: e.patch,
-            parent: e.parent,
-            depth: e.depth,
-            leaf: e.children.is_none(),
-            vertices: e.vertices,
-            n_vertices: e.n_vertices,
-            area: e.area,
-            reflectance: e.reflectance,
-            emission: e.emission,
-            radiosity: e.radiosity,
-            error_estimate: e.error_estimate,
-            stop: e.stop.label(),
-        }
+        ElementView { core: e.core, leaf: e.children.is_none(), stop: e.stop.label() }
     }
 
     /// A leaf of depth 0 without parent on input patch `patch_index` (a mesh solve's element, a
@@ -138,12 +108,11 @@ impl ElementView {
         let n = vertices.len().min(4);
         let mut v = [vertices.first().copied().unwrap_or(DVec3::ZERO); 4];
         v[..n].copy_from_slice(&vertices[..n]);
-        ElementView {
+        let core = ElementCore {
             id,
             patch: patch_index as u32,
             parent: None,
             depth: 0,
-            leaf: true,
             vertices: v,
             n_vertices: n as u8,
             area,
@@ -151,8 +120,8 @@ impl ElementView {
             emission: patch.emission,
             radiosity,
             error_estimate,
-            stop,
-        }
+        };
+        ElementView { core, leaf: true, stop }
     }
 }
 
@@ -219,7 +188,7 @@ impl LineList {
 /// Fixtures of the overlays' unit tests.
 #[cfg(test)]
 pub(crate) mod test_support {
-    use super::{BoundaryPoint, ElementView, VertexField};
+    use super::{BoundaryPoint, ElementCore, ElementView, VertexField};
     use crate::math::{DVec3, Rgb};
 
     /// A leaf square of side `s` at (`x0`, `y0`) in the z = 0 plane, radiosity `b` in every channel.
@@ -229,12 +198,11 @@ pub(crate) mod test_support {
 
     /// [`quad`] with radiosity `b`.
     pub(crate) fn quad_rgb(id: u32, depth: u8, x0: f64, y0: f64, s: f64, b: Rgb) -> ElementView {
-        ElementView {
+        let core = ElementCore {
             id,
             patch: 0,
             parent: None,
             depth,
-            leaf: true,
             vertices: [
                 DVec3::new(x0, y0, 0.0),
                 DVec3::new(x0 + s, y0, 0.0),
@@ -247,8 +215,8 @@ pub(crate) mod test_support {
             emission: Rgb::ZERO,
             radiosity: b,
             error_estimate: 0.0,
-            stop: "",
-        }
+        };
+        ElementView { core, leaf: true, stop: "" }
     }
 
     /// Exact for values that are sums of a few halves; only rounding remains.

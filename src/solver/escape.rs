@@ -74,19 +74,20 @@ pub enum Hit {
     Out,
 }
 
-/// Cast `rays` cosine-distributed rays (stratified in sin²θ) from points uniform on `region`,
-/// keyed by `key` and `seed` (the same rays on any thread), and hand what each meets to `f`.
-/// `scene` and `accel` are the input scene and its BVH.
-pub fn cast_hemisphere(
-    scene: &Scene,
-    accel: &Accel,
-    region: Region,
-    rays: u32,
-    key: u64,
-    seed: u64,
-    mut f: impl FnMut(Hit),
-) {
-    let Region { verts, normal, patch } = region;
+/// A set of hemisphere rays: `rays` cosine-distributed rays (stratified in sin²θ) from points
+/// uniform on `region`, keyed by `key` and `seed` (the same rays on any thread).
+#[derive(Copy, Clone, Debug)]
+pub struct HemisphereRays<'a> {
+    pub region: Region<'a>,
+    pub rays: u32,
+    pub key: u64,
+    pub seed: u64,
+}
+
+/// Cast the ray set `set` and hand what each ray meets to `f`. `scene` and `accel` are the
+/// input scene and its BVH.
+pub fn cast_hemisphere(scene: &Scene, accel: &Accel, set: HemisphereRays, mut f: impl FnMut(Hit)) {
+    let HemisphereRays { region: Region { verts, normal, patch }, rays, key, seed } = set;
     let mut rng = Pcg32::keyed(seed ^ 0xE5CA_9E00, key);
     let (t1, t2) = orthonormal_basis(normal);
     for k in 0..rays {
@@ -104,18 +105,12 @@ pub fn cast_hemisphere(
     }
 }
 
-/// The [`Hemisphere`] above `region` ([`cast_hemisphere`]'s rays).
+/// The [`Hemisphere`] that the ray set `set` measures ([`cast_hemisphere`]).
 #[must_use]
-pub fn hemisphere(
-    scene: &Scene,
-    accel: &Accel,
-    region: Region,
-    rays: u32,
-    key: u64,
-    seed: u64,
-) -> Hemisphere {
+pub fn hemisphere(scene: &Scene, accel: &Accel, set: HemisphereRays) -> Hemisphere {
+    let rays = set.rays;
     let mut h = Hemisphere { rays, ..Hemisphere::default() };
-    cast_hemisphere(scene, accel, region, rays, key, seed, |hit| match hit {
+    cast_hemisphere(scene, accel, set, |hit| match hit {
         Hit::Front(_) => h.front += 1.0,
         Hit::Back(_) => h.back += 1.0,
         Hit::Out => {
@@ -180,7 +175,8 @@ pub fn split(
             let region = Region { verts: &e.vertices, normal: n, patch: e.patch as u32 };
             let power = e.radiosity * e.area;
             let rays = rays_for(power.mean(), total);
-            let h = hemisphere(scene, accel, region, rays, splitmix64(i as u64), seed);
+            let h =
+                hemisphere(scene, accel, HemisphereRays { region, rays, key: splitmix64(i as u64), seed });
             let g = h.back + h.out;
             let var = power.mul_rgb(power) * (g * (1.0 - g) / f64::from(rays.max(1)));
             (power * h.back, power * h.out, var, h.rays, h.rays_out)

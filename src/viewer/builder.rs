@@ -425,27 +425,29 @@ impl Builder {
 mod tests {
     use super::*;
     use crate::math::Rgb;
-    use crate::present::overlay::{ElementView, LinkView};
+    use crate::present::overlay::{ElementCore, ElementView, LinkView};
 
     fn view() -> Arc<ViewData> {
         let sq = |id: u32, x: f64| ElementView {
-            id,
-            patch: id,
-            parent: None,
-            depth: 0,
+            core: ElementCore {
+                id,
+                patch: id,
+                parent: None,
+                depth: 0,
+                vertices: [
+                    DVec3::new(x, 0.0, 0.0),
+                    DVec3::new(x + 1.0, 0.0, 0.0),
+                    DVec3::new(x + 1.0, 1.0, 0.0),
+                    DVec3::new(x, 1.0, 0.0),
+                ],
+                n_vertices: 4,
+                area: 1.0,
+                reflectance: Rgb::splat(0.5),
+                emission: Rgb::ZERO,
+                radiosity: Rgb::splat(0.5),
+                error_estimate: 0.1 * f64::from(id + 1),
+            },
             leaf: true,
-            vertices: [
-                DVec3::new(x, 0.0, 0.0),
-                DVec3::new(x + 1.0, 0.0, 0.0),
-                DVec3::new(x + 1.0, 1.0, 0.0),
-                DVec3::new(x, 1.0, 0.0),
-            ],
-            n_vertices: 4,
-            area: 1.0,
-            reflectance: Rgb::splat(0.5),
-            emission: Rgb::ZERO,
-            radiosity: Rgb::splat(0.5),
-            error_estimate: 0.1 * f64::from(id + 1),
             stop: "",
         };
         Arc::new(ViewData {

@@ -694,23 +694,25 @@ impl View for RunHistory {
 mod tests {
     use super::*;
     use crate::math::{DVec3, Rgb};
-    use crate::present::overlay::ElementView;
+    use crate::present::overlay::{ElementCore, ElementView};
 
     /// A one-leaf solver state with `links` links, lit to `b` with estimate `est`.
     fn view(params: HierarchicalParams, links: usize, b: f64, est: f64) -> Arc<ViewData> {
         let e = ElementView {
-            id: 0,
-            patch: 0,
-            parent: None,
-            depth: 0,
+            core: ElementCore {
+                id: 0,
+                patch: 0,
+                parent: None,
+                depth: 0,
+                vertices: [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
+                n_vertices: 4,
+                area: 1.0,
+                reflectance: Rgb::splat(0.5),
+                emission: Rgb::ZERO,
+                radiosity: Rgb::splat(b),
+                error_estimate: est,
+            },
             leaf: true,
-            vertices: [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
-            n_vertices: 4,
-            area: 1.0,
-            reflectance: Rgb::splat(0.5),
-            emission: Rgb::ZERO,
-            radiosity: Rgb::splat(b),
-            error_estimate: est,
             stop: "",
         };
         let mut v = ViewData { elements: vec![e], leaves: vec![0], params, ..ViewData::default() };

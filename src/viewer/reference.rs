@@ -575,6 +575,7 @@ impl RefClient {
 mod tests {
     use super::*;
     use crate::math::{DVec3, Rgb};
+    use crate::present::overlay::ElementCore;
 
     #[test]
     fn cache_miss_compute_hit_and_evaluation() {
@@ -626,18 +627,20 @@ mod tests {
                 let mut vertices = [DVec3::ZERO; 4];
                 vertices[..p.vertices.len()].copy_from_slice(&p.vertices);
                 ElementView {
-                    id: i as u32,
-                    patch: i as u32,
-                    parent: None,
-                    depth: 0,
+                    core: ElementCore {
+                        id: i as u32,
+                        patch: i as u32,
+                        parent: None,
+                        depth: 0,
+                        vertices,
+                        n_vertices: p.vertices.len() as u8,
+                        area: p.area,
+                        reflectance: p.reflectance,
+                        emission: p.emission,
+                        radiosity: Rgb::ZERO,
+                        error_estimate: 0.0,
+                    },
                     leaf: true,
-                    vertices,
-                    n_vertices: p.vertices.len() as u8,
-                    area: p.area,
-                    reflectance: p.reflectance,
-                    emission: p.emission,
-                    radiosity: Rgb::ZERO,
-                    error_estimate: 0.0,
                     stop: "",
                 }
             })

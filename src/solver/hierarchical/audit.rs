@@ -14,7 +14,7 @@
 
 use super::cluster::ClusterTree;
 use super::{HierarchicalSolver, cluster};
-use crate::solver::escape::{Hit, Region, cast_hemisphere};
+use crate::solver::escape::{HemisphereRays, Hit, Region, cast_hemisphere};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -65,22 +65,15 @@ impl HierarchicalSolver {
                 };
                 let ranges = clustered.map(|t| xfer.covered(t, e.patch)).unwrap_or_default();
                 let region = Region { verts: e.vertices(), normal: e.normal, patch: e.patch };
-                cast_hemisphere(
-                    scene,
-                    accel,
-                    region,
-                    rays,
-                    u64::from(r.id),
-                    seed ^ 0xA0D1,
-                    |hit| match hit {
-                        Hit::Out => a.out += 1.0,
-                        Hit::Back(_) => a.back += 1.0,
-                        Hit::Front(q) if !ranges.is_empty() && cluster::covers(&ranges, pos[q as usize]) => {
-                            a.front_cluster += 1.0;
-                        }
-                        Hit::Front(_) => a.front_element += 1.0,
-                    },
-                );
+                let set = HemisphereRays { region, rays, key: u64::from(r.id), seed: seed ^ 0xA0D1 };
+                cast_hemisphere(scene, accel, set, |hit| match hit {
+                    Hit::Out => a.out += 1.0,
+                    Hit::Back(_) => a.back += 1.0,
+                    Hit::Front(q) if !ranges.is_empty() && cluster::covers(&ranges, pos[q as usize]) => {
+                        a.front_cluster += 1.0;
+                    }
+                    Hit::Front(_) => a.front_element += 1.0,
+                });
                 let n = f64::from(rays.max(1));
                 for x in [&mut a.front_element, &mut a.front_cluster, &mut a.back, &mut a.out] {
                     *x /= n;

@@ -62,7 +62,7 @@ use super::push_pull::{Chain, FlatChain, for_each_leaf_row};
 use crate::geometry::accel::Accel;
 use crate::math::{DVec3, Rgb, splitmix64};
 use crate::scene::Scene;
-use crate::solver::escape::{Hit, Region, cast_hemisphere};
+use crate::solver::escape::{HemisphereRays, Hit, Region, cast_hemisphere};
 use crate::solver::hierarchy::{Element, NONE};
 use crate::solver::params::HierarchicalParams;
 use rayon::prelude::*;
@@ -173,7 +173,8 @@ pub(super) fn enclosed_patches(scene: &Scene, accel: &Accel, seed: u64) -> Vec<b
             let region = Region { verts: &p.vertices, normal: p.normal, patch: i as u32 };
             let rays = enclosure_rays(p.area, total);
             let mut all = true;
-            cast_hemisphere(scene, accel, region, rays, splitmix64(i as u64), seed ^ 0xC105_ED00, |hit| {
+            let set = HemisphereRays { region, rays, key: splitmix64(i as u64), seed: seed ^ 0xC105_ED00 };
+            cast_hemisphere(scene, accel, set, |hit| {
                 all &= matches!(hit, Hit::Front(_));
             });
             all

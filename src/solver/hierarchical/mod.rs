@@ -104,7 +104,7 @@ use push_pull::{Chain, leaf_irradiance};
 
 use super::params::{HierarchicalParams, Oracle};
 use crate::geometry::accel::Accel;
-use crate::math::{DVec3, Rgb};
+use crate::math::{DVec3, Rgb, polygon_centroid, polygon_normal};
 use crate::scene::Scene;
 use crate::solver::hierarchy::{Element, Hierarchy, NONE, StopReason};
 use crate::solver::link::{Link, LinkStore, VisClass};
@@ -197,26 +197,73 @@ pub struct HierarchicalStats {
     pub cluster_rows_cut: usize,
 }
 
-/// Read-only view of one element.
-#[derive(Clone, Debug, Serialize)]
-pub struct ElementInfo {
+/// What every element shows, whichever solver made it: its place in the hierarchy, geometry,
+/// material and radiosity. [`ElementInfo`] and the viewer's element
+/// (`present::overlay::ElementView`) hold one and dereference to it.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct ElementCore {
+    /// The element's index in its list.
     pub id: u32,
+    /// Input patch index.
     pub patch: u32,
     pub parent: Option<u32>,
-    pub children: Option<[u32; 4]>,
+    /// Depth below the input patch (0 = the patch itself).
     pub depth: u8,
+    /// `n_vertices` (3 or 4) valid entries, counter-clockwise seen from the front.
     pub vertices: [DVec3; 4],
     pub n_vertices: u8,
     pub area: f64,
     pub reflectance: Rgb,
     pub emission: Rgb,
     pub radiosity: Rgb,
-    pub gathered: Rgb,
+    /// The solver's own error estimate for B (units of B); 0 where it has none.
     pub error_estimate: f64,
+}
+
+impl ElementCore {
+    /// The valid vertices (at most four, whatever `n_vertices` says).
+    #[must_use]
+    pub fn verts(&self) -> &[DVec3] {
+        &self.vertices[..usize::from(self.n_vertices).min(4)]
+    }
+    /// Area centroid (the origin for an element without vertices).
+    #[must_use]
+    pub fn centroid(&self) -> DVec3 {
+        let v = self.verts();
+        if v.is_empty() { DVec3::ZERO } else { polygon_centroid(v) }
+    }
+    /// Unit normal (zero for an element without vertices or area).
+    #[must_use]
+    pub fn normal(&self) -> DVec3 {
+        let v = self.verts();
+        if v.is_empty() { DVec3::ZERO } else { polygon_normal(v) }
+    }
+}
+
+/// Read-only view of one element.
+#[derive(Clone, Debug, Serialize)]
+pub struct ElementInfo {
+    #[serde(flatten)]
+    pub core: ElementCore,
+    pub children: Option<[u32; 4]>,
+    pub gathered: Rgb,
     pub stop: StopReason,
     /// A leaf's linear variation (the slope of the irradiance pushed down to it, times ρ), where
     /// it has one: its radiosity is `slope.at(radiosity, x)` across it.
     pub slope: Option<crate::solver::Slope>,
+}
+
+impl std::ops::Deref for ElementInfo {
+    type Target = ElementCore;
+    fn deref(&self) -> &ElementCore {
+        &self.core
+    }
+}
+
+impl std::ops::DerefMut for ElementInfo {
+    fn deref_mut(&mut self) -> &mut ElementCore {
+        &mut self.core
+    }
 }
 
 /// Read-only view of one link.
@@ -655,19 +702,21 @@ impl HierarchicalSolver {
             .iter()
             .enumerate()
             .map(|(i, e)| ElementInfo {
-                id: i as u32,
-                patch: e.patch,
-                parent: e.parent(),
+                core: ElementCore {
+                    id: i as u32,
+                    patch: e.patch,
+                    parent: e.parent(),
+                    depth: e.depth,
+                    vertices: e.verts,
+                    n_vertices: e.n_verts,
+                    area: e.area,
+                    reflectance: e.reflectance,
+                    emission: e.emission,
+                    radiosity: e.radiosity,
+                    error_estimate: est[i],
+                },
                 children: e.children(),
-                depth: e.depth,
-                vertices: e.verts,
-                n_vertices: e.n_verts,
-                area: e.area,
-                reflectance: e.reflectance,
-                emission: e.emission,
-                radiosity: e.radiosity,
                 gathered: e.gathered,
-                error_estimate: est[i],
                 stop: e.stop,
                 slope: slopes.get(i).copied().flatten(),
             })

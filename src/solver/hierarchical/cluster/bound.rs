@@ -133,7 +133,8 @@ impl ClusterTransfer {
                 // stream), so that a row is held within about 0.06 of the fraction, not 0.2.
                 let seen = |rays: u32, key: u64| {
                     let mut seen = 0u32;
-                    crate::solver::escape::cast_hemisphere(scene, accel, region, rays, key, seed, |hit| {
+                    let set = crate::solver::escape::HemisphereRays { region, rays, key, seed };
+                    crate::solver::escape::cast_hemisphere(scene, accel, set, |hit| {
                         if let crate::solver::escape::Hit::Front(q) = hit
                             && covers(&ranges, pos[q as usize])
                         {

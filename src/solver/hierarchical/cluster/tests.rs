@@ -416,7 +416,8 @@ fn a_dense_stack_of_occluders_is_bounded_by_the_hemisphere() {
     let unbounded = x.irradiance(&tree, &hier, &|_| Rgb::ONE)[0].0[0];
     let region =
         crate::solver::escape::Region { verts: hier.get(0).vertices(), normal: hier.get(0).normal, patch: 0 };
-    let seen = crate::solver::escape::hemisphere(&scene, &accel, region, 1 << 14, 1, 2).front;
+    let set = crate::solver::escape::HemisphereRays { region, rays: 1 << 14, key: 1, seed: 2 };
+    let seen = crate::solver::escape::hemisphere(&scene, &accel, set).front;
     assert!((0.25..0.45).contains(&seen), "the stacks' lowest squares fill {seen} of the hemisphere");
     assert!(unbounded > 1.0, "the unbounded row {unbounded} exceeds the hemisphere");
     let bound = x.bound_rows(&tree, &hier, &scene, &accel, 0);
