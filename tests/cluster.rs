@@ -244,9 +244,9 @@ fn state(s: &HierarchicalSolver) -> (Vec<u64>, usize, usize) {
 
 /// `solve`'s HSA91 loop (its doc comment) driven through the step API only, as the viewer's
 /// Refine, Gather and Push-pull buttons drive it: refine; gather and push-pull `round_iterations`
-/// times, or to convergence once a refinement adds at most `settle` of the links; stop when a
-/// refinement of the converged solution adds none of note; gather on until the power balance
-/// closes to `ENERGY_TOLERANCE`.
+/// times, until a refinement after the first adds at most `settle` of the links: gather those to
+/// convergence and stop (at once if it added none to a converged solution); gather on until the
+/// power balance closes to `ENERGY_TOLERANCE`.
 fn solve_by_steps(s: &mut HierarchicalSolver) {
     let p = s.params();
     let rounds = p.max_rounds.max(1);
@@ -254,8 +254,8 @@ fn solve_by_steps(s: &mut HierarchicalSolver) {
         let was_converged = s.is_converged();
         let new_links = s.refine_step().new_links;
         let small = new_links as f64 <= p.settle * s.links().len() as f64;
-        let settled = round > 0 && was_converged && small;
-        if settled && new_links == 0 {
+        let settled = round > 0 && small;
+        if settled && was_converged && new_links == 0 {
             break;
         }
         let cap = if settled || round + 1 == rounds || p.oracle == Oracle::Feps || small {

@@ -356,12 +356,18 @@ struct NearPair {
 }
 
 impl NearPair {
-    fn new(accel: &Accel, (r, n_r): (&[DVec3], DVec3), (s, n_s): (&[DVec3], DVec3), rays: u32) -> Option<NearPair> {
+    fn new(
+        accel: &Accel,
+        (r, n_r): (&[DVec3], DVec3),
+        (s, n_s): (&[DVec3], DVec3),
+        rays: u32,
+    ) -> Option<NearPair> {
         if r.len() > 4 || s.len() > 4 || r.len() < 3 || s.len() < 3 {
             return None;
         }
         let (a_r, a_s) = (crate::math::newell_normal(r).length(), crate::math::newell_normal(s).length());
-        let ((small, n_small), (big, n_big)) = if a_r <= a_s { ((r, n_r), (s, n_s)) } else { ((s, n_s), (r, n_r)) };
+        let ((small, n_small), (big, n_big)) =
+            if a_r <= a_s { ((r, n_r), (s, n_s)) } else { ((s, n_s), (r, n_r)) };
         let (a_small, a_big) = (a_r.min(a_s), a_r.max(a_s));
         if !(a_big >= NEAR_AREA_RATIO * a_small && a_small > 0.0) {
             return None;
@@ -382,7 +388,16 @@ impl NearPair {
         for (l, v) in big_local.iter_mut().zip(big) {
             *l = accel.local_f64(*v);
         }
-        Some(NearPair { small: Bilinear::new(accel, small), n, t, b, big: big_local, big_len: big.len(), big_n, tries })
+        Some(NearPair {
+            small: Bilinear::new(accel, small),
+            n,
+            t,
+            b,
+            big: big_local,
+            big_len: big.len(),
+            big_n,
+            tries,
+        })
     }
 
     /// The point where the ray x + s·d (s > 0) meets the larger region from its front, if it does.
@@ -408,7 +423,14 @@ impl NearPair {
 
     /// The kernel-sampled estimate and the rays cast, stopping as `stop` says; None when no try
     /// met the larger region (the uniform pairs then decide).
-    fn sample(&self, ignore: [u32; 2], base: u64, last: &mut u32, stop: Stop, accel: &Accel) -> Option<(f64, u32)> {
+    fn sample(
+        &self,
+        ignore: [u32; 2],
+        base: u64,
+        last: &mut u32,
+        stop: Stop,
+        accel: &Accel,
+    ) -> Option<(f64, u32)> {
         let pattern = PairStrata::new(self.tries, splitmix64(base ^ 0x3c6e_f372_fe94_f82b));
         let (du, dv) = (pattern.strata.inv_cols, pattern.strata.inv_rows);
         let (mut visible, mut counted) = (0u32, 0u32);
@@ -422,8 +444,10 @@ impl NearPair {
             let (r, phi) = (u1.sqrt(), std::f64::consts::TAU * u2);
             let d = self.t * (r * phi.cos()) + self.b * (r * phi.sin()) + self.n * (1.0 - u1).max(0.0).sqrt();
             let Some(y) = self.hit(x, d) else { continue };
-            let (x, y) =
-                (Vec3A::new(x.x as f32, x.y as f32, x.z as f32), Vec3A::new(y.x as f32, y.y as f32, y.z as f32));
+            let (x, y) = (
+                Vec3A::new(x.x as f32, x.y as f32, x.z as f32),
+                Vec3A::new(y.x as f32, y.y as f32, y.z as f32),
+            );
             counted += 1;
             if accel.occluded_local_cached(x, y, ignore, last) {
                 if stop == Stop::AtMixed && visible > 0 {
@@ -564,7 +588,8 @@ mod tests {
         let wall = quad([[-20.0, -0.5, 0.0], [-20.0, -0.5, 20.0], [20.0, -0.5, 20.0], [20.0, -0.5, 0.0]]);
         let strip = quad([[-5.0, -0.5, 0.0], [5.0, -0.5, 0.0], [5.0, 0.0, 0.0], [-5.0, 0.0, 0.0]]);
         assert!(crate::math::newell_normal(&face).y < 0.0 && crate::math::newell_normal(&wall).y > 0.0);
-        let patch = |v: &Vec<DVec3>| Patch::new(v.clone(), Rgb::splat(0.5), Rgb::ZERO, "m", 0, "p", "m").unwrap();
+        let patch =
+            |v: &Vec<DVec3>| Patch::new(v.clone(), Rgb::splat(0.5), Rgb::ZERO, "m", 0, "p", "m").unwrap();
         let scene = Scene::new("t", "t", vec![patch(&floor), patch(&face), patch(&wall)]);
         let accel = Accel::build(&scene);
         let exact = polygon_to_polygon(&face, &strip, 1e-6) / polygon_to_polygon(&face, &floor, 1e-6);
