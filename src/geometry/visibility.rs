@@ -582,7 +582,7 @@ mod tests {
         use crate::geometry::form_factor::polygon_to_polygon;
         use crate::math::Rgb;
         use crate::scene::{Patch, Scene};
-        let quad = |v: [[f64; 3]; 4]| v.map(|p| DVec3::from_array(p)).to_vec();
+        let quad = |v: [[f64; 3]; 4]| v.map(DVec3::from_array).to_vec();
         let floor = quad([[-5.0, -5.0, 0.0], [5.0, -5.0, 0.0], [5.0, 5.0, 0.0], [-5.0, 5.0, 0.0]]);
         let face = quad([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], [0.5, 0.0, 1.0], [-0.5, 0.0, 1.0]]);
         let wall = quad([[-20.0, -0.5, 0.0], [-20.0, -0.5, 20.0], [20.0, -0.5, 20.0], [20.0, -0.5, 0.0]]);
