@@ -10,66 +10,12 @@
 //! [`crate::present::artifact_pictures`]; `radlab artifacts`). Only patches that reflect (ρ̄ > 0) are
 //! examined: the rest hold B = E, constant by construction.
 //!
-//! Every patch p is sampled on a `side × side` grid of its area-uniform map
-//! ([`crate::geometry::area_map::area_point`]), cell centres x_k of equal area a_k = A_p / side². With
-//! B̄ the mean over channels, m_p = Σ_k a_k B̄_ref(x_k) / A_p the reference's patch mean and
-//! s_p the same of the solution:
-//!
-//! **A — blocky shadows.** The pointwise rel L2 error ([`crate::eval::pointwise::compare_points_in`])
-//! over the grid points in the penumbra band ([`crate::eval::penumbra::band`], standard settings):
-//! `A = √(Σ_band a_k |B(x_k) − B_ref(x_k)|²) / √(Σ_band a_k |B_ref(x_k) − E|²)`.
-//! `None` when the scene has no penumbra.
-//!
-//! **B — missing features.** A grid point is a *feature point* where the reference departs from
-//! its patch mean by more than `feature` (relative): |B̄_ref(x_k) − m_p| > τ m_p, a shadow when
-//! below, a highlight when above. A *feature* is a 4-connected region of the grid of one patch
-//! whose points are all feature points of one sign, of at least `min_feature_points` points. A
-//! point of a feature is *shown* where the solution departs from its own mean the same way, by
-//! at least half the threshold: sign(B̄(x_k) − s_p) = sign(B̄_ref(x_k) − m_p) and
-//! |B̄(x_k) − s_p| > τ m_p / 2. A feature is *missing* when fewer than half its points are shown.
-//! `B = missing features / features` (also reported as a fraction of feature area).
-//!
-//! **C — Mach bands** (jumps in the derivative at element edges where the reference is
-//! smooth). A p = 0 solution has no slope inside an element; what a viewer shows, and where the
-//! eye sees Mach bands, is its Gouraud reconstruction G ([`Gouraud`]: corner values averaged
-//! over the elements sharing the corner, interpolated linearly). At each interior edge sample of
-//! D (below), with h = 10 ε, the kink
-//! `K = |G(x + 2h n) − G(x + h n) + G(x − 2h n) − G(x − h n)| / h` (mean over channels; the
-//! outward slope minus the inward one, 0 where G is smooth) and K_ref of the reference are
-//! taken; the sample is a *Mach band* when K √a_e > `jump` · m_p (the kink bends the value by
-//! more than the visible jump over the element's size, a_e its area) and K_ref < K / 10.
-//! `C = length of Mach-band samples / interior edge length`.
-//!
-//! **D — inappropriate shading discontinuities.** Every edge of every element is sampled at
-//! `edge_samples` points x (midpoints of equal pieces, each of weight its length ℓ / 2, as an
-//! interior edge is seen from both of its elements); at each, the two points x± = x ± ε n (n the
-//! in-plane edge normal, ε = 10⁻⁶ × patch diameter) are located. Where they lie in two different
-//! elements of the same patch (x not on the patch boundary) the sample is an *interior edge
-//! sample*, with jumps J = |B̄(x₊) − B̄(x₋)| of the solution and J_ref of the reference. It is an
-//! *inappropriate discontinuity* when J > `jump` · m_p (visible) and J_ref < J / 10 (the
-//! reference is continuous there). `D = length of inappropriate samples / interior edge length`.
-//!
-//! **E — unresolved discontinuities.** The critical segments of every reflecting patch that
-//! bound a shadow ([`crate::mesh::discontinuity::scene_segments`], filtered by
-//! [`crate::mesh::grade::shadow_segments`]: every D0 contact, and each D1/D2 EV or VE event with a
-//! penumbra beside it in the direct light, on a `shadow_side`² shadow-ray grid; counted with
-//! multiplicity) are sampled at `segment_samples` midpoints each. The events found are a superset
-//! (a wedge hidden by another occluder is not clipped): a D1/D2 segment inside an umbra or in full
-//! light is no discontinuity of B at all, so it is not scored, for every method alike (`dropped`
-//! counts them; graded meshes leave such segments inside elements on purpose). A sample is
-//! *resolved* when
-//! it lies within `on_edge` × patch diameter of the boundary of the element holding it — or,
-//! when it lies outside every element by a rounding error (on an edge of a non-conforming mesh,
-//! beside a T-vertex, where the point locator falls back to the nearest centroid), of the
-//! boundary of any element of its patch (a mesh whose pieces put every segment on an edge reads
-//! E = 0).
-//! `E = unresolved segment length / all segment length`; beside them, the error at the points
-//! x ± δ n (n the segment's in-plane normal, δ = `near` × patch diameter, points off the patch
-//! dropped): `E_err = √(Σ |B(x) − B_ref(x)|²) / √(Σ |B_ref(x)|²)` (channels summed).
-//!
-//! What the five read on the built-in scenes, for each mesh and order, and why D stays high for
-//! constant elements (a p = 0 solution jumps at most of its edges, where the reference is
-//! continuous; slopes or p = 1 lower it) is in docs/meshing.md, "The five artifacts".
+//! Every patch is sampled on a grid of equal-area cells; A is the pointwise error in the penumbra
+//! band, B the share of the reference's features (shadows, highlights) the solution does not
+//! show, C the Mach bands of the Gouraud view at element edges, D the value jumps at element
+//! edges where the reference is continuous, E the critical segments that bound a shadow left
+//! inside elements. The exact definitions and thresholds, and what the five read on the built-in
+//! scenes, are in docs/meshing.md, "The five artifacts".
 //!
 //! The lecture's artifacts: Lischinski, Tampieri & Greenberg 1992, "Discontinuity meshing for
 //! accurate radiosity", IEEE CG&A 12(6), Fig. 1 (blocky shadows, missing features, Mach bands,

@@ -26,7 +26,7 @@
 //! `emitted − absorbed − escaped` equals the power still unshot (≤ tolerance × emitted).
 
 use super::uniform::{
-    CouplingSettings, Element, SharedProgress, constant_elements, mesh_scene, mesh_solution, pair_coupling,
+    CouplingSettings, Element, SharedProgress, constant_elements, mesh_solution, pair_coupling,
     validate_common,
 };
 use super::{EnergyBalance, PhaseTimes, Progress, Solution, SolveStats};
@@ -77,6 +77,19 @@ impl Default for ProgressiveParams {
 }
 
 impl ProgressiveParams {
+    /// The mesh and coupling settings (`uniform::start`).
+    pub(crate) fn mesh(&self) -> super::uniform::MeshSettings {
+        let (element_size, max_elements, ff_tolerance) =
+            (self.element_size, self.max_elements, self.ff_tolerance);
+        super::uniform::MeshSettings {
+            element_size,
+            max_elements,
+            rays: self.rays,
+            seed: self.seed,
+            ff_tolerance,
+        }
+    }
+
     /// Reject absurd values with a message naming the parameter.
     pub fn validate(&self) -> Result<(), String> {
         validate_common(self.element_size, self.rays, self.ff_tolerance, self.max_elements)?;
@@ -127,11 +140,8 @@ pub fn solve(
     params: &ProgressiveParams,
     progress: Progress,
 ) -> Result<Solution, String> {
-    params.validate()?;
-    let t_start = Instant::now();
-    let elems = mesh_scene(scene, params.element_size, params.max_elements)?;
+    let (t_start, elems, settings) = super::uniform::start(scene, params.validate(), params.mesh())?;
     let n = elems.len();
-    let settings = CouplingSettings::new(params.rays, params.seed, params.ff_tolerance, n);
     let rho: Vec<Rgb> = elems.iter().map(|e| scene.patches[e.patch].reflectance).collect();
     let emis: Vec<Rgb> = elems.iter().map(|e| scene.patches[e.patch].emission).collect();
     let emitted: Rgb = emis.iter().zip(&elems).map(|(e, el)| *e * el.area).sum();

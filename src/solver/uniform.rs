@@ -94,6 +94,15 @@ impl Default for UniformParams {
     }
 }
 
+impl UniformParams {
+    /// The mesh and coupling settings ([`start`]).
+    pub(crate) fn mesh(&self) -> MeshSettings {
+        let (element_size, max_elements, rays, seed) =
+            (self.element_size, self.max_elements, self.rays, self.seed);
+        MeshSettings { element_size, max_elements, rays, seed, ff_tolerance: self.ff_tolerance }
+    }
+}
+
 /// Checks shared by the classical solvers' parameters.
 pub(crate) fn validate_common(
     element_size: f64,
@@ -252,6 +261,29 @@ pub fn mesh_scene(scene: &Scene, element_size: f64, max_elements: usize) -> Resu
     Ok(out)
 }
 
+/// What a classical solver's parameters say of its mesh and of its pairs' couplings.
+pub(crate) struct MeshSettings {
+    pub element_size: f64,
+    pub max_elements: usize,
+    pub rays: u32,
+    pub seed: u64,
+    pub ff_tolerance: f64,
+}
+
+/// The start every classical solver makes: its parameters' check (`valid`), the clock, the
+/// mesh ([`mesh_scene`]) and its couplings' settings.
+pub(crate) fn start(
+    scene: &Scene,
+    valid: Result<(), String>,
+    m: MeshSettings,
+) -> Result<(Instant, Vec<Element>, CouplingSettings), String> {
+    valid?;
+    let t_start = Instant::now();
+    let elems = mesh_scene(scene, m.element_size, m.max_elements)?;
+    let settings = CouplingSettings::new(m.rays, m.seed, m.ff_tolerance, elems.len());
+    Ok((t_start, elems, settings))
+}
+
 /// What the classical solvers need to compute a pair's coupling.
 #[derive(Copy, Clone, Debug)]
 pub struct CouplingSettings {
@@ -386,11 +418,8 @@ pub fn solve(
     params: &UniformParams,
     progress: Progress,
 ) -> Result<Solution, String> {
-    params.validate()?;
-    let t_start = Instant::now();
-    let elems = mesh_scene(scene, params.element_size, params.max_elements)?;
+    let (t_start, elems, settings) = start(scene, params.validate(), params.mesh())?;
     let n = elems.len();
-    let settings = CouplingSettings::new(params.rays, params.seed, params.ff_tolerance, n);
 
     // Form factors: upper triangle in parallel, rows in order.
     let total_pairs = (n as u64) * (n as u64).saturating_sub(1) / 2;
