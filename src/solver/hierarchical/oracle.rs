@@ -110,13 +110,6 @@ pub struct Kernels {
 }
 
 impl Kernels {
-    /// From (source, kernel) pairs in any order.
-    fn from_pairs(mut pairs: Vec<(u32, [f64; 4])>) -> Kernels {
-        pairs.sort_unstable_by_key(|&(q, _)| q);
-        let (sources, values) = pairs.into_iter().unzip();
-        Kernels { sources, values }
-    }
-
     /// The kernel of the pair with source `q`, if held.
     fn get(&self, q: u32) -> Option<[f64; 4]> {
         self.sources.binary_search(&q).ok().map(|i| self.values[i])
@@ -188,22 +181,45 @@ impl FitWeights {
     }
 }
 
+/// What [`kernel_slope`] reads of the receiver alone, the same for all its links: its child
+/// points, its tangent basis and the affine fit's weights (None: the points are collinear).
+pub(super) struct SlopeFrame {
+    pts: [DVec3; 4],
+    t1: DVec3,
+    t2: DVec3,
+    w: Option<FitWeights>,
+}
+
+impl SlopeFrame {
+    pub(super) fn of(r: &Element) -> SlopeFrame {
+        let pts = child_points(r);
+        let c = (pts[0] + pts[1] + pts[2] + pts[3]) * 0.25;
+        let (t1, t2) = crate::math::orthonormal_basis(r.normal);
+        SlopeFrame { pts, t1, t2, w: FitWeights::new(&pts, c, t1, t2) }
+    }
+}
+
 /// The gradient, across `r` in the basis `orthonormal_basis(r.normal)`, of the transfer
 /// F(x → q) of the link r ← q with visibility `vis` and Galerkin coefficient `f` (r's average):
 /// the least-squares affine fit of the exact point kernel at r's four child points, times V,
 /// limited so that f + gradient·(x − centroid) stays ≥ 0 at r's vertices (so on all of r).
-/// `known`: the kernel at r's child points if already evaluated (the error oracle's
-/// [`known_kernel`]), the same numbers.
-pub(super) fn kernel_slope(r: &Element, q: &Element, vis: f64, f: f64, known: Option<[f64; 4]>) -> [f64; 2] {
-    let pts = child_points(r);
-    let c = (pts[0] + pts[1] + pts[2] + pts[3]) * 0.25;
-    let (t1, t2) = crate::math::orthonormal_basis(r.normal);
-    let Some(w) = FitWeights::new(&pts, c, t1, t2) else {
+/// `frame`: r's [`SlopeFrame`]; `known`: the kernel at r's child points if already evaluated
+/// (the error oracle's [`known_kernel`]), the same numbers.
+pub(super) fn kernel_slope(
+    frame: &SlopeFrame,
+    r: &Element,
+    q: &Element,
+    vis: f64,
+    f: f64,
+    known: Option<[f64; 4]>,
+) -> [f64; 2] {
+    let SlopeFrame { pts, t1, t2, w: Some(w) } = frame else {
         return [0.0; 2];
     };
+    let (t1, t2) = (*t1, *t2);
     let (k, mean) = match known {
         Some(k) => (k, kernel_mean(&k)),
-        None => kernel_at(r, &pts, q),
+        None => kernel_at(r, pts, q),
     };
     let (mut gu, mut gv) = (0.0, 0.0);
     for ((ki, wu), wv) in k.iter().zip(w.u).zip(w.v) {
@@ -424,16 +440,13 @@ impl HierarchicalSolver {
         let mut partial = Rgb::ZERO;
         let mut disc = Rgb::ZERO;
         let own = &self.graph.links.by_receiver[r as usize];
+        let (kernels, at) = self.own_kernels(e, &pts, own, known);
         let mut c = Vec::with_capacity(own.len());
         let mut var = Vec::with_capacity(own.len());
-        let mut kernels = Vec::with_capacity(own.len());
-        for l in own {
+        for (l, &k) in own.iter().zip(&at) {
             let src = self.hier.get(l.source);
-            let (f, mean) = match known.and_then(|k| k.get(l.source)) {
-                Some(f) => (f, kernel_mean(&f)),
-                None => kernel_at(e, &pts, src),
-            };
-            kernels.push((l.source, f));
+            let f = kernels.values[k as usize];
+            let mean = kernel_mean(&f);
             let vb = src.radiosity * f64::from(l.vis).min(1.0);
             if vb.max_channel() > 0.0 {
                 for (hk, fk) in h.iter_mut().zip(f) {
@@ -457,7 +470,45 @@ impl HierarchicalSolver {
             cause = ck;
             tail -= ck;
         }
-        OwnTerms { h, partial, disc, cause, kernels: Kernels::from_pairs(kernels), var }
+        OwnTerms { h, partial, disc, cause, kernels, var }
+    }
+
+    /// The kernels of `e`'s own links `own` at its child points `pts`, sorted by source, and
+    /// where each link's kernel sits in them (in list order). The kernels of `known` (sorted by
+    /// source) are taken by one merge, those of new pairs evaluated: the same numbers as
+    /// evaluating every one.
+    fn own_kernels(
+        &self,
+        e: &Element,
+        pts: &[DVec3; 4],
+        own: &[Link],
+        known: Option<&Kernels>,
+    ) -> (Kernels, Vec<u32>) {
+        // (source, index in the list), sorted: a pair's kernel is geometry alone, so a source
+        // linked twice has one kernel, whatever the order.
+        let mut keys: Vec<u64> =
+            own.iter().enumerate().map(|(i, l)| (u64::from(l.source) << 32) | i as u64).collect();
+        keys.sort_unstable();
+        let (old_sources, old_values) = known.map_or((&[][..], &[][..]), |k| (&k.sources[..], &k.values[..]));
+        let mut next = 0;
+        let mut out =
+            Kernels { sources: Vec::with_capacity(own.len()), values: Vec::with_capacity(own.len()) };
+        let mut at = vec![0u32; own.len()];
+        for (pos, key) in keys.iter().enumerate() {
+            let (q, i) = ((key >> 32) as u32, (key & 0xFFFF_FFFF) as usize);
+            while next < old_sources.len() && old_sources[next] < q {
+                next += 1;
+            }
+            let f = if old_sources.get(next) == Some(&q) {
+                old_values[next]
+            } else {
+                kernel_at(e, pts, self.hier.get(q)).0
+            };
+            out.sources.push(q);
+            out.values.push(f);
+            at[i] = pos as u32;
+        }
+        (out, at)
     }
 
     /// e_r (module docs) from h and the visibility term; 0 without own links.

@@ -357,6 +357,9 @@ impl HierarchicalSolver {
 /// Fill `Link::slope` of every link of `links` that has none yet (parallel over receivers; a link's
 /// slope depends on its two elements and V only, so it is computed once per link).
 pub(super) fn fill_slopes(hier: &mut Hierarchy, links: &mut LinkStore, kernels: &[Kernels]) {
+    // Each element's frame, made once for all the links it is an end of.
+    let frames: Vec<oracle::SlopeFrame> =
+        hier.elements.par_iter().map(|e| oracle::SlopeFrame::of(e)).collect();
     let sums: Vec<[f64; 2]> = links
         .by_receiver
         .par_iter_mut()
@@ -372,6 +375,7 @@ pub(super) fn fill_slopes(hier: &mut Hierarchy, links: &mut LinkStore, kernels: 
                 (l.slope, l.src_slope) = if v > 0.0 {
                     (
                         oracle::kernel_slope(
+                            &frames[r],
                             re,
                             se,
                             v,
@@ -380,6 +384,7 @@ pub(super) fn fill_slopes(hier: &mut Hierarchy, links: &mut LinkStore, kernels: 
                         )
                         .map(|x| x as f32),
                         oracle::kernel_slope(
+                            &frames[l.source as usize],
                             se,
                             re,
                             v,
