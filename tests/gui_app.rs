@@ -208,14 +208,14 @@ fn drive_the_viewer() {
     settle(&mut h);
     check(&mut h, "gui_picked");
 
-    // A slider: Feps restarts the solver with the new value (without auto-run: from the
-    // input patches, for stepping by hand).
+    // A slider: BFeps, the BF oracle's threshold, restarts the solver with the new value
+    // (without auto-run: from the input patches, for stepping by hand).
     h.state_mut().set_auto_run(false);
-    let before = h.state().params().feps;
-    h.get_by_label("Feps").set_value_accesskit(0.2);
+    let before = h.state().params().bf_eps;
+    h.get_by_label("BFeps").set_value_accesskit(0.2);
     settle(&mut h);
-    let after = h.state().params().feps;
-    assert!((after - before).abs() > 1e-9, "Feps moved: {before} → {after}");
+    let after = h.state().params().bf_eps;
+    assert!((after - before).abs() > 1e-9, "BFeps moved: {before} → {after}");
     assert_eq!(h.state().view().links.len(), 0, "a parameter change restarts from the input patches");
 
     // Solve, then Reset.
@@ -279,7 +279,7 @@ fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
     assert!(h.query_by_value("bf (edited)").is_some(), "the preset box says the settings were changed");
 
     // Through the slider, frame by frame: no frame shows the unlit restart.
-    h.get_by_label("Feps").set_value_accesskit(0.2);
+    h.get_by_label("BFeps").set_value_accesskit(0.3);
     for _ in 0..2000 {
         h.run_steps(1);
         assert!(h.state().view().stats.links > 0, "a frame showed the unsolved restart");
@@ -289,7 +289,7 @@ fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
     assert!(!Arc::ptr_eq(h.state().view(), &resolved), "the slider's solve arrived");
-    assert!((h.state().params().feps - 0.2).abs() < 1e-9);
+    assert!((h.state().params().bf_eps - 0.3).abs() < 1e-9);
 }
 
 /// A drag: the next value arrives while the previous value's solve runs. That solve is cancelled
@@ -2195,6 +2195,9 @@ fn the_default_path_steps_on_the_contact_mesh() {
     assert!(loaded.elements.len() > patches, "{} elements on {patches} patches", loaded.elements.len());
     assert!(loaded.elements.iter().all(|e| (e.patch as usize) < patches));
     assert!(h.query_by_label("Mesh: contact mesh + quadtree").is_some(), "the Mesh menu names the top level");
+    // The Solver panel names the ladder's threshold as the error oracle's ε, not BFeps.
+    assert!(h.query_by_label("ε").is_some(), "the threshold slider reads ε");
+    assert!(h.query_by_label("BFeps").is_none(), "no BFeps slider under the error oracle");
     // The error oracle's first Refine, before anything is gathered, links the pieces; once the
     // reflected light is known, the next one splits where it varies.
     for kind in ["Refine step", "Gather step", "Push-pull", "Refine step", "Gather step", "Push-pull"] {
@@ -2220,6 +2223,18 @@ fn the_default_path_steps_on_the_contact_mesh() {
     let leaf_area: f64 = solved.leaves.iter().map(|&l| solved.elements[l as usize].area).sum();
     let scene_area = cornell().total_area();
     assert!((leaf_area / scene_area - 1.0).abs() < 1e-9, "leaves {leaf_area}, scene {scene_area}");
+    // The ε slider moves the ladder's threshold, and the area floor follows it as on the ladder.
+    h.state_mut().set_auto_run(false);
+    h.get_by_label("ε").set_value_accesskit(0.05);
+    settle(&mut h);
+    let p = h.state().params();
+    assert!((p.bf_eps - 0.05).abs() < 1e-12, "ε moved to {}", p.bf_eps);
+    let floor = radlab::solver::discontinuity::CONTACT_AEPS_PER_EPS * 0.05;
+    assert!(
+        matches!(p.aeps, radlab::solver::params::AreaEps::Relative(a) if (a / floor - 1.0).abs() < 1e-9),
+        "the area floor follows ε: {:?}",
+        p.aeps
+    );
     // A teaching preset refines the quadtree of the input patches again.
     h.state_mut().select_preset("bf");
     settle(&mut h);

@@ -265,7 +265,7 @@ pub fn thresholds(p: &HierarchicalParams) -> String {
             p.feps
         ),
         Oracle::Error => {
-            format!("BFeps {:.1e}{}", p.bf_eps, if p.bf_relative { " of mean B" } else { "" })
+            format!("ε {:.1e}{}", p.bf_eps, if p.bf_relative { " of mean B" } else { "" })
         }
     };
     let aeps = match p.aeps {
@@ -275,12 +275,14 @@ pub fn thresholds(p: &HierarchicalParams) -> String {
     format!("{}, {oracle} · {aeps} · {} rays", oracle_name(p.oracle), p.rays)
 }
 
-/// The threshold the oracle refines by, e.g. "BFeps 1.0e-3" or "Feps 5.0e-3".
+/// The threshold the oracle refines by, e.g. "BFeps 1.0e-3", "Feps 5.0e-3" or "ε 5.0e-2" (the
+/// error oracle's, the ladder's).
 #[must_use]
 pub fn oracle_threshold(p: &HierarchicalParams) -> String {
     match p.oracle {
         Oracle::Feps => format!("Feps {:.1e}", p.feps),
-        Oracle::Bf | Oracle::Error => format!("BFeps {:.1e}", p.bf_eps),
+        Oracle::Bf => format!("BFeps {:.1e}", p.bf_eps),
+        Oracle::Error => format!("ε {:.1e}", p.bf_eps),
     }
 }
 

@@ -4,6 +4,7 @@
 
 use super::view::View;
 use super::widgets::log_slider;
+use crate::solver::discontinuity::contact_area_floor;
 use crate::solver::hierarchical::{StepKind, StepReport};
 use crate::solver::meshed::MeshMethod;
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
@@ -132,14 +133,20 @@ impl SolverPanel {
             p.bf_eps = ERROR_ORACLE_START_EPS;
             p.bf_relative = true;
         }
-        log_slider(
-            ui,
-            "Feps",
-            &mut p.feps,
-            1e-5,
-            1.0,
-            "Form-factor threshold of Refine: link when both F estimates are below it",
-        );
+        // Each oracle reads one threshold: the others' sliders stay in place, greyed out.
+        let reads_feps = p.oracle == Oracle::Feps;
+        ui.add_enabled_ui(reads_feps, |ui| {
+            log_slider(
+                ui,
+                "Feps",
+                &mut p.feps,
+                1e-5,
+                1.0,
+                "Form-factor threshold of Refine: link when both F estimates are below it",
+            );
+        })
+        .response
+        .on_disabled_hover_text("Feps: read by the Feps oracle only");
         let mut aeps_rel = match p.aeps {
             AreaEps::Relative(r) => r,
             AreaEps::Absolute(a) => scene_area.map_or(1e-4, |s| a / s.max(f64::MIN_POSITIVE)),
@@ -156,7 +163,33 @@ impl SolverPanel {
         if aeps_rel != before {
             p.aeps = AreaEps::Relative(aeps_rel);
         }
-        log_slider(ui, "BFeps", &mut p.bf_eps, 1e-6, 1.0, "Threshold of the BF oracle (units of B)");
+        // The error oracle's ε is the ladder's threshold (draft 0.2 … reference 0.0125), an
+        // error of B relative to the mean reflected radiosity; the BF oracle's is BFeps.
+        let (name, tip) = if p.oracle == Oracle::Error {
+            (
+                "ε",
+                "Threshold of the error oracle: the error of B it allows, relative to the scene's mean \
+                 reflected radiosity (the ladder: draft 0.2, interactive 0.1, quality 0.05, fine 0.025, \
+                 reference 0.0125)"
+                    .to_owned(),
+            )
+        } else {
+            let unit = if p.bf_relative { "relative to the brightest emission" } else { "in units of B" };
+            (
+                "BFeps",
+                format!("Threshold of the BF oracle: links whose B × F exceeds it are refined ({unit})"),
+            )
+        };
+        let eps_before = p.bf_eps;
+        ui.add_enabled_ui(!reads_feps, |ui| log_slider(ui, name, &mut p.bf_eps, 1e-6, 1.0, &tip))
+            .response
+            .on_disabled_hover_text("BFeps: read by the BF oracle only");
+        // On the ladder the area floor follows ε (`discontinuity::contact_area_floor`); an Aeps
+        // set by hand stays.
+        let floor = |eps| contact_area_floor(HierarchicalParams { bf_eps: eps, ..p }).aeps;
+        if p.bf_eps != eps_before && p.aeps == floor(eps_before) {
+            p.aeps = floor(p.bf_eps);
+        }
         // The rays and the depth cap share a row: the side panel fits a 1280 × 800 screen
         // unscrolled with a figure's caption open.
         ui.horizontal(|ui| {
