@@ -61,13 +61,10 @@ fn small_scenes_solve_alike_clustered_or_not() {
 /// (`ERROR_CLUSTER_SHARE`, docs/scale.md), so its clustered solve stays near the
 /// unclustered one. Measured (patches' area-weighted rel L2 difference, `quality`, row check
 /// off): splash_room at X = 0.1 0.26 % (0.33 % with the whole ε), furnished-2k at X = 0.4
-/// 1.28 % (8.90 % with the whole ε, 31 648 cluster links instead of 82 874). The clustered
-/// solve's element links leave each receiver up to ε with signs (`oracle::signed_cause`), the
-/// unclustered one's a quarter of ε in magnitudes: splash_room then reads 1.79 %, within the
-/// 10 % of the mean reflected radiosity that X = 0.1 allows, and furnished-2k 1.60 %.
+/// 1.28 % (8.90 % with the whole ε, 31 648 cluster links instead of 82 874).
 #[test]
 fn the_error_oracles_clustered_solve_stays_near_the_unclustered_one() {
-    for (name, eps, max_diff) in [("splash_room", 0.1, 0.025), ("furnished-2k", 0.4, 0.03)] {
+    for (name, eps, max_diff) in [("splash_room", 0.1, 0.01), ("furnished-2k", 0.4, 0.03)] {
         let p = HierarchicalParams { row_tol: 0.0, bf_eps: eps, ..HierarchicalParams::quality() };
         assert_eq!(p.oracle, Oracle::Error);
         let scene = load(name).unwrap();
@@ -351,31 +348,4 @@ fn the_viewer_gets_the_strongest_cluster_links_only() {
     assert_eq!(&all[..100], &top[..], "the head of the whole list");
     assert!(top[99].ff >= all[100].ff);
     assert!(s.cluster_link_views(0).is_empty());
-}
-
-/// With the error oracle, the refinement of a clustered family scene ends at its threshold,
-/// not at the link budget, with at most 100 links per element (a cluster link counted twice):
-/// the links a receiver leaves unsplit are taken with signs and may leave it ε
-/// (`oracle::signed_cause`). At `interactive`, on the patches as the presets take them above
-/// the clustering size; the power balance closed and no light created. Measured: chairs-2k 40.3
-/// and box-grid-2k 18.3 links per element (123.0 and 119.9 with the unclustered rooms' rule).
-#[test]
-fn clustered_families_end_refinement_at_the_threshold() {
-    let p = *Preset::Interactive.spec().hierarchical().unwrap();
-    for name in ["chairs-2k", "box-grid-2k"] {
-        let scene = load(name).unwrap();
-        let s = solve(&scene, Clustering::On, p);
-        let st = s.stats();
-        assert!(st.cluster_links > 0, "{name}: no cluster links");
-        assert!(!st.budget_hit, "{name}: the link budget ended the refinement");
-        assert!(st.links_per_element <= 100.0, "{name}: {:.1} links per element", st.links_per_element);
-        let e = s.solution_with(false).energy;
-        assert!(e.relative_residual() <= 1e-3, "{name}: balance open {e:?}");
-        for c in 0..3 {
-            assert!(
-                e.escaped.0[c] >= -1e-3 * e.emitted.0[c] && e.absorbed.0[c] <= e.emitted.0[c] * (1.0 + 1e-3),
-                "{name} creates light: {e:?}"
-            );
-        }
-    }
 }

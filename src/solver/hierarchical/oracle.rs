@@ -42,9 +42,7 @@
 //! |F_rq − mean|) (+ its visibility term), is among the largest of r's own links, taken largest first until
 //! the rest add up to at most `cause_tail` · ε, ε/4 in every preset (so the rest cannot make r
 //! wrong again on their own, and a receiver with thousands of small links does not split them
-//! all; the share is chosen by measurement, docs/solver.md, "Oracles"). In a clustered scene what
-//! the rest leaves is taken with signs, the spread of their sum rather than the sum of their
-//! spreads, and may reach ε (`signed_cause`, `CLUSTERED_CAUSE_TAIL_FACTOR`). It is split on the source's side when
+//! all; the share is chosen by measurement, docs/solver.md, "Oracles"). It is split on the source's side when
 //! q's radiosity varies (ΔB_q: q's own e_q, or the spread of its children's B) enough to matter
 //! through the kernel's variation across q: ρ_r F_rq V ΔB_q diam_q / distance > ε [Holzschuch &
 //! Sillion 1998, sec. 3.1, the source-radiosity term]. Every decision
@@ -273,81 +271,6 @@ fn variation(r: &Element, q: &Element, l: &Link, f: &[f64; 4], mean: f64) -> f64
     r.reflectance.max_channel() * b * (v * (spread + unseen) + vw * mean)
 }
 
-/// In a clustered scene the links left unsplit may leave up to this many times `cause_tail` of
-/// ε (with `signed_cause`): 4 × ¼ = ε in every preset, so that the rest cannot make the
-/// receiver wrong on their own, without the ¾ margin the unclustered rooms keep.
-///
-/// Why: a patch of a clustered scene is linked one by one to each of its near neighbours
-/// (HSA91's pairs below the cluster links, over a hundred per patch), whose visibility terms
-/// add without cancelling; with the margin the rest keeps their sum above ε/4 until almost all
-/// of them are split, and the receivers' link lists multiply until the link budget, not ε,
-/// ends the refinement. Chosen by measurement on the scene families, docs/scale.md.
-const CLUSTERED_CAUSE_TAIL_FACTOR: f64 = 4.0;
-
-/// One own link's terms of e_r on the largest channel of B, with ρ_r: its kernel's part at the
-/// four child points, its Galerkin coefficient's miss against their mean, its visibility
-/// term, and c_rq (the three taken alone, [`variation`]).
-struct LinkPart {
-    h: [f64; 4],
-    disc: f64,
-    partial: f64,
-    c: f64,
-}
-
-impl LinkPart {
-    fn new(r: &Element, q: &Element, l: &Link, f: &[f64; 4], mean: f64, c: f64) -> LinkPart {
-        let v = f64::from(l.vis).clamp(0.0, 1.0);
-        let w = r.reflectance.max_channel() * q.radiosity.max_channel();
-        LinkPart {
-            h: f.map(|fk| w * v * fk),
-            disc: w * v * (galerkin(r, l) - mean),
-            partial: w * 2.0 * v.min(1.0 - v) * mean,
-            c,
-        }
-    }
-}
-
-/// The cause threshold of a receiver in a clustered scene: its own links taken largest c_rq
-/// first until what the others leave of e_r is at most `tail`, that share taken with signs:
-/// ```text
-/// e(R) = max_k |Σ_R h_q(x_k) − mean_k Σ_R h_q| + |Σ_R disc_q| + Σ_R partial_q  ≤  Σ_R c_rq
-/// ```
-/// e_r bounds the error of a constant element by the spread of its *total* gathered
-/// radiosity [Lischinski, Smits & Greenberg 1994, sec. 4], so the links left unsplit make r
-/// wrong only through the spread of their sum. A patch of a clustered scene is linked to each
-/// of its near neighbours, often more than a hundred, whose kernels' variations across it
-/// largely cancel (the furnace's Σ_q F(x → q) = 1 in small); their summed magnitudes Σ c_rq
-/// stay above a quarter of ε long after the sum itself is flat, and every one of them would be
-/// split. One link alone reads its c_rq either way.
-fn signed_cause(mut parts: Vec<LinkPart>, tail: f64) -> f64 {
-    parts.sort_unstable_by(|a, b| b.c.total_cmp(&a.c));
-    let (mut h, mut disc, mut partial) = ([0.0_f64; 4], 0.0, 0.0);
-    for p in &parts {
-        for (hk, pk) in h.iter_mut().zip(p.h) {
-            *hk += pk;
-        }
-        disc += p.disc;
-        partial += p.partial;
-    }
-    let rest = |h: &[f64; 4], disc: f64, partial: f64| {
-        let mean = 0.25 * (h[0] + h[1] + h[2] + h[3]);
-        h.iter().map(|hk| (hk - mean).abs()).fold(0.0, f64::max) + disc.abs() + partial.max(0.0)
-    };
-    let mut cause = f64::INFINITY;
-    for p in &parts {
-        if rest(&h, disc, partial) <= tail {
-            break;
-        }
-        cause = p.c;
-        for (hk, pk) in h.iter_mut().zip(p.h) {
-            *hk -= pk;
-        }
-        disc -= p.disc;
-        partial -= p.partial;
-    }
-    cause
-}
-
 /// The visibility term's weight 2 min(V, 1 − V) of a link (0 when fully visible or hidden).
 fn partial_weight(l: &Link) -> f64 {
     let v = f64::from(l.vis).clamp(0.0, 1.0);
@@ -504,9 +427,6 @@ impl HierarchicalSolver {
         let mut c = Vec::with_capacity(own.len());
         let mut var = Vec::with_capacity(own.len());
         let mut kernels = Vec::with_capacity(own.len());
-        // Clustered scenes take the rest's share of e_r with signs (`signed_cause`).
-        let signed = self.clustering();
-        let mut parts = Vec::with_capacity(if signed { own.len() } else { 0 });
         for l in own {
             let src = self.hier.get(l.source);
             let (f, mean) = match known.and_then(|k| k.get(l.source)) {
@@ -523,31 +443,20 @@ impl HierarchicalSolver {
             }
             partial += src.radiosity * (f64::from(l.ff) * partial_weight(l));
             let cv = variation(e, src, l, &f, mean);
-            if signed {
-                parts.push(LinkPart::new(e, src, l, &f, mean, cv));
-            }
             c.push(cv);
             var.push([cv, mean]);
         }
-        let cause = if signed {
-            signed_cause(
-                parts,
-                CLUSTERED_CAUSE_TAIL_FACTOR * self.setup.params.cause_tail * self.setup.bf_eps,
-            )
-        } else {
-            // The largest variations first, until the others add up to at most cause_tail · ε.
-            c.sort_unstable_by(|a, b| b.total_cmp(a));
-            let mut tail: f64 = c.iter().sum();
-            let mut cause = f64::INFINITY;
-            for &ck in &c {
-                if tail <= self.setup.params.cause_tail * self.setup.bf_eps {
-                    break;
-                }
-                cause = ck;
-                tail -= ck;
+        // The largest variations first, until the others add up to at most cause_tail · ε.
+        c.sort_unstable_by(|a, b| b.total_cmp(a));
+        let mut tail: f64 = c.iter().sum();
+        let mut cause = f64::INFINITY;
+        for &ck in &c {
+            if tail <= self.setup.params.cause_tail * self.setup.bf_eps {
+                break;
             }
-            cause
-        };
+            cause = ck;
+            tail -= ck;
+        }
         OwnTerms { h, partial, disc, cause, kernels: Kernels::from_pairs(kernels), var }
     }
 
