@@ -172,8 +172,8 @@ impl Preset {
 
 /// The hierarchical settings of a ladder step at relative threshold `eps`: the error oracle, its
 /// area floor following the threshold (`discontinuity::contact_area_floor`), clustered where it
-/// pays (`Clustering::Auto`), the row check at [`ladder_row_tol`] and a link budget that grows
-/// as the threshold shrinks ([`ladder_max_links`]).
+/// pays (`Clustering::Auto`), the row check at [`ladder_row_tol`], a link budget that grows
+/// as the threshold shrinks ([`ladder_max_links`]) and the rays per link of [`ladder_rays`].
 #[must_use]
 pub const fn ladder_params(eps: f64) -> HierarchicalParams {
     discontinuity::contact_area_floor(HierarchicalParams {
@@ -182,6 +182,7 @@ pub const fn ladder_params(eps: f64) -> HierarchicalParams {
         bf_relative: true,
         row_tol: ladder_row_tol(eps),
         max_links: ladder_max_links(eps),
+        rays: ladder_rays(eps),
         ..HierarchicalParams::quality()
     })
 }
@@ -204,6 +205,17 @@ pub const fn ladder_row_tol(eps: f64) -> f64 {
 pub const fn ladder_max_links(eps: f64) -> usize {
     let scaled = 4.0e6 * 0.05 / eps.max(1e-6);
     scaled.clamp(4.0e6, 64.0e6) as usize
+}
+
+/// Shadow rays per link on the ladder: 16, and 64 at the finest step (ε < 0.025). A link's
+/// visible fraction is an estimate whose noise does not shrink with ε, so at the finest step it,
+/// not the threshold, bounds the pointwise error: the edge of a shadow whose links all drew 16
+/// rays can read a band of its receiver far too dark however fine ε is. The coarser steps keep
+/// 16, where the threshold bounds the error, and the default's time stays as it is
+/// (docs/solver.md, "How the tolerances were chosen").
+#[must_use]
+pub const fn ladder_rays(eps: f64) -> u32 {
+    if eps >= 0.025 { 16 } else { 64 }
 }
 
 /// The one threshold of an oracle, resolved in one place: Feps for the form-factor oracle, BFeps
@@ -723,6 +735,9 @@ mod tests {
             assert!((floor - discontinuity::CONTACT_AEPS_PER_EPS * threshold(h)).abs() < 1e-18);
             assert!(h.validate().is_ok());
         }
+        // The finest step draws more rays per link; the default keeps the quality preset's.
+        assert_eq!(Preset::DEFAULT.hierarchical().rays, HierarchicalParams::quality().rays);
+        assert!(Preset::Reference.hierarchical().rays > Preset::Fine.hierarchical().rays);
         for p in [Preset::Bf, Preset::Lecture, Preset::Splash2] {
             assert_eq!(p.spec().mesh_name(), "quadtree", "{}", p.name());
             assert_eq!(p.threshold_rel(), None);
