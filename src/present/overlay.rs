@@ -235,7 +235,7 @@ pub(crate) mod test_support {
 
     /// A 2×2 square (depth 1, B = 10) and on its right two stacked unit squares (depth 2, B = 0
     /// and 4): (2, 1) is a T-vertex on the big square's right edge.
-    pub(super) fn t_junction() -> Vec<ElementView> {
+    pub(crate) fn t_junction() -> Vec<ElementView> {
         vec![quad(0, 1, 0.0, 0.0, 2.0, 10.0), quad(1, 2, 2.0, 0.0, 1.0, 0.0), quad(2, 2, 2.0, 1.0, 1.0, 4.0)]
     }
 }

@@ -191,11 +191,7 @@ mod tests {
     #[test]
     fn t_junctions_become_fans_through_the_t_vertex() {
         // Big 2×2 square (depth 1) next to two unit squares (depth 2): (2,1) is a T-vertex.
-        let els = vec![
-            quad(0, 1, 0.0, 0.0, 2.0, 10.0),
-            quad(1, 2, 2.0, 0.0, 1.0, 0.0),
-            quad(2, 2, 2.0, 1.0, 1.0, 4.0),
-        ];
+        let els = crate::present::overlay::test_support::t_junction();
         let m = mesh(&els, &[0, 1, 2], MeshColors::Smooth, DVec3::ZERO);
         // Big leaf: 5 boundary points + centre, 5 fan triangles; the small ones: 4 + 2 each.
         assert_eq!(m.vertices.len(), 6 + 4 + 4);

@@ -12,7 +12,7 @@
 //! ±0.08 rad. A chair is a seat, four legs 22 mm square, two back posts and a back rest: 72
 //! triangles. Frames are metal or wood, seats fabric. Panels 0.6 × 0.6 (E = 30) on a 2.4 m grid.
 
-use super::kit::{ALL, Draw, FABRICS, Kit, Layout, METAL, NY, NZ, PY, PZ, SIDES, WOODS, Xf, light, mat};
+use super::kit::{ALL, Draw, Kit, Layout, METAL, NY, NZ, PY, PZ, SIDES, WOODS, Xf, light, mat};
 use crate::math::DVec3;
 use crate::scene::Mat;
 use crate::scene::Viewpoint;
@@ -27,6 +27,13 @@ const PANEL: Mat = light("panel_light", 30.0);
 
 /// The room for `k` chairs.
 pub(super) fn layout(k: usize, seed: u64) -> Layout {
+    /// The seats' fabrics.
+    const FABRICS: [Mat; 4] = [
+        mat("fabric_red", 0.6, 0.22, 0.2),
+        mat("fabric_blue", 0.22, 0.3, 0.6),
+        mat("fabric_green", 0.25, 0.5, 0.3),
+        mat("fabric_grey", 0.5, 0.5, 0.5),
+    ];
     let mut kit = Kit::new(seed, 0xC4A1_125E);
     let cols = ((1.5 * k as f64).sqrt().ceil() as usize).max(1);
     let rows = k.div_ceil(cols);

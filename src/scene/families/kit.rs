@@ -33,17 +33,6 @@ pub(super) const fn light(name: &'static str, e: f64) -> Mat {
 }
 
 pub(super) const FLOOR: Mat = mat("floor", 0.45, 0.34, 0.24);
-pub(super) const FABRICS: [Mat; 4] = [
-    mat("fabric_red", 0.6, 0.22, 0.2),
-    mat("fabric_blue", 0.22, 0.3, 0.6),
-    mat("fabric_green", 0.25, 0.5, 0.3),
-    mat("fabric_grey", 0.5, 0.5, 0.5),
-];
-pub(super) const CARDBOARD: [Mat; 3] = [
-    mat("cardboard", 0.55, 0.42, 0.28),
-    mat("cardboard_light", 0.68, 0.56, 0.4),
-    mat("cardboard_white", 0.8, 0.78, 0.74),
-];
 
 // ---------------------------------------------------------------------------------------------
 // Pieces

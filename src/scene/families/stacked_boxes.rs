@@ -12,7 +12,7 @@
 //! A box is 10 triangles on the floor, 12 on another box; a stack about 30. Cardboard colours
 //! (ρ 0.55–0.8); panels 1.2 × 0.6 (E = 40) on a 3 m grid, the room 4 m high.
 
-use super::kit::{ALL, CARDBOARD, Draw, Kit, Layout, NY, Xf, light};
+use super::kit::{ALL, Draw, Kit, Layout, NY, Xf, light, mat};
 use crate::math::DVec3;
 use crate::scene::Mat;
 use crate::scene::Viewpoint;
@@ -50,6 +50,12 @@ pub(super) fn layout(k: usize, seed: u64) -> Layout {
 
 /// One stack standing at `at` on the floor.
 fn stack(kit: &mut Kit, mesh: &str, at: DVec3) {
+    /// The boxes' cardboards.
+    const CARDBOARD: [Mat; 3] = [
+        mat("cardboard", 0.55, 0.42, 0.28),
+        mat("cardboard_light", 0.68, 0.56, 0.4),
+        mat("cardboard_white", 0.8, 0.78, 0.74),
+    ];
     let mut yaw = kit.uniform(0.0, FRAC_PI_2);
     let (a, b, h) = (kit.uniform(0.5, 0.8), kit.uniform(0.4, 0.7), kit.uniform(0.3, 0.6));
     let xf = Xf::turned(yaw, at);
