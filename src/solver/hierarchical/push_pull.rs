@@ -358,8 +358,7 @@ impl HierarchicalSolver {
 /// slope depends on its two elements and V only, so it is computed once per link).
 pub(super) fn fill_slopes(hier: &mut Hierarchy, links: &mut LinkStore, kernels: &[Kernels]) {
     // Each element's frame, made once for all the links it is an end of.
-    let frames: Vec<oracle::SlopeFrame> =
-        hier.elements.par_iter().map(|e| oracle::SlopeFrame::of(e)).collect();
+    let frames: Vec<oracle::SlopeFrame> = hier.elements.par_iter().map(oracle::SlopeFrame::of).collect();
     let sums: Vec<[f64; 2]> = links
         .by_receiver
         .par_iter_mut()
