@@ -212,7 +212,7 @@ fn drive_the_viewer() {
     // (without auto-run: from the input patches, for stepping by hand).
     h.state_mut().set_auto_run(false);
     let before = h.state().params().bf_eps;
-    h.get_by_label("BFeps").set_value_accesskit(0.2);
+    h.get_by_label("BFeps").set_value_accesskit(5e-3);
     settle(&mut h);
     let after = h.state().params().bf_eps;
     assert!((after - before).abs() > 1e-9, "BFeps moved: {before} → {after}");
