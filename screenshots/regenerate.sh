@@ -23,6 +23,10 @@ RADLAB_CACHE="$no_cache" "$bin" view --figure linear-links --split 3 --window --
 rmdir "$no_cache"
 "$bin" reference builtin:cornell >/dev/null
 "$bin" view builtin:cornell --split 2 --window --screenshot "$out/split-reference.png"
+# The table room's reference, its quality solve and a coarse uniform mesh (two figures in turn).
+"$bin" reference builtin:table-room >/dev/null
+"$bin" view --figure reference-table --figure uniform-coarse --split 3 --window \
+  --screenshot "$out/split-three.png"
 "$bin" solve builtin:furnished-9000 --method progressive --max-shots 300 --element-size 100 \
   --png "$out/furnished-9k.png" --width 800 --height 500 --quiet
 "$bin" figures --screenshots "$out/figures"

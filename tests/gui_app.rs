@@ -967,6 +967,24 @@ fn lecture_figures_run_their_steps_pick_and_sweep() {
     assert!(h.query_by_label("Links against elements, runs in this window (log₁₀)").is_some());
 }
 
+/// Figures asked for in turn (`radlab view --figure A --figure B`) open one after the other,
+/// each once the solves before it are done, so that each leaves its runs in the history.
+#[test]
+fn figures_asked_for_in_turn_open_one_after_the_other() {
+    use radlab::present::figures::find;
+    let (first, second) = (find("recursive-gather").unwrap(), find("block-matrix").unwrap());
+    let mut h = harness(ViewerOptions { figure: Some(first), then_figures: vec![second], ..opts() });
+    settle(&mut h);
+    let after_first = h.state().solve_runs();
+    assert!(after_first >= 1, "the first figure's solve is a run");
+    // Its answer opened the second, whose solve is waited for in turn.
+    settle(&mut h);
+    settle(&mut h);
+    assert_eq!(h.state().lecture.figure().map(|f| f.name), Some(second.name));
+    assert!(h.state().solve_runs() > after_first, "the second figure's solve is a run too");
+    assert!(h.state().lecture.matrix.open, "the second figure's window is open");
+}
+
 /// The matrix and the viewport highlight each other: hovering a block highlights its link and
 /// its two elements in 3-D; hovering an element in the viewport (or picking it) highlights its
 /// row, column and blocks in the matrix.

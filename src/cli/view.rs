@@ -61,9 +61,12 @@ pub struct Args {
     #[arg(long)]
     pub no_solve: bool,
     /// Open a lecture figure (`radlab figures` lists them): its scene, settings, overlays,
-    /// camera and caption replace SCENE, --preset and --overlay.
+    /// camera and caption replace SCENE, --preset and --overlay. Repeat to open several in
+    /// turn, each once the solves before it are done, so that each leaves its runs in the
+    /// history (`--figure reference-table --figure uniform-coarse --split 3`: the table room's
+    /// reference, its quality solve and a coarse uniform mesh side by side).
     #[arg(long, value_name = "NAME")]
-    pub figure: Option<String>,
+    pub figure: Vec<String>,
     /// Open the split view with N panes (2 or 3): the newest solves side by side, one camera,
     /// one exposure (with --figure, e.g. the solves of its threshold sweep).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(2..=3))]
@@ -109,7 +112,7 @@ impl Args {
             plots: false,
             solve: false,
             no_solve: false,
-            figure: None,
+            figure: Vec::new(),
             split: None,
             history: false,
             replay: None,
@@ -183,7 +186,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.bench_frames == Some(0) {
         anyhow::bail!("--bench-frames must be at least 1");
     }
-    let figure = args.figure.as_deref().map(radlab::present::figures::find).transpose()?;
+    let mut figures =
+        args.figure.iter().map(|n| radlab::present::figures::find(n)).collect::<Result<Vec<_>, _>>()?;
+    let figure = (!figures.is_empty()).then(|| figures.remove(0));
     let mesh = args.mesh_params()?;
     let mut display = radlab::viewer::Display::default();
     for o in &args.overlay {
@@ -200,6 +205,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         screenshot_window: args.window || figure.is_some_and(|f| f.window_shot),
         show_plots: args.plots,
         figure,
+        then_figures: figures,
         split: args.split.map(usize::from),
         show_history: args.history,
         replay: args.replay,
@@ -213,7 +219,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 #[cfg(not(feature = "gui"))]
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if let Some(name) = &args.figure {
+    for name in &args.figure {
         radlab::present::figures::find(name)?;
     }
     args.mesh_params()?;

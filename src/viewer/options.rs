@@ -40,6 +40,9 @@ pub struct ViewerOptions {
     pub direct_viewport: bool,
     /// Open this lecture figure instead of `scene` (its settings, overlays, camera, caption).
     pub figure: Option<&'static Figure>,
+    /// Then these lecture figures, in turn: each opens once the solves before it are done, so
+    /// that each leaves its runs in the history (the split view sets them side by side).
+    pub then_figures: Vec<&'static Figure>,
     /// Open the split view with this many panes (2 or 3).
     pub split: Option<usize>,
     /// Open the run history window.
@@ -70,6 +73,7 @@ impl Default for ViewerOptions {
             desktop_file_dialog: true,
             direct_viewport: false,
             figure: None,
+            then_figures: Vec::new(),
             split: None,
             show_history: false,
             replay: None,

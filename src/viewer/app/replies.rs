@@ -137,6 +137,11 @@ impl RadlabApp {
         if self.pick.here().is_some_and(|s| s as usize >= self.shown.view.elements.len()) {
             self.pick.selected = None;
         }
+        // The next figure asked for opens once the solves before it are done.
+        if !self.busy() && !self.opts.then_figures.is_empty() {
+            let next = self.opts.then_figures.remove(0);
+            self.open_figure(next);
+        }
         self.script.solver_answered(!self.busy(), self.opts.bench_frames.is_some());
     }
 

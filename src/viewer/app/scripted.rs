@@ -83,6 +83,11 @@ impl RadlabApp {
         if waiting {
             if saved {
                 println!("radlab: wrote {}", path.display());
+                // A figure's caption quotes the state shown: printed with its picture, so that
+                // documentation quoting it can be checked against the program.
+                if let Some(caption) = self.lecture.caption().filter(|_| self.lecture.figure().is_some()) {
+                    println!("radlab: caption: {caption}");
+                }
             }
             self.script.finish();
         }
