@@ -96,6 +96,11 @@ pub enum RefReply {
         view: Arc<ViewData>,
     },
     Evaluated(Evaluation),
+    /// A state sent for scoring after the scene changed to one without a reference (the app
+    /// had not yet heard so): nothing to score it against, and nothing wrong.
+    Unscored {
+        view_seq: u64,
+    },
     Failed(String),
     /// The command panicked (one line: "the reference thread panicked at …"); a `Load` leaves
     /// the scene without reference.
@@ -284,7 +289,7 @@ impl RefThread {
                                     Err(e) => RefReply::Panicked(e),
                                 }
                             }
-                            None => RefReply::Failed("no reference loaded".into()),
+                            None => RefReply::Unscored { view_seq },
                         },
                     };
                     if reply_tx.send(reply).is_err() {
@@ -598,6 +603,12 @@ mod tests {
         t.load(Arc::clone(&scene), false);
         t.wait_idle(|r| replies.push(r));
         assert!(matches!(replies.last(), Some(RefReply::Missing { .. })), "{replies:?}");
+        // A state sent before the app heard that the scene has no reference is left unscored,
+        // not reported as an error.
+        t.send(RefCommand::Evaluate { view: Arc::new(ViewData::default()), view_seq: 3, solver_time_s: 0.1 });
+        let mut answers = Vec::new();
+        t.wait_idle(|r| answers.push(r));
+        assert!(matches!(answers[..], [RefReply::Unscored { view_seq: 3 }]), "{answers:?}");
         t.load(Arc::clone(&scene), true);
         t.wait_idle(|r| replies.push(r));
         assert!(replies.iter().any(|r| matches!(r, RefReply::Computing { .. })));

@@ -258,6 +258,9 @@ impl RadlabApp {
                 self.history.set_reference_error(e.view_seq, e.rel_l2, e.band_l2, e.ruler);
             }
             RefReply::Evaluated(e) => self.evaluated(e),
+            RefReply::Unscored { view_seq } => {
+                self.comparison.reference.scored_run(view_seq);
+            }
             RefReply::Failed(e) => {
                 self.comparison.state = RefState::Failed(e.clone());
                 self.errors.push(e);
