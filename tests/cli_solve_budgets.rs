@@ -1,5 +1,6 @@
-//! `radlab solve`'s budgets: a time budget stops the hierarchical solver and keeps the state it
-//! reached, saying so; absurd budgets and solvers that cannot be stopped are one-line errors.
+//! `radlab solve`'s budgets: a time budget stops the hierarchical solver's refinement, gathers
+//! to convergence on the mesh reached and says so; absurd budgets and solvers that cannot be
+//! stopped are one-line errors.
 
 use std::process::Command;
 
@@ -27,8 +28,10 @@ fn a_time_budget_stops_the_solve_and_says_so() {
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(doc["cancelled"], true, "{doc}");
     assert!(doc["notes"].as_array().is_some_and(|n| n.len() == 1), "{}", doc["notes"]);
-    // The state reached is a solution: every patch has a finite radiosity.
+    // The answer is the converged solution on the mesh reached: its power balance closes.
     assert!(doc["patches"].as_array().is_some_and(|p| !p.is_empty()));
+    let residual = doc["energy"]["relative_residual"].as_f64().expect("a residual");
+    assert!(residual < 1e-3, "the balance closes on the mesh reached: residual {residual}");
 
     // Without the budget a quick solve is not cancelled and has no note.
     let out = radlab(&["solve", "builtin:cornell", "--preset", "draft", "--json", json.to_str().unwrap()]);

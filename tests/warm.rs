@@ -71,9 +71,18 @@ fn a_coarser_threshold_or_another_setting_restarts() {
 fn the_walk_reports_every_step_and_ends_at_the_last_threshold() {
     let scene = Arc::new(common::table_room());
     let accel = Arc::new(Accel::build(&scene));
-    let (solved, steps) =
-        spec::solve_walk(&scene, &accel, 0.0, &Preset::Draft.spec(), &[0.2, 0.1], true, &mut |_, _| {}, None)
-            .unwrap();
+    let (solved, steps) = spec::solve_walk(
+        &scene,
+        &accel,
+        0.0,
+        &Preset::Draft.spec(),
+        &[0.2, 0.1],
+        true,
+        &mut |_, _| {},
+        None,
+        spec::Stopped::AsReached,
+    )
+    .unwrap();
     assert_eq!(steps.len(), 2);
     assert!(!steps[0].warm && steps[1].warm, "{steps:?}");
     assert!(steps[1].leaves > steps[0].leaves, "{steps:?}");

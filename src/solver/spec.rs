@@ -512,6 +512,41 @@ pub fn solve(
     progress: Progress,
     cancel: Option<&Arc<AtomicBool>>,
 ) -> Result<Solved, SolveError> {
+    solve_stopping(scene, accel, bvh_s, spec, progress, cancel, Stopped::AsReached)
+}
+
+/// [`solve`], where setting `stop` ends a hierarchical solve's refinement (a time budget): the
+/// solve then gathers, without refining, to convergence on the mesh it reached
+/// ([`HierarchicalSolver::converge`]), so that its answer is a converged one, if coarser than
+/// asked. `Solved::cancelled` says whether `stop` ended the refinement.
+pub fn solve_refining_until(
+    scene: &Arc<Scene>,
+    accel: &Arc<Accel>,
+    bvh_s: f64,
+    spec: &SolveSpec,
+    progress: Progress,
+    stop: &Arc<AtomicBool>,
+) -> Result<Solved, SolveError> {
+    solve_stopping(scene, accel, bvh_s, spec, progress, Some(stop), Stopped::Converged)
+}
+
+/// What a hierarchical solve stopped by its flag gives: the state reached, or that state's mesh
+/// gathered to convergence.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stopped {
+    AsReached,
+    Converged,
+}
+
+fn solve_stopping(
+    scene: &Arc<Scene>,
+    accel: &Arc<Accel>,
+    bvh_s: f64,
+    spec: &SolveSpec,
+    progress: Progress,
+    cancel: Option<&Arc<AtomicBool>>,
+    stopped: Stopped,
+) -> Result<Solved, SolveError> {
     spec.validate()?;
     let spec = &spec.resolved(scene);
     let failed = SolveError::Failed;
@@ -521,13 +556,13 @@ pub fn solve(
     let solution = match &spec.plan {
         Plan::Hierarchical { .. } => match setup(scene, Some((accel, bvh_s)), spec)? {
             Setup::Patches(mut s) => {
-                cancelled = forward_solve(&mut s, cancel, progress);
+                cancelled = forward_solve(&mut s, cancel, progress, stopped);
                 let sol = s.solution_with(spec.estimate);
                 hierarchical = Some(*s);
                 sol
             }
             Setup::Mesh(mut on_mesh) => {
-                cancelled = forward_solve(&mut on_mesh.solver, cancel, progress);
+                cancelled = forward_solve(&mut on_mesh.solver, cancel, progress, stopped);
                 let d = on_mesh.finish(spec.estimate);
                 remesh = Some((d.mesh, d.solve_s));
                 d.solution
@@ -603,7 +638,8 @@ pub struct WalkStep {
 /// and gathering from its radiosity when its threshold is finer ([`HierarchicalSolver::retarget`]):
 /// a warm re-solve, as a threshold slider moves. Returns the last step's solve and every step's
 /// figures. Refinement at a finer threshold only adds to what a coarser one built, so the result
-/// is a solve at the last threshold that started from the earlier ones' mesh.
+/// is a solve at the last threshold that started from the earlier ones' mesh. `stopped` says
+/// what a step stopped by `cancel` gives (and the walk ends there).
 pub fn solve_walk(
     scene: &Arc<Scene>,
     accel: &Arc<Accel>,
@@ -613,6 +649,7 @@ pub fn solve_walk(
     floor_follows: bool,
     progress: Progress,
     cancel: Option<&Arc<AtomicBool>>,
+    stopped: Stopped,
 ) -> Result<(Solved, Vec<WalkStep>), SolveError> {
     let failed = SolveError::Failed;
     spec.validate()?;
@@ -628,7 +665,7 @@ pub fn solve_walk(
             let warm = if k == 0 { false } else { s.retarget(at(t)).map_err(failed)? };
             let rays_before = if warm { s.stats().rays } else { 0 };
             let started = std::time::Instant::now();
-            cancelled = forward_solve(s, cancel, &mut *progress);
+            cancelled = forward_solve(s, cancel, &mut *progress, stopped);
             let st = s.stats();
             steps.push(WalkStep {
                 threshold: t,
@@ -668,9 +705,15 @@ pub fn solve_walk(
 }
 
 /// Run `s.solve`, stopping it when `cancel` is set (the solver looks at its flag between
-/// refinement passes and between gathers). Returns whether the solve was cancelled.
-fn forward_solve(s: &mut HierarchicalSolver, cancel: Option<&Arc<AtomicBool>>, progress: Progress) -> bool {
-    match cancel {
+/// refinement passes and between gathers); with [`Stopped::Converged`] a stopped solve then
+/// gathers to convergence on the mesh it reached. Returns whether the solve was stopped.
+fn forward_solve(
+    s: &mut HierarchicalSolver,
+    cancel: Option<&Arc<AtomicBool>>,
+    progress: Progress,
+    stopped: Stopped,
+) -> bool {
+    let cancelled = match cancel {
         None => s.solve(progress).cancelled,
         Some(outer) => {
             // A relay thread hands the caller's flag to the solver's own within milliseconds,
@@ -694,7 +737,11 @@ fn forward_solve(s: &mut HierarchicalSolver, cancel: Option<&Arc<AtomicBool>>, p
             let _ = relay.join();
             cancelled
         }
+    };
+    if cancelled && stopped == Stopped::Converged {
+        s.converge();
     }
+    cancelled
 }
 
 /// The relative area floor of `p`, if it is relative.

@@ -318,8 +318,9 @@ pub struct SolverArgs {
     /// global relative L2, no reference needed); costs about as much again as the solve.
     #[arg(long)]
     pub estimate: bool,
-    /// Stop the hierarchical solver after this many seconds of solving and keep the state it
-    /// reached (said on stderr and in the JSON's `cancelled`). Hierarchical solves only.
+    /// Stop the hierarchical solver's refinement after this many seconds of solving; it then
+    /// gathers to convergence on the mesh reached (said on stderr and in the JSON's `cancelled`
+    /// and `notes`). Hierarchical solves only.
     #[arg(long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
 }
@@ -790,17 +791,21 @@ pub fn solve_with(
     let (mut solved, walk) = within_time_budget(a.time_budget, |cancel| {
         if a.threshold.len() > 1 {
             let floor_follows = a.aeps.is_none() && a.aeps_rel.is_none();
-            spec::solve_walk(scene, accel, bvh_s, s, &a.threshold, floor_follows, progress, cancel)
+            let stopped = spec::Stopped::Converged;
+            spec::solve_walk(scene, accel, bvh_s, s, &a.threshold, floor_follows, progress, cancel, stopped)
                 .with_context(|| format!("solving {spec}"))
         } else {
-            let solved = spec::solve(scene, accel, bvh_s, s, progress, cancel)
-                .with_context(|| format!("solving {spec}"))?;
+            let solved = match cancel {
+                Some(stop) => spec::solve_refining_until(scene, accel, bvh_s, s, progress, stop),
+                None => spec::solve(scene, accel, bvh_s, s, progress, None),
+            }
+            .with_context(|| format!("solving {spec}"))?;
             Ok((solved, Vec::new()))
         }
     })?;
     if let (true, Some(secs)) = (solved.cancelled, a.time_budget) {
         solved.notes.push(format!(
-            "stopped at the time budget of {secs} s before the solve converged: the answer is the state reached"
+            "refinement stopped at the time budget of {secs} s: the answer is the converged solution on the mesh reached, coarser than asked"
         ));
     }
     for note in &solved.notes {

@@ -642,6 +642,46 @@ impl HierarchicalSolver {
         self.report(StepKind::Solve, t, refined_total, links_total)
     }
 
+    /// Gather, without refining, until the solution converges (at most `max_iterations` sweeps)
+    /// and its power balance closes: what a solve whose refinement was stopped (a time budget)
+    /// needs for its answer to be the converged one on the mesh it reached. Resets the cancel
+    /// flag first; setting it again stops the gathers too.
+    pub fn converge(&mut self) -> StepReport {
+        self.setup.cancel.store(false, Ordering::Relaxed);
+        let t = Instant::now();
+        let max = self.setup.params.max_iterations;
+        let mut iters = 0;
+        while !self.log.converged && iters < max && !self.cancelled() {
+            self.gather_inner();
+            if !self.setup.params.gauss_seidel {
+                let tp = Instant::now();
+                self.push_pull_flat(None, false);
+                self.log.stats.push_pull_s += tp.elapsed().as_secs_f64();
+            }
+            iters += 1;
+        }
+        if !self.setup.params.gauss_seidel && iters > 0 {
+            let te = Instant::now();
+            self.energy_pass();
+            self.log.stats.push_pull_s += te.elapsed().as_secs_f64();
+        }
+        let mut extra = 0;
+        while self.log.gathered_once
+            && self.log.energy.relative_residual() > ENERGY_TOLERANCE
+            && extra < max
+            && !self.cancelled()
+        {
+            self.gather_inner();
+            if !self.setup.params.gauss_seidel {
+                let tp = Instant::now();
+                self.push_pull_flat(None, true);
+                self.log.stats.push_pull_s += tp.elapsed().as_secs_f64();
+            }
+            extra += 1;
+        }
+        self.report(StepKind::Solve, t, 0, 0)
+    }
+
     // ------------------------------------------------------------------------------------------
     // Read-only views
     // ------------------------------------------------------------------------------------------
