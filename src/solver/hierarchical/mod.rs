@@ -616,28 +616,7 @@ impl HierarchicalSolver {
                 on_round(self);
             }
         }
-        if energy_due {
-            let te = Instant::now();
-            self.energy_pass();
-            self.log.stats.push_pull_s += te.elapsed().as_secs_f64();
-        }
-        // The power balance closes as far as the gathers converged: a preset whose stopping
-        // tolerance leaves it open (splash2's 0.005 of B left table-room's at 1.1e-2) gathers on,
-        // without refining, until it closes to ENERGY_TOLERANCE (a bounded number of sweeps).
-        let mut extra = 0;
-        while self.log.gathered_once
-            && self.log.energy.relative_residual() > ENERGY_TOLERANCE
-            && extra < self.setup.params.max_iterations
-            && !self.cancelled()
-        {
-            self.gather_inner();
-            if !self.setup.params.gauss_seidel {
-                let t = Instant::now();
-                self.push_pull_flat(None, true);
-                self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
-            }
-            extra += 1;
-        }
+        self.close_balance(energy_due);
         progress(u64::from(rounds), u64::from(rounds));
         self.report(StepKind::Solve, t, refined_total, links_total)
     }
@@ -660,7 +639,17 @@ impl HierarchicalSolver {
             }
             iters += 1;
         }
-        if !self.setup.params.gauss_seidel && iters > 0 {
+        self.close_balance(!self.setup.params.gauss_seidel && iters > 0);
+        self.report(StepKind::Solve, t, 0, 0)
+    }
+
+    /// The end of a solve's gathers: the power sums (`energy_due`: push-pulls that skipped them
+    /// ran), then, as far as the gathers converged, the power balance closed: a preset whose
+    /// stopping tolerance leaves it open (splash2's 0.005 of B left table-room's at 1.1e-2)
+    /// gathers on, without refining, until it closes to ENERGY_TOLERANCE (a bounded number of
+    /// sweeps).
+    fn close_balance(&mut self, energy_due: bool) {
+        if energy_due {
             let te = Instant::now();
             self.energy_pass();
             self.log.stats.push_pull_s += te.elapsed().as_secs_f64();
@@ -668,18 +657,17 @@ impl HierarchicalSolver {
         let mut extra = 0;
         while self.log.gathered_once
             && self.log.energy.relative_residual() > ENERGY_TOLERANCE
-            && extra < max
+            && extra < self.setup.params.max_iterations
             && !self.cancelled()
         {
             self.gather_inner();
             if !self.setup.params.gauss_seidel {
-                let tp = Instant::now();
+                let t = Instant::now();
                 self.push_pull_flat(None, true);
-                self.log.stats.push_pull_s += tp.elapsed().as_secs_f64();
+                self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
             }
             extra += 1;
         }
-        self.report(StepKind::Solve, t, 0, 0)
     }
 
     // ------------------------------------------------------------------------------------------
