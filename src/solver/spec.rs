@@ -515,30 +515,18 @@ pub fn solve(
     solve_stopping(scene, accel, bvh_s, spec, progress, cancel, Stopped::AsReached)
 }
 
-/// [`solve`], where setting `stop` ends a hierarchical solve's refinement (a time budget): the
-/// solve then gathers, without refining, to convergence on the mesh it reached
-/// ([`HierarchicalSolver::converge`]), so that its answer is a converged one, if coarser than
-/// asked. `Solved::cancelled` says whether `stop` ended the refinement.
-pub fn solve_refining_until(
-    scene: &Arc<Scene>,
-    accel: &Arc<Accel>,
-    bvh_s: f64,
-    spec: &SolveSpec,
-    progress: Progress,
-    stop: &Arc<AtomicBool>,
-) -> Result<Solved, SolveError> {
-    solve_stopping(scene, accel, bvh_s, spec, progress, Some(stop), Stopped::Converged)
-}
-
 /// What a hierarchical solve stopped by its flag gives: the state reached, or that state's mesh
-/// gathered to convergence.
+/// gathered, without refining, to convergence ([`HierarchicalSolver::converge`]: a time budget's
+/// answer, converged if coarser than asked).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stopped {
     AsReached,
     Converged,
 }
 
-fn solve_stopping(
+/// [`solve`], with `stopped` saying what a hierarchical solve stopped by `cancel` gives
+/// (`Solved::cancelled` says whether it was stopped).
+pub fn solve_stopping(
     scene: &Arc<Scene>,
     accel: &Arc<Accel>,
     bvh_s: f64,

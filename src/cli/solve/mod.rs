@@ -795,11 +795,9 @@ pub fn solve_with(
             spec::solve_walk(scene, accel, bvh_s, s, &a.threshold, floor_follows, progress, cancel, stopped)
                 .with_context(|| format!("solving {spec}"))
         } else {
-            let solved = match cancel {
-                Some(stop) => spec::solve_refining_until(scene, accel, bvh_s, s, progress, stop),
-                None => spec::solve(scene, accel, bvh_s, s, progress, None),
-            }
-            .with_context(|| format!("solving {spec}"))?;
+            let solved =
+                spec::solve_stopping(scene, accel, bvh_s, s, progress, cancel, spec::Stopped::Converged)
+                    .with_context(|| format!("solving {spec}"))?;
             Ok((solved, Vec::new()))
         }
     })?;

@@ -593,20 +593,8 @@ impl HierarchicalSolver {
             } else {
                 self.setup.params.round_iterations.min(self.setup.params.max_iterations)
             };
-            let mut iters = 0;
-            loop {
-                self.gather_inner();
-                if !self.setup.params.gauss_seidel {
-                    let t = Instant::now();
-                    self.push_pull_flat(None, false);
-                    self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
-                    energy_due = true;
-                }
-                iters += 1;
-                if self.log.converged || iters >= cap || self.cancelled() {
-                    break;
-                }
-            }
+            let iters = self.gather_sweeps(cap);
+            energy_due |= !self.setup.params.gauss_seidel;
             self.log.stats.rounds = round as usize + 1;
             if self.cancelled() || settled || (self.setup.params.oracle == Oracle::Feps && self.log.converged)
             {
@@ -628,19 +616,23 @@ impl HierarchicalSolver {
     pub fn converge(&mut self) -> StepReport {
         self.setup.cancel.store(false, Ordering::Relaxed);
         let t = Instant::now();
-        let max = self.setup.params.max_iterations;
-        let mut iters = 0;
-        while !self.log.converged && iters < max && !self.cancelled() {
-            self.gather_inner();
-            if !self.setup.params.gauss_seidel {
-                let tp = Instant::now();
-                self.push_pull_flat(None, false);
-                self.log.stats.push_pull_s += tp.elapsed().as_secs_f64();
-            }
-            iters += 1;
-        }
+        let iters = if self.log.converged { 0 } else { self.gather_sweeps(self.setup.params.max_iterations) };
         self.close_balance(!self.setup.params.gauss_seidel && iters > 0);
         self.report(StepKind::Solve, t, 0, 0)
+    }
+
+    /// Gather sweeps, each followed (Jacobi) by a push-pull that skips the power sums, until the
+    /// solution converges, `cap` sweeps have run or the solve is cancelled; at least one.
+    /// Returns the sweeps run.
+    fn gather_sweeps(&mut self, cap: u32) -> u32 {
+        let mut iters = 0;
+        loop {
+            self.gather_sweep(false);
+            iters += 1;
+            if self.log.converged || iters >= cap || self.cancelled() {
+                return iters;
+            }
+        }
     }
 
     /// The end of a solve's gathers: the power sums (`energy_due`: push-pulls that skipped them
@@ -660,13 +652,18 @@ impl HierarchicalSolver {
             && extra < self.setup.params.max_iterations
             && !self.cancelled()
         {
-            self.gather_inner();
-            if !self.setup.params.gauss_seidel {
-                let t = Instant::now();
-                self.push_pull_flat(None, true);
-                self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
-            }
+            self.gather_sweep(true);
             extra += 1;
+        }
+    }
+
+    /// One gather, then (Jacobi) a push-pull, making the power sums when `sums`.
+    fn gather_sweep(&mut self, sums: bool) {
+        self.gather_inner();
+        if !self.setup.params.gauss_seidel {
+            let t = Instant::now();
+            self.push_pull_flat(None, sums);
+            self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
         }
     }
 
