@@ -17,6 +17,7 @@
 //! - [`push_pull`]: push-pull, the reflection at the leaves and the power balance;
 //! - [`estimate`]: the solver's own estimate of its pointwise error;
 //! - [`cluster`]: the cluster hierarchy above the input patches and its transfer;
+//! - [`deadline`]: a time budget's end, and the estimates that leave the gathers their time;
 //! - `audit`: every leaf's row of F·V against what rays find in its hemisphere ([`LeafAudit`]);
 //! - `parts`: the solver's state, in named parts.
 //!
@@ -24,7 +25,7 @@
 //! [`HierarchicalSolver`] holds the mesh (`Hierarchy`: elements, radiosity, gathered sums) and
 //! named parts, each with what one stage owns; a pass takes the parts it reads and writes:
 //! ```text
-//!  Setup          scene, BVH, parameters, resolved Aeps/BFeps, cancel flag     read by all
+//!  Setup          scene, BVH, parameters, resolved Aeps/BFeps, cancel/deadline read by all
 //!  LinkGraph      links by receiver, the initial-link cache, the pair memo     refine → gather
 //!  GatherState    the links flattened into a plan, the changed receivers       gather
 //!  PushPullState  push-pull's per-element sums, the first moments of B          push-pull → gather
@@ -89,6 +90,7 @@
 mod audit;
 mod closure;
 pub mod cluster;
+pub mod deadline;
 pub mod estimate;
 mod gather;
 mod linking;
@@ -511,6 +513,28 @@ impl HierarchicalSolver {
         self.setup.cancelled()
     }
 
+    /// End the solve's work by `deadline` (`None`: no end; a time budget's end): refinement
+    /// stops, as the cancel flag stops it, once another pass and the gathers that converge the
+    /// mesh after it would not fit before the deadline ([`deadline::Pace`] estimates both from
+    /// the solver's timings), and the gathers ([`solve`](Self::solve)'s and
+    /// [`converge`](Self::converge)'s) stop at the deadline, converged or not
+    /// ([`gathers_cut`](Self::gathers_cut)). A solve that has not gathered yet gathers once.
+    pub fn set_deadline(&mut self, deadline: Option<Instant>) {
+        self.setup.deadline = deadline;
+    }
+
+    /// Where the deadline stopped the last solve's or convergence's gathers before they
+    /// converged and closed the power balance: the residual of the last gather.
+    #[must_use]
+    pub fn gathers_cut(&self) -> Option<f64> {
+        self.log.gathers_cut.then(|| self.log.residuals.last().copied().unwrap_or(0.0))
+    }
+
+    /// The links a gather sweep goes through: element and cluster links.
+    fn gather_links(&self) -> usize {
+        self.graph.links.len() + self.cluster.links.len()
+    }
+
     #[must_use]
     pub fn is_converged(&self) -> bool {
         self.log.converged
@@ -559,6 +583,7 @@ impl HierarchicalSolver {
     /// forms). The result is the same as `solve`'s.
     pub fn solve_observed(&mut self, progress: Progress, on_round: &mut dyn FnMut(&Self)) -> StepReport {
         self.setup.cancel.store(false, Ordering::Relaxed);
+        self.log.gathers_cut = false;
         let t = Instant::now();
         let mut refined_total = 0;
         let mut links_total = 0;
@@ -596,6 +621,10 @@ impl HierarchicalSolver {
             let iters = self.gather_sweeps(cap);
             energy_due |= !self.setup.params.gauss_seidel;
             self.log.stats.rounds = round as usize + 1;
+            if self.log.gathers_cut {
+                // The deadline passed: the solve stops as a cancelled one does.
+                self.setup.cancel.store(true, Ordering::Relaxed);
+            }
             if self.cancelled() || settled || (self.setup.params.oracle == Oracle::Feps && self.log.converged)
             {
                 break;
@@ -612,24 +641,37 @@ impl HierarchicalSolver {
     /// Gather, without refining, until the solution converges (at most `max_iterations` sweeps)
     /// and its power balance closes: what a solve whose refinement was stopped (a time budget)
     /// needs for its answer to be the converged one on the mesh it reached. Resets the cancel
-    /// flag first; setting it again stops the gathers too.
+    /// flag first; setting it again stops the gathers too, and so does the deadline
+    /// ([`set_deadline`](Self::set_deadline)).
     pub fn converge(&mut self) -> StepReport {
         self.setup.cancel.store(false, Ordering::Relaxed);
+        self.log.gathers_cut = false;
         let t = Instant::now();
-        let iters = if self.log.converged { 0 } else { self.gather_sweeps(self.setup.params.max_iterations) };
+        let iters = if self.log.converged {
+            0
+        } else if self.log.gathered_once && self.setup.past_deadline() {
+            self.log.gathers_cut = true;
+            0
+        } else {
+            self.gather_sweeps(self.setup.params.max_iterations)
+        };
         self.close_balance(!self.setup.params.gauss_seidel && iters > 0);
         self.report(StepKind::Solve, t, 0, 0)
     }
 
     /// Gather sweeps, each followed (Jacobi) by a push-pull that skips the power sums, until the
-    /// solution converges, `cap` sweeps have run or the solve is cancelled; at least one.
-    /// Returns the sweeps run.
+    /// solution converges, `cap` sweeps have run, the solve is cancelled or the deadline has
+    /// passed (`gathers_cut`); at least one. Returns the sweeps run.
     fn gather_sweeps(&mut self, cap: u32) -> u32 {
         let mut iters = 0;
         loop {
             self.gather_sweep(false);
             iters += 1;
             if self.log.converged || iters >= cap || self.cancelled() {
+                return iters;
+            }
+            if self.setup.past_deadline() {
+                self.log.gathers_cut = true;
                 return iters;
             }
         }
@@ -652,6 +694,10 @@ impl HierarchicalSolver {
             && extra < self.setup.params.max_iterations
             && !self.cancelled()
         {
+            if self.setup.past_deadline() {
+                self.log.gathers_cut = true;
+                break;
+            }
             self.gather_sweep(true);
             extra += 1;
         }
@@ -659,12 +705,15 @@ impl HierarchicalSolver {
 
     /// One gather, then (Jacobi) a push-pull, making the power sums when `sums`.
     fn gather_sweep(&mut self, sums: bool) {
+        let sweep = Instant::now();
         self.gather_inner();
         if !self.setup.params.gauss_seidel {
             let t = Instant::now();
             self.push_pull_flat(None, sums);
             self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
         }
+        let links = self.gather_links().max(1);
+        self.log.pace.sweep_s_per_link = Some(sweep.elapsed().as_secs_f64() / links as f64);
     }
 
     // ------------------------------------------------------------------------------------------

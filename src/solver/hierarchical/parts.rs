@@ -10,6 +10,7 @@
 
 use super::HierarchicalStats;
 use super::cluster::{ClusterLink, ClusterTransfer, ClusterTree};
+use super::deadline::Pace;
 use super::gather::GatherPlan;
 use super::linking::InitialLinks;
 use super::oracle::Kernels;
@@ -24,6 +25,7 @@ use crate::solver::link::LinkStore;
 use crate::solver::params::HierarchicalParams;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 /// The fixed setup: the scene, its BVH, the parameters and their resolved thresholds, the
 /// cancel flag and the switches that exist only to check that a shortcut changes nothing.
@@ -36,6 +38,8 @@ pub(super) struct Setup {
     /// BFeps in units of B (resolved from a relative setting).
     pub(super) bf_eps: f64,
     pub(super) cancel: Arc<AtomicBool>,
+    /// A time budget's end (`HierarchicalSolver::set_deadline`; `None`: none).
+    pub(super) deadline: Option<Instant>,
     /// Time the BVH took to build.
     pub(super) bvh_s: f64,
     /// Stop casting a new link's rays once they settle what the next refinement pass does
@@ -56,6 +60,7 @@ impl Setup {
             accel,
             params,
             cancel: Arc::new(AtomicBool::new(false)),
+            deadline: None,
             bvh_s,
             early_exit: true,
             full_error_passes: false,
@@ -73,6 +78,11 @@ impl Setup {
 
     pub(super) fn cancelled(&self) -> bool {
         self.cancel.load(Ordering::Relaxed)
+    }
+
+    /// Whether the deadline has passed.
+    pub(super) fn past_deadline(&self) -> bool {
+        self.deadline.is_some_and(|d| Instant::now() >= d)
     }
 }
 
@@ -185,6 +195,11 @@ pub(super) struct RunLog {
     pub(super) converged: bool,
     pub(super) energy: EnergyBalance,
     pub(super) gathered_once: bool,
+    /// The solver's measured speed, for a deadline's estimates.
+    pub(super) pace: Pace,
+    /// The deadline stopped the last solve's or convergence's gathers before they converged
+    /// and closed the power balance.
+    pub(super) gathers_cut: bool,
 }
 
 impl RunLog {

@@ -72,6 +72,9 @@ impl HierarchicalSolver {
                 self.log.stats.budget_hit = true;
                 break;
             }
+            if !self.pass_fits(0) {
+                break;
+            }
             // A: decide, in parallel, read-only.
             let phase = Instant::now();
             let decisions = self.decide_pass(&mut run);
@@ -86,6 +89,13 @@ impl HierarchicalSolver {
             if to_split.is_empty() {
                 break;
             }
+            // A deadline stops the refinement, as the cancel flag does, before a pass that would
+            // leave the gathers after it too little time.
+            let replacing: usize = decisions.iter().map(|(_, v)| v.splits.len()).sum();
+            if !self.pass_fits(replacing) {
+                break;
+            }
+            let links_before = self.graph.links.len();
             // B: split, in id order (children computed in parallel).
             let phase = Instant::now();
             run.refined += self.hier.split_many(&to_split.take_sorted());
@@ -94,6 +104,7 @@ impl HierarchicalSolver {
             self.log.stats.refine_split_s += phase.elapsed().as_secs_f64();
             // C: replacement links, in parallel.
             let phase = Instant::now();
+            let replace_start = phase;
             let work: Vec<ReceiverDecision> =
                 decisions.into_iter().filter(|(_, v)| !v.splits.is_empty()).collect();
             let results: Vec<Replaced> =
@@ -104,6 +115,10 @@ impl HierarchicalSolver {
             let phase = Instant::now();
             self.install(results, &mut run);
             self.log.stats.refine_install_s += phase.elapsed().as_secs_f64();
+            let pace = &mut self.log.pace;
+            pace.replace_s += replace_start.elapsed().as_secs_f64();
+            pace.replaced += replacing as u64;
+            pace.added += self.graph.links.len() as f64 - links_before as f64;
         }
         self.finish_refinement(run, t)
     }
@@ -263,6 +278,19 @@ impl HierarchicalSolver {
         }
         merge_by_receiver(&mut next);
         run.pending = (self.setup.params.oracle != Oracle::Error).then_some(next);
+    }
+
+    /// Whether a pass that replaces `replacing` links, and the gathers that converge the mesh
+    /// after it, fit before the deadline (always, without one); where they do not, the cancel
+    /// flag is set, so that the solve stops as a cancelled one does.
+    fn pass_fits(&self, replacing: usize) -> bool {
+        let Some(deadline) = self.setup.deadline else { return true };
+        let threads = rayon::current_num_threads();
+        let fits = self.log.pace.pass_fits(deadline, Instant::now(), self.gather_links(), replacing, threads);
+        if !fits {
+            self.setup.cancel.store(true, Ordering::Relaxed);
+        }
+        fits
     }
 
     /// After the last pass: measure what was left unmeasured, record on each leaf why it
