@@ -1,6 +1,7 @@
 //! `radlab solve`'s budgets: a time budget stops the hierarchical solver's refinement, gathers
-//! to convergence on the mesh reached and says so; absurd budgets and solvers that cannot be
-//! stopped are one-line errors.
+//! to convergence on the mesh reached by the budget's end and says so (and says so when the
+//! gathers stop before converging); absurd budgets and solvers that cannot be stopped are
+//! one-line errors.
 
 use std::process::Command;
 
@@ -39,6 +40,32 @@ fn a_time_budget_stops_the_solve_and_says_so() {
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(doc["cancelled"], false);
     assert_eq!(doc["notes"], serde_json::json!([]));
+}
+
+#[test]
+fn the_gathers_stop_at_the_end_of_the_budget_and_say_so() {
+    let json = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("time-budget-gathers.json");
+    // Linking cornell's patches alone takes longer than a millisecond: the budget has ended
+    // before the first refinement pass, and the solve gathers once, not to convergence.
+    let out = radlab(&[
+        "solve",
+        "builtin:cornell",
+        "--preset",
+        "reference",
+        "--time-budget",
+        "0.001",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("gathers stopped at its end before converging (residual"), "{stderr}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(doc["cancelled"], true, "{doc}");
+    let notes = doc["notes"].as_array().expect("notes");
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(notes[0].as_str().is_some_and(|n| n.contains("unconverged")), "{notes:?}");
+    assert_eq!(doc["stats"]["iterations"], 1, "one gather, not the converging ones: {}", doc["stats"]);
 }
 
 #[test]

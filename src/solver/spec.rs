@@ -40,6 +40,7 @@ use crate::scene::Scene;
 use serde::Serialize;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 /// A named starting point for a solve.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
@@ -409,9 +410,13 @@ pub struct Solved {
     /// What the solve changed in the spec to run, one line each (a discontinuity mesh graded to
     /// fit the p = 1 solver's cap): the CLI prints them on stderr.
     pub notes: Vec<String>,
-    /// Whether `cancel` stopped a hierarchical solve before it converged (the solution is then
-    /// the state reached).
+    /// Whether `cancel` or a deadline stopped a hierarchical solve before it converged (the
+    /// solution is then the state reached, or with [`Stopped`]'s `Converged` its mesh gathered to
+    /// convergence).
     pub cancelled: bool,
+    /// Where the deadline ([`Stopped::ConvergedBy`]) stopped the converging gathers before they
+    /// converged: the residual of the last gather.
+    pub gathers_cut: Option<f64>,
 }
 
 impl Solved {
@@ -517,11 +522,14 @@ pub fn solve(
 
 /// What a hierarchical solve stopped by its flag gives: the state reached, or that state's mesh
 /// gathered, without refining, to convergence ([`HierarchicalSolver::converge`]: a time budget's
-/// answer, converged if coarser than asked).
+/// answer, converged if coarser than asked); `ConvergedBy` also ends the solve, refinement and
+/// converging gathers, by a deadline (a time budget's end: [`HierarchicalSolver::set_deadline`];
+/// `Solved::gathers_cut` says whether the gathers stopped before converging).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stopped {
     AsReached,
     Converged,
+    ConvergedBy(Instant),
 }
 
 /// [`solve`], with `stopped` saying what a hierarchical solve stopped by `cancel` gives
@@ -540,17 +548,17 @@ pub fn solve_stopping(
     let failed = SolveError::Failed;
     let (mut hierarchical, mut coefficients, mut remesh) = (None, None, None);
     let mut notes = Vec::new();
-    let mut cancelled = false;
+    let (mut cancelled, mut gathers_cut) = (false, None);
     let solution = match &spec.plan {
         Plan::Hierarchical { .. } => match setup(scene, Some((accel, bvh_s)), spec)? {
             Setup::Patches(mut s) => {
-                cancelled = forward_solve(&mut s, cancel, progress, stopped);
+                (cancelled, gathers_cut) = forward_solve(&mut s, cancel, progress, stopped);
                 let sol = s.solution_with(spec.estimate);
                 hierarchical = Some(*s);
                 sol
             }
             Setup::Mesh(mut on_mesh) => {
-                cancelled = forward_solve(&mut on_mesh.solver, cancel, progress, stopped);
+                (cancelled, gathers_cut) = forward_solve(&mut on_mesh.solver, cancel, progress, stopped);
                 let d = on_mesh.finish(spec.estimate);
                 remesh = Some((d.mesh, d.solve_s));
                 d.solution
@@ -585,7 +593,7 @@ pub fn solve_stopping(
         }
     };
     notes.extend(budget_note(&solution, &spec.plan));
-    Ok(Solved { solution, spec: *spec, hierarchical, coefficients, remesh, notes, cancelled })
+    Ok(Solved { solution, spec: *spec, hierarchical, coefficients, remesh, notes, cancelled, gathers_cut })
 }
 
 /// A line for the user when the link budget stopped a hierarchical refinement before its oracle
@@ -647,13 +655,13 @@ pub fn solve_walk(
     };
     let at = |t: f64| with_threshold(params, t, floor_follows);
     let mut steps = Vec::with_capacity(thresholds.len());
-    let mut cancelled = false;
+    let (mut cancelled, mut gathers_cut) = (false, None);
     let mut walk = |s: &mut HierarchicalSolver| -> Result<(), SolveError> {
         for (k, &t) in thresholds.iter().enumerate() {
             let warm = if k == 0 { false } else { s.retarget(at(t)).map_err(failed)? };
             let rays_before = if warm { s.stats().rays } else { 0 };
             let started = std::time::Instant::now();
-            cancelled = forward_solve(s, cancel, &mut *progress, stopped);
+            (cancelled, gathers_cut) = forward_solve(s, cancel, &mut *progress, stopped);
             let st = s.stats();
             steps.push(WalkStep {
                 threshold: t,
@@ -688,19 +696,27 @@ pub fn solve_walk(
     let last = thresholds.get(steps.len().saturating_sub(1)).copied().unwrap_or(first);
     let spec = SolveSpec { plan: Plan::Hierarchical { params: at(last), top }, ..spec };
     let notes = budget_note(&solution, &spec.plan).into_iter().collect();
-    let solved = Solved { solution, spec, hierarchical, coefficients: None, remesh, notes, cancelled };
+    let solved =
+        Solved { solution, spec, hierarchical, coefficients: None, remesh, notes, cancelled, gathers_cut };
     Ok((solved, steps))
 }
 
 /// Run `s.solve`, stopping it when `cancel` is set (the solver looks at its flag between
-/// refinement passes and between gathers); with [`Stopped::Converged`] a stopped solve then
-/// gathers to convergence on the mesh it reached. Returns whether the solve was stopped.
+/// refinement passes and between gathers) or by [`Stopped::ConvergedBy`]'s deadline; with
+/// [`Stopped::Converged`] or `ConvergedBy` a stopped solve then gathers to convergence on the
+/// mesh it reached (by the deadline). Returns whether the solve was stopped, and where the
+/// deadline stopped the gathers before they converged, their residual.
 fn forward_solve(
     s: &mut HierarchicalSolver,
     cancel: Option<&Arc<AtomicBool>>,
     progress: Progress,
     stopped: Stopped,
-) -> bool {
+) -> (bool, Option<f64>) {
+    let deadline = match stopped {
+        Stopped::ConvergedBy(deadline) => Some(deadline),
+        Stopped::AsReached | Stopped::Converged => None,
+    };
+    s.set_deadline(deadline);
     let cancelled = match cancel {
         None => s.solve(progress).cancelled,
         Some(outer) => {
@@ -726,10 +742,12 @@ fn forward_solve(
             cancelled
         }
     };
-    if cancelled && stopped == Stopped::Converged {
+    if cancelled && stopped != Stopped::AsReached {
         s.converge();
     }
-    cancelled
+    let gathers_cut = s.gathers_cut();
+    s.set_deadline(None);
+    (cancelled, gathers_cut)
 }
 
 /// The relative area floor of `p`, if it is relative.
@@ -927,5 +945,30 @@ mod tests {
             stopped.solution.stats.elements,
             full.solution.stats.elements
         );
+    }
+
+    /// A deadline ends the solve: one that has passed before the solve stops the refinement
+    /// before its first pass, and the gathers after the one that any answer needs, and the
+    /// solve says where they stopped; one far off changes nothing.
+    #[test]
+    fn a_deadline_bounds_the_refinement_and_the_converging_gathers() {
+        let (scene, accel) = load("cornell");
+        let spec = Preset::Reference.spec();
+        let run =
+            |stopped| solve_stopping(&scene, &accel, 0.0, &spec, &mut |_, _| {}, None, stopped).unwrap();
+        let passed = run(Stopped::ConvergedBy(Instant::now()));
+        assert!(passed.cancelled);
+        let st = &passed.solution.stats;
+        assert_eq!(st.iterations, 1, "one gather");
+        let residual = passed.gathers_cut.expect("the gathers stopped before converging");
+        assert!(residual > 1e-3, "one gather is far from converged: {residual}");
+
+        let spec = Preset::Draft.spec();
+        let run =
+            |stopped| solve_stopping(&scene, &accel, 0.0, &spec, &mut |_, _| {}, None, stopped).unwrap();
+        let free = run(Stopped::Converged);
+        let far = run(Stopped::ConvergedBy(Instant::now() + std::time::Duration::from_secs(3600)));
+        assert!(!far.cancelled && far.gathers_cut.is_none());
+        assert_eq!(far.solution.patch_radiosity, free.solution.patch_radiosity);
     }
 }

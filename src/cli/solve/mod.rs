@@ -18,7 +18,6 @@ use radlab::solver::spec::{self, Plan as SpecPlan, Preset, SolveSpec};
 use radlab::solver::uniform::UniformParams;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 mod output;
@@ -318,9 +317,11 @@ pub struct SolverArgs {
     /// global relative L2, no reference needed); costs about as much again as the solve.
     #[arg(long)]
     pub estimate: bool,
-    /// Stop the hierarchical solver's refinement after this many seconds of solving; it then
+    /// End the hierarchical solve after about this many seconds of solving: refinement stops
+    /// early enough to leave the solver's estimate of the converging gathers' time, then it
     /// gathers to convergence on the mesh reached (said on stderr and in the JSON's `cancelled`
-    /// and `notes`). Hierarchical solves only.
+    /// and `notes`). The gathers stop at the budget's end, converged or not (the note then gives
+    /// the residual); linking the input patches is not stopped. Hierarchical solves only.
     #[arg(long, value_name = "SECONDS")]
     pub time_budget: Option<f64>,
 }
@@ -788,23 +789,30 @@ pub fn solve_with(
             bail!("--time-budget stops the hierarchical solver only; --mesh {} runs another", s.mesh_name());
         }
     }
-    let (mut solved, walk) = within_time_budget(a.time_budget, |cancel| {
-        if a.threshold.len() > 1 {
-            let floor_follows = a.aeps.is_none() && a.aeps_rel.is_none();
-            let stopped = spec::Stopped::Converged;
-            spec::solve_walk(scene, accel, bvh_s, s, &a.threshold, floor_follows, progress, cancel, stopped)
-                .with_context(|| format!("solving {spec}"))
-        } else {
-            let solved =
-                spec::solve_stopping(scene, accel, bvh_s, s, progress, cancel, spec::Stopped::Converged)
-                    .with_context(|| format!("solving {spec}"))?;
-            Ok((solved, Vec::new()))
-        }
-    })?;
+    // The budget ends the solve: its refinement, and the gathers that converge the mesh reached.
+    let stopped = match a.time_budget {
+        Some(secs) => spec::Stopped::ConvergedBy(Instant::now() + Duration::from_secs_f64(secs)),
+        None => spec::Stopped::Converged,
+    };
+    let (mut solved, walk) = if a.threshold.len() > 1 {
+        let floor_follows = a.aeps.is_none() && a.aeps_rel.is_none();
+        spec::solve_walk(scene, accel, bvh_s, s, &a.threshold, floor_follows, progress, None, stopped)
+            .with_context(|| format!("solving {spec}"))?
+    } else {
+        let solved = spec::solve_stopping(scene, accel, bvh_s, s, progress, None, stopped)
+            .with_context(|| format!("solving {spec}"))?;
+        (solved, Vec::new())
+    };
     if let (true, Some(secs)) = (solved.cancelled, a.time_budget) {
-        solved.notes.push(format!(
-            "refinement stopped at the time budget of {secs} s: the answer is the converged solution on the mesh reached, coarser than asked"
-        ));
+        solved.notes.push(match solved.gathers_cut {
+            None => format!(
+                "refinement stopped at the time budget of {secs} s: the answer is the converged solution on the mesh reached, coarser than asked"
+            ),
+            Some(residual) => format!(
+                "refinement stopped at the time budget of {secs} s and the gathers stopped at its end before converging (residual {residual:.1e}, power balance residual {:.1e}): the answer is unconverged, on a mesh coarser than asked",
+                solved.solution.energy.relative_residual()
+            ),
+        });
     }
     for note in &solved.notes {
         eprintln!("radlab: {spec}: {note}");
@@ -814,31 +822,6 @@ pub fn solve_with(
 
 /// The longest `--time-budget`: a week.
 const MAX_TIME_BUDGET_S: f64 = 7.0 * 24.0 * 3600.0;
-
-/// Run `f` with a cancel flag that a watchdog thread sets once `budget` seconds have passed
-/// (`None`: no flag, nothing watches).
-fn within_time_budget<T>(budget: Option<f64>, f: impl FnOnce(Option<&Arc<AtomicBool>>) -> T) -> T {
-    let Some(secs) = budget else { return f(None) };
-    let cancel = Arc::new(AtomicBool::new(false));
-    let done = Arc::new(AtomicBool::new(false));
-    let watchdog = {
-        let (cancel, done) = (Arc::clone(&cancel), Arc::clone(&done));
-        std::thread::spawn(move || {
-            let start = Instant::now();
-            while !done.load(Ordering::Relaxed) {
-                if start.elapsed().as_secs_f64() >= secs {
-                    cancel.store(true, Ordering::Relaxed);
-                    return;
-                }
-                std::thread::sleep(Duration::from_millis(5));
-            }
-        })
-    };
-    let out = f(Some(&cancel));
-    done.store(true, Ordering::Relaxed);
-    let _ = watchdog.join();
-    out
-}
 
 /// `radlab solve`: load the scene, solve it, then write what `args` asks for ([`output::write`]).
 pub fn run(args: Args) -> anyhow::Result<()> {
