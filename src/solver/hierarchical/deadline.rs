@@ -4,6 +4,7 @@
 //!
 //! ```text
 //!  refine pass ──► refine pass ──► … ──► stop: now + next pass + reserve(links) > deadline
+//!  (refining cluster links: now + the last chunk's time + reserve(links) > deadline)
 //!                                         └─► gather sweeps until converged or the deadline
 //!  reserve(links) = RESERVED_SWEEPS × (seconds per link of a sweep) × links
 //! ```
@@ -60,6 +61,14 @@ impl Pace {
         (self.replace_s * per, self.added.max(0.0) * per)
     }
 
+    /// Whether work of `work_s` seconds that leaves `links` links, and the converging gathers'
+    /// reserve after it, fit before `deadline` (from `now`).
+    #[must_use]
+    pub fn fits(&self, deadline: Instant, now: Instant, work_s: f64, links: usize, threads: usize) -> bool {
+        let left = deadline.saturating_duration_since(now).as_secs_f64();
+        work_s + self.reserve_s(links, threads) < left
+    }
+
     /// Whether a refinement pass that replaces `replacing` of `links` links fits before
     /// `deadline` (from `now`) with the converging gathers' reserve after it.
     #[must_use]
@@ -72,9 +81,7 @@ impl Pace {
         threads: usize,
     ) -> bool {
         let (pass_s, added) = self.pass(replacing);
-        let after = links + added.round() as usize;
-        let left = deadline.saturating_duration_since(now).as_secs_f64();
-        pass_s + self.reserve_s(after, threads) < left
+        self.fits(deadline, now, pass_s, links + added.round() as usize, threads)
     }
 }
 

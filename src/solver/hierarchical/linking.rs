@@ -20,6 +20,7 @@ use crate::solver::link::Link;
 use crate::solver::params::Oracle;
 use rayon::prelude::*;
 use std::sync::Arc;
+use std::time::Instant;
 
 /// Cached initial links: ((rays, seed, conservative, weighted), links per root receiver, pairs skipped).
 pub(super) type InitialLinks = ((u32, u64, bool, bool), Vec<Vec<Link>>, usize);
@@ -58,6 +59,9 @@ const CLUSTERED_PAIR_TOL_FACTOR: f64 = 10.0;
 pub(super) const ERROR_CLUSTER_SHARE: f64 = 0.03;
 
 /// Links being installed (`install_start` … `install_finish`).
+/// Failing cluster links subdivided at a time.
+const CLUSTER_REFINE_CHUNK: usize = 1024;
+
 struct Installing {
     lists: Vec<Vec<Link>>,
     cluster_links: Vec<ClusterLink>,
@@ -163,7 +167,18 @@ impl HierarchicalSolver {
             links.iter().zip(&keep).filter(|(_, k)| !**k).map(|(l, _)| *l).collect();
         drop(links);
         let accept = |a: u32, b: u32| self.cluster_accept(&tree, &b_max, a, b);
-        for chunk in failed.chunks(1024) {
+        // A deadline stops the subdivisions before a chunk that, with the gathers after it, would
+        // not fit: the failing links left stay as they are, unrefined.
+        // The links a gather would go through: those kept, those made, the failing ones left.
+        let kept_links = inst.lists.iter().map(Vec::len).sum::<usize>() + inst.cluster_links.len();
+        let mut chunk_s = 0.0;
+        for (k, chunk) in failed.chunks(CLUSTER_REFINE_CHUNK).enumerate() {
+            let left = failed.len() - k * CLUSTER_REFINE_CHUNK;
+            if !self.fits_deadline(chunk_s, kept_links + inst.created + left) {
+                inst.cluster_links.extend_from_slice(&failed[k * CLUSTER_REFINE_CHUNK..]);
+                break;
+            }
+            let t = Instant::now();
             let parts: Vec<Vec<Pairing>> = chunk
                 .par_iter()
                 .map(|l| {
@@ -173,6 +188,7 @@ impl HierarchicalSolver {
                 })
                 .collect();
             self.install_chunk(&tree, &mut inst, &parts.concat());
+            chunk_s = t.elapsed().as_secs_f64();
         }
         (self.install_finish(&tree, inst), true)
     }

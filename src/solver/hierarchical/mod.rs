@@ -535,6 +535,19 @@ impl HierarchicalSolver {
         self.graph.links.len() + self.cluster.links.len()
     }
 
+    /// Whether work estimated at `work_s` seconds, leaving `links` links, and the gathers that
+    /// converge them fit before the deadline (always, without one); where they do not, the
+    /// cancel flag is set, so that the solve stops as a cancelled one does.
+    fn fits_deadline(&self, work_s: f64, links: usize) -> bool {
+        let Some(deadline) = self.setup.deadline else { return true };
+        let threads = rayon::current_num_threads();
+        let fits = self.log.pace.fits(deadline, Instant::now(), work_s, links, threads);
+        if !fits {
+            self.setup.cancel.store(true, Ordering::Relaxed);
+        }
+        fits
+    }
+
     #[must_use]
     pub fn is_converged(&self) -> bool {
         self.log.converged

@@ -284,13 +284,8 @@ impl HierarchicalSolver {
     /// after it, fit before the deadline (always, without one); where they do not, the cancel
     /// flag is set, so that the solve stops as a cancelled one does.
     fn pass_fits(&self, replacing: usize) -> bool {
-        let Some(deadline) = self.setup.deadline else { return true };
-        let threads = rayon::current_num_threads();
-        let fits = self.log.pace.pass_fits(deadline, Instant::now(), self.gather_links(), replacing, threads);
-        if !fits {
-            self.setup.cancel.store(true, Ordering::Relaxed);
-        }
-        fits
+        let (pass_s, added) = self.log.pace.pass(replacing);
+        self.fits_deadline(pass_s, self.gather_links() + added.round() as usize)
     }
 
     /// After the last pass: measure what was left unmeasured, record on each leaf why it
