@@ -809,7 +809,7 @@ pub fn solve_with(
                 "refinement stopped at the time budget of {secs} s: the answer is the converged solution on the mesh reached, coarser than asked"
             ),
             Some(residual) => format!(
-                "refinement stopped at the time budget of {secs} s and the gathers stopped at its end before converging (residual {residual:.1e}, power balance residual {:.1e}): the answer is unconverged, on a mesh coarser than asked",
+                "refinement stopped at the time budget of {secs} s and the gathers stopped at its end before converging (residual {residual:.1e}, power balance residual {:.1e}): the answer is unconverged, on a mesh coarser than asked; raise --time-budget",
                 solved.solution.energy.relative_residual()
             ),
         });
