@@ -58,10 +58,10 @@ const CLUSTERED_PAIR_TOL_FACTOR: f64 = 10.0;
 /// measurement on furnished-10k, see docs/scale.md#accuracy-on-the-furnished-rooms.
 pub(super) const ERROR_CLUSTER_SHARE: f64 = 0.03;
 
-/// Links being installed (`install_start` … `install_finish`).
 /// Failing cluster links subdivided at a time.
 const CLUSTER_REFINE_CHUNK: usize = 1024;
 
+/// Links being installed (`install_start` … `install_finish`).
 struct Installing {
     lists: Vec<Vec<Link>>,
     cluster_links: Vec<ClusterLink>,
@@ -168,9 +168,13 @@ impl HierarchicalSolver {
         drop(links);
         let accept = |a: u32, b: u32| self.cluster_accept(&tree, &b_max, a, b);
         // A deadline stops the subdivisions before a chunk that, with the gathers after it, would
-        // not fit: the failing links left stay as they are, unrefined.
-        // The links a gather would go through: those kept, those made, the failing ones left.
-        let kept_links = inst.lists.iter().map(Vec::len).sum::<usize>() + inst.cluster_links.len();
+        // not fit: the failing links left stay as they are, unrefined. The links a gather would
+        // then go through: those kept, those made, the failing ones left.
+        let kept_links = if self.setup.deadline.is_some() {
+            inst.lists.iter().map(Vec::len).sum::<usize>() + inst.cluster_links.len()
+        } else {
+            0
+        };
         let mut chunk_s = 0.0;
         for (k, chunk) in failed.chunks(CLUSTER_REFINE_CHUNK).enumerate() {
             let left = failed.len() - k * CLUSTER_REFINE_CHUNK;

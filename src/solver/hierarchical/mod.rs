@@ -725,8 +725,11 @@ impl HierarchicalSolver {
             self.push_pull_flat(None, sums);
             self.log.stats.push_pull_s += t.elapsed().as_secs_f64();
         }
-        let links = self.gather_links().max(1);
-        self.log.pace.sweep_s_per_link = Some(sweep.elapsed().as_secs_f64() / links as f64);
+        // Measured for a deadline's estimates only (counting the links reads every list).
+        if self.setup.deadline.is_some() {
+            let links = self.gather_links().max(1);
+            self.log.pace.sweep_s_per_link = Some(sweep.elapsed().as_secs_f64() / links as f64);
+        }
     }
 
     // ------------------------------------------------------------------------------------------

@@ -284,6 +284,9 @@ impl HierarchicalSolver {
     /// after it, fit before the deadline (always, without one); where they do not, the cancel
     /// flag is set, so that the solve stops as a cancelled one does.
     fn pass_fits(&self, replacing: usize) -> bool {
+        if self.setup.deadline.is_none() {
+            return true;
+        }
         let (pass_s, added) = self.log.pace.pass(replacing);
         self.fits_deadline(pass_s, self.gather_links() + added.round() as usize)
     }
