@@ -138,13 +138,14 @@ fn cli_prints_the_artifacts_table() {
 
 /// The thin occluder: on `builtin:thin-pole` the pole's shadow — a streak a few
 /// hundredths wide from its foot outward — is a feature of the closed form (B: its points lie
-/// far below the floor's mean). The hierarchical solver at the default preset (`quality`,
-/// `radlab solve`'s) misses it: its links from the floor to the small lamp see the pole with
-/// none of their rays, the floor is not subdivided there, and every point of the streak belongs
-/// to a missing feature. The discontinuity mesh (CDT) puts element edges on the pole's shadow
-/// boundaries and shows the streak.
+/// far below the floor's mean). The hierarchical solver with the lecture's Feps oracle
+/// (`lecture`: refine where much light flows) misses it: its links from the floor to the small
+/// lamp see the pole with none of their rays, the floor is not subdivided there, and every point
+/// of the streak belongs to a missing feature. The error oracle (`quality`, on the same
+/// quadtree) refines where the floor's answer is wrong and shows it, and so does the
+/// discontinuity mesh (CDT), which puts element edges on the pole's shadow boundaries.
 #[test]
-fn thin_pole_shadow_missed_by_the_quadtree_shown_by_the_cdt() {
+fn thin_pole_shadow_missed_by_the_feps_oracle_shown_by_the_error_oracle_and_the_cdt() {
     use radlab::eval::artifacts::measure_views;
     use radlab::solver::hierarchical::HierarchicalSolver;
     use radlab::solver::params::HierarchicalParams;
@@ -176,21 +177,26 @@ fn thin_pole_shadow_missed_by_the_quadtree_shown_by_the_cdt() {
         );
         marks
     };
-    let mut h = HierarchicalSolver::new(
-        std::sync::Arc::new(scene.clone()),
-        HierarchicalParams::preset("quality").unwrap(),
-    )
-    .unwrap();
-    h.solve(&mut |_, _| {});
-    let quadtree = streak_marks(&h.solution());
+    let quadtree = |preset: &str| {
+        let params = HierarchicalParams::preset(preset).unwrap();
+        let mut h = HierarchicalSolver::new(std::sync::Arc::new(scene.clone()), params).unwrap();
+        h.solve(&mut |_, _| {});
+        streak_marks(&h.solution())
+    };
     // (0: a fragment of the streak too small to count as a feature — fewer than 4 grid points.)
     let count = |marks: &[i8], m: i8| marks.iter().filter(|&&x| x == m).count();
-    assert!(count(&quadtree, -1) >= 8, "the streak is a missing feature: {quadtree:?}");
-    assert_eq!(count(&quadtree, 1), 0, "the quadtree shows (part of) the pole's shadow: {quadtree:?}");
+    let feps = quadtree("lecture");
+    assert!(count(&feps, -1) >= 8, "the streak is a missing feature: {feps:?}");
+    assert_eq!(count(&feps, 1), 0, "the Feps oracle shows (part of) the pole's shadow: {feps:?}");
+
+    let error = quadtree("quality");
+    assert_eq!(error.len(), feps.len(), "same grid");
+    assert!(count(&error, 1) >= 8, "the streak is a feature the error oracle shows: {error:?}");
+    assert_eq!(count(&error, -1), 0, "the error oracle misses (part of) the pole's shadow: {error:?}");
 
     let d = discontinuity::solve(&scene, &DiscontinuityParams::cdt(), &mut |_, _| {}).unwrap();
     let cdt = streak_marks(&d.solution);
-    assert_eq!(cdt.len(), quadtree.len(), "same grid");
+    assert_eq!(cdt.len(), feps.len(), "same grid");
     assert!(count(&cdt, 1) >= 8, "the streak is a feature the CDT shows: {cdt:?}");
     assert_eq!(count(&cdt, -1), 0, "the CDT misses (part of) the pole's shadow: {cdt:?}");
 }

@@ -248,7 +248,7 @@ impl HierarchicalParams {
             five_times: false,
             link_tol: 1e-4,
             push_slopes: true,
-            row_tol: 0.1,
+            row_tol: 0.05,
             close_rows: true,
             cause_tail: DEFAULT_CAUSE_TAIL,
             cluster: Clustering::Auto,

@@ -455,7 +455,8 @@ impl HierarchicalSolver {
 
     /// Change the oracle's thresholds and keep what is solved: with thresholds as fine or finer
     /// (Feps, BFeps or ε, Aeps no larger, the depth and link caps no smaller), any row check
-    /// (`row_tol`, which the ladder ties to ε) and every other setting unchanged, the hierarchy, the links and the radiosity stay, and the next
+    /// (`row_tol`) and every other setting unchanged, the hierarchy, the links and the radiosity
+    /// stay, and the next
     /// [`solve`](Self::solve) refines from where this one stopped and gathers from the last
     /// radiosity (a warm re-solve). Anything else restarts as [`set_params`](Self::set_params)
     /// does. Returns whether the state was kept.

@@ -1,48 +1,60 @@
 //! The error-driven oracle: refine where a receiver's answer is wrong, not where much light flows.
 //!
-//! A constant element holds one value of the gathered irradiance H over its area. What is wrong
-//! with that is how much the *total* irradiance, from all its links (its own and those it
-//! inherits from its ancestors), varies across it. At the four points x_k where splitting would
-//! put its children's centroids:
+//! A leaf holds the gathered irradiance H over its area as a value and, with `push_slopes` (every
+//! preset), a slope. What is wrong with that is how much the *total* irradiance, from all its
+//! links (its own and those it inherits from its ancestors), varies across it beyond what the
+//! leaf holds. The oracle evaluates each own link's exact point kernel F(x → q) at eight points
+//! of r: the four x_k where splitting would put its children's centroids, and four c_j just
+//! inside its corners (`sample_points`):
 //!
 //! ```text
-//! h(x_k) = Σ_{links a ← q, a = r or an ancestor} F(x_k → q) V_aq B_q        (exact point kernel)
-//! e_r    = ρ_r · max_k |h(x_k) − mean_k h(x_k)|  +  ρ_r Σ_{own partial links} 2 min(V, 1 − V) F_rq B_q
+//! h(x_k)    = Σ_{links a ← q, a = r or an ancestor} F(x_k → q) V_aq B_q
+//! bend_j(q) = F(c_j → q) − Σ_k a_jk F(x_k → q)         (a_jk: the affine fit through the x_k, at c_j)
+//! e_r       = ρ_r · s · max_k |h(x_k) − mean_k h(x_k)|  +  ρ_r · max_j |Σ_{own links} V_rq B_q bend_j(q)|
+//!           + ρ_r Σ_{own partial links} 2 min(V, 1 − V) F_rq B_q
 //! ```
 //!
-//! The own links' terms are evaluated exactly; the inherited ones are the least-squares affine
-//! fit, in the parent's plane, of the parent's h at its own four points, evaluated at r's
-//! (`inherit`). An ancestor's links vary smoothly across its descendants (where one does not,
-//! the ancestor's own error splits it), so the fit keeps their variation, and an element costs
-//! its own links only, not Σ (links along its chain of ancestors).
+//! (largest RGB channel). The first term is the receiver's variation of the total at the child
+//! points — a link whose contribution is uniform across r, or whose variation the other links
+//! cancel (in the white furnace Σ_q F(x → q) = 1 at every point), adds nothing, however much
+//! power it carries [Lischinski, Smits & Greenberg 1994, "Bounds and error estimates for
+//! radiosity", sec. 4: the error of a constant element is bounded by the spread of its gathered
+//! radiosity across it]. It counts whole for constant leaves (s = 1) and at
+//! [`SLOPED_SPREAD`] with slopes, which hold its affine part. The own links' terms are evaluated
+//! exactly; the inherited ones are the least-squares affine fit, in the parent's plane, of the
+//! parent's h at its own four points, evaluated at r's (`inherit`), so an element costs its own
+//! links only, not Σ (links along its chain of ancestors).
 //!
-//! (largest RGB channel). The first term is the receiver's variation of the total — a link
-//! whose contribution is uniform across r, or whose variation the other links cancel (in the
-//! white furnace Σ_q F(x → q) = 1 at every point), adds nothing, however much power it carries
-//! [Lischinski, Smits & Greenberg 1994, "Bounds and error estimates for radiosity", sec. 4: the
-//! error of a constant element is bounded by the spread of its gathered radiosity across it].
-//! The second is the uncertainty of partially visible links, whose visibility varies across the
-//! receiver in a way the link's average V hides (where the shadows are) [Holzschuch & Sillion
+//! The second term is what that affine picture misses: the curvature of r's own links'
+//! irradiance, the fit through the child points against the kernel near the corners, summed
+//! with signs over the links like h. Four child points alone see a ceiling that darkens towards
+//! both walls as flat (equal values at u = 1/4 and 3/4), a fit through them extrapolates that
+//! flatness to the edges, and the children inherit it. Inherited links add no bend below the
+//! ancestor that holds them: the ancestor's own bend, over its larger area, splits their causes
+//! down first.
+//!
+//! The third term is the uncertainty of partially visible links, whose visibility varies across
+//! the receiver in a way the link's average V hides (where the shadows are) [Holzschuch & Sillion
 //! 1998, "An exhaustive error-bounding algorithm for hierarchical radiosity", sec. 3.2: the
-//! visibility term of a link's bound]. A third term catches what four points cannot see:
+//! visibility term of a link's bound]. A fourth term catches what eight points cannot see:
 //!
 //! ```text
 //!          + ρ_r |Σ_{own links} V_rq B_q (F_rq − mean_k F(x_k → q))|
 //! ```
 //!
 //! F_rq is the link's Galerkin coefficient, the kernel's true average over r (`transfer`); when
-//! the four points' mean misses it, the kernel varies between them (a lamp grazing a wall lights
-//! a sliver of a large element that no child point lies in). Summed with signs, so that links
-//! whose misses cancel (the furnace, Σ_q F = 1 at every point and on average) add nothing.
-//! [The same idea as the a-posteriori quadrature
-//! estimates of Lischinski, Smits & Greenberg 1994, sec. 5: compare two rules of different order.]
+//! the child points' mean misses it, the kernel varies between them (a lamp grazing a wall
+//! lights a sliver of a large element that no child point lies in). Summed with signs, like the
+//! bend. [The same idea as the a-posteriori quadrature estimates of Lischinski, Smits &
+//! Greenberg 1994, sec. 5: compare two rules of different order.]
 //!
 //! A link r ← q is split on the receiver's side when r's answer is wrong (e_r > ε) and the link
-//! is one of its causes: its own variation across r, c_rq = ρ_r V B_q (max_k |F(x_k → q) − mean| +
-//! |F_rq − mean|) (+ its visibility term), is among the largest of r's own links, taken largest first until
-//! the rest add up to at most `cause_tail` · ε, ε/4 in every preset (so the rest cannot make r
-//! wrong again on their own, and a receiver with thousands of small links does not split them
-//! all; the share is chosen by measurement, docs/solver.md, "Oracles"). It is split on the source's side when
+//! is one of its causes: its own share of the error, c_rq = ρ_r V B_q (s max_k |F(x_k → q) −
+//! mean| + max_j |bend_j(q)| + |F_rq − mean_k F(x_k → q)|) (+ its visibility term), is among
+//! the largest of r's own links, taken largest first until the rest add up to at most
+//! `cause_tail` · ε, ε/4 in every preset (so the rest cannot make r wrong again on their own,
+//! and a receiver with thousands of small links does not split them all; the share is chosen
+//! by measurement, docs/solver.md, "Oracles"). It is split on the source's side when
 //! q's radiosity varies (ΔB_q: q's own e_q, or the spread of its children's B) enough to matter
 //! through the kernel's variation across q: ρ_r F_rq V ΔB_q diam_q / distance > ε [Holzschuch &
 //! Sillion 1998, sec. 3.1, the source-radiosity term]. Every decision
@@ -53,7 +65,7 @@
 //! ε is `bf_eps` (absolute, or relative to the largest emission). Refinement stops at the Aeps
 //! floor and the maximum depth, as with the other oracles.
 //!
-//! **Cost.** F(x_k → q) at r's four child points depends on the pair's geometry alone, so it is
+//! **Cost.** F(x → q) at r's eight points depends on the pair's geometry alone, so it is
 //! evaluated once per pair and kept (`ErrorField::kernels`, per receiver sorted by source,
 //! carried from one refinement to the next): the field's update, the decisions on both sides of
 //! a pair and the links' slopes (`kernel_slope`) look it up, the same numbers as evaluating it
@@ -84,9 +96,10 @@ pub(super) struct ErrorField {
     own_h: Vec<[Rgb; 4]>,
     /// ρ-less visibility term Σ_{own partial links} 2 min(V, 1 − V) F B.
     partial: Vec<Rgb>,
-    /// ρ-less sampling term Σ_{own links} V B (F_rq − mean_k F(x_k → q)), signed.
+    /// ρ-less terms of what the child points miss, per channel: |Σ_{own links} V B (F_rq −
+    /// mean_k F(x_k → q))| + max_j |Σ_{own links} V B bend_j(q)| (module docs).
     disc: Vec<Rgb>,
-    /// Per element, the exact kernel F(x_k → q) at its four child points for each source q of
+    /// Per element, the exact kernel F(x → q) at its eight points for each source q of
     /// its own links, sorted by q: what `own_terms` evaluated, for the decisions to look up
     /// instead of evaluating again (a pair's kernel is geometry alone, fixed for the pair's
     /// life, so an entry never goes stale).
@@ -98,6 +111,8 @@ pub(super) struct ErrorField {
     /// e or ΔB across the threshold; see `sweep`): a kept link is decided again only if one
     /// of its ends is fresh.
     pub fresh: Vec<bool>,
+    /// Per element, the affine fit's weights at its c_j (`CornerFit`).
+    fits: Vec<CornerFit>,
 }
 
 /// One element's kernels at its child points, per linked source: the sources sorted, and the
@@ -106,12 +121,82 @@ pub(super) struct ErrorField {
 #[derive(Clone, Debug, Default)]
 pub struct Kernels {
     sources: Vec<u32>,
-    values: Vec<[f64; 4]>,
+    values: Vec<Kern>,
+}
+
+/// The share of the spread of h across an element that counts as error when the leaves carry
+/// slopes: a slope holds the affine part of the variation, but it is limited to keep B ≥ 0 and
+/// inherited links bring their ancestors' fit, so half counts. Chosen by measurement
+/// (docs/solver.md, "Oracles").
+pub(super) const SLOPED_SPREAD: f64 = 0.5;
+
+/// A pair's kernel F(x → q) at the receiver's sample points (`sample_points`): its four child
+/// points, then the four c_j near its corners.
+pub type Kern = [f64; 8];
+
+/// How far in from each corner, as a fraction of the element's side (of its bilinear
+/// parameters; a triangle's points weigh the corner 1 − 4/3 of it), the error oracle evaluates
+/// a pair's kernel near the corner: close enough to see a variation that rises towards an edge,
+/// off the edge itself, which lies in the plane of the element meeting it there (a wall on a
+/// floor), where the point kernel jumps.
+pub(super) const NEAR_CORNER: f64 = 0.03;
+
+/// The points where the error oracle evaluates a pair's kernel: `child_points`, then the four
+/// c_j near the corners ([`NEAR_CORNER`]; a triangle's first one again as the eighth).
+pub(super) fn sample_points(e: &Element) -> [DVec3; 8] {
+    let c = child_points(e);
+    let v = e.vertices();
+    let g: [DVec3; 4] = if v.len() == 4 {
+        let at = |u: f64, t: f64| {
+            v[0] * ((1.0 - u) * (1.0 - t)) + v[1] * (u * (1.0 - t)) + v[2] * (u * t) + v[3] * ((1.0 - u) * t)
+        };
+        let (a, b) = (NEAR_CORNER, 1.0 - NEAR_CORNER);
+        [at(a, a), at(b, a), at(b, b), at(a, b)]
+    } else {
+        let w = 1.0 - NEAR_CORNER * 4.0 / 3.0;
+        let near = |p: DVec3, q: DVec3, r: DVec3| p * w + (q + r) * (0.5 * (1.0 - w));
+        let first = near(v[0], v[1], v[2]);
+        [first, near(v[1], v[2], v[0]), near(v[2], v[0], v[1]), first]
+    };
+    [c[0], c[1], c[2], c[3], g[0], g[1], g[2], g[3]]
+}
+
+/// Per point c_j of an element (`sample_points`, the last four), the weights a_jk with which
+/// the least-squares affine fit of values at its four child points predicts the value there:
+/// Σ_k a_jk f_k.
+#[derive(Clone, Default)]
+pub(super) struct CornerFit {
+    a: [[f64; 4]; 4],
+}
+
+impl CornerFit {
+    pub(super) fn of(e: &Element, pts: &[DVec3; 8]) -> CornerFit {
+        let child = [pts[0], pts[1], pts[2], pts[3]];
+        let c = (child[0] + child[1] + child[2] + child[3]) * 0.25;
+        let (t1, t2) = crate::math::orthonormal_basis(e.normal);
+        let w = FitWeights::new(&child, c, t1, t2);
+        let a = std::array::from_fn(|j| {
+            let x = pts[4 + j] - c;
+            std::array::from_fn(|k| match &w {
+                Some(w) => 0.25 + w.u[k] * x.dot(t1) + w.v[k] * x.dot(t2),
+                None => 0.25,
+            })
+        });
+        CornerFit { a }
+    }
+
+    /// What the affine fit of `f` at the child points misses at each c_j.
+    fn bend(&self, f: &Kern) -> [f64; 4] {
+        std::array::from_fn(|j| {
+            let a = &self.a[j];
+            f[4 + j] - (a[0] * f[0] + a[1] * f[1] + a[2] * f[2] + a[3] * f[3])
+        })
+    }
 }
 
 impl Kernels {
     /// The kernel of the pair with source `q`, if held.
-    fn get(&self, q: u32) -> Option<[f64; 4]> {
+    fn get(&self, q: u32) -> Option<Kern> {
         self.sources.binary_search(&q).ok().map(|i| self.values[i])
     }
 }
@@ -211,7 +296,7 @@ pub(super) fn kernel_slope(
     q: &Element,
     vis: f64,
     f: f64,
-    known: Option<[f64; 4]>,
+    known: Option<Kern>,
 ) -> [f64; 2] {
     let SlopeFrame { pts, t1, t2, w: Some(w) } = frame else {
         return [0.0; 2];
@@ -219,7 +304,7 @@ pub(super) fn kernel_slope(
     let (t1, t2) = (*t1, *t2);
     let (k, mean) = match known {
         Some(k) => (k, kernel_mean(&k)),
-        None => kernel_at(r, pts, q),
+        None => kernel_at4(r, pts, q),
     };
     let (mut gu, mut gv) = (0.0, 0.0);
     for ((ki, wu), wv) in k.iter().zip(w.u).zip(w.v) {
@@ -238,8 +323,22 @@ pub(super) fn kernel_slope(
 }
 
 /// F(x_k → q) at the four child points of `r`, and their mean.
-fn kernel_at(r: &Element, pts: &[DVec3; 4], q: &Element) -> ([f64; 4], f64) {
-    let mut f = [0.0; 4];
+fn kernel_at(r: &Element, pts: &[DVec3; 8], q: &Element) -> (Kern, f64) {
+    let mut f = [0.0; 8];
+    // A triangle's fourth c_j is its first again (`sample_points`).
+    let n = if r.vertices().len() == 4 { 8 } else { 7 };
+    for (fk, x) in f.iter_mut().zip(pts).take(n) {
+        *fk = form_factor::point_to_polygon_oriented(*x, r.normal, q.vertices(), q.normal);
+    }
+    if n == 7 {
+        f[7] = f[4];
+    }
+    (f, kernel_mean(&f))
+}
+
+/// F(x_k → q) at the four child points only (the first four of a [`Kern`]), and their mean.
+fn kernel_at4(r: &Element, pts: &[DVec3; 4], q: &Element) -> (Kern, f64) {
+    let mut f = [0.0; 8];
     for (fk, x) in f.iter_mut().zip(pts) {
         *fk = form_factor::point_to_polygon_oriented(*x, r.normal, q.vertices(), q.normal);
     }
@@ -248,13 +347,13 @@ fn kernel_at(r: &Element, pts: &[DVec3; 4], q: &Element) -> ([f64; 4], f64) {
 
 /// The kernel of the pair (r, q) at r's child points, if `kernels` (an error field's, per
 /// element, sorted by source) holds it.
-pub(super) fn known_kernel(kernels: &[Kernels], r: u32, q: u32) -> Option<[f64; 4]> {
+pub(super) fn known_kernel(kernels: &[Kernels], r: u32, q: u32) -> Option<Kern> {
     kernels.get(r as usize)?.get(q)
 }
 
 /// The mean of the kernel at the four child points (one expression, so the same bits wherever
 /// the values come from).
-fn kernel_mean(f: &[f64; 4]) -> f64 {
+fn kernel_mean(f: &Kern) -> f64 {
     0.25 * (f[0] + f[1] + f[2] + f[3])
 }
 
@@ -268,6 +367,7 @@ struct OwnTerms {
     kernels: Kernels,
     /// (c_rq, F̂_rq) of the own links in list order (`ErrorField::own_var`).
     var: Vec<[f64; 2]>,
+    fit: CornerFit,
 }
 
 /// F_rq of a link of `r`'s (or of its mirror: the pair's coupling over `r`'s area), the same
@@ -278,11 +378,12 @@ fn galerkin(r: &Element, l: &Link) -> f64 {
 
 /// c_rq (module docs) of the link r ← q (or its mirror) from the kernel `f` at r's child
 /// points and its mean.
-fn variation(r: &Element, q: &Element, l: &Link, f: &[f64; 4], mean: f64) -> f64 {
+fn variation(r: &Element, q: &Element, l: &Link, f: &Kern, mean: f64, fit: &CornerFit, spread_w: f64) -> f64 {
     let v = f64::from(l.vis).clamp(0.0, 1.0);
     let vw = 2.0 * v.min(1.0 - v);
     let b = q.radiosity.max_channel();
-    let spread = f.iter().map(|fk| (fk - mean).abs()).fold(0.0, f64::max);
+    let spread = spread_w * f[..4].iter().map(|fk| (fk - mean).abs()).fold(0.0, f64::max)
+        + fit.bend(f).iter().map(|x| x.abs()).fold(0.0, f64::max);
     let unseen = (galerkin(r, l) - mean).abs();
     r.reflectance.max_channel() * b * (v * (spread + unseen) + vw * mean)
 }
@@ -310,6 +411,7 @@ impl HierarchicalSolver {
             kernels: Vec::new(),
             own_var: Vec::new(),
             fresh: Vec::new(),
+            fits: Vec::new(),
         };
         let terms: Vec<OwnTerms> = (0..n as u32)
             .into_par_iter()
@@ -320,6 +422,7 @@ impl HierarchicalSolver {
         field.partial = terms.iter().map(|t| t.partial).collect();
         field.disc = terms.iter().map(|t| t.disc).collect();
         field.cause = terms.iter().map(|t| t.cause).collect();
+        field.fits = terms.iter().map(|t| t.fit.clone()).collect();
         (field.kernels, field.own_var) = terms.into_iter().map(|t| (t.kernels, t.var)).unzip();
         self.sweep(&mut field, vec![true; n]);
         field
@@ -352,6 +455,7 @@ impl HierarchicalSolver {
         field.disc.resize(n, Rgb::ZERO);
         field.kernels.resize_with(n, Kernels::default);
         field.own_var.resize_with(n, Vec::new);
+        field.fits.resize_with(n, CornerFit::default);
         for (&r, t) in todo.iter().zip(terms) {
             field.own_var[r as usize] = t.var;
             field.own_h[r as usize] = t.h;
@@ -359,12 +463,13 @@ impl HierarchicalSolver {
             field.disc[r as usize] = t.disc;
             field.cause[r as usize] = t.cause;
             field.kernels[r as usize] = t.kernels;
+            field.fits[r as usize] = t.fit;
         }
         self.sweep(field, dirty)
     }
 
-    /// Refit h, and recompute e and ΔB, of every element marked in `redo` and of all its descendants,
-    /// top down (a parent's id is smaller than its children's). Returns the receivers to decide
+    /// Refit h, and recompute e and ΔB, of every element marked in `redo` and of all its
+    /// descendants, top down (a parent's id is smaller than its children's). Returns the receivers to decide
     /// again (see `update_error_field`).
     fn sweep(&self, field: &mut ErrorField, mut redo: Vec<bool>) -> Vec<u32> {
         let hier = &self.hier;
@@ -435,7 +540,9 @@ impl HierarchicalSolver {
     /// the same numbers as evaluating them again.
     fn own_terms(&self, r: u32, known: Option<&Kernels>) -> OwnTerms {
         let e = self.hier.get(r);
-        let pts = child_points(e);
+        let pts = sample_points(e);
+        let fit = CornerFit::of(e, &pts);
+        let mut bend = [Rgb::ZERO; 4];
         let mut h = [Rgb::ZERO; 4];
         let mut partial = Rgb::ZERO;
         let mut disc = Rgb::ZERO;
@@ -452,10 +559,13 @@ impl HierarchicalSolver {
                 for (hk, fk) in h.iter_mut().zip(f) {
                     *hk += vb * fk;
                 }
+                for (bj, x) in bend.iter_mut().zip(fit.bend(&f)) {
+                    *bj += vb * x;
+                }
                 disc += vb * (galerkin(e, l) - mean);
             }
             partial += src.radiosity * (f64::from(l.ff) * partial_weight(l));
-            let cv = variation(e, src, l, &f, mean);
+            let cv = variation(e, src, l, &f, mean, &fit, self.spread_weight());
             c.push(cv);
             var.push([cv, mean]);
         }
@@ -470,7 +580,11 @@ impl HierarchicalSolver {
             cause = ck;
             tail -= ck;
         }
-        OwnTerms { h, partial, disc, cause, kernels, var }
+        let bend = bend.iter().fold(Rgb::ZERO, |m, b| {
+            let a = b.map(f64::abs);
+            Rgb::new(m.r().max(a.r()), m.g().max(a.g()), m.b().max(a.b()))
+        });
+        OwnTerms { h, partial, disc: disc.map(f64::abs) + bend, cause, kernels, var, fit }
     }
 
     /// The kernels of `e`'s own links `own` at its child points `pts`, sorted by source, and
@@ -480,7 +594,7 @@ impl HierarchicalSolver {
     fn own_kernels(
         &self,
         e: &Element,
-        pts: &[DVec3; 4],
+        pts: &[DVec3; 8],
         own: &[Link],
         known: Option<&Kernels>,
     ) -> (Kernels, Vec<u32>) {
@@ -521,7 +635,13 @@ impl HierarchicalSolver {
         let var = h.iter().map(|hk| hk.abs_diff_max(mean)).fold(0.0, f64::max);
         // ρ per channel: the largest channel of ρ·spread, bounded by ρ_max·spread.
         let rho = e.reflectance.max_channel();
-        rho * var + e.reflectance.mul_rgb(partial).max_channel()
+        rho * var * self.spread_weight() + e.reflectance.mul_rgb(partial).max_channel()
+    }
+
+    /// The weight of the spread of h across an element in its error: 1 for constant leaves
+    /// (every variation is wrong), [`SLOPED_SPREAD`] when the leaves carry slopes.
+    fn spread_weight(&self) -> f64 {
+        if self.setup.params.push_slopes { SLOPED_SPREAD } else { 1.0 }
     }
 
     /// ΔB of one element: the spread of its children's radiosity about its own, or its error.
@@ -539,9 +659,9 @@ impl HierarchicalSolver {
         let (re, qe) = (self.hier.get(r), self.hier.get(q));
         let (f, mean) = match known_kernel(&field.kernels, r, q) {
             Some(f) => (f, kernel_mean(&f)),
-            None => kernel_at(re, &child_points(re), qe),
+            None => kernel_at(re, &sample_points(re), qe),
         };
-        (variation(re, qe, l, &f, mean), mean)
+        (variation(re, qe, l, &f, mean, &field.fits[r as usize], self.spread_weight()), mean)
     }
 
     /// The error oracle's decision on the pair (r, q) seen from the link r ← q: the element to
