@@ -424,9 +424,23 @@ fn dragging_a_threshold_finer_re_solves_warm() {
     assert_eq!(h.state().history.runs().last().unwrap().params.bf_eps, h.state().params().bf_eps);
     no_panics(&h, "the warm drag");
 
-    // A coarser threshold starts cold again.
+    // Back to the first threshold: the state solved there again, warm, and the plot's marks of
+    // the drag's re-solves, begun after it, gone with them.
     let mut p = h.state().params();
     p.bf_eps = bf_eps;
+    h.state_mut().set_params(p);
+    settle(&mut h);
+    settle(&mut h);
+    assert_eq!(start(&h), Some(SolveStart::Warm));
+    let back = Arc::clone(h.state().view());
+    assert_eq!(back.stats.leaves, first.stats.leaves, "the first solve's mesh");
+    assert!(
+        h.state().resolve_marks().iter().all(|m| m.gathers <= back.residuals.len()),
+        "{:?}",
+        h.state().resolve_marks()
+    );
+    // Coarser than every solve: cold again.
+    p.bf_eps = 4.0 * bf_eps;
     h.state_mut().set_params(p);
     settle(&mut h);
     settle(&mut h);

@@ -1,5 +1,6 @@
 //! A warm re-solve (`HierarchicalSolver::retarget`, `spec::solve_walk`): a finer threshold keeps
-//! the hierarchy, the links and the radiosity and refines from there; anything else restarts.
+//! the hierarchy, the links and the radiosity and refines from there; a coarser one goes back to
+//! a state solved no finer than it; anything else restarts.
 
 mod common;
 
@@ -51,7 +52,8 @@ fn a_finer_threshold_refines_from_the_last_state() {
     }
 }
 
-/// A coarser threshold, or any other setting changed, restarts from one element per patch.
+/// A coarser threshold than any solved, or any other setting changed, restarts from one element
+/// per patch.
 #[test]
 fn a_coarser_threshold_or_another_setting_restarts() {
     let scene = Arc::new(common::table_room());
@@ -64,6 +66,52 @@ fn a_coarser_threshold_or_another_setting_restarts() {
     assert!(!s.retarget(rays).unwrap(), "another ray count");
     assert_eq!(s.stats().leaves, scene.patches.len());
     assert!(s.retarget(ladder(f64::NAN)).is_err(), "invalid parameters are refused");
+}
+
+/// A threshold made coarser goes back to the state solved there: after ε 0.2 → 0.1 → 0.2 the
+/// solver holds the 0.2 solve's mesh and links again, and its re-solve refines nothing and
+/// moves no patch's radiosity by more than the gathers' tolerance; 0.1 again brings back the
+/// finer state. A threshold coarser than every kept state restarts, and so does any coarser
+/// one with keeping off.
+#[test]
+fn a_coarser_threshold_goes_back_to_a_kept_state() {
+    let scene = Arc::new(common::table_room());
+    let mut s = HierarchicalSolver::new(Arc::clone(&scene), ladder(0.2)).unwrap();
+    s.solve(&mut |_, _| {});
+    let coarse = s.solution_with(false);
+    let (leaves, links) = (s.stats().leaves, s.stats().links);
+    assert!(s.retarget(ladder(0.1)).unwrap());
+    s.solve(&mut |_, _| {});
+    let (fine_leaves, fine_links) = (s.stats().leaves, s.stats().links);
+    assert!(fine_leaves > leaves, "{fine_leaves} leaves after {leaves}");
+    assert_eq!(s.kept_states(), 1, "the coarse state is kept");
+
+    assert!(s.retarget(ladder(0.2)).unwrap(), "back to the kept state");
+    assert_eq!((s.stats().leaves, s.stats().links), (leaves, links), "the coarse state's mesh and links");
+    assert_eq!(s.kept_states(), 1, "the fine state is kept in its place");
+    s.solve(&mut |_, _| {});
+    assert_eq!((s.stats().leaves, s.stats().links), (leaves, links), "nothing more to refine");
+    let again = s.solution_with(false);
+    let mean =
+        coarse.patch_radiosity.iter().map(|b| b.mean()).sum::<f64>() / coarse.patch_radiosity.len() as f64;
+    for (i, (a, b)) in again.patch_radiosity.iter().zip(&coarse.patch_radiosity).enumerate() {
+        let d = (a.mean() - b.mean()).abs() / mean;
+        assert!(d < 1e-3, "patch {i}: {a:?} against {b:?}");
+    }
+
+    assert!(s.retarget(ladder(0.1)).unwrap(), "the finer state again");
+    assert_eq!((s.stats().leaves, s.stats().links), (fine_leaves, fine_links));
+
+    assert!(!s.retarget(ladder(0.4)).unwrap(), "coarser than every kept state");
+    assert_eq!(s.stats().leaves, scene.patches.len());
+
+    let mut off = HierarchicalSolver::new(Arc::clone(&scene), ladder(0.2)).unwrap();
+    off.keep_solved_states(false);
+    off.solve(&mut |_, _| {});
+    assert!(off.retarget(ladder(0.1)).unwrap());
+    off.solve(&mut |_, _| {});
+    assert_eq!(off.kept_states(), 0);
+    assert!(!off.retarget(ladder(0.2)).unwrap(), "nothing kept: a restart");
 }
 
 /// `solve_walk` walks the ladder warm on the contact mesh and reports each step.

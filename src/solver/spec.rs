@@ -620,9 +620,9 @@ fn budget_note(solution: &Solution, plan: &Plan) -> Option<String> {
 pub struct WalkStep {
     /// The oracle's threshold of this step ([`with_threshold`]).
     pub threshold: f64,
-    /// Whether the step started from the last one's hierarchy, links and radiosity
-    /// ([`HierarchicalSolver::retarget`]); the first step, and a step to a coarser threshold,
-    /// start cold.
+    /// Whether the step started from a solved state ([`HierarchicalSolver::retarget`]): the last
+    /// step's, for a finer threshold, or an earlier step's no finer than it, for a coarser one.
+    /// The first step, and a coarser threshold than every step before, start cold.
     pub warm: bool,
     /// Wall time of the step's solve (s).
     pub solve_s: f64,
@@ -636,9 +636,10 @@ pub struct WalkStep {
 /// Solve a hierarchical `spec` at each of `thresholds` in turn ([`with_threshold`]; the area floor
 /// follows the threshold when `floor_follows`), each step refining from where the last stopped
 /// and gathering from its radiosity when its threshold is finer ([`HierarchicalSolver::retarget`]):
-/// a warm re-solve, as a threshold slider moves. Returns the last step's solve and every step's
-/// figures. Refinement at a finer threshold only adds to what a coarser one built, so the result
-/// is a solve at the last threshold that started from the earlier ones' mesh. `stopped` says
+/// a warm re-solve, as a threshold slider moves. A coarser threshold goes back to the finest
+/// earlier step no finer than it and refines on from there. Returns the last step's solve and
+/// every step's figures. Refinement at a finer threshold only adds to what a coarser one built,
+/// so the result is a solve at the last threshold that started from the earlier ones' mesh. `stopped` says
 /// what a step stopped by `cancel` gives (and the walk ends there).
 pub fn solve_walk(
     scene: &Arc<Scene>,
@@ -660,7 +661,10 @@ pub fn solve_walk(
     let at = |t: f64| with_threshold(params, t, floor_follows);
     let mut steps = Vec::with_capacity(thresholds.len());
     let (mut cancelled, mut gathers_cut) = (false, None);
+    // A walk that never turns coarser has no state to go back to: keep none (no copies).
+    let turns_coarser = thresholds.windows(2).any(|w| w[1] > w[0]);
     let mut walk = |s: &mut HierarchicalSolver| -> Result<(), SolveError> {
+        s.keep_solved_states(turns_coarser);
         for (k, &t) in thresholds.iter().enumerate() {
             let warm = if k == 0 { false } else { s.retarget(at(t)).map_err(failed)? };
             let rays_before = if warm { s.stats().rays } else { 0 };

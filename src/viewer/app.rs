@@ -372,8 +372,9 @@ impl RadlabApp {
     }
 
     /// Change the solver parameters and, with auto-run, re-solve with them: warm where only the
-    /// thresholds got finer (the solver keeps its hierarchy, links and radiosity and refines on
-    /// from them, [`Command::Retarget`]), else from a restart. Without auto-run the solver
+    /// thresholds changed (the solver refines on from its hierarchy, links and radiosity, or
+    /// from a state it solved at a coarser threshold, [`Command::Retarget`]), else from a
+    /// restart. Without auto-run the solver
     /// restarts from the input patches, for stepping by hand.
     pub fn set_params(&mut self, p: HierarchicalParams) {
         if p == self.solve.params {

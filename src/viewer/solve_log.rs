@@ -68,6 +68,9 @@ impl SolveLog {
         if self.start == SolveStart::Warm {
             self.warm_solves += 1;
             if let Some(gathers) = start_gathers {
+                // A solve that went back to a state solved earlier (a coarser threshold) leaves
+                // the warm re-solves begun after that state: they are no longer in its plot.
+                self.resolve_marks.retain(|m| m.gathers <= gathers);
                 let threshold = super::history::oracle_threshold(params);
                 self.resolve_marks.push(ResolveMark { gathers, time_s: self.solver_time_s, threshold });
             }

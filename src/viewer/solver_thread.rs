@@ -167,7 +167,7 @@ impl<N: Fn() + Send> SolverThread<'_, N> {
         }
     }
 
-    /// New settings, the solver's state kept where only the thresholds got finer
+    /// New settings, a solved state kept where only the thresholds changed
     /// ([`HierarchicalSolver::retarget`]), else a restart.
     fn retarget(&mut self, p: HierarchicalParams) -> Reply {
         let Some(s) = self.solver.as_mut() else { return Reply::Failed("no scene loaded".into()) };

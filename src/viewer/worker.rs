@@ -383,10 +383,11 @@ pub enum Command {
     },
     /// Restart with new parameters (keeps the BVH).
     SetParams(HierarchicalParams),
-    /// New parameters, keeping what is solved where only the thresholds got finer
-    /// ([`HierarchicalSolver::retarget`]): answers [`Reply::Retargeted`] when the hierarchy,
-    /// links and radiosity were kept (the next Solve refines and gathers from them: a warm
-    /// re-solve), else restarts as `SetParams` does and answers as it does.
+    /// New parameters, keeping what is solved where only the thresholds changed
+    /// ([`HierarchicalSolver::retarget`]): answers [`Reply::Retargeted`] when a solved state
+    /// was kept (the current one, or one solved earlier at a coarser threshold; the next Solve
+    /// refines and gathers from it: a warm re-solve), else restarts as `SetParams` does and
+    /// answers as it does.
     Retarget(HierarchicalParams),
     Reset,
     Step(StepKind),
@@ -689,9 +690,10 @@ mod tests {
 
     /// A threshold made finer keeps the solved state: the Solve that follows refines on from the
     /// last one's hierarchy and gathers from its radiosity (its residuals follow the last
-    /// solve's). A coarser one restarts from the input patches.
+    /// solve's). Made coarser again it goes back to the state solved there; coarser than every
+    /// solved state, it restarts from the input patches.
     #[test]
-    fn a_finer_threshold_retargets_warm_and_a_coarser_one_restarts() {
+    fn a_finer_threshold_retargets_warm_and_a_coarser_one_goes_back_or_restarts() {
         let mut w = Worker::spawn(|| {}).unwrap();
         let p = HierarchicalParams::interactive();
         load(&mut w, "builtin:cornell", p);
@@ -721,8 +723,14 @@ mod tests {
             view.residuals.len() > solved.residuals.len() && view.residuals.starts_with(&solved.residuals),
             "the warm solve's gathers follow the last solve's"
         );
-        let Reply::Done { report: None, view } = run(&mut w, Command::Retarget(p)) else {
-            panic!("a coarser threshold restarts")
+        assert!(matches!(run(&mut w, Command::Retarget(p)), Reply::Retargeted), "back to the first solve");
+        let Reply::Done { view, .. } = run(&mut w, Command::Step(StepKind::Solve)) else {
+            panic!("the solve answers")
+        };
+        assert_eq!(view.stats.leaves, solved.stats.leaves, "the first solve's mesh");
+        let coarser = HierarchicalParams { bf_eps: p.bf_eps * 4.0, ..p };
+        let Reply::Done { report: None, view } = run(&mut w, Command::Retarget(coarser)) else {
+            panic!("a threshold coarser than every solve restarts")
         };
         assert!(view.links.is_empty() && view.residuals.is_empty(), "back to the input patches");
     }

@@ -131,7 +131,7 @@ pub(super) const SCALE_FLOOR: f64 = 0.02;
 pub(super) const SCALE_RANGE: f64 = 2.0;
 
 /// The closed rows' state.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub(super) struct Closure {
     /// Per input patch: enclosed by front faces (empty: not decided yet), and the seed the rays
     /// were cast with.

@@ -18,6 +18,7 @@
 //! - [`estimate`]: the solver's own estimate of its pointwise error;
 //! - [`cluster`]: the cluster hierarchy above the input patches and its transfer;
 //! - [`deadline`]: a time budget's end, and the estimates that leave the gathers their time;
+//! - `checkpoint`: solved states kept, so that a coarser threshold goes back to one;
 //! - `audit`: every leaf's row of F·V against what rays find in its hemisphere ([`LeafAudit`]);
 //! - `parts`: the solver's state, in named parts.
 //!
@@ -88,6 +89,7 @@
 //! unchanged, the visibility of the initial patch pairs; elements and links are rebuilt.
 
 mod audit;
+mod checkpoint;
 mod closure;
 pub mod cluster;
 pub mod deadline;
@@ -378,6 +380,10 @@ pub struct HierarchicalSolver {
     /// ([`closure`]).
     closure: closure::Closure,
     log: RunLog,
+    /// Solved states kept for a retarget to coarser thresholds ([`checkpoint`]), oldest first.
+    kept: Vec<checkpoint::Kept>,
+    /// Whether a retarget keeps the state it leaves (`keep_solved_states`).
+    keep_states: bool,
 }
 
 impl HierarchicalSolver {
@@ -408,6 +414,8 @@ impl HierarchicalSolver {
             oracle: OracleState::default(),
             cluster: ClusterState::default(),
             closure: closure::Closure::default(),
+            kept: Vec::new(),
+            keep_states: true,
         }
     }
 
@@ -450,42 +458,48 @@ impl HierarchicalSolver {
         p.validate()?;
         self.setup.set_params(p);
         self.reset();
+        self.kept.clear();
         Ok(())
     }
 
-    /// Change the oracle's thresholds and keep what is solved: with thresholds as fine or finer
-    /// (Feps, BFeps or ε, Aeps no larger, the depth and link caps no smaller), any row check
-    /// (`row_tol`) and every other setting unchanged, the hierarchy, the links and the radiosity
-    /// stay, and the next
-    /// [`solve`](Self::solve) refines from where this one stopped and gathers from the last
-    /// radiosity (a warm re-solve). Anything else restarts as [`set_params`](Self::set_params)
-    /// does. Returns whether the state was kept.
+    /// Change the oracle's thresholds and keep what is solved. With every setting but the
+    /// thresholds (Feps, BFeps or ε, Aeps, the depth and link caps) and the row check unchanged,
+    /// the solver goes on from the finest solved state whose thresholds are no finer than `p`'s:
+    /// the current one when `p` is as fine or finer (Aeps no larger, the caps no smaller), else
+    /// one kept from an earlier retarget ([`checkpoint`]; the state left is kept too). The next
+    /// [`solve`](Self::solve) refines from that state's hierarchy and links and gathers from
+    /// its radiosity (a warm re-solve). Anything else, or no such state, restarts as
+    /// [`set_params`](Self::set_params) does. Returns whether a solved state was kept.
     pub fn retarget(&mut self, p: HierarchicalParams) -> Result<bool, String> {
         p.validate()?;
         let old = self.setup.params;
-        let others_same = HierarchicalParams {
-            feps: old.feps,
-            bf_eps: old.bf_eps,
-            aeps: old.aeps,
-            max_depth: old.max_depth,
-            max_links: old.max_links,
-            row_tol: old.row_tol,
-            ..p
-        } == old;
-        let area = self.setup.scene.total_area();
-        let aeps = p.aeps.resolve(area);
-        let finer = p.feps <= old.feps
-            && p.bf_eps <= old.bf_eps
-            && aeps <= old.aeps.resolve(area)
-            && p.max_depth >= old.max_depth
-            && p.max_links >= old.max_links;
-        if !(others_same && finer && self.graph.linked) {
+        if !(checkpoint::same_but_thresholds(&old, &p) && self.graph.linked) {
             self.set_params(p)?;
             return Ok(false);
         }
-        self.setup.set_params(p);
-        self.log.converged = false;
-        self.setup.cancel.store(false, Ordering::Relaxed);
+        let area = self.setup.scene.total_area();
+        let current_fits = checkpoint::at_least_as_fine(&p, &old, area);
+        match self.state_to_restore(&p, current_fits) {
+            None if current_fits => {
+                // Refine on from here; keep this state for a later way back.
+                if p != old {
+                    self.keep_current();
+                }
+                self.setup.set_params(p);
+                self.log.converged = false;
+                self.setup.cancel.store(false, Ordering::Relaxed);
+            }
+            chosen => {
+                let chosen = chosen.map(|i| self.kept.remove(i));
+                self.keep_current();
+                let Some(k) = chosen else {
+                    self.setup.set_params(p);
+                    self.reset();
+                    return Ok(false);
+                };
+                self.restore(k, p);
+            }
+        }
         Ok(true)
     }
 

@@ -153,7 +153,7 @@ pub(super) struct OracleState {
 }
 
 /// The clusters above the input patches ([`super::cluster`]): the tree, its links and transfer.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub(super) struct ClusterState {
     /// The cluster tree (built at the first linking, when `params.cluster` applies).
     pub(super) tree: Option<Arc<ClusterTree>>,
@@ -187,7 +187,7 @@ impl ClusterState {
 }
 
 /// The run log: statistics, the residual of every gather, convergence and the power balance.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub(super) struct RunLog {
     pub(super) stats: HierarchicalStats,
     /// Residual after each gather, in order.
