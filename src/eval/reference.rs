@@ -465,7 +465,7 @@ pub fn merge_batches(batches: &[Vec<Estimate>]) -> Option<Vec<Estimate>> {
 /// estimates varied, so at the points it placed its errors are correlated with the placement
 /// and smaller than its standard errors say; a debiased score against it subtracts more noise
 /// than it holds and reads low near the reference's resolution (cornell's contact mesh at the
-/// `fine` step: 0.34 % against the layout batch, 0.95 % against an independent path tracer at
+/// `fine` step: 0.29 % against the layout batch, 0.94 % against an independent path tracer at
 /// the same points, docs/reference_crosscheck.md). The later batches are independent of the
 /// layout. Returns the estimates and how many batches they merge; `None` as [`merge_batches`].
 #[must_use]
