@@ -157,3 +157,25 @@ fn the_cli_walks_a_threshold_list() {
     assert_eq!(walk[1]["warm"], true);
     assert_eq!(walk[1]["threshold"], 0.1);
 }
+
+/// A walk that turns back (0.2, 0.1, 0.2) ends on the first step's mesh, warm: the same leaves
+/// and links as the first step, and the last step casts no rays (nothing is refined again).
+#[test]
+fn the_cli_walk_turns_back_to_a_solved_threshold() {
+    let json = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("warm-walk-back.json");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
+        .args(["solve", "builtin:table-room", "--threshold", "0.2,0.1,0.2", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{text}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let walk = doc["walk"].as_array().unwrap();
+    assert_eq!(walk.len(), 3);
+    let (first, back) = (&walk[0], &walk[2]);
+    assert_eq!(back["warm"], true, "{text}");
+    assert_eq!((&back["leaves"], &back["links"]), (&first["leaves"], &first["links"]), "{text}");
+    assert!(walk[1]["links"].as_u64() > first["links"].as_u64(), "{text}");
+    assert_eq!(back["rays"], 0, "{text}");
+}
