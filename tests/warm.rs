@@ -139,20 +139,26 @@ fn the_walk_reports_every_step_and_ends_at_the_last_threshold() {
     assert!(solved.solution.energy.relative_residual() < BALANCE_TOL);
 }
 
-/// `radlab solve --threshold A,B`: the walk in the summary and the JSON's `walk`.
-#[test]
-fn the_cli_walks_a_threshold_list() {
-    let json = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("warm-walk.json");
+/// `radlab solve builtin:table-room --threshold THRESHOLDS --json FILE`, which must succeed: its
+/// stdout and stderr, and the JSON's `walk`.
+fn cli_walk(thresholds: &str, file: &str) -> (String, Vec<serde_json::Value>) {
+    let json = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(file);
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
-        .args(["solve", "builtin:table-room", "--threshold", "0.2,0.1", "--json"])
+        .args(["solve", "builtin:table-room", "--threshold", thresholds, "--json"])
         .arg(&json)
         .output()
         .unwrap();
     let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success(), "{text}");
-    assert!(text.contains("threshold 0.1") && text.contains("warm"), "{text}");
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let walk = doc["walk"].as_array().unwrap();
+    (text, doc["walk"].as_array().unwrap().clone())
+}
+
+/// `radlab solve --threshold A,B`: the walk in the summary and the JSON's `walk`.
+#[test]
+fn the_cli_walks_a_threshold_list() {
+    let (text, walk) = cli_walk("0.2,0.1", "warm-walk.json");
+    assert!(text.contains("threshold 0.1") && text.contains("warm"), "{text}");
     assert_eq!(walk.len(), 2);
     assert_eq!(walk[1]["warm"], true);
     assert_eq!(walk[1]["threshold"], 0.1);
@@ -162,16 +168,7 @@ fn the_cli_walks_a_threshold_list() {
 /// and links as the first step, and the last step casts no rays (nothing is refined again).
 #[test]
 fn the_cli_walk_turns_back_to_a_solved_threshold() {
-    let json = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("warm-walk-back.json");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radlab"))
-        .args(["solve", "builtin:table-room", "--threshold", "0.2,0.1,0.2", "--json"])
-        .arg(&json)
-        .output()
-        .unwrap();
-    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
-    assert!(out.status.success(), "{text}");
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let walk = doc["walk"].as_array().unwrap();
+    let (text, walk) = cli_walk("0.2,0.1,0.2", "warm-walk-back.json");
     assert_eq!(walk.len(), 3);
     let (first, back) = (&walk[0], &walk[2]);
     assert_eq!(back["warm"], true, "{text}");

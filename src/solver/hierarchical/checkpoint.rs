@@ -143,6 +143,11 @@ impl HierarchicalSolver {
         self.cluster = k.cluster;
         self.closure = k.closure;
         self.log = k.log;
+        self.go_on_under(p);
+    }
+
+    /// Take parameters `p` for the solved state held now: the next solve refines on from it.
+    pub(super) fn go_on_under(&mut self, p: HierarchicalParams) {
         self.setup.set_params(p);
         self.log.converged = false;
         self.setup.cancel.store(false, Ordering::Relaxed);

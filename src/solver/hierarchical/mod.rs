@@ -485,9 +485,7 @@ impl HierarchicalSolver {
                 if p != old {
                     self.keep_current();
                 }
-                self.setup.set_params(p);
-                self.log.converged = false;
-                self.setup.cancel.store(false, Ordering::Relaxed);
+                self.go_on_under(p);
             }
             chosen => {
                 let chosen = chosen.map(|i| self.kept.remove(i));

@@ -378,12 +378,13 @@ fn galerkin(r: &Element, l: &Link) -> f64 {
 
 /// c_rq (module docs) of the link r ← q (or its mirror) from the kernel `f` at r's child
 /// points and its mean.
-fn variation(r: &Element, q: &Element, l: &Link, f: &Kern, mean: f64, fit: &CornerFit, spread_w: f64) -> f64 {
+/// `bend`: the kernel's bend at r's c_j ([`CornerFit::bend`]); `spread_w`: the spread's weight.
+fn variation(r: &Element, q: &Element, l: &Link, f: &Kern, mean: f64, bend: [f64; 4], spread_w: f64) -> f64 {
     let v = f64::from(l.vis).clamp(0.0, 1.0);
     let vw = 2.0 * v.min(1.0 - v);
     let b = q.radiosity.max_channel();
     let spread = spread_w * f[..4].iter().map(|fk| (fk - mean).abs()).fold(0.0, f64::max)
-        + fit.bend(f).iter().map(|x| x.abs()).fold(0.0, f64::max);
+        + bend.iter().map(|x| x.abs()).fold(0.0, f64::max);
     let unseen = (galerkin(r, l) - mean).abs();
     r.reflectance.max_channel() * b * (v * (spread + unseen) + vw * mean)
 }
@@ -554,18 +555,19 @@ impl HierarchicalSolver {
             let src = self.hier.get(l.source);
             let f = kernels.values[k as usize];
             let mean = kernel_mean(&f);
+            let bend_l = fit.bend(&f);
             let vb = src.radiosity * f64::from(l.vis).min(1.0);
             if vb.max_channel() > 0.0 {
                 for (hk, fk) in h.iter_mut().zip(f) {
                     *hk += vb * fk;
                 }
-                for (bj, x) in bend.iter_mut().zip(fit.bend(&f)) {
+                for (bj, x) in bend.iter_mut().zip(bend_l) {
                     *bj += vb * x;
                 }
                 disc += vb * (galerkin(e, l) - mean);
             }
             partial += src.radiosity * (f64::from(l.ff) * partial_weight(l));
-            let cv = variation(e, src, l, &f, mean, &fit, self.spread_weight());
+            let cv = variation(e, src, l, &f, mean, bend_l, self.spread_weight());
             c.push(cv);
             var.push([cv, mean]);
         }
@@ -661,7 +663,8 @@ impl HierarchicalSolver {
             Some(f) => (f, kernel_mean(&f)),
             None => kernel_at(re, &sample_points(re), qe),
         };
-        (variation(re, qe, l, &f, mean, &field.fits[r as usize], self.spread_weight()), mean)
+        let bend = field.fits[r as usize].bend(&f);
+        (variation(re, qe, l, &f, mean, bend, self.spread_weight()), mean)
     }
 
     /// The error oracle's decision on the pair (r, q) seen from the link r ← q: the element to
