@@ -164,6 +164,56 @@ impl Strata {
     }
 }
 
+/// The kernel-weighted visible fraction of a source region seen from each of `points` on a
+/// receiver (normal `n_r`, input patch `receiver_patch`): V(x_k) = Σ_s K(x_k, y_s) vis(x_k, y_s)
+/// / Σ_s K(x_k, y_s) over `rays` stratified, jittered points y_s of the source, K the point
+/// kernel's cosines over r⁴. Every point reads the same y_s, so where V does not vary across
+/// the points their differences carry no sampling noise of their own (common random numbers).
+/// None for a point that no sample faces (both cosines positive).
+#[allow(clippy::too_many_arguments)]
+pub fn point_fractions<const N: usize>(
+    accel: &Accel,
+    points: &[DVec3; N],
+    (receiver_patch, n_r): (u32, DVec3),
+    (source, source_patch, n_s): (&[DVec3], u32, DVec3),
+    rays: u32,
+    seed: u64,
+    key: u64,
+    last: &mut u32,
+) -> ([Option<f64>; N], u64) {
+    let base = splitmix64(seed ^ splitmix64(key ^ 0x7f4a_7c15_9e37_79b9));
+    let strata = Strata::new(rays);
+    let sf = Bilinear::new(accel, source);
+    let xs = points.map(|x| accel.local_f64(x));
+    let (mut w_all, mut w_vis) = ([0.0f64; N], [0.0f64; N]);
+    let mut cast = 0u64;
+    for k in 0..rays {
+        let h = splitmix64(base.wrapping_add(u64::from(k).wrapping_mul(0x9E37_79B9_7F4A_7C15)));
+        let (i, j) = (k % strata.cols, k / strata.cols);
+        let (u, v) = strata.at(i, j, jitter(h), jitter(h >> 16));
+        let y = sf.point(u, v);
+        for (m, x) in xs.iter().enumerate() {
+            let d = y - *x;
+            let (cr, cs) = (n_r.dot(d), -n_s.dot(d));
+            if cr <= 0.0 || cs <= 0.0 {
+                continue;
+            }
+            let r2 = d.length_squared();
+            let w = cr * cs / (r2 * r2);
+            w_all[m] += w;
+            let (a, b) = (
+                Vec3A::new(x.x as f32, x.y as f32, x.z as f32),
+                Vec3A::new(y.x as f32, y.y as f32, y.z as f32),
+            );
+            cast += 1;
+            if !accel.occluded_local_cached(a, b, [receiver_patch, source_patch], last) {
+                w_vis[m] += w;
+            }
+        }
+    }
+    (std::array::from_fn(|m| (w_all[m] > 0.0).then(|| w_vis[m] / w_all[m])), cast)
+}
+
 /// Estimate the visible fraction between a receiver region and a source region.
 ///
 /// `key` seeds the jitter (use something that identifies the pair, e.g. both element ids);
@@ -533,24 +583,96 @@ mod tests {
     /// Averaged over many pairs (keys), every ray count's estimate must be that: a sampling
     /// pattern that pairs the same strata for every link, or never reaches some strata, is
     /// biased whatever the key.
+    /// A square [lo, hi]² at height z, facing up or down.
+    fn square(z: f64, up: bool, lo: f64, hi: f64) -> crate::scene::Patch {
+        let mut v =
+            vec![DVec3::new(lo, lo, z), DVec3::new(hi, lo, z), DVec3::new(hi, hi, z), DVec3::new(lo, hi, z)];
+        if !up {
+            v.reverse();
+        }
+        let half = crate::math::Rgb::splat(0.5);
+        crate::scene::Patch::new(v, half, crate::math::Rgb::ZERO, "m", 0, "p", "m").unwrap()
+    }
+
+    #[test]
+    fn point_fractions_average_to_each_points_weighted_fraction() {
+        use crate::scene::Scene;
+        // A floor under a ceiling (the source), a blocker over the floor's corner at half height.
+        let (floor, ceiling, blocker) =
+            (square(0.0, true, 0.0, 1.0), square(1.0, false, 0.0, 1.0), square(0.5, true, -1.0, 0.3));
+        let cv = ceiling.vertices.clone();
+        let scene = Scene::new("t", "t", vec![floor, ceiling, blocker]);
+        let accel = Accel::build(&scene);
+        let up = DVec3::Z;
+        let pts = [DVec3::new(0.1, 0.1, 0.0), DVec3::new(0.5, 0.2, 0.0), DVec3::new(0.9, 0.9, 0.0)];
+        // The exact kernel-weighted fraction at each point, by a fine midpoint rule: a ray from
+        // x to y crosses z = 0.5 at (x + y) / 2, blocked where both coordinates are below 0.3.
+        let exact = pts.map(|x| {
+            let n = 600;
+            let (mut all, mut vis) = (0.0, 0.0);
+            for i in 0..n {
+                for j in 0..n {
+                    let y = DVec3::new(
+                        (f64::from(i) + 0.5) / f64::from(n),
+                        (f64::from(j) + 0.5) / f64::from(n),
+                        1.0,
+                    );
+                    let d = y - x;
+                    let w = d.z * d.z / (d.length_squared() * d.length_squared());
+                    all += w;
+                    let m = (x + y) * 0.5;
+                    if !(m.x < 0.3 && m.y < 0.3) {
+                        vis += w;
+                    }
+                }
+            }
+            vis / all
+        });
+        assert!(exact[2] == 1.0 && exact[0] < 0.8 && exact[0] > 0.1, "{exact:?}");
+        let keys = 2000u64;
+        let mut sum = [0.0; 3];
+        let mut sum2 = [0.0; 3];
+        for key in 0..keys {
+            let mut last = crate::geometry::accel::NO_HIT;
+            let (v, cast) = point_fractions(&accel, &pts, (0, up), (&cv, 1, -up), 16, 7, key, &mut last);
+            assert_eq!(cast, 48, "every pair faces");
+            for k in 0..3 {
+                let v = v[k].expect("the ceiling faces every point");
+                sum[k] += v;
+                sum2[k] += v * v;
+            }
+        }
+        for k in 0..3 {
+            let mean = sum[k] / keys as f64;
+            let sd = ((sum2[k] / keys as f64 - mean * mean) / keys as f64).sqrt();
+            assert!(
+                (mean - exact[k]).abs() < 4.0 * sd + 2e-3,
+                "point {k}: mean {mean:.5} ± {sd:.5}, exact {:.5}",
+                exact[k]
+            );
+        }
+        // A point that no sample faces reads None; the fully lit point reads exactly 1.
+        let mut last = crate::geometry::accel::NO_HIT;
+        let (v, _) = point_fractions(
+            &accel,
+            &[DVec3::new(0.9, 0.9, 0.0)],
+            (0, -up),
+            (&cv, 1, -up),
+            16,
+            7,
+            1,
+            &mut last,
+        );
+        assert_eq!(v, [None]);
+        let (v, _) = point_fractions(&accel, &[pts[2]], (0, up), (&cv, 1, -up), 16, 7, 1, &mut last);
+        assert_eq!(v, [Some(1.0)]);
+    }
+
     #[test]
     fn estimates_average_to_the_exact_fraction() {
-        use crate::math::Rgb;
-        use crate::scene::{Patch, Scene};
-        let sq = |z: f64, up: bool, lo: f64, hi: f64| {
-            let mut v = vec![
-                DVec3::new(lo, lo, z),
-                DVec3::new(hi, lo, z),
-                DVec3::new(hi, hi, z),
-                DVec3::new(lo, hi, z),
-            ];
-            if !up {
-                v.reverse();
-            }
-            Patch::new(v, Rgb::splat(0.5), Rgb::ZERO, "m", 0, "p", "m").unwrap()
-        };
+        use crate::scene::Scene;
         let (floor, ceiling, blocker) =
-            (sq(0.0, true, 0.0, 1.0), sq(1.0, false, 0.0, 1.0), sq(0.5, true, -1.0, 0.3));
+            (square(0.0, true, 0.0, 1.0), square(1.0, false, 0.0, 1.0), square(0.5, true, -1.0, 0.3));
         let (fv, cv) = (floor.vertices.clone(), ceiling.vertices.clone());
         let scene = Scene::new("t", "t", vec![floor, ceiling, blocker]);
         let accel = Accel::build(&scene);

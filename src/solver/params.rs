@@ -165,6 +165,13 @@ pub struct HierarchicalParams {
     /// radiosity follows that row, the solve creates light. Off in `splash2` (SPLASH-2 pushes
     /// constants).
     pub push_slopes: bool,
+    /// With `push_slopes`: a partially visible link's slope reads V at the receiver's child
+    /// points (`solver::hierarchical::oracle::kernel_slope`), where the link's penumbra can
+    /// make the receiver's answer wrong (ρ F B 2 min(V, 1 − V) above `cause_tail` · ε), instead
+    /// of the unoccluded kernel's slope times the link's average V. A penumbra across a leaf at
+    /// the area floor is then a ramp, not a step between two flat leaves. On in the ladder's
+    /// presets, off in the teaching presets and `splash2`.
+    pub vis_slopes: bool,
     /// Row check (`solver::hierarchical::refine`): no point receives more than all of its
     /// hemisphere, so a leaf whose row of F·V over its own and inherited links (with their
     /// slopes, as push-pull hands them down) exceeds 1 holds a coarse link's average where its
@@ -216,6 +223,7 @@ impl HierarchicalParams {
             max_rounds: 16,
             link_tol: 1e-3,
             row_tol: 0.05,
+            vis_slopes: false,
             ..Self::quality()
         }
     }
@@ -248,6 +256,7 @@ impl HierarchicalParams {
             five_times: false,
             link_tol: 1e-4,
             push_slopes: true,
+            vis_slopes: true,
             row_tol: 0.05,
             close_rows: true,
             cause_tail: DEFAULT_CAUSE_TAIL,
@@ -266,6 +275,7 @@ impl HierarchicalParams {
             max_depth: 12,
             max_rounds: 1,
             row_tol: 0.0,
+            vis_slopes: false,
             ..Self::quality()
         }
     }
@@ -293,6 +303,7 @@ impl HierarchicalParams {
             five_times: true,
             link_tol: 0.0,
             push_slopes: false,
+            vis_slopes: false,
             row_tol: 0.0,
             settle: 1e-3,
             ..Self::quality()

@@ -281,6 +281,11 @@ pub struct SolverArgs {
     /// "Push-pull with slopes").
     #[arg(long)]
     pub push_slopes: Option<bool>,
+    /// With push-slopes: a partially visible link's slope reads the visibility at the
+    /// receiver's child points where its penumbra matters (a shadow's ramp across a leaf, not a
+    /// step between leaves): true in the ladder's presets (hierarchical, error oracle).
+    #[arg(long)]
+    pub vis_slopes: Option<bool>,
     /// Closed rows: balance the rows of form factors of the leaves of enclosed patches to exactly
     /// 1 by a symmetric scaling, so the white furnace is exact under every oracle and no enclosed
     /// leaf loses or creates light: true in every preset (hierarchical, not clustered, Jacobi;
@@ -482,6 +487,9 @@ pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalPara
     }
     if let Some(v) = args.cause_tail {
         p.cause_tail = v;
+    }
+    if let Some(v) = args.vis_slopes {
+        p.vis_slopes = v;
     }
     if let Some(v) = args.push_slopes {
         p.push_slopes = v;

@@ -378,7 +378,20 @@ impl HierarchicalSolver {
         let links_changed = self.gather.links_changed();
         if links_changed {
             if params.push_slopes {
-                fill_slopes(&mut self.hier, &mut self.graph.links, &self.oracle.error_kernels);
+                // At most 16 rays a point: the slope reads a ramp, not a fraction to a percent.
+                let vis = params.vis_slopes.then(|| super::push_pull::VisSlopes {
+                    accel: &self.setup.accel,
+                    seed: params.seed,
+                    rays: params.rays.min(16),
+                    floor: params.cause_tail * self.setup.bf_eps,
+                });
+                let cast = fill_slopes(
+                    &mut self.hier,
+                    &mut self.graph.links,
+                    &self.oracle.error_kernels,
+                    vis.as_ref(),
+                );
+                self.log.stats.rays += cast;
             }
             self.gather.sync_plan(&self.graph.links, params.push_slopes.then_some(&self.hier));
         }

@@ -245,6 +245,17 @@ pub(super) struct FitWeights {
 }
 
 impl FitWeights {
+    /// The fitted gradient of the values at the four points (the first four of `vals`) about
+    /// their `mean`.
+    fn gradient(&self, vals: &[f64], mean: f64) -> [f64; 2] {
+        let (mut gu, mut gv) = (0.0, 0.0);
+        for ((x, wu), wv) in vals.iter().zip(self.u).zip(self.v) {
+            gu += (x - mean) * wu;
+            gv += (x - mean) * wv;
+        }
+        [gu, gv]
+    }
+
     /// None when the points are (nearly) collinear.
     pub(super) fn new(pts: &[DVec3; 4], c: DVec3, t1: DVec3, t2: DVec3) -> Option<FitWeights> {
         let uv = pts.map(|x| ((x - c).dot(t1), (x - c).dot(t2)));
@@ -287,9 +298,16 @@ impl SlopeFrame {
 /// The gradient, across `r` in the basis `orthonormal_basis(r.normal)`, of the transfer
 /// F(x → q) of the link r ← q with visibility `vis` and Galerkin coefficient `f` (r's average):
 /// the least-squares affine fit of the exact point kernel at r's four child points, times V,
-/// limited so that f + gradient·(x − centroid) stays ≥ 0 at r's vertices (so on all of r).
+/// limited so that f V + gradient·(x − centroid) stays ≥ 0 at r's vertices (so on all of r).
 /// `frame`: r's [`SlopeFrame`]; `known`: the kernel at r's child points if already evaluated
 /// (the error oracle's [`known_kernel`]), the same numbers.
+///
+/// With `read` (a partially visible link, `HierarchicalParams::vis_slopes`), the fit is of
+/// F(x_k → q) V(x_k), V(x_k) the fraction of q that x_k sees ([`VisRead`]): a penumbra across r
+/// is a gradient of V that the link's average hides, and with it the leaf's slope follows the
+/// shadow's ramp instead of the unoccluded kernel's. That ramp is convex (flat in the umbra,
+/// rising across the penumbra), so its affine fit dips below 0 at the dark edge: the link's
+/// share may go below 0 there as far as the rest of r's irradiance keeps r's total ≥ 0.
 pub(super) fn kernel_slope(
     frame: &SlopeFrame,
     r: &Element,
@@ -297,6 +315,7 @@ pub(super) fn kernel_slope(
     vis: f64,
     f: f64,
     known: Option<Kern>,
+    read: Option<&VisRead>,
 ) -> [f64; 2] {
     let SlopeFrame { pts, t1, t2, w: Some(w) } = frame else {
         return [0.0; 2];
@@ -306,20 +325,40 @@ pub(super) fn kernel_slope(
         Some(k) => (k, kernel_mean(&k)),
         None => kernel_at4(r, pts, q),
     };
-    let (mut gu, mut gv) = (0.0, 0.0);
-    for ((ki, wu), wv) in k.iter().zip(w.u).zip(w.v) {
-        gu += (ki - mean) * wu;
-        gv += (ki - mean) * wv;
-    }
-    let (gu, gv) = (gu * vis, gv * vis);
+    let Some(read) = read else {
+        let [gu, gv] = w.gradient(&k, mean);
+        return limit_slope(r, t1, t2, [gu * vis, gv * vis], f * vis);
+    };
+    let fv: [f64; 4] = std::array::from_fn(|i| k[i] * read.at[i].unwrap_or(vis));
+    let g = w.gradient(&fv, 0.25 * (fv[0] + fv[1] + fv[2] + fv[3]));
+    limit_slope(r, t1, t2, g, (f * vis).max(read.rest))
+}
+
+/// What [`kernel_slope`] reads of a partially visible link's visibility across its receiver.
+pub(super) struct VisRead {
+    /// V(x_k) at the receiver's four child points (None where no sample faced the point: the
+    /// link's V).
+    pub at: [Option<f64>; 4],
+    /// The receiver's whole irradiance in units of the source's radiosity: how far below 0
+    /// the link's own share may go at the receiver's edge.
+    pub rest: f64,
+}
+
+/// Scale the gradient `g` (basis t1, t2) so that `fv` + g·(x − centroid) stays ≥ 0 at r's
+/// vertices.
+fn limit_slope(r: &Element, t1: DVec3, t2: DVec3, [gu, gv]: [f64; 2], fv: f64) -> [f64; 2] {
     let reach = r
         .vertices()
         .iter()
         .map(|&x| (gu * (x - r.centroid).dot(t1) + gv * (x - r.centroid).dot(t2)).abs())
         .fold(0.0, f64::max);
-    let fv = f * vis;
     let limit = if reach > fv { fv / reach } else { 1.0 };
     if limit.is_finite() { [gu * limit, gv * limit] } else { [0.0; 2] }
+}
+
+/// The child points of a slope frame (where [`kernel_slope`] reads V).
+pub(super) fn frame_points(frame: &SlopeFrame) -> &[DVec3; 4] {
+    &frame.pts
 }
 
 /// F(x_k → q) at the four child points of `r`, and their mean.

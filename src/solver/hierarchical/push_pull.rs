@@ -356,53 +356,116 @@ impl HierarchicalSolver {
 
 /// Fill `Link::slope` of every link of `links` that has none yet (parallel over receivers; a link's
 /// slope depends on its two elements and V only, so it is computed once per link).
-pub(super) fn fill_slopes(hier: &mut Hierarchy, links: &mut LinkStore, kernels: &[Kernels]) {
+pub(super) fn fill_slopes(
+    hier: &mut Hierarchy,
+    links: &mut LinkStore,
+    kernels: &[Kernels],
+    vis: Option<&VisSlopes<'_>>,
+) -> u64 {
     // Each element's frame, made once for all the links it is an end of.
     let frames: Vec<oracle::SlopeFrame> = hier.elements.par_iter().map(oracle::SlopeFrame::of).collect();
-    let sums: Vec<[f64; 2]> = links
+    let sums: Vec<([f64; 2], u64)> = links
         .by_receiver
         .par_iter_mut()
         .enumerate()
         .with_min_len(64)
         .map(|(r, ls)| {
             let re = hier.get(r as u32);
+            let mut cast = 0;
+            let mut last = crate::geometry::accel::NO_HIT;
             for l in ls.iter_mut().filter(|l| !l.slope_set) {
                 let v = f64::from(l.vis).clamp(0.0, 1.0);
                 let se = hier.get(l.source);
                 let g = f64::from(l.g);
-                // Both sides from the same inputs as the mirror link's: bit-identical.
-                (l.slope, l.src_slope) = if v > 0.0 {
+                let s = l.source;
+                // A side's slope reads V at its child points where the link's penumbra matters
+                // to it (`VisSlopes`), from inputs the mirror link's reads alike.
+                let read = |x: u32, xe: &Element, ye: &Element, y: u32, cast: &mut u64, last: &mut u32| {
+                    vis.and_then(|vs| vs.read(&frames[x as usize], (x, xe), (y, ye), v, g, cast, last))
+                };
+                let (at_r, at_s) = if v > 0.0 && v < 1.0 && !l.unmeasured {
                     (
-                        oracle::kernel_slope(
-                            &frames[r],
-                            re,
-                            se,
-                            v,
-                            g / re.area,
-                            oracle::known_kernel(kernels, r as u32, l.source),
-                        )
-                        .map(|x| x as f32),
-                        oracle::kernel_slope(
-                            &frames[l.source as usize],
-                            se,
-                            re,
-                            v,
-                            g / se.area,
-                            oracle::known_kernel(kernels, l.source, r as u32),
-                        )
-                        .map(|x| x as f32),
+                        read(r as u32, re, se, s, &mut cast, &mut last),
+                        read(s, se, re, r as u32, &mut cast, &mut last),
                     )
+                } else {
+                    (None, None)
+                };
+                // Both sides from the same inputs as the mirror link's: bit-identical.
+                let side = |x: u32, xe: &Element, ye: &Element, y: u32, at: Option<[Option<f64>; 4]>| {
+                    let (frame, f, known) =
+                        (&frames[x as usize], g / xe.area, oracle::known_kernel(kernels, x, y));
+                    let read = at.map(|at| {
+                        // x's irradiance in units of y's radiosity: what keeps x's total ≥ 0.
+                        let h = (xe.radiosity - xe.emission).max_channel()
+                            / xe.reflectance.max_channel().max(1e-12);
+                        oracle::VisRead { at, rest: h / ye.radiosity.max_channel().max(1e-300) }
+                    });
+                    oracle::kernel_slope(frame, xe, ye, v, f, known, read.as_ref()).map(|x| x as f32)
+                };
+                (l.slope, l.src_slope) = if v > 0.0 {
+                    (side(r as u32, re, se, s, at_r), side(s, se, re, r as u32, at_s))
                 } else {
                     ([0.0; 2], [0.0; 2])
                 };
                 l.slope_set = true;
             }
             // Over every own link (a split may have removed some since the last fill).
-            ls.iter().fold([0.0; 2], |[u, v], l| [u + f64::from(l.slope[0]), v + f64::from(l.slope[1])])
+            (
+                ls.iter().fold([0.0; 2], |[u, v], l| [u + f64::from(l.slope[0]), v + f64::from(l.slope[1])]),
+                cast,
+            )
         })
         .collect();
-    for (e, s) in hier.elements.iter_mut().zip(sums) {
+    let mut cast = 0;
+    for (e, (s, c)) in hier.elements.iter_mut().zip(sums) {
         e.fv_slope = s;
+        cast += c;
+    }
+    cast
+}
+
+/// Where a partially visible link's slope reads V at the receiver's child points
+/// ([`oracle::kernel_slope`]): on a side whose answer the link's penumbra can make wrong,
+/// ρ_x F_x B_y 2 min(V, 1 − V) > `floor`, with `rays` kernel-weighted rays from each point.
+pub(super) struct VisSlopes<'a> {
+    pub accel: &'a crate::geometry::accel::Accel,
+    pub seed: u64,
+    pub rays: u32,
+    pub floor: f64,
+}
+
+impl VisSlopes<'_> {
+    /// V at x's child points towards y, if the link matters enough to x (else None).
+    #[allow(clippy::too_many_arguments)]
+    fn read(
+        &self,
+        frame: &oracle::SlopeFrame,
+        (x, xe): (u32, &Element),
+        (y, ye): (u32, &Element),
+        v: f64,
+        g: f64,
+        cast: &mut u64,
+        last: &mut u32,
+    ) -> Option<[Option<f64>; 4]> {
+        let weight = 2.0 * v.min(1.0 - v);
+        let matters =
+            xe.reflectance.max_channel() * (g / xe.area) * ye.radiosity.max_channel() * weight > self.floor;
+        if !matters {
+            return None;
+        }
+        let (at, c) = crate::geometry::visibility::point_fractions(
+            self.accel,
+            oracle::frame_points(frame),
+            (xe.patch, xe.normal),
+            (ye.vertices(), ye.patch, ye.normal),
+            self.rays,
+            self.seed,
+            super::refine::pair_key(x, y),
+            last,
+        );
+        *cast += c;
+        Some(at)
     }
 }
 
