@@ -2350,7 +2350,8 @@ fn opened_without_a_preset_it_shows_interactive_first_and_refines_on_warm_to_qua
     assert!(Arc::ptr_eq(h.state().view(), &v) && !h.state().busy());
 }
 
-/// With a preset asked for, the viewer opens at exactly that one: one solve, cold, no step on.
+/// With a preset asked for, the viewer opens at exactly that one: one solve, cold, no step on
+/// (and with the refinement replay asked for, at the default alone).
 #[test]
 fn opened_with_a_preset_it_stays_at_that_preset() {
     use radlab::solver::spec::Preset;
@@ -2366,6 +2367,9 @@ fn opened_with_a_preset_it_stays_at_that_preset() {
     assert_eq!(h.state().last_solve().map(|n| n.start), Some(SolveStart::Cold));
     assert_eq!((h.state().solve_runs(), h.state().warm_solves()), (1, 0), "one solve, nothing after it");
     assert!(!h.state().busy() && h.state().errors().is_empty(), "{:?}", h.state().errors());
+    // The refinement replay of the first solve, with no preset asked for: the default alone.
+    let h = harness(ViewerOptions { replay: Some(0), ..opened_at_the_default() });
+    assert_eq!((h.state().preset(), h.state().opening()), ("quality", Opening::Off));
 }
 
 /// A preset the user chooses before the opening reaches the default stays theirs: the step on

@@ -39,7 +39,8 @@ pub struct Args {
     pub overlay: Vec<Overlay>,
     /// Solver preset: the ladder draft, interactive, quality, fine, reference (the error oracle
     /// on the contact mesh); bf, lecture, splash2 (on the quadtree). Without it: quality, the
-    /// default, shown first at interactive and then refined on warm to quality.
+    /// default, shown first at interactive and then refined on warm to quality (with --replay:
+    /// quality alone).
     #[arg(long)]
     pub preset: Option<String>,
     /// Benchmark: solve, draw N frames, print the median frame time and exit.

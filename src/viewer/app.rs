@@ -214,8 +214,10 @@ impl RadlabApp {
         if let Some(f) = self.opts.figure {
             self.open_figure(f);
         } else if !spec.is_empty() {
+            // (Not for the refinement replay of the first solve: it opens at the default alone.)
             let progressive = self.opts.preset.is_none()
                 && self.opts.solve_on_start
+                && self.opts.replay.is_none()
                 && self.solve.mesh.method == MeshMethod::Quadtree
                 && FIRST_PICTURE != Preset::DEFAULT;
             if progressive {
