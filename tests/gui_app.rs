@@ -85,7 +85,7 @@ fn opts() -> ViewerOptions {
         // These tests step the solver by hand from the input patches: the quadtree's BF preset
         // (the ladder's presets refine the contact mesh; `the_default_path_steps_on_the_contact_mesh`).
         solve_on_start: false,
-        preset: "bf".into(),
+        preset: Some("bf".into()),
         // Tests must not depend on (or open) a desktop file dialog.
         desktop_file_dialog: false,
         ..ViewerOptions::default()
@@ -589,7 +589,7 @@ fn reference_computation_shows_progress_and_can_be_cancelled() {
 
 #[test]
 fn a_long_solve_shows_its_progress_and_can_be_cancelled() {
-    let mut h = harness(ViewerOptions { preset: "quality".into(), ..opts() });
+    let mut h = harness(ViewerOptions { preset: Some("quality".into()), ..opts() });
     h.state_mut().load_spec("builtin:splash_room");
     settle(&mut h);
     assert!(h.query_by_label_contains("idle").is_some(), "the progress line is there before any step");
@@ -654,7 +654,7 @@ fn a_mesh_solve_can_be_cancelled() {
 /// solver's state (refined, lit) while the solve goes on.
 #[test]
 fn a_long_solve_shows_intermediate_pictures() {
-    let mut h = harness(ViewerOptions { preset: "quality".into(), ..opts() });
+    let mut h = harness(ViewerOptions { preset: Some("quality".into()), ..opts() });
     h.state_mut().load_spec("builtin:splash_room");
     settle(&mut h);
     // Back to the input patches (auto-run may have solved the scene already).
@@ -2215,9 +2215,7 @@ fn a_panic_on_the_display_thread_is_reported_not_waited_for() {
 /// Push-pull and Solve step it, and a teaching preset goes back to the quadtree.
 #[test]
 fn the_default_path_steps_on_the_contact_mesh() {
-    let defaults = ViewerOptions::default();
-    assert_eq!(defaults.preset, "interactive");
-    let mut h = harness(ViewerOptions { preset: defaults.preset, ..opts() });
+    let mut h = harness(ViewerOptions { preset: Some("interactive".into()), ..opts() });
     h.state_mut().set_scene(Arc::new(cornell()));
     settle(&mut h);
     let patches = cornell().patches.len();
@@ -2278,6 +2276,142 @@ fn the_default_path_steps_on_the_contact_mesh() {
     settle(&mut h);
     assert_eq!(roots(h.state().view()), patches, "the quadtree's roots are the input patches");
     assert!(h.query_by_label("Mesh: quadtree").is_some());
+}
+
+/// Draw frames (the app picks up the solver's answers in each) until `done`, for at most
+/// [`WAIT_S`] seconds (`what`: what is waited for, for the failure's message).
+fn frames_until(h: &mut Harness<'static, RadlabApp>, what: &str, done: impl Fn(&RadlabApp) -> bool) {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(WAIT_S);
+    while !done(h.state()) {
+        assert!(std::time::Instant::now() < deadline, "{what}: not in {WAIT_S} s");
+        assert!(h.state().errors().is_empty(), "{what}: {:?}", h.state().errors());
+        std::thread::sleep(std::time::Duration::from_millis(10));
+        h.run_steps(1);
+    }
+}
+
+/// The viewer opened on a scene with no preset asked for: `cornell` at the default.
+fn opened_at_the_default() -> ViewerOptions {
+    ViewerOptions { scene: "builtin:cornell".into(), preset: None, solve_on_start: true, ..opts() }
+}
+
+/// Opened with no preset asked for, the viewer shows a first picture at `interactive`, then
+/// refines on warm to `quality`, the default (`Command::Retarget`: the interactive solve's
+/// hierarchy, links and radiosity kept): the Solver panel names quality, the status bar says
+/// what goes on and then how the warm solve went, and the residual plot marks where it began.
+#[test]
+fn opened_without_a_preset_it_shows_interactive_first_and_refines_on_warm_to_quality() {
+    use radlab::solver::spec::Preset;
+    use radlab::viewer::solve::Opening;
+    assert_eq!(ViewerOptions::default().preset, None, "no preset asked for by default");
+    let mut h = harness(opened_at_the_default());
+    assert_eq!(h.state().preset(), "interactive", "the first picture's preset");
+    assert_eq!(h.state().opening(), Opening::FirstPicture { then: Preset::Quality });
+    // The first picture: the interactive solve, shown while the warm re-solve runs.
+    frames_until(&mut h, "the first picture", |a| {
+        a.opening() != Opening::FirstPicture { then: Preset::Quality }
+    });
+    assert_eq!(h.state().opening(), Opening::GoingOn { to: Preset::Quality });
+    let first = Arc::clone(h.state().view());
+    assert_eq!(first.params, Preset::Interactive.hierarchical(), "the first picture is interactive's");
+    assert!(first.stats.links > 0 && !first.residuals.is_empty(), "and solved");
+    assert_eq!(h.state().last_report().map(|r| (r.kind, r.cancelled)), Some((StepKind::Solve, false)));
+    assert_eq!(h.state().solve_runs(), 1);
+    assert_eq!(h.state().preset(), "quality", "the Solver panel names the default at once");
+    assert_eq!(h.state().params(), Preset::Quality.hierarchical());
+    h.run_steps(1);
+    assert!(
+        h.query_by_label_contains("first picture at interactive; refining on to quality").is_some(),
+        "the status bar says what goes on"
+    );
+    // Then quality, warm.
+    frames_until(&mut h, "the quality picture", |a| a.opening() == Opening::Off && !a.busy());
+    settle(&mut h);
+    let v = Arc::clone(h.state().view());
+    assert_eq!(v.params, Preset::Quality.hierarchical(), "the default's picture");
+    assert_eq!(h.state().last_solve().map(|n| n.start), Some(SolveStart::Warm), "refined on warm");
+    assert_eq!(h.state().warm_solves(), 1);
+    assert!(v.stats.links > first.stats.links, "links {} then {}", first.stats.links, v.stats.links);
+    assert!(v.stats.leaves > first.stats.leaves, "leaves {} then {}", first.stats.leaves, v.stats.leaves);
+    assert!(
+        v.residuals.len() > first.residuals.len() && v.residuals.starts_with(&first.residuals),
+        "the warm solve's gathers follow the first picture's"
+    );
+    let marks = h.state().resolve_marks();
+    assert_eq!(marks.len(), 1, "the residual plot marks the warm re-solve: {marks:?}");
+    assert_eq!(marks[0].gathers, first.residuals.len(), "where the first picture's gathers end");
+    assert_eq!(h.state().solve_runs(), 2, "two runs: the first picture and quality");
+    assert_eq!(h.state().preset(), "quality");
+    assert!(h.query_by_label_contains("re-solved warm in").is_some(), "the usual solved line");
+    assert!(h.query_by_label_contains("refining on to").is_none(), "the note is gone");
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+    // Nothing more is sent.
+    settle(&mut h);
+    assert!(Arc::ptr_eq(h.state().view(), &v) && !h.state().busy());
+}
+
+/// With a preset asked for, the viewer opens at exactly that one: one solve, cold, no step on
+/// (and with the refinement replay asked for, at the default alone).
+#[test]
+fn opened_with_a_preset_it_stays_at_that_preset() {
+    use radlab::solver::spec::Preset;
+    use radlab::viewer::solve::Opening;
+    let mut h = harness(ViewerOptions { preset: Some("interactive".into()), ..opened_at_the_default() });
+    assert_eq!(h.state().opening(), Opening::Off);
+    frames_until(&mut h, "the solve", |a| a.solve_runs() == 1 && !a.busy());
+    for _ in 0..3 {
+        settle(&mut h);
+    }
+    assert_eq!(h.state().view().params, Preset::Interactive.hierarchical());
+    assert_eq!(h.state().preset(), "interactive");
+    assert_eq!(h.state().last_solve().map(|n| n.start), Some(SolveStart::Cold));
+    assert_eq!((h.state().solve_runs(), h.state().warm_solves()), (1, 0), "one solve, nothing after it");
+    assert!(!h.state().busy() && h.state().errors().is_empty(), "{:?}", h.state().errors());
+    // The refinement replay of the first solve, with no preset asked for: the default alone.
+    let h = harness(ViewerOptions { replay: Some(0), ..opened_at_the_default() });
+    assert_eq!((h.state().preset(), h.state().opening()), ("quality", Opening::Off));
+}
+
+/// A preset the user chooses before the opening reaches the default stays theirs: the step on
+/// to quality is not sent, or stops where it runs (here `draft`, chosen as soon as the scene is
+/// loaded, during the first picture's solve or just after it).
+#[test]
+fn a_preset_chosen_during_the_opening_is_kept() {
+    use radlab::solver::spec::Preset;
+    use radlab::viewer::solve::Opening;
+    let mut h = harness(opened_at_the_default());
+    frames_until(&mut h, "the load", |a| !a.view().elements.is_empty());
+    h.state_mut().select_preset("draft");
+    assert_eq!(h.state().opening(), Opening::Off, "the user took over");
+    for _ in 0..3 {
+        settle(&mut h);
+    }
+    frames_until(&mut h, "the draft solve", |a| !a.busy());
+    settle(&mut h);
+    assert_eq!(h.state().preset(), "draft");
+    assert_eq!(h.state().view().params, Preset::Draft.hierarchical(), "the user's preset is shown");
+    let quality = Preset::Quality.hierarchical();
+    assert!(
+        h.state().history.runs().iter().all(|r| r.view.as_ref().is_none_or(|v| v.params != quality)),
+        "no quality solve was run"
+    );
+    assert!(h.query_by_label_contains("refining on to").is_none());
+    assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
+}
+
+/// A scripted run (`--screenshot`) opened with no preset writes the default's picture: it waits
+/// for the warm step on to quality, not the first picture.
+#[test]
+fn a_screenshot_without_a_preset_waits_for_quality() {
+    use radlab::solver::spec::Preset;
+    let shot = std::env::temp_dir().join(format!("radlab-gui-opening-{}.png", std::process::id()));
+    let mut h = harness(ViewerOptions { screenshot: Some(shot.clone()), ..opened_at_the_default() });
+    frames_until(&mut h, "the screenshot", |a| a.exit_code().is_some());
+    assert_eq!(h.state().exit_code(), Some(0), "{:?}", h.state().exit_error());
+    assert_eq!(h.state().view().params, Preset::Quality.hierarchical(), "the picture is quality's");
+    assert_eq!(h.state().warm_solves(), 1);
+    assert!(std::fs::metadata(&shot).is_ok_and(|m| m.len() > 0), "the PNG is written");
+    let _ = std::fs::remove_file(&shot);
 }
 
 /// One frame, and what it shows is a finished solution: lit leaves (a solve's, or a gather's

@@ -38,9 +38,11 @@ pub struct Args {
     #[arg(long, value_enum, value_delimiter = ',', default_value = "none")]
     pub overlay: Vec<Overlay>,
     /// Solver preset: the ladder draft, interactive, quality, fine, reference (the error oracle
-    /// on the contact mesh); bf, lecture, splash2 (on the quadtree).
-    #[arg(long, default_value = "interactive")]
-    pub preset: String,
+    /// on the contact mesh); bf, lecture, splash2 (on the quadtree). Without it: quality, the
+    /// default, shown first at interactive and then refined on warm to quality (with --replay:
+    /// quality alone).
+    #[arg(long)]
+    pub preset: Option<String>,
     /// Benchmark: solve, draw N frames, print the median frame time and exit.
     #[arg(long, value_name = "N")]
     pub bench_frames: Option<usize>,
@@ -105,7 +107,7 @@ impl Args {
             scene: "builtin:cornell".into(),
             screenshot: None,
             overlay: vec![Overlay::None],
-            preset: "interactive".into(),
+            preset: None,
             bench_frames: None,
             pick: None,
             window: false,
@@ -176,12 +178,10 @@ fn parse_point(s: &str) -> Result<[f32; 2], String> {
 #[cfg(feature = "gui")]
 pub fn run(args: Args) -> anyhow::Result<()> {
     use radlab::viewer::ViewerOptions;
-    if radlab::solver::spec::Preset::from_name(&args.preset).is_none() {
-        anyhow::bail!(
-            "--preset {:?}: unknown preset (one of {})",
-            args.preset,
-            radlab::solver::spec::Preset::names()
-        );
+    if let Some(name) = &args.preset
+        && radlab::solver::spec::Preset::from_name(name).is_none()
+    {
+        anyhow::bail!("--preset {name:?}: unknown preset (one of {})", radlab::solver::spec::Preset::names());
     }
     if args.bench_frames == Some(0) {
         anyhow::bail!("--bench-frames must be at least 1");

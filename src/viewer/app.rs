@@ -43,7 +43,7 @@ use super::reference::{RefClient, RefThread};
 use super::replay::Replay;
 use super::script::{Script, ScriptRun};
 use super::shown::Shown;
-use super::solve::SolveState;
+use super::solve::{FIRST_PICTURE, Opening, SolveState};
 use super::solve_log::SolveLog;
 use super::solver_panel::{MESH_SOLVE_LABEL, SolverPanel};
 use super::split::SplitView;
@@ -54,7 +54,7 @@ use crate::present::figures::Figure;
 use crate::present::overlay::LinkFilter;
 use crate::render::SceneRenderer;
 use crate::scene::Scene;
-use crate::solver::hierarchical::StepKind;
+use crate::solver::hierarchical::{StepKind, StepReport};
 use crate::solver::meshed::{MeshMethod, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
 use crate::solver::spec::{Preset, TopLevel};
@@ -127,7 +127,9 @@ impl RadlabApp {
         let worker = Worker::spawn(move || ctx.request_repaint());
         let ctx = cc.egui_ctx.clone();
         let display_builder = Builder::spawn(move || ctx.request_repaint());
-        let preset = Preset::from_name(&opts.preset).unwrap_or(Preset::Interactive);
+        // No preset asked for: the default (`start_as_asked` may open on the way to it).
+        let asked = opts.preset.as_deref().map(Preset::from_name);
+        let preset = asked.flatten().unwrap_or(Preset::DEFAULT);
         let mesh = opts.mesh.unwrap_or(MeshSolveParams::new(MeshMethod::Quadtree));
         let mut app = RadlabApp {
             scene: None,
@@ -164,6 +166,10 @@ impl RadlabApp {
             Ok(w) => app.solve.worker = Some(w),
             Err(e) => app.errors.push(e),
         }
+        if let (Some(None), Some(name)) = (asked, &app.opts.preset) {
+            let e = format!("unknown preset {name:?} (one of {}); {} used", Preset::names(), preset.name());
+            app.errors.push(e);
+        }
         app.start_threads(cc);
         app.start_as_asked();
         app
@@ -184,7 +190,8 @@ impl RadlabApp {
     }
 
     /// What the options ask of the first frames: the split view, the history, the replay and
-    /// the reconstruction, a scripted run, and the figure or scene to open.
+    /// the reconstruction, a scripted run, and the figure or scene to open (without a preset
+    /// asked for, solved on the way to the default: [`Opening`]).
     fn start_as_asked(&mut self) {
         if let Some(n) = self.opts.split {
             self.split.on = true;
@@ -207,7 +214,60 @@ impl RadlabApp {
         if let Some(f) = self.opts.figure {
             self.open_figure(f);
         } else if !spec.is_empty() {
+            // (Not for the refinement replay of the first solve: it opens at the default alone.)
+            let progressive = self.opts.preset.is_none()
+                && self.opts.solve_on_start
+                && self.opts.replay.is_none()
+                && self.solve.mesh.method == MeshMethod::Quadtree
+                && FIRST_PICTURE != Preset::DEFAULT;
+            if progressive {
+                self.solver_panel.preset = FIRST_PICTURE.name().to_owned();
+            }
             self.load_spec(&spec);
+            if progressive && self.scene.is_some() {
+                self.solve.opening = Opening::FirstPicture { then: Preset::DEFAULT };
+            } else if progressive {
+                // Nothing opened: the panel names the default for the next scene.
+                self.solver_panel.preset = Preset::DEFAULT.name().to_owned();
+                self.solve.params = Preset::DEFAULT.hierarchical();
+            }
+        }
+    }
+
+    /// The user acts on the solver (a setting, a preset, a step, Reset, Cancel, another mesh or
+    /// scene): the opening's way on to the default ends, its step not sent if it has not
+    /// started, and the status bar's line about it goes.
+    fn leave_opening(&mut self) {
+        let opening = std::mem::take(&mut self.solve.opening);
+        if opening.note().is_some_and(|n| n == self.status_bar.message) {
+            self.status_bar.message.clear();
+        }
+    }
+
+    /// The opening after a command of the solver thread finished (`report`: its step's, `None`
+    /// for a restart): its first picture solved, it goes on warm to the default (as choosing it
+    /// in the preset box does, with auto-run) when the solver has nothing else to do; then the
+    /// default's solve ends it.
+    fn opening_after(&mut self, report: Option<StepReport>) {
+        let solved = report.is_some_and(|r| r.kind == StepKind::Solve && !r.cancelled);
+        let view = &self.shown.view;
+        match self.solve.opening {
+            Opening::Off => {}
+            Opening::FirstPicture { then } => {
+                self.solve.opening = Opening::Off;
+                let first = view.mesh.is_none() && view.params == FIRST_PICTURE.hierarchical();
+                let idle = !self.busy() && !self.solve.resolve_pending && !self.solve.loading;
+                if solved && first && idle && self.solve.auto_run {
+                    self.select_preset(then.name());
+                    if self.busy() || self.solve.resolve_pending {
+                        self.solve.opening = Opening::GoingOn { to: then };
+                        self.status_bar.message = self.solve.opening.note().unwrap_or_default();
+                    }
+                }
+            }
+            // A restart's answer (the state was not kept): the solve follows.
+            Opening::GoingOn { .. } if report.is_none() => {}
+            Opening::GoingOn { .. } => self.leave_opening(),
         }
     }
 
@@ -271,7 +331,7 @@ impl RadlabApp {
     fn queue_figure_solves(&mut self, f: &'static Figure) {
         for &bf_eps in f.sweep_bf_eps {
             self.solve.send(Command::SetParams(HierarchicalParams { bf_eps, ..f.params }), "restarting");
-            self.step(StepKind::Solve);
+            self.send_step(StepKind::Solve);
         }
         if !f.sweep_bf_eps.is_empty() {
             self.solve.send(Command::SetParams(f.params), "restarting");
@@ -280,7 +340,7 @@ impl RadlabApp {
             self.solve.send(Command::SolveMesh(m, DmeshOptions::default()), MESH_SOLVE_LABEL);
         }
         for &k in f.steps {
-            self.step(k);
+            self.send_step(k);
         }
     }
 
@@ -307,6 +367,7 @@ impl RadlabApp {
 
     /// Show a scene with the settings as they are (a figure's).
     fn show_scene(&mut self, scene: Arc<Scene>) {
+        self.leave_opening();
         // A figure's caption and pick belong to its scene (`open_figure` sets them again).
         self.lecture.clear();
         if self.script.script == Script::None {
@@ -339,13 +400,21 @@ impl RadlabApp {
         self.solve.send(Command::Load { scene, params, top }, "loading");
         self.solve.loading = self.solve.worker.is_some();
         if self.opts.solve_on_start {
-            self.step(StepKind::Solve);
+            self.send_step(StepKind::Solve);
         }
     }
 
-    /// Run a solver step (as the buttons do). On a mesh other than the quadtree, Solve is the
-    /// mesh solve and the hierarchical steps are refused (a status line says so).
+    /// Run a solver step (as the buttons do; the user's step ends the opening's way on to the
+    /// default). On a mesh other than the quadtree, Solve is the mesh solve and the
+    /// hierarchical steps are refused (a status line says so).
     pub fn step(&mut self, kind: StepKind) {
+        self.leave_opening();
+        self.send_step(kind);
+    }
+
+    /// Send a solver step: [`RadlabApp::step`], or one the app queues itself (a load's solve, a
+    /// figure's steps, auto-run's re-solve).
+    fn send_step(&mut self, kind: StepKind) {
         self.lecture.on_step(kind);
         match self.solve.step_command(kind) {
             Ok((cmd, label)) => self.solve.send(cmd, label),
@@ -356,6 +425,7 @@ impl RadlabApp {
     /// Choose a preset by name, as the Solver panel's preset box does: its settings and its top
     /// level (a new solver where that changes). Unknown names are shown as an error.
     pub fn select_preset(&mut self, name: &str) {
+        self.leave_opening();
         let Some(preset) = Preset::from_name(name) else {
             self.errors.push(format!("unknown preset {name:?} (one of {})", Preset::names()));
             return;
@@ -377,6 +447,8 @@ impl RadlabApp {
     /// restart. Without auto-run the solver
     /// restarts from the input patches, for stepping by hand.
     pub fn set_params(&mut self, p: HierarchicalParams) {
+        // Even the settings in use (a preset chosen again) are the user's answer.
+        self.leave_opening();
         if p == self.solve.params {
             return;
         }
@@ -415,6 +487,7 @@ impl RadlabApp {
         if m == self.solve.mesh {
             return;
         }
+        self.leave_opening();
         if m.method != MeshMethod::Quadtree
             && let Err(e) = m.validate()
         {
@@ -436,6 +509,7 @@ impl RadlabApp {
         let changes_solve = d != old && (d.apply_to(m) || old.apply_to(m));
         if changes_solve {
             self.lecture.leave();
+            self.leave_opening();
         }
         self.solve.resolve_pending |= changes_solve && self.solve.auto_run && self.scene.is_some();
     }

@@ -12,7 +12,12 @@ use std::path::PathBuf;
 pub struct ViewerOptions {
     /// `builtin:NAME` or a path; empty: start without a scene (tests call `set_scene`).
     pub scene: String,
-    pub preset: String,
+    /// The preset asked for (`--preset`): the viewer opens at exactly that one. `None`: at the
+    /// default, [`Preset::DEFAULT`](crate::solver::spec::Preset::DEFAULT), reached in two steps
+    /// when the scene opens solved (not in a refinement replay): a first picture at
+    /// [`FIRST_PICTURE`](super::solve::FIRST_PICTURE), then a warm re-solve on to the default
+    /// ([`Opening`](super::solve::Opening)).
+    pub preset: Option<String>,
     /// What is shown at start: the overlays `radlab view --overlay` turns on (its `Overlay`
     /// values name these settings; a lecture figure's own replace them).
     pub display: Display,
@@ -61,7 +66,7 @@ impl Default for ViewerOptions {
     fn default() -> Self {
         ViewerOptions {
             scene: "builtin:cornell".into(),
-            preset: "interactive".into(),
+            preset: None,
             display: Display::default(),
             solve_on_start: true,
             screenshot: None,

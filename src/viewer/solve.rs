@@ -1,15 +1,50 @@
 //! The solver thread as the app drives it ([`SolveState`]): the settings it solves with (the
 //! hierarchical parameters, the top level loaded, the mesh and its D-mesh options), what it is
 //! doing (the progress line's label, clock and counts) and what waits on it (a re-solve after a
-//! settings change, a Load not answered yet).
+//! settings change, a Load not answered yet, the opening's way on to the default preset).
 
 use super::solver_panel::MESH_SOLVE_LABEL;
 use super::worker::{Command, DmeshOptions, Reply, Worker};
 use crate::solver::hierarchical::StepKind;
 use crate::solver::meshed::{MeshMethod, MeshSolveParams};
 use crate::solver::params::HierarchicalParams;
-use crate::solver::spec::TopLevel;
+use crate::solver::spec::{Preset, TopLevel};
 use std::time::Instant;
+
+/// The preset of the opening's first picture: the viewer opened without a preset asked for
+/// solves at this one first, shows it, and goes on warm to [`Preset::DEFAULT`] ([`Opening`]).
+pub const FIRST_PICTURE: Preset = Preset::Interactive;
+
+/// The viewer's way to the default preset when it opens without one asked for: a first picture
+/// at [`FIRST_PICTURE`] (about a quarter of the default's time on the built-in rooms), then a
+/// warm re-solve ([`super::worker::Command::Retarget`]) that refines on from its hierarchy,
+/// links and radiosity to the default. Whatever the user does to the solver first (a setting, a
+/// preset, a step, Reset, Cancel, another mesh or scene) ends it: the step that has not started
+/// is not sent.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum Opening {
+    /// Nothing waits: a preset was asked for, the opening is over, or the user took over.
+    #[default]
+    Off,
+    /// The first picture is being solved; `then` follows it, warm.
+    FirstPicture { then: Preset },
+    /// The warm re-solve on to `to` runs (the Solver panel names it already).
+    GoingOn { to: Preset },
+}
+
+impl Opening {
+    /// What the status bar says while the opening goes on to the default: "first picture at
+    /// interactive; refining on to quality…" (`None` in the other stages).
+    #[must_use]
+    pub fn note(self) -> Option<String> {
+        match self {
+            Opening::GoingOn { to } => {
+                Some(format!("first picture at {}; refining on to {}…", FIRST_PICTURE.name(), to.name()))
+            }
+            Opening::Off | Opening::FirstPicture { .. } => None,
+        }
+    }
+}
 
 /// The solver thread, its settings and its work in progress.
 pub struct SolveState {
@@ -35,6 +70,8 @@ pub struct SolveState {
     pub(super) resolve_pending: bool,
     /// A Load was sent and its answer has not come yet.
     pub(super) loading: bool,
+    /// The opening's way on to the default preset (none once the user takes over).
+    pub(super) opening: Opening,
 }
 
 impl SolveState {
@@ -58,6 +95,7 @@ impl SolveState {
             busy_since: None,
             resolve_pending: false,
             loading: false,
+            opening: Opening::Off,
         }
     }
 

@@ -103,7 +103,8 @@ impl View for SolverPanel {
 }
 
 impl SolverPanel {
-    /// The hierarchical solver's settings (preset, oracle, thresholds); returns them if changed.
+    /// The hierarchical solver's settings (preset, oracle, thresholds); returns them if changed
+    /// or a preset was chosen.
     fn quadtree_controls(
         &mut self,
         ui: &mut egui::Ui,
@@ -117,7 +118,9 @@ impl SolverPanel {
             Some(preset) if preset.hierarchical() != params => format!("{} (edited)", self.preset),
             _ => self.preset.clone(),
         };
-        self.preset_box(ui, shown, &mut p);
+        // Choosing a preset is an answer even when it is the one in use (it ends the opening's
+        // way on to the default, `Opening`).
+        let chosen = self.preset_box(ui, shown, &mut p);
         egui::ComboBox::from_label("oracle")
             .selected_text(format!("{:?}", p.oracle))
             .show_ui(ui, |ui| {
@@ -205,12 +208,13 @@ impl SolverPanel {
             ui.ctx().accesskit_node_builder(depth.id, |b| b.set_label("max depth value"));
             ui.label("max depth");
         });
-        (p != params).then_some(p)
+        (p != params || chosen).then_some(p)
     }
 
     /// The preset box: the preset chosen last (`shown`: "(edited)" when the settings differ);
-    /// choosing one sets every setting of `p` to its values.
-    fn preset_box(&mut self, ui: &mut egui::Ui, shown: String, p: &mut HierarchicalParams) {
+    /// choosing one sets every setting of `p` to its values. Returns whether one was chosen.
+    fn preset_box(&mut self, ui: &mut egui::Ui, shown: String, p: &mut HierarchicalParams) -> bool {
+        let mut chosen = false;
         egui::ComboBox::from_label("preset")
             .selected_text(shown)
             .show_ui(ui, |ui| {
@@ -223,6 +227,7 @@ impl SolverPanel {
                     {
                         self.preset = name.to_owned();
                         *p = preset.hierarchical();
+                        chosen = true;
                     }
                 }
             })
@@ -232,6 +237,7 @@ impl SolverPanel {
                  refines the contact mesh by the error oracle, each step halving its threshold; \
                  bf, lecture and splash2 refine the quadtree",
             );
+        chosen
     }
 }
 

@@ -238,6 +238,7 @@ impl RadlabApp {
             Some(SolverAction::Step(kind)) => self.step(kind),
             Some(SolverAction::Reset) => {
                 self.lecture.leave();
+                self.leave_opening();
                 self.solve.send(Command::Reset, "resetting");
             }
             Some(SolverAction::SetParams(p)) => {
@@ -264,6 +265,7 @@ impl RadlabApp {
             last_report: self.shown.last_report.as_ref(),
         };
         if ProgressPanel.ui(ui, input) == Some(ProgressAction::Cancel) {
+            self.leave_opening();
             self.solve.cancel();
             self.solve.resolve_pending = false;
         }

@@ -12,6 +12,7 @@ use crate::viewer::artifacts::Measured;
 use crate::viewer::history::Ruler;
 use crate::viewer::plots::{PlotLayout, ResolveMark};
 use crate::viewer::reference_panel::RefState;
+use crate::viewer::solve::Opening;
 use crate::viewer::status_bar::SolveNote;
 use crate::viewer::worker::{DmeshOptions, ViewData};
 use crate::viewer::{inspector, legends};
@@ -49,6 +50,19 @@ impl RadlabApp {
     #[must_use]
     pub fn busy(&self) -> bool {
         self.solve.busy()
+    }
+
+    /// The preset the Solver panel names (the last chosen; the settings may be edited since).
+    #[must_use]
+    pub fn preset(&self) -> &str {
+        &self.solver_panel.preset
+    }
+
+    /// Where the opening's way on to the default preset stands (opened without a preset asked
+    /// for).
+    #[must_use]
+    pub fn opening(&self) -> Opening {
+        self.solve.opening
     }
 
     /// True while every settings change is re-solved at once (the progress line's checkbox).

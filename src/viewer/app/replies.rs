@@ -43,7 +43,7 @@ impl RadlabApp {
         }
         if self.solve.resolve_pending && !self.busy() {
             self.solve.resolve_pending = false;
-            self.step(StepKind::Solve);
+            self.send_step(StepKind::Solve);
         }
         if self.shown.hold && !self.solve.resolve_pending && !self.busy() {
             // No solve follows the restart (cancelled): show the solver's state.
@@ -134,6 +134,8 @@ impl RadlabApp {
             None => self.restarted(superseded),
             Some(rep) => self.stepped(rep),
         }
+        // (Before the script hears of it: a first picture's solve is not the last.)
+        self.opening_after(report.filter(|_| !superseded));
         if self.pick.here().is_some_and(|s| s as usize >= self.shown.view.elements.len()) {
             self.pick.selected = None;
         }
@@ -200,6 +202,7 @@ impl RadlabApp {
     /// The solver thread failed (or stopped): the held picture comes back, and the error is
     /// shown (a scripted run ends with it).
     fn solver_failed(&mut self, e: String) {
+        self.leave_opening();
         self.solve.loading = false;
         self.solve.progress = None;
         self.shown.release();
