@@ -95,11 +95,12 @@ fn the_contact_mesh_leaves_no_light_under_cornells_blocks() {
 /// its threshold (and of the area floor with it) lowers the pointwise error, scored against a
 /// path-traced reference of 8 192 points × 256 paths (noise ~5 %, taken out of the figure), and
 /// at eps 0.1 the contact mesh beats the quadtree at the same settings (measured with this
-/// ruler: cornell 3.56 / 1.26 / 0.00 % at eps 0.2 / 0.1 / 0.05, table-room 3.44 / 0.55 /
-/// 0.00 %, resolution 1.2 %). At eps 0.05 both meshes read below this ruler's noise: the
+/// ruler: cornell 3.35 / 0.99 / 0.00 % at eps 0.2 / 0.1 / 0.05, table-room 3.30 / 0.00 /
+/// 0.00 %, resolution 1.2 %; the quadtree at eps 0.1, cornell 2.54 %). Table-room reads within
+/// the resolution from eps 0.1 on, cornell from 0.05: there the error must stay within it. The
 /// standard ruler (65 537 points × 4 096 paths, `radlab reference builtin:S --batches 4
-/// --compare --threshold X --mesh M`) reads table-room 1.78 % on the contact mesh against
-/// 2.66 % on the quadtree at eps 0.1, cornell 2.11 % against 3.62 %.
+/// --compare --threshold X --mesh M`) reads table-room 1.62 % on the contact mesh against
+/// 2.55 % on the quadtree at eps 0.1, cornell 1.96 % against 3.25 %.
 #[test]
 fn the_error_oracle_on_the_contact_mesh_converges_as_its_threshold_halves() {
     for name in ["builtin:cornell", "builtin:table-room"] {
@@ -127,7 +128,14 @@ fn the_error_oracle_on_the_contact_mesh_converges_as_its_threshold_halves() {
                 100.0 * e.reference_noise,
                 100.0 * e.resolution
             );
-            assert!(e.l2_debiased < last, "{name} eps {eps}: {} after {last}", e.l2_debiased);
+            // Each halving lowers the error while the last reading stood above the ruler's
+            // resolution; once one reads within it (nothing left that this ruler can see), the
+            // finer ones must stay there.
+            if last > e.resolution {
+                assert!(e.l2_debiased < last, "{name} eps {eps}: {} after {last}", e.l2_debiased);
+            } else {
+                assert!(e.l2_debiased <= e.resolution, "{name} eps {eps}: {} after {last}", e.l2_debiased);
+            }
             last = e.l2_debiased;
             if eps == 0.1 {
                 at_tenth = last;

@@ -275,20 +275,21 @@ fn judge(
 
 /// The error estimate on the solver's most accurate path: the `quality` preset's error oracle on the
 /// contact mesh (`RemeshParams::contacts`, the area floor 6e-4 · X as `radlab bench`'s rows), at
-/// X = 0.1 on cornell and table-room, ranked as above (9 points × RANKING_PATHS paths a leaf).
+/// X = 0.2 on cornell and table-room, ranked as above (9 points × RANKING_PATHS paths a leaf).
 /// Against the 4-batch 65 537-point references (`radlab reference builtin:S --batches 4 --compare
-/// hierarchical-contact --preset quality --bf-eps-rel X --aeps-rel A`) the nine
-/// settings X = 0.2 / 0.1 / 0.05 on cornell, table-room and splash_room read measured/estimate
-/// 1.16–1.53 and Spearman 0.690–0.839 (docs/accuracy.md). This test's per-leaf ruler (4 608 paths a
-/// leaf, every leaf) is too noisy for those leaves, most of them small with errors near 1–3 %:
-/// it measured Spearman 0.270 (cornell, 5 136 leaves) and 0.573 (table-room, 1 746 leaves),
-/// estimate / measured 0.78 and 2.11. It guards the ranking and the ratio against solver
-/// changes; the ≥ 0.7 figures are the 4-batch ones.
+/// --mesh contact --preset quality --bf-eps-rel X --aeps-rel A`) the nine settings X = 0.2 / 0.1 /
+/// 0.05 on cornell, table-room and splash_room read measured/estimate 1.18–1.60 and Spearman
+/// 0.507–0.758 (docs/accuracy.md). This test's per-leaf ruler (4 608 paths a leaf, every leaf) is
+/// too noisy for those leaves, most of them small with errors near 1–3 %: it measured Spearman
+/// 0.196 (cornell, 1 785 leaves) and 0.457 (table-room, 510 leaves), estimate / measured 0.73
+/// and 0.88. At X = 0.1 it reads table-room's pointwise error as 0.2 %, inside its own noise,
+/// where the standard ruler reads 1.62 %: the ranking there is of noise. It guards the ranking
+/// and the ratio against solver changes; the figures to quote are the 4-batch ones.
 #[test]
 fn the_error_estimate_ranks_the_contact_meshs_error() {
     use radlab::mesh::remesh::RemeshParams;
     use radlab::solver::discontinuity::HierarchicalOnMesh;
-    const X: f64 = 0.1;
+    const X: f64 = 0.2;
     let mut failures = Vec::new();
     for (name, floor) in
         [("builtin:cornell", CONTACT_SPEARMAN_FLOOR[0]), ("builtin:table-room", CONTACT_SPEARMAN_FLOOR[1])]
@@ -308,18 +309,13 @@ fn the_error_estimate_ranks_the_contact_meshs_error() {
     assert!(failures.is_empty(), "{}", failures.join("; "));
 }
 
-/// The contact-mesh ranking's floors (cornell, table-room): measured 0.270 and 0.573 against
+/// The contact-mesh ranking's floors (cornell, table-room): measured 0.196 and 0.457 against
 /// this test's ruler, less about 0.1.
-const CONTACT_SPEARMAN_FLOOR: [f64; 2] = [0.17, 0.47];
+const CONTACT_SPEARMAN_FLOOR: [f64; 2] = [0.09, 0.35];
 
-/// The largest estimate / measured the contact-mesh test accepts: 3, not the 2 of the other
-/// rankings, because on table-room this test's ruler reads less than the error. Its nine points
-/// a leaf lie at the centres of the leaf's 3 × 3 split, away from the leaf's edges, where the
-/// contact mesh's remaining error sits (the legs' contacts, the penumbrae): it reads 0.7 % where
-/// the standard ruler (65 537 points spread over the area, 4 096 paths, `radlab reference
-/// builtin:table-room --batches 4 --compare --threshold 0.1`) reads 1.78 %, and that ruler reads
-/// the estimate at measured / estimate 1.16, inside the factor 2.
-const CONTACT_RATIO_MAX: f64 = 3.0;
+/// The largest estimate / measured the contact-mesh test accepts: the factor 2 of the other
+/// rankings.
+const CONTACT_RATIO_MAX: f64 = 2.0;
 
 // Floors: measured Spearman at each of `ranking_presets()` minus a margin of 0.1 for solver
 // changes under them and for the reference's noise. The ranking is against each leaf's own
