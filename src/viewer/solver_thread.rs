@@ -23,19 +23,27 @@ impl Worker {
         let (reply_tx, rx) = channel::<Reply>();
         let skip_through = Arc::new(AtomicU64::new(0));
         let skip = Arc::clone(&skip_through);
+        let partial_estimates = Arc::new(AtomicBool::new(false));
+        let estimates = Arc::clone(&partial_estimates);
         std::thread::Builder::new()
             .name("radlab-solver".into())
             .spawn(move || {
                 // A panic ends the thread (the solver may be half changed): its message is the
                 // last answer, and what is still queued is answered "stopped".
-                if let Err(e) = super::panics::catching("solver", || run(&cmd_rx, &skip, &reply_tx, &notify))
-                {
+                if let Err(e) = super::panics::catching("solver", || {
+                    run(
+                        &cmd_rx,
+                        Shared { skip_through: &skip, partial_estimates: &estimates },
+                        &reply_tx,
+                        &notify,
+                    )
+                }) {
                     let _ = reply_tx.send(Reply::Failed(e));
                     notify();
                 }
             })
             .map_err(|e| format!("cannot start the solver thread: {e}"))?;
-        Ok(Worker { tx, rx, cancel: None, in_flight: 0, sent: 0, skip_through })
+        Ok(Worker { tx, rx, cancel: None, in_flight: 0, sent: 0, skip_through, partial_estimates })
     }
 }
 
@@ -45,6 +53,15 @@ struct Link<'a, N: Fn() + Send> {
     tx: &'a Sender<Reply>,
     notify: &'a N,
     skip_through: &'a AtomicU64,
+    /// [`super::worker::Worker::set_partial_estimates`].
+    partial_estimates: &'a AtomicBool,
+}
+
+/// What the UI sets and the solver thread reads as it runs: the last command dropped, and
+/// whether the pictures a solve sends as it goes carry estimates.
+pub(super) struct Shared<'a> {
+    pub(super) skip_through: &'a AtomicU64,
+    pub(super) partial_estimates: &'a AtomicBool,
 }
 
 impl<N: Fn() + Send> Link<'_, N> {
@@ -78,11 +95,12 @@ struct SolverThread<'a, N: Fn() + Send> {
 /// everything queued answered `Skipped`), until either channel closes.
 pub(super) fn run(
     rx: &Receiver<(u64, Command)>,
-    skip_through: &AtomicU64,
+    shared: Shared<'_>,
     tx: &Sender<Reply>,
     notify: &(impl Fn() + Send),
 ) {
-    let link = Link { tx, notify, skip_through };
+    let link =
+        Link { tx, notify, skip_through: shared.skip_through, partial_estimates: shared.partial_estimates };
     let mut thread =
         SolverThread { link, solver: None, input: None, origin: None, unpushed: false, last_residual: 0.0 };
     while let Ok((seq, cmd)) = rx.recv() {
@@ -264,7 +282,8 @@ fn solve_observed<N: Fn() + Send>(
         let now = std::time::Instant::now();
         if last.is_none_or(|t| now.duration_since(t) >= PARTIAL_EVERY) {
             last = Some(now);
-            let view = ViewData::of_solver_on(s, false, true, CLUSTER_LINKS_KEPT, on);
+            let estimates = link.partial_estimates.load(Ordering::Relaxed);
+            let view = ViewData::of_solver_on(s, false, estimates, CLUSTER_LINKS_KEPT, on);
             let _ = link.tx.send(Reply::Partial { view });
             (link.notify)();
         }

@@ -467,9 +467,20 @@ pub struct Worker {
     pub(super) sent: u64,
     /// Commands numbered up to this one are dropped unrun ([`Worker::cancel_all`]).
     pub(super) skip_through: Arc<AtomicU64>,
+    /// Whether the pictures a solve sends as it goes carry the solver's error estimates
+    /// ([`Worker::set_partial_estimates`]).
+    pub(super) partial_estimates: Arc<AtomicBool>,
 }
 
 impl Worker {
+    /// Whether the pictures a solve sends as it goes ([`Reply::Partial`]) carry the solver's
+    /// error estimates: only while something shows them (the error overlay, the inspector).
+    /// Each costs about as much as the solve's work so far, so without them a solve in the
+    /// viewer takes what it takes on the command line. A step's answer always carries them.
+    pub fn set_partial_estimates(&self, on: bool) {
+        self.partial_estimates.store(on, Ordering::Relaxed);
+    }
+
     pub fn send(&mut self, cmd: Command) {
         if self.tx.send((self.sent + 1, cmd)).is_ok() {
             self.sent += 1;
@@ -613,6 +624,34 @@ mod tests {
         let mut failed = false;
         w2.wait_idle(|r| failed |= matches!(r, Reply::Failed(_)));
         assert!(failed);
+    }
+
+    #[test]
+    fn pictures_on_the_way_carry_estimates_only_when_asked() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        load(&mut w, "builtin:cornell", HierarchicalParams::interactive());
+        // Per solve: (the largest estimate of its pictures on the way, that of its answer).
+        let mut solve = |w: &mut Worker, estimates: bool| {
+            w.set_partial_estimates(estimates);
+            w.send(Command::Reset);
+            w.send(Command::Step(StepKind::Solve));
+            let (mut partial, mut done, mut pictures) = (0.0f64, 0.0f64, 0);
+            let most = |v: &ViewData| v.elements.iter().map(|e| e.error_estimate).fold(0.0, f64::max);
+            w.wait_idle(|r| match r {
+                Reply::Partial { view } => {
+                    pictures += 1;
+                    partial = partial.max(most(&view));
+                }
+                Reply::Done { report: Some(_), view } => done = most(&view),
+                _ => {}
+            });
+            assert!(pictures > 0, "a solve shows its first round at once");
+            (partial, done)
+        };
+        let (partial, done) = solve(&mut w, false);
+        assert!(partial == 0.0 && done > 0.0, "not asked: {partial} on the way, {done} at the end");
+        let (partial, done) = solve(&mut w, true);
+        assert!(partial > 0.0 && done > 0.0, "asked: {partial} on the way, {done} at the end");
     }
 
     #[test]

@@ -39,6 +39,9 @@ impl eframe::App for RadlabApp {
         }
         let ctx = ui.ctx().clone();
         self.poll_worker();
+        if let Some(w) = &self.solve.worker {
+            w.set_partial_estimates(self.display.error || self.pick.selected.is_some());
+        }
         self.poll_reference();
         self.request_artifacts();
         self.artifacts.poll(false);
