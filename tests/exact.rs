@@ -447,8 +447,9 @@ fn sloped_score(scene: &Scene, sb: &SingleBounce, sol: &Solution) -> (f64, f64) 
 /// Visibility slopes: a partially visible link's slope reads V at the receiver's child points,
 /// so a leaf across a penumbra holds the shadow's ramp. On both single-bounce scenes at the
 /// ladder's `quality` and `interactive`, the sloped pointwise error in the penumbra band must
-/// fall below VIS_GAIN of the error with the unoccluded kernel's slope (the same mesh and
-/// links: the slopes do not steer refinement), and the whole receiver's must not rise.
+/// fall below VIS_GAIN of the error with the unoccluded kernel's slope, and the whole receiver's
+/// must not rise. Refinement reads slopes only through the row check, which these open scenes
+/// do not meet: the mesh and links are the same, so the slopes alone make the difference.
 #[test]
 fn visibility_slopes_follow_the_penumbra() {
     /// Measured (release; penumbra band, with / without): shadow-wide `interactive` 2.89 /
@@ -480,7 +481,7 @@ fn visibility_slopes_follow_the_penumbra() {
                 100.0 * with_band,
                 100.0 * off_band
             );
-            assert_eq!(links_with, links_off, "{name} {preset}: slopes do not steer refinement");
+            assert_eq!(links_with, links_off, "{name} {preset}: the same links, the slopes alone differ");
             assert!(
                 with_band < VIS_GAIN * off_band,
                 "{name} {preset}: penumbra {with_band} against {off_band}"

@@ -198,7 +198,8 @@ pub const fn ladder_params(eps: f64) -> HierarchicalParams {
 /// are not closed, and at 0.1 `interactive` creates 7e-4 of the emitted power there; 0.05 at
 /// every step would stop that, and costs the contact mesh up to 80 % more time for a little
 /// less error (table-room `quality` 0.73 s against 0.40 s for 1.23 % against 1.49 %,
-/// splash_room `interactive` 5.4 s against 4.4 s for 3.69 % against 3.78 %).
+/// splash_room `interactive` 5.4 s against 4.4 s for 3.69 % against 3.78 %; measured with
+/// `--vis-slopes false`, whose refinement is nearly the same).
 #[must_use]
 pub const fn ladder_row_tol(eps: f64) -> f64 {
     if eps >= 0.2 { 0.05 } else { 0.1 }
