@@ -631,7 +631,7 @@ mod tests {
         let mut w = Worker::spawn(|| {}).unwrap();
         load(&mut w, "builtin:cornell", HierarchicalParams::interactive());
         // Per solve: (the largest estimate of its pictures on the way, that of its answer).
-        let mut solve = |w: &mut Worker, estimates: bool| {
+        let solve = |w: &mut Worker, estimates: bool| {
             w.set_partial_estimates(estimates);
             w.send(Command::Reset);
             w.send(Command::Step(StepKind::Solve));
