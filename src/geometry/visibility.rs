@@ -185,6 +185,7 @@ pub fn point_fractions<const N: usize>(
     let strata = Strata::new(rays);
     let sf = Bilinear::new(accel, source);
     let xs = points.map(|x| accel.local_f64(x));
+    let xs32 = xs.map(|x| Vec3A::new(x.x as f32, x.y as f32, x.z as f32));
     let (mut w_all, mut w_vis) = ([0.0f64; N], [0.0f64; N]);
     let mut cast = 0u64;
     for k in 0..rays {
@@ -192,6 +193,7 @@ pub fn point_fractions<const N: usize>(
         let (i, j) = (k % strata.cols, k / strata.cols);
         let (u, v) = strata.at(i, j, jitter(h), jitter(h >> 16));
         let y = sf.point(u, v);
+        let y32 = Vec3A::new(y.x as f32, y.y as f32, y.z as f32);
         for (m, x) in xs.iter().enumerate() {
             let d = y - *x;
             let (cr, cs) = (n_r.dot(d), -n_s.dot(d));
@@ -201,12 +203,8 @@ pub fn point_fractions<const N: usize>(
             let r2 = d.length_squared();
             let w = cr * cs / (r2 * r2);
             w_all[m] += w;
-            let (a, b) = (
-                Vec3A::new(x.x as f32, x.y as f32, x.z as f32),
-                Vec3A::new(y.x as f32, y.y as f32, y.z as f32),
-            );
             cast += 1;
-            if !accel.occluded_local_cached(a, b, [receiver_patch, source_patch], last) {
+            if !accel.occluded_local_cached(xs32[m], y32, [receiver_patch, source_patch], last) {
                 w_vis[m] += w;
             }
         }
@@ -577,12 +575,6 @@ mod tests {
         }
     }
 
-    /// Two unit squares facing each other one apart, a blocker halfway covering the corner
-    /// x, y < 0.3: a pair (x, y) is blocked where its midpoint lies over the blocker, so the
-    /// plain visible fraction is 1 − P((a + b)/2 < 0.3)² = 1 − 0.18² for a, b uniform.
-    /// Averaged over many pairs (keys), every ray count's estimate must be that: a sampling
-    /// pattern that pairs the same strata for every link, or never reaches some strata, is
-    /// biased whatever the key.
     /// A square [lo, hi]² at height z, facing up or down.
     fn square(z: f64, up: bool, lo: f64, hi: f64) -> crate::scene::Patch {
         let mut v =
@@ -668,6 +660,12 @@ mod tests {
         assert_eq!(v, [Some(1.0)]);
     }
 
+    /// Two unit squares facing each other one apart, a blocker halfway covering the corner
+    /// x, y < 0.3: a pair (x, y) is blocked where its midpoint lies over the blocker, so the
+    /// plain visible fraction is 1 − P((a + b)/2 < 0.3)² = 1 − 0.18² for a, b uniform.
+    /// Averaged over many pairs (keys), every ray count's estimate must be that: a sampling
+    /// pattern that pairs the same strata for every link, or never reaches some strata, is
+    /// biased whatever the key.
     #[test]
     fn estimates_average_to_the_exact_fraction() {
         use crate::scene::Scene;

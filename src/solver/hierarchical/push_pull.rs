@@ -378,33 +378,20 @@ pub(super) fn fill_slopes(
                 let se = hier.get(l.source);
                 let g = f64::from(l.g);
                 let s = l.source;
-                // A side's slope reads V at its child points where the link's penumbra matters
-                // to it (`VisSlopes`), from inputs the mirror link's reads alike.
-                let read = |x: u32, xe: &Element, ye: &Element, y: u32, cast: &mut u64, last: &mut u32| {
-                    vis.and_then(|vs| vs.read(&frames[x as usize], (x, xe), (y, ye), v, g, cast, last))
-                };
-                let (at_r, at_s) = if v > 0.0 && v < 1.0 && !l.unmeasured {
-                    (
-                        read(r as u32, re, se, s, &mut cast, &mut last),
-                        read(s, se, re, r as u32, &mut cast, &mut last),
-                    )
-                } else {
-                    (None, None)
-                };
-                // Both sides from the same inputs as the mirror link's: bit-identical.
-                let side = |x: u32, xe: &Element, ye: &Element, y: u32, at: Option<[Option<f64>; 4]>| {
-                    let (frame, f, known) =
-                        (&frames[x as usize], g / xe.area, oracle::known_kernel(kernels, x, y));
-                    let read = at.map(|at| {
-                        // x's irradiance in units of y's radiosity: what keeps x's total ≥ 0.
-                        let h = (xe.radiosity - xe.emission).max_channel()
-                            / xe.reflectance.max_channel().max(1e-12);
-                        oracle::VisRead { at, rest: h / ye.radiosity.max_channel().max(1e-300) }
-                    });
-                    oracle::kernel_slope(frame, xe, ye, v, f, known, read.as_ref()).map(|x| x as f32)
+                let partial = v > 0.0 && v < 1.0 && !l.unmeasured;
+                // Both sides from the same inputs as the mirror link's: bit-identical. A side's
+                // slope reads V at its child points where the link's penumbra matters to it
+                // (`VisSlopes`).
+                let mut side = |x: u32, xe: &Element, ye: &Element, y: u32| {
+                    let (frame, known) = (&frames[x as usize], oracle::known_kernel(kernels, x, y));
+                    let read = vis
+                        .filter(|_| partial)
+                        .and_then(|vs| vs.read(frame, (x, xe), (y, ye), v, g, &mut cast, &mut last));
+                    oracle::kernel_slope(frame, xe, ye, v, g / xe.area, known, read.as_ref())
+                        .map(|x| x as f32)
                 };
                 (l.slope, l.src_slope) = if v > 0.0 {
-                    (side(r as u32, re, se, s, at_r), side(s, se, re, r as u32, at_s))
+                    (side(r as u32, re, se, s), side(s, se, re, r as u32))
                 } else {
                     ([0.0; 2], [0.0; 2])
                 };
@@ -436,7 +423,8 @@ pub(super) struct VisSlopes<'a> {
 }
 
 impl VisSlopes<'_> {
-    /// V at x's child points towards y, if the link matters enough to x (else None).
+    /// V at x's child points towards y, and x's irradiance in units of y's radiosity (what
+    /// keeps x's total ≥ 0), if the link matters enough to x (else None).
     #[allow(clippy::too_many_arguments)]
     fn read(
         &self,
@@ -447,7 +435,7 @@ impl VisSlopes<'_> {
         g: f64,
         cast: &mut u64,
         last: &mut u32,
-    ) -> Option<[Option<f64>; 4]> {
+    ) -> Option<oracle::VisRead> {
         let weight = 2.0 * v.min(1.0 - v);
         let matters =
             xe.reflectance.max_channel() * (g / xe.area) * ye.radiosity.max_channel() * weight > self.floor;
@@ -465,7 +453,8 @@ impl VisSlopes<'_> {
             last,
         );
         *cast += c;
-        Some(at)
+        let h = (xe.radiosity - xe.emission).max_channel() / xe.reflectance.max_channel().max(1e-12);
+        Some(oracle::VisRead { at, rest: h / ye.radiosity.max_channel().max(1e-300) })
     }
 }
 
