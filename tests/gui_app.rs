@@ -256,6 +256,56 @@ fn a_loaded_scene_opens_solved() {
     assert!(h.state().errors().is_empty(), "{:?}", h.state().errors());
 }
 
+/// A solve answers with its picture before the solver's error estimates: the state, the error
+/// line and the run say they are being estimated, the inspector and the status bar too while they
+/// are, and all show them once they come.
+#[test]
+fn a_solves_error_estimates_follow_its_picture() {
+    let mut h = harness(opts());
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    h.get_by_label("Solve").click();
+    settle(&mut h);
+    // Pick the back wall (the middle of the view) and solve again, finer.
+    let at = h.state().viewport_rect().center();
+    click_at(&mut h, at);
+    settle(&mut h);
+    let picked = h.state().pick.selected.expect("an element is picked");
+    let p = h.state().params();
+    h.state_mut().set_auto_run(false);
+    h.state_mut().set_params(radlab::solver::params::HierarchicalParams { bf_eps: p.bf_eps / 2.0, ..p });
+    h.state_mut().step(StepKind::Solve);
+    h.state_mut().wait_for_answers();
+    // The answer is in, its estimates not yet (nothing has polled the solver thread since).
+    assert!(h.state().view().estimates_pending && h.state().estimates_pending());
+    assert!(h.state().view().elements.iter().all(|e| e.error_estimate == 0.0));
+    assert!(h.state().error_line().contains("estimating"), "{}", h.state().error_line());
+    let run = h.state().history.runs().last().expect("the solve is a run").clone();
+    assert_eq!(run.error(), radlab::viewer::history::RunError::Estimating);
+    assert!(run.estimate.is_none(), "no estimate of 0 in the history");
+    h.state_mut().pick.selected = Some(picked);
+    h.run_steps(1);
+    // (The frame may have picked the estimates up already.)
+    if h.state().estimates_pending() {
+        assert!(h.query_by_label_contains("estimating the error").is_some(), "the status bar says so");
+        assert!(h.query_by_label_contains("estimating…").is_some(), "the inspector says so");
+    }
+    h.state_mut().wait_for_solver();
+    h.run_steps(2);
+    assert!(!h.state().estimates_pending() && !h.state().view().estimates_pending);
+    let e = h.state().view().elements[picked as usize].error_estimate;
+    assert!(e > 0.0, "the picked element's estimate arrived");
+    assert!(
+        h.query_by_label(&format!("{e:.3e} (solver's error estimate)")).is_some(),
+        "the inspector shows it"
+    );
+    assert!(h.query_by_label_contains("estimating").is_none(), "nothing says it is pending");
+    assert!(h.state().error_line().contains("solver's estimate"), "{}", h.state().error_line());
+    let run = h.state().history.runs().last().unwrap();
+    assert!(run.estimate.is_some_and(|e| e > 0.0), "the run's estimate: {:?}", run.estimate);
+    assert!(Arc::ptr_eq(run.view.as_ref().unwrap(), h.state().view()), "the run keeps the state shown");
+}
+
 #[test]
 fn a_parameter_change_keeps_the_picture_until_the_new_one_is_ready() {
     let mut h = harness(ViewerOptions { solve_on_start: true, ..opts() });

@@ -99,6 +99,8 @@ pub struct Built {
     pub cluster_link_stats: Option<(usize, usize)>,
     pub link_scale: Option<LogScale>,
     pub error_scale: Option<LogScale>,
+    /// How the mesh was coloured (the request's).
+    pub coloring: Coloring,
     /// Auto exposure of this solver state ([`auto_exposure`]).
     pub auto_ev: Option<f32>,
     /// The critical edges drawn, by kind (for the legend).
@@ -243,6 +245,7 @@ pub fn build_cached(req: &Request, cache: &mut CriticalCache) -> Built {
         cluster_link_stats,
         link_scale,
         error_scale,
+        coloring: s.coloring,
         auto_ev: auto_exposure(v),
         critical,
         build_s: started.elapsed().as_secs_f64(),

@@ -18,6 +18,9 @@ use std::sync::Arc;
 #[derive(Clone, Debug, PartialEq)]
 pub struct BuildKey {
     pub view_seq: u64,
+    /// Address of the state (`Arc` identity): it changes, not its number, when the state's
+    /// error estimates arrive.
+    pub view: usize,
     /// Address of the true-error list (`Arc` identity), if any.
     pub true_error: Option<usize>,
     /// The artifact overlay drawn and the address of its samples (`Arc` identity), if any.
@@ -47,6 +50,8 @@ pub struct ShownGeometry {
     pub critical_counts: Option<SegmentCounts>,
     pub link_scale: Option<LogScale>,
     pub error_scale: Option<LogScale>,
+    /// How the mesh shown is coloured (`None`: nothing built yet).
+    pub coloring: Option<builder::Coloring>,
     /// How long the last build took, seconds.
     pub rebuild_s: f64,
     /// Why the newest failed build failed, until taken.
@@ -70,6 +75,7 @@ impl ShownGeometry {
             critical_counts: None,
             link_scale: None,
             error_scale: None,
+            coloring: None,
             rebuild_s: 0.0,
             failure: None,
         }
@@ -141,6 +147,7 @@ impl ShownGeometry {
         self.critical_counts = b.critical;
         self.link_scale = b.link_scale;
         self.error_scale = b.error_scale;
+        self.coloring = Some(b.coloring);
         self.rebuild_s = b.build_s;
         if auto_exposure
             && b.view_seq != self.exposure_view_seq

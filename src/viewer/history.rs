@@ -78,6 +78,8 @@ pub enum RunError {
     Estimate(f64),
     /// The reference's own Monte Carlo noise: its relative standard error.
     Noise(f64),
+    /// The solver's estimate is being computed (it follows the solve's answer).
+    Estimating,
     /// Neither (nothing reflected yet, or no estimate).
     Unknown,
 }
@@ -90,7 +92,7 @@ impl RunError {
             RunError::Reference(e) | RunError::ClosedForm(e) | RunError::Estimate(e) | RunError::Noise(e) => {
                 Some(e)
             }
-            RunError::Unknown => None,
+            RunError::Estimating | RunError::Unknown => None,
         }
     }
 
@@ -103,6 +105,7 @@ impl RunError {
             RunError::ClosedForm(e) => format!("error {:.2} % (vs closed form)", 100.0 * e),
             RunError::Estimate(e) => format!("error ≈ {:.2} % (solver's estimate)", 100.0 * e),
             RunError::Noise(e) => format!("standard error {:.2} % (Monte Carlo noise)", 100.0 * e),
+            RunError::Estimating => "error: estimating…".to_owned(),
             RunError::Unknown => "error unknown".to_owned(),
         }
     }
@@ -115,6 +118,7 @@ impl RunError {
             RunError::ClosedForm(e) => format!("{:.2} % vs closed form", 100.0 * e),
             RunError::Estimate(e) => format!("≈ {:.2} % est.", 100.0 * e),
             RunError::Noise(e) => format!("± {:.2} % noise", 100.0 * e),
+            RunError::Estimating => "estimating…".to_owned(),
             RunError::Unknown => "–".to_owned(),
         }
     }
@@ -185,6 +189,7 @@ impl Run {
             (Some(e), _) if self.ruler == Ruler::ClosedForm => RunError::ClosedForm(e),
             (Some(e), _) => RunError::Reference(e),
             (None, Some(e)) => RunError::Estimate(e),
+            (None, None) if self.view.as_ref().is_some_and(|v| v.estimates_pending) => RunError::Estimating,
             (None, None) => RunError::Unknown,
         }
     }
@@ -319,9 +324,13 @@ pub fn preset_name(p: &HierarchicalParams) -> String {
         .map_or_else(|| "custom".to_owned(), |preset| preset.name().to_owned())
 }
 
-/// The solver's estimate of the relative L2 error of a solver state (its leaves).
+/// The solver's estimate of the relative L2 error of a solver state (its leaves); `None` while
+/// its estimates are being computed ([`ViewData::estimates_pending`]).
 #[must_use]
 pub fn estimate_of(view: &ViewData) -> Option<f64> {
+    if view.estimates_pending {
+        return None;
+    }
     global_relative_l2(view.leaves.iter().map(|&l| {
         let e = &view.elements[l as usize];
         (e.area, (e.radiosity - e.emission).mean(), Some(e.error_estimate))
@@ -451,6 +460,19 @@ impl RunHistory {
         for (i, r) in self.runs.iter_mut().enumerate() {
             if i < keep_from && !self.picked.contains(&r.number) {
                 r.view = None;
+            }
+        }
+    }
+
+    /// The error estimates of solution `of` arrived (`view`: it with them): the runs that keep
+    /// it keep `view` instead, and their estimated error is read from it.
+    pub fn fold_estimates(&mut self, of: &Arc<ViewData>, view: &Arc<ViewData>) {
+        for r in &mut self.runs {
+            if r.view.as_ref().is_some_and(|v| Arc::ptr_eq(v, of)) {
+                r.view = Some(Arc::clone(view));
+                if r.mesh.is_none() && r.kind == RunKind::Solve {
+                    r.estimate = estimate_of(view);
+                }
             }
         }
     }

@@ -92,6 +92,8 @@ impl View for Inspector {
             grid_row(ui, "B", rgb_text(e.radiosity));
             if v.mesh.is_some() && true_error.is_none() {
                 grid_row(ui, "error", "none (a mesh solve has no estimate)".to_owned());
+            } else if v.estimates_pending && true_error.is_none() {
+                grid_row(ui, "error", format!("estimating… ({err_label})"));
             } else {
                 grid_row(ui, "error", format!("{error:.3e} ({err_label})"));
             }

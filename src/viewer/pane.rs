@@ -8,7 +8,7 @@
 //! picture as it was and says why once ([`Pane::take_failure`]). [`pick`] finds the element under
 //! a point of a pane (or of the viewport).
 
-use super::builder::{self, BuildFailed, Builder, Settings};
+use super::builder::{self, BuildFailed, Builder, Coloring, Settings};
 use super::camera::OrbitCamera;
 use super::worker::ViewData;
 use crate::math::DVec3;
@@ -58,8 +58,9 @@ pub fn pick(view: &ViewData, camera: &OrbitCamera, pos: Pos2, rect: Rect) -> Opt
 pub struct Pane {
     /// Renderer slot (0 is the viewport's).
     slot: usize,
-    /// (what is shown, settings) the newest build was requested for; "what" is the caller's key.
-    key: Option<(u64, Settings)>,
+    /// (what is shown, the address of its state, settings) the newest build was requested for;
+    /// "what" is the caller's key (the state's address changes when its estimates arrive).
+    key: Option<(u64, usize, Settings)>,
     builder: Option<Builder>,
     seq: u64,
     geometry: Arc<Geometry>,
@@ -120,18 +121,22 @@ impl Pane {
     /// Ask for the geometry of `view` (identified by `key`) with `settings` if it is not the one
     /// asked for last, and pick up a finished build.
     pub fn update(&mut self, ctx: &egui::Context, key: u64, view: &Arc<ViewData>, settings: Settings) {
-        if self.key != Some((key, settings)) {
+        let key = (key, Arc::as_ptr(view) as usize, settings);
+        // The error heatmap of a state whose estimates are on their way: the last build stays
+        // until they come (a heatmap of zeros would be blank).
+        let waits = settings.coloring == Coloring::Error && view.estimates_pending && self.key.is_some();
+        if self.key != Some(key) && !waits {
             self.seq += 1;
             let req = builder::Request {
                 seq: self.seq,
                 view: Arc::clone(view),
-                view_seq: key,
+                view_seq: key.0,
                 true_error: None,
                 settings,
                 scene: None,
                 artifacts: None,
             };
-            self.key = Some((key, settings));
+            self.key = Some(key);
             if self.builder.is_none() {
                 let ctx = ctx.clone();
                 self.builder = Builder::spawn(move || ctx.request_repaint()).ok();

@@ -81,6 +81,14 @@ impl Replay {
         self.epoch += 1;
     }
 
+    /// The error estimates of the result `of` arrived (`view`: it with them): the last frame
+    /// shows them.
+    pub fn fold_estimates(&mut self, of: &Arc<ViewData>, view: &Arc<ViewData>) {
+        if let Some(last) = self.frames.last_mut().filter(|f| Arc::ptr_eq(f, of)) {
+            *last = Arc::clone(view);
+        }
+    }
+
     /// Forget the frames (another scene).
     pub fn clear(&mut self) {
         self.frames.clear();
@@ -185,8 +193,10 @@ impl View for Replay {
         let response = ui.allocate_rect(rect, Sense::click_and_drag());
         camera.interact(ui, &response, rect);
         let view = self.frames.get(self.position)?;
-        // Frames before the result carry no estimates: the heatmap would be blank.
-        if settings.coloring == Coloring::Error && self.position + 1 < self.frames.len() {
+        // Frames before the result carry no estimates (nor the result before they come): the
+        // heatmap would be blank.
+        let estimated = self.position + 1 == self.frames.len() && !view.estimates_pending;
+        if settings.coloring == Coloring::Error && !estimated {
             settings.coloring = Coloring::Smooth;
         }
         if settings.links.is_some_and(|f| f.element.is_some()) {

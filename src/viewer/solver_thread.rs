@@ -14,7 +14,7 @@ use crate::solver::params::HierarchicalParams;
 use crate::solver::spec::{Plan, SolveSpec, TopLevel};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::mpsc::{Receiver, Sender, TryRecvError, channel};
 
 impl Worker {
     /// Start the thread; `notify` is called after every reply (the UI's repaint request).
@@ -43,7 +43,16 @@ impl Worker {
                 }
             })
             .map_err(|e| format!("cannot start the solver thread: {e}"))?;
-        Ok(Worker { tx, rx, cancel: None, in_flight: 0, sent: 0, skip_through, partial_estimates })
+        Ok(Worker {
+            tx,
+            rx,
+            cancel: None,
+            in_flight: 0,
+            sent: 0,
+            skip_through,
+            partial_estimates,
+            estimates_owed: false,
+        })
     }
 }
 
@@ -89,10 +98,25 @@ struct SolverThread<'a, N: Fn() + Send> {
     unpushed: bool,
     /// The residual of the last gather (what a step that gathers nothing reports).
     last_residual: f64,
+    /// The state a step answered with, its error estimates not sent yet ([`Reply::Estimates`]).
+    owed: Option<Owed>,
+}
+
+/// Error estimates owed: of the state command number `seq` answered with (`of`); `run` says
+/// whether that state is a run of the UI's history (a finished Solve), which keeps it.
+struct Owed {
+    seq: u64,
+    run: bool,
+    of: Arc<ViewData>,
 }
 
 /// The solver thread's loop: each command answered in turn (those dropped by a cancel of
-/// everything queued answered `Skipped`), until either channel closes.
+/// everything queued answered `Skipped`), until either channel closes. A step answers without
+/// error estimates (they cost about as much as a solve), and the thread computes them and sends
+/// them after the answer ([`Reply::Estimates`]): at once for a finished Solve (a run of the
+/// history, which keeps them: a figure's queued solves each need theirs) unless a cancel of
+/// everything queued dropped it since, else once nothing is queued. A command queued by then runs
+/// first, and drops them where it changes the state ([`Reply::estimates_owed_after`]).
 pub(super) fn run(
     rx: &Receiver<(u64, Command)>,
     shared: Shared<'_>,
@@ -101,16 +125,41 @@ pub(super) fn run(
 ) {
     let link =
         Link { tx, notify, skip_through: shared.skip_through, partial_estimates: shared.partial_estimates };
-    let mut thread =
-        SolverThread { link, solver: None, input: None, origin: None, unpushed: false, last_residual: 0.0 };
-    while let Ok((seq, cmd)) = rx.recv() {
-        if thread.link.skipped(seq) {
-            if !thread.link.send(Reply::Skipped) {
-                break;
+    let mut thread = SolverThread {
+        link,
+        solver: None,
+        input: None,
+        origin: None,
+        unpushed: false,
+        last_residual: 0.0,
+        owed: None,
+    };
+    loop {
+        let next = match &thread.owed {
+            Some(o) if o.run && !thread.link.skipped(o.seq) => Err(TryRecvError::Empty),
+            Some(_) => rx.try_recv(),
+            None => rx.recv().map_err(|_| TryRecvError::Disconnected),
+        };
+        let (seq, cmd) = match next {
+            Ok(next) => next,
+            Err(TryRecvError::Empty) => {
+                if !thread.send_estimates() {
+                    break;
+                }
+                continue;
             }
-            continue;
-        }
-        let reply = thread.answer(seq, cmd);
+            Err(TryRecvError::Disconnected) => break,
+        };
+        let reply = if thread.link.skipped(seq) { Reply::Skipped } else { thread.answer(seq, cmd) };
+        thread.owed = match &reply {
+            Reply::Done { report, view } if view.estimates_pending => Some(Owed {
+                seq,
+                run: report.is_some_and(|r| r.kind == StepKind::Solve && !r.cancelled),
+                of: Arc::clone(view),
+            }),
+            r if r.estimates_owed_after(true) => thread.owed.take(),
+            _ => None,
+        };
         if !thread.link.send(reply) {
             break;
         }
@@ -118,12 +167,28 @@ pub(super) fn run(
 }
 
 /// The state shown of solver `s` (pushed and pulled for display when `unpushed`), on the input
-/// patches (`origin`).
+/// patches (`origin`), with its error estimates (a restart's or a load's: without links yet,
+/// they cost little).
 fn view_of(s: &HierarchicalSolver, unpushed: bool, origin: &Origin) -> Arc<ViewData> {
     ViewData::of_solver_on(s, unpushed, true, CLUSTER_LINKS_KEPT, origin.as_deref().map(Vec::as_slice))
 }
 
+/// [`view_of`] without the error estimates, marked pending ([`ViewData::estimates_pending`]):
+/// a step's answer.
+fn view_before_estimates(s: &HierarchicalSolver, unpushed: bool, origin: &Origin) -> Arc<ViewData> {
+    let on = origin.as_deref().map(Vec::as_slice);
+    let view = ViewData::of_solver_on(s, unpushed, false, CLUSTER_LINKS_KEPT, on);
+    Arc::new(ViewData { estimates_pending: true, ..Arc::unwrap_or_clone(view) })
+}
+
 impl<N: Fn() + Send> SolverThread<'_, N> {
+    /// Compute the error estimates owed and send them; false once the UI is gone.
+    fn send_estimates(&mut self) -> bool {
+        let (Some(Owed { of, .. }), Some(s)) = (self.owed.take(), self.solver.as_ref()) else { return true };
+        let view = Arc::new(of.with_estimates(&s.error_estimates()));
+        self.link.send(Reply::Estimates { of, view })
+    }
+
     /// Run command number `seq` and return its answer.
     fn answer(&mut self, seq: u64, cmd: Command) -> Reply {
         // A cancel applies to the command that was running when it was pressed.
@@ -235,7 +300,7 @@ impl<N: Fn() + Send> SolverThread<'_, N> {
         // Gauss-Seidel gathers push and pull patch by patch themselves; Iterate and Solve end
         // with a push-pull (or stop before their gather).
         self.unpushed = kind == StepKind::Gather && !s.params().gauss_seidel;
-        let view = view_of(s, self.unpushed, &self.origin);
+        let view = view_before_estimates(s, self.unpushed, &self.origin);
         let mut report = report;
         if self.unpushed {
             // The solver records a gather's residual at its push-pull; the view has it already

@@ -21,6 +21,8 @@ pub struct StatusInput<'a> {
     pub last_report: Option<&'a StepReport>,
     /// How the last finished Solve started and how long it took.
     pub last_solve: Option<SolveNote>,
+    /// The state's error estimates are on their way: what that means for what is shown.
+    pub estimates: Option<&'a str>,
 }
 
 /// Where a Solve started from.
@@ -71,7 +73,7 @@ impl View for StatusBar {
     type Action = ();
 
     fn ui(&mut self, ui: &mut egui::Ui, input: StatusInput<'_>) -> Option<()> {
-        let StatusInput { view, last_report, last_solve } = input;
+        let StatusInput { view, last_report, last_solve, estimates } = input;
         let s = &view.stats;
         // Two rows, always (the window's layout does not move as the text changes): what the
         // solution is, then what the solver did. Each fits a 1200-point window; the last item of
@@ -97,6 +99,10 @@ impl View for StatusBar {
                     "The solver has gathered; its own radiosity changes at the next Push-pull. \
                      The view shows that result already.",
                 );
+            }
+            if let Some(note) = estimates {
+                ui.separator();
+                ui.label(note).on_hover_text(ESTIMATES_TIP);
             }
             if !self.message.is_empty() {
                 ui.separator();
@@ -128,6 +134,11 @@ impl View for StatusBar {
         None
     }
 }
+
+/// What the status bar's "estimating the error…" means.
+const ESTIMATES_TIP: &str = "The solver's own error estimate of every element costs about as much \
+     as the solve: the picture, the report and the history entry come at once, and the estimates \
+     (error overlay, inspector, the run's estimated error) follow.";
 
 /// What the residual in the status bar and the residual plot measure.
 pub const RESIDUAL_TIP: &str = "Residual: the largest change of a leaf's radiosity in the last \

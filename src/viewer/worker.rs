@@ -54,6 +54,9 @@ pub struct ViewData {
     /// Each element's slope, by id, where it has one (empty: no element has one): the leaves'
     /// linear reconstruction, B(x) = B + d · (x − centroid), that the viewer draws by default.
     pub slopes: Vec<Option<crate::solver::Slope>>,
+    /// The elements' `error_estimate`s are not computed yet (every one 0): a step's answer, whose
+    /// estimates follow in a [`Reply::Estimates`] of their own ([`ViewData::with_estimates`]).
+    pub estimates_pending: bool,
 }
 
 /// Most cluster links a [`ViewData`] carries: a 100 k-triangle room has 4 M (64 bytes each),
@@ -141,7 +144,20 @@ impl ViewData {
             patch_cluster: s.patch_cluster,
             cluster_links: Vec::new(),
             slopes,
+            estimates_pending: false,
         }
+    }
+
+    /// This state with the solver's error estimates (`estimates`, indexed by element id, as
+    /// [`HierarchicalSolver::error_estimates`] gives them) in place of the pending zeros.
+    #[must_use]
+    pub fn with_estimates(&self, estimates: &[f64]) -> ViewData {
+        let mut v = self.clone();
+        for e in &mut v.elements {
+            e.error_estimate = estimates.get(e.id as usize).copied().unwrap_or(0.0);
+        }
+        v.estimates_pending = false;
+        v
     }
 
     /// The state of a solve on a uniform or discontinuity mesh: every element a leaf on its
@@ -446,6 +462,53 @@ pub enum Reply {
     Cancelled {
         report: StepReport,
     },
+    /// The error estimates of the state a step answered with (`of`, the `view` of that `Done`,
+    /// sent with [`ViewData::estimates_pending`] set): `view` is that state with them. Computed
+    /// after the `Done`, while no other command is queued; a command that changes the solver's
+    /// state first drops them (its own answer replaces the state). The UI applies them only to
+    /// the very state they belong to (`Arc::ptr_eq` with `of`).
+    Estimates {
+        of: Arc<ViewData>,
+        view: Arc<ViewData>,
+    },
+}
+
+impl Reply {
+    /// Whether error estimates are still owed after this reply, `owed` before it
+    /// ([`Reply::Estimates`]): a new state owes its own (a step's answer) or none; estimates
+    /// pay what is owed, and a kept `Retarget` drops it (the solver may be back at an earlier
+    /// state); the other replies leave it. The solver thread and [`Worker`] both follow it.
+    #[must_use]
+    pub fn estimates_owed_after(&self, owed: bool) -> bool {
+        match self {
+            Reply::Loaded { view, .. } | Reply::Done { view, .. } => view.estimates_pending,
+            Reply::Estimates { .. } | Reply::Retargeted => false,
+            Reply::Progress { .. }
+            | Reply::Partial { .. }
+            | Reply::Replay { .. }
+            | Reply::Baked(_)
+            | Reply::Failed(_)
+            | Reply::Skipped
+            | Reply::Cancelled { .. } => owed,
+        }
+    }
+
+    /// Whether this reply answers a command (the others come on the way, or after the answer).
+    fn answers_a_command(&self) -> bool {
+        match self {
+            Reply::Loaded { .. }
+            | Reply::Done { .. }
+            | Reply::Cancelled { .. }
+            | Reply::Baked(_)
+            | Reply::Failed(_)
+            | Reply::Skipped
+            | Reply::Retargeted => true,
+            Reply::Progress { .. }
+            | Reply::Partial { .. }
+            | Reply::Replay { .. }
+            | Reply::Estimates { .. } => false,
+        }
+    }
 }
 
 /// A solve sends its picture after a round at most this often (`Reply::Partial`).
@@ -470,13 +533,16 @@ pub struct Worker {
     /// Whether the pictures a solve sends as it goes carry the solver's error estimates
     /// ([`Worker::set_partial_estimates`]).
     pub(super) partial_estimates: Arc<AtomicBool>,
+    /// The last state answered still waits for its error estimates ([`Reply::Estimates`]).
+    pub(super) estimates_owed: bool,
 }
 
 impl Worker {
     /// Whether the pictures a solve sends as it goes ([`Reply::Partial`]) carry the solver's
     /// error estimates: only while something shows them (the error overlay, the inspector).
     /// Each costs about as much as the solve's work so far, so without them a solve in the
-    /// viewer takes what it takes on the command line. A step's answer always carries them.
+    /// viewer takes what it takes on the command line. A step's answer is followed by them
+    /// ([`Reply::Estimates`]).
     pub fn set_partial_estimates(&self, on: bool) {
         self.partial_estimates.store(on, Ordering::Relaxed);
     }
@@ -508,61 +574,70 @@ impl Worker {
         }
     }
 
+    /// True while the last state answered waits for its error estimates ([`Reply::Estimates`]):
+    /// they come unless a command that changes the state is answered first.
+    #[must_use]
+    pub fn estimates_owed(&self) -> bool {
+        self.estimates_owed
+    }
+
+    /// Count reply `r` in: a command answered, the scene's cancel flag, estimates owed.
+    fn received(&mut self, r: &Reply) {
+        if let Reply::Loaded { cancel, .. } = r {
+            self.cancel = Some(Arc::clone(cancel));
+        }
+        if r.answers_a_command() {
+            self.in_flight = self.in_flight.saturating_sub(1);
+        }
+        self.estimates_owed = r.estimates_owed_after(self.estimates_owed);
+    }
+
+    /// The solver thread is gone: nothing more will come.
+    fn stopped(&mut self) -> Option<Reply> {
+        self.estimates_owed = false;
+        if self.in_flight > 0 {
+            self.in_flight = 0;
+            return Some(Reply::Failed("the solver thread stopped".into()));
+        }
+        None
+    }
+
     /// Next reply, if any (never blocks).
     pub fn poll(&mut self) -> Option<Reply> {
         match self.rx.try_recv() {
             Ok(r) => {
-                match &r {
-                    Reply::Loaded { cancel, .. } => {
-                        self.cancel = Some(Arc::clone(cancel));
-                        self.in_flight = self.in_flight.saturating_sub(1);
-                    }
-                    Reply::Done { .. }
-                    | Reply::Cancelled { .. }
-                    | Reply::Baked(_)
-                    | Reply::Failed(_)
-                    | Reply::Skipped
-                    | Reply::Retargeted => self.in_flight = self.in_flight.saturating_sub(1),
-                    Reply::Progress { .. } | Reply::Partial { .. } | Reply::Replay { .. } => {}
-                }
+                self.received(&r);
                 Some(r)
             }
             Err(TryRecvError::Empty) => None,
-            Err(TryRecvError::Disconnected) => {
-                if self.in_flight > 0 {
-                    self.in_flight = 0;
-                    return Some(Reply::Failed("the solver thread stopped".into()));
-                }
-                None
-            }
+            Err(TryRecvError::Disconnected) => self.stopped(),
         }
     }
 
-    /// Block until the queue is empty (tests and scripted runs only; never in `ui`).
-    pub fn wait_idle(&mut self, mut on_reply: impl FnMut(Reply)) {
-        while self.in_flight > 0 {
+    /// Block until every command sent is answered and the estimates owed have come (tests and
+    /// scripted runs only; never in `ui`).
+    pub fn wait_idle(&mut self, on_reply: impl FnMut(Reply)) {
+        self.wait_until(true, on_reply);
+    }
+
+    /// Block until every command sent is answered, not for the estimates that follow (tests
+    /// only).
+    pub fn wait_answered(&mut self, on_reply: impl FnMut(Reply)) {
+        self.wait_until(false, on_reply);
+    }
+
+    fn wait_until(&mut self, estimates: bool, mut on_reply: impl FnMut(Reply)) {
+        while self.in_flight > 0 || (estimates && self.estimates_owed) {
             match self.rx.recv() {
                 Ok(r) => {
-                    match &r {
-                        Reply::Loaded { cancel, .. } => {
-                            self.cancel = Some(Arc::clone(cancel));
-                            self.in_flight -= 1;
-                        }
-                        Reply::Done { .. }
-                        | Reply::Cancelled { .. }
-                        | Reply::Baked(_)
-                        | Reply::Failed(_)
-                        | Reply::Skipped
-                        | Reply::Retargeted => {
-                            self.in_flight -= 1;
-                        }
-                        Reply::Progress { .. } | Reply::Partial { .. } | Reply::Replay { .. } => {}
-                    }
+                    self.received(&r);
                     on_reply(r);
                 }
                 Err(_) => {
-                    self.in_flight = 0;
-                    on_reply(Reply::Failed("the solver thread stopped".into()));
+                    if let Some(r) = self.stopped() {
+                        on_reply(r);
+                    }
+                    return;
                 }
             }
         }
@@ -630,28 +705,117 @@ mod tests {
     fn pictures_on_the_way_carry_estimates_only_when_asked() {
         let mut w = Worker::spawn(|| {}).unwrap();
         load(&mut w, "builtin:cornell", HierarchicalParams::interactive());
-        // Per solve: (the largest estimate of its pictures on the way, that of its answer).
+        // Per solve: (the largest estimate of its pictures on the way, that of its answer, that
+        // of the estimates that follow it).
         let solve = |w: &mut Worker, estimates: bool| {
             w.set_partial_estimates(estimates);
             w.send(Command::Reset);
             w.send(Command::Step(StepKind::Solve));
-            let (mut partial, mut done, mut pictures) = (0.0f64, 0.0f64, 0);
+            let (mut partial, mut done, mut followed, mut pictures) = (0.0f64, None, None, 0);
             let most = |v: &ViewData| v.elements.iter().map(|e| e.error_estimate).fold(0.0, f64::max);
             w.wait_idle(|r| match r {
                 Reply::Partial { view } => {
                     pictures += 1;
                     partial = partial.max(most(&view));
                 }
-                Reply::Done { report: Some(_), view } => done = most(&view),
+                Reply::Done { report: Some(_), view } => {
+                    assert!(view.estimates_pending, "a step answers before its estimates");
+                    done = Some(most(&view));
+                }
+                Reply::Estimates { view, .. } => followed = Some(most(&view)),
                 _ => {}
             });
             assert!(pictures > 0, "a solve shows its first round at once");
-            (partial, done)
+            (partial, done.expect("the solve answers"), followed.expect("its estimates follow"))
         };
-        let (partial, done) = solve(&mut w, false);
-        assert!(partial == 0.0 && done > 0.0, "not asked: {partial} on the way, {done} at the end");
-        let (partial, done) = solve(&mut w, true);
-        assert!(partial > 0.0 && done > 0.0, "asked: {partial} on the way, {done} at the end");
+        let (partial, done, followed) = solve(&mut w, false);
+        assert!(partial == 0.0 && done == 0.0 && followed > 0.0, "not asked: {partial}, {done}, {followed}");
+        let (partial, done, followed) = solve(&mut w, true);
+        assert!(partial > 0.0 && done == 0.0 && followed > 0.0, "asked: {partial}, {done}, {followed}");
+    }
+
+    /// A step answers with its state without error estimates, marked pending, and the estimates
+    /// follow: that state, with the estimates `snapshot_with(true)` gives (a gather's state
+    /// shown pushed and pulled, as its answer showed it).
+    #[test]
+    fn a_steps_estimates_follow_its_answer_and_are_the_solvers() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        let p = HierarchicalParams::interactive();
+        load(&mut w, "builtin:cornell", p);
+        let mut s = HierarchicalSolver::new(Arc::new(Scene::load("builtin:cornell").unwrap()), p).unwrap();
+        for kind in [StepKind::Refine, StepKind::Gather, StepKind::Iterate] {
+            w.send(Command::Step(kind));
+            let mut answers = Vec::new();
+            w.wait_idle(|r| answers.push(r));
+            let [Reply::Done { report: Some(_), view: done }, Reply::Estimates { of, view }] = &answers[..]
+            else {
+                panic!("{kind:?}: a step's answer, then its estimates")
+            };
+            assert!(Arc::ptr_eq(done, of), "{kind:?}: the estimates name the state answered");
+            assert!(done.estimates_pending && !view.estimates_pending);
+            assert!(done.elements.iter().all(|e| e.error_estimate == 0.0), "{kind:?}: none in the answer");
+            // The same step here: the worker pushes and pulls a gather before the next step.
+            let unpushed = kind == StepKind::Gather;
+            let _report = match kind {
+                StepKind::Refine => s.refine_step(),
+                StepKind::Gather => s.gather_step(),
+                _ => {
+                    s.push_pull_step();
+                    s.iterate()
+                }
+            };
+            let expected = ViewData::of_solver(&s, unpushed);
+            assert_eq!(view.elements.len(), expected.elements.len());
+            for (got, want) in view.elements.iter().zip(&expected.elements) {
+                assert_eq!(got.error_estimate, want.error_estimate, "{kind:?}: element {}", got.id);
+                assert_eq!(got.radiosity, want.radiosity, "{kind:?}: element {}", got.id);
+            }
+            assert!(view.elements.iter().any(|e| e.error_estimate > 0.0) || kind == StepKind::Refine);
+            assert_eq!(view.links, done.links, "the state answered, nothing else changed");
+        }
+    }
+
+    /// Estimates never name a state other than the last one answered: a step queued behind a
+    /// step runs first and drops the first one's estimates; a finished Solve (a run of the
+    /// history) gets its estimates before the command queued behind it, unless a cancel of
+    /// everything queued dropped it.
+    #[test]
+    fn a_queued_command_drops_the_estimates_of_the_state_it_replaces() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        load(&mut w, "builtin:cornell", HierarchicalParams::interactive());
+        // (answers, the answers whose estimates came), each estimate checked to name the last
+        // state answered.
+        let run = |w: &mut Worker, cmds: Vec<Command>| {
+            for c in cmds {
+                w.send(c);
+            }
+            let (mut answered, mut estimated) = (Vec::new(), Vec::new());
+            w.wait_idle(|r| match r {
+                Reply::Done { view, .. } => answered.push(view),
+                Reply::Estimates { of, .. } => {
+                    let last = answered.last().expect("estimates follow an answer");
+                    assert!(Arc::ptr_eq(last, &of), "estimates of the last state answered only");
+                    estimated.push(answered.len() - 1);
+                }
+                _ => {}
+            });
+            assert!(!w.estimates_owed());
+            (answered.len(), estimated)
+        };
+        // Both queued at once: an iteration takes far longer than the second send.
+        let iterate = || Command::Step(StepKind::Iterate);
+        assert_eq!(run(&mut w, vec![iterate(), iterate()]), (2, vec![1]), "the first step's dropped");
+        let solve = Command::Step(StepKind::Solve);
+        assert_eq!(run(&mut w, vec![Command::Reset, solve, iterate()]), (3, vec![1, 2]), "a run's kept");
+        // A restart answers with its own estimates: nothing is owed after it.
+        assert_eq!(run(&mut w, vec![iterate(), Command::Reset]), (2, vec![]), "replaced by the reset");
+        // A solve dropped by a cancel of everything queued (unrun, or stopped early): the restart
+        // queued after it runs first.
+        w.send(Command::Reset);
+        w.send(Command::Step(StepKind::Solve));
+        w.cancel_all();
+        let (_, estimated) = run(&mut w, vec![Command::Reset]);
+        assert!(estimated.is_empty(), "the cancelled solve's dropped");
     }
 
     #[test]
@@ -739,7 +903,7 @@ mod tests {
         let run = |w: &mut Worker, cmd: Command| {
             w.send(cmd);
             let mut answers = Vec::new();
-            w.wait_idle(|r| answers.push(r));
+            w.wait_answered(|r| answers.push(r));
             answers.pop().expect("an answer")
         };
         let Reply::Done { view: solved, .. } = run(&mut w, Command::Step(StepKind::Solve)) else {
@@ -857,7 +1021,7 @@ mod tests {
         // dropped solve's progress is no longer forwarded.
         w.send(Command::Step(StepKind::Iterate));
         let mut answers = Vec::new();
-        w.wait_idle(|r| answers.push(r));
+        w.wait_answered(|r| answers.push(r));
         assert!(matches!(answers.last(), Some(Reply::Done { report: Some(_), .. })));
         assert!(!answers.iter().any(|r| matches!(r, Reply::Progress { .. })), "no stray progress");
     }

@@ -146,6 +146,7 @@ impl RadlabApp {
                 view: &self.shown.view,
                 last_report: self.shown.last_report.as_ref(),
                 last_solve: self.log.last_solve,
+                estimates: self.estimates_note(),
             };
             self.status_bar.ui(ui, input);
         });
@@ -331,7 +332,8 @@ impl RadlabApp {
     /// (the figure's steps done), when the state, its error or the runs changed.
     fn update_caption_facts(&mut self) {
         let (Some(figure), Some(scene)) = (self.lecture.figure(), self.scene.clone()) else { return };
-        if !self.lecture.following() || self.busy() || self.solve.loading || self.shown.hold {
+        let settled = !self.busy() && !self.solve.loading && !self.shown.hold && !self.estimates_pending();
+        if !self.lecture.following() || !settled {
             return;
         }
         let error = self.state_error();

@@ -71,7 +71,7 @@ impl RadlabApp {
             error_scale: self.geometry.error_scale,
             critical: self.critical_counts(),
             artifacts: self.artifacts(),
-            error: (self.display.error && self.error_applies()).then(|| self.error_label()),
+            error: self.shade().error.then(|| self.error_label()),
             busy: self.busy(),
             split_on: self.split.on,
             stale: self.stale_note(),
@@ -171,13 +171,20 @@ impl RadlabApp {
         }
     }
 
-    /// Ask for a display build when the solver state or a display setting it depends on
-    /// changed. The build runs on the `radlab-display` thread; the UI keeps showing the previous
-    /// geometry until [`RadlabApp::poll_geometry`] picks the new one up.
+    /// Ask for a display build when the solver state (its error estimates included) or a
+    /// display setting it depends on changed. The build runs on the `radlab-display` thread; the
+    /// UI keeps showing the previous geometry until [`RadlabApp::poll_geometry`] picks the new
+    /// one up.
     pub(super) fn request_geometry(&mut self) {
+        // The error overlay of a state whose estimates are on their way: the last build (the
+        // last state's heatmap) stays until they come (the status bar says so).
+        if self.overlay_waits_for_estimates() {
+            return;
+        }
         let settings = self.build_settings();
         let key = BuildKey {
             view_seq: self.shown.seq,
+            view: Arc::as_ptr(&self.shown.view) as usize,
             true_error: self.true_error().map(|e| Arc::as_ptr(e) as usize),
             artifacts: self.artifact_samples().map(|(a, s)| (a, Arc::as_ptr(&s) as usize)),
             settings,
@@ -213,10 +220,16 @@ impl RadlabApp {
     /// How the mesh shader draws the current solution (the panes too, less the pick).
     fn shade(&self) -> Shade {
         let d = &self.display;
+        // While the overlay waits for the estimates, the last build stays: drawn as it was built.
+        let error = if self.overlay_waits_for_estimates() {
+            self.geometry.coloring == Some(Coloring::Error)
+        } else {
+            d.error && self.error_applies()
+        };
         Shade {
             exposure_ev: d.exposure_ev,
             srgb: d.srgb,
-            error: d.error && self.error_applies(),
+            error,
             quadtree: d.quadtree,
             picked: self.pick.here(),
         }

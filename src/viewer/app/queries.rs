@@ -224,6 +224,9 @@ impl RadlabApp {
             (None, RefState::Ready { .. } | RefState::Looking) => {
                 format!("error: scoring against {against}…")
             }
+            (None, _) if self.estimates_pending() => {
+                "error: estimating… (the solver's estimate follows the picture)".into()
+            }
             (None, _) if self.mesh_view() => {
                 "error unknown: a mesh solve has no estimate of its own (Compute reference)".into()
             }
@@ -250,6 +253,47 @@ impl RadlabApp {
     /// The true error list, when it matches the current solver state.
     pub(super) fn true_error(&self) -> Option<&Arc<Vec<f64>>> {
         self.comparison.true_error(self.shown.view.elements.len())
+    }
+
+    /// The solver's error estimates of the state shown are on their way: the step answered
+    /// without them, and the solver thread computes them next (or after the commands queued
+    /// since, when none of those replaces the state).
+    #[must_use]
+    pub fn estimates_pending(&self) -> bool {
+        self.shown.view.estimates_pending && self.solve.worker.as_ref().is_some_and(|w| w.estimates_owed())
+    }
+
+    /// The error overlay would draw the solver's estimates of the state shown, which have not
+    /// come yet: the viewport keeps the last state's overlay until they do.
+    pub(super) fn overlay_waits_for_estimates(&self) -> bool {
+        self.display.error && self.true_error().is_none() && !self.mesh_view() && self.estimates_pending()
+    }
+
+    /// Something shown reads the estimates that are on their way (the error overlay, the
+    /// inspector, the history and plots, the split view, a figure's caption): a scripted
+    /// screenshot waits for them.
+    pub(super) fn shows_pending_estimates(&self) -> bool {
+        self.estimates_pending()
+            && (self.display.error
+                || self.pick.here().is_some()
+                || self.pick.pending.is_some()
+                || self.history.open
+                || self.plots.open
+                || self.split.on
+                || self.lecture.figure().is_some())
+    }
+
+    /// What the status bar says of the state's error estimates while they are on their way
+    /// (`None` once they are in, or when none will come).
+    #[must_use]
+    pub fn estimates_note(&self) -> Option<&'static str> {
+        if self.overlay_waits_for_estimates() {
+            Some("estimating the error… (the error overlay shows the last state's until then)")
+        } else if self.estimates_pending() {
+            Some("estimating the error…")
+        } else {
+            None
+        }
     }
 
     /// The error heatmap has something to show: the solver's estimate (quadtree), or the true

@@ -35,6 +35,18 @@ impl RadlabApp {
         self.report_thread_panics();
     }
 
+    /// Block until the solver thread has answered every command sent and apply the answers, not
+    /// waiting for the error estimates that follow a step's (tests).
+    pub fn wait_for_answers(&mut self) {
+        if let Some(w) = &mut self.solve.worker {
+            let mut replies = Vec::new();
+            w.wait_answered(|r| replies.push(r));
+            for r in replies {
+                self.apply(r);
+            }
+        }
+    }
+
     /// Apply the solver thread's replies so far; then start the re-solve that waits for it to be
     /// idle, or show the state held back when none follows.
     pub(super) fn poll_worker(&mut self) {
@@ -85,10 +97,28 @@ impl RadlabApp {
                 self.shown.last_report = Some(report);
                 self.script.solver_answered(!self.busy(), self.opts.bench_frames.is_some());
             }
+            // The error estimates of a state a step answered with: folded into it wherever it is
+            // still shown or kept (dropped when it no longer is).
+            Reply::Estimates { of, view } => self.estimated(&of, &view),
             Reply::Baked(Ok(what)) => self.status_bar.message = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => self.solver_failed(e),
         }
+    }
+
+    /// The error estimates of state `of` arrived (`view`: that state with them): it is replaced
+    /// by `view` where it is shown, held back, kept by a run of the history or by the replay.
+    /// The state keeps its number (its display build, scores and artifacts stay its own; the
+    /// viewport rebuilds as the `Arc` changed).
+    fn estimated(&mut self, of: &Arc<ViewData>, view: &Arc<ViewData>) {
+        if Arc::ptr_eq(&self.shown.view, of) {
+            self.shown.view = Arc::clone(view);
+        }
+        if let Some(held) = self.shown.held.as_mut().filter(|h| Arc::ptr_eq(h, of)) {
+            *held = Arc::clone(view);
+        }
+        self.history.fold_estimates(of, view);
+        self.replay.fold_estimates(of, view);
     }
 
     /// The scene's solver is ready: its first state (held back where a reload on another top

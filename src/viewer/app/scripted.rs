@@ -97,6 +97,13 @@ impl RadlabApp {
     /// frames), let the display settle and ask for the screenshot, or measure the benchmark's
     /// frames and print its report.
     pub(super) fn run_script(&mut self, ctx: &egui::Context) {
+        // The solver's error estimates are on their way and something shown reads them: no
+        // frames until they come (their reply asks for one), drawing would slow them down.
+        if self.shows_pending_estimates()
+            && matches!(self.script.script, Script::Settle(_) | Script::Bench { .. })
+        {
+            return;
+        }
         // The display is final when the newest build is shown and the reference thread has
         // nothing left to report (its look-up or a score changes the error overlay).
         let current = self.geometry.current()
