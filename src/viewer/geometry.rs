@@ -18,8 +18,8 @@ use std::sync::Arc;
 #[derive(Clone, Debug, PartialEq)]
 pub struct BuildKey {
     pub view_seq: u64,
-    /// Address of the state (`Arc` identity): it changes, not its number, when the state's
-    /// error estimates arrive.
+    /// With the error heatmap, the address of the state (`Arc` identity; else 0): it changes,
+    /// not its number, when the state's error estimates arrive.
     pub view: usize,
     /// Address of the true-error list (`Arc` identity), if any.
     pub true_error: Option<usize>,

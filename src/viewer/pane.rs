@@ -58,8 +58,9 @@ pub fn pick(view: &ViewData, camera: &OrbitCamera, pos: Pos2, rect: Rect) -> Opt
 pub struct Pane {
     /// Renderer slot (0 is the viewport's).
     slot: usize,
-    /// (what is shown, the address of its state, settings) the newest build was requested for;
-    /// "what" is the caller's key (the state's address changes when its estimates arrive).
+    /// (what is shown, with the error heatmap the address of its state, settings) the newest
+    /// build was requested for; "what" is the caller's key (the state's address changes when its
+    /// estimates arrive).
     key: Option<(u64, usize, Settings)>,
     builder: Option<Builder>,
     seq: u64,
@@ -121,7 +122,8 @@ impl Pane {
     /// Ask for the geometry of `view` (identified by `key`) with `settings` if it is not the one
     /// asked for last, and pick up a finished build.
     pub fn update(&mut self, ctx: &egui::Context, key: u64, view: &Arc<ViewData>, settings: Settings) {
-        let key = (key, Arc::as_ptr(view) as usize, settings);
+        let estimated = if settings.coloring == Coloring::Error { Arc::as_ptr(view) as usize } else { 0 };
+        let key = (key, estimated, settings);
         // The error heatmap of a state whose estimates are on their way: the last build stays
         // until they come (a heatmap of zeros would be blank).
         let waits = settings.coloring == Coloring::Error && view.estimates_pending && self.key.is_some();

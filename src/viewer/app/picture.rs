@@ -184,7 +184,12 @@ impl RadlabApp {
         let settings = self.build_settings();
         let key = BuildKey {
             view_seq: self.shown.seq,
-            view: Arc::as_ptr(&self.shown.view) as usize,
+            // (Only the heatmap reads the estimates: their arrival rebuilds nothing else.)
+            view: if settings.coloring == Coloring::Error {
+                Arc::as_ptr(&self.shown.view) as usize
+            } else {
+                0
+            },
             true_error: self.true_error().map(|e| Arc::as_ptr(e) as usize),
             artifacts: self.artifact_samples().map(|(a, s)| (a, Arc::as_ptr(&s) as usize)),
             settings,
