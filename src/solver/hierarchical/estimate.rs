@@ -46,6 +46,7 @@ use crate::math::{DVec3, Rgb};
 use crate::solver::hierarchy::Hierarchy;
 use crate::solver::link::LinkStore;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Jacobi sweeps of the error transport δ = r + ρKδ: the first this-many bounces of the residual
 /// (ρ ≤ 0.8 in the built-in rooms leaves < 3 % of the series after 16).
@@ -82,11 +83,20 @@ impl<'a> Inputs<'a> {
 /// average of their children.
 #[must_use]
 pub fn error_estimates(solver: &HierarchicalSolver) -> Vec<f64> {
-    let (delta, within) = local_errors(Inputs::of(solver));
+    error_estimates_until(solver, &AtomicBool::new(false)).unwrap_or_default()
+}
+
+/// [`error_estimates`], given up (None) once `stop` is set: checked before each leaf's local
+/// terms and each transport sweep, so a caller that no longer needs them (the viewer, when a
+/// newer command comes) waits at most one leaf or one sweep. The same numbers when it runs to
+/// the end.
+#[must_use]
+pub fn error_estimates_until(solver: &HierarchicalSolver, stop: &AtomicBool) -> Option<Vec<f64>> {
+    let (delta, within) = local_errors(Inputs::of(solver), stop)?;
     let mut est: Vec<f64> =
         delta.iter().zip(&within).map(|(d, w)| d.map(f64::abs).mean().hypot(w.mean())).collect();
     pull(solver.hierarchy(), &mut est);
-    est
+    Some(est)
 }
 
 /// The solver's estimate of its **global** error: the per-leaf estimates (units of B) against the
@@ -131,7 +141,7 @@ pub fn solution_relative_l2(scene: &crate::scene::Scene, solution: &crate::solve
 #[must_use]
 pub fn residual_correction(solver: &HierarchicalSolver) -> Vec<Rgb> {
     let hier = solver.hierarchy();
-    let (mut delta, _) = local_errors(Inputs::of(solver));
+    let (mut delta, _) = local_errors(Inputs::of(solver), &AtomicBool::new(false)).unwrap_or_default();
     for (d, e) in delta.iter_mut().zip(&hier.elements) {
         if !e.is_leaf() {
             *d = Rgb::ZERO;
@@ -141,15 +151,23 @@ pub fn residual_correction(solver: &HierarchicalSolver) -> Vec<Rgb> {
 }
 
 /// (δ, w) per element: the local residual r of every leaf, transported, and the within-leaf
-/// variation w (not transported); zero on interior elements.
-fn local_errors(inputs: Inputs<'_>) -> (Vec<Rgb>, Vec<Rgb>) {
+/// variation w (not transported); zero on interior elements. None once `stop` is set.
+fn local_errors(inputs: Inputs<'_>, stop: &AtomicBool) -> Option<(Vec<Rgb>, Vec<Rgb>)> {
     let hier = inputs.hier;
     let local: Vec<(Rgb, Rgb)> = (0..hier.len() as u32)
         .into_par_iter()
-        .map(|x| if hier.get(x).is_leaf() { local_terms(inputs, x) } else { (Rgb::ZERO, Rgb::ZERO) })
-        .collect();
+        .map(|x| {
+            if stop.load(Ordering::Relaxed) {
+                None
+            } else if hier.get(x).is_leaf() {
+                Some(local_terms(inputs, x))
+            } else {
+                Some((Rgb::ZERO, Rgb::ZERO))
+            }
+        })
+        .collect::<Option<_>>()?;
     let (r, w): (Vec<Rgb>, Vec<Rgb>) = local.into_iter().unzip();
-    (transport(hier, inputs.links, &r), w)
+    Some((transport(hier, inputs.links, &r, stop)?, w))
 }
 
 /// `x − centroid` of element `e` in its tangent basis `(t1, t2)` (`orthonormal_basis(e.normal)`,
@@ -293,13 +311,16 @@ fn local_terms(inputs: Inputs<'_>, x: u32) -> (Rgb, Rgb) {
 }
 
 /// Solve e = s + ρ K e by TRANSPORT_BOUNCES Jacobi sweeps (K: the solver's links with push-pull);
-/// Returns e on leaves (interior entries are meaningless).
-fn transport(hier: &Hierarchy, links: &LinkStore, source: &[Rgb]) -> Vec<Rgb> {
+/// Returns e on leaves (interior entries are meaningless); None once `stop` is set.
+fn transport(hier: &Hierarchy, links: &LinkStore, source: &[Rgb], stop: &AtomicBool) -> Option<Vec<Rgb>> {
     let n = hier.len();
     let mut e = source.to_vec();
     let mut avg = vec![Rgb::ZERO; n];
     let mut down = vec![Rgb::ZERO; n];
     for _ in 0..TRANSPORT_BOUNCES {
+        if stop.load(Ordering::Relaxed) {
+            return None;
+        }
         // Pull: interior elements carry the area average of their leaves (children have larger ids).
         for i in (0..n).rev() {
             let el = &hier.elements[i];
@@ -324,7 +345,7 @@ fn transport(hier: &Hierarchy, links: &LinkStore, source: &[Rgb]) -> Vec<Rgb> {
             }
         }
     }
-    e
+    Some(e)
 }
 
 /// Interior elements: the area average of their children (children have larger ids).
@@ -423,6 +444,21 @@ mod tests {
         let gain = mean(&corrected) / mean(&truth);
         eprintln!("furnace: corrected error / error {gain:.4} (mean error {:.3e})", mean(&truth));
         assert!(gain < FURNACE_CORRECTED, "corrected error / error {gain}");
+    }
+
+    #[test]
+    fn estimates_stop_when_asked_and_are_the_same_when_not() {
+        let scene = Arc::new(crate::scene::builtin::load("cornell").expect("built in"));
+        let mut s = HierarchicalSolver::new(scene, HierarchicalParams::interactive()).unwrap();
+        s.solve(&mut |_, _| {});
+        let whole = error_estimates(&s);
+        assert!(whole.iter().any(|&e| e > 0.0), "a solved cornell has some error");
+        let unstopped = error_estimates_until(&s, &AtomicBool::new(false)).expect("never stopped");
+        assert_eq!(
+            whole.iter().map(|e| e.to_bits()).collect::<Vec<_>>(),
+            unstopped.iter().map(|e| e.to_bits()).collect::<Vec<_>>()
+        );
+        assert!(error_estimates_until(&s, &AtomicBool::new(true)).is_none(), "a set flag stops them");
     }
 
     #[test]

@@ -787,6 +787,13 @@ impl HierarchicalSolver {
         estimate::error_estimates(self)
     }
 
+    /// [`error_estimates`](Self::error_estimates), given up (None) as soon as `stop` is set
+    /// (see [`estimate::error_estimates_until`]).
+    #[must_use]
+    pub fn error_estimates_until(&self, stop: &AtomicBool) -> Option<Vec<f64>> {
+        estimate::error_estimates_until(self, stop)
+    }
+
     /// A copy of the elements, links and statistics.
     #[must_use]
     pub fn snapshot(&self) -> Snapshot {
