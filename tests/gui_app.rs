@@ -277,7 +277,7 @@ fn a_solves_error_estimates_follow_its_picture() {
     h.state_mut().step(StepKind::Solve);
     h.state_mut().wait_for_answers();
     // The answer is in, its estimates not yet (nothing has polled the solver thread since).
-    assert!(h.state().view().estimates_pending && h.state().estimates_pending());
+    assert!(h.state().view().estimates_pending() && h.state().estimates_pending());
     assert!(h.state().view().elements.iter().all(|e| e.error_estimate == 0.0));
     assert!(h.state().error_line().contains("estimating"), "{}", h.state().error_line());
     let run = h.state().history.runs().last().expect("the solve is a run").clone();
@@ -292,7 +292,7 @@ fn a_solves_error_estimates_follow_its_picture() {
     }
     h.state_mut().wait_for_solver();
     h.run_steps(2);
-    assert!(!h.state().estimates_pending() && !h.state().view().estimates_pending);
+    assert!(!h.state().estimates_pending() && !h.state().view().estimates_pending());
     let e = h.state().view().elements[picked as usize].error_estimate;
     assert!(e > 0.0, "the picked element's estimate arrived");
     assert!(
@@ -304,6 +304,30 @@ fn a_solves_error_estimates_follow_its_picture() {
     let run = h.state().history.runs().last().unwrap();
     assert!(run.estimate.is_some_and(|e| e > 0.0), "the run's estimate: {:?}", run.estimate);
     assert!(Arc::ptr_eq(run.view.as_ref().unwrap(), h.state().view()), "the run keeps the state shown");
+}
+
+/// A step pressed while a finished solve's error estimates are owed does not wait for them: they
+/// are given up, and the run says "not estimated" (never "estimating…"), in the history and
+/// without an estimate for the plots; the step's own estimates follow it as usual.
+#[test]
+fn a_step_gives_up_the_estimates_of_the_solve_before_it() {
+    let mut h = harness(opts());
+    h.state_mut().set_scene(Arc::new(cornell()));
+    settle(&mut h);
+    // The Refine is sent before the solve answers: the run's estimates give way to it.
+    h.state_mut().step(StepKind::Solve);
+    h.state_mut().step(StepKind::Refine);
+    settle(&mut h);
+    let run = h.state().history.runs().last().expect("the solve is a run").clone();
+    assert_eq!(run.error(), radlab::viewer::history::RunError::NotEstimated);
+    assert!(run.estimate.is_none(), "no estimate of 0 in the history");
+    assert!(h.state().history.error_series().is_empty(), "no estimate to plot");
+    assert!(!h.state().estimates_pending(), "nothing is owed");
+    assert!(!h.state().view().estimates_pending(), "the refinement's estimates came");
+    h.state_mut().history.open = true;
+    h.run_steps(2);
+    assert!(h.query_by_label("not estimated").is_some(), "the history says so");
+    assert!(h.query_by_label_contains("estimating").is_none(), "nothing says it is pending");
 }
 
 #[test]

@@ -43,7 +43,7 @@ use super::reference::{RefClient, RefThread};
 use super::replay::Replay;
 use super::script::{Script, ScriptRun};
 use super::shown::Shown;
-use super::solve::{FIRST_PICTURE, Opening, SolveState};
+use super::solve::{FIRST_PICTURE, Opening, SolveState, Urgency};
 use super::solve_log::SolveLog;
 use super::solver_panel::{MESH_SOLVE_LABEL, SolverPanel};
 use super::split::SplitView;
@@ -327,20 +327,24 @@ impl RadlabApp {
     }
 
     /// Queue a figure's work on its scene: its BFeps sweep (a solve each, then its own
-    /// settings back), its mesh solves and its steps.
+    /// settings back), its mesh solves and its steps. Queued behind the error estimates owed
+    /// ([`Urgency::Queued`]): each run of the sweep keeps its estimate (the history, the plots and
+    /// the captions quote them).
     fn queue_figure_solves(&mut self, f: &'static Figure) {
+        let queued = Urgency::Queued;
         for &bf_eps in f.sweep_bf_eps {
-            self.solve.send(Command::SetParams(HierarchicalParams { bf_eps, ..f.params }), "restarting");
-            self.send_step(StepKind::Solve);
+            let sweep = Command::SetParams(HierarchicalParams { bf_eps, ..f.params });
+            self.solve.send_as(sweep, "restarting", queued);
+            self.send_step_as(StepKind::Solve, queued);
         }
         if !f.sweep_bf_eps.is_empty() {
-            self.solve.send(Command::SetParams(f.params), "restarting");
+            self.solve.send_as(Command::SetParams(f.params), "restarting", queued);
         }
         for &m in f.mesh_sweep {
-            self.solve.send(Command::SolveMesh(m, DmeshOptions::default()), MESH_SOLVE_LABEL);
+            self.solve.send_as(Command::SolveMesh(m, DmeshOptions::default()), MESH_SOLVE_LABEL, queued);
         }
         for &k in f.steps {
-            self.send_step(k);
+            self.send_step_as(k, queued);
         }
     }
 
@@ -415,9 +419,14 @@ impl RadlabApp {
     /// Send a solver step: [`RadlabApp::step`], or one the app queues itself (a load's solve, a
     /// figure's steps, auto-run's re-solve).
     fn send_step(&mut self, kind: StepKind) {
+        self.send_step_as(kind, Urgency::Now);
+    }
+
+    /// [`RadlabApp::send_step`], now or queued behind the error estimates owed.
+    fn send_step_as(&mut self, kind: StepKind, urgency: Urgency) {
         self.lecture.on_step(kind);
         match self.solve.step_command(kind) {
-            Ok((cmd, label)) => self.solve.send(cmd, label),
+            Ok((cmd, label)) => self.solve.send_as(cmd, label, urgency),
             Err(why) => self.status_bar.message = why,
         }
     }

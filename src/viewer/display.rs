@@ -223,10 +223,13 @@ fn main_overlays_row(ui: &mut egui::Ui, d: &mut Display, mesh_view: bool, error_
             );
         ui.add_enabled(error_applies, egui::Checkbox::new(&mut d.error, "error heatmap"))
             .on_hover_text("Per-element error on a log colour scale (E)")
-            .on_disabled_hover_text(
+            .on_disabled_hover_text(if mesh_view {
                 "A mesh solve has no error estimate of its own: Compute reference (above) gives \
-                 the true error, then the heatmap shows it",
-            );
+                 the true error, then the heatmap shows it"
+            } else {
+                "The solver's error estimates of this state were given up (a newer command came \
+                 first): Solve again, or Compute reference (above) for the true error"
+            });
     });
 }
 

@@ -24,7 +24,7 @@
 //! estimate.
 
 use super::view::View;
-use super::worker::ViewData;
+use super::worker::{Estimates, ViewData};
 use crate::solver::hierarchical::estimate::global_relative_l2;
 use crate::solver::meshed::{MeshMethod, MeshSolveParams};
 use crate::solver::params::{AreaEps, HierarchicalParams, Oracle};
@@ -80,6 +80,8 @@ pub enum RunError {
     Noise(f64),
     /// The solver's estimate is being computed (it follows the solve's answer).
     Estimating,
+    /// The solver's estimate was given up: a newer command came first.
+    NotEstimated,
     /// Neither (nothing reflected yet, or no estimate).
     Unknown,
 }
@@ -92,7 +94,7 @@ impl RunError {
             RunError::Reference(e) | RunError::ClosedForm(e) | RunError::Estimate(e) | RunError::Noise(e) => {
                 Some(e)
             }
-            RunError::Estimating | RunError::Unknown => None,
+            RunError::Estimating | RunError::NotEstimated | RunError::Unknown => None,
         }
     }
 
@@ -106,6 +108,7 @@ impl RunError {
             RunError::Estimate(e) => format!("error ≈ {:.2} % (solver's estimate)", 100.0 * e),
             RunError::Noise(e) => format!("standard error {:.2} % (Monte Carlo noise)", 100.0 * e),
             RunError::Estimating => "error: estimating…".to_owned(),
+            RunError::NotEstimated => "error: not estimated (a newer command came first)".to_owned(),
             RunError::Unknown => "error unknown".to_owned(),
         }
     }
@@ -119,6 +122,7 @@ impl RunError {
             RunError::Estimate(e) => format!("≈ {:.2} % est.", 100.0 * e),
             RunError::Noise(e) => format!("± {:.2} % noise", 100.0 * e),
             RunError::Estimating => "estimating…".to_owned(),
+            RunError::NotEstimated => "not estimated".to_owned(),
             RunError::Unknown => "–".to_owned(),
         }
     }
@@ -189,8 +193,11 @@ impl Run {
             (Some(e), _) if self.ruler == Ruler::ClosedForm => RunError::ClosedForm(e),
             (Some(e), _) => RunError::Reference(e),
             (None, Some(e)) => RunError::Estimate(e),
-            (None, None) if self.view.as_ref().is_some_and(|v| v.estimates_pending) => RunError::Estimating,
-            (None, None) => RunError::Unknown,
+            (None, None) => match self.view.as_ref().map(|v| v.estimates) {
+                Some(Estimates::Pending) => RunError::Estimating,
+                Some(Estimates::Dropped) => RunError::NotEstimated,
+                Some(Estimates::Included) | None => RunError::Unknown,
+            },
         }
     }
 
@@ -325,10 +332,10 @@ pub fn preset_name(p: &HierarchicalParams) -> String {
 }
 
 /// The solver's estimate of the relative L2 error of a solver state (its leaves); `None` while
-/// its estimates are being computed ([`ViewData::estimates_pending`]).
+/// its estimates are being computed, or when they were given up ([`ViewData::estimates`]).
 #[must_use]
 pub fn estimate_of(view: &ViewData) -> Option<f64> {
-    if view.estimates_pending {
+    if view.estimates != Estimates::Included {
         return None;
     }
     global_relative_l2(view.leaves.iter().map(|&l| {
@@ -464,8 +471,9 @@ impl RunHistory {
         }
     }
 
-    /// The error estimates of solution `of` arrived (`view`: it with them): the runs that keep
-    /// it keep `view` instead, and their estimated error is read from it.
+    /// The error estimates of solution `of` arrived, or were given up (`view`: it with them, or
+    /// marked so): the runs that keep it keep `view` instead, and their estimated error is read
+    /// from it (none where given up: the run says "not estimated").
     pub fn fold_estimates(&mut self, of: &Arc<ViewData>, view: &Arc<ViewData>) {
         for r in &mut self.runs {
             if r.view.as_ref().is_some_and(|v| Arc::ptr_eq(v, of)) {

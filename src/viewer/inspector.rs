@@ -7,7 +7,7 @@ use super::clusters::{ClusterInput, ClusterSection, PickCluster};
 use super::history::Ruler;
 use super::view::View;
 use super::widgets::{grid_row, rgb_text};
-use super::worker::ViewData;
+use super::worker::{Estimates, ViewData};
 use crate::present::overlay;
 use crate::scene::Scene;
 use eframe::egui::{self, Color32};
@@ -92,8 +92,9 @@ impl View for Inspector {
             grid_row(ui, "B", rgb_text(e.radiosity));
             if v.mesh.is_some() && true_error.is_none() {
                 grid_row(ui, "error", "none (a mesh solve has no estimate)".to_owned());
-            } else if v.estimates_pending && true_error.is_none() {
-                grid_row(ui, "error", format!("estimating… ({err_label})"));
+            } else if v.estimates != Estimates::Included && true_error.is_none() {
+                let not_yet = if v.estimates_pending() { "estimating…" } else { "not estimated" };
+                grid_row(ui, "error", format!("{not_yet} ({err_label})"));
             } else {
                 grid_row(ui, "error", format!("{error:.3e} ({err_label})"));
             }

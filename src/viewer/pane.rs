@@ -10,7 +10,7 @@
 
 use super::builder::{self, BuildFailed, Builder, Coloring, Settings};
 use super::camera::OrbitCamera;
-use super::worker::ViewData;
+use super::worker::{Estimates, ViewData};
 use crate::math::DVec3;
 use crate::present::overlay;
 use crate::render::{
@@ -121,12 +121,16 @@ impl Pane {
 
     /// Ask for the geometry of `view` (identified by `key`) with `settings` if it is not the one
     /// asked for last, and pick up a finished build.
-    pub fn update(&mut self, ctx: &egui::Context, key: u64, view: &Arc<ViewData>, settings: Settings) {
+    pub fn update(&mut self, ctx: &egui::Context, key: u64, view: &Arc<ViewData>, mut settings: Settings) {
+        // The error heatmap of a state whose estimates were given up: nothing to show (all zeros).
+        if settings.coloring == Coloring::Error && view.estimates == Estimates::Dropped {
+            settings.coloring = Coloring::Smooth;
+        }
         let estimated = if settings.coloring == Coloring::Error { Arc::as_ptr(view) as usize } else { 0 };
         let key = (key, estimated, settings);
         // The error heatmap of a state whose estimates are on their way: the last build stays
         // until they come (a heatmap of zeros would be blank).
-        let waits = settings.coloring == Coloring::Error && view.estimates_pending && self.key.is_some();
+        let waits = settings.coloring == Coloring::Error && view.estimates_pending() && self.key.is_some();
         if self.key != Some(key) && !waits {
             self.seq += 1;
             let req = builder::Request {

@@ -23,7 +23,7 @@ use super::camera::OrbitCamera;
 use super::pane::{Pane, PaneStyle};
 use super::split::PANE_BACKGROUND;
 use super::view::View;
-use super::worker::ViewData;
+use super::worker::{Estimates, ViewData};
 use eframe::egui::{self, Rect, Sense};
 use std::sync::Arc;
 
@@ -193,9 +193,9 @@ impl View for Replay {
         let response = ui.allocate_rect(rect, Sense::click_and_drag());
         camera.interact(ui, &response, rect);
         let view = self.frames.get(self.position)?;
-        // Frames before the result carry no estimates (nor the result before they come): the
-        // heatmap would be blank.
-        let estimated = self.position + 1 == self.frames.len() && !view.estimates_pending;
+        // Frames before the result carry no estimates (nor the result before they come, or where
+        // they were given up): the heatmap would be blank.
+        let estimated = self.position + 1 == self.frames.len() && view.estimates == Estimates::Included;
         if settings.coloring == Coloring::Error && !estimated {
             settings.coloring = Coloring::Smooth;
         }

@@ -46,6 +46,15 @@ impl Opening {
     }
 }
 
+/// Whether the error estimates the solver thread owes give way to a command sent.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Urgency {
+    /// The user's command: the estimates give way to it ([`Worker::send`]).
+    Now,
+    /// Queued behind them: a figure's sweep, whose runs each need theirs ([`Worker::queue`]).
+    Queued,
+}
+
 /// The solver thread, its settings and its work in progress.
 pub struct SolveState {
     /// The solver thread (`None`: it could not be started; the error list says why).
@@ -99,13 +108,23 @@ impl SolveState {
         }
     }
 
-    /// Queue a command on the solver thread; `label` is what the progress line calls it.
+    /// Send a command to the solver thread, the error estimates being computed giving way to it
+    /// ([`Worker::send`]); `label` is what the progress line calls it.
     pub fn send(&mut self, cmd: Command, label: &str) {
+        self.send_as(cmd, label, Urgency::Now);
+    }
+
+    /// Send a command to the solver thread: now ([`Worker::send`]) or behind the estimates owed
+    /// ([`Worker::queue`]: a figure's sweep).
+    pub fn send_as(&mut self, cmd: Command, label: &str, urgency: Urgency) {
         if let Some(w) = &mut self.worker {
             if !w.busy() {
                 self.busy_since = Some(Instant::now());
             }
-            w.send(cmd);
+            match urgency {
+                Urgency::Now => w.send(cmd),
+                Urgency::Queued => w.queue(cmd),
+            }
             label.clone_into(&mut self.busy_label);
         }
     }

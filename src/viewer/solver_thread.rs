@@ -4,8 +4,8 @@
 //! goes), a mesh solve on a thread of its own, a bake.
 
 use super::worker::{
-    CLUSTER_LINKS_KEPT, Command, DmeshOptions, PARTIAL_EVERY, REPLAY_BUDGET_BYTES, REPLAY_CLUSTER_LINKS,
-    Reply, ViewData, Worker,
+    CLUSTER_LINKS_KEPT, Command, DmeshOptions, Estimates, GiveWay, PARTIAL_EVERY, REPLAY_BUDGET_BYTES,
+    REPLAY_CLUSTER_LINKS, Reply, ViewData, Worker,
 };
 use crate::scene::Scene;
 use crate::solver::hierarchical::{HierarchicalSolver, StepKind, StepReport};
@@ -25,6 +25,8 @@ impl Worker {
         let skip = Arc::clone(&skip_through);
         let partial_estimates = Arc::new(AtomicBool::new(false));
         let estimates = Arc::clone(&partial_estimates);
+        let give_way = Arc::new(GiveWay::default());
+        let gives_way = Arc::clone(&give_way);
         std::thread::Builder::new()
             .name("radlab-solver".into())
             .spawn(move || {
@@ -33,7 +35,7 @@ impl Worker {
                 if let Err(e) = super::panics::catching("solver", || {
                     run(
                         &cmd_rx,
-                        Shared { skip_through: &skip, partial_estimates: &estimates },
+                        Shared { skip_through: &skip, partial_estimates: &estimates, give_way: &gives_way },
                         &reply_tx,
                         &notify,
                     )
@@ -51,6 +53,7 @@ impl Worker {
             sent: 0,
             skip_through,
             partial_estimates,
+            give_way,
             estimates_owed: false,
         })
     }
@@ -64,13 +67,16 @@ struct Link<'a, N: Fn() + Send> {
     skip_through: &'a AtomicU64,
     /// [`super::worker::Worker::set_partial_estimates`].
     partial_estimates: &'a AtomicBool,
+    /// Which error estimates give way to a newer command.
+    give_way: &'a GiveWay,
 }
 
-/// What the UI sets and the solver thread reads as it runs: the last command dropped, and
-/// whether the pictures a solve sends as it goes carry estimates.
+/// What the UI sets and the solver thread reads as it runs: the last command dropped, whether
+/// the pictures a solve sends as it goes carry estimates, which estimates give way.
 pub(super) struct Shared<'a> {
     pub(super) skip_through: &'a AtomicU64,
     pub(super) partial_estimates: &'a AtomicBool,
+    pub(super) give_way: &'a GiveWay,
 }
 
 impl<N: Fn() + Send> Link<'_, N> {
@@ -114,17 +120,26 @@ struct Owed {
 /// everything queued answered `Skipped`), until either channel closes. A step answers without
 /// error estimates (they cost about as much as a solve), and the thread computes them and sends
 /// them after the answer ([`Reply::Estimates`]): at once for a finished Solve (a run of the
-/// history, which keeps them: a figure's queued solves each need theirs) unless a cancel of
-/// everything queued dropped it since, else once nothing is queued. A command queued by then runs
-/// first, and drops them where it changes the state ([`Reply::estimates_owed_after`]).
+/// history, which keeps them: a figure's queued solves each need theirs), else once nothing is
+/// queued. They give way to a newer command the UI sent ([`Worker::send`]) or a cancel of
+/// everything queued ([`Worker::cancel_all`]): not started, or stopped where they are, they are
+/// given up ([`Reply::EstimatesDropped`]) and that command runs at once. A command that runs
+/// while estimates are owed gives them up too where it replaces the state, and leaves them owed
+/// where it does not (a bake). So every state that owes estimates gets them or word that they
+/// were given up, before the next state is answered.
 pub(super) fn run(
     rx: &Receiver<(u64, Command)>,
     shared: Shared<'_>,
     tx: &Sender<Reply>,
     notify: &(impl Fn() + Send),
 ) {
-    let link =
-        Link { tx, notify, skip_through: shared.skip_through, partial_estimates: shared.partial_estimates };
+    let link = Link {
+        tx,
+        notify,
+        skip_through: shared.skip_through,
+        partial_estimates: shared.partial_estimates,
+        give_way: shared.give_way,
+    };
     let mut thread = SolverThread {
         link,
         solver: None,
@@ -136,7 +151,8 @@ pub(super) fn run(
     };
     loop {
         let next = match &thread.owed {
-            Some(o) if o.run && !thread.link.skipped(o.seq) => Err(TryRecvError::Empty),
+            // (A cancel of everything queued gives way too.)
+            Some(o) if o.run && !thread.link.give_way.gives_way(o.seq) => Err(TryRecvError::Empty),
             Some(_) => rx.try_recv(),
             None => rx.recv().map_err(|_| TryRecvError::Disconnected),
         };
@@ -150,9 +166,13 @@ pub(super) fn run(
             }
             Err(TryRecvError::Disconnected) => break,
         };
-        let reply = if thread.link.skipped(seq) { Reply::Skipped } else { thread.answer(seq, cmd) };
+        let skipped = thread.link.skipped(seq);
+        if !skipped && cmd.replaces_the_state() && !thread.give_up_estimates() {
+            break;
+        }
+        let reply = if skipped { Reply::Skipped } else { thread.answer(seq, cmd) };
         thread.owed = match &reply {
-            Reply::Done { report, view } if view.estimates_pending => Some(Owed {
+            Reply::Done { report, view } if view.estimates_pending() => Some(Owed {
                 seq,
                 run: report.is_some_and(|r| r.kind == StepKind::Solve && !r.cancelled),
                 of: Arc::clone(view),
@@ -173,20 +193,32 @@ fn view_of(s: &HierarchicalSolver, unpushed: bool, origin: &Origin) -> Arc<ViewD
     ViewData::of_solver_on(s, unpushed, true, CLUSTER_LINKS_KEPT, origin.as_deref().map(Vec::as_slice))
 }
 
-/// [`view_of`] without the error estimates, marked pending ([`ViewData::estimates_pending`]):
+/// [`view_of`] without the error estimates, marked pending ([`Estimates::Pending`]):
 /// a step's answer.
 fn view_before_estimates(s: &HierarchicalSolver, unpushed: bool, origin: &Origin) -> Arc<ViewData> {
     let on = origin.as_deref().map(Vec::as_slice);
     let view = ViewData::of_solver_on(s, unpushed, false, CLUSTER_LINKS_KEPT, on);
-    Arc::new(ViewData { estimates_pending: true, ..Arc::unwrap_or_clone(view) })
+    Arc::new(ViewData { estimates: Estimates::Pending, ..Arc::unwrap_or_clone(view) })
 }
 
 impl<N: Fn() + Send> SolverThread<'_, N> {
-    /// Compute the error estimates owed and send them; false once the UI is gone.
+    /// Compute the error estimates owed and send them, or word that they were given up (a newer
+    /// command came first: [`GiveWay`]); false once the UI is gone.
     fn send_estimates(&mut self) -> bool {
-        let (Some(Owed { of, .. }), Some(s)) = (self.owed.take(), self.solver.as_ref()) else { return true };
-        let view = Arc::new(of.with_estimates(&s.error_estimates()));
-        self.link.send(Reply::Estimates { of, view })
+        let Some(Owed { seq, of, .. }) = self.owed.take() else { return true };
+        let estimates = self.solver.as_ref().and_then(|s| self.link.give_way.estimates(seq, s));
+        self.link.send(match estimates {
+            Some(e) => Reply::Estimates { view: Arc::new(of.with_estimates(&e)), of },
+            None => Reply::EstimatesDropped { of },
+        })
+    }
+
+    /// Give up the error estimates owed, if any, and say so; false once the UI is gone.
+    fn give_up_estimates(&mut self) -> bool {
+        match self.owed.take() {
+            Some(Owed { of, .. }) => self.link.send(Reply::EstimatesDropped { of }),
+            None => true,
+        }
     }
 
     /// Run command number `seq` and return its answer.

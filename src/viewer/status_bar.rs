@@ -21,7 +21,8 @@ pub struct StatusInput<'a> {
     pub last_report: Option<&'a StepReport>,
     /// How the last finished Solve started and how long it took.
     pub last_solve: Option<SolveNote>,
-    /// The state's error estimates are on their way: what that means for what is shown.
+    /// The state's error estimates are on their way, or were given up: what that means for what
+    /// is shown.
     pub estimates: Option<&'a str>,
 }
 
@@ -135,10 +136,11 @@ impl View for StatusBar {
     }
 }
 
-/// What the status bar's "estimating the error…" means.
+/// What the status bar's "estimating the error…" and "error not estimated" mean.
 const ESTIMATES_TIP: &str = "The solver's own error estimate of every element costs about as much \
      as the solve: the picture, the report and the history entry come at once, and the estimates \
-     (error overlay, inspector, the run's estimated error) follow.";
+     (error overlay, inspector, the run's estimated error) follow. A newer command (a step, a \
+     setting) does not wait for them: they are given up, and the state is not estimated.";
 
 /// What the residual in the status bar and the residual plot measure.
 pub const RESIDUAL_TIP: &str = "Residual: the largest change of a leaf's radiosity in the last \

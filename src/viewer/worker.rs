@@ -6,6 +6,7 @@
 //! ```text
 //!  UI ── Command (mpsc) ──► "radlab-solver" thread ── Reply (mpsc) + request_repaint ──► UI
 //!  UI ── cancel flag (Arc<AtomicBool>, the solver's own cancel_handle) ──► running step
+//!  UI ── give way (GiveWay: a command's number, a stop flag) ──► error estimates being computed
 //!  "radlab-solver" ── a mesh solve ──► "radlab-mesh-solve" thread (no cancel hook: the
 //!                     solver thread watches the flag and drops it on Cancel)
 //! ```
@@ -54,9 +55,24 @@ pub struct ViewData {
     /// Each element's slope, by id, where it has one (empty: no element has one): the leaves'
     /// linear reconstruction, B(x) = B + d · (x − centroid), that the viewer draws by default.
     pub slopes: Vec<Option<crate::solver::Slope>>,
-    /// The elements' `error_estimate`s are not computed yet (every one 0): a step's answer, whose
-    /// estimates follow in a [`Reply::Estimates`] of their own ([`ViewData::with_estimates`]).
-    pub estimates_pending: bool,
+    /// Where the solver's error estimates of this state stand: in the elements'
+    /// `error_estimate`s, or (every one 0) still to come or given up.
+    pub estimates: Estimates,
+}
+
+/// Where a state's error estimates stand ([`ViewData::estimates`]).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum Estimates {
+    /// In the elements' `error_estimate`s (or the state has none of its own: a mesh solve, a
+    /// replay's frame, a reference).
+    #[default]
+    Included,
+    /// Not computed yet: a step's answer, whose estimates follow in a [`Reply::Estimates`] of
+    /// their own ([`ViewData::with_estimates`]).
+    Pending,
+    /// Given up: a newer command came first ([`Reply::EstimatesDropped`]); the state is shown
+    /// "not estimated".
+    Dropped,
 }
 
 /// Most cluster links a [`ViewData`] carries: a 100 k-triangle room has 4 M (64 bytes each),
@@ -144,7 +160,7 @@ impl ViewData {
             patch_cluster: s.patch_cluster,
             cluster_links: Vec::new(),
             slopes,
-            estimates_pending: false,
+            estimates: Estimates::Included,
         }
     }
 
@@ -156,8 +172,20 @@ impl ViewData {
         for e in &mut v.elements {
             e.error_estimate = estimates.get(e.id as usize).copied().unwrap_or(0.0);
         }
-        v.estimates_pending = false;
+        v.estimates = Estimates::Included;
         v
+    }
+
+    /// This state, its pending estimates given up ([`Reply::EstimatesDropped`]).
+    #[must_use]
+    pub fn without_estimates(&self) -> ViewData {
+        ViewData { estimates: Estimates::Dropped, ..self.clone() }
+    }
+
+    /// Whether the error estimates of this state are still to come ([`Estimates::Pending`]).
+    #[must_use]
+    pub fn estimates_pending(&self) -> bool {
+        self.estimates == Estimates::Pending
     }
 
     /// The state of a solve on a uniform or discontinuity mesh: every element a leaf on its
@@ -420,6 +448,17 @@ pub enum Command {
     },
 }
 
+impl Command {
+    /// Whether this command's answer replaces the state shown (every command but a bake, which
+    /// writes the state as it is): the error estimates still owed for that state are given up
+    /// when it runs, and when it is sent ([`Worker::send`]) the estimates being computed give
+    /// way to it.
+    #[must_use]
+    pub fn replaces_the_state(&self) -> bool {
+        !matches!(self, Command::Bake { .. })
+    }
+}
+
 /// What the solver thread answers.
 pub enum Reply {
     /// A scene was loaded: its cancel flag and the initial state, and the scene the Load named
@@ -463,27 +502,35 @@ pub enum Reply {
         report: StepReport,
     },
     /// The error estimates of the state a step answered with (`of`, the `view` of that `Done`,
-    /// sent with [`ViewData::estimates_pending`] set): `view` is that state with them. Computed
-    /// after the `Done`, while no other command is queued; a command that changes the solver's
-    /// state first drops them (its own answer replaces the state). The UI applies them only to
-    /// the very state they belong to (`Arc::ptr_eq` with `of`).
+    /// sent with [`Estimates::Pending`]): `view` is that state with them. Computed after the
+    /// `Done` (see `super::solver_thread::run` for when). The UI applies them only to the very
+    /// state they belong to (`Arc::ptr_eq` with `of`).
     Estimates {
         of: Arc<ViewData>,
         view: Arc<ViewData>,
+    },
+    /// The error estimates of state `of` (as in [`Reply::Estimates`]) are given up: a newer
+    /// command that replaces the state came first, or a cancel of everything queued. Every state
+    /// that owes estimates gets one of the two replies; the UI marks this one "not estimated"
+    /// ([`ViewData::without_estimates`]).
+    EstimatesDropped {
+        of: Arc<ViewData>,
     },
 }
 
 impl Reply {
     /// Whether error estimates are still owed after this reply, `owed` before it
-    /// ([`Reply::Estimates`]): a new state owes its own (a step's answer) or none; estimates
-    /// pay what is owed, and a kept `Retarget` drops it (the solver may be back at an earlier
-    /// state); the other replies leave it. The solver thread and [`Worker`] both follow it.
+    /// ([`Reply::Estimates`]): a new state owes its own (a step's answer) or none; the
+    /// estimates, or word that they were given up, settle what is owed; the other replies leave
+    /// it (the thread settles what is owed before it runs a command that replaces the state).
+    /// The solver thread and [`Worker`] both follow it.
     #[must_use]
     pub fn estimates_owed_after(&self, owed: bool) -> bool {
         match self {
-            Reply::Loaded { view, .. } | Reply::Done { view, .. } => view.estimates_pending,
-            Reply::Estimates { .. } | Reply::Retargeted => false,
-            Reply::Progress { .. }
+            Reply::Loaded { view, .. } | Reply::Done { view, .. } => view.estimates_pending(),
+            Reply::Estimates { .. } | Reply::EstimatesDropped { .. } => false,
+            Reply::Retargeted
+            | Reply::Progress { .. }
             | Reply::Partial { .. }
             | Reply::Replay { .. }
             | Reply::Baked(_)
@@ -506,7 +553,8 @@ impl Reply {
             Reply::Progress { .. }
             | Reply::Partial { .. }
             | Reply::Replay { .. }
-            | Reply::Estimates { .. } => false,
+            | Reply::Estimates { .. }
+            | Reply::EstimatesDropped { .. } => false,
         }
     }
 }
@@ -533,8 +581,53 @@ pub struct Worker {
     /// Whether the pictures a solve sends as it goes carry the solver's error estimates
     /// ([`Worker::set_partial_estimates`]).
     pub(super) partial_estimates: Arc<AtomicBool>,
+    /// Which estimates give way to a newer command ([`Worker::send`], [`Worker::cancel_all`]).
+    pub(super) give_way: Arc<GiveWay>,
     /// The last state answered still waits for its error estimates ([`Reply::Estimates`]).
     pub(super) estimates_owed: bool,
+}
+
+/// How the UI tells the solver thread that the error estimates it owes give way to a newer
+/// command: the number of that command, and a flag that stops the estimates being computed
+/// ([`HierarchicalSolver::error_estimates_until`]).
+///
+/// ```text
+///  UI:     below ← max(below, n)  then  stop ← true     (before command n is queued)
+///  thread: stop ← false  then  below > seq ? give up : error_estimates_until(stop)
+/// ```
+/// Either the thread reads the new `below`, or the UI's `stop` lands after the thread cleared
+/// it and stops the computation (both sequentially consistent).
+#[derive(Debug, Default)]
+pub struct GiveWay {
+    /// The estimates of the states answered by commands numbered below this one are given up.
+    below: AtomicU64,
+    /// Set with every raise of `below`.
+    stop: AtomicBool,
+}
+
+impl GiveWay {
+    /// Give up the estimates of the states answered by the commands numbered below `seq` (the
+    /// UI's side).
+    pub(super) fn from(&self, seq: u64) {
+        self.below.fetch_max(seq, Ordering::SeqCst);
+        self.stop.store(true, Ordering::SeqCst);
+    }
+
+    /// Whether the estimates of the state command `seq` answered are given up.
+    pub(super) fn gives_way(&self, seq: u64) -> bool {
+        seq < self.below.load(Ordering::SeqCst)
+    }
+
+    /// The error estimates of solver `s`, in the state command `seq` answered with; `None` when
+    /// they give way to a newer command, before or while they are computed (the solver thread's
+    /// side).
+    pub(super) fn estimates(&self, seq: u64, s: &HierarchicalSolver) -> Option<Vec<f64>> {
+        self.stop.store(false, Ordering::SeqCst);
+        if self.gives_way(seq) {
+            return None;
+        }
+        s.error_estimates_until(&self.stop)
+    }
 }
 
 impl Worker {
@@ -547,17 +640,34 @@ impl Worker {
         self.partial_estimates.store(on, Ordering::Relaxed);
     }
 
+    /// Send a command the user asked for: where it replaces the state
+    /// ([`Command::replaces_the_state`]), the error estimates still owed for the states
+    /// answered before it give way to it (their computation stops; the UI hears
+    /// [`Reply::EstimatesDropped`]), a finished Solve's included.
     pub fn send(&mut self, cmd: Command) {
+        if cmd.replaces_the_state() {
+            self.give_way.from(self.sent + 1);
+        }
+        self.queue(cmd);
+    }
+
+    /// Queue a command behind those sent, the estimates owed before it not giving way: a
+    /// finished Solve's (a run of the history) are computed before it runs. A figure's sweep
+    /// queues its solves so, as every run of it and the captions that quote them need their
+    /// estimates. (The estimates of any other step are computed only while nothing is queued.)
+    pub fn queue(&mut self, cmd: Command) {
         if self.tx.send((self.sent + 1, cmd)).is_ok() {
             self.sent += 1;
             self.in_flight += 1;
         }
     }
 
-    /// Stop the running step and drop the commands still queued (a new scene replaces the
-    /// old one: a figure's queued solves of the previous scene are not run).
+    /// Stop the running step and the error estimates being computed, and drop the commands
+    /// still queued (a new scene replaces the old one: a figure's queued solves of the previous
+    /// scene are not run).
     pub fn cancel_all(&self) {
         self.skip_through.store(self.sent, Ordering::Relaxed);
+        self.give_way.from(self.sent + 1);
         self.cancel();
     }
 
@@ -574,8 +684,8 @@ impl Worker {
         }
     }
 
-    /// True while the last state answered waits for its error estimates ([`Reply::Estimates`]):
-    /// they come unless a command that changes the state is answered first.
+    /// True while the last state answered waits for its error estimates: they come
+    /// ([`Reply::Estimates`]) or word that they were given up ([`Reply::EstimatesDropped`]).
     #[must_use]
     pub fn estimates_owed(&self) -> bool {
         self.estimates_owed
@@ -719,7 +829,7 @@ mod tests {
                     partial = partial.max(most(&view));
                 }
                 Reply::Done { report: Some(_), view } => {
-                    assert!(view.estimates_pending, "a step answers before its estimates");
+                    assert!(view.estimates_pending(), "a step answers before its estimates");
                     done = Some(most(&view));
                 }
                 Reply::Estimates { view, .. } => followed = Some(most(&view)),
@@ -752,7 +862,7 @@ mod tests {
                 panic!("{kind:?}: a step's answer, then its estimates")
             };
             assert!(Arc::ptr_eq(done, of), "{kind:?}: the estimates name the state answered");
-            assert!(done.estimates_pending && !view.estimates_pending);
+            assert!(done.estimates_pending() && view.estimates == Estimates::Included);
             assert!(done.elements.iter().all(|e| e.error_estimate == 0.0), "{kind:?}: none in the answer");
             // The same step here: the worker pushes and pulls a gather before the next step.
             let unpushed = kind == StepKind::Gather;
@@ -775,47 +885,138 @@ mod tests {
         }
     }
 
-    /// Estimates never name a state other than the last one answered: a step queued behind a
-    /// step runs first and drops the first one's estimates; a finished Solve (a run of the
-    /// history) gets its estimates before the command queued behind it, unless a cancel of
-    /// everything queued dropped it.
+    /// What a worker's replies say of the error estimates: (the answers, the answers whose
+    /// estimates came, the answers whose estimates were given up), each `Estimates` and
+    /// `EstimatesDropped` checked to name the last state answered, and every state that owes
+    /// estimates checked to get one of the two before the next answer.
+    fn estimates_of_answers(w: &mut Worker) -> (usize, Vec<usize>, Vec<usize>) {
+        let (mut answered, mut estimated, mut dropped) =
+            (Vec::<Arc<ViewData>>::new(), Vec::new(), Vec::new());
+        let mut owed = false;
+        w.wait_idle(|r| {
+            match &r {
+                Reply::Done { view, .. } => {
+                    assert!(!owed, "an answer while the last one's estimates are owed");
+                    answered.push(Arc::clone(view));
+                }
+                Reply::Estimates { of, .. } | Reply::EstimatesDropped { of } => {
+                    let last = answered.last().expect("estimates follow an answer");
+                    assert!(Arc::ptr_eq(last, of), "estimates of the last state answered only");
+                    let list =
+                        if matches!(r, Reply::Estimates { .. }) { &mut estimated } else { &mut dropped };
+                    list.push(answered.len() - 1);
+                }
+                _ => {}
+            }
+            owed = r.estimates_owed_after(owed);
+        });
+        assert!(!owed && !w.estimates_owed(), "nothing owed once idle");
+        (answered.len(), estimated, dropped)
+    }
+
+    /// Estimates never name a state other than the last one answered, and each state that owes
+    /// them gets them or word that they were given up: a command sent behind a step gives up
+    /// that step's (and a finished Solve's, a run of the history); one queued behind a finished
+    /// Solve ([`Worker::queue`], a figure's sweep) waits for the run's, not for a step's; a
+    /// cancel of everything queued gives them up.
     #[test]
     fn a_queued_command_drops_the_estimates_of_the_state_it_replaces() {
         let mut w = Worker::spawn(|| {}).unwrap();
         load(&mut w, "builtin:cornell", HierarchicalParams::interactive());
-        // (answers, the answers whose estimates came), each estimate checked to name the last
-        // state answered.
-        let run = |w: &mut Worker, cmds: Vec<Command>| {
-            for c in cmds {
-                w.send(c);
-            }
-            let (mut answered, mut estimated) = (Vec::new(), Vec::new());
-            w.wait_idle(|r| match r {
-                Reply::Done { view, .. } => answered.push(view),
-                Reply::Estimates { of, .. } => {
-                    let last = answered.last().expect("estimates follow an answer");
-                    assert!(Arc::ptr_eq(last, &of), "estimates of the last state answered only");
-                    estimated.push(answered.len() - 1);
-                }
-                _ => {}
-            });
-            assert!(!w.estimates_owed());
-            (answered.len(), estimated)
-        };
-        // Both queued at once: an iteration takes far longer than the second send.
         let iterate = || Command::Step(StepKind::Iterate);
-        assert_eq!(run(&mut w, vec![iterate(), iterate()]), (2, vec![1]), "the first step's dropped");
-        let solve = Command::Step(StepKind::Solve);
-        assert_eq!(run(&mut w, vec![Command::Reset, solve, iterate()]), (3, vec![1, 2]), "a run's kept");
+        let solve = || Command::Step(StepKind::Solve);
+        // Both sent at once: an iteration takes far longer than the second send.
+        w.send(iterate());
+        w.send(iterate());
+        assert_eq!(estimates_of_answers(&mut w), (2, vec![1], vec![0]), "the first step's given up");
+        // Sent behind a solve, before it answers: the run's given up before they start.
+        for c in [Command::Reset, solve(), iterate()] {
+            w.send(c);
+        }
+        assert_eq!(estimates_of_answers(&mut w), (3, vec![2], vec![1]), "the run's given up");
+        // Queued behind it: the run's kept, a step's not.
+        for c in [Command::Reset, solve(), iterate(), iterate()] {
+            w.queue(c);
+        }
+        assert_eq!(estimates_of_answers(&mut w), (4, vec![1, 3], vec![2]), "the run's kept");
         // A restart answers with its own estimates: nothing is owed after it.
-        assert_eq!(run(&mut w, vec![iterate(), Command::Reset]), (2, vec![]), "replaced by the reset");
-        // A solve dropped by a cancel of everything queued (unrun, or stopped early): the restart
-        // queued after it runs first.
+        w.send(iterate());
         w.send(Command::Reset);
-        w.send(Command::Step(StepKind::Solve));
+        assert_eq!(estimates_of_answers(&mut w), (2, vec![], vec![0]), "replaced by the reset");
+        // A bake writes the state as it is: the estimates follow it (this one fails at once, on
+        // its file's extension, and writes nothing).
+        w.send(iterate());
+        let options = crate::present::bake::BakeOptions {
+            exposure: 1.0,
+            exposure_rule: String::new(),
+            scene_label: "builtin:cornell".into(),
+            params: None,
+        };
+        let (path, form) = ("not-a-bake.txt".into(), crate::present::bake::BakeForm::Elements);
+        w.send(Command::Bake { path, options, form });
+        assert_eq!(estimates_of_answers(&mut w), (1, vec![0], vec![]), "kept through the bake");
+        // A solve dropped by a cancel of everything queued (unrun, or stopped early), or a
+        // finished one whose estimates had not started: given up, the restart queued after it
+        // runs first.
+        w.send(Command::Reset);
+        w.send(solve());
         w.cancel_all();
-        let (_, estimated) = run(&mut w, vec![Command::Reset]);
-        assert!(estimated.is_empty(), "the cancelled solve's dropped");
+        w.send(Command::Reset);
+        let (answered, estimated, dropped) = estimates_of_answers(&mut w);
+        assert!(estimated.is_empty() && dropped.len() <= 1, "{answered} answers: {dropped:?}");
+    }
+
+    /// A finished Solve's estimates give way to a command sent while they are computed: it is
+    /// answered without waiting for them, and the run is told they were given up (never left
+    /// owed). A kept `Retarget` gives them up the same way. The estimates take about the solve's
+    /// own time (about a second at `quality`): they are still running when the next command is
+    /// sent, as soon as the solve's answer comes.
+    #[test]
+    fn a_newer_command_stops_a_runs_estimates_and_is_answered_at_once() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        let p = HierarchicalParams::quality();
+        load(&mut w, "builtin:cornell", p);
+        let kinds = |answers: &[Reply]| -> Vec<&'static str> {
+            answers
+                .iter()
+                .filter_map(|r| match r {
+                    Reply::Done { report: Some(r), .. } => {
+                        Some(if r.kind == StepKind::Solve { "solve" } else { "step" })
+                    }
+                    Reply::Done { report: None, .. } => Some("restart"),
+                    Reply::Estimates { .. } => Some("estimates"),
+                    Reply::EstimatesDropped { .. } => Some("dropped"),
+                    Reply::Retargeted => Some("retargeted"),
+                    _ => None,
+                })
+                .collect()
+        };
+        for then in [
+            Command::Step(StepKind::Refine),
+            Command::Retarget(HierarchicalParams { bf_eps: p.bf_eps / 2.0, ..p }),
+        ] {
+            w.send(Command::Reset);
+            w.send(Command::Step(StepKind::Solve));
+            let mut answers = Vec::new();
+            w.wait_answered(|r| answers.push(r));
+            let Some(Reply::Done { view: solved, .. }) = answers.last() else { panic!("the solve answers") };
+            let solved = Arc::clone(solved);
+            assert!(solved.estimates_pending() && w.estimates_owed(), "its estimates are being computed");
+            let retarget = matches!(then, Command::Retarget(_));
+            w.send(then);
+            let mut after = Vec::new();
+            w.wait_idle(|r| after.push(r));
+            let Some(Reply::EstimatesDropped { of }) =
+                after.iter().find(|r| !matches!(r, Reply::Progress { .. }))
+            else {
+                panic!("the run's estimates are given up first: {:?}", kinds(&after))
+            };
+            assert!(Arc::ptr_eq(of, &solved), "they name the run");
+            let expected: &[&str] =
+                if retarget { &["dropped", "retargeted"] } else { &["dropped", "step", "estimates"] };
+            assert_eq!(kinds(&after), expected);
+            assert!(!w.estimates_owed());
+        }
     }
 
     #[test]

@@ -14,7 +14,7 @@ use crate::viewer::plots::{PlotLayout, ResolveMark};
 use crate::viewer::reference_panel::RefState;
 use crate::viewer::solve::Opening;
 use crate::viewer::status_bar::SolveNote;
-use crate::viewer::worker::{DmeshOptions, ViewData};
+use crate::viewer::worker::{DmeshOptions, Estimates, ViewData};
 use crate::viewer::{inspector, legends};
 use eframe::egui::Rect;
 use std::sync::Arc;
@@ -227,6 +227,11 @@ impl RadlabApp {
             (None, _) if self.estimates_pending() => {
                 "error: estimating… (the solver's estimate follows the picture)".into()
             }
+            (None, _) if self.shown.view.estimates == Estimates::Dropped => {
+                "error: not estimated (a newer command came first; Compute reference for the true \
+                 one)"
+                    .into()
+            }
             (None, _) if self.mesh_view() => {
                 "error unknown: a mesh solve has no estimate of its own (Compute reference)".into()
             }
@@ -260,7 +265,7 @@ impl RadlabApp {
     /// since, when none of those replaces the state).
     #[must_use]
     pub fn estimates_pending(&self) -> bool {
-        self.shown.view.estimates_pending && self.solve.worker.as_ref().is_some_and(|w| w.estimates_owed())
+        self.shown.view.estimates_pending() && self.solve.worker.as_ref().is_some_and(|w| w.estimates_owed())
     }
 
     /// The error overlay would draw the solver's estimates of the state shown, which have not
@@ -283,24 +288,28 @@ impl RadlabApp {
                 || self.lecture.figure().is_some())
     }
 
-    /// What the status bar says of the state's error estimates while they are on their way
-    /// (`None` once they are in, or when none will come).
+    /// What the status bar says of the state's error estimates while they are on their way, or
+    /// once they were given up (`None` once they are in, or when none were owed).
     #[must_use]
     pub fn estimates_note(&self) -> Option<&'static str> {
         if self.overlay_waits_for_estimates() {
             Some("estimating the error… (the error overlay shows the last state's until then)")
         } else if self.estimates_pending() {
             Some("estimating the error…")
+        } else if self.shown.view.estimates == Estimates::Dropped && !self.mesh_view() {
+            Some("error not estimated")
         } else {
             None
         }
     }
 
-    /// The error heatmap has something to show: the solver's estimate (quadtree), or the true
-    /// error against a reference (any mesh; a mesh solve has no estimate of its own).
+    /// The error heatmap has something to show: the solver's estimate (quadtree, unless given
+    /// up), or the true error against a reference (any mesh; a mesh solve has no estimate of its
+    /// own).
     #[must_use]
     pub fn error_applies(&self) -> bool {
-        !self.mesh_view() || self.true_error().is_some()
+        let estimated = !self.mesh_view() && self.shown.view.estimates != Estimates::Dropped;
+        estimated || self.true_error().is_some()
     }
 
     /// (element links drawn, element links that pass the filter) in the geometry shown.

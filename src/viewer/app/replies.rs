@@ -100,14 +100,18 @@ impl RadlabApp {
             // The error estimates of a state a step answered with: folded into it wherever it is
             // still shown or kept (dropped when it no longer is).
             Reply::Estimates { of, view } => self.estimated(&of, &view),
+            // Given up (a newer command came first): the state is marked "not estimated"
+            // wherever it is kept, as the estimates would have been folded in.
+            Reply::EstimatesDropped { of } => self.estimated(&of, &Arc::new(of.without_estimates())),
             Reply::Baked(Ok(what)) => self.status_bar.message = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => self.solver_failed(e),
         }
     }
 
-    /// The error estimates of state `of` arrived (`view`: that state with them): it is replaced
-    /// by `view` where it is shown, held back, kept by a run of the history or by the replay.
+    /// The error estimates of state `of` arrived, or were given up (`view`: that state with them,
+    /// or marked so): it is replaced by `view` where it is shown, held back, kept by a run of
+    /// the history or by the replay.
     /// The state keeps its number (its display build, scores and artifacts stay its own; the
     /// viewport rebuilds as the `Arc` changed).
     fn estimated(&mut self, of: &Arc<ViewData>, view: &Arc<ViewData>) {
