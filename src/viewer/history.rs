@@ -753,6 +753,28 @@ mod tests {
         Arc::new(v)
     }
 
+    /// A run recorded before its estimates says "estimating…"; they fold in as its estimate, or,
+    /// given up, it says "not estimated" and has no estimate (none of 0, none plotted).
+    #[test]
+    fn a_runs_estimate_follows_or_is_given_up() {
+        let mut h = RunHistory::default();
+        let p = HierarchicalParams::interactive();
+        let pending =
+            |est| Arc::new(ViewData { estimates: Estimates::Pending, ..(*view(p, 10, 1.0, est)).clone() });
+        let (first, second) = (pending(0.0), pending(0.0));
+        h.record("box", 0.1, 1, Arc::clone(&first));
+        h.record("box", 0.2, 2, Arc::clone(&second));
+        assert!(h.runs().iter().all(|r| r.error() == RunError::Estimating && r.estimate.is_none()));
+        h.fold_estimates(&first, &Arc::new(first.with_estimates(&[0.05])));
+        h.fold_estimates(&second, &Arc::new(second.without_estimates()));
+        assert!((h.runs()[0].estimate.unwrap() - 0.05).abs() < 1e-12);
+        let given_up = &h.runs()[1];
+        assert_eq!((given_up.error(), given_up.estimate), (RunError::NotEstimated, None));
+        assert_eq!(given_up.error().short(), "not estimated");
+        let plotted: usize = h.error_series().iter().map(|s| s.points.len()).sum();
+        assert_eq!(plotted, 1, "only the estimated run is plotted");
+    }
+
     #[test]
     fn keeps_every_run_but_only_the_newest_solutions() {
         let mut h = RunHistory::default();
