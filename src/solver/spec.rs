@@ -728,9 +728,13 @@ fn forward_solve(
     s.set_deadline(deadline);
     let cancelled = match cancel {
         None => s.solve(progress).cancelled,
+        // Set before the solve starts: nothing to run.
+        Some(outer) if outer.load(Ordering::Relaxed) => true,
         Some(outer) => {
             // A relay thread hands the caller's flag to the solver's own within milliseconds,
             // whether or not the solver reports progress meanwhile (a refinement pass may not).
+            // It keeps handing it on until the solve ends: the solve clears its own flag as it
+            // starts, which would drop a cancel relayed before that.
             let inner = s.cancel_handle();
             let done = Arc::new(AtomicBool::new(false));
             let relay = {
@@ -739,7 +743,6 @@ fn forward_solve(
                     while !done.load(Ordering::Relaxed) {
                         if outer.load(Ordering::Relaxed) {
                             inner.store(true, Ordering::Relaxed);
-                            return;
                         }
                         std::thread::sleep(std::time::Duration::from_millis(2));
                     }
@@ -940,7 +943,7 @@ mod tests {
         assert!(solve(&scene, &accel, 0.0, &spec, &mut |_, _| {}, None).is_err());
     }
 
-    /// A cancel flag set before the solve stops the hierarchical solve at its first sub-step.
+    /// A cancel flag set before the solve stops the hierarchical solve before it refines.
     #[test]
     fn a_set_cancel_flag_stops_the_solve() {
         let (scene, accel) = load("cornell");
