@@ -69,8 +69,9 @@
 //! evaluated once per pair and kept (`ErrorField::kernels`, per receiver sorted by source,
 //! carried from one refinement to the next): the field's update, the decisions on both sides of
 //! a pair and the links' slopes (`kernel_slope`) look it up, the same numbers as evaluating it
-//! each time. Within a refinement, a pass decides again only the links with an end whose
-//! verdict inputs changed (`ErrorField::fresh`).
+//! each time. Within a refinement, a pass decides only the links the last pass made and those
+//! with an end whose verdict inputs changed (`ErrorField::fresh`): a receiver whose list changed
+//! reads nothing of it but its cause, and that only while it is wrong.
 
 use super::HierarchicalSolver;
 use crate::geometry::form_factor;
@@ -107,9 +108,9 @@ pub(super) struct ErrorField {
     /// Per element, (c_rq, F̂_rq) of each own link, in list order: what a verdict reads on the
     /// receiver's side, without a search (the mirror's side looks its kernel up).
     own_var: Vec<Vec<[f64; 2]>>,
-    /// Whether the last update changed what the element's verdicts read (its own list, or its
-    /// e or ΔB across the threshold; see `sweep`): a kept link is decided again only if one
-    /// of its ends is fresh.
+    /// Whether the last update changed what the element's verdicts read (its cause while it is
+    /// wrong, or its e or ΔB across the threshold; see `sweep`): a kept link is decided again
+    /// only if one of its ends is fresh (a new link always is).
     pub fresh: Vec<bool>,
     /// Per element, the affine fit's weights at its c_j (`CornerFit`).
     fits: Vec<CornerFit>,
@@ -464,7 +465,7 @@ impl HierarchicalSolver {
         field.cause = terms.iter().map(|t| t.cause).collect();
         field.fits = terms.iter().map(|t| t.fit.clone()).collect();
         (field.kernels, field.own_var) = terms.into_iter().map(|t| (t.kernels, t.var)).unzip();
-        self.sweep(&mut field, vec![true; n]);
+        self.sweep(&mut field, vec![true; n], None);
         field
     }
 
@@ -496,7 +497,12 @@ impl HierarchicalSolver {
         field.kernels.resize_with(n, Kernels::default);
         field.own_var.resize_with(n, Vec::new);
         field.fits.resize_with(n, CornerFit::default);
+        // The listed elements whose cause did not change (their kept links' verdicts read
+        // nothing else of their list).
+        let mut same_cause = vec![false; n];
         for (&r, t) in todo.iter().zip(terms) {
+            same_cause[r as usize] =
+                (r as usize) < old_n && field.cause[r as usize].to_bits() == t.cause.to_bits();
             field.own_var[r as usize] = t.var;
             field.own_h[r as usize] = t.h;
             field.partial[r as usize] = t.partial;
@@ -505,13 +511,14 @@ impl HierarchicalSolver {
             field.kernels[r as usize] = t.kernels;
             field.fits[r as usize] = t.fit;
         }
-        self.sweep(field, dirty)
+        self.sweep(field, dirty, Some(&same_cause))
     }
 
     /// Refit h, and recompute e and ΔB, of every element marked in `redo` and of all its
     /// descendants, top down (a parent's id is smaller than its children's). Returns the receivers to decide
-    /// again (see `update_error_field`).
-    fn sweep(&self, field: &mut ErrorField, mut redo: Vec<bool>) -> Vec<u32> {
+    /// again (see `update_error_field`). `same_cause`: per element whose list changed, whether
+    /// its cause is the same as before (None: a new field, every element is fresh).
+    fn sweep(&self, field: &mut ErrorField, mut redo: Vec<bool>, same_cause: Option<&[bool]>) -> Vec<u32> {
         let hier = &self.hier;
         let n = hier.len();
         // The elements whose own lists changed (or that are new) have links to decide whatever
@@ -554,17 +561,24 @@ impl HierarchicalSolver {
             field.err[i] = e;
             field.spread[i] = spread;
             // A verdict reads the pair's kernels and link (fixed), the threshold and the row
-            // floors (fixed during a refinement), r's cause (fixed unless its list changed),
-            // whether e_r > ε, and ΔB_r only through terms at most ΔB_r that split when they
-            // exceed ε: if none of these changed, every link r keeps stays kept.
-            let same = !listed[i]
-                && (e_old > eps) == (e > eps)
-                && (s_old.to_bits() == spread.to_bits() || (s_old <= eps && spread <= eps));
+            // floors (fixed during a refinement), r's cause (fixed unless its list changed, and
+            // read only while e_r > ε), whether e_r > ε, and ΔB_r only through terms at most
+            // ΔB_r that split when they exceed ε: if none of these changed, every link r kept
+            // stays kept, and only the links the last pass put in its list (whose mirrors are
+            // new in their lists too) are decided.
+            let wrong = e > eps;
+            let same = same_cause.is_some()
+                && (e_old > eps) == wrong
+                && (s_old.to_bits() == spread.to_bits() || (s_old <= eps && spread <= eps))
+                && (!listed[i] || !wrong || same_cause.is_some_and(|c| c[i]));
+            let own = &self.graph.links.by_receiver[r as usize];
             if same {
+                if listed[i] && !own.is_empty() {
+                    decide.insert(r);
+                }
                 continue;
             }
             field.fresh[i] = true;
-            let own = &self.graph.links.by_receiver[r as usize];
             if !own.is_empty() {
                 decide.insert(r);
                 for l in own {

@@ -56,15 +56,23 @@ impl HierarchicalSolver {
     /// The oracle on all of receiver `r`'s links (the first pass of a refinement; later passes
     /// use the verdicts made with the new links, the oracle's inputs not changing during a
     /// refinement).
-    pub(super) fn decide_receiver(&self, r: u32, field: Option<&oracle::ErrorField>) -> ReceiverDecision {
+    /// `born`: the indices (ascending) of the links the last pass put in r's list.
+    pub(super) fn decide_receiver(
+        &self,
+        r: u32,
+        field: Option<&oracle::ErrorField>,
+        born: &[u32],
+    ) -> ReceiverDecision {
         let p = self.hier.get(r);
         let mut v = Verdict::default();
-        // The error oracle decides again only the links with a fresh end (`ErrorField::fresh`):
-        // the others keep the verdict they had, to keep them.
+        // The error oracle decides again only the links with a fresh end (`ErrorField::fresh`)
+        // and the new ones: the others keep the verdict they had, to keep them.
         let all = field.is_none_or(|f| f.fresh[r as usize]);
+        let mut born = born.iter().copied().peekable();
         for (i, l) in self.graph.links.by_receiver[r as usize].iter().enumerate() {
+            let new = born.next_if_eq(&(i as u32)).is_some();
             let d = match field {
-                Some(f) if !all && !f.fresh[l.source as usize] => continue,
+                Some(f) if !all && !new && !f.fresh[l.source as usize] => continue,
                 Some(f) => self
                     .decide_error(f, r, i, l)
                     .map(|x| if x == r { Split::Receiver } else { Split::Source }),

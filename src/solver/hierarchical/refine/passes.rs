@@ -43,6 +43,11 @@ struct Refinement {
     /// receivers whose link lists the last pass changed (tracked for the error oracle only).
     err_field: Option<oracle::ErrorField>,
     pass_changed: Vec<u32>,
+    /// Per element, the indices (ascending) of the links the last pass put in its list (error
+    /// oracle only): a receiver whose list changed but whose verdict inputs did not decides only
+    /// these (`oracle::ErrorField::fresh`).
+    born: Vec<Vec<u32>>,
+    born_ids: Vec<u32>,
     track: bool,
 }
 
@@ -161,6 +166,8 @@ impl HierarchicalSolver {
             pending: None,
             err_field: None,
             pass_changed: Vec::new(),
+            born: Vec::new(),
+            born_ids: Vec::new(),
             track: self.setup.params.oracle == Oracle::Error,
         }
     }
@@ -179,6 +186,10 @@ impl HierarchicalSolver {
             }
         };
         run.pass_changed.clear();
+        for &r in &run.born_ids {
+            run.born[r as usize].clear();
+        }
+        run.born_ids.clear();
         decisions
     }
 
@@ -197,9 +208,10 @@ impl HierarchicalSolver {
             }
         };
         let field = run.err_field.as_ref();
+        let born = &run.born;
         ids.into_par_iter()
             .filter(|&r| !self.graph.links.by_receiver[r as usize].is_empty())
-            .map(|r| self.decide_receiver(r, field))
+            .map(|r| self.decide_receiver(r, field, born.get(r as usize).map_or(&[][..], Vec::as_slice)))
             .collect()
     }
 
@@ -219,7 +231,7 @@ impl HierarchicalSolver {
                 chunk
                     .iter()
                     .filter(|&&r| !lists[r as usize].is_empty())
-                    .map(|&r| self.decide_receiver(r, None))
+                    .map(|&r| self.decide_receiver(r, None, &[]))
             })
             .collect()
     }
@@ -231,6 +243,9 @@ impl HierarchicalSolver {
         let mut next: Vec<ReceiverDecision> = Vec::new();
         let mut pushed_down = Vec::new();
         let mut owns = Vec::with_capacity(results.len());
+        if run.track {
+            run.born.resize_with(self.hier.len(), Vec::new);
+        }
         for rep in results {
             let r = rep.receiver;
             self.log.stats.rays += rep.rays;
@@ -244,6 +259,10 @@ impl HierarchicalSolver {
             run.changed.insert(r);
             if run.track {
                 run.pass_changed.push(r);
+                if !rep.own_new.is_empty() {
+                    run.born[r as usize] = rep.own_new;
+                    run.born_ids.push(r);
+                }
             }
             owns.push((r, rep.own));
             if pushed > 0 {
@@ -259,12 +278,17 @@ impl HierarchicalSolver {
         let slots = disjoint_mut(&mut self.graph.links.by_receiver, owns.iter().map(|o| o.0));
         slots.into_par_iter().zip(owns).with_min_len(64).for_each(|(slot, (_, own))| *slot = own);
         for (c, ls, mut v) in pushed_down {
-            if run.track {
-                run.pass_changed.push(c);
-            }
             let list = &mut self.graph.links.by_receiver[c as usize];
             // The child's list may hold links already (its own, just replaced, or earlier ones).
             let offset = list.len() as u32;
+            if run.track {
+                run.pass_changed.push(c);
+                let born = &mut run.born[c as usize];
+                if born.is_empty() {
+                    run.born_ids.push(c);
+                }
+                born.extend(offset..offset + ls.len() as u32);
+            }
             if list.is_empty() {
                 *list = ls;
             } else {

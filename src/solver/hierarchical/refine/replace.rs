@@ -29,8 +29,9 @@ pub(super) struct Replaced {
     pub(super) kid_verdicts: [Verdict; 4],
     pub(super) first_child: u32,
     pub(super) rays: u64,
-    /// The own list gained links (a source was split).
+    /// The own list gained links (a source was split), at these indices (ascending).
     pub(super) own_changed: bool,
+    pub(super) own_new: Vec<u32>,
     pub(super) created: usize,
 }
 
@@ -146,6 +147,7 @@ impl HierarchicalSolver {
             first_child: NONE,
             rays: 0,
             own_changed: false,
+            own_new: Vec::new(),
             created: 0,
         };
         let down = splits.iter().filter(|(_, side)| *side == Split::Receiver).count();
@@ -168,6 +170,7 @@ impl HierarchicalSolver {
                 Split::Source => {
                     rep.own_changed = true;
                     for (nl, d) in new.into_iter().flatten() {
+                        rep.own_new.push(rep.own.len() as u32);
                         rep.own_verdict.note(rep.own.len(), d);
                         rep.own.push(nl);
                     }
