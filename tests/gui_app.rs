@@ -2488,6 +2488,24 @@ fn a_screenshot_without_a_preset_waits_for_quality() {
     let _ = std::fs::remove_file(&shot);
 }
 
+/// A scripted run opened unsolved (`--no-solve --screenshot`) writes the unsolved scene at once:
+/// it neither solves nor waits for a solve.
+#[test]
+fn a_screenshot_without_a_solve_shows_the_scene_unsolved() {
+    let shot = std::env::temp_dir().join(format!("radlab-gui-unsolved-{}.png", std::process::id()));
+    let mut h = harness(ViewerOptions {
+        screenshot: Some(shot.clone()),
+        solve_on_start: false,
+        ..opened_at_the_default()
+    });
+    frames_until(&mut h, "the screenshot", |a| a.exit_code().is_some());
+    assert_eq!(h.state().exit_code(), Some(0), "{:?}", h.state().exit_error());
+    assert_eq!(h.state().view().stats.links, 0, "nothing was solved");
+    assert!(h.state().history.runs().is_empty(), "no run in the history");
+    assert!(std::fs::metadata(&shot).is_ok_and(|m| m.len() > 0), "the PNG is written");
+    let _ = std::fs::remove_file(&shot);
+}
+
 /// One frame, and what it shows is a finished solution: lit leaves (a solve's, or a gather's
 /// pushed for display), never a restart's unlit patches nor a cancelled solve's.
 fn frame_shows_a_solution(h: &mut Harness<'static, RadlabApp>, what: &str) {

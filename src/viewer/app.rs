@@ -207,8 +207,13 @@ impl RadlabApp {
             self.display.shading = Shading::of(r);
         }
         if self.opts.screenshot.is_some() || self.opts.bench_frames.is_some() {
-            self.opts.solve_on_start = true;
-            self.script.script = Script::Solving;
+            // A scripted run waits for the solve it opens with, or (`--no-solve`) goes on at once
+            // to its frames: the geometry unsolved.
+            self.script.script = if self.opts.solve_on_start {
+                Script::Solving
+            } else {
+                Script::after_solve(self.opts.bench_frames.is_some())
+            };
         }
         let spec = self.scene_spec.clone();
         if let Some(f) = self.opts.figure {
