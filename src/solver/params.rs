@@ -37,6 +37,20 @@ pub enum Clustering {
     On,
 }
 
+/// How the error oracle counts the rest of a wrong receiver's links, those it leaves unsplit
+/// (`HierarchicalParams::error_tail`; `solver::hierarchical::oracle`, "the tail").
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum ErrorTail {
+    /// The sum of their shares c_rq (each link's own variation, taken alone): every preset.
+    Linear,
+    /// What they add to the receiver's error as e_r sums it: their kernels' variation with
+    /// signs (links that vary in opposite ways across the receiver cancel), their penumbra terms
+    /// in quadrature (the shadows of independent occluders are not all at their worst at once),
+    /// as the receiver's own e_r then takes them too.
+    Signed,
+}
+
 impl Clustering {
     /// `Auto` clusters from this many input patches: below it, linking every pair costs less
     /// than a second (the built-in scenes have at most a few hundred patches).
@@ -195,6 +209,9 @@ pub struct HierarchicalParams {
     /// to at most this fraction of ε. Larger: fewer links per threshold, a higher error at a
     /// given ε; [`DEFAULT_CAUSE_TAIL`] in every preset. In (0, 1].
     pub cause_tail: f64,
+    /// How the error oracle counts the links a wrong receiver leaves unsplit against
+    /// `cause_tail` · ε ([`ErrorTail`]; `Linear` in every preset).
+    pub error_tail: ErrorTail,
     /// Clustering above the input patches (`Auto` in every preset).
     pub cluster: Clustering,
     /// Seed of the visibility jitter.
@@ -260,6 +277,7 @@ impl HierarchicalParams {
             row_tol: 0.05,
             close_rows: true,
             cause_tail: DEFAULT_CAUSE_TAIL,
+            error_tail: ErrorTail::Linear,
             cluster: Clustering::Auto,
             seed: 0,
         }

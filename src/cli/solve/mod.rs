@@ -304,6 +304,12 @@ pub struct SolverArgs {
     /// (hierarchical, error oracle).
     #[arg(long)]
     pub cause_tail: Option<f64>,
+    /// How the error oracle counts a wrong receiver's unsplit links against the tail share:
+    /// linear (every preset: the sum of their shares) or signed (what they add to its error,
+    /// kernels with signs, penumbras in quadrature: fewer links in cluttered scenes)
+    /// (hierarchical, error oracle).
+    #[arg(long, value_enum)]
+    pub error_tail: Option<radlab::solver::params::ErrorTail>,
     /// Cluster the input patches, so links grow as n, not n² (hierarchical; auto: scenes of
     /// 3000 patches or more; see README, "Clustering").
     #[arg(long, value_enum)]
@@ -487,6 +493,9 @@ pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalPara
     }
     if let Some(v) = args.cause_tail {
         p.cause_tail = v;
+    }
+    if let Some(v) = args.error_tail {
+        p.error_tail = v;
     }
     if let Some(v) = args.vis_slopes {
         p.vis_slopes = v;

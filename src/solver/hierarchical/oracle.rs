@@ -78,6 +78,7 @@ use crate::geometry::form_factor;
 use crate::math::{DVec3, Rgb};
 use crate::solver::hierarchy::{Element, StopReason};
 use crate::solver::link::Link;
+use crate::solver::params::ErrorTail;
 use rayon::prelude::*;
 
 /// Per-element inputs of the error oracle, computed once per refinement and updated pass by pass.
@@ -397,6 +398,45 @@ fn kernel_mean(f: &Kern) -> f64 {
     0.25 * (f[0] + f[1] + f[2] + f[3])
 }
 
+/// What own links add to an element's error field (one link's, or a sum): the kernel times
+/// V B at the child points, at the corners beyond their affine fit, what the child points miss
+/// (`ErrorField::disc`), and the penumbra term (squared with `ErrorTail::Signed`).
+#[derive(Clone, Default)]
+struct LinkTerms {
+    h: [Rgb; 4],
+    bend: [Rgb; 4],
+    disc: Rgb,
+    pen: Rgb,
+}
+
+impl LinkTerms {
+    fn add(&mut self, t: &LinkTerms) {
+        for k in 0..4 {
+            self.h[k] += t.h[k];
+            self.bend[k] += t.bend[k];
+        }
+        self.disc += t.disc;
+        self.pen += t.pen;
+    }
+
+    fn sub(&mut self, t: &LinkTerms) {
+        for k in 0..4 {
+            self.h[k] = self.h[k] - t.h[k];
+            self.bend[k] = self.bend[k] - t.bend[k];
+        }
+        self.disc = self.disc - t.disc;
+        self.pen = self.pen - t.pen;
+    }
+
+    /// max_j |bend_j| per channel.
+    fn bend_max(&self) -> Rgb {
+        self.bend.iter().fold(Rgb::ZERO, |m, b| {
+            let a = b.map(f64::abs);
+            Rgb::new(m.r().max(a.r()), m.g().max(a.g()), m.b().max(a.b()))
+        })
+    }
+}
+
 /// One element's own-link terms of the error field.
 struct OwnTerms {
     h: [Rgb; 4],
@@ -596,50 +636,80 @@ impl HierarchicalSolver {
         let e = self.hier.get(r);
         let pts = sample_points(e);
         let fit = CornerFit::of(e, &pts);
-        let mut bend = [Rgb::ZERO; 4];
-        let mut h = [Rgb::ZERO; 4];
-        let mut partial = Rgb::ZERO;
-        let mut disc = Rgb::ZERO;
+        let signed = self.setup.params.error_tail == ErrorTail::Signed;
+        let mut sum = LinkTerms::default();
         let own = &self.graph.links.by_receiver[r as usize];
         let (kernels, at) = self.own_kernels(e, &pts, own, known);
         let mut c = Vec::with_capacity(own.len());
         let mut var = Vec::with_capacity(own.len());
+        let mut each = Vec::with_capacity(if signed { own.len() } else { 0 });
         for (l, &k) in own.iter().zip(&at) {
             let src = self.hier.get(l.source);
             let f = kernels.values[k as usize];
             let mean = kernel_mean(&f);
             let bend_l = fit.bend(&f);
             let vb = src.radiosity * f64::from(l.vis).min(1.0);
+            let mut t = LinkTerms::default();
             if vb.max_channel() > 0.0 {
-                for (hk, fk) in h.iter_mut().zip(f) {
-                    *hk += vb * fk;
-                }
-                for (bj, x) in bend.iter_mut().zip(bend_l) {
-                    *bj += vb * x;
-                }
-                disc += vb * (galerkin(e, l) - mean);
+                t.h = [vb * f[0], vb * f[1], vb * f[2], vb * f[3]];
+                t.bend = bend_l.map(|x| vb * x);
+                t.disc = vb * (galerkin(e, l) - mean);
             }
-            partial += src.radiosity * (f64::from(l.ff) * partial_weight(l));
+            let pen = src.radiosity * (f64::from(l.ff) * partial_weight(l));
+            t.pen = if signed { pen.mul_rgb(pen) } else { pen };
+            sum.add(&t);
             let cv = variation(e, src, l, &f, mean, bend_l, self.spread_weight());
             c.push(cv);
             var.push([cv, mean]);
-        }
-        // The largest variations first, until the others add up to at most cause_tail · ε.
-        c.sort_unstable_by(|a, b| b.total_cmp(a));
-        let mut tail: f64 = c.iter().sum();
-        let mut cause = f64::INFINITY;
-        for &ck in &c {
-            if tail <= self.setup.params.cause_tail * self.setup.bf_eps {
-                break;
+            if signed {
+                each.push((cv, t));
             }
-            cause = ck;
-            tail -= ck;
         }
-        let bend = bend.iter().fold(Rgb::ZERO, |m, b| {
-            let a = b.map(f64::abs);
-            Rgb::new(m.r().max(a.r()), m.g().max(a.g()), m.b().max(a.b()))
-        });
-        OwnTerms { h, partial, disc: disc.map(f64::abs) + bend, cause, kernels, var, fit }
+        let limit = self.setup.params.cause_tail * self.setup.bf_eps;
+        let mut cause = f64::INFINITY;
+        if signed {
+            // The rest's own error, as e_r sums it, after the largest shares are split.
+            each.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            let mut rest = sum.clone();
+            for (ck, t) in &each {
+                if self.own_error(e, &rest, signed) <= limit {
+                    break;
+                }
+                cause = *ck;
+                rest.sub(t);
+            }
+        } else {
+            // The largest variations first, until the others add up to at most cause_tail · ε.
+            c.sort_unstable_by(|a, b| b.total_cmp(a));
+            let mut tail: f64 = c.iter().sum();
+            for &ck in &c {
+                if tail <= limit {
+                    break;
+                }
+                cause = ck;
+                tail -= ck;
+            }
+        }
+        let partial = if signed { sum.pen.map(|x| x.max(0.0).sqrt()) } else { sum.pen };
+        OwnTerms {
+            h: sum.h,
+            partial,
+            disc: sum.disc.map(f64::abs) + sum.bend_max(),
+            cause,
+            kernels,
+            var,
+            fit,
+        }
+    }
+
+    /// The error that links with the summed terms `t` make on their own at `e` (e_r's own-link
+    /// part; `ErrorTail::Signed`, whose penumbra terms `t.pen` are squares).
+    fn own_error(&self, e: &Element, t: &LinkTerms, signed: bool) -> f64 {
+        let pen = if signed { t.pen.map(|x| x.max(0.0).sqrt()) } else { t.pen };
+        let mean = (t.h[0] + t.h[1] + t.h[2] + t.h[3]) * 0.25;
+        let var = t.h.iter().map(|hk| hk.abs_diff_max(mean)).fold(0.0, f64::max);
+        e.reflectance.max_channel() * var * self.spread_weight()
+            + e.reflectance.mul_rgb(pen + t.disc.map(f64::abs) + t.bend_max()).max_channel()
     }
 
     /// The kernels of `e`'s own links `own` at its child points `pts`, sorted by source, and
