@@ -54,7 +54,10 @@
 //! the largest of r's own links, taken largest first until the rest add up to at most
 //! `cause_tail` · ε, ε/4 in every preset (so the rest cannot make r wrong again on their own,
 //! and a receiver with thousands of small links does not split them all; the share is chosen
-//! by measurement, docs/solver.md, "Oracles"). It is split on the source's side when
+//! by measurement, docs/solver.md, "Oracles"). With `ErrorTail::Signed` the rest is what those
+//! links add to e_r as it sums them (`own_error`: their terms at the child points with signs,
+//! their penumbra terms in quadrature, as e_r then takes them too), not the sum of their c_rq.
+//! It is split on the source's side when
 //! q's radiosity varies (ΔB_q: q's own e_q, or the spread of its children's B) enough to matter
 //! through the kernel's variation across q: ρ_r F_rq V ΔB_q diam_q / distance > ε [Holzschuch &
 //! Sillion 1998, sec. 3.1, the source-radiosity term]. Every decision
