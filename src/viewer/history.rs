@@ -471,6 +471,12 @@ impl RunHistory {
         }
     }
 
+    /// Whether a run keeps state `of` (one [`Self::fold_estimates`] replaces).
+    #[must_use]
+    pub fn keeps(&self, of: &Arc<ViewData>) -> bool {
+        self.runs.iter().any(|r| r.view.as_ref().is_some_and(|v| Arc::ptr_eq(v, of)))
+    }
+
     /// The error estimates of solution `of` arrived, or were given up (`view`: it with them, or
     /// marked so): the runs that keep it keep `view` instead, and their estimated error is read
     /// from it (none where given up: the run says "not estimated").
@@ -765,7 +771,10 @@ mod tests {
         h.record("box", 0.1, 1, Arc::clone(&first));
         h.record("box", 0.2, 2, Arc::clone(&second));
         assert!(h.runs().iter().all(|r| r.error() == RunError::Estimating && r.estimate.is_none()));
+        assert!(h.keeps(&first) && h.keeps(&second), "the runs keep the states they recorded");
+        assert!(!h.keeps(&pending(0.0)), "an equal state that no run keeps");
         h.fold_estimates(&first, &Arc::new(first.with_estimates(&[0.05])));
+        assert!(!h.keeps(&first), "the run keeps the state with its estimates instead");
         h.fold_estimates(&second, &Arc::new(second.without_estimates()));
         assert!((h.runs()[0].estimate.unwrap() - 0.05).abs() < 1e-12);
         let given_up = &h.runs()[1];

@@ -89,6 +89,12 @@ impl Replay {
         }
     }
 
+    /// Whether the last frame is state `of` (the one [`Self::fold_estimates`] replaces).
+    #[must_use]
+    pub fn keeps(&self, of: &Arc<ViewData>) -> bool {
+        self.frames.last().is_some_and(|f| Arc::ptr_eq(f, of))
+    }
+
     /// Forget the frames (another scene).
     pub fn clear(&mut self) {
         self.frames.clear();

@@ -101,8 +101,13 @@ impl RadlabApp {
             // still shown or kept (dropped when it no longer is).
             Reply::Estimates { of, view } => self.estimated(&of, &view),
             // Given up (a newer command came first): the state is marked "not estimated"
-            // wherever it is kept, as the estimates would have been folded in.
-            Reply::EstimatesDropped { of } => self.estimated(&of, &Arc::new(of.without_estimates())),
+            // wherever it is kept, as the estimates would have been folded in (the marked copy
+            // made only then: a drag's steps replace the states they give up).
+            Reply::EstimatesDropped { of } => {
+                if self.keeps(&of) {
+                    self.estimated(&of, &Arc::new(of.without_estimates()));
+                }
+            }
             Reply::Baked(Ok(what)) => self.status_bar.message = what,
             Reply::Baked(Err(e)) => self.errors.push(e),
             Reply::Failed(e) => self.solver_failed(e),
@@ -123,6 +128,15 @@ impl RadlabApp {
         }
         self.history.fold_estimates(of, view);
         self.replay.fold_estimates(of, view);
+    }
+
+    /// Whether state `of` is shown, held back, or kept by a run of the history or the replay
+    /// (where [`Self::estimated`] folds its estimates in).
+    fn keeps(&self, of: &Arc<ViewData>) -> bool {
+        Arc::ptr_eq(&self.shown.view, of)
+            || self.shown.held.as_ref().is_some_and(|h| Arc::ptr_eq(h, of))
+            || self.history.keeps(of)
+            || self.replay.keeps(of)
     }
 
     /// The scene's solver is ready: its first state (held back where a reload on another top
