@@ -675,7 +675,7 @@ impl HierarchicalSolver {
             each.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
             let mut rest = sum.clone();
             for (ck, t) in &each {
-                if self.own_error(e, &rest, signed) <= limit {
+                if self.own_error(e, &rest) <= limit {
                     break;
                 }
                 cause = *ck;
@@ -705,14 +705,11 @@ impl HierarchicalSolver {
         }
     }
 
-    /// The error that links with the summed terms `t` make on their own at `e` (e_r's own-link
-    /// part; `ErrorTail::Signed`, whose penumbra terms `t.pen` are squares).
-    fn own_error(&self, e: &Element, t: &LinkTerms, signed: bool) -> f64 {
-        let pen = if signed { t.pen.map(|x| x.max(0.0).sqrt()) } else { t.pen };
-        let mean = (t.h[0] + t.h[1] + t.h[2] + t.h[3]) * 0.25;
-        let var = t.h.iter().map(|hk| hk.abs_diff_max(mean)).fold(0.0, f64::max);
-        e.reflectance.max_channel() * var * self.spread_weight()
-            + e.reflectance.mul_rgb(pen + t.disc.map(f64::abs) + t.bend_max()).max_channel()
+    /// The error that links with the summed terms `t` make on their own at `e`, as e_r sums it
+    /// (`ErrorTail::Signed`, whose penumbra terms `t.pen` are squares).
+    fn own_error(&self, e: &Element, t: &LinkTerms) -> f64 {
+        let pen = t.pen.map(|x| x.max(0.0).sqrt());
+        self.error_of(e, &t.h, pen + t.disc.map(f64::abs) + t.bend_max())
     }
 
     /// The kernels of `e`'s own links `own` at its child points `pts`, sorted by source, and
@@ -758,7 +755,12 @@ impl HierarchicalSolver {
         if self.graph.links.by_receiver[r as usize].is_empty() {
             return 0.0;
         }
-        let e = self.hier.get(r);
+        self.error_of(self.hier.get(r), h, partial)
+    }
+
+    /// e of element `e` with h at its child points and the visibility and curvature terms
+    /// `partial` (module docs).
+    fn error_of(&self, e: &Element, h: &[Rgb; 4], partial: Rgb) -> f64 {
         let mean = (h[0] + h[1] + h[2] + h[3]) * 0.25;
         let var = h.iter().map(|hk| hk.abs_diff_max(mean)).fold(0.0, f64::max);
         // ρ per channel: the largest channel of ρ·spread, bounded by ρ_max·spread.
