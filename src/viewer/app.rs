@@ -125,6 +125,11 @@ impl RadlabApp {
         };
         let ctx = cc.egui_ctx.clone();
         let worker = Worker::spawn(move || ctx.request_repaint());
+        // The frames say when each answer's picture is on screen (`frame.rs`): the error
+        // estimates that follow an answer wait for it.
+        if let Ok(w) = &worker {
+            w.waits_for_pictures(crate::viewer::worker::PICTURE_WAIT);
+        }
         let ctx = cc.egui_ctx.clone();
         let display_builder = Builder::spawn(move || ctx.request_repaint());
         // No preset asked for: the default (`start_as_asked` may open on the way to it).

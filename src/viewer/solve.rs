@@ -160,6 +160,21 @@ impl SolveState {
         replies
     }
 
+    /// How long the error estimates owed for an answer wait for its picture, from now on
+    /// ([`Worker::waits_for_pictures`]; zero: not at all).
+    pub fn picture_wait(&self, at_most: std::time::Duration) {
+        if let Some(w) = &self.worker {
+            w.waits_for_pictures(at_most);
+        }
+    }
+
+    /// The pictures of the answers received so far are on screen ([`Worker::pictures_shown`]).
+    pub fn pictures_shown(&self) {
+        if let Some(w) = &self.worker {
+            w.pictures_shown();
+        }
+    }
+
     /// Block until the solver thread is idle; every reply that came on the way.
     pub fn wait_idle(&mut self) -> Vec<Reply> {
         let mut replies = Vec::new();

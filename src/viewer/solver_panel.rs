@@ -12,6 +12,11 @@ use crate::solver::spec::Preset;
 use eframe::egui;
 use std::time::Instant;
 
+/// How often the window redraws while the solver works and nothing else asks for a frame (the
+/// progress line's seconds, the solve's partial pictures): each frame costs a software renderer
+/// (lavapipe) tens of milliseconds of the cores the solve runs on.
+pub const BUSY_REPAINT: std::time::Duration = std::time::Duration::from_millis(250);
+
 /// Width of the progress bars in the side panel.
 pub const PANEL_CONTENT_W: f32 = 260.0;
 
@@ -325,10 +330,12 @@ impl View for ProgressPanel {
                 None => (0.0, "idle".to_owned()),
             },
         };
-        ui.add(egui::ProgressBar::new(fraction).desired_width(PANEL_CONTENT_W).text(text).animate(busy))
+        // Not animated: an animated bar redraws the window every frame, and on a software
+        // renderer those frames take the cores the solver runs on.
+        ui.add(egui::ProgressBar::new(fraction).desired_width(PANEL_CONTENT_W).text(text))
             .on_hover_text("The solver thread: progress of the running step, else the last step's time");
         if busy {
-            ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+            ui.ctx().request_repaint_after(BUSY_REPAINT);
         }
         action
     }

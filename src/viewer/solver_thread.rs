@@ -4,8 +4,8 @@
 //! goes), a mesh solve on a thread of its own, a bake.
 
 use super::worker::{
-    CLUSTER_LINKS_KEPT, Command, DmeshOptions, Estimates, GiveWay, PARTIAL_EVERY, REPLAY_BUDGET_BYTES,
-    REPLAY_CLUSTER_LINKS, Reply, ViewData, Worker,
+    CLUSTER_LINKS_KEPT, Command, DmeshOptions, Estimates, GiveWay, PARTIAL_EVERY, Pictures,
+    REPLAY_BUDGET_BYTES, REPLAY_CLUSTER_LINKS, Reply, ViewData, Worker,
 };
 use crate::scene::Scene;
 use crate::solver::hierarchical::{HierarchicalSolver, StepKind, StepReport};
@@ -27,6 +27,8 @@ impl Worker {
         let estimates = Arc::clone(&partial_estimates);
         let give_way = Arc::new(GiveWay::default());
         let gives_way = Arc::clone(&give_way);
+        let pictures = Arc::new(Pictures::default());
+        let shown = Arc::clone(&pictures);
         std::thread::Builder::new()
             .name("radlab-solver".into())
             .spawn(move || {
@@ -35,7 +37,12 @@ impl Worker {
                 if let Err(e) = super::panics::catching("solver", || {
                     run(
                         &cmd_rx,
-                        Shared { skip_through: &skip, partial_estimates: &estimates, give_way: &gives_way },
+                        Shared {
+                            skip_through: &skip,
+                            partial_estimates: &estimates,
+                            give_way: &gives_way,
+                            pictures: &shown,
+                        },
                         &reply_tx,
                         &notify,
                     )
@@ -55,6 +62,8 @@ impl Worker {
             partial_estimates,
             give_way,
             estimates_owed: false,
+            answers_owing: 0,
+            pictures,
         })
     }
 }
@@ -69,6 +78,8 @@ struct Link<'a, N: Fn() + Send> {
     partial_estimates: &'a AtomicBool,
     /// Which error estimates give way to a newer command.
     give_way: &'a GiveWay,
+    /// Which answers' pictures the UI shows.
+    pictures: &'a Pictures,
 }
 
 /// What the UI sets and the solver thread reads as it runs: the last command dropped, whether
@@ -77,6 +88,7 @@ pub(super) struct Shared<'a> {
     pub(super) skip_through: &'a AtomicU64,
     pub(super) partial_estimates: &'a AtomicBool,
     pub(super) give_way: &'a GiveWay,
+    pub(super) pictures: &'a Pictures,
 }
 
 impl<N: Fn() + Send> Link<'_, N> {
@@ -93,6 +105,9 @@ impl<N: Fn() + Send> Link<'_, N> {
     }
 }
 
+/// How often the solver thread looks whether the picture its owed estimates wait for is shown.
+const PICTURE_POLL: std::time::Duration = std::time::Duration::from_millis(5);
+
 /// What the solver thread keeps between commands.
 struct SolverThread<'a, N: Fn() + Send> {
     link: Link<'a, N>,
@@ -106,6 +121,8 @@ struct SolverThread<'a, N: Fn() + Send> {
     last_residual: f64,
     /// The state a step answered with, its error estimates not sent yet ([`Reply::Estimates`]).
     owed: Option<Owed>,
+    /// Answers sent whose error estimates follow them ([`Reply::owes_estimates`]).
+    answers_owing: u64,
 }
 
 /// Error estimates owed: of the state command number `seq` answered with (`of`); `run` says
@@ -114,14 +131,19 @@ struct Owed {
     seq: u64,
     run: bool,
     of: Arc<ViewData>,
+    /// Which answer owing estimates it was (the first is 1), and when it was sent: the
+    /// estimates wait for its picture ([`Pictures`]).
+    n: u64,
+    sent: std::time::Instant,
 }
 
 /// The solver thread's loop: each command answered in turn (those dropped by a cancel of
 /// everything queued answered `Skipped`), until either channel closes. A step answers without
 /// error estimates (they cost about as much as a solve), and the thread computes them and sends
-/// them after the answer ([`Reply::Estimates`]): at once for a finished Solve (a run of the
-/// history, which keeps them: a figure's queued solves each need theirs), else once nothing is
-/// queued. They give way to a newer command the UI sent ([`Worker::send`]) or a cancel of
+/// them after the answer ([`Reply::Estimates`]), once the UI shows the answer's picture (or
+/// after [`super::worker::PICTURE_WAIT`]; [`Pictures`]): then at once for a finished Solve (a
+/// run of the history, which keeps them: a figure's queued solves each need theirs), else once
+/// nothing is queued. They give way to a newer command the UI sent ([`Worker::send`]) or a cancel of
 /// everything queued ([`Worker::cancel_all`]): not started, or stopped where they are, they are
 /// given up ([`Reply::EstimatesDropped`]) and that command runs at once. A command that runs
 /// while estimates are owed gives them up too where it replaces the state, and leaves them owed
@@ -139,6 +161,7 @@ pub(super) fn run(
         skip_through: shared.skip_through,
         partial_estimates: shared.partial_estimates,
         give_way: shared.give_way,
+        pictures: shared.pictures,
     };
     let mut thread = SolverThread {
         link,
@@ -148,9 +171,23 @@ pub(super) fn run(
         unpushed: false,
         last_residual: 0.0,
         owed: None,
+        answers_owing: 0,
     };
     loop {
         let next = match &thread.owed {
+            // Its picture is not on screen yet: the estimates wait for it, a newer command
+            // does not (nor a queued one, unless the estimates are a finished Solve's).
+            Some(o)
+                if !thread.link.give_way.gives_way(o.seq) && thread.link.pictures.pending(o.n, o.sent) =>
+            {
+                match if o.run { Err(TryRecvError::Empty) } else { rx.try_recv() } {
+                    Err(TryRecvError::Empty) => {
+                        std::thread::sleep(PICTURE_POLL);
+                        continue;
+                    }
+                    next => next,
+                }
+            }
             // (A cancel of everything queued gives way too.)
             Some(o) if o.run && !thread.link.give_way.gives_way(o.seq) => Err(TryRecvError::Empty),
             Some(_) => rx.try_recv(),
@@ -171,11 +208,14 @@ pub(super) fn run(
             break;
         }
         let reply = if skipped { Reply::Skipped } else { thread.answer(seq, cmd) };
+        thread.answers_owing += u64::from(reply.owes_estimates());
         thread.owed = match &reply {
             Reply::Done { report, view } if view.estimates_pending() => Some(Owed {
                 seq,
                 run: report.is_some_and(|r| r.kind == StepKind::Solve && !r.cancelled),
                 of: Arc::clone(view),
+                n: thread.answers_owing,
+                sent: std::time::Instant::now(),
             }),
             r if r.estimates_owed_after(true) => thread.owed.take(),
             _ => None,

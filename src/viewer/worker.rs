@@ -541,6 +541,12 @@ impl Reply {
     }
 
     /// Whether this reply answers a command (the others come on the way, or after the answer).
+    /// An answer whose error estimates follow it (counted alike on both sides of the channel:
+    /// [`Pictures`]).
+    pub(super) fn owes_estimates(&self) -> bool {
+        matches!(self, Reply::Done { view, .. } if view.estimates_pending())
+    }
+
     fn answers_a_command(&self) -> bool {
         match self {
             Reply::Loaded { .. }
@@ -559,8 +565,14 @@ impl Reply {
     }
 }
 
-/// A solve sends its picture after a round at most this often (`Reply::Partial`).
-pub const PARTIAL_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
+/// A solve sends its picture after a round at most this often (`Reply::Partial`): each one is
+/// built for display and drawn while the solve goes on, on the same cores (on a 2-core machine,
+/// pictures every 250 ms made the Cornell box's default solve take about 0.2 s longer).
+pub const PARTIAL_EVERY: std::time::Duration = std::time::Duration::from_millis(1000);
+
+/// How long the error estimates owed for an answer wait for its picture to be on screen
+/// ([`Worker::pictures_shown`]) before they start anyway (a window that draws no frames).
+pub const PICTURE_WAIT: std::time::Duration = std::time::Duration::from_millis(1000);
 
 /// Most memory the frames of one refinement replay take (`Reply::Replay`); past it a solve
 /// records no more frames (a 2 000-element Cornell box takes about 0.5 MB a frame).
@@ -585,6 +597,38 @@ pub struct Worker {
     pub(super) give_way: Arc<GiveWay>,
     /// The last state answered still waits for its error estimates ([`Reply::Estimates`]).
     pub(super) estimates_owed: bool,
+    /// Answers received whose error estimates follow them (`Reply::Done` with estimates pending).
+    pub(super) answers_owing: u64,
+    /// [`Pictures`], shared with the solver thread.
+    pub(super) pictures: Arc<Pictures>,
+}
+
+/// How the UI tells the solver thread which answers' pictures are on screen: the error
+/// estimates owed for an answer wait until its picture is (at most [`PICTURE_WAIT`]), so that
+/// computing them does not slow down the display build and the frames that show it.
+#[derive(Debug)]
+pub struct Pictures {
+    /// How many of the answers whose estimates follow them have their picture on screen (or
+    /// will not be shown); `u64::MAX` while the UI does not say ([`Worker::waits_for_pictures`]):
+    /// the estimates then start at once.
+    shown: AtomicU64,
+    /// How long, in milliseconds, the estimates wait for a picture at most.
+    wait_ms: AtomicU64,
+}
+
+impl Default for Pictures {
+    fn default() -> Pictures {
+        Pictures { shown: AtomicU64::new(u64::MAX), wait_ms: AtomicU64::new(0) }
+    }
+}
+
+impl Pictures {
+    /// Whether the estimates owed for the `n`-th answer that owes them, sent `since`, still
+    /// wait for its picture.
+    pub(super) fn pending(&self, n: u64, since: std::time::Instant) -> bool {
+        self.shown.load(Ordering::SeqCst) < n
+            && since.elapsed().as_millis() < u128::from(self.wait_ms.load(Ordering::SeqCst))
+    }
 }
 
 /// How the UI tells the solver thread that the error estimates it owes give way to a newer
@@ -638,6 +682,25 @@ impl Worker {
     /// ([`Reply::Estimates`]).
     pub fn set_partial_estimates(&self, on: bool) {
         self.partial_estimates.store(on, Ordering::Relaxed);
+    }
+
+    /// From now on the UI says when the pictures of the answers it received are on screen
+    /// ([`Worker::pictures_shown`]), and the error estimates owed for an answer wait for its
+    /// picture, `at_most` this long (the viewer: [`PICTURE_WAIT`]).
+    pub fn waits_for_pictures(&self, at_most: std::time::Duration) {
+        let ms = u64::try_from(at_most.as_millis()).unwrap_or(u64::MAX);
+        self.pictures.wait_ms.store(ms, Ordering::SeqCst);
+        self.pictures.shown.store(self.answers_owing, Ordering::SeqCst);
+    }
+
+    /// The pictures of every answer received so far are on screen (or will not be shown): the
+    /// error estimates owed for them may start. Nothing changes unless [`Worker::waits_for_pictures`]
+    /// was called.
+    pub fn pictures_shown(&self) {
+        let shown = &self.pictures.shown;
+        if shown.load(Ordering::SeqCst) != u64::MAX {
+            shown.store(self.answers_owing, Ordering::SeqCst);
+        }
     }
 
     /// Send a command the user asked for: where it replaces the state
@@ -698,6 +761,9 @@ impl Worker {
         }
         if r.answers_a_command() {
             self.in_flight = self.in_flight.saturating_sub(1);
+        }
+        if r.owes_estimates() {
+            self.answers_owing += 1;
         }
         self.estimates_owed = r.estimates_owed_after(self.estimates_owed);
     }
@@ -883,6 +949,42 @@ mod tests {
             assert!(view.elements.iter().any(|e| e.error_estimate > 0.0) || kind == StepKind::Refine);
             assert_eq!(view.links, done.links, "the state answered, nothing else changed");
         }
+    }
+
+    #[test]
+    fn a_solves_estimates_wait_until_its_picture_is_shown() {
+        let mut w = Worker::spawn(|| {}).unwrap();
+        // A wait far longer than the test's: only the UI's word starts the estimates.
+        w.waits_for_pictures(std::time::Duration::from_secs(60));
+        load(&mut w, "builtin:cornell", HierarchicalParams::interactive());
+        w.pictures_shown();
+        w.send(Command::Step(StepKind::Solve));
+        let mut answers = Vec::new();
+        w.wait_answered(|r| answers.push(r));
+        assert!(
+            answers.iter().any(|r| matches!(r, Reply::Done { view, .. } if view.estimates_pending())),
+            "the solve's answer, its estimates owed"
+        );
+        assert!(w.estimates_owed());
+        // Long enough for cornell's estimates at `interactive` (well under a second here).
+        std::thread::sleep(std::time::Duration::from_millis(1500));
+        while let Some(r) = w.poll() {
+            assert!(!matches!(r, Reply::Estimates { .. }), "estimates before the picture was shown");
+        }
+        assert!(w.estimates_owed(), "still owed while the picture is not shown");
+        w.pictures_shown();
+        let mut after = Vec::new();
+        w.wait_idle(|r| after.push(r));
+        assert!(matches!(after[..], [Reply::Estimates { .. }]), "the estimates once it is");
+        // A newer command does not wait for a picture: it gives the estimates up at once.
+        w.send(Command::Step(StepKind::Solve));
+        w.wait_answered(|_| {});
+        let t = std::time::Instant::now();
+        w.send(Command::Reset);
+        let mut last = Vec::new();
+        w.wait_answered(|r| last.push(r));
+        assert!(last.iter().any(|r| matches!(r, Reply::EstimatesDropped { .. })));
+        assert!(t.elapsed() < std::time::Duration::from_secs(30), "answered without the wait");
     }
 
     /// What a worker's replies say of the error estimates: (the answers, the answers whose

@@ -53,8 +53,12 @@ impl eframe::App for RadlabApp {
         self.report_thread_panics();
         self.handle_screenshot(&ctx);
         self.run_script(&ctx);
+        // The display shows the newest answer: the error estimates owed for it may start.
+        if self.geometry.current() {
+            self.solve.pictures_shown();
+        }
         if self.busy() {
-            ctx.request_repaint_after(std::time::Duration::from_millis(100));
+            ctx.request_repaint_after(crate::viewer::solver_panel::BUSY_REPAINT);
         }
         if self.script.should_close() {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);

@@ -16,6 +16,8 @@ impl RadlabApp {
     /// Block until the solver thread is idle and apply its replies, then until the reference
     /// thread has scored the result, then until the display is built (tests, scripted runs).
     pub fn wait_for_solver(&mut self) {
+        // No frames are drawn while this blocks: the estimates owed do not wait for pictures.
+        self.solve.picture_wait(std::time::Duration::ZERO);
         for r in self.solve.wait_idle() {
             self.apply(r);
         }
@@ -33,6 +35,7 @@ impl RadlabApp {
         self.split.wait();
         self.replay.wait();
         self.report_thread_panics();
+        self.solve.picture_wait(crate::viewer::worker::PICTURE_WAIT);
     }
 
     /// Block until the solver thread has answered every command sent and apply the answers, not
