@@ -11,7 +11,8 @@
 #      an empty viewport has one),
 #   3. the inspector shows the picked element (its panel region changed after the click),
 #   4. dragging BFeps finer re-solves without a blank frame,
-#   5. a lecture figure with a split view (h-vs-p-linear) writes its window screenshot and exits.
+#   5. a lecture figure with a split view (h-vs-p-linear) writes its window screenshot and exits,
+#   6. `--bench-thresholds` sets each threshold in turn, reports each picture's time, and exits.
 # Exits non-zero on any failure. Screenshots are left in $OUT_DIR (default: target/xvfb-smoke).
 set -euo pipefail
 
@@ -126,6 +127,19 @@ colours=$(convert "$OUT_DIR/h-vs-p-linear.png" -format %k info:)
 echo "xvfb_smoke: h-vs-p-linear window has $colours distinct colours"
 if [ "$colours" -lt "$MIN_VIEWPORT_COLOURS" ]; then
     echo "xvfb_smoke: the figure's window looks blank (see $OUT_DIR/h-vs-p-linear.png)" >&2
+    exit 1
+fi
+# The slider's benchmark: a threshold change each, a finer one (warm) and back (the kept state).
+if ! timeout 180 "$BIN" view "$SCENE" --preset draft --bench-thresholds 0.1,0.2 >"$OUT_DIR/thresholds.log" 2>&1; then
+    echo "xvfb_smoke: --bench-thresholds did not finish:" >&2
+    cat "$OUT_DIR/thresholds.log" >&2
+    exit 1
+fi
+reported=$(grep -c "^radlab: threshold .* picture on screen in" "$OUT_DIR/thresholds.log" || true)
+grep "^radlab: threshold" "$OUT_DIR/thresholds.log" | sed 's/^/xvfb_smoke: /'
+if [ "$reported" -ne 2 ]; then
+    echo "xvfb_smoke: --bench-thresholds reported $reported of 2 changes:" >&2
+    cat "$OUT_DIR/thresholds.log" >&2
     exit 1
 fi
 echo "xvfb_smoke: ok"

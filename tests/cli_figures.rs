@@ -66,6 +66,11 @@ fn view_mesh_flags_that_do_not_fit_are_one_line_errors() {
         (&["view", "builtin:cornell", "--mesh", "uniform", "--continuous"][..], "order 1"),
         (&["view", "builtin:cornell", "--mesh", "discontinuity-bsp", "--order", "2"][..], "--order 2"),
         (&["view", "builtin:cornell", "--mesh", "voronoi"][..], "voronoi"),
+        (
+            &["view", "builtin:cornell", "--bench-thresholds", "0.1,0"][..],
+            "--bench-thresholds: 0 is not a threshold",
+        ),
+        (&["view", "builtin:cornell", "--bench-thresholds", "NaN"][..], "--bench-thresholds: NaN"),
     ] {
         let out = radlab(args);
         assert!(!out.status.success(), "{args:?}");

@@ -46,6 +46,11 @@ pub struct Args {
     /// Benchmark: solve, draw N frames, print the median frame time and exit.
     #[arg(long, value_name = "N")]
     pub bench_frames: Option<usize>,
+    /// Benchmark: solve, then set the threshold (ε of the ladder's presets, else BFeps) to each
+    /// value in turn as the Solver panel's slider does, print the time from each change to its
+    /// picture on screen, and exit.
+    #[arg(long, value_name = "EPS,...", value_delimiter = ',', conflicts_with_all = ["bench_frames", "screenshot", "no_solve"])]
+    pub bench_thresholds: Vec<f64>,
     /// Once solved, pick the element under this viewport point (fractions, y down: "0.5,0.8")
     /// and show its links.
     #[arg(long, value_name = "X,Y", value_parser = parse_point)]
@@ -109,6 +114,7 @@ impl Args {
             overlay: vec![Overlay::None],
             preset: None,
             bench_frames: None,
+            bench_thresholds: Vec::new(),
             pick: None,
             window: false,
             plots: false,
@@ -186,6 +192,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.bench_frames == Some(0) {
         anyhow::bail!("--bench-frames must be at least 1");
     }
+    if let Some(t) = args.bench_thresholds.iter().find(|t| !(t.is_finite() && **t > 0.0)) {
+        anyhow::bail!("--bench-thresholds: {t} is not a threshold (each must be finite and above 0)");
+    }
     let mut figures =
         args.figure.iter().map(|n| radlab::present::figures::find(n)).collect::<Result<Vec<_>, _>>()?;
     let figure = (!figures.is_empty()).then(|| figures.remove(0));
@@ -201,6 +210,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         solve_on_start: args.solve || !args.no_solve,
         screenshot: args.screenshot,
         bench_frames: args.bench_frames,
+        bench_thresholds: args.bench_thresholds,
         pick: args.pick,
         screenshot_window: args.window || figure.is_some_and(|f| f.window_shot),
         show_plots: args.plots,

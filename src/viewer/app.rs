@@ -211,13 +211,16 @@ impl RadlabApp {
         if let Some(r) = self.opts.reconstruction {
             self.display.shading = Shading::of(r);
         }
-        if self.opts.screenshot.is_some() || self.opts.bench_frames.is_some() {
+        if self.opts.screenshot.is_some()
+            || self.opts.bench_frames.is_some()
+            || !self.opts.bench_thresholds.is_empty()
+        {
             // A scripted run waits for the solve it opens with, or (`--no-solve`) goes on at once
             // to its frames: the geometry unsolved.
             self.script.script = if self.opts.solve_on_start {
                 Script::Solving
             } else {
-                Script::after_solve(self.opts.bench_frames.is_some())
+                Script::after_solve(self.opts.bench_frames.is_some(), &self.opts.bench_thresholds)
             };
         }
         let spec = self.scene_spec.clone();

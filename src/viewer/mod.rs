@@ -112,7 +112,8 @@ pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
     if !display_available() {
         return Err(ViewerError::NoDisplay);
     }
-    let scripted = opts.screenshot.is_some() || opts.bench_frames.is_some();
+    let scripted =
+        opts.screenshot.is_some() || opts.bench_frames.is_some() || !opts.bench_thresholds.is_empty();
     // A panic caught on a viewer thread is reported by the app (status bar; a scripted run's
     // one-line error), not printed by the default hook as well.
     panics::install_hook();

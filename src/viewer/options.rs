@@ -29,6 +29,9 @@ pub struct ViewerOptions {
     pub screenshot: Option<PathBuf>,
     /// Benchmark: after solving, draw this many frames, print the median frame time, close.
     pub bench_frames: Option<usize>,
+    /// Benchmark: after solving, set the threshold (ε, BFeps) to each of these in turn, as the
+    /// Solver panel's slider does, print how long each new picture took to be on screen, close.
+    pub bench_thresholds: Vec<f64>,
     /// Pick the element under this viewport point once solved (fractions of the viewport,
     /// y down), and show its links (scripted screenshots of the inspector).
     pub pick: Option<[f32; 2]>,
@@ -71,6 +74,7 @@ impl Default for ViewerOptions {
             solve_on_start: true,
             screenshot: None,
             bench_frames: None,
+            bench_thresholds: Vec::new(),
             pick: None,
             screenshot_window: false,
             show_plots: false,

@@ -26,14 +26,23 @@ pub enum Script {
         warmup: usize,
         bench: FrameBench,
     },
+    /// `--bench-thresholds`: the thresholds still to set, and the change waiting for its
+    /// picture (from, to, when it was made).
+    Thresholds {
+        left: Vec<f64>,
+        waiting: Option<(f64, f64, std::time::Instant)>,
+    },
     Done,
 }
 
 impl Script {
-    /// What follows the solve: the benchmark's frames, or the frames before the screenshot.
+    /// What follows the solve: the threshold changes (`thresholds`, when there are any), the
+    /// benchmark's frames, or the frames before the screenshot.
     #[must_use]
-    pub fn after_solve(bench: bool) -> Script {
-        if bench {
+    pub fn after_solve(bench: bool, thresholds: &[f64]) -> Script {
+        if !thresholds.is_empty() {
+            Script::Thresholds { left: thresholds.to_vec(), waiting: None }
+        } else if bench {
             Script::Bench { warmup: BENCH_WARMUP_FRAMES, bench: FrameBench::default() }
         } else {
             Script::Settle(4)
@@ -89,9 +98,9 @@ impl ScriptRun {
 
     /// The solver thread finished a command and has nothing left (`idle`): a run waiting for
     /// its solve goes on to the benchmark's frames (`bench`) or the screenshot's.
-    pub fn solver_answered(&mut self, idle: bool, bench: bool) {
+    pub fn solver_answered(&mut self, idle: bool, bench: bool, thresholds: &[f64]) {
         if self.script == Script::Solving && idle {
-            self.script = Script::after_solve(bench);
+            self.script = Script::after_solve(bench, thresholds);
         }
     }
 

@@ -98,7 +98,11 @@ impl RadlabApp {
             Reply::Cancelled { report } => {
                 self.solve.progress = None;
                 self.shown.last_report = Some(report);
-                self.script.solver_answered(!self.busy(), self.opts.bench_frames.is_some());
+                self.script.solver_answered(
+                    !self.busy(),
+                    self.opts.bench_frames.is_some(),
+                    &self.opts.bench_thresholds,
+                );
             }
             // The error estimates of a state a step answered with: folded into it wherever it is
             // still shown or kept (dropped when it no longer is).
@@ -195,7 +199,11 @@ impl RadlabApp {
             let next = self.opts.then_figures.remove(0);
             self.open_figure(next);
         }
-        self.script.solver_answered(!self.busy(), self.opts.bench_frames.is_some());
+        self.script.solver_answered(
+            !self.busy(),
+            self.opts.bench_frames.is_some(),
+            &self.opts.bench_thresholds,
+        );
     }
 
     /// The solver restarted (superseded or not): the next solve starts from the input patches.

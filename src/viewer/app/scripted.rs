@@ -3,6 +3,7 @@
 //! `--bench-frames`): wait for the solve, let the display settle, then shoot or measure.
 
 use super::RadlabApp;
+use crate::solver::params::HierarchicalParams;
 use crate::viewer::file_dialog::{Answer, Purpose};
 use crate::viewer::geometry::ShownGeometry;
 use crate::viewer::script::{self, BenchScene, Script};
@@ -111,9 +112,13 @@ impl RadlabApp {
             && !self.replay.building()
             && !self.comparison.reference.busy()
             && !self.artifacts.busy();
+        if let Script::Thresholds { .. } = self.script.script {
+            self.bench_thresholds(ctx, current);
+            return;
+        }
         let run = &mut self.script;
         match &mut run.script {
-            Script::None | Script::Done | Script::WaitingShot => {}
+            Script::None | Script::Done | Script::WaitingShot | Script::Thresholds { .. } => {}
             Script::Solving => {
                 if self.opts.bench_frames.is_some() {
                     // Keep drawing while the solver runs: the UI must not wait on it.
@@ -156,6 +161,44 @@ impl RadlabApp {
                 ctx.request_repaint();
             }
         }
+    }
+
+    /// `--bench-thresholds`: once the last picture is on screen, set the next threshold as the
+    /// Solver panel's slider does; once that change's picture is on screen (its solve answered,
+    /// nothing held back, its display built), print the time it took. `current`: the display
+    /// shows the newest build asked for.
+    fn bench_thresholds(&mut self, ctx: &egui::Context, current: bool) {
+        let Script::Thresholds { left, waiting } = &self.script.script else { return };
+        let (next, waiting) = (left.first().copied(), *waiting);
+        let shown = current && !self.solve.busy() && !self.solve.resolve_pending && !self.shown.hold;
+        match waiting {
+            None if shown => {
+                let Some(to) = next else {
+                    self.script.finish();
+                    return;
+                };
+                let from = self.solve.params.bf_eps;
+                if let Script::Thresholds { left, waiting } = &mut self.script.script {
+                    left.remove(0);
+                    *waiting = Some((from, to, Instant::now()));
+                }
+                self.set_params(HierarchicalParams { bf_eps: to, ..self.solve.params });
+            }
+            Some((from, to, at)) if shown && self.shown.view.params.bf_eps.to_bits() == to.to_bits() => {
+                let s = at.elapsed().as_secs_f64();
+                if let Script::Thresholds { waiting, .. } = &mut self.script.script {
+                    *waiting = None;
+                }
+                let how = self.log.last_solve.map_or_else(|| "not solved".to_owned(), |n| n.text());
+                let st = &self.shown.view.stats;
+                println!(
+                    "radlab: threshold {from} -> {to}: picture on screen in {s:.3} s ({how}; {} leaves, {} links)",
+                    st.leaves, st.links
+                );
+            }
+            _ => {}
+        }
+        ctx.request_repaint();
     }
 }
 
