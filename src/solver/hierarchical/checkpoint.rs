@@ -129,8 +129,10 @@ impl HierarchicalSolver {
         better.then_some(i)
     }
 
-    /// Make kept state `k` the current one, under parameters `p` (the state's own, or finer).
+    /// Make kept state `k` the current one, under parameters `p` (the state's own, or finer:
+    /// under its own, its log says it is solved, and the next solve has nothing to do).
     pub(super) fn restore(&mut self, k: Kept, p: HierarchicalParams) {
+        let own = k.params == p;
         self.hier = k.hier;
         self.graph.links = k.links;
         self.graph.linked = true;
@@ -143,13 +145,19 @@ impl HierarchicalSolver {
         self.cluster = k.cluster;
         self.closure = k.closure;
         self.log = k.log;
-        self.go_on_under(p);
+        if own {
+            self.setup.set_params(p);
+            self.setup.cancel.store(false, Ordering::Relaxed);
+        } else {
+            self.go_on_under(p);
+        }
     }
 
     /// Take parameters `p` for the solved state held now: the next solve refines on from it.
     pub(super) fn go_on_under(&mut self, p: HierarchicalParams) {
         self.setup.set_params(p);
         self.log.converged = false;
+        self.log.settled = false;
         self.setup.cancel.store(false, Ordering::Relaxed);
     }
 }

@@ -611,8 +611,13 @@ impl HierarchicalSolver {
         self.setup.cancel.store(false, Ordering::Relaxed);
         self.log.gathers_cut = false;
         let t = Instant::now();
+        if self.log.settled && self.log.converged {
+            // Solved under these parameters, nothing changed since: the answer stands.
+            return self.report(StepKind::Solve, t, 0, 0);
+        }
         let mut refined_total = 0;
         let mut links_total = 0;
+        let mut ended_settled = false;
         let rounds = self.setup.params.max_rounds.max(1);
         // Push-pulls inside the loop skip the power sums; one pass at the end makes them.
         let mut energy_due = false;
@@ -635,6 +640,7 @@ impl HierarchicalSolver {
             if settled && was_converged && r.new_links == 0 {
                 // Nothing changed since the converged gather: the solution stands.
                 self.log.converged = true;
+                ended_settled = true;
                 break;
             }
             // While the mesh still changes, refine again after `round_iterations` gathers.
@@ -653,6 +659,7 @@ impl HierarchicalSolver {
             }
             if self.cancelled() || settled || (self.setup.params.oracle == Oracle::Feps && self.log.converged)
             {
+                ended_settled = settled && !self.cancelled();
                 break;
             }
             if !self.setup.params.gauss_seidel || iters > 0 {
@@ -660,6 +667,7 @@ impl HierarchicalSolver {
             }
         }
         self.close_balance(energy_due);
+        self.log.settled = ended_settled && self.log.converged && !self.log.gathers_cut;
         progress(u64::from(rounds), u64::from(rounds));
         self.report(StepKind::Solve, t, refined_total, links_total)
     }

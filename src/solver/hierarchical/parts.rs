@@ -200,6 +200,11 @@ pub(super) struct RunLog {
     /// The deadline stopped the last solve's or convergence's gathers before they converged
     /// and closed the power balance.
     pub(super) gathers_cut: bool,
+    /// The last solve ended as a solve ends when it is done (its mesh settled, its gathers
+    /// converged), and nothing was refined or retargeted since: another solve under the same
+    /// parameters has nothing to do (a kept state restored at its own parameters, whose log
+    /// this is, is that solve's answer again).
+    pub(super) settled: bool,
 }
 
 impl RunLog {

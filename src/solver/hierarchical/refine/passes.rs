@@ -61,6 +61,7 @@ impl HierarchicalSolver {
 
     pub(in crate::solver::hierarchical) fn refine_inner(&mut self) -> StepReport {
         let t = Instant::now();
+        self.log.settled = false;
         let mut run = self.begin_refinement();
         self.log.stats.refine_initial_s += t.elapsed().as_secs_f64();
         // The row check reads the rows of the links the last solution gathered through (none
