@@ -667,7 +667,10 @@ impl HierarchicalSolver {
             }
         }
         self.close_balance(energy_due);
-        self.log.settled = ended_settled && self.log.converged && !self.log.gathers_cut;
+        // (Not under a deadline: its refinement may have stopped for time, and a later solve
+        // with more of it has work to do.)
+        self.log.settled =
+            ended_settled && self.log.converged && !self.log.gathers_cut && self.setup.deadline.is_none();
         progress(u64::from(rounds), u64::from(rounds));
         self.report(StepKind::Solve, t, refined_total, links_total)
     }
