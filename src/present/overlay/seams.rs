@@ -4,7 +4,7 @@
 //! values interpolated along the leaf edge), so both sides rasterise the same edges.
 
 use super::ElementView;
-use super::quantize::{ANY_PATCH, Key, KeyMap, Quantizer};
+use super::quantize::{ANY_PATCH, Key, Quantizer};
 use super::smooth::BoundaryPoint;
 use crate::math::DVec3;
 use std::collections::HashMap;
@@ -61,7 +61,7 @@ impl Seams {
         elements: &[ElementView],
         leaves: &[u32],
         quant: &Quantizer,
-        canonical: &KeyMap<Key, DVec3>,
+        canonical: &crate::math::WordMap<Key, DVec3>,
     ) -> Seams {
         let tol = SEAM_REL * quant.diag;
         let mut edges: Vec<(u32, SeamEdge)> = Vec::new();

@@ -6,9 +6,9 @@
 //! its corners with the T-vertices and seam points on each edge, for a conforming triangulation.
 
 use super::ElementView;
-use super::quantize::{ANY_PATCH, Key, KeyMap, MERGE_REL, Quantizer};
+use super::quantize::{ANY_PATCH, Key, MERGE_REL, Quantizer};
 use super::seams::Seams;
-use crate::math::{DVec3, Rgb};
+use crate::math::{DVec3, Rgb, WordMap, WordSet};
 
 /// Most anchoring passes (a chain of T-vertices hanging on each other takes one pass per link
 /// when its edges are not longest-first; the quadtree's depth cap is 30).
@@ -16,7 +16,7 @@ const MAX_ANCHOR_PASSES: usize = 64;
 
 /// An edge (its end keys, in key order) → the corners strictly inside it, as (t from the first
 /// key's end, key), sorted by t.
-type TVertices = KeyMap<(Key, Key), Vec<(f64, Key)>>;
+type TVertices = WordMap<(Key, Key), Vec<(f64, Key)>>;
 
 /// The leaves' corners, merged per input patch: a canonical position for each (so that every
 /// leaf that shares a corner emits bit-identical coordinates) and the Gouraud value there
@@ -24,7 +24,7 @@ type TVertices = KeyMap<(Key, Key), Vec<(f64, Key)>>;
 pub struct VertexField {
     quant: Quantizer,
     /// Corner key → (canonical position, smooth radiosity).
-    corners: KeyMap<Key, (DVec3, Rgb)>,
+    corners: WordMap<Key, (DVec3, Rgb)>,
     /// The T-vertices inside each leaf edge that has some.
     t_vertices: TVertices,
     seams: Seams,
@@ -50,15 +50,15 @@ impl VertexField {
         let quant = Quantizer::new(elements);
         // One canonical position per point, whatever the patch (the first leaf's, in leaf
         // order), so corners shared across a seam are bit-identical on both sides.
-        let mut canonical: KeyMap<Key, DVec3> =
-            KeyMap::with_capacity_and_hasher(leaves.len() * 2, Default::default());
+        let mut canonical: WordMap<Key, DVec3> =
+            WordMap::with_capacity_and_hasher(leaves.len() * 2, Default::default());
         for &l in leaves {
             for v in elements[l as usize].verts() {
                 canonical.entry(quant.key(ANY_PATCH, *v)).or_insert(*v);
             }
         }
-        let mut sums: KeyMap<Key, (DVec3, Rgb, u32)> =
-            KeyMap::with_capacity_and_hasher(leaves.len() * 2, Default::default());
+        let mut sums: WordMap<Key, (DVec3, Rgb, u32)> =
+            WordMap::with_capacity_and_hasher(leaves.len() * 2, Default::default());
         for &l in leaves {
             let e = &elements[l as usize];
             for v in e.verts() {
@@ -68,7 +68,7 @@ impl VertexField {
                 s.2 += 1;
             }
         }
-        let mut corners: KeyMap<Key, (DVec3, Rgb)> =
+        let mut corners: WordMap<Key, (DVec3, Rgb)> =
             sums.into_iter().map(|(k, (p, s, n))| (k, (p, s / f64::from(n)))).collect();
         let t_vertices = find_t_vertices(&quant, &corners, elements, leaves);
         anchor(&mut corners, &t_vertices);
@@ -158,22 +158,21 @@ pub fn vertex_radiosity(elements: &[ElementView], leaves: &[u32]) -> Vec<[Rgb; 4
 /// keyed by its end keys in key order, each list sorted by t from the first key's end.
 fn find_t_vertices(
     quant: &Quantizer,
-    corners: &KeyMap<Key, (DVec3, Rgb)>,
+    corners: &WordMap<Key, (DVec3, Rgb)>,
     elements: &[ElementView],
     leaves: &[u32],
 ) -> TVertices {
-    let mut by_patch: std::collections::HashMap<u32, Vec<(Key, DVec3)>> = std::collections::HashMap::new();
+    let mut by_patch: WordMap<u32, Vec<(Key, DVec3)>> = WordMap::default();
     for (k, (p, _)) in corners {
         by_patch.entry(k.0).or_default().push((*k, *p));
     }
-    let grids: std::collections::HashMap<u32, crate::eval::reconstruction::BucketGrid<Key>> = by_patch
+    let grids: WordMap<u32, crate::eval::reconstruction::BucketGrid<Key>> = by_patch
         .into_iter()
         .map(|(patch, v)| (patch, crate::eval::reconstruction::BucketGrid::new(v)))
         .collect();
     let tol = 4.0 * quant.diag * MERGE_REL;
     let mut out = TVertices::default();
-    let mut seen: std::collections::HashSet<_, std::hash::BuildHasherDefault<super::quantize::KeyHasher>> =
-        Default::default();
+    let mut seen = WordSet::default();
     for &l in leaves {
         let e = &elements[l as usize];
         let Some(grid) = grids.get(&e.patch) else { continue };
@@ -197,7 +196,7 @@ fn find_t_vertices(
 
 /// Give every T-vertex the value interpolated along the edge it lies inside, longest edges
 /// first, repeated until nothing changes (an end point may hang on another edge in turn).
-fn anchor(corners: &mut KeyMap<Key, (DVec3, Rgb)>, t_vertices: &TVertices) {
+fn anchor(corners: &mut WordMap<Key, (DVec3, Rgb)>, t_vertices: &TVertices) {
     // (length, end keys, T-vertices inside)
     let mut edges: Vec<_> =
         t_vertices.iter().map(|(k, inside)| (corners[&k.0].0.distance(corners[&k.1].0), k, inside)).collect();

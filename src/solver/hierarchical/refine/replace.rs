@@ -5,7 +5,6 @@
 
 use super::verdict::{Decision, Split, Verdict};
 use crate::geometry::accel::NO_HIT;
-use crate::math::splitmix64;
 use crate::solver::hierarchical::HierarchicalSolver;
 use crate::solver::hierarchical::refine::pair_key;
 #[cfg(debug_assertions)]
@@ -73,28 +72,8 @@ pub(in crate::solver::hierarchical) struct PairMemo(Vec<MemoShard>);
 #[derive(Default)]
 pub(super) struct MemoShard(std::sync::Mutex<PairMap>);
 
-/// A memo shard: keys are already well mixed (`pair_key` packs two ids; the hasher mixes them
-/// once with splitmix64 instead of SipHash, a third of the memo's cost).
-pub(super) type PairMap =
-    std::collections::HashMap<u64, SplitOutcome, std::hash::BuildHasherDefault<KeyHasher>>;
-
-/// splitmix64 of a `u64` key (see `PairMap`).
-#[derive(Default)]
-pub(super) struct KeyHasher(u64);
-
-impl std::hash::Hasher for KeyHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = splitmix64(self.0 ^ u64::from(b));
-        }
-    }
-    fn write_u64(&mut self, k: u64) {
-        self.0 = splitmix64(self.0 ^ k);
-    }
-}
+/// A memo shard: `pair_key` packs two ids, mixed once with splitmix64 (`WordHasher`).
+pub(super) type PairMap = crate::math::WordMap<u64, SplitOutcome>;
 
 impl Default for PairMemo {
     fn default() -> Self {
