@@ -609,6 +609,16 @@ fn compare_points(
     entry: &CachedPoints,
     log: &mut Box<dyn Write>,
 ) -> anyhow::Result<()> {
+    let mut entry = entry.clone();
+    let enclosed = entry.drop_enclosed(scene, accel);
+    if enclosed > 0 {
+        writeln!(
+            log,
+            "{} points enclosed in solids (every direction from them meets the back of a surface: no light reaches them and no one sees them) are left out of the scores",
+            thousands(enclosed)
+        )?;
+    }
+    let entry = &entry;
     let points = &entry.set.points;
     let (sol, coefficients) = solve(args, scene, log)?;
     let band_params = radlab::eval::penumbra::BandParams::standard();

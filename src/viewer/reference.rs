@@ -459,7 +459,9 @@ fn load(
     let started = Instant::now();
     let accel = Accel::build(&scene);
     match settings.cache.get_or_compute_points(&scene, &accel, &params, control) {
-        Ok((c, status)) => {
+        Ok((mut c, status)) => {
+            // Scored as the command line scores it: enclosed points left out.
+            c.drop_enclosed(&scene, &accel);
             let how = match status {
                 CacheStatus::Hit(f) => format!("cached {}", f.display()),
                 CacheStatus::Computed(f) | CacheStatus::Recomputed { file: f, .. } => {

@@ -469,6 +469,69 @@ pub struct CachedPoints {
     pub compute_s: f64,
 }
 
+/// Hemisphere directions per point that [`enclosed`] traces.
+pub const ENCLOSED_RAYS: usize = 64;
+
+/// Per point, whether it is **enclosed**: each of [`ENCLOSED_RAYS`] fixed directions of its
+/// hemisphere (cosine-distributed, on a golden-angle spiral) meets the back of a surface, as
+/// the floor under a box that stands on it without a bottom does. No light reaches such a point
+/// (a path from it ends on a back face at its first bounce), and no viewer in the scene sees it;
+/// the pointwise rulers leave enclosed points out of the reference and the solution alike, as
+/// the floor under a decal is left out (the loader drops it), since what a solver puts there is
+/// shown to no one. A point that sees a front face or open sky in any of the directions is kept.
+/// Deterministic, and identical for any thread count.
+pub fn enclosed(scene: &Scene, accel: &Accel, points: &[RefPoint]) -> Vec<bool> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let dirs: Vec<(f64, f64, f64)> = (0..ENCLOSED_RAYS)
+        .map(|k| {
+            let u = (k as f64 + 0.5) / ENCLOSED_RAYS as f64;
+            let (cos_t, sin_t) = ((1.0 - u).sqrt(), u.sqrt());
+            let phi = golden * k as f64;
+            (sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
+        })
+        .collect();
+    points
+        .par_iter()
+        .map(|p| {
+            let n = scene.patches[p.patch].normal;
+            let (t1, t2) = crate::math::orthonormal_basis(n);
+            dirs.iter().all(|&(x, y, z)| {
+                let d = t1 * x + t2 * y + n * z;
+                accel
+                    .first_hit(p.position, d, p.patch as u32)
+                    .is_some_and(|(q, _)| scene.patches[q as usize].normal.dot(d) > 0.0)
+            })
+        })
+        .collect()
+}
+
+/// `points` and their `estimates` without the enclosed points ([`enclosed`]), and how many
+/// were left out.
+#[must_use]
+pub fn without_enclosed(
+    scene: &Scene,
+    accel: &Accel,
+    points: &[RefPoint],
+    estimates: &[Estimate],
+) -> (Vec<RefPoint>, Vec<Estimate>, usize) {
+    let inside = enclosed(scene, accel, points);
+    let kept = |i: usize| !inside.get(i).copied().unwrap_or(false);
+    let p: Vec<RefPoint> = points.iter().enumerate().filter(|(i, _)| kept(*i)).map(|(_, x)| *x).collect();
+    let e: Vec<Estimate> = estimates.iter().enumerate().filter(|(i, _)| kept(*i)).map(|(_, x)| *x).collect();
+    let dropped = points.len() - p.len();
+    (p, e, dropped)
+}
+
+impl CachedPoints {
+    /// Leave out the enclosed points ([`enclosed`]) and their estimates; returns how many.
+    pub fn drop_enclosed(&mut self, scene: &Scene, accel: &Accel) -> usize {
+        let (p, e, n) = without_enclosed(scene, accel, &self.set.points, &self.estimates);
+        self.set.points = p;
+        self.estimates = e;
+        n
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -488,6 +551,50 @@ mod tests {
                 }
             }
             assert!((area - patch.area).abs() < 1e-9 * patch.area, "patch {p}: {area} vs {}", patch.area);
+        }
+    }
+
+    /// The floor under a box of box-grid (which has no bottom) is enclosed; the floor between
+    /// boxes, a box's top and the room's walls are not.
+    #[test]
+    fn the_floor_under_a_box_is_enclosed_and_beside_it_not() {
+        let scene = Scene::load("builtin:box-grid-1000").unwrap();
+        let accel = Accel::build(&scene);
+        let on = |name: &str, x: DVec3| {
+            let patch = scene
+                .patches
+                .iter()
+                .position(|p| {
+                    let (lo, hi) =
+                        p.vertices.iter().fold((DVec3::MAX, DVec3::MIN), |(l, h), v| (l.min(*v), h.max(*v)));
+                    p.name.starts_with(name) && (x.cmpge(lo - 1e-9) & x.cmple(hi + 1e-9)).all()
+                })
+                .unwrap_or_else(|| panic!("no {name} patch holds {x}"));
+            RefPoint {
+                patch,
+                position: x,
+                area: 1.0,
+                cell: Cell { patch: patch as u32, level: 0, i: 0, j: 0 },
+            }
+        };
+        let tops: Vec<DVec3> = scene
+            .patches
+            .iter()
+            .filter(|p| p.name.starts_with("boxes") && p.normal.y > 0.99)
+            .map(|p| p.vertices.iter().copied().sum::<DVec3>() / p.vertices.len() as f64)
+            .take(5)
+            .collect();
+        assert_eq!(tops.len(), 5);
+        let mut points = Vec::new();
+        for c in &tops {
+            points.push(on("floor", DVec3::new(c.x, 0.0, c.z)));
+            // Half the grid's pitch (0.25) along both axes: between four boxes at most 0.2 wide.
+            points.push(on("floor", DVec3::new(c.x + 0.125, 0.0, c.z + 0.125)));
+            points.push(on("boxes", *c));
+        }
+        let got = enclosed(&scene, &accel, &points);
+        for (k, c) in tops.iter().enumerate() {
+            assert_eq!(&got[3 * k..3 * k + 3], &[true, false, false], "box with its top at {c}");
         }
     }
 

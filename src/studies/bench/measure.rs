@@ -171,6 +171,12 @@ pub(super) fn reference_batches(
                     "  reference: target not met after {max} batches; the table marks what it cannot resolve"
                 ));
             }
+            // The enclosed points are left out of the scores (`points::enclosed`).
+            let (points, merged, enclosed) =
+                crate::eval::reference::points::without_enclosed(scene, accel, &points, &merged);
+            if enclosed > 0 {
+                log(&format!("  reference: {} enclosed points left out of the scores", thousands(enclosed)));
+            }
             return Ok(ReferenceBatches {
                 points,
                 estimates: merged,
