@@ -3,6 +3,7 @@
 mod common;
 
 use radlab::solver::hierarchical::HierarchicalSolver;
+use radlab::solver::hierarchy::StopReason;
 use radlab::solver::params::{AreaEps, ErrorTail, HierarchicalParams, Oracle};
 use std::sync::Arc;
 
@@ -740,19 +741,49 @@ fn links_are_mirror_images_with_reciprocal_form_factors() {
         let s = solve(scene, p);
         let snap = s.snapshot();
         assert!(snap.links.len() > 200, "{name}: the run must refine");
-        let mut by_pair = std::collections::HashMap::new();
-        for l in &snap.links {
-            assert!(by_pair.insert((l.receiver, l.source), *l).is_none(), "{name}: duplicate link");
-        }
-        let area = |i: u32| snap.elements[i as usize].area;
-        for l in &snap.links {
-            let m =
-                by_pair.get(&(l.source, l.receiver)).unwrap_or_else(|| panic!("{name}: no mirror of {l:?}"));
-            assert_eq!(m.vis.to_bits(), l.vis.to_bits(), "{name}: {l:?} against {m:?}");
-            let (a, b) = (area(l.receiver) * f64::from(l.ff), area(l.source) * f64::from(m.ff));
-            assert!((a - b).abs() <= MIRROR_REL * a.max(b), "{name}: A F {a} against {b}");
-        }
+        assert_mirror_images(&name, &snap);
     }
+}
+
+/// Every link r ← s has a mirror s ← r with the same visibility and A_r F_rs = A_s F_sr.
+fn assert_mirror_images(name: &str, snap: &radlab::solver::hierarchical::Snapshot) {
+    let mut by_pair = std::collections::HashMap::new();
+    for l in &snap.links {
+        assert!(by_pair.insert((l.receiver, l.source), *l).is_none(), "{name}: duplicate link");
+    }
+    let area = |i: u32| snap.elements[i as usize].area;
+    for l in &snap.links {
+        let m = by_pair.get(&(l.source, l.receiver)).unwrap_or_else(|| panic!("{name}: no mirror of {l:?}"));
+        assert_eq!(m.vis.to_bits(), l.vis.to_bits(), "{name}: {l:?} against {m:?}");
+        let (a, b) = (area(l.receiver) * f64::from(l.ff), area(l.source) * f64::from(m.ff));
+        assert!((a - b).abs() <= MIRROR_REL * a.max(b), "{name}: A F {a} against {b}");
+    }
+}
+
+/// Under the error oracle, the pass that would overrun the link budget splits only the pairs
+/// of the largest receiver errors: the links end near the budget (within the estimate of what a
+/// split adds; finishing the pass overran it: builtin:table-room on its patches at 20 000 ended at
+/// 24 760 links), every link keeps its mirror,
+/// the balance closes and the leaves left unsplit say that the budget stopped them.
+#[test]
+fn an_error_oracle_budget_stop_keeps_the_budget_and_the_mirrors() {
+    let max_links = 20_000;
+    let s = solve(common::table_room(), HierarchicalParams { max_links, ..HierarchicalParams::quality() });
+    let stats = s.stats();
+    assert!(stats.budget_hit, "the budget must stop refinement ({} links)", stats.links);
+    assert!(
+        stats.links <= max_links + max_links / 10,
+        "{} links against a budget of {max_links}",
+        stats.links
+    );
+    let snap = s.snapshot();
+    assert_mirror_images("table-room", &snap);
+    assert!(
+        snap.elements.iter().any(|e| e.children.is_none() && e.stop == StopReason::LinkBudget),
+        "no leaf says the budget stopped it"
+    );
+    let e = s.solution().energy;
+    assert!(e.relative_residual() <= BALANCE_TOL, "residual {:.2e}", e.relative_residual());
 }
 
 /// Energy balance of converged solves: mirror links make what a source sends

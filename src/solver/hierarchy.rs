@@ -46,6 +46,9 @@ pub enum StopReason {
     AepsFloor,
     /// A link wanted it subdivided, but it is at the maximum depth.
     MaxDepth,
+    /// A link wanted it subdivided, but the link budget (`max_links`) stopped the refinement
+    /// first.
+    LinkBudget,
 }
 
 impl StopReason {
@@ -59,6 +62,7 @@ impl StopReason {
             StopReason::BelowBfEps => "all links below BFeps",
             StopReason::AepsFloor => "at the Aeps floor (area too small to split)",
             StopReason::MaxDepth => "at the maximum depth",
+            StopReason::LinkBudget => "the link budget stopped its refinement",
         }
     }
     /// Severity order used when several links disagree: a floor beats "below eps".
@@ -66,7 +70,7 @@ impl StopReason {
         match self {
             StopReason::Unrefined => 0,
             StopReason::BelowFeps | StopReason::BelowBfEps | StopReason::BelowErrorEps => 1,
-            StopReason::AepsFloor => 2,
+            StopReason::AepsFloor | StopReason::LinkBudget => 2,
             StopReason::MaxDepth => 3,
             StopReason::Subdivided => 4,
         }

@@ -119,7 +119,8 @@ pub struct HierarchicalParams {
     /// to the largest radiosity in the scene, is below this.
     pub tolerance: f64,
     /// Refinement stops splitting once this many links exist (a hard memory and time budget;
-    /// `stats.budget_hit` says when it bound).
+    /// `stats.budget_hit` says when it bound). Under the error oracle, the pass that would
+    /// overrun it splits the pairs of the largest receiver errors only, and is the last.
     pub max_links: usize,
     /// Safety cap on gather iterations per solve.
     pub max_iterations: u32,

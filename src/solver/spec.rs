@@ -205,12 +205,22 @@ pub const fn ladder_row_tol(eps: f64) -> f64 {
     if eps >= 0.2 { 0.05 } else { 0.1 }
 }
 
-/// The ladder's link budget: 4 M at ε = 0.05, growing as 1/ε (a finer step refines further, and
-/// a budget that stopped it half-way would leave it less accurate than the step before).
+/// The ladder's link budget: 4 M at ε = 0.05 and above, growing as ε^−1.5 below (11.3 M at
+/// 0.025, 32 M at 0.0125; at most 64 M). A finer step refines further, and a budget that stopped
+/// it half-way would leave it less accurate than it should be: splash_room's `fine` and
+/// `reference` need about 12 and 33 M links, and with the budget growing as 1/ε (8 and 16 M)
+/// they read 2.29 and 2.07 % instead of 2.16 and 1.85 % (docs/solver.md, "Presets").
 #[must_use]
 pub const fn ladder_max_links(eps: f64) -> usize {
-    let scaled = 4.0e6 * 0.05 / eps.max(1e-6);
-    scaled.clamp(4.0e6, 64.0e6) as usize
+    let r = 0.05 / eps.max(1e-6);
+    // r^1.5 = r √r, √r by Newton's iteration (a const fn has no `sqrt`).
+    let mut s = if r > 1.0 { r } else { 1.0 };
+    let mut k = 0;
+    while k < 64 {
+        s = 0.5 * (s + r / s);
+        k += 1;
+    }
+    (4.0e6 * r * s).clamp(4.0e6, 64.0e6) as usize
 }
 
 /// Shadow rays per link on the ladder: 16, and 64 at the finest step (ε < 0.025). A link's
@@ -237,7 +247,8 @@ pub fn threshold(p: &HierarchicalParams) -> f64 {
 
 /// `p` with its oracle's threshold set to `value` (relative where the oracle reads it so: BF to the
 /// brightest emission, the error oracle to the mean reflected radiosity). With the error oracle
-/// and `floor_follows`, the area floor follows the threshold as on the ladder.
+/// and `floor_follows`, the area floor follows the threshold as on the ladder, and so does the
+/// link budget where it is the ladder's for the old threshold ([`follow_ladder_budget`]).
 #[must_use]
 pub fn with_threshold(p: HierarchicalParams, value: f64, floor_follows: bool) -> HierarchicalParams {
     match p.oracle {
@@ -245,8 +256,25 @@ pub fn with_threshold(p: HierarchicalParams, value: f64, floor_follows: bool) ->
         Oracle::Bf => HierarchicalParams { bf_eps: value, bf_relative: true, ..p },
         Oracle::Error => {
             let q = HierarchicalParams { bf_eps: value, bf_relative: true, ..p };
-            if floor_follows { discontinuity::contact_area_floor(q) } else { q }
+            if floor_follows {
+                follow_ladder_budget(discontinuity::contact_area_floor(q), p.bf_eps)
+            } else {
+                q
+            }
         }
+    }
+}
+
+/// `p`, whose error threshold was `old_eps`, with the ladder's link budget for its threshold
+/// ([`ladder_max_links`]) if its budget was the ladder's for `old_eps`; a budget set by hand
+/// stays. A finer threshold then refines further, as the ladder's finer step does, instead of
+/// stopping at the coarser threshold's budget.
+#[must_use]
+pub fn follow_ladder_budget(p: HierarchicalParams, old_eps: f64) -> HierarchicalParams {
+    if p.oracle == Oracle::Error && p.max_links == ladder_max_links(old_eps) {
+        HierarchicalParams { max_links: ladder_max_links(p.bf_eps), ..p }
+    } else {
+        p
     }
 }
 
@@ -838,6 +866,12 @@ mod tests {
         assert_eq!(area_floor_rel(&e), Some(discontinuity::CONTACT_AEPS_PER_EPS * 0.2));
         let kept = with_threshold(Preset::Quality.hierarchical(), 0.2, false);
         assert_eq!(area_floor_rel(&kept), area_floor_rel(&Preset::Quality.hierarchical()));
+        // The ladder's budget follows the threshold; one set by hand stays.
+        let finer = with_threshold(Preset::Quality.hierarchical(), 0.0125, true);
+        assert_eq!(finer.max_links, Preset::Reference.hierarchical().max_links);
+        let own = HierarchicalParams { max_links: 123_456, ..Preset::Quality.hierarchical() };
+        assert_eq!(with_threshold(own, 0.0125, true).max_links, 123_456);
+        assert_eq!(with_threshold(Preset::Quality.hierarchical(), 0.0125, false).max_links, 4_000_000);
         let f = with_threshold(Preset::Lecture.hierarchical(), 0.05, true);
         assert_eq!((f.feps, threshold(&f)), (0.05, 0.05));
         let b = with_threshold(Preset::Splash2.hierarchical(), 1e-3, true);

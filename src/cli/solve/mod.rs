@@ -186,8 +186,9 @@ pub struct SolverArgs {
     #[arg(long, default_value = "quality")]
     pub preset: String,
     /// The oracle's threshold, whatever the oracle: the error oracle's ε (an error of B relative
-    /// to the scene's mean reflected radiosity; its area floor follows it, 6e-4 × ε of the
-    /// scene's area, unless --aeps/--aeps-rel is given), the BF oracle's BFeps (relative to the
+    /// to the scene's mean reflected radiosity; its area floor, 6e-4 × ε of the scene's area,
+    /// and the ladder's link budget follow it unless --aeps/--aeps-rel is given), the BF
+    /// oracle's BFeps (relative to the
     /// brightest emission) or Feps (hierarchical).
     ///
     /// A list (`0.1,0.05,0.025`) solves at each threshold in turn, each finer step refining from
@@ -441,7 +442,8 @@ pub fn preset(args: &SolverArgs) -> anyhow::Result<Preset> {
 
 /// The hierarchical solver's settings: the preset's, modified by the flags. The one threshold
 /// (`--threshold`, or the oracle's own flag) is resolved by [`spec::with_threshold`]; with the
-/// error oracle the area floor follows it unless `--aeps`/`--aeps-rel` is given.
+/// error oracle the area floor and the ladder's link budget follow it unless `--aeps`/`--aeps-rel`
+/// is given.
 pub fn hierarchical_params(args: &SolverArgs) -> anyhow::Result<HierarchicalParams> {
     let mut p = preset(args)?.hierarchical();
     if let Some(o) = args.oracle {

@@ -20,6 +20,10 @@ use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
+/// The share of the links a budget has left that the pass reaching it plans to add
+/// (`cut_to_budget`).
+const BUDGET_MARGIN: f64 = 0.95;
+
 /// Receivers whose link lists the oracle's first pass loads together (see `decide_all`).
 pub(super) const TOUCH_AHEAD: usize = 16;
 
@@ -74,7 +78,7 @@ impl HierarchicalSolver {
             Vec::new()
         };
         while !self.cancelled() {
-            if run.total_links >= self.setup.params.max_links {
+            if self.link_room(&run) == 0 {
                 self.log.stats.budget_hit = true;
                 break;
             }
@@ -83,12 +87,16 @@ impl HierarchicalSolver {
             }
             // A: decide, in parallel, read-only.
             let phase = Instant::now();
-            let decisions = self.decide_pass(&mut run);
+            let mut decisions = self.decide_pass(&mut run);
             self.log.stats.refine_passes += 1;
             self.log.stats.refine_decided += decisions.len();
             if decisions.is_empty() {
                 break;
             }
+            // Under the error oracle, a pass that would overrun the link budget splits the
+            // pairs of the largest errors only, and is the last.
+            let cut = run.track && self.cut_to_budget(&mut decisions, &run);
+            self.log.stats.budget_hit |= cut;
             let mut to_split =
                 chosen_elements(&self.graph.links.by_receiver, &decisions, self.hier.len(), &mut run);
             self.log.stats.refine_decide_s += phase.elapsed().as_secs_f64();
@@ -125,8 +133,57 @@ impl HierarchicalSolver {
             pace.replace_s += replace_start.elapsed().as_secs_f64();
             pace.replaced += replacing as u64;
             pace.added += self.graph.links.len() as f64 - links_before as f64;
+            if cut {
+                break;
+            }
         }
         self.finish_refinement(run, t)
+    }
+
+    /// How many more links `max_links` allows.
+    fn link_room(&self, run: &Refinement) -> usize {
+        self.setup.params.max_links.saturating_sub(run.total_links)
+    }
+
+    /// If splitting every link of `decisions` would take more links than the budget allows
+    /// (estimated from the links the passes so far added per link they replaced; 3 before any),
+    /// keep only the splits of the pairs whose larger receiver error is largest, as many as fit
+    /// in [`BUDGET_MARGIN`] of the room,
+    /// and mark the receivers that lose splits as stopped by the budget. A pair's two links
+    /// share that key, so they stay mirror images. Returns whether anything was cut.
+    fn cut_to_budget(&self, decisions: &mut [ReceiverDecision], run: &Refinement) -> bool {
+        let Some(field) = run.err_field.as_ref() else { return false };
+        let replacing: usize = decisions.iter().map(|(_, v)| v.splits.len()).sum();
+        let pace = &self.log.pace;
+        let per = if pace.replaced > 0 { (pace.added / pace.replaced as f64).max(1.0) } else { 3.0 };
+        let room = self.link_room(run) as f64;
+        if replacing as f64 * per <= room {
+            return false;
+        }
+        let lists = &self.graph.links.by_receiver;
+        let key = |r: u32, i: u32| {
+            let q = lists[r as usize][i as usize].source;
+            field.err[r as usize].max(field.err[q as usize])
+        };
+        let mut keys: Vec<f64> =
+            decisions.iter().flat_map(|(r, v)| v.splits.iter().map(move |&(i, _)| key(*r, i))).collect();
+        // The estimate is a mean over the passes before: a margin keeps the pass under the budget
+        // (a state of at most `max_links` fits where the solver keeps solved states).
+        let fit = (BUDGET_MARGIN * room / per) as usize;
+        let cutoff = if fit < keys.len() {
+            keys.select_nth_unstable_by(fit, |a, b| b.total_cmp(a));
+            keys[fit]
+        } else {
+            return false;
+        };
+        for (r, v) in decisions.iter_mut() {
+            let before = v.splits.len();
+            v.splits.retain(|&(i, _)| key(*r, i) > cutoff);
+            if v.splits.len() < before {
+                v.keep(StopReason::LinkBudget);
+            }
+        }
+        true
     }
 
     /// The state a refinement starts from: the oracle's threshold and its copy of B, and the
