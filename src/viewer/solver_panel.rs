@@ -192,11 +192,9 @@ impl SolverPanel {
         ui.add_enabled_ui(!reads_feps, |ui| log_slider(ui, name, &mut p.bf_eps, 1e-6, 1.0, &tip))
             .response
             .on_disabled_hover_text("BFeps: read by the BF oracle only");
-        // On the ladder the area floor follows ε (`discontinuity::contact_area_floor`); an Aeps
-        // set by hand stays.
-        let floor = |eps| contact_area_floor(HierarchicalParams { bf_eps: eps, ..p }).aeps;
-        if p.bf_eps != eps_before && p.aeps == floor(eps_before) {
-            p.aeps = floor(p.bf_eps);
+        if p.bf_eps != eps_before {
+            let eps = p.bf_eps;
+            p = slide_threshold(HierarchicalParams { bf_eps: eps_before, ..p }, eps);
         }
         // The rays and the depth cap share a row: the side panel fits a 1280 × 800 screen
         // unscrolled with a figure's caption open.
@@ -338,5 +336,39 @@ impl View for ProgressPanel {
             ui.ctx().request_repaint_after(BUSY_REPAINT);
         }
         action
+    }
+}
+
+/// `p` with the error threshold ε set to `eps` as the Solver panel's slider sets it: on the
+/// ladder the area floor follows ε (`discontinuity::contact_area_floor`) and so does the link
+/// budget (`spec::follow_ladder_budget`: a finer ε refines further instead of stopping at the
+/// coarser one's budget); an Aeps or a budget set by hand stays.
+#[must_use]
+pub fn slide_threshold(p: HierarchicalParams, eps: f64) -> HierarchicalParams {
+    let floor = |e| contact_area_floor(HierarchicalParams { bf_eps: e, ..p }).aeps;
+    let mut q = HierarchicalParams { bf_eps: eps, ..p };
+    if eps != p.bf_eps && p.aeps == floor(p.bf_eps) {
+        q.aeps = floor(eps);
+    }
+    crate::solver::spec::follow_ladder_budget(q, p.bf_eps)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The slider moves a ladder step's threshold, area floor and link budget together to the
+    /// ladder's finer step; an area floor or a budget set by hand stays.
+    #[test]
+    fn the_slider_moves_the_ladders_floor_and_budget_with_the_threshold() {
+        let q = slide_threshold(Preset::Quality.hierarchical(), 0.025);
+        let fine = Preset::Fine.hierarchical();
+        assert_eq!((q.bf_eps, q.aeps, q.max_links), (fine.bf_eps, fine.aeps, fine.max_links));
+        let own = HierarchicalParams { max_links: 1_000, ..Preset::Quality.hierarchical() };
+        let q = slide_threshold(own, 0.025);
+        assert_eq!((q.aeps, q.max_links), (fine.aeps, 1_000));
+        let own = HierarchicalParams { aeps: AreaEps::Absolute(2.0), ..Preset::Quality.hierarchical() };
+        let q = slide_threshold(own, 0.025);
+        assert_eq!((q.aeps, q.max_links), (AreaEps::Absolute(2.0), fine.max_links));
     }
 }

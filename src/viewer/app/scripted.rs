@@ -3,7 +3,6 @@
 //! `--bench-frames`): wait for the solve, let the display settle, then shoot or measure.
 
 use super::RadlabApp;
-use crate::solver::params::HierarchicalParams;
 use crate::viewer::file_dialog::{Answer, Purpose};
 use crate::viewer::geometry::ShownGeometry;
 use crate::viewer::script::{self, BenchScene, Script};
@@ -182,7 +181,7 @@ impl RadlabApp {
                     left.remove(0);
                     *waiting = Some((from, to, Instant::now()));
                 }
-                self.set_params(HierarchicalParams { bf_eps: to, ..self.solve.params });
+                self.set_params(crate::viewer::solver_panel::slide_threshold(self.solve.params, to));
             }
             Some((from, to, at)) if shown && self.shown.view.params.bf_eps.to_bits() == to.to_bits() => {
                 let s = at.elapsed().as_secs_f64();
