@@ -207,9 +207,9 @@ pub const fn ladder_row_tol(eps: f64) -> f64 {
 
 /// The ladder's link budget: 4 M at ε = 0.05 and above, growing as ε^−1.5 below (11.3 M at
 /// 0.025, 32 M at 0.0125; at most 64 M). A finer step refines further, and a budget that stopped
-/// it half-way would leave it less accurate than it should be: splash_room's `fine` and
-/// `reference` need about 12 and 33 M links, and with the budget growing as 1/ε (8 and 16 M)
-/// they read 2.29 and 2.07 % instead of 2.16 and 1.85 % (docs/solver.md, "Presets").
+/// it half-way would leave it less accurate than it should be: with the budget growing as 1/ε
+/// (8 and 16 M), splash_room's `fine` and `reference` read 2.29 and 2.07 %, with these budgets
+/// 2.18 and 1.70 % (docs/solver.md, "Presets").
 #[must_use]
 pub const fn ladder_max_links(eps: f64) -> usize {
     let r = 0.05 / eps.max(1e-6);

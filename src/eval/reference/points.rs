@@ -481,22 +481,17 @@ pub const ENCLOSED_RAYS: usize = 64;
 /// shown to no one. A point that sees a front face or open sky in any of the directions is kept.
 /// Deterministic, and identical for any thread count.
 pub fn enclosed(scene: &Scene, accel: &Accel, points: &[RefPoint]) -> Vec<bool> {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let dirs: Vec<(f64, f64, f64)> = (0..ENCLOSED_RAYS)
-        .map(|k| {
-            let u = (k as f64 + 0.5) / ENCLOSED_RAYS as f64;
-            let (cos_t, sin_t) = ((1.0 - u).sqrt(), u.sqrt());
-            let phi = golden * k as f64;
-            (sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
-        })
+    // (u, v) of the reference's own cosine sampling: u stratified, v turned by the golden ratio.
+    let golden = (3.0 - 5f64.sqrt()) / 2.0;
+    let uv: Vec<(f64, f64)> = (0..ENCLOSED_RAYS)
+        .map(|k| ((k as f64 + 0.5) / ENCLOSED_RAYS as f64, (golden * k as f64).fract()))
         .collect();
     points
         .par_iter()
         .map(|p| {
             let n = scene.patches[p.patch].normal;
-            let (t1, t2) = crate::math::orthonormal_basis(n);
-            dirs.iter().all(|&(x, y, z)| {
-                let d = t1 * x + t2 * y + n * z;
+            uv.iter().all(|&(u, v)| {
+                let d = super::cosine_direction(n, u, v);
                 accel
                     .first_hit(p.position, d, p.patch as u32)
                     .is_some_and(|(q, _)| scene.patches[q as usize].normal.dot(d) > 0.0)
